@@ -1,0 +1,28 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "biped_sim"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/msg_configs", glob("msg_configs/*.yaml")),
+    ],
+    install_requires=["setuptools", "numpy", "scipy"],
+    zip_safe=True,
+    maintainer="biped_sim team",
+    maintainer_email="biped_sim@example.com",
+    description="Exact hybrid-dynamics simulator of a planar three-link biped, as an rclpy node.",
+    license="Apache-2.0",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "biped-sim = biped_sim.cli:main",
+        ],
+    },
+)

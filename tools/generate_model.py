@@ -1,0 +1,200 @@
+#!/usr/bin/env python3
+"""Generate biped_sim/_generated.py: closed-form model expressions from the energies (MODEL.md).
+
+Run once whenever the model changes (``make generate``); the package never imports sympy.
+Everything is derived from the kinetic and potential energies of MODEL.md:
+  T = sum_links 1/2 m |v_centre|^2 + 1/2 I w^2,   V = g sum_links m y_centre,
+  D = d^2T/d dq^2,  C from the Christoffel symbols of D,  G = dV/dq,
+  p_i = (x + l_leg sin(qi + q3), y + l_leg cos(qi + q3)),  J_i = dp_i/dq,  Jdot_i.
+Two stance solvers are emitted as straight-line scalar code:
+  * floating base: the KKT system [D -J^T; J 0][ddq; F] = [-C dq - G + B u; -Jdot dq] solved by
+    eliminating the constraint rows (J = [I2 | A], so ddq_base = -A ddq_r - Jdot dq, and the three
+    remaining equations are projected on the null space of J, which removes F);
+  * fixed base: the stance foot is a pin, the chain has the three coordinates (q1, q2, q3),
+    D_s, C_s dq_s and G_s come from the chain's own energies, and F is recovered from Newton's law
+    for the whole body (F = m_total * (ddp_com + [0, g])).
+The parameters are arguments of the generated functions, so changing a mass needs no regeneration.
+"""
+import pathlib
+import re
+
+import sympy as sp
+
+OUT = pathlib.Path(__file__).resolve().parent.parent / "biped_sim" / "_generated.py"
+
+PARAMS = sp.symbols("m_torso I_torso l_torso c_torso m_leg I_leg l_leg c_leg g", real=True)
+m_t, I_t, l_t, c_t, m_l, I_l, l_l, c_l, g = PARAMS
+x, y, q1, q2, q3 = q = sp.symbols("x y q1 q2 q3", real=True)
+dx, dy, dq1, dq2, dq3 = dq = sp.symbols("dx dy dq1 dq2 dq3", real=True)
+u1, u2 = u = sp.symbols("u1 u2", real=True)
+Q = sp.Matrix(q)
+DQ = sp.Matrix(dq)
+
+
+def point(base, length, angle):
+    return base + length * sp.Matrix([sp.sin(angle), sp.cos(angle)])
+
+
+hip = sp.Matrix([x, y])
+links = [  # (mass, inertia, centre, absolute angle)
+    (m_l, I_l, point(hip, c_l, q1 + q3), q1 + q3),
+    (m_l, I_l, point(hip, c_l, q2 + q3), q2 + q3),
+    (m_t, I_t, point(hip, c_t, q3), q3),
+]
+feet = [point(hip, l_l, q1 + q3), point(hip, l_l, q2 + q3)]
+m_total = 2 * m_l + m_t
+com = sum((m * p for m, _, p, _ in links), sp.zeros(2, 1)) / m_total
+
+
+def energies(coords, dcoords, subs):
+    T = 0
+    V = 0
+    for m, I, p, a in links:
+        p = p.subs(subs)
+        a = a.subs(subs)
+        v = p.jacobian(coords) * dcoords
+        w = sp.Matrix([a]).jacobian(coords) * dcoords
+        T += sp.Rational(1, 2) * m * (v.T * v)[0] + sp.Rational(1, 2) * I * w[0] ** 2
+        V += g * m * p[1]
+    return sp.simplify(T), sp.simplify(V)
+
+
+def lagrange(T, V, coords, dcoords):
+    """D, C (Christoffel), G of the Lagrangian T - V."""
+    n = len(coords)
+    D = sp.hessian(T, dcoords).applyfunc(sp.simplify)
+    C = sp.zeros(n, n)
+    for k in range(n):
+        for j in range(n):
+            C[k, j] = sum(
+                sp.Rational(1, 2) * (sp.diff(D[k, j], coords[i]) + sp.diff(D[k, i], coords[j])
+                                     - sp.diff(D[i, j], coords[k])) * dcoords[i]
+                for i in range(n))
+    C = C.applyfunc(sp.simplify)
+    G = sp.Matrix([sp.diff(V, c) for c in coords]).applyfunc(sp.simplify)
+    return D, C, G
+
+
+# ---- floating base (N = 5) -------------------------------------------------------------------
+T, V = energies(Q, DQ, {})
+D, C, G = lagrange(T, V, q, dq)
+B = sp.Matrix([[0, 0], [0, 0], [1, 0], [0, 1], [0, 0]])
+J = [f.jacobian(Q) for f in feet]
+Jdot = [sp.zeros(2, 5) for _ in feet]
+for i in range(2):
+    for k in range(5):
+        Jdot[i] += sp.diff(J[i], q[k]) * dq[k]
+    Jdot[i] = Jdot[i].applyfunc(sp.simplify)
+h = (C * DQ + G).applyfunc(sp.simplify)  # bias forces
+
+# floating-base stance on leg 1 by null-space elimination of the KKT system
+A = J[0][:, 2:]                     # J_1 = [I2 | A]
+gamma = -(Jdot[0] * DQ)             # ddq_base = -A ddq_r + gamma
+P = sp.Matrix.vstack(-A, sp.eye(3))  # J_1 P = 0
+e = sp.Matrix([gamma[0], gamma[1], 0, 0, 0])
+Mr = (P.T * D * P).applyfunc(sp.simplify)
+br = (P.T * (B * sp.Matrix(u) - h - D * e))
+Fexpr_rows = D[:2, :]                # F = D[:2,:] ddq + h[:2] (B has no rows for x, y)
+
+# ---- fixed base (N = 3), stance foot of leg 1 pinned at (cx, cy) --------------------------------
+cx, cy = sp.symbols("cx cy", real=True)
+qs = sp.Matrix([q1, q2, q3])
+dqs = sp.Matrix([dq1, dq2, dq3])
+hip_s = sp.Matrix([cx, cy]) - l_l * sp.Matrix([sp.sin(q1 + q3), sp.cos(q1 + q3)])
+Ts, Vs = energies(qs, dqs, {x: hip_s[0], y: hip_s[1]})
+Ds, Cs, Gs = lagrange(Ts, Vs, [q1, q2, q3], [dq1, dq2, dq3])
+hs = (Cs * dqs + Gs).applyfunc(sp.simplify)
+com_s = com.subs({x: hip_s[0], y: hip_s[1]})
+Jc = com_s.jacobian(qs)
+# ddp_com = Jc ddq_s + (d/dt Jc) dq_s; (d/dt Jc) dq_s = sum_k d(Jc dq_s)/dq_k dq_k
+vc = Jc * dqs
+Jcdot_dq = (vc.jacobian(qs) * dqs).applyfunc(sp.simplify)
+hip_s_vel = (hip_s.jacobian(qs) * dqs)
+
+
+# ---- code emission ---------------------------------------------------------------------------
+POW2 = re.compile(r"\b([A-Za-z_]\w*)\*\*2\b")
+
+
+def py(ex):
+    # x*x is about twice as fast as x**2 for Python floats
+    return POW2.sub(r"\1*\1", sp.pycode(ex, fully_qualified_modules=False))
+
+
+def fn(name, unpack, outputs, doc):
+    """Two functions of straight-line scalar code with shared subexpressions.
+
+    ``<name>_constants(p)`` computes, once per model, every subexpression that depends on the
+    parameters only; ``<name>(..., k)`` takes that tuple, so the hot path repeats none of it.
+    """
+    flat = []
+    for o in outputs:
+        flat.extend(list(o) if isinstance(o, sp.MatrixBase) else [o])
+    repl, reduced = sp.cse(flat, symbols=sp.numbered_symbols("t"), optimizations="basic")
+    const = set(PARAMS)
+    hoisted, body = [], []
+    for sym, ex in repl:
+        if ex.free_symbols <= const:
+            const.add(sym)
+            hoisted.append((sym, ex))
+        else:
+            body.append((sym, ex))
+    knames = [str(s) for s in PARAMS] + [str(s) for s, _ in hoisted]
+    args = [u.split(" = ")[1] for u in unpack] + ["k"]
+    lines = [f"def {name}_constants(p):",
+             f'    """Parameter-only subexpressions of {name}."""',
+             "    " + ", ".join(str(s) for s in PARAMS) + " = p"]
+    lines += [f"    {s} = {py(ex)}" for s, ex in hoisted]
+    lines.append("    return (" + ", ".join(knames) + ",)")
+    lines += ["", "", f"def {name}({', '.join(args)}):", f'    """{doc}"""']
+    lines += ["    " + u for u in unpack]
+    lines.append("    " + ", ".join(knames) + " = k")
+    lines += [f"    {s} = {py(ex)}" for s, ex in body]
+    lines.append("    return (" + ", ".join(py(r) for r in reduced) + ",)")
+    NAMES.append(name)
+    return "\n".join(lines)
+
+
+NAMES = []
+UQ = "x, y, q1, q2, q3 = q"
+UDQ = "dx, dy, dq1, dq2, dq3 = dq"
+UU = "u1, u2 = u"
+chunks = [
+    fn("mass_matrix", [UQ], [D], "D(q), 5x5 row-major (25 values)."),
+    fn("coriolis_matrix", [UQ, UDQ], [C], "C(q, dq) from the Christoffel symbols of D, row-major."),
+    fn("gravity_vector", [UQ], [G], "G(q) = dV/dq."),
+    fn("bias_forces", [UQ, UDQ], [h], "C(q, dq) dq + G(q)."),
+    fn("foot_positions", [UQ], [feet[0], feet[1]], "p_1 (2), then p_2 (2)."),
+    fn("foot_jacobian_1", [UQ], [J[0]], "J_1 = dp_1/dq, 2x5 row-major."),
+    fn("foot_jacobian_2", [UQ], [J[1]], "J_2 = dp_2/dq, 2x5 row-major."),
+    fn("foot_jacobian_dot_1", [UQ, UDQ], [Jdot[0]], "dJ_1/dt, 2x5 row-major."),
+    fn("foot_jacobian_dot_2", [UQ, UDQ], [Jdot[1]], "dJ_2/dt, 2x5 row-major."),
+    fn("foot_kinematics", [UQ, UDQ], [feet[0], feet[1], J[0] * DQ, J[1] * DQ],
+       "p_1 (2), p_2 (2), dp_1/dt (2), dp_2/dt (2)."),
+    fn("energy", [UQ, UDQ], [T, V], "(T, V): kinetic and potential energy."),
+    fn("com_position", [UQ], [com], "Centre of mass of the whole robot."),
+    fn("stance_terms_1", [UQ, UDQ, UU],
+       [Mr[0, 0], Mr[0, 1], Mr[0, 2], Mr[1, 1], Mr[1, 2], Mr[2, 2], br, A, gamma, m_total,
+        Fexpr_rows[:, 2:], h[:2, 0]],
+       "Floating-base KKT (leg 1 on the ground), reduced: Mr (6 upper), br (3), A (6), gamma (2), "
+       "m_total (1; D_bb = m_total I2), D_br (6), h_b (2)."),
+    fn("fixed_base_terms_1", ["q1, q2, q3 = qs", "dq1, dq2, dq3 = dqs", UU],
+       [Ds[0, 0], Ds[0, 1], Ds[0, 2], Ds[1, 1], Ds[1, 2], Ds[2, 2],
+        sp.Matrix([u1, u2, 0]) - hs, Jc, Jcdot_dq, -l_l * sp.Matrix([sp.sin(q1 + q3), sp.cos(q1 + q3)]),
+        hip_s_vel],
+       "Fixed-base chain pinned at the foot of leg 1: D_s (6 upper), B_s u - C_s dq_s - G_s (3), "
+       "J_com (6), Jdot_com dq_s (2), hip minus foot (2), hip velocity (2)."),
+]
+header = '''"""GENERATED by tools/generate_model.py from the energies of MODEL.md -- do not edit.
+
+Straight-line scalar closed forms. Each ``f(..., k)`` takes ``k = f_constants(p)``, computed once
+per model from the parameter tuple p = (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg,
+c_leg, g).
+"""
+from math import sin, cos
+
+PARAMETER_NAMES = ("m_torso", "I_torso", "l_torso", "c_torso", "m_leg", "I_leg", "l_leg", "c_leg", "g")
+'''
+footer = "\n\nCONSTANTS = {" + ", ".join(f"{n!r}: {n}_constants" for n in NAMES) + "}\n"
+OUT.write_text(header + "\n\n" + "\n\n\n".join(chunks) + footer)
+print(f"wrote {OUT}")
