@@ -23,6 +23,11 @@ setup(
     entry_points={
         "console_scripts": [
             "biped-sim = biped_sim.cli:main",
+            "sim_node = biped_sim.node:main",
+            "torque_pub = biped_sim.torque_pub:main",
+            "biped_echo = biped_sim.echo:main",
+            "replay = biped_sim.replay:main",
+            "walk_controller = biped_sim.walk_controller_node:main",
         ],
     },
 )
