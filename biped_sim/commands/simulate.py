@@ -32,7 +32,12 @@ def register(sub):
                     "and energy-balance residual. Without --q0/--dq0 it starts on the reference "
                     "walking gait.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    p.add_argument("--duration", type=float, default=10.0, help="simulated time (s)")
+    p.add_argument("--scene", metavar="NAME|PATH",
+                   help="run a scene (msg_configs/NAME.yaml or a YAML path): its initial state, phases, options "
+                        "and controller, torques held over its control_period as the node does; --duration "
+                        "overrides its duration, --continuous feeds back continuously; other options are ignored")
+    p.add_argument("--continuous", action="store_true", help="with --scene: continuous feedback instead of held torques")
+    p.add_argument("--duration", type=float, default=None, help="simulated time (s) [default: 10, or the scene's]")
     p.add_argument("--q0", type=_floats(5), help="initial q = 'x y q1 q2 q3' (m, rad), physical coordinates")
     p.add_argument("--dq0", type=_floats(5), help="initial dq (m/s, rad/s)")
     p.add_argument("--stance-leg", type=int, choices=(0, 1, 2), default=1, help="initial stance leg (0: flight)")
@@ -51,6 +56,16 @@ def register(sub):
 
 
 def run(args):
+    if args.scene:
+        from ..scenes import load_scene
+        scene = load_scene(args.scene)
+        overrides = {} if args.duration is None else {"t_final": args.duration}
+        print(f"scene {scene.name} ({scene.path}): phases {sorted(scene.phases)}, base {scene.params['base']}, "
+              f"controller {'walk' if scene.controller_params else 'none (u = 0)'}")
+        result = scene.simulate(hold=not args.continuous, **overrides)
+        return _report(result, args)
+    if args.duration is None:
+        args.duration = 10.0
     model = BipedModel()
     ctrl = WalkingController(model)
     if (args.q0 is None) != (args.dq0 is None):
@@ -64,6 +79,10 @@ def run(args):
     result = simulate(model, q0, dq0, args.duration, controller=ctrl if args.controller == "walk" else None,
                       stance_leg=args.stance_leg, rtol=args.rtol, atol=args.atol, method=args.method,
                       control_period=args.control_period, mu=args.mu, **options)
+    return _report(result, args)
+
+
+def _report(result, args):
     print_summary(result)
     if args.events:
         for e in result.events:
