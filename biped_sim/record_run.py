@@ -1,0 +1,94 @@
+"""A headless run recorded to a bag, exactly as the node records a ``lockstep`` run.
+
+Owns ``simulate --record``: the engine advances one control period per torque command (the
+controller is called at the start of each period and its torques are held, as
+``hybrid.simulate(..., control_period=...)`` and the node's lockstep mode do), and every message
+the node would publish is written with the node's message functions (:mod:`biped_sim.messages`):
+``/hip_torque`` (the command, at the start of its period), ``/impact`` (at the located impact
+time), ``/diagnostics`` (other events), then ``/joint_states``, ``/ground_reaction`` (in stance)
+and ``/clock`` at the end of the period. The state at t = 0 is written first.
+"""
+from __future__ import annotations
+
+import signal
+
+from . import messages as M
+from .parameters import engine_arguments
+
+
+def topics_for(params) -> dict:
+    """{full topic name: type} that a run with these parameters publishes (and records)."""
+    out = {}
+    for name in params["outputs"]:
+        if name == "impact" and "impact" not in params["phases"]:
+            continue
+        out["/" + name] = M.TOPIC_TYPES[name]
+    out["/diagnostics"] = M.TOPIC_TYPES["diagnostics"]
+    out["/hip_torque"] = M.TOPIC_TYPES["hip_torque"]
+    return out
+
+
+def _ground_force(sim):
+    f = getattr(sim, "ground_force", None)
+    return f if f is not None else sim._samples[-1][4]
+
+
+def run_recorded(params, controller, recorder, progress=None):
+    """Run ``params`` (checked, see parameters.validate) in lockstep; record to ``recorder``.
+
+    ``controller(t, q, dq, stance_leg) -> u`` or None (u = 0). ``recorder`` is a BagRecorder or None
+    (then nothing is written: the benchmark's baseline). SIGTERM ends the run early; the caller
+    closes the recorder. Returns the HybridSimulator at the end.
+    """
+    from .hybrid import HybridSimulator
+    sim = HybridSimulator(**engine_arguments(params))
+    topics = topics_for(params)
+    if recorder is not None:
+        for name, typ in topics.items():
+            recorder.add_topic(name, typ)
+    rec = recorder.write if recorder is not None else (lambda *a: None)
+    js, grf, clock, imp = ("/joint_states" in topics, "/ground_reaction" in topics, "/clock" in topics,
+                           "/impact" in topics)
+    period, duration = params["control_period"], params["duration"]
+    u = [0.0, 0.0]
+
+    def publish_state():
+        t, ns = sim.t, M.to_ns(sim.t)
+        if js:
+            rec("/joint_states", M.joint_state_msg(t, sim.q, sim.dq, u, sim.stance_leg), ns)
+        if grf and sim.stance_leg:
+            rec("/ground_reaction", M.wrench_msg(t, _ground_force(sim), sim.stance_leg), ns)
+        if clock:
+            rec("/clock", M.clock_msg(t), ns)
+
+    stop = []
+    old = signal.getsignal(signal.SIGTERM)
+    try:
+        signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
+    except ValueError:  # not the main thread
+        old = None
+    try:
+        publish_state()
+        k = 0
+        while sim.status == "running" and sim.t < duration and not stop:
+            if controller is not None:
+                u = [float(v) for v in controller(sim.t, sim.q.copy(), sim.dq.copy(), sim.stance_leg)]
+            if recorder is not None:
+                rec("/hip_torque", M.torque_msg(u), M.to_ns(sim.t))
+            events = sim.advance(min((k + 1) * period, duration), u=u)
+            k += 1
+            if len(sim._samples) > 64:   # keep memory flat on long runs (the node does the same)
+                del sim._samples[:-1]
+            for ev in events:
+                if ev.kind in M.IMPACT_KINDS:
+                    if imp:
+                        rec("/impact", M.impact_msg(ev), M.to_ns(ev.time))
+                else:
+                    rec("/diagnostics", M.impact_msg(ev), M.to_ns(ev.time))
+            publish_state()
+            if progress is not None:
+                progress(sim)
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGTERM, old)
+    return sim
