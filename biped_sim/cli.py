@@ -9,7 +9,7 @@ import argparse
 import importlib
 import sys
 
-COMMANDS = ("simulate",)
+COMMANDS = ("simulate", "accuracy", "stability", "gait")
 
 
 def build_parser() -> argparse.ArgumentParser:

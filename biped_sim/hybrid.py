@@ -406,8 +406,11 @@ class HybridSimulator:
             if max(map(abs, dq)) > self.opt.max_speed:
                 raise SimulationError(f"diverging state at t={st.t:.9g} s: a velocity exceeds "
                                       f"{self.opt.max_speed:g} (dq={np.round(dq, 3).tolist()})")
-            self._check_ground(st.t, q, dq)
             event = self._detect(st, q, dq)
+            if event is None:
+                # (issue 5) checked only when no guard crossed in this step: a long free-flight step
+                # can pass the ground by more than max_penetration before its touchdown is located
+                self._check_ground(st.t, q, dq)
             if event is not None:
                 t_ev, kind, legs = event
                 y_ev = st.dense_output()(t_ev)
