@@ -659,6 +659,11 @@ class HybridSimulator:
         self.stats["events"] = len(self.events)
         self._stop("failed", msg)
 
+    @property
+    def ground_force(self):
+        """Ground force on the stance foot at the last accepted sample, [Fx, Fy] (N); zeros in flight."""
+        return list(self._samples[-1][4])
+
     # -- results ------------------------------------------------------------------------------
     def result(self) -> SimulationResult:
         s = self._samples

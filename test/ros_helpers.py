@@ -1,0 +1,200 @@
+"""Shared helpers for tests over real DDS: start a node in a subprocess, talk to it from the test.
+
+Owns process and graph plumbing only (no assertions about the simulator):
+
+* :func:`ros_domain` -- a free ``ROS_DOMAIN_ID`` from ``domain_coordinator`` (context manager);
+  every process started here gets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``.
+* :func:`start_node` -- ``sim_node`` (or any console script of the venv) with ``-p name:=value``
+  parameters, output to a log file; :class:`NodeProcess` stops it with a signal and returns the code.
+* :class:`Client` -- an rclpy node in the test process, in its own context on that domain: publishers,
+  subscriptions that collect messages, and polling of the graph (never fixed sleeps).
+
+Typical use::
+
+    with ros_domain() as dom, start_node({"time_mode": "lockstep"}, dom) as proc, Client(dom) as c:
+        js = c.collect("/joint_states", JointState)
+        c.wait_for_publisher("/joint_states")
+        c.spin_until(lambda: js, timeout=10)
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+
+BIN = Path(sys.executable).parent
+DISCOVERY_TIMEOUT = 20.0
+
+
+@contextlib.contextmanager
+def ros_domain():
+    """A free ROS domain id, released at exit."""
+    import domain_coordinator
+    with domain_coordinator.domain_id() as dom:
+        yield int(dom)
+
+
+def param_text(value) -> str:
+    """A parameter value as ``--ros-args -p`` reads it (YAML)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(param_text(v) for v in value) + "]"
+    return str(value)
+
+
+def ros_env(domain_id: int) -> dict:
+    env = dict(os.environ)
+    env.update(ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", PYTHONUNBUFFERED="1",
+               RCUTILS_COLORIZED_OUTPUT="0")
+    return env
+
+
+class NodeProcess:
+    """A started console script; use as a context manager (SIGTERM, then SIGKILL, at exit)."""
+
+    def __init__(self, argv, domain_id, log_path=None):
+        self.argv = list(argv)
+        if log_path is None:
+            fd, log_path = tempfile.mkstemp(prefix="node-", suffix=".log")
+            os.close(fd)
+        self.log_path = Path(log_path)
+        self._log = open(self.log_path, "wb")
+        self.proc = subprocess.Popen(self.argv, env=ros_env(domain_id), stdout=self._log, stderr=subprocess.STDOUT,
+                                     stdin=subprocess.DEVNULL)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+    @property
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def output(self) -> str:
+        if not self._log.closed:
+            self._log.flush()
+        return self.log_path.read_text(errors="replace")
+
+    def wait(self, timeout=30.0) -> int:
+        return self.proc.wait(timeout=timeout)
+
+    def stop(self, sig=signal.SIGTERM, timeout=15.0) -> int:
+        """Send ``sig`` (if still running) and return the exit code; SIGKILL after ``timeout``."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+            try:
+                self.proc.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self._log.close() if not self._log.closed else None
+        return self.proc.returncode
+
+
+def start_node(params: dict | None = None, domain_id: int = 0, executable: str = "sim_node",
+               extra_args=(), log_path=None) -> NodeProcess:
+    """Start ``executable`` (a console script of this venv) with ROS parameters ``params``."""
+    argv = [str(BIN / executable), *extra_args]
+    if params:
+        argv.append("--ros-args")
+        for name, value in params.items():
+            argv += ["-p", f"{name}:={param_text(value)}"]
+    return NodeProcess(argv, domain_id, log_path)
+
+
+class Client:
+    """An rclpy node in this process on ``domain_id`` (own context); a context manager."""
+
+    def __init__(self, domain_id: int, name: str = "test_client"):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def close(self):
+        if self.context.ok():
+            self.executor.shutdown()
+            self.node.destroy_node()
+            self.context.shutdown()
+
+    @staticmethod
+    def qos(depth=1000, transient_local=True):
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL if transient_local else DurabilityPolicy.VOLATILE)
+
+    def collect(self, topic, msg_type, transient_local=True, callback=None) -> list:
+        """Subscribe; every message is appended to the returned list (and passed to ``callback``)."""
+        box = []
+
+        def on_msg(msg):
+            box.append(msg)
+            if callback is not None:
+                callback(msg)
+        self.node.create_subscription(msg_type, topic, on_msg, self.qos(transient_local=transient_local))
+        return box
+
+    def publisher(self, topic, msg_type, depth=1000):
+        return self.node.create_publisher(msg_type, topic, self.qos(depth, transient_local=False))
+
+    def spin_once(self, timeout=0.05):
+        self.executor.spin_once(timeout_sec=timeout)
+
+    def spin_until(self, predicate, timeout=DISCOVERY_TIMEOUT, what="condition", proc: NodeProcess | None = None):
+        """Spin until ``predicate()`` is true; AssertionError after ``timeout`` s (with the node's log)."""
+        end = time.monotonic() + timeout
+        while not predicate():
+            if time.monotonic() > end:
+                log = f"\n--- node log ---\n{proc.output()}" if proc is not None else ""
+                raise AssertionError(f"timed out after {timeout} s waiting for {what}{log}")
+            if proc is not None and not proc.alive and not predicate():
+                self.spin_once(0.05)
+                if predicate():
+                    return
+                raise AssertionError(f"the node exited (code {proc.proc.returncode}) while waiting for {what}"
+                                     f"\n--- node log ---\n{proc.output()}")
+            self.spin_once(0.05)
+
+    # -- graph ------------------------------------------------------------------------------
+    def wait_for_publisher(self, topic, timeout=DISCOVERY_TIMEOUT, proc=None):
+        self.spin_until(lambda: self.node.count_publishers(topic) > 0, timeout, f"a publisher on {topic}", proc)
+
+    def wait_for_subscriber(self, topic, timeout=DISCOVERY_TIMEOUT, proc=None):
+        self.spin_until(lambda: self.node.count_subscribers(topic) > 0, timeout, f"a subscriber on {topic}", proc)
+
+    def wait_matched(self, publisher, timeout=DISCOVERY_TIMEOUT, proc=None):
+        """Until ``publisher`` (ours) is matched by a subscription (so that what it sends arrives)."""
+        self.spin_until(lambda: publisher.get_subscription_count() > 0, timeout,
+                        f"a match for our publisher on {publisher.topic_name}", proc)
+
+    def wait_for_node(self, name, namespace="/", timeout=DISCOVERY_TIMEOUT, proc=None):
+        self.spin_until(lambda: (name, namespace) in self.node.get_node_names_and_namespaces(), timeout,
+                        f"node {namespace}{name}", proc)
+
+    def node_topics(self, name, namespace="/"):
+        """({topic: [types]} published, {topic: [types]} subscribed) of a node."""
+        pubs = dict(self.node.get_publisher_names_and_types_by_node(name, namespace))
+        subs = dict(self.node.get_subscriber_names_and_types_by_node(name, namespace))
+        return pubs, subs
