@@ -9,7 +9,7 @@ import argparse
 import importlib
 import sys
 
-COMMANDS = ("simulate", "accuracy", "stability", "gait")
+COMMANDS = ("simulate", "accuracy", "stability", "gait", "resim", "inspect", "recover")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -77,8 +77,6 @@ def run_recorded(params, controller, recorder, progress=None):
                 rec("/hip_torque", M.torque_msg(u), M.to_ns(sim.t))
             events = sim.advance(min((k + 1) * period, duration), u=u)
             k += 1
-            if len(sim._samples) > 64:   # keep memory flat on long runs (the node does the same)
-                del sim._samples[:-1]
             for ev in events:
                 if ev.kind in M.IMPACT_KINDS:
                     if imp:
@@ -92,3 +90,52 @@ def run_recorded(params, controller, recorder, progress=None):
         if old is not None:
             signal.signal(signal.SIGTERM, old)
     return sim
+
+
+def params_from_args(args):
+    """(checked parameters, controller) of a ``biped-sim simulate`` command line (with or without --scene)."""
+    from . import parameters as P
+    if args.scene:
+        from .scenes import load_scene
+        scene = load_scene(args.scene)
+        params = dict(scene.params)
+        if args.duration is not None:
+            params["duration"] = float(args.duration)
+        params["time_mode"] = "lockstep"
+        return P.validate(params), scene.controller()
+    from .control import WalkingController
+    from .integrators import FIXED_STEP_METHODS
+    from .model import BipedModel
+    ctrl = WalkingController(BipedModel())
+    if (args.q0 is None) != (args.dq0 is None):
+        raise ValueError("give both --q0 and --dq0, or neither")
+    q0, dq0 = (args.q0, args.dq0) if args.q0 is not None else ctrl.initial_state()
+    values = dict(scene="simulate", time_mode="lockstep", duration=10.0 if args.duration is None else args.duration,
+                  initial_q=[float(v) for v in q0], initial_dq=[float(v) for v in dq0],
+                  initial_stance_leg=args.stance_leg, method=args.method, rtol=args.rtol, atol=args.atol,
+                  control_period=args.control_period or 0.001, mu=args.mu or 0.0, base=args.base,
+                  on_slip="stop")
+    values["publish_rate"] = 1.0 / values["control_period"]
+    if args.method in FIXED_STEP_METHODS:
+        values["step"] = args.step
+    if args.base == "fixed":
+        values["phases"] = ["stance", "impact"]
+    return P.validate(values), (ctrl if args.controller == "walk" else None)
+
+
+def simulate_recorded(args):
+    """``biped-sim simulate --record [DIR]``: the run in lockstep, recorded to DIR/<scene>-<UTC time>/."""
+    from .recorder import BagRecorder, default_bag_path
+    params, controller = params_from_args(args)
+    folder = args.record or params["bag_dir"]
+    path = default_bag_path(folder, params["scene"])
+    params["bag_dir"] = str(folder)
+    rec = BagRecorder(path, parameters=params)
+    print(f"recording to {path}", flush=True)
+    try:
+        sim = run_recorded(params, controller, rec)
+    finally:
+        rec.close()
+    print(f"recorded {sum(rec.message_counts.values())} messages: "
+          + ", ".join(f"{k} {v}" for k, v in rec.message_counts.items()))
+    return sim.result()

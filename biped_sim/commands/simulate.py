@@ -52,10 +52,17 @@ def register(sub):
     p.add_argument("--mu", type=float, default=None, help="friction coefficient (default: enough friction)")
     p.add_argument("--base", choices=("floating", "fixed"), default="floating", help="stance method")
     p.add_argument("--events", action="store_true", help="list every event")
+    p.add_argument("--record", nargs="?", const="", default=None, metavar="DIR",
+                   help="record the run to a rosbag2/MCAP bag DIR/<scene>-<UTC time>/ (DIR default: bags), run in "
+                        "lockstep as the node runs it (control period: --control-period or the scene's, 1 ms "
+                        "without); see docs/recording.md")
     p.set_defaults(func=run)
 
 
 def run(args):
+    if args.record is not None:
+        from ..record_run import simulate_recorded
+        return _report(simulate_recorded(args), args)
     if args.scene:
         from ..scenes import load_scene
         scene = load_scene(args.scene)
