@@ -197,7 +197,7 @@ class HybridSimulator:
         self._last_start_F_t = None
         self.events: list[Event] = []
         feet = self._feet(q0.tolist(), dq0.tolist())
-        self.armed = [feet[1] > self.opt.arm_height, feet[3] > self.opt.arm_height]
+        self.armed = [feet[1] > self.opt.arm_height, feet[5] > self.opt.arm_height]  # (issue 5) foot 2 height is feet[5]
         self.pin = None
         if stance_leg:
             fx, fy = self._foot_xy(q0.tolist(), stance_leg)
