@@ -121,7 +121,8 @@ class Options:
     zeno_interval: float = 1e-6        # s; this many impacts in a row closer than it stop the run
     zeno_count: int = 20
     max_speed: float = 1e4             # a velocity entry above this is a diverging state
-    max_penetration: float = 0.05      # m; a free foot deeper than this below the ground: the robot fell
+    max_penetration: float = 0.05      # m; a free foot this deep below the ground: the robot fell
+                                       # or a touchdown was missed (checked when impacts are modelled)
     compute_grf: bool = True
 
     def check(self):
@@ -210,6 +211,9 @@ class HybridSimulator:
         self._stepper = None
         self._last_F = [0.0, 0.0]
         self._recent_impacts: list[float] = []
+        # a guard that just fired starts at ~0 after its reset: it stays latched (off) until it has
+        # been positive at a step's end, so it cannot fire again at the same instant
+        self._latched: set = set()
         self.stats = dict(steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
                           max_constraint_drift_position=0.0, max_constraint_drift_velocity=0.0,
                           max_energy_balance_residual=0.0, scuffs_ignored=0, wall_time=0.0)
@@ -344,7 +348,7 @@ class HybridSimulator:
             g.append(("liftoff", self.stance_leg))
             if self.mu is not None:
                 g.append(("slip", self.stance_leg))
-        else:
+        elif "impact" in self.opt.phases:
             for leg in (1, 2):
                 if self.armed[leg - 1]:
                     g.append(("touchdown", leg))
@@ -428,10 +432,23 @@ class HybridSimulator:
                 st.y = np.array(q + dq + [w])  # continue from the projected state
         self.stats["rejected_steps"] = self._rejected_base + st.nrejected
 
+    @property
+    def last_impact(self):
+        """The last touchdown event, or None."""
+        return next((e for e in reversed(self.events) if e.kind in ("touchdown", "double_touchdown")), None)
+
     def _check_ground(self, t, q, dq):
+        if "impact" not in self.opt.phases:
+            return  # a scene without impacts ignores the ground under the swing foot
         f = self._feet(q, dq)
         for leg in (1, 2):
             if leg != self.stance_leg and f[4 * (leg - 1) + 1] < -self.opt.max_penetration:
+                last = self.last_impact
+                if last is not None and last.kind == "double_touchdown":
+                    raise SimulationError(
+                        f"foot {leg} goes {-f[4 * (leg - 1) + 1]:.3g} m into the ground at t={t:.9g} s after the "
+                        f"double touchdown at t={last.time:.9g} s: double support is not modelled (the run "
+                        f"continued on foot {last.leg} only)")
                 raise SimulationError(
                     f"foot {leg} is {-f[4 * (leg - 1) + 1]:.3g} m below the ground at t={t:.9g} s: the robot fell "
                     f"or the foot passed the ground where no touchdown counts (touchdown_rule="
@@ -491,8 +508,12 @@ class HybridSimulator:
         h = st.t - st.t_old
         roots = []
         for kind, leg in guards:
-            g0 = self._guard_value(kind, leg, st.t_old, q0, dq0, feet0, F0)
             g1 = self._guard_value(kind, leg, st.t, q1, dq1, feet1, F1)
+            if (kind, leg) in self._latched:
+                if g1 > 0:
+                    self._latched.discard((kind, leg))
+                continue
+            g0 = self._guard_value(kind, leg, st.t_old, q0, dq0, feet0, F0)
             bracket = None
             if g0 > 0 and g1 <= 0:
                 bracket = (st.t_old, st.t)
@@ -612,6 +633,7 @@ class HybridSimulator:
                        message=f"the stance foot (leg {old}) would slip at t={t:.9g} s: |F_t| = {abs(tg):.6g} N "
                                f"> mu F_n = {self.mu * n:.6g} N (mu = {self.mu:g})")
             self._push_event(ev)
+            self._latched.add(("slip", old))
             if self.opt.stop_on_slip:
                 self._stop("stopped", ev.message + "; the model has no sliding phase (raise mu, or "
                            "set stop_on_slip=False to keep the foot pinned)")
@@ -636,6 +658,10 @@ class HybridSimulator:
         self.stats["events"] = len(self.events)
         if len(self.events) >= self.opt.max_events:
             self._stop("stopped", f"stopped after {len(self.events)} events (max_events)")
+        recent = self.events[-50:]
+        if len(recent) == 50 and recent[-1].time - recent[0].time < 1e-9:
+            self._stop("stopped", f"event loop: 50 events within 1e-9 s ending at t={ev.time:.9g} s "
+                                  f"(last: {ev.kind} of leg {ev.leg}); the run stops instead of hanging")
 
     def _check_zeno(self, t):
         r = self._recent_impacts
