@@ -210,7 +210,7 @@ def start_recording(folder):
     bag = Path(line.split("recording to ", 1)[1].strip())
     mcap = bag / f"{bag.name}_0.mcap"
     end = time.monotonic() + 60
-    while count_complete(mcap)[0] < 500:      # some chunks on disk
+    while count_complete(mcap)[0] < 300:      # some chunks on disk
         assert proc.poll() is None and time.monotonic() < end, "the recording did not start"
         time.sleep(0.2)
     return proc, bag
@@ -286,7 +286,7 @@ def test_sigkill_of_process_and_writer_keeps_every_chunk_and_recover_repairs_the
     mcap = bag / f"{bag.name}_0.mcap"
     assert not (bag / "metadata.yaml").exists()
     kept, chunks = count_complete(mcap)
-    assert kept >= 500 and chunks >= 1
+    assert kept >= 300 and chunks >= 1
     out = subprocess.run([str(BIN / "biped-sim"), "recover", str(bag)], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stdout + out.stderr
     got = read_all(bag)
