@@ -1,6 +1,8 @@
 """The walk_controller node with the sim node over DDS (real processes), and scenes on the node side."""
+import contextlib
 import re
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -31,36 +33,52 @@ def test_stance_from_state_agrees_with_the_engine():
         assert legs == r.stance_leg.tolist(), name
 
 
-def _lockstep_walk(dom, duration, extra=None):
-    """sim_node (walk scene, lockstep) and walk_controller in two processes; the states received."""
-    sim_params = {"duration": duration, "record": False}
-    with start_node(sim_params, dom, extra_args=scene_args("walk")) as sim, Client(dom) as c:
-        js = c.collect("/joint_states", JointState)
-        cmds = c.collect("/hip_torque", Float64MultiArray, transient_local=False)
-        c.wait_for_publisher("/joint_states", proc=sim)
-        with start_node(extra, dom, executable="walk_controller", extra_args=scene_args("walk")) as ctl:
-            c.spin_until(lambda: js and js[-1].header.stamp.sec + js[-1].header.stamp.nanosec * 1e-9 >= duration,
-                         timeout=60, what=f"the state at t = {duration} s", proc=sim)
-            c.spin_until(lambda: len(cmds) >= 1, timeout=5, what="commands")
+def _spin_all(clients, predicate, timeout, what, procs=()):
+    end = time.monotonic() + timeout
+    while not predicate():
+        for p in procs:
+            code = p.proc.poll()
+            assert code in (None, 0) or predicate(), f"a process failed ({code}) waiting for {what}:\n{p.output()}"
+        assert time.monotonic() < end, f"timed out waiting for {what}\n" + "\n".join(p.output() for p in procs)
+        for c in clients:
+            c.spin_once(0.02)
+
+
+def _t(m):
+    return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+
+
+def test_lockstep_walk_with_the_controller_node_matches_headless():
+    """sim_node (walk scene, lockstep) and walk_controller in two processes, once with the stance leg from
+    the frame id (auto) and once from the state, side by side in two ROS domains."""
+    duration, sources = 0.6, ("auto", "state")
+    with contextlib.ExitStack() as stack:
+        runs = []
+        for source in sources:
+            dom = stack.enter_context(ros_domain())
+            sim = stack.enter_context(start_node({"duration": duration, "record": False}, dom,
+                                                 extra_args=scene_args("walk")))
+            ctl = stack.enter_context(start_node({"stance_source": source}, dom, executable="walk_controller",
+                                                 extra_args=scene_args("walk")))
+            c = stack.enter_context(Client(dom))
+            runs.append((sim, ctl, c, c.collect("/joint_states", JointState)))
+        procs = [p for r in runs for p in r[:2]]
+        _spin_all([r[2] for r in runs], lambda: all(r[3] and _t(r[3][-1]) >= duration for r in runs), 90,
+                  f"the state at t = {duration} s in both runs", procs)
+        logs = []
+        for sim, ctl, _c, _js in runs:
             assert ctl.stop() == 0
-            log = ctl.output()
-        assert sim.wait(20) == 0, sim.output()
-    return js, cmds, log
-
-
-@pytest.mark.parametrize("source", ["auto", "state"])
-def test_lockstep_walk_with_the_controller_node_matches_headless(source):
-    duration = 1.0
-    with ros_domain() as dom:
-        js, cmds, log = _lockstep_walk(dom, duration, {"stance_source": source})
+            logs.append(ctl.output())
+            assert sim.wait(20) == 0, sim.output()
     ref = load_scene("walk").simulate(hold=True, t_final=duration)   # the same run headless
-    assert len(ref.impacts) == 2
-    last = js[-1]
-    assert list(last.position) == ref.q[-1].tolist() and list(last.velocity) == ref.dq[-1].tolist()
-    # every joint_states message answered exactly once (t = 0 .. 1 s: 1001 states; the last one ends the run)
-    m = re.search(r"after (\d+) commands \((\d+) duplicate", log)
-    assert m and int(m.group(1)) == round(duration / 0.001) + 1 and int(m.group(2)) == 0, log
-    assert "stance_source='%s'" % source in log
+    assert len(ref.impacts) == 1 and ref.impacts[0].time < 0.5   # the stance leg changes on the way
+    for source, (_s, _ctl, _c, js), log in zip(sources, runs, logs):
+        last = js[-1]
+        assert list(last.position) == ref.q[-1].tolist() and list(last.velocity) == ref.dq[-1].tolist(), source
+        # every joint_states message answered exactly once (t = 0 .. 0.6 s: 601 states; the last ends the run)
+        m = re.search(r"after (\d+) commands \((\d+) duplicate", log)
+        assert m and int(m.group(1)) == round(duration / 0.001) + 1 and int(m.group(2)) == 0, log
+        assert f"stance_source='{source}'" in log
 
 
 def test_controller_refuses_unknown_parameters():
@@ -71,18 +89,22 @@ def test_controller_refuses_unknown_parameters():
     assert "unknown parameter(s) ['kq']" in out and "kp (double in" in out
 
 
-def _node_publishers(dom, scene, params):
-    with start_node(dict(params, record=False), dom, extra_args=scene_args(scene)) as sim, Client(dom) as c:
-        c.wait_for_node("biped_sim", proc=sim)
-        c.spin_until(lambda: "/joint_states" in c.node_topics("biped_sim")[0], what="the node's publishers", proc=sim)
-        pubs, _subs = c.node_topics("biped_sim")
-    return set(pubs)
-
-
 def test_node_builds_only_the_scene_topics():
-    with ros_domain() as dom:
-        fixed = _node_publishers(dom, "stance_fixed", {"time_mode": "lockstep"})
-        walk = _node_publishers(dom, "walk", {"time_mode": "lockstep"})
+    pubs = {}
+    with contextlib.ExitStack() as stack:
+        runs = []
+        for scene in ("stance_fixed", "walk"):
+            dom = stack.enter_context(ros_domain())
+            sim = stack.enter_context(start_node({"time_mode": "lockstep", "record": False}, dom,
+                                                 extra_args=scene_args(scene)))
+            runs.append((scene, sim, stack.enter_context(Client(dom))))
+        _spin_all([r[2] for r in runs], lambda: all(("biped_sim", "/") in c.node.get_node_names_and_namespaces()
+                                                    and "/joint_states" in c.node_topics("biped_sim")[0]
+                                                    for _n, _p, c in runs), 60, "the nodes' publishers",
+                  [r[1] for r in runs])
+        for scene, _sim, c in runs:
+            pubs[scene] = set(c.node_topics("biped_sim")[0])
+    fixed, walk = pubs["stance_fixed"], pubs["walk"]
     assert "/impact" not in fixed and "/ground_reaction" not in fixed and {"/joint_states", "/clock"} <= fixed
     assert {"/impact", "/ground_reaction", "/joint_states", "/clock"} <= walk
 
