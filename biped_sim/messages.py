@@ -49,27 +49,34 @@ def message_class(type_name: str):
 
 
 # -- arrays -> messages: the node's functions ------------------------------------------------------
+_NODE = None
+
+
+def _node():
+    global _NODE
+    if _NODE is None:
+        from . import node
+        _NODE = node
+    return _NODE
+
+
 def joint_state_msg(t, q, dq, u, stance_leg):
-    from .node import joint_state_message
-    return joint_state_message(t, q, dq, u, stance_leg)
+    return _node().joint_state_message(t, q, dq, u, stance_leg)
 
 
 def wrench_msg(t, force, stance_leg):
-    from .node import wrench_message
-    return wrench_message(t, force, stance_leg)
+    return _node().wrench_message(t, force, stance_leg)
 
 
 def impact_msg(event):
     """The ``impact`` (or, for other kinds, ``diagnostics``) message of an engine Event."""
-    from .node import diagnostic_array, event_status
-    return diagnostic_array(event.time, [event_status(event)])
+    n = _node()
+    return n.diagnostic_array(event.time, [n.event_status(event)])
 
 
 def clock_msg(t):
     from rosgraph_msgs.msg import Clock
-
-    from .node import stamp
-    return Clock(clock=stamp(t))
+    return Clock(clock=_node().stamp(t))
 
 
 def torque_msg(u):

@@ -14,7 +14,7 @@ Owns the on-disk format of a bag (what ``ros2 bag record -s mcap`` on Jazzy writ
 
 Message times are simulation times in ns (log time = publish time = the stamp).
 
-``write`` serialises the message (rclpy's C serialiser) and appends it to a buffer that a writer
+``write`` serialises the message (:mod:`biped_sim.cdr`) and appends it to a buffer that a writer
 process turns into chunks (see :class:`BagRecorder`); :func:`recover` turns a bag whose writer was
 killed into a clean one.
 """
@@ -189,7 +189,8 @@ class BagRecorder:
     ``close()`` (idempotent; also run at interpreter exit) finalises the MCAP and writes
     metadata.yaml.
 
-    ``write`` serialises the message (rclpy's C serialiser) and appends it to a buffer; a sender
+    ``write`` serialises the message (:mod:`biped_sim.cdr` for the hot types, else rclpy's
+    serialiser) and appends it to a buffer; a sender
     thread hands the buffer every ``send_interval`` s to a writer process (``python -m
     biped_sim.recorder --writer``), which builds and compresses the chunks, so neither the
     chunking nor the compression takes the simulation's interpreter lock. The writer process runs in
@@ -261,11 +262,12 @@ class BagRecorder:
             return
         from rclpy.serialization import serialize_message
 
+        from .cdr import serializer
         from .messages import message_class
         serialize_message(message_class(type_name)())   # load the type support now, not in the run
         info = dict(name=topic, type=type_name, qos=[qos_dict(qos)], hash=type_hash(type_name),
                     definition=message_definition(type_name), id=len(self._topics) + 1)
-        self._topics[topic] = [info["id"], type_name, 0]
+        self._topics[topic] = [info["id"], type_name, 0, serializer(type_name)]
         self._frame(b"T", json.dumps(info).encode())
 
     def write(self, topic: str, msg, t_ns: int):
@@ -275,17 +277,12 @@ class BagRecorder:
         entry = self._topics.get(topic)
         if entry is None:
             raise ValueError(f"unknown topic {topic!r}: call add_topic first (topics: {sorted(self._topics)})")
-        if isinstance(msg, (bytes, bytearray, memoryview)):
-            data = msg
-        else:
-            from rclpy.serialization import serialize_message
-            data = serialize_message(msg)
+        data = msg if isinstance(msg, (bytes, bytearray, memoryview)) else entry[3](msg)
         entry[2] += 1
-        n = len(data)
+        head = _MSG_FRAME.pack(b"M", _MSG.size + len(data), entry[0], int(t_ns), entry[2])
         with self._lock:
             buf = self._buf
-            buf += _FRAME.pack(b"M", _MSG.size + n)
-            buf += _MSG.pack(entry[0], int(t_ns), entry[2])
+            buf += head
             buf += data
             if len(buf) > 1 << 20:
                 self._wake.set()
@@ -369,6 +366,7 @@ class BagRecorder:
 
 _FRAME = struct.Struct("<cI")      # kind, payload length
 _MSG = struct.Struct("<HqI")       # channel (recorder's topic id), time ns, sequence
+_MSG_FRAME = struct.Struct("<cIHqI")
 
 
 def _writer_main(path, mcap_name, compression, chunk_size, flush_interval):
@@ -377,6 +375,10 @@ def _writer_main(path, mcap_name, compression, chunk_size, flush_interval):
     from mcap.writer import CompressionType, Writer
     signal.signal(signal.SIGINT, signal.SIG_IGN)     # the recording process decides when to stop
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    try:
+        os.nice(10)       # on a busy machine the simulation gets the CPU first; the writer catches up
+    except OSError:
+        pass
     path = Path(path)
     inp = sys.stdin.buffer
     status = sys.stdout
