@@ -497,7 +497,7 @@ def recover(bag_dir, compression="zstd") -> dict:
                 else:
                     take(rec)
         except Exception as exc:  # noqa: BLE001 - the truncated tail
-            problem = f"{type(exc).__name__}: {exc}" or "truncated"
+            problem = f"{type(exc).__name__}: {exc}" if str(exc) else f"{type(exc).__name__} (cut at {f.tell()} bytes)"
     kept = src.with_name(src.name + ".truncated")
     os.replace(src, kept)
     ctype = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}[compression]
