@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from biped_sim.cli import main as cli_main
-from biped_sim.gait import StepMap, find_gait, scene_gait
+from biped_sim.gait import StepMap, scene_gait
 from biped_sim.scenes import load_scene
 
 

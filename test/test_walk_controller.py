@@ -16,7 +16,6 @@ from biped_sim.walk_controller_node import stance_from_state  # noqa: E402
 
 pytest.importorskip("rclpy")
 from sensor_msgs.msg import JointState  # noqa: E402
-from std_msgs.msg import Float64MultiArray  # noqa: E402
 
 
 def scene_args(name):
