@@ -84,7 +84,9 @@ def run_nodes(scene, duration, bag_dir: Path, timeout: float):
             raise RuntimeError(f"sim_node exited with code {code_sim}:\n" + (logs / "sim_node.log").read_text()[-2000:])
         print(f"the nodes ran {duration:g} s of simulated time in {wall:.1f} s of wall time "
               "(processes started and discovered each other included)")
-        print((logs / "walk_controller.log").read_text().strip().splitlines()[-1])
+        ctl_lines = (logs / "walk_controller.log").read_text().strip().splitlines()
+        if ctl_lines:
+            print(ctl_lines[-1])
     new = sorted({p for p in bag_dir.iterdir() if p.is_dir()} - before - {logs})
     if not new:
         raise RuntimeError("sim_node did not write a bag:\n" + (logs / "sim_node.log").read_text()[-2000:])
