@@ -62,6 +62,29 @@ def stance_floating_fast(model, q, dq, u, stance_leg=1):
     return [ax, ay, a1, a2, a3], F
 
 
+def stance_joint_affine_fast(model, q, dq, stance_leg=1):
+    """Stance joint accelerations as an affine function of u: ddq_r = a + Bu u, r = (q1, q2, q3).
+
+    The reduced KKT system reads Mr ddq_r = br(u) with d br / du = P^T B = [I2; 0], so one
+    factorisation gives both a = Mr^-1 br(0) and Bu = the first two columns of Mr^-1 (what
+    input-output linearisation needs, without solving three times). Returns (a, Bu) as lists.
+    """
+    if stance_leg == 2:
+        a, Bu = stance_joint_affine_fast(model, _swap(q), _swap(dq), 1)
+        return [a[1], a[0], a[2]], [[Bu[1][1], Bu[1][0]], [Bu[0][1], Bu[0][0]], [Bu[2][1], Bu[2][0]]]
+    M00, M01, M02, M11, M12, M22, b0, b1, b2 = gen.stance_terms_1(q, dq, (0.0, 0.0), model.k_stance)[:9]
+    A11 = M11 * M22 - M12 * M12
+    A12 = M02 * M12 - M01 * M22
+    A13 = M01 * M12 - M02 * M11
+    A22 = M00 * M22 - M02 * M02
+    A23 = M01 * M02 - M00 * M12
+    inv_det = 1.0 / (M00 * A11 + M01 * A12 + M02 * A13)
+    a = [(A11 * b0 + A12 * b1 + A13 * b2) * inv_det, (A12 * b0 + A22 * b1 + A23 * b2) * inv_det,
+         (A13 * b0 + A23 * b1 + (M00 * M11 - M01 * M01) * b2) * inv_det]
+    Bu = [[A11 * inv_det, A12 * inv_det], [A12 * inv_det, A22 * inv_det], [A13 * inv_det, A23 * inv_det]]
+    return a, Bu
+
+
 def stance_fixed_fast(model, qs, dqs, u, stance_leg=1):
     """Fixed-base stance: chain coordinates qs = [q1, q2, q3] pinned at the stance foot.
 

@@ -502,7 +502,8 @@ class HybridSimulator:
         F0 = F1 = None
         if self.stance_leg:
             F0 = self._last_start_F if self._last_start_F_t == st.t_old else self._force_at(st.t_old, q0, dq0)
-            F1 = self._force_at(st.t, q1, dq1)
+            # our steppers evaluate the right-hand side last at the step's end (FSAL): reuse its force
+            F1 = list(self._last_F) if st.last_eval_at_end else self._force_at(st.t, q1, dq1)
             self._last_start_F, self._last_start_F_t = F1, st.t
         self._F_end = F1
         h = st.t - st.t_old

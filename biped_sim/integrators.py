@@ -31,6 +31,9 @@ class StepFailure(RuntimeError):
 
 
 class _Stepper:
+    #: True when the last right-hand-side evaluation of ``step()`` is at the new (t, y)
+    last_eval_at_end = True
+
     def __init__(self, fun, t0, y0, t_bound):
         self.fun = fun
         self.nfev = 0
@@ -259,6 +262,7 @@ class SemiImplicitEulerStepper(_FixedStepper):
 
 class ScipyStepper(_Stepper):
     """A scipy ``OdeSolver`` (Radau, BDF, DOP853, RK45) behind the same interface."""
+    last_eval_at_end = False
     CLASSES = {"radau": Radau, "bdf": BDF, "scipy_dop853": _ScipyDOP853, "scipy_rk45": RK45}
 
     def __init__(self, method, fun, t0, y0, t_bound, rtol, atol, h0=None, max_step=np.inf):

@@ -1,0 +1,171 @@
+"""``make bench``: speed figures of the engine (issue 2), then the node, recorder and scene benchmarks.
+
+Owns measurement only (no assertions: these machines are shared and noisy). Every figure is a
+median over repeats measured in this one process, and comparisons are made side by side.
+
+Engine figures:
+  * ``stance_dynamics`` per call (public API, numpy in and out), beside the literal KKT solve of
+    MODEL.md with ``np.linalg.solve`` on the same inputs;
+  * a 10 s walking run (the PD walking law, continuous feedback, >= 14 impacts) integrated to a
+    final-state error of 1e-9 by this engine and by ``scipy.integrate.solve_ivp(method="DOP853",
+    events=...)`` driving the same right-hand side (``stance_floating_fast`` and the same
+    controller) with the same impact map; each at the loosest tolerance of a ladder that reaches
+    the error, against a reference run at rtol = atol = 1e-13 (its own error estimated by
+    solve_ivp at the same tolerance).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import math
+import statistics
+import sys
+import time
+import timeit
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from .control import PDWalkingController
+from .dynamics import impact_map, stance_dynamics, stance_floating_fast
+from .hybrid import simulate
+from .model import BipedModel
+
+TOLERANCES = (1e-8, 3e-9, 1e-9, 3e-10, 1e-10, 3e-11, 1e-11, 3e-12, 1e-12)
+TARGET_ERROR = 1e-9
+
+
+def _median_us(fn, number, repeat=7):
+    return statistics.median(timeit.repeat(fn, number=number, repeat=repeat)) / number * 1e6
+
+
+def bench_stance(model):
+    q = np.array([0.5, math.sqrt(3) / 2, 150 * math.pi / 180, 120 * math.pi / 180, 30 * math.pi / 180])
+    dq = np.array([-0.8049, -0.4430, 0.0938, 0.9150, 0.9298])
+    u = np.zeros(2)
+
+    def literal_kkt():
+        D, C, G = model.mass_matrix(q), model.coriolis(q, dq), model.gravity(q)
+        J, Jd = model.foot_jacobian(q, 1), model.foot_jacobian_dot(q, dq, 1)
+        K = np.block([[D, -J.T], [J, np.zeros((2, 2))]])
+        return np.linalg.solve(K, np.concatenate([-C @ dq - G + model.B @ u, -Jd @ dq]))
+    ql, dql = q.tolist(), dq.tolist()
+    rows = [
+        ("stance_dynamics (public API, numpy in/out)", _median_us(lambda: stance_dynamics(model, q, dq, u), 20000)),
+        ("stance_floating_fast (engine hot path, lists)", _median_us(lambda: stance_floating_fast(model, ql, dql, (0.0, 0.0)), 20000)),
+        ("stance_dynamics(base='fixed') (pinned chain)", _median_us(lambda: stance_dynamics(model, q, dq, u, base="fixed"), 20000)),
+        ("literal 7x7 KKT with np.linalg.solve", _median_us(literal_kkt, 2000)),
+    ]
+    print("\n== stance dynamics, median per call (7 repeats) ==")
+    for name, us in rows:
+        print(f"  {name:48s} {us:8.2f} us")
+    return dict(rows)
+
+
+def walk_solve_ivp(model, ctrl, q0, dq0, t_final, rtol, atol):
+    """The same hybrid walk with solve_ivp(DOP853, events=touchdown), restarted after each impact."""
+    t, y, leg = 0.0, np.concatenate([q0, dq0]), 1
+    impacts = 0
+    nfev = 0
+    while t < t_final:
+        swing = 3 - leg
+
+        def rhs(t, y, leg=leg):
+            yl = y.tolist()
+            u = ctrl(t, y[:5], y[5:], leg).tolist()
+            ddq, _ = stance_floating_fast(model, yl[:5], yl[5:], u, leg)
+            return yl[5:] + ddq
+
+        def touchdown(t, y, swing=swing):
+            return model.foot_position(y[:5], swing)[1]
+        touchdown.terminal, touchdown.direction = True, -1
+        sol = solve_ivp(rhs, (t, t_final), y, method="DOP853", rtol=rtol, atol=atol, events=touchdown)
+        nfev += sol.nfev
+        if sol.status != 1:
+            y = sol.y[:, -1]
+            break
+        t, y = sol.t_events[0][0], sol.y_events[0][0].copy()
+        q = y[:5]
+        if model.foot_position(q, swing)[0] > model.foot_position(q, leg)[0]:   # in front: an impact
+            y[5:], _ = impact_map(model, q, y[5:], swing)
+            leg = swing
+            impacts += 1
+        # behind the stance foot: a scuff, go on from there without a reset (as the engine does)
+    return y, impacts, nfev
+
+
+def walk_engine(model, ctrl, q0, dq0, t_final, rtol, atol):
+    r = simulate(model, q0, dq0, t_final, controller=ctrl, rtol=rtol, atol=atol)
+    return np.concatenate([r.q[-1], r.dq[-1]]), len(r.impacts), r.stats["rhs_evaluations"], r
+
+
+def bench_walk(model, repeats=3, t_final=10.0):
+    ctrl = PDWalkingController(model)
+    q0, dq0 = ctrl.initial_state()
+    print(f"\n== {t_final:g} s walk (PD walking law, continuous feedback) to a final-state error of {TARGET_ERROR:g} ==")
+    ref, n_ref, _, _ = walk_engine(model, ctrl, q0, dq0, t_final, 1e-13, 1e-13)
+    ref_ivp, n_ivp, _ = walk_solve_ivp(model, ctrl, q0, dq0, t_final, 1e-13, 1e-13)
+    ref_err = np.max(np.abs(ref - ref_ivp))
+    print(f"  reference: this engine at rtol=atol=1e-13, {n_ref} impacts; solve_ivp at 1e-13 differs by "
+          f"{ref_err:.2g} (its error estimate)")
+    found = {}
+    for name, run in (("biped_sim (dop853)", walk_engine), ("solve_ivp DOP853 + events", walk_solve_ivp)):
+        for tol in TOLERANCES:
+            out = run(model, ctrl, q0, dq0, t_final, tol, tol)
+            err = np.max(np.abs(out[0] - ref))
+            if out[1] == n_ref and err <= TARGET_ERROR:
+                times = []
+                for _ in range(repeats):
+                    t0 = time.perf_counter()
+                    run(model, ctrl, q0, dq0, t_final, tol, tol)
+                    times.append(time.perf_counter() - t0)
+                found[name] = (tol, err, statistics.median(times), out[2], out[1])
+                break
+        else:
+            found[name] = None
+    for name, f in found.items():
+        if f is None:
+            print(f"  {name:28s} did not reach {TARGET_ERROR:g} on the ladder {TOLERANCES}")
+            continue
+        tol, err, wall, nfev, n = f
+        print(f"  {name:28s} rtol=atol={tol:.0e}  error {err:.2g}  impacts {n}  rhs evals {nfev}  "
+              f"median wall {wall:.3f} s  real-time factor {t_final / wall:.1f}")
+    a, b = found.get("biped_sim (dop853)"), found.get("solve_ivp DOP853 + events")
+    if a and b:
+        print(f"  speed-up over solve_ivp at the same error: {b[2] / a[2]:.2f}x (median of {repeats}; target >= 2x)")
+    return found
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m biped_sim.bench", description=__doc__.split("\n")[0])
+    parser.add_argument("--only", choices=("engine", "node", "record", "scenes"), help="run one group only")
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args(argv)
+    model = BipedModel()
+    if args.only in (None, "engine"):
+        print("biped_sim engine benchmark (python -m biped_sim.bench --only engine)")
+        bench_stance(model)
+        bench_walk(model, repeats=args.repeats)
+        sys.stdout.flush()
+    for group, module in (("node", "bench_node"), ("record", "bench_record"), ("scenes", "bench_scenes")):
+        if args.only in (None, group):
+            try:
+                mod = importlib.import_module(f"biped_sim.{module}")
+            except ModuleNotFoundError as exc:
+                if exc.name != f"biped_sim.{module}":
+                    raise
+                print(f"\n(no {module} yet)")
+                continue
+            print(f"\n==== biped_sim.{module} ====")
+            sys.stdout.flush()
+            mod.main([]) if _takes_argv(mod.main) else mod.main()
+    return 0
+
+
+def _takes_argv(fn):
+    import inspect
+    return len(inspect.signature(fn).parameters) > 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
