@@ -103,6 +103,10 @@ class SimulationError(RuntimeError):
     pass
 
 
+class SceneAssumptionError(SimulationError):
+    """The physics left the scene's declared phases: the run stops (status "stopped")."""
+
+
 @dataclass
 class Options:
     base: str = "floating"
@@ -272,10 +276,16 @@ class HybridSimulator:
         if leg and self.opt.base == "fixed":
             c = self.pin
 
+            l_leg = model.parameters.l_leg
+            i = leg - 1
+
             def to_phys(y):
+                # the hip hangs from the pin: hip = c - l (sin th, cos th), th = q_stance + q3
                 yl = y.tolist()
-                _dd, _F, r, v, _a = stance_fixed_fast(model, yl[0:3], yl[3:6], (0.0, 0.0), leg)
-                return [c[0] + r[0], c[1] + r[1]] + yl[0:3], v + yl[3:6], yl[6]
+                th, w = yl[i] + yl[2], yl[3 + i] + yl[5]
+                sn, cs = math.sin(th), math.cos(th)
+                return ([c[0] - l_leg * sn, c[1] - l_leg * cs] + yl[0:3],
+                        [-l_leg * cs * w, l_leg * sn * w] + yl[3:6], yl[6])
 
             def from_phys(q, dq, w):
                 return np.array(list(q[2:]) + list(dq[2:]) + [w])
@@ -379,6 +389,8 @@ class HybridSimulator:
         wall0 = time.perf_counter()
         try:
             self._integrate(float(t_end))
+        except SceneAssumptionError as exc:
+            self._fail(str(exc), status="stopped")
         except (StepFailure, SimulationError, np.linalg.LinAlgError, FloatingPointError, OverflowError,
                 ValueError) as exc:
             self._fail(f"{type(exc).__name__}: {exc}" if isinstance(exc, np.linalg.LinAlgError) else str(exc))
@@ -438,9 +450,18 @@ class HybridSimulator:
         return next((e for e in reversed(self.events) if e.kind in ("touchdown", "double_touchdown")), None)
 
     def _check_ground(self, t, q, dq):
-        if "impact" not in self.opt.phases:
-            return  # a scene without impacts ignores the ground under the swing foot
         f = self._feet(q, dq)
+        if "impact" not in self.opt.phases:
+            # no touchdown guard is built; a swing foot that reaches the ground where a touchdown
+            # would count leaves the scene's assumptions: say so instead of walking through the ground
+            for leg in (1, 2):
+                if leg != self.stance_leg and f[4 * (leg - 1) + 1] < 0.0 and (
+                        not self.stance_leg or self.opt.touchdown_rule == "any"
+                        or f[4 * (leg - 1)] > f[4 * (self.stance_leg - 1)]):
+                    raise SceneAssumptionError(
+                        f"foot {leg} touches the ground at t={t:.9g} s (it is {-f[4 * (leg - 1) + 1]:.3g} m below "
+                        f"at the end of the step), but this scene has no impact phase: add 'impact' to its phases")
+            return
         for leg in (1, 2):
             if leg != self.stance_leg and f[4 * (leg - 1) + 1] < -self.opt.max_penetration:
                 last = self.last_impact
@@ -679,12 +700,12 @@ class HybridSimulator:
     def _stop(self, status, message):
         self.status, self.message = status, message
 
-    def _fail(self, message):
+    def _fail(self, message, status="failed"):
         msg = f"integration stopped at t={self.t:.9g} s: {message}"
         self.events.append(Event(self.t, "error", self.stance_leg, self.q.copy(), self.dq.copy(), self.dq.copy(),
                                  message=msg))
         self.stats["events"] = len(self.events)
-        self._stop("failed", msg)
+        self._stop(status, msg)
 
     @property
     def ground_force(self):

@@ -3,8 +3,10 @@ import math
 
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
 
 from biped_sim.control import WalkingController
+from biped_sim.dynamics import flight_dynamics
 from biped_sim.hybrid import HybridSimulator, _hermite_min, simulate, stance_state
 from biped_sim.model import BipedModel
 
@@ -138,8 +140,10 @@ def test_a_guard_crossed_twice_inside_one_step_is_found(model):
     """Foot 2 dips below the ground and comes back within one 0.1 s step of RK4."""
     q0 = np.array([0.0, math.cos(-0.3) + 0.005, math.pi + 0.6, math.pi - 0.3, 0.0])
     dq0 = np.array([0.0, 1.0, 0.0, 6.0, 0.0])
-    free = simulate(model, q0, dq0, 0.1, stance_leg=0, phases=frozenset({"flight"}), rtol=1e-12, atol=1e-12)
-    h2 = np.array([model.foot_position(q, 2)[1] for q in free.q])
+    # the free flight, without the ground (a scene without impacts would stop at the touchdown)
+    free = solve_ivp(lambda t, y: np.r_[y[5:], flight_dynamics(model, y[:5], y[5:])], (0, 0.1), np.r_[q0, dq0],
+                     rtol=1e-12, atol=1e-12, dense_output=True)
+    h2 = np.array([model.foot_position(free.sol(t)[:5], 2)[1] for t in np.linspace(0, 0.1, 201)])
     assert h2[0] > 0 and h2[-1] > 0 and h2.min() < 0    # both ends above, a dip in between
     ref = simulate(model, q0, dq0, 0.1, stance_leg=0, rtol=1e-12, atol=1e-12)
     big = simulate(model, q0, dq0, 0.1, stance_leg=0, method="rk4", step=0.1)
@@ -265,3 +269,9 @@ def test_a_diverging_state_stops_with_a_message(model):
                  phases=STANCE_ONLY)
     assert r.status in ("failed", "stopped") and r.events[-1].kind == "error"
     assert r.message and np.all(np.isfinite(r.q))
+
+
+def test_a_touchdown_in_a_scene_without_impacts_stops_and_names_the_phase(model):
+    q0 = np.array([0.0, 1.3, math.pi - 0.2, math.pi + 0.3, 0.1])
+    r = simulate(model, q0, np.zeros(5), 1.0, stance_leg=0, phases=frozenset({"flight", "stance"}))
+    assert r.status == "stopped" and "add 'impact'" in r.message and r.t[-1] < 0.5

@@ -172,8 +172,6 @@ def test_cli_simulate_scene(capsys):
     assert cli_main(["simulate", "--scene", "nope"]) == 2
 
 
-@pytest.mark.xfail(strict=True, reason="hybrid.py has no touchdown witness in a scene without 'impact': the swing "
-                   "foot passes through the ground without a message (reported; see docs/scenes.md)")
 def test_touchdown_in_a_scene_without_impact_stops_and_names_the_phase():
     r = load_scene("stance_fixed").simulate(hold=False, t_final=1.0)
     assert r.status == "stopped" and "add 'impact'" in r.message and r.t[-1] < 0.6
