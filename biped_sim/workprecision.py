@@ -225,7 +225,8 @@ def solve_ivp_fall(model, case, tol):
     E0 = model.energy(case.q0, case.dq0)
     energy = max(abs(model.energy(yy[:5], yy[5:]) - E0) for yy in y)
     status = "stopped" if sol.t_events[0].size else "completed"
-    return Trajectory(sol.t, y, np.ones(len(sol.t), dtype=int), [], status, drift, energy), wall, len(sol.t) - 1
+    return (Trajectory(sol.t, y, np.ones(len(sol.t), dtype=int), [], status, drift, energy), wall,
+            len(sol.t) - 1, sol.nfev)
 
 
 # -- the benchmark ------------------------------------------------------------------------------
@@ -278,8 +279,8 @@ def run_benchmark(quick=False, repeats=None, progress=True, cases_filter=None):
                 walls = []
                 for _ in range(repeats):
                     if method == "solve_ivp_DOP853":
-                        traj, wall, steps = solve_ivp_fall(model, case, s)
-                        status, message, rhs = traj.status, "", None
+                        traj, wall, steps, rhs = solve_ivp_fall(model, case, s)
+                        status, message = traj.status, ""
                     else:
                         r, wall = run_case(model, case, method, s)
                         traj, steps, status, message = trajectory(r), r.stats["steps"], r.status, r.message
@@ -350,47 +351,57 @@ def markdown(rows, refs):
 
 
 def plot(rows, refs, path):
+    """Top row: error over the run against median wall time; bottom row: against right-hand-side
+    evaluations (the machine-independent cost). One line per method, from loose to tight."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import matplotlib.ticker
     names = list(dict.fromkeys(r["case"] for r in rows))
-    fig, axes = plt.subplots(1, len(names), figsize=(5.2 * len(names), 4.8), squeeze=False)
+    fig, axes = plt.subplots(2, len(names), figsize=(5.4 * len(names), 9.0), squeeze=False)
     floor = {r["case"]: r["err_run"] for r in refs}
-    for ax, case in zip(axes[0], names):
-        for method in dict.fromkeys(r["method"] for r in rows if r["case"] == case):
-            pts = [r for r in rows if r["case"] == case and r["method"] == method]
-            pts = sorted(pts, key=lambda r: r["time"])
-            x = [r["time"] for r in pts if math.isfinite(r["err_run"])]
-            y = [max(r["err_run"], 1e-16) for r in pts if math.isfinite(r["err_run"])]
-            c, mk = STYLE.get(method, ("k", "o"))
-            ax.loglog(x, y, marker=mk, color=c, label=method, lw=1.5, ms=6)
-            for r in pts:
-                if not math.isfinite(r["err_run"]):
+    for col, case in enumerate(names):
+        for row, (key, xlabel) in enumerate((("time", "median wall time per run (s)"),
+                                             ("rhs", "right-hand-side evaluations per run"))):
+            ax = axes[row][col]
+            for method in dict.fromkeys(r["method"] for r in rows if r["case"] == case):
+                pts = [r for r in rows if r["case"] == case and r["method"] == method
+                       and math.isfinite(r["err_run"]) and r.get(key)]
+                pts = sorted(pts, key=lambda r: -r["value"])          # the ladder, loose to tight
+                if not pts:
                     continue
-                ax.annotate(f"{r['value']:.0e}".replace("e-0", "e-"), (r["time"], max(r["err_run"], 1e-16)),
-                            textcoords="offset points", xytext=(4, 3), fontsize=6.5, color=c)
-                if r["default"]:
-                    ax.plot(r["time"], r["err_run"], marker="o", ms=16, mfc="none", mec="k", mew=1.8,
-                            label="default (dop853, tol 1e-9)")
-        if case in floor and floor[case] > 0:
-            ax.axhline(floor[case], color="k", ls=":", lw=1, label="reference error estimate")
-        ax.set_title(case)
-        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-        ax.set_xlabel("median wall time per run (s)")
-        ax.grid(True, which="major", alpha=0.4)
-        ax.grid(True, which="minor", alpha=0.1)
-    axes[0][0].set_ylabel("max state error over the run (max-norm of q, dq)")
-    h, l = axes[0][0].get_legend_handles_labels()
-    for ax in axes[0][1:]:
+                c, mk = STYLE.get(method, ("k", "o"))
+                x = [r[key] for r in pts]
+                y = [max(r["err_run"], 1e-16) for r in pts]
+                ax.loglog(x, y, marker=mk, color=c, label=method, lw=1.4, ms=6)
+                for r, xx, yy in zip(pts, x, y):
+                    ax.annotate(f"{r['value']:g}", (xx, yy), textcoords="offset points", xytext=(4, 3),
+                                fontsize=6.5, color=c)
+                    if r["default"]:
+                        ax.plot(xx, yy, marker="o", ms=16, mfc="none", mec="k", mew=1.8, ls="none",
+                                label="default (dop853, tol 1e-9)")
+            if case in floor and floor[case] > 0:
+                ax.axhline(floor[case], color="k", ls=":", lw=1, label="reference error estimate")
+            ax.set_title(f"{case}: error against {'run time' if key == 'time' else 'evaluations'}", fontsize=10)
+            ax.set_xlabel(xlabel)
+            ax.xaxis.set_major_locator(matplotlib.ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+            ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+            ax.grid(True, which="major", alpha=0.4)
+            ax.grid(True, which="minor", alpha=0.1)
+        axes[0][col].sharey(axes[1][col])
+    for row in axes:
+        row[0].set_ylabel("max state error over the run\n(max-norm of q, dq; SI units)")
+    h, l = [], []
+    for ax in axes.flat:
         for hh, ll in zip(*ax.get_legend_handles_labels()):
             if ll not in l:
                 h.append(hh)
                 l.append(ll)
     fig.legend(h, l, loc="lower center", ncol=min(len(l), 5), fontsize=9, frameon=False)
-    fig.suptitle("Work-precision: error against run time (lower left is better; labels: tolerance or step)")
-    fig.tight_layout(rect=(0, 0.1, 1, 0.95))
-    fig.savefig(path, dpi=110)
+    fig.suptitle("Work-precision of the integrators (lower left is better; point labels: tolerance, or step in s)")
+    fig.tight_layout(rect=(0, 0.07, 1, 0.97))
+    fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
