@@ -37,6 +37,7 @@ def _runs(duration, period):
 
 
 def bench(duration=2.0, period=0.001, repeats=5, folder=None):
+    """The headless figures (see the module docstring); lists of real-time factors per configuration."""
     from .hybrid import simulate
     from .parameters import engine_arguments
     from .record_run import run_recorded, topics_for
@@ -65,18 +66,89 @@ def bench(duration=2.0, period=0.001, repeats=5, folder=None):
         for name, typ in topics_for(params).items():   # as the node does before its run
             rec.add_topic(name, typ)
         time.sleep(0.5)                  # let the writer process start (it starts in parallel with a run)
-        ch0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        w0 = _proc_cpu(rec._proc.pid)
         timed("record", lambda: run_recorded(params, ctrl, rec))
+        w1 = _proc_cpu(rec._proc.pid)
         t1 = time.perf_counter()
         rec.close()
         res["close"].append(time.perf_counter() - t1)
-        ch1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        res["writer_cpu"].append(ch1.ru_utime + ch1.ru_stime - ch0.ru_utime - ch0.ru_stime)
+        res["writer_cpu"].append(w1 - w0)
         res["size"] = sum(f.stat().st_size for f in path.iterdir())
         res["messages"] = sum(rec.message_counts.values())
+    res["write_us"] = _write_cost(params, tmp / "isolated")
     if folder is None:
         shutil.rmtree(tmp, ignore_errors=True)
     return res
+
+
+def _proc_cpu(pid):
+    """CPU seconds (user + system) a process has used so far (Linux /proc), 0 if unknown."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return 0.0
+
+
+def _write_cost(params, path, n=4000):
+    """CPU us per control period of what recording adds in the simulating process, measured alone:
+    building the hip_torque message and four ``write`` calls (serialise + hand over), best of 3."""
+    from . import messages as M
+    from .record_run import topics_for
+    from .recorder import BagRecorder
+    q, dq = params["initial_q"], params["initial_dq"]
+    js, grf, clk = M.joint_state_msg(0.5, q, dq, [1.0, 2.0], 1), M.wrench_msg(0.5, [1.0, 200.0], 1), M.clock_msg(0.5)
+    rec = BagRecorder(path, parameters=params)
+    for name, typ in topics_for(params).items():
+        rec.add_topic(name, typ)
+    best = float("inf")
+    for _ in range(3):
+        c0 = time.thread_time()
+        for k in range(n):
+            rec.write("/hip_torque", M.torque_msg([1.0, -2.0]), k)
+            rec.write("/joint_states", js, k)
+            rec.write("/ground_reaction", grf, k)
+            rec.write("/clock", clk, k)
+        best = min(best, (time.thread_time() - c0) / n * 1e6)
+    rec.close()
+    return best
+
+
+def node_bench(duration=3.0, repeats=3):
+    """``sim_node`` in ``fast`` mode (1 kHz publish rate, u = 0 from the balanced default state), with and
+    without recording: the real-time factor from the node's own log times (start line to 'reached')."""
+    import re
+    import subprocess
+    import sys
+    try:
+        import domain_coordinator
+    except ImportError:
+        return None
+    exe = Path(sys.executable).parent / "sim_node"
+    if not exe.exists():
+        return None
+    stamp = re.compile(r"\[(\d+\.\d+)\]")
+    out = {False: [], True: []}
+    tmp = Path(tempfile.mkdtemp(prefix="bench-node-"))
+    with domain_coordinator.domain_id() as dom:
+        env = dict(os.environ, ROS_DOMAIN_ID=str(dom), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+                   RCUTILS_COLORIZED_OUTPUT="0")
+        for _ in range(repeats):
+            for record in (False, True):
+                args = [str(exe), "--ros-args", "-p", "time_mode:=fast", "-p", f"duration:={duration!r}",
+                        "-p", "control_period:=0.001", "-p", "publish_rate:=1000.0", "-p", "command_timeout:=0.0",
+                        "-p", f"record:={'true' if record else 'false'}", "-p", f"bag_dir:={tmp}",
+                        "-p", "scene:=bench"]
+                p = subprocess.run(args, env=env, capture_output=True, text=True, timeout=300)
+                lines = (p.stdout + p.stderr).splitlines()
+                t0 = next((float(stamp.search(x).group(1)) for x in lines if "time_mode=fast" in x and stamp.search(x)), None)
+                t1 = next((float(stamp.search(x).group(1)) for x in lines if "reached" in x and stamp.search(x)), None)
+                if t0 is None or t1 is None or p.returncode != 0:
+                    shutil.rmtree(tmp, ignore_errors=True)
+                    raise RuntimeError(f"sim_node run failed (code {p.returncode}):\n" + "\n".join(lines[-20:]))
+                out[record].append(duration / (t1 - t0))
+    shutil.rmtree(tmp, ignore_errors=True)
+    return out
 
 
 def main(argv=None):
@@ -85,6 +157,10 @@ def main(argv=None):
     p.add_argument("--duration", type=float, default=2.0, help="simulated seconds per run")
     p.add_argument("--period", type=float, default=0.001, help="control period = publish period (s)")
     p.add_argument("--repeats", type=int, default=5, help="interleaved repeats (best of)")
+    p.add_argument("--node", action="store_true",
+                   help="also time sim_node in fast mode with and without recording (3 runs each; slow, and "
+                        "its figures are dominated by rclpy's executor wait on a busy machine)")
+    p.add_argument("--node-duration", type=float, default=3.0, help="simulated seconds per sim_node run")
     a = p.parse_args(argv)
     r = bench(a.duration, a.period, a.repeats)
     best = {k: max(v) for k, v in r.items() if isinstance(v, list) and v and k not in ("close", "writer_cpu")}
@@ -100,8 +176,20 @@ def main(argv=None):
     cost_cpu = 1.0 - best["record_cpu"] / best["publish_cpu"]
     print(f"  recording cost: {cost * 100:.1f} % of the wall real-time factor, {cost_cpu * 100:.1f} % of the CPU one "
           f"(target <= 10 %) -> {'OK' if min(cost, cost_cpu) <= 0.10 else 'ABOVE TARGET'}")
-    print(f"  writer process: {min(r['writer_cpu']) / a.duration * 100:.0f} % of a CPU while recording (nice 10, "
-          f"another core when one is free); close() {min(r['close']) * 1e3:.0f} ms after the run")
+    per_period = a.period / best["publish_cpu"] * 1e6
+    print(f"  recording work in the simulating process, measured alone: {r['write_us']:.1f} us per control period "
+          f"= {r['write_us'] / per_period * 100:.1f} % of the {per_period:.0f} us CPU a period of the node loop takes")
+    print(f"  writer process: {min(r['writer_cpu']) / (a.duration / best['record']) * 100:.0f} % of a CPU during the "
+          f"recorded run (nice 10; another core when one is free); close() {min(r['close']) * 1e3:.0f} ms after the run")
+    if a.node:
+        nb = node_bench(a.node_duration, a.repeats if a.repeats < 3 else 3)
+        if nb is None:
+            print("  sim_node: not available (no rclpy / domain_coordinator): node benchmark skipped")
+        else:
+            off, on = max(nb[False]), max(nb[True])
+            print(f"  sim_node, time_mode fast, {a.node_duration:g} s at 1 kHz publish rate (u = 0, balanced start), "
+                  f"{len(nb[False])} runs each: real-time factor without recording {sorted(round(v, 3) for v in nb[False])}, "
+                  f"with {sorted(round(v, 3) for v in nb[True])} -> cost of the best {(1 - on / off) * 100:.1f} %")
     print(f"  bag: {r['size'] / 1e6:.2f} MB for {a.duration:g} s ({r['size'] / r['messages']:.0f} B per message, "
           f"zstd chunks)")
     return 0
