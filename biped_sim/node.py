@@ -395,7 +395,7 @@ def _make_node_class():
         def _on_engine_stopped(self):
             self.stopped = True
             sim = self.sim
-            self.get_logger().error(f"integration {sim.status} at t={sim.t:.9f} s: {sim.message}. The node stays "
+            self.get_logger().error(f"the engine {sim.status} at t={sim.t:.9f} s: {sim.message}. The node stays "
                                     "up for inspection (the last state stays published); stop it with Ctrl-C")
             self.publish_state()
             self.publish_run_status()
@@ -413,7 +413,7 @@ def _make_node_class():
                 st.message = f"{sim.status}: {sim.message}"
             values = dict(status=sim.status if sim.status != "running" else st.message, time=repr(float(sim.t)),
                           message=sim.message, control_periods=str(self.k), events=str(len(sim.events)),
-                          impacts=str(sim.stats["impacts"]))
+                          impacts=str(sim.stats["impacts"]), engine_wall_time=repr(float(sim.stats["wall_time"])))
             values.update({f"commands_{k}": str(v) for k, v in self.counts.items()})
             st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
             self._publish(self.pub_diag, diagnostic_array(sim.t, [st]), sim.t)

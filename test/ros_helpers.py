@@ -88,7 +88,11 @@ class NodeProcess:
         return self.log_path.read_text(errors="replace")
 
     def wait(self, timeout=30.0) -> int:
-        return self.proc.wait(timeout=timeout)
+        """The exit code; AssertionError with the node's log if it does not exit within ``timeout`` s."""
+        try:
+            return self.proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            raise AssertionError(f"{self.argv[0]} did not exit within {timeout} s\n--- log ---\n{self.output()}") from None
 
     def stop(self, sig=signal.SIGTERM, timeout=15.0) -> int:
         """Send ``sig`` (if still running) and return the exit code; SIGKILL after ``timeout``."""
@@ -194,7 +198,19 @@ class Client:
                         f"node {namespace}{name}", proc)
 
     def node_topics(self, name, namespace="/"):
-        """({topic: [types]} published, {topic: [types]} subscribed) of a node."""
-        pubs = dict(self.node.get_publisher_names_and_types_by_node(name, namespace))
-        subs = dict(self.node.get_subscriber_names_and_types_by_node(name, namespace))
+        """({topic: [types]} published, {topic: [types]} subscribed) of a node (empty if not discovered)."""
+        try:
+            pubs = dict(self.node.get_publisher_names_and_types_by_node(name, namespace))
+            subs = dict(self.node.get_subscriber_names_and_types_by_node(name, namespace))
+        except Exception:  # NodeNameNonExistentError: not (yet) in the graph
+            return {}, {}
         return pubs, subs
+
+    def wait_for_node_topics(self, name, publishers=(), subscribers=(), namespace="/",
+                             timeout=DISCOVERY_TIMEOUT, proc=None):
+        """Poll the graph until node ``name`` shows these topics; returns :meth:`node_topics`."""
+        def ready():
+            pubs, subs = self.node_topics(name, namespace)
+            return set(publishers) <= set(pubs) and set(subscribers) <= set(subs)
+        self.spin_until(ready, timeout, f"topics {sorted(publishers)} / {sorted(subscribers)} of node {name}", proc)
+        return self.node_topics(name, namespace)

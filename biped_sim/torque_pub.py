@@ -1,0 +1,141 @@
+"""``torque_pub``: publish hip torque commands to ``sim_node`` without the ``ros2`` command line.
+
+Owns a small command-line publisher of ``std_msgs/Float64MultiArray`` on ``hip_torque``: once, at
+a rate, from a function of time, or one command per received state (to drive a ``lockstep`` node).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+EPILOG = """examples:
+  torque_pub 5 -5                                  # once: u1 = 5 N m (hip 1), u2 = -5 N m (hip 2)
+  torque_pub 5 -5 --rate 100 --duration 2          # 100 Hz for 2 s (wall clock)
+  torque_pub --expr "10*sin(2*pi*t)" "0" --rate 200
+                                                   # a function of t (s since the first command)
+  torque_pub --expr "3*cos(t)" "-3*cos(t)" --lockstep --steps 500
+                                                   # lockstep node: one command per joint_states
+                                                   # message, t = its stamp (simulated time)
+Expressions may use t, pi, e and the functions of Python's math module (sin, cos, exp, ...)."""
+
+
+def compile_expr(text):
+    """A function f(t) of an expression in t (math functions only)."""
+    names = {k: getattr(math, k) for k in dir(math) if not k.startswith("_")}
+    names.update(abs=abs, min=min, max=max)
+    try:
+        code = compile(text, "<expr>", "eval")
+    except SyntaxError as exc:
+        raise ValueError(f"cannot parse expression {text!r}: {exc.msg}") from None
+    for name in code.co_names:
+        if name != "t" and name not in names:
+            raise ValueError(f"unknown name {name!r} in expression {text!r} (use t and math functions)")
+
+    def f(t):
+        return float(eval(code, {"__builtins__": {}}, dict(names, t=t)))  # noqa: S307 - names restricted above
+    f(0.0)
+    return f
+
+
+def build_parser():
+    p = argparse.ArgumentParser(
+        prog="torque_pub", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG,
+        description="Publish hip torque commands (std_msgs/Float64MultiArray, [u1, u2] in N m: hip of leg 1, "
+                    "then leg 2) for the biped_sim node. Without --rate or --lockstep it publishes once, after "
+                    "a subscriber is found, and exits.")
+    p.add_argument("torques", nargs="*", type=float, metavar="U", help="the two torques u1 u2 (N m); default 0 0")
+    p.add_argument("--expr", nargs=2, metavar=("E1", "E2"), help="torques as expressions of t (s)")
+    p.add_argument("--rate", type=float, help="publish at this rate (Hz, wall clock) until --duration or Ctrl-C")
+    p.add_argument("--duration", type=float, default=0.0, help="with --rate: stop after this many s (0: never)")
+    p.add_argument("--lockstep", action="store_true",
+                   help="answer every joint_states message with one command (t = the message's stamp)")
+    p.add_argument("--steps", type=int, default=0, help="with --lockstep: stop after this many commands (0: never)")
+    p.add_argument("--topic", default="hip_torque", help="command topic")
+    p.add_argument("--states", default="joint_states", help="state topic (--lockstep)")
+    p.add_argument("--wait", type=float, default=10.0, help="s to wait for the node to subscribe")
+    return p
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    try:
+        if args.expr:
+            if args.torques:
+                raise ValueError("give either two torques or --expr E1 E2, not both")
+            f1, f2 = (compile_expr(e) for e in args.expr)
+            torques = lambda t: [f1(t), f2(t)]  # noqa: E731
+        else:
+            vals = args.torques or [0.0, 0.0]
+            if len(vals) != 2:
+                raise ValueError(f"give two torques (hip 1, hip 2), got {len(vals)}")
+            torques = lambda t: list(vals)  # noqa: E731
+        if args.rate is not None and not args.rate > 0:
+            raise ValueError("--rate must be positive")
+    except ValueError as exc:
+        print(f"torque_pub: error: {exc}", file=sys.stderr)
+        return 2
+
+    import rclpy
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64MultiArray
+    rclpy.init()
+    node = rclpy.create_node("torque_pub")
+    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+    pub = node.create_publisher(Float64MultiArray, args.topic, qos)
+    topic = pub.topic_name
+    sent = 0
+
+    def send(t):
+        nonlocal sent
+        u = torques(t)
+        pub.publish(Float64MultiArray(data=u))
+        sent += 1
+        return u
+    try:
+        end = time.monotonic() + args.wait
+        while pub.get_subscription_count() == 0:
+            if time.monotonic() > end:
+                print(f"torque_pub: error: nobody subscribes to {topic} after {args.wait:g} s "
+                      "(is sim_node running, on this ROS_DOMAIN_ID?)", file=sys.stderr)
+                return 1
+            rclpy.spin_once(node, timeout_sec=0.05)
+        if args.lockstep:
+            from rclpy.qos import DurabilityPolicy
+
+            def on_state(msg):
+                if args.steps and sent >= args.steps:
+                    return
+                send(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9)
+            node.create_subscription(JointState, args.states, on_state,
+                                     QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                                                durability=DurabilityPolicy.TRANSIENT_LOCAL))
+            while not args.steps or sent < args.steps:
+                rclpy.spin_once(node, timeout_sec=0.1)
+        elif args.rate:
+            t0 = time.monotonic()
+            k = 0
+            while not args.duration or time.monotonic() - t0 < args.duration:
+                send(k / args.rate)
+                k += 1
+                while time.monotonic() < t0 + k / args.rate:
+                    rclpy.spin_once(node, timeout_sec=max(0.0, t0 + k / args.rate - time.monotonic()))
+        else:
+            u = send(0.0)
+            print(f"published {u} on {topic}")
+        from rclpy.duration import Duration
+        pub.wait_for_all_acked(Duration(seconds=2.0))
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    if args.rate or args.lockstep:
+        print(f"published {sent} commands on {topic}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
