@@ -63,34 +63,44 @@ def bench_stance(model):
 
 
 def walk_solve_ivp(model, ctrl, q0, dq0, t_final, rtol, atol):
-    """The same hybrid walk with solve_ivp(DOP853, events=touchdown), restarted after each impact."""
+    """The same hybrid walk with solve_ivp(DOP853, events=...), restarted after each event.
+
+    Written as a careful solve_ivp user would: a terminal touchdown event (swing foot height,
+    direction -1); a crossing behind the stance foot is a scuff, after which the integration goes
+    on with an 'emerge' event (height, direction +1) before the touchdown event is armed again --
+    restarting on the touchdown event right at its own root would find that root again forever.
+    """
     t, y, leg = 0.0, np.concatenate([q0, dq0]), 1
-    impacts = 0
-    nfev = 0
+    impacts, nfev, scuffing = 0, 0, False
     while t < t_final:
         swing = 3 - leg
 
-        def rhs(t, y, leg=leg):
+        def rhs(t, y, leg=leg):  # the engine's stance right-hand side, without the work quadrature
             yl = y.tolist()
-            u = ctrl(t, y[:5], y[5:], leg).tolist()
-            ddq, _ = stance_floating_fast(model, yl[:5], yl[5:], u, leg)
-            return yl[5:] + ddq
+            q, dq = yl[:5], yl[5:]
+            u0, u1 = ctrl(t, q, dq, leg)
+            ddq, _ = stance_floating_fast(model, q, dq, [float(u0), float(u1)], leg)
+            return np.array(dq + ddq)
 
-        def touchdown(t, y, swing=swing):
+        def height(t, y, swing=swing):
             return model.foot_position(y[:5], swing)[1]
-        touchdown.terminal, touchdown.direction = True, -1
-        sol = solve_ivp(rhs, (t, t_final), y, method="DOP853", rtol=rtol, atol=atol, events=touchdown)
+        height.terminal, height.direction = True, (1 if scuffing else -1)
+        sol = solve_ivp(rhs, (t, t_final), y, method="DOP853", rtol=rtol, atol=atol, events=height)
         nfev += sol.nfev
         if sol.status != 1:
             y = sol.y[:, -1]
             break
         t, y = sol.t_events[0][0], sol.y_events[0][0].copy()
+        if scuffing:
+            scuffing = False
+            continue
         q = y[:5]
         if model.foot_position(q, swing)[0] > model.foot_position(q, leg)[0]:   # in front: an impact
             y[5:], _ = impact_map(model, q, y[5:], swing)
             leg = swing
             impacts += 1
-        # behind the stance foot: a scuff, go on from there without a reset (as the engine does)
+        else:
+            scuffing = True
     return y, impacts, nfev
 
 

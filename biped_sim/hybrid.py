@@ -328,10 +328,16 @@ class HybridSimulator:
         return rhs, to_phys, from_phys
 
     def _call_controller(self, t, q, dq, controller=None):
-        u = (controller or self._controller)(t, np.array(q), np.array(dq), self.stance_leg)
+        ctrl = controller or self._controller
+        # a controller that sets ``accepts_lists = True`` takes q, dq as lists (no array round trip)
+        if getattr(ctrl, "accepts_lists", False):
+            u = ctrl(t, q, dq, self.stance_leg)
+        else:
+            u = ctrl(t, np.array(q), np.array(dq), self.stance_leg)
         try:
-            u0, u1 = float(u[0]), float(u[1])
-            ok = len(u) == 2
+            u0, u1 = u
+            u0, u1 = float(u0), float(u1)
+            ok = True
         except (TypeError, IndexError, ValueError):
             ok = False
         if not ok or not (math.isfinite(u0) and math.isfinite(u1)):
