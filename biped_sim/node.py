@@ -14,6 +14,7 @@ import difflib
 import math
 import signal
 import sys
+import threading
 import time
 from datetime import datetime, timezone
 
@@ -246,6 +247,8 @@ def _make_node_class():
             self.pub_diag = self.create_publisher(DiagnosticArray, "diagnostics", qos)
             self.sub = self.create_subscription(Float64MultiArray, "hip_torque", self._on_command,
                                                 QoSProfile(depth=QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE))
+            self._js_msg = self._grf_msg = None
+            self._clock_msg = Clock()
             self.recorder = None
             self.bag_path = None
             self._open_recorder()
@@ -419,52 +422,91 @@ def _make_node_class():
             self._publish(self.pub_diag, diagnostic_array(sim.t, [st]), sim.t)
 
         def publish_state(self):
+            """joint_states, ground_reaction (in stance) and /clock at the engine's current time.
+
+            The same content as ``joint_state_message``/``wrench_message``, but into messages made
+            once and refilled (building rosidl messages costs more than publishing them)."""
             sim = self.sim
             t = sim.t
+            st = stamp(t)
+            frame = foot_frame(sim.stance_leg)
             if self.pub_js is not None:
-                self._publish(self.pub_js, joint_state_message(t, sim.q, sim.dq, self.u, sim.stance_leg), t)
+                m = self._js_msg
+                if m is None:
+                    m = self._js_msg = joint_state_message(t, sim.q, sim.dq, self.u, sim.stance_leg)
+                else:
+                    m.header.stamp = st
+                    m.header.frame_id = frame
+                    m.position = sim.q.tolist()
+                    m.velocity = sim.dq.tolist()
+                    m.effort = [0.0, 0.0, float(self.u[0]), float(self.u[1]), 0.0]
+                self._publish(self.pub_js, m, t)
             if self.pub_grf is not None and sim.stance_leg:
-                self._publish(self.pub_grf, wrench_message(t, sim.ground_force, sim.stance_leg), t)
+                m = self._grf_msg
+                force = sim.ground_force
+                if m is None:
+                    m = self._grf_msg = wrench_message(t, force, sim.stance_leg)
+                else:
+                    m.header.stamp = st
+                    m.header.frame_id = frame
+                    m.wrench.force.x = float(force[0])
+                    m.wrench.force.y = float(force[1])
+                self._publish(self.pub_grf, m, t)
             if self.pub_clock is not None:
-                self._publish(self.pub_clock, Clock(clock=stamp(t)), t)
+                self._clock_msg.clock = st
+                self._publish(self.pub_clock, self._clock_msg, t)
 
         # -- time modes -------------------------------------------------------------------------
         def run(self, should_stop, executor):
             self.publish_state()
-            if self.mode == "lockstep":
+            if self.mode == "lockstep":     # the command callback steps and publishes
                 while not should_stop() and not self.finished:
                     executor.spin_once(timeout_sec=0.1)
-            elif self.mode == "fast":
-                self._run_fast(should_stop, executor)
-            else:
-                self._run_realtime(should_stop, executor)
-            if self.finished:
-                self.publish_run_status()
-            # after an error: stay up for inspection until stopped
-            while not should_stop() and self.stopped:
-                executor.spin_once(timeout_sec=0.1)
+                if self.finished:
+                    self.publish_run_status()
+                while not should_stop() and self.stopped:   # after an error: stay up for inspection
+                    executor.spin_once(timeout_sec=0.1)
+                return
+            # realtime and fast: commands are taken by the executor in a second thread (the callback
+            # only stores them), so that waiting for them costs the simulation loop nothing
+            done = threading.Event()
 
-        def _run_fast(self, should_stop, executor):
+            def spin():
+                while not done.is_set():
+                    executor.spin_once(timeout_sec=0.05)
+            spinner = threading.Thread(target=spin, name="biped_sim-commands", daemon=True)
+            spinner.start()
+            try:
+                if self.mode == "fast":
+                    self._run_fast(should_stop)
+                else:
+                    self._run_realtime(should_stop)
+                if self.finished:
+                    self.publish_run_status()
+                while not should_stop() and self.stopped:   # after an error: stay up for inspection
+                    time.sleep(0.05)
+            finally:
+                done.set()
+                spinner.join(timeout=2.0)
+
+        def _run_fast(self, should_stop):
             pub_period = 1.0 / self.params["publish_rate"]
             next_pub = pub_period
-            poll = 0.0
             while not (self.stopped or self.finished or should_stop()):
-                now = time.monotonic()
-                if now - poll > 1e-3:       # take commands (and timeouts) at most once per ms of wall
-                    executor.spin_once(timeout_sec=0)
-                    self._check_timeout()
-                    poll = now
+                self._check_timeout()
                 self.step()
                 if self.sim.t >= next_pub - 1e-12 or self.finished or self.stopped:
                     self.publish_state()
                     next_pub = (math.floor(self.sim.t / pub_period + 1e-9) + 1) * pub_period
 
-        def _run_realtime(self, should_stop, executor):
+        def _run_realtime(self, should_stop):
             pub_period = 1.0 / self.params["publish_rate"]
             next_pub = pub_period
             rate = self.params["rate_factor"]
             wall0 = time.monotonic()
             lag_report = wall0
+            self.publish_walls = walls = []          # wall times of the state publications (figures)
+            self._cpu0, self._k0 = time.process_time(), self.k
             while not (self.stopped or self.finished or should_stop()):
                 self._check_timeout()
                 self.step()                  # compute ahead: the state at the end of this period
@@ -478,14 +520,32 @@ def _make_node_class():
                         f"{(now - deadline) * rate:.3f} s behind the wall clock x rate_factor {rate:g} "
                         f"(achieved real-time factor {self.sim.t / (now - wall0):.3g}); lower publish_rate or "
                         "rate_factor, raise control_period, or use time_mode fast")
-                while True:                  # take commands until the wall clock reaches that time
-                    left = deadline - time.monotonic()
-                    if left <= 0:
-                        break
-                    executor.spin_once(timeout_sec=left)
+                left = deadline - time.monotonic()
+                if left > 2e-4:              # sleep overshoots by ~0.1 ms: wake early, spin the rest
+                    time.sleep(left - 1.5e-4)
+                while time.monotonic() < deadline:
+                    pass
                 if self.sim.t >= next_pub - 1e-12 or self.finished or self.stopped:
+                    if len(walls) < 1_000_000:
+                        walls.append(time.monotonic())
                     self.publish_state()
                     next_pub = (math.floor(self.sim.t / pub_period + 1e-9) + 1) * pub_period
+            self._report_realtime(walls, pub_period / rate, wall0)
+
+        def _report_realtime(self, walls, period, wall0):
+            """Log the achieved publish rate and the period jitter (wall clock) of a realtime run."""
+            if len(walls) < 3:
+                return
+            d = sorted(abs((b - a) - period) for a, b in zip(walls, walls[1:]))
+            pick = lambda q: d[min(len(d) - 1, int(q * (len(d) - 1)))]  # noqa: E731
+            self.realtime_figures = dict(rate=(len(walls) - 1) / (walls[-1] - walls[0]), jitter_p50=pick(0.5),
+                                         jitter_p99=pick(0.99), rtf=self.sim.t / (time.monotonic() - wall0),
+                                         cpu=(time.process_time() - self._cpu0) / max(1, self.k - self._k0))
+            f = self.realtime_figures
+            self.get_logger().info(
+                f"realtime figures: {len(walls)} states published at {f['rate']:.1f} Hz (wall; target "
+                f"{1 / period:.1f} Hz), period jitter p50 {f['jitter_p50'] * 1e6:.0f} us, p99 {f['jitter_p99'] * 1e6:.0f} us, "
+                f"real-time factor {f['rtf']:.3f}; CPU time of this process {f['cpu'] * 1e3:.3f} ms per control period")
 
         def flush(self, timeout=1.0):
             """Wait (bounded) until subscribers acknowledged what was published."""
