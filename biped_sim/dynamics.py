@@ -28,18 +28,21 @@ def _swap(v):
     return [v[0], v[1], v[3], v[2], v[4]]
 
 
-def _solve_sym3(a, b, c, d, e, f, r0, r1, r2):
-    """Solve [[a b c][b d e][c e f]] x = r for a symmetric positive definite 3x3 matrix."""
+def _inverse_sym3(a, b, c, d, e, f):
+    """Upper triangle (00, 01, 02, 11, 12, 22) of the inverse of [[a b c][b d e][c e f]], a symmetric
+    positive definite matrix (its adjugate over its determinant)."""
     A11 = d * f - e * e
     A12 = c * e - b * f
     A13 = b * e - c * d
-    A22 = a * f - c * c
-    A23 = b * c - a * e
-    A33 = a * d - b * b
     inv_det = 1.0 / (a * A11 + b * A12 + c * A13)
-    return ((A11 * r0 + A12 * r1 + A13 * r2) * inv_det,
-            (A12 * r0 + A22 * r1 + A23 * r2) * inv_det,
-            (A13 * r0 + A23 * r1 + A33 * r2) * inv_det)
+    return (A11 * inv_det, A12 * inv_det, A13 * inv_det, (a * f - c * c) * inv_det, (b * c - a * e) * inv_det,
+            (a * d - b * b) * inv_det)
+
+
+def _solve_sym3(a, b, c, d, e, f, r0, r1, r2):
+    """Solve [[a b c][b d e][c e f]] x = r (symmetric positive definite)."""
+    i00, i01, i02, i11, i12, i22 = _inverse_sym3(a, b, c, d, e, f)
+    return (i00 * r0 + i01 * r1 + i02 * r2, i01 * r0 + i11 * r1 + i12 * r2, i02 * r0 + i12 * r1 + i22 * r2)
 
 
 def stance_floating_fast(model, q, dq, u, stance_leg=1):
@@ -73,15 +76,9 @@ def stance_joint_affine_fast(model, q, dq, stance_leg=1):
         a, Bu = stance_joint_affine_fast(model, _swap(q), _swap(dq), 1)
         return [a[1], a[0], a[2]], [[Bu[1][1], Bu[1][0]], [Bu[0][1], Bu[0][0]], [Bu[2][1], Bu[2][0]]]
     M00, M01, M02, M11, M12, M22, b0, b1, b2 = gen.stance_terms_1(q, dq, (0.0, 0.0), model.k_stance)[:9]
-    A11 = M11 * M22 - M12 * M12
-    A12 = M02 * M12 - M01 * M22
-    A13 = M01 * M12 - M02 * M11
-    A22 = M00 * M22 - M02 * M02
-    A23 = M01 * M02 - M00 * M12
-    inv_det = 1.0 / (M00 * A11 + M01 * A12 + M02 * A13)
-    a = [(A11 * b0 + A12 * b1 + A13 * b2) * inv_det, (A12 * b0 + A22 * b1 + A23 * b2) * inv_det,
-         (A13 * b0 + A23 * b1 + (M00 * M11 - M01 * M01) * b2) * inv_det]
-    Bu = [[A11 * inv_det, A12 * inv_det], [A12 * inv_det, A22 * inv_det], [A13 * inv_det, A23 * inv_det]]
+    i00, i01, i02, i11, i12, i22 = _inverse_sym3(M00, M01, M02, M11, M12, M22)
+    a = [i00 * b0 + i01 * b1 + i02 * b2, i01 * b0 + i11 * b1 + i12 * b2, i02 * b0 + i12 * b1 + i22 * b2]
+    Bu = [[i00, i01], [i01, i11], [i02, i12]]
     return a, Bu
 
 

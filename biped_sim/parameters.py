@@ -125,14 +125,18 @@ PARAMETERS = [
 BY_NAME = {p.name: p for p in PARAMETERS}
 
 
-def validate(values: dict) -> dict:
-    """All parameters (defaults filled in) after checking ``values``; ValueError names the culprit."""
-    unknown = sorted(set(values) - set(BY_NAME))
+def validate(values: dict, table=None, owner: str = "") -> dict:
+    """All parameters of ``table`` (default: the simulator's), defaults filled in, after checking
+    ``values``; a ValueError names the culprit and the allowed names. ``owner`` prefixes the message
+    (e.g. "walk_controller ")."""
+    table = PARAMETERS if table is None else table
+    by_name = {p.name: p for p in table}
+    unknown = sorted(set(values) - set(by_name))
     if unknown:
-        raise ValueError(f"unknown parameter(s) {unknown}; allowed: {', '.join(BY_NAME)}")
-    out = {p.name: p.default for p in PARAMETERS}
+        raise ValueError(f"unknown {owner}parameter(s) {unknown}; allowed: {', '.join(by_name)}")
+    out = {p.name: p.default for p in table}
     for name, value in values.items():
-        out[name] = BY_NAME[name].check(value)
+        out[name] = by_name[name].check(value)
     return out
 
 

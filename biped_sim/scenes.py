@@ -55,13 +55,7 @@ _GAINS = ("torso_pitch", "step_angle", "clearance", "lag", "kp", "kd", "torque_l
 
 def validate_controller(values: dict) -> dict:
     """All controller parameters (defaults filled in) after checking ``values``; ValueError names the culprit."""
-    unknown = sorted(set(values) - set(CONTROLLER_BY_NAME))
-    if unknown:
-        raise ValueError(f"unknown walk_controller parameter(s) {unknown}; allowed: {', '.join(CONTROLLER_BY_NAME)}")
-    out = {p.name: p.default for p in CONTROLLER_PARAMETERS}
-    for name, value in values.items():
-        out[name] = CONTROLLER_BY_NAME[name].check(value)
-    return out
+    return P.validate(values, CONTROLLER_PARAMETERS, owner="walk_controller ")
 
 
 def make_controller(cparams: dict):
