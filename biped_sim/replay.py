@@ -39,7 +39,7 @@ def build_parser():
     p.add_argument("--clock", type=float, nargs="?", const=100.0, default=None, metavar="HZ",
                    help="publish /clock at HZ (default 100) from the playback time instead of the bag's /clock")
     p.add_argument("--wait-subscribers", type=float, default=0.0, metavar="S",
-                   help="before playing, wait up to S seconds until every topic has a subscriber")
+                   help="before playing, wait up to S seconds until every topic with messages has a subscriber")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     p.add_argument("--list", action="store_true", help="list the bag's topics and exit")
     return p
@@ -131,11 +131,13 @@ def main(argv=None):
         from rclpy.qos import QoSProfile
         clock_pub = node.create_publisher(Clock, "/clock", QoSProfile(depth=100))
     all_pubs = list(pubs.values()) + ([clock_pub] if clock_pub else [])
-    if args.wait_subscribers > 0:
-        deadline = time.monotonic() + args.wait_subscribers
-        while not stop and time.monotonic() < deadline and any(p.get_subscription_count() == 0 for p in all_pubs):
-            time.sleep(0.02)
     msgs = list(bagio.messages(args.bag, topics=topics))
+    if args.wait_subscribers > 0:     # wait on the topics that have something to play
+        used = {m[0] for m in msgs}
+        waiting = [p for t, p in pubs.items() if t in used] + ([clock_pub] if clock_pub else [])
+        deadline = time.monotonic() + args.wait_subscribers
+        while not stop and time.monotonic() < deadline and any(p.get_subscription_count() == 0 for p in waiting):
+            time.sleep(0.02)
     if not msgs and clock_pub is None:
         print("replay: nothing to play", file=sys.stderr)
         node.destroy_node()
