@@ -95,13 +95,18 @@ _f64_cache = {}
 def float64_multi_array(m):
     if m.layout.dim:
         return None
-    data = m.data
+    return float64_multi_array_data(m.data, m.layout.data_offset)
+
+
+def float64_multi_array_data(data, data_offset=0):
+    """The CDR of ``std_msgs/Float64MultiArray(data=data)`` (empty layout) without building the message:
+    ``simulate --record`` records its commands with it (the node records the messages it receives)."""
     n = len(data)
     s = _f64_cache.get(n)
     if s is None:
         # layout.dim count (0), layout.data_offset, data count, (pad to 8), data
         s = _f64_cache[n] = struct.Struct(f"<III4x{n}d" if n else "<III")
-    return _HEAD + s.pack(0, m.layout.data_offset, n, *data)
+    return _HEAD + s.pack(0, data_offset, n, *data)
 
 
 ENCODERS = {

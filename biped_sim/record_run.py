@@ -13,6 +13,7 @@ from __future__ import annotations
 import signal
 
 from . import messages as M
+from .cdr import float64_multi_array_data
 from .parameters import engine_arguments
 
 
@@ -73,8 +74,8 @@ def run_recorded(params, controller, recorder, progress=None):
         while sim.status == "running" and sim.t < duration and not stop:
             if controller is not None:
                 u = [float(v) for v in controller(sim.t, sim.q.copy(), sim.dq.copy(), sim.stance_leg)]
-            if recorder is not None:
-                rec("/hip_torque", M.torque_msg(u), M.to_ns(sim.t))
+            if recorder is not None:   # the command's CDR (what M.torque_msg(u) serialises to)
+                rec("/hip_torque", float64_multi_array_data(u), M.to_ns(sim.t))
             events = sim.advance(min((k + 1) * period, duration), u=u)
             k += 1
             for ev in events:

@@ -42,13 +42,20 @@ class Tee:
     """A recorder that also keeps every (topic, message, t_ns) it is given: what was 'published'."""
 
     def __init__(self, rec):
-        self.rec, self.sent = rec, []
+        self.rec, self.sent, self.types = rec, [], {}
 
-    def add_topic(self, *a, **k):
-        self.rec.add_topic(*a, **k)
+    def add_topic(self, topic, type_name, *a, **k):
+        self.types[topic] = type_name
+        self.rec.add_topic(topic, type_name, *a, **k)
 
     def write(self, topic, msg, t_ns):
-        self.sent.append((topic, msg, t_ns))
+        if isinstance(msg, bytes):   # pre-serialised (the headless run's commands): what goes on the wire
+            from rclpy.serialization import deserialize_message
+
+            from biped_sim.messages import message_class
+            self.sent.append((topic, deserialize_message(msg, message_class(self.types[topic])), t_ns))
+        else:
+            self.sent.append((topic, msg, t_ns))
         self.rec.write(topic, msg, t_ns)
 
 
