@@ -59,9 +59,12 @@ def role_echo():
     rclpy.init()
     node = rclpy.create_node("bare_echo")
     pub = node.create_publisher(JointState, "joint_states", _qos(True))
-    state = {"t": 0.0}
+    state = {"t": 0.0, "n": 0}
 
     def on_cmd(msg):
+        if state["n"] == 0:
+            state["cpu0"] = time.process_time()
+        state["n"] += 1
         state["t"] += 0.001
         pub.publish(joint_state_message(state["t"], q0, dq0, msg.data, 1))
     node.create_subscription(Float64MultiArray, "hip_torque", on_cmd, _qos())
@@ -71,6 +74,9 @@ def role_echo():
     signal.signal(signal.SIGINT, lambda *_: stop.append(1))
     while not stop:
         rclpy.spin_once(node, timeout_sec=0.1)
+    if state["n"] > 1:
+        print(f"[INFO] [echo]: {state['n']} control periods to t=0: process CPU "
+              f"{1e3 * (time.process_time() - state['cpu0']) / (state['n'] - 1):.3f} ms per round trip", flush=True)
     node.destroy_node()
     rclpy.try_shutdown()
 
@@ -212,18 +218,35 @@ def _round_trip(far_argv, steps, dom):
         return dict(error=f"client failed: {client.stdout[-2000:]} {client.stderr[-2000:]}", log=log)
     out = json.loads(lines[-1])
     out["log"] = log
+    out["node"] = next((ln.split("]: ", 1)[1] for ln in log.splitlines() if "control periods to" in ln), "")
     return out
 
 
 def bench_lockstep(steps=2000, control_period=0.001):
+    """Bare and sim round trips, measured alternately (twice each) so that a change of the machine's
+    load during the run affects both alike; returns the totals."""
     _, q0, dq0 = _walking_start()
-    with _domain() as dom:
-        bare = _round_trip([sys.executable, "-m", "biped_sim.bench_node", "--role", "echo"], steps, dom)
-    with _domain() as dom:
-        sim = _round_trip([str(BIN / "sim_node"), *_params(dict(time_mode="lockstep", control_period=control_period,
-                                                                initial_q=q0, initial_dq=dq0, record=False))],
-                          steps, dom)
-    return bare, sim
+    runs = {"bare": [], "sim": []}
+    for _ in range(2):
+        with _domain() as dom:
+            runs["bare"].append(_round_trip([sys.executable, "-m", "biped_sim.bench_node", "--role", "echo"],
+                                            steps // 2, dom))
+        with _domain() as dom:
+            runs["sim"].append(_round_trip(
+                [str(BIN / "sim_node"), *_params(dict(time_mode="lockstep", control_period=control_period,
+                                                      initial_q=q0, initial_dq=dq0, record=False))], steps // 2, dom))
+    out = []
+    for name in ("bare", "sim"):
+        rs = runs[name]
+        bad = [r for r in rs if "error" in r]
+        if bad:
+            out.append(bad[0])
+            continue
+        n, wall = sum(r["steps"] for r in rs), sum(r["wall"] for r in rs)
+        out.append(dict(steps=n, wall=wall, rate=n / wall, rtt_p50=sorted(r["rtt_p50"] for r in rs)[0],
+                        rtt_p99=max(r["rtt_p99"] for r in rs), ctrl_mean=sum(r["ctrl_mean"] for r in rs) / len(rs),
+                        parts=[round(r["rate"]) for r in rs], node=rs[-1]["node"]))
+    return tuple(out)
 
 
 def _engine_cost(control_period=0.001, steps=2000):
@@ -249,6 +272,7 @@ def main(argv=None):
         return role_echo()
     if args.role == "client":
         return role_client(args.steps)
+    print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
     print(f"engine alone (walking, DOP853 rtol=atol=1e-9): {_engine_cost():.3f} ms per 1 ms control period")
     rt = bench_realtime(args.seconds)
     if "error" in rt:
@@ -267,10 +291,13 @@ def main(argv=None):
         if "error" in r:
             print(f"{name}: {r['error']}\n{r.get('log', '')[-3000:]}")
         else:
-            print(f"{name}: {r['rate']:.0f} steps/s, round trip p50 {r['rtt_p50'] * 1e3:.3f} ms, "
+            print(f"{name}: {r['rate']:.0f} steps/s (runs: {r['parts']}), round trip p50 {r['rtt_p50'] * 1e3:.3f} ms, "
                   f"p99 {r['rtt_p99'] * 1e3:.3f} ms ({r['steps']} steps; controller {r['ctrl_mean'] * 1e3:.3f} ms/step)")
+            if r.get("node"):
+                print(f"    node: {r['node']}")
     if "error" not in bare and "error" not in sim:
         print(f"lockstep / bare round-trip rate: {100 * sim['rate'] / bare['rate']:.0f} % (target >= 70 %)")
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
     return 0
 
 

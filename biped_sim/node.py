@@ -458,10 +458,12 @@ def _make_node_class():
 
         # -- time modes -------------------------------------------------------------------------
         def run(self, should_stop, executor):
+            self._cpu_run0 = time.process_time()
             self.publish_state()
             if self.mode == "lockstep":     # the command callback steps and publishes
                 while not should_stop() and not self.finished:
                     executor.spin_once(timeout_sec=0.1)
+                self._cpu_end = time.process_time()
                 if self.finished:
                     self.publish_run_status()
                 while not should_stop() and self.stopped:   # after an error: stay up for inspection
@@ -481,6 +483,7 @@ def _make_node_class():
                     self._run_fast(should_stop)
                 else:
                     self._run_realtime(should_stop)
+                self._cpu_end = time.process_time()
                 if self.finished:
                     self.publish_run_status()
                 while not should_stop() and self.stopped:   # after an error: stay up for inspection
@@ -547,6 +550,14 @@ def _make_node_class():
                 f"{1 / period:.1f} Hz), period jitter p50 {f['jitter_p50'] * 1e6:.0f} us, p99 {f['jitter_p99'] * 1e6:.0f} us, "
                 f"real-time factor {f['rtf']:.3f}; CPU time of this process {f['cpu'] * 1e3:.3f} ms per control period")
 
+        def log_figures(self):
+            """The run's cost: control periods, engine time and this process's CPU time per period."""
+            k = max(1, self.k)
+            cpu = getattr(self, "_cpu_end", time.process_time()) - getattr(self, "_cpu_run0", 0.0)
+            self.get_logger().info(
+                f"{self.k} control periods to t={self.sim.t:.6f} s: engine {1e3 * self.sim.stats['wall_time'] / k:.3f} ms "
+                f"(wall) and process CPU {1e3 * cpu / k:.3f} ms per period; commands {self.counts}")
+
         def flush(self, timeout=1.0):
             """Wait (bounded) until subscribers acknowledged what was published."""
             from rclpy.duration import Duration
@@ -594,6 +605,7 @@ def main(argv=None):
         if stop:
             node.get_logger().info(f"{signal.Signals(stop[0]).name}: shutting down at t={node.sim.t:.6f} s")
             node.publish_run_status()
+        node.log_figures()
         node.flush()
     finally:
         if node is not None:
