@@ -215,7 +215,8 @@ def _make_node_class():
             self.params = prm = read_parameters(self)
             self.add_on_set_parameters_callback(self._on_set_parameters)
             try:
-                self.sim = HybridSimulator(**P.engine_arguments(prm))
+                # the node publishes as it goes: the engine keeps only the last sample
+                self.sim = HybridSimulator(**P.engine_arguments(prm), keep_samples=False)
             except ValueError as exc:
                 raise StartupError(f"cannot start the engine with these parameters: {exc}") from None
             self.mode = prm["time_mode"]
@@ -373,9 +374,6 @@ def _make_node_class():
                 t_next = self.duration       # the last period ends exactly at the duration
             events = sim.advance(t_next, u=self.u)
             self.k += 1
-            # the engine keeps every sample; the node needs only the last (a long run would grow)
-            if len(sim._samples) > 64:
-                del sim._samples[:-1]
             for ev in events:
                 self._publish_event(ev)
             if sim.status != "running" and not self.stopped:

@@ -29,9 +29,6 @@ def topics_for(params) -> dict:
     return out
 
 
-def _ground_force(sim):
-    f = getattr(sim, "ground_force", None)
-    return f if f is not None else sim._samples[-1][4]
 
 
 def run_recorded(params, controller, recorder, progress=None):
@@ -42,7 +39,7 @@ def run_recorded(params, controller, recorder, progress=None):
     closes the recorder. Returns the HybridSimulator at the end.
     """
     from .hybrid import HybridSimulator
-    sim = HybridSimulator(**engine_arguments(params))
+    sim = HybridSimulator(**engine_arguments(params), keep_samples=False)
     topics = topics_for(params)
     if recorder is not None:
         for name, typ in topics.items():
@@ -58,7 +55,7 @@ def run_recorded(params, controller, recorder, progress=None):
         if js:
             rec("/joint_states", M.joint_state_msg(t, sim.q, sim.dq, u, sim.stance_leg), ns)
         if grf and sim.stance_leg:
-            rec("/ground_reaction", M.wrench_msg(t, _ground_force(sim), sim.stance_leg), ns)
+            rec("/ground_reaction", M.wrench_msg(t, sim.ground_force, sim.stance_leg), ns)
         if clock:
             rec("/clock", M.clock_msg(t), ns)
 

@@ -40,7 +40,7 @@ def resim(bag, progress=None) -> dict:
     t_imp = bagio.find_topic(topics, "impact")
     if t_js is None:
         raise ValueError(f"{bag} has no joint_states topic to compare with")
-    sim = HybridSimulator(**engine_arguments(params))
+    sim = HybridSimulator(**engine_arguments(params), keep_samples=False)
     period, duration = params["control_period"], params["duration"]
     state = dict(k=0, u=[0.0, 0.0])
 
@@ -51,8 +51,6 @@ def resim(bag, progress=None) -> dict:
                 t_next = min(t_next, duration)
             sim.advance(t_next, u=state["u"])
             state["k"] += 1
-            if len(sim._samples) > 64:
-                del sim._samples[:-1]
 
     rep = dict(bag=str(bag), params=params, commands=0, states=0, max_dq=0.0, max_q=0.0, first=None,
                impacts_recorded=[], status=None, message="", t_end=0.0)
