@@ -306,67 +306,83 @@ def stance_terms_1(q, dq, u, k):
     return (t1 + t6, t9, -t11 + t12 + t6, t1, t12, 2*I_leg + I_torso + c_torso*c_torso*m_torso + 2*t0 - 2*t11 - t5*t7 + t6, g*t15 + t37 + u1, g*t34 + t21*t34 - t25*t30 + u2, g*t38 + t21*t38 - t30*t39 + t37, t20, 0, t20, t40, 0, t40, t30, t21, t16, t22, t25, t39, -t15, -t34, -t38, -t36, -t28,)
 
 
-def fixed_base_terms_1_constants(p):
-    """Parameter-only subexpressions of fixed_base_terms_1."""
+def fixed_base_dynamics_1_constants(p):
+    """Parameter-only subexpressions of fixed_base_dynamics_1."""
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = p
     t0 = l_leg*l_leg
     t1 = -l_leg
-    t2 = c_leg + t1
-    t3 = m_leg*t2*t2
-    t4 = I_leg + t3
-    t8 = l_leg*m_leg
-    t10 = l_leg*m_torso
-    t11 = c_leg*c_leg
-    t12 = c_leg*m_leg
-    t13 = 2*l_leg
-    t21 = 2*m_leg
-    t33 = 1/(m_torso + t21)
-    t34 = m_leg*t2
-    t35 = t10 - t34 + t8
-    t36 = t33*t35
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t8, t10, t11, t12, t13, t21, t33, t34, t35, t36,)
+    t2 = m_leg*(c_leg + t1)**2
+    t3 = I_leg + t2
+    t7 = l_leg*m_leg
+    t9 = l_leg*m_torso
+    t10 = c_leg*c_leg
+    t11 = c_leg*m_leg
+    t12 = 2*l_leg
+    t18 = 2*t7
+    t19 = c_torso*m_torso
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t7, t9, t10, t11, t12, t18, t19,)
 
 
-def fixed_base_terms_1(qs, dqs, u, k):
-    """Fixed-base chain pinned at the foot of leg 1: D_s (6 upper), B_s u - C_s dq_s - G_s (3), J_com (6), Jdot_com dq_s (2), hip minus foot (2), hip velocity (2)."""
+def fixed_base_dynamics_1(qs, dqs, u, k):
+    """Fixed-base chain pinned at the foot of leg 1: D_s (6 upper), B_s u - C_s dq_s - G_s (3)."""
     q1, q2, q3 = qs
     dq1, dq2, dq3 = dqs
     u1, u2 = u
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t8, t10, t11, t12, t13, t21, t33, t34, t35, t36 = k
-    t5 = q1 - q2
-    t6 = cos(t5)
-    t7 = c_leg*t6
-    t9 = c_torso*cos(q1)
-    t14 = dq2 + dq3
-    t15 = sin(t5)
-    t16 = t12*t15
-    t17 = dq2*t16
-    t18 = l_leg*t14*t17
-    t19 = q1 + q3
-    t20 = sin(t19)
-    t22 = c_torso*m_torso*sin(q1)
-    t23 = dq3*l_leg
-    t24 = q2 + q3
-    t25 = sin(t24)
-    t26 = dq1 + dq3
-    t27 = t15*t26
-    t28 = dq1*(t16 + t22)
-    t29 = c_torso*sin(q3)
-    t30 = t12*t25
-    t31 = l_leg*t20
-    t32 = cos(t19)
-    t37 = cos(t24)
-    t38 = t12*t37
-    t39 = l_leg*t32
-    t40 = -t39
-    t41 = m_leg*(c_leg*t37 + t40) + m_torso*(c_torso*cos(q3) + t40) + t32*t34
-    t42 = -t31
-    t43 = m_leg*(c_leg*t25 + t42) + m_torso*(t29 + t42) + t20*t34
-    t44 = dq2*t30
-    t45 = dq1*t35
-    t46 = t20*t45
-    t47 = dq2*t38
-    t48 = t32*t45
-    return (m_leg*t0 + m_torso*t0 + t4, -t7*t8, -t10*(t1 + t9) + t4 - t8*(t1 + t7), I_leg + m_leg*t11, I_leg + t12*(c_leg - l_leg*t6), 2*I_leg + I_torso + m_leg*(t0 + t11 - t13*t7) + m_torso*(c_torso*c_torso + t0 - t13*t9) + t3, -g*t20*(l_leg*t21 + t10 - t12) + t18 + t23*(dq3*t16 + dq3*t22 + t17) + u1, -t12*(dq1*l_leg*t27 - g*t25 + t23*t27) + u2, g*(m_torso*t29 - t10*t20 + t12*t20 - t21*t31 + t30) - l_leg*t26*t28 + t18 + t23*(t17 - t28), -t32*t36, t33*t38, t33*t41, t20*t36, -t30*t33, -t33*t43, -t33*(dq3*(dq3*t43 + t44 - t46) + t14*t44 - t26*t46), -t33*(dq3*(dq3*t41 + t47 - t48) + t14*t47 - t26*t48), t42, t40, -t26*t39, t26*t31,)
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t7, t9, t10, t11, t12, t18, t19 = k
+    t4 = q1 - q2
+    t5 = cos(t4)
+    t6 = c_leg*t5
+    t8 = c_torso*cos(q1)
+    t13 = sin(t4)
+    t14 = t11*t13
+    t15 = dq2*t14
+    t16 = l_leg*t15*(dq2 + dq3)
+    t17 = sin(q1 + q3)
+    t20 = t19*sin(q1)
+    t21 = dq3*l_leg
+    t22 = sin(q2 + q3)
+    t23 = dq1 + dq3
+    t24 = t13*t23
+    t25 = dq1*(t14 + t20)
+    return (m_leg*t0 + m_torso*t0 + t3, -t6*t7, t3 - t7*(t1 + t6) - t9*(t1 + t8), I_leg + m_leg*t10, I_leg + t11*(c_leg - l_leg*t5), 2*I_leg + I_torso + m_leg*(t0 + t10 - t12*t6) + m_torso*(c_torso*c_torso + t0 - t12*t8) + t2, -g*t17*(-t11 + t18 + t9) + t16 + t21*(dq3*t14 + dq3*t20 + t15) + u1, -t11*(dq1*l_leg*t24 - g*t22 + t21*t24) + u2, g*(t11*t17 + t11*t22 - t17*t18 - t17*t9 + t19*sin(q3)) - l_leg*t23*t25 + t16 + t21*(t15 - t25),)
 
-CONSTANTS = {'mass_matrix': mass_matrix_constants, 'coriolis_matrix': coriolis_matrix_constants, 'gravity_vector': gravity_vector_constants, 'bias_forces': bias_forces_constants, 'foot_positions': foot_positions_constants, 'foot_jacobian_1': foot_jacobian_1_constants, 'foot_jacobian_2': foot_jacobian_2_constants, 'foot_jacobian_dot_1': foot_jacobian_dot_1_constants, 'foot_jacobian_dot_2': foot_jacobian_dot_2_constants, 'foot_kinematics': foot_kinematics_constants, 'energy': energy_constants, 'com_position': com_position_constants, 'stance_terms_1': stance_terms_1_constants, 'fixed_base_terms_1': fixed_base_terms_1_constants}
+
+def fixed_base_kinematics_1_constants(p):
+    """Parameter-only subexpressions of fixed_base_kinematics_1."""
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = p
+    t2 = 1/(2*m_leg + m_torso)
+    t3 = m_leg*(c_leg - l_leg)
+    t4 = l_leg*m_leg + l_leg*m_torso - t3
+    t5 = t2*t4
+    t8 = m_leg*t2
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t2, t3, t4, t5, t8,)
+
+
+def fixed_base_kinematics_1(qs, dqs, k):
+    """Fixed-base chain pinned at the foot of leg 1: J_com (6), Jdot_com dq_s (2), hip minus foot (2), hip velocity (2)."""
+    q1, q2, q3 = qs
+    dq1, dq2, dq3 = dqs
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t2, t3, t4, t5, t8 = k
+    t0 = q1 + q3
+    t1 = cos(t0)
+    t6 = q2 + q3
+    t7 = c_leg*cos(t6)
+    t9 = l_leg*t1
+    t10 = -t9
+    t11 = m_leg*(t10 + t7) + m_torso*(c_torso*cos(q3) + t10) + t1*t3
+    t12 = sin(t0)
+    t13 = c_leg*sin(t6)
+    t14 = l_leg*t12
+    t15 = -t14
+    t16 = m_leg*(t13 + t15) + m_torso*(c_torso*sin(q3) + t15) + t12*t3
+    t17 = dq2 + dq3
+    t18 = dq2*m_leg
+    t19 = t13*t18
+    t20 = dq1 + dq3
+    t21 = dq1*t4
+    t22 = t12*t21
+    t23 = t18*t7
+    t24 = t1*t21
+    return (-t1*t5, t7*t8, t11*t2, t12*t5, -t13*t8, -t16*t2, -t2*(dq3*(dq3*t16 + t19 - t22) + t17*t19 - t20*t22), -t2*(dq3*(dq3*t11 + t23 - t24) + t17*t23 - t20*t24), t15, t10, -t20*t9, t14*t20,)
+
+CONSTANTS = {'mass_matrix': mass_matrix_constants, 'coriolis_matrix': coriolis_matrix_constants, 'gravity_vector': gravity_vector_constants, 'bias_forces': bias_forces_constants, 'foot_positions': foot_positions_constants, 'foot_jacobian_1': foot_jacobian_1_constants, 'foot_jacobian_2': foot_jacobian_2_constants, 'foot_jacobian_dot_1': foot_jacobian_dot_1_constants, 'foot_jacobian_dot_2': foot_jacobian_dot_2_constants, 'foot_kinematics': foot_kinematics_constants, 'energy': energy_constants, 'com_position': com_position_constants, 'stance_terms_1': stance_terms_1_constants, 'fixed_base_dynamics_1': fixed_base_dynamics_1_constants, 'fixed_base_kinematics_1': fixed_base_kinematics_1_constants}

@@ -82,19 +82,25 @@ def stance_joint_affine_fast(model, q, dq, stance_leg=1):
     return a, Bu
 
 
-def stance_fixed_fast(model, qs, dqs, u, stance_leg=1):
-    """Fixed-base stance: chain coordinates qs = [q1, q2, q3] pinned at the stance foot.
+def stance_fixed_accel_fast(model, qs, dqs, u, stance_leg=1):
+    """Fixed-base stance accelerations ddq_s of the chain qs = [q1, q2, q3] pinned at the stance foot:
+    D_s ddq_s = B_s u - C_s dq_s - G_s (the engine's right-hand side; no force)."""
+    if stance_leg == 2:
+        dd = stance_fixed_accel_fast(model, [qs[1], qs[0], qs[2]], [dqs[1], dqs[0], dqs[2]], (u[1], u[0]), 1)
+        return [dd[1], dd[0], dd[2]]
+    return list(_solve_sym3(*gen.fixed_base_dynamics_1(qs, dqs, u, model.k_fixed)))
 
-    Returns (ddqs, F, hip_minus_foot, hip_velocity, hip_acceleration): the chain's own D_s, C_s dq_s,
-    G_s give ddq_s; F = m_total (ddp_com + [0, g]) is Newton's law for the whole body.
-    """
+
+def stance_fixed_fast(model, qs, dqs, u, stance_leg=1):
+    """Fixed-base stance with everything recovered: (ddqs, F, hip_minus_foot, hip_velocity,
+    hip_acceleration); F = m_total (ddp_com + [0, g]) is Newton's law for the whole body."""
     if stance_leg == 2:
         sq, sdq = [qs[1], qs[0], qs[2]], [dqs[1], dqs[0], dqs[2]]
         dd, F, r, v, a = stance_fixed_fast(model, sq, sdq, (u[1], u[0]), 1)
         return [dd[1], dd[0], dd[2]], F, r, v, a
-    (D00, D01, D02, D11, D12, D22, b0, b1, b2, Jc00, Jc01, Jc02, Jc10, Jc11, Jc12, jd0, jd1,
-     rx, ry, vx, vy) = gen.fixed_base_terms_1(qs, dqs, u, model.k_fixed)
-    a1, a2, a3 = _solve_sym3(D00, D01, D02, D11, D12, D22, b0, b1, b2)
+    a1, a2, a3 = stance_fixed_accel_fast(model, qs, dqs, u, 1)
+    Jc00, Jc01, Jc02, Jc10, Jc11, Jc12, jd0, jd1, rx, ry, vx, vy = gen.fixed_base_kinematics_1(
+        qs, dqs, model.k_fixed_kin)
     m = model.total_mass
     F = [m * (Jc00 * a1 + Jc01 * a2 + Jc02 * a3 + jd0),
          m * (Jc10 * a1 + Jc11 * a2 + Jc12 * a3 + jd1 + model.parameters.g)]

@@ -45,7 +45,8 @@ import numpy as np
 from scipy.optimize import brentq
 
 from . import _generated as gen
-from .dynamics import flight_fast, impact_map, stance_fixed_fast, stance_floating_fast
+from .dynamics import (flight_fast, impact_map, stance_fixed_accel_fast, stance_fixed_fast,
+                       stance_floating_fast)
 from .integrators import (ADAPTIVE_METHODS, FIXED_STEP_METHODS, METHODS, StepFailure,
                           make_stepper)
 from .model import BipedModel, as_state_vector
@@ -299,8 +300,7 @@ class HybridSimulator:
                 else:
                     q, dq, _ = to_phys(y)
                     u = sim._call_controller(t, q, dq)
-                dds, F, _r, _v, _a = stance_fixed_fast(model, qs, dqs, u, leg)
-                sim._last_F = F
+                dds = stance_fixed_accel_fast(model, qs, dqs, u, leg)   # no force: guards ask for it
                 return np.array(dqs + dds + [u[0] * dqs[0] + u[1] * dqs[1]])
             return rhs, to_phys, from_phys
 
@@ -533,7 +533,9 @@ class HybridSimulator:
         if self.stance_leg:
             F0 = self._last_start_F if self._last_start_F_t == st.t_old else self._force_at(st.t_old, q0, dq0)
             # our steppers evaluate the right-hand side last at the step's end (FSAL): reuse its force
-            F1 = list(self._last_F) if st.last_eval_at_end else self._force_at(st.t, q1, dq1)
+            # (the fixed-base right-hand side computes no force)
+            F1 = (list(self._last_F) if st.last_eval_at_end and self.opt.base == "floating"
+                  else self._force_at(st.t, q1, dq1))
             self._last_start_F, self._last_start_F_t = F1, st.t
         self._F_end = F1
         h = st.t - st.t_old

@@ -100,7 +100,8 @@ class BipedModel:
         # parameter-only subexpressions of every closed form, computed once
         self.k = {name: constants(self.p) for name, constants in gen.CONSTANTS.items()}
         self.k_stance = self.k["stance_terms_1"]
-        self.k_fixed = self.k["fixed_base_terms_1"]
+        self.k_fixed = self.k["fixed_base_dynamics_1"]
+        self.k_fixed_kin = self.k["fixed_base_kinematics_1"]
 
     def __repr__(self):
         return f"BipedModel({self.parameters})"
