@@ -477,6 +477,12 @@ class HybridSimulator:
                         f"foot {leg} goes {-f[4 * (leg - 1) + 1]:.3g} m into the ground at t={t:.9g} s after the "
                         f"double touchdown at t={last.time:.9g} s: double support is not modelled (the run "
                         f"continued on foot {last.leg} only)")
+                if last is not None and last.warnings and leg == last.stance_leg_before:
+                    raise SimulationError(
+                        f"foot {leg} goes {-f[4 * (leg - 1) + 1]:.3g} m into the ground at t={t:.9g} s: at the "
+                        f"impact of t={last.time:.9g} s {'; '.join(last.warnings)}, so the feet stay in "
+                        f"contact (impacts accumulating, Zeno-like, or double support), which the model "
+                        f"does not cover")
                 raise SimulationError(
                     f"foot {leg} is {-f[4 * (leg - 1) + 1]:.3g} m below the ground at t={t:.9g} s: the robot fell "
                     f"or the foot passed the ground where no touchdown counts (touchdown_rule="
