@@ -59,15 +59,20 @@ def run_parameters(bag) -> dict:
     return json.loads(meta["parameters"])
 
 
+def _reader_and_summary(f):
+    """An MCAP reader of ``f`` and its summary, or None for a file cut short (no summary section)."""
+    from mcap.reader import make_reader
+    r = make_reader(f)
+    try:
+        return r, r.get_summary()
+    except Exception:  # noqa: BLE001  (a truncated file raises from deep inside the reader)
+        return r, None
+
+
 def channels(bag) -> dict:
     """{topic: type} of the bag."""
-    from mcap.reader import make_reader
     with open(mcap_path(bag), "rb") as f:
-        r = make_reader(f)
-        try:
-            s = r.get_summary()
-        except Exception:  # noqa: BLE001
-            s = None
+        _r, s = _reader_and_summary(f)
         if s is not None:
             return {c.topic: s.schemas[c.schema_id].name for c in s.channels.values()}
     out = {}
@@ -78,13 +83,8 @@ def channels(bag) -> dict:
 
 def messages(bag, topics=None, start_ns=None):
     """Yield (topic, type, log_time_ns, data) in log-time order; a truncated file up to its last chunk."""
-    from mcap.reader import make_reader
     with open(mcap_path(bag), "rb") as f:
-        r = make_reader(f)
-        try:
-            summary = r.get_summary()
-        except Exception:  # noqa: BLE001
-            summary = None
+        r, summary = _reader_and_summary(f)
         if summary is None:
             yield from _scan_messages(f, topics, start_ns)
             return
