@@ -429,11 +429,12 @@ class HybridSimulator:
             if max(map(abs, dq)) > self.opt.max_speed:
                 raise SimulationError(f"diverging state at t={st.t:.9g} s: a velocity exceeds "
                                       f"{self.opt.max_speed:g} (dq={np.round(dq, 3).tolist()})")
-            event = self._detect(st, q, dq)
+            feet = self._feet(q, dq)   # the end state's feet, shared by the checks below
+            event = self._detect(st, q, dq, feet)
             if event is None:
                 # (issue 5) checked only when no guard crossed in this step: a long free-flight step
                 # can pass the ground by more than max_penetration before its touchdown is located
-                self._check_ground(st.t, q, dq)
+                self._check_ground(st.t, feet)
             if event is not None:
                 t_ev, kind, legs = event
                 y_ev = st.dense_output()(t_ev)
@@ -445,7 +446,7 @@ class HybridSimulator:
                 self._new_stepper(t_end)
                 st = self._stepper
                 continue
-            q, dq = self._project(q, dq)
+            q, dq = self._project(q, dq, feet)
             self._accept(st.t, q, dq, w, self._F_end)
             if self.opt.project_constraints and self.stance_leg and self.opt.base == "floating":
                 st.y = np.array(q + dq + [w])  # continue from the projected state
@@ -456,8 +457,7 @@ class HybridSimulator:
         """The last touchdown event, or None."""
         return next((e for e in reversed(self.events) if e.kind in ("touchdown", "double_touchdown")), None)
 
-    def _check_ground(self, t, q, dq):
-        f = self._feet(q, dq)
+    def _check_ground(self, t, f):
         if "impact" not in self.opt.phases:
             # no touchdown guard is built; a swing foot that reaches the ground where a touchdown
             # would count leaves the scene's assumptions: say so instead of walking through the ground
@@ -488,12 +488,11 @@ class HybridSimulator:
                     f"or the foot passed the ground where no touchdown counts (touchdown_rule="
                     f"{self.opt.touchdown_rule!r}, phases={sorted(self.opt.phases)})")
 
-    def _project(self, q, dq):
-        """Measure the stance constraint drift and (by default) remove it."""
+    def _project(self, q, dq, f):
+        """Measure the stance constraint drift and (by default) remove it; ``f`` is _feet(q, dq)."""
         if not self.stance_leg or self.opt.base == "fixed":
             return q, dq
         leg = self.stance_leg
-        f = self._feet(q, dq)
         fx, fy = self._foot_xy(q, leg)
         i = 4 * (leg - 1)
         self.stats["max_constraint_drift_position"] = max(self.stats["max_constraint_drift_position"],
@@ -526,15 +525,16 @@ class HybridSimulator:
             self._samples.clear()
         self._samples.append((self.t, q, dq, leg, F, list(self._u), residual))
 
-    def _detect(self, st, q1, dq1):
-        """Earliest guard crossing inside the last step: (time, kind, legs) or None."""
+    def _detect(self, st, q1, dq1, feet1):
+        """Earliest guard crossing inside the last step: (time, kind, legs) or None.
+        ``feet1`` is _feet(q1, dq1), the step's end."""
         guards = self._guards()
         self._F_end = None
         if not guards:
-            self._update_arming(q1, dq1)
+            self._update_arming(feet1)
             return None
         q0, dq0, _ = self._to_phys(st.y_old)
-        feet0, feet1 = self._feet(q0, dq0), self._feet(q1, dq1)
+        feet0 = self._feet(q0, dq0)
         F0 = F1 = None
         if self.stance_leg:
             F0 = self._last_start_F if self._last_start_F_t == st.t_old else self._force_at(st.t_old, q0, dq0)
@@ -571,7 +571,7 @@ class HybridSimulator:
                     continue
             roots.append((t_root, kind, leg))
         if not roots:
-            self._update_arming(q1, dq1)
+            self._update_arming(feet1)
             return None
         roots.sort()
         t_first, kind, leg = roots[0]
@@ -588,8 +588,7 @@ class HybridSimulator:
                         legs.append(other)
         return t_first, kind, sorted(set(legs))
 
-    def _update_arming(self, q, dq):
-        f = self._feet(q, dq)
+    def _update_arming(self, f):
         for leg in (1, 2):
             if not self.armed[leg - 1] and leg != self.stance_leg and f[4 * (leg - 1) + 1] > self.opt.arm_height:
                 self.armed[leg - 1] = True

@@ -65,6 +65,9 @@ class DOP853Stepper(_Stepper):
     E5 = _dop.E5
     D = _dop.D
     A_EXTRA = _dop.A[_dop.N_STAGES + 1:]
+    # constant per class, not per stepper: the node builds a stepper every control period
+    _rows = [_dop.A[s, :s].copy() for s in range(_dop.N_STAGES)]
+    _E53 = np.vstack([_dop.E5, _dop.E3])
     C_EXTRA = _dop.C[_dop.N_STAGES + 1:]
     SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
     ERROR_EXPONENT = -1.0 / 8.0
@@ -73,8 +76,6 @@ class DOP853Stepper(_Stepper):
         self.rtol, self.atol, self.max_step = rtol, atol, max_step
         self.h_abs = h0
         super().__init__(fun, t0, y0, t_bound)
-        self._rows = [self.A[s, :s].copy() for s in range(_dop.N_STAGES)]
-        self._E53 = np.vstack([self.E5, self.E3])
 
     def restart(self, t0, y0, t_bound, h=None):
         super().restart(t0, y0, t_bound)
