@@ -27,10 +27,12 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) -m biped_sim.bench
 
-# Regenerate biped_sim/_generated.py from the energies (needs sympy, installed here only).
+# Regenerate biped_sim/_generated.py from the energies (needs sympy, installed here only) and
+# biped_sim/_dop853.py (the unrolled DOP853 step) from scipy's tableau.
 generate: $(STAMP)
 	@$(PY) -c "import sympy" 2>/dev/null || $(VENV)/bin/uv pip install -q --python $(PY) sympy==1.14.0
 	$(PY) tools/generate_model.py
+	$(PY) tools/generate_dop853.py
 
 clean-venv:
 	rm -rf $(VENV)

@@ -226,6 +226,7 @@ class HybridSimulator:
         self._nfev_base = 0
         self._rejected_base = 0
         self._F_end = None
+        self._feet_end, self._feet_end_t = None, None
         self._samples = []
         self._record(self.q, self.dq, self.stance_leg, self._force_at(self.t, self.q.tolist(), self.dq.tolist()))
 
@@ -271,7 +272,7 @@ class HybridSimulator:
     def _mode_functions(self):
         """(rhs, to_physical, from_physical) of the current mode, for the integrator's state y."""
         model, leg = self.model, self.stance_leg
-        ctrl = self._controller
+        ctrl = self._controller_function()
         u_hold = self._u
         sim = self
 
@@ -283,67 +284,86 @@ class HybridSimulator:
 
             def to_phys(y):
                 # the hip hangs from the pin: hip = c - l (sin th, cos th), th = q_stance + q3
-                yl = y.tolist()
+                yl = y if type(y) is list else y.tolist()
                 th, w = yl[i] + yl[2], yl[3 + i] + yl[5]
                 sn, cs = math.sin(th), math.cos(th)
                 return ([c[0] - l_leg * sn, c[1] - l_leg * cs] + yl[0:3],
                         [-l_leg * cs * w, l_leg * sn * w] + yl[3:6], yl[6])
 
             def from_phys(q, dq, w):
-                return np.array(list(q[2:]) + list(dq[2:]) + [w])
+                return list(q[2:]) + list(dq[2:]) + [w]
 
             def rhs(t, y):
-                yl = y.tolist()
-                qs, dqs = yl[0:3], yl[3:6]
+                qs, dqs = y[0:3], y[3:6]
                 if ctrl is None:
                     u = u_hold
                 else:
                     q, dq, _ = to_phys(y)
-                    u = sim._call_controller(t, q, dq)
+                    u = ctrl(t, q, dq)
                 dds = stance_fixed_accel_fast(model, qs, dqs, u, leg)   # no force: guards ask for it
-                return np.array(dqs + dds + [u[0] * dqs[0] + u[1] * dqs[1]])
+                return dqs + dds + [u[0] * dqs[0] + u[1] * dqs[1]]
             return rhs, to_phys, from_phys
 
         def to_phys(y):
-            yl = y.tolist()
+            yl = y if type(y) is list else y.tolist()
             return yl[0:5], yl[5:10], yl[10]
 
         def from_phys(q, dq, w):
-            return np.array(list(q) + list(dq) + [w])
+            return list(q) + list(dq) + [w]
 
-        if leg:
+        # the right-hand sides take and return lists (integrators.py): y = [q, dq, work of the motors]
+        if leg == 1:   # the closed form itself (stance on leg 2 goes through the relabeling)
+            k_stance, stance_1 = model.k_stance, gen.stance_floating_1
+
             def rhs(t, y):
-                yl = y.tolist()
-                q, dq = yl[0:5], yl[5:10]
-                u = u_hold if ctrl is None else sim._call_controller(t, q, dq)
+                q, dq = y[0:5], y[5:10]
+                u = u_hold if ctrl is None else ctrl(t, q, dq)
+                ddq, F = stance_1(q, dq, u, k_stance)
+                sim._last_F = F
+                return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
+        elif leg:
+            def rhs(t, y):
+                q, dq = y[0:5], y[5:10]
+                u = u_hold if ctrl is None else ctrl(t, q, dq)
                 ddq, F = stance_floating_fast(model, q, dq, u, leg)
                 sim._last_F = F
-                return np.array(dq + ddq + [u[0] * dq[2] + u[1] * dq[3]])
+                return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
         else:
             def rhs(t, y):
-                yl = y.tolist()
-                q, dq = yl[0:5], yl[5:10]
-                u = u_hold if ctrl is None else sim._call_controller(t, q, dq)
+                q, dq = y[0:5], y[5:10]
+                u = u_hold if ctrl is None else ctrl(t, q, dq)
                 ddq = flight_fast(model, q, dq, u)
-                return np.array(dq + ddq + [u[0] * dq[2] + u[1] * dq[3]])
+                return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
         return rhs, to_phys, from_phys
 
     def _call_controller(self, t, q, dq, controller=None):
+        """u = controller(t, q, dq, stance_leg) as a list of two finite floats (lists q, dq)."""
         ctrl = controller or self._controller
         # a controller that sets ``accepts_lists = True`` takes q, dq as lists (no array round trip)
         if getattr(ctrl, "accepts_lists", False):
-            u = ctrl(t, q, dq, self.stance_leg)
-        else:
-            u = ctrl(t, np.array(q), np.array(dq), self.stance_leg)
-        try:
-            u0, u1 = u
-            u0, u1 = float(u0), float(u1)
-            ok = True
-        except (TypeError, IndexError, ValueError):
-            ok = False
-        if not ok or not (math.isfinite(u0) and math.isfinite(u1)):
-            raise SimulationError(f"the controller returned {u!r} at t={t:.9g} s: it must return two finite torques")
-        return [u0, u1]
+            return _torques(ctrl(t, q, dq, self.stance_leg), t)
+        return _torques(ctrl(t, np.array(q), np.array(dq), self.stance_leg), t)
+
+    def _controller_function(self):
+        """``_call_controller`` with the controller and stance leg of this mode bound (or None)."""
+        ctrl, leg = self._controller, self.stance_leg
+        if ctrl is None:
+            return None
+        if not getattr(ctrl, "accepts_lists", False):
+            return lambda t, q, dq: _torques(ctrl(t, np.array(q), np.array(dq), leg), t)
+
+        def call(t, q, dq):
+            # _torques inlined: this runs at every right-hand-side evaluation
+            u = ctrl(t, q, dq, leg)
+            try:
+                u0, u1 = u
+                u = [float(u0), float(u1)]
+            except (TypeError, IndexError, ValueError):
+                return _torques(u, t)
+            if not math.isfinite(u[0] + u[1]):
+                return _torques(u, t)
+            return u
+        return call
 
     def _force_at(self, t, q, dq):
         """Ground force on the stance foot at a physical state (zeros in flight)."""
@@ -415,7 +435,7 @@ class HybridSimulator:
         y0 = from_phys(self.q, self.dq, self.work)
         self._to_phys = to_phys
         self._stepper = make_stepper(self.method, rhs, self.t, y0, t_bound, self.rtol, self.atol,
-                                     step=self.opt.step, n_positions=(y0.size - 1) // 2, h0=self._h,
+                                     step=self.opt.step, n_positions=(len(y0) - 1) // 2, h0=self._h,
                                      max_step=self.opt.max_step)
 
     def _integrate(self, t_end):
@@ -449,7 +469,7 @@ class HybridSimulator:
             q, dq = self._project(q, dq, feet)
             self._accept(st.t, q, dq, w, self._F_end)
             if self.opt.project_constraints and self.stance_leg and self.opt.base == "floating":
-                st.y = np.array(q + dq + [w])  # continue from the projected state
+                st.replace_y(q + dq + [w])  # continue from the projected state
         self.stats["rejected_steps"] = self._rejected_base + st.nrejected
 
     @property
@@ -533,11 +553,23 @@ class HybridSimulator:
         if not guards:
             self._update_arming(feet1)
             return None
-        q0, dq0, _ = self._to_phys(st.y_old)
-        feet0 = self._feet(q0, dq0)
+        # the step's start is the last step's end: its feet and force are known (the projection
+        # since moved the state by the drift only, ~1e-14)
+        q0 = dq0 = None
+        if self._feet_end_t == st.t_old:
+            feet0 = self._feet_end
+        else:
+            q0, dq0, _ = self._to_phys(st.y_old)
+            feet0 = self._feet(q0, dq0)
+        self._feet_end, self._feet_end_t = feet1, st.t
         F0 = F1 = None
         if self.stance_leg:
-            F0 = self._last_start_F if self._last_start_F_t == st.t_old else self._force_at(st.t_old, q0, dq0)
+            if self._last_start_F_t == st.t_old:
+                F0 = self._last_start_F
+            else:
+                if q0 is None:
+                    q0, dq0, _ = self._to_phys(st.y_old)
+                F0 = self._force_at(st.t_old, q0, dq0)
             # our steppers evaluate the right-hand side last at the step's end (FSAL): reuse its force
             # (the fixed-base right-hand side computes no force)
             F1 = (list(self._last_F) if st.last_eval_at_end and self.opt.base == "floating"
@@ -744,6 +776,18 @@ class HybridSimulator:
             stance_leg=np.array([x[3] for x in s], dtype=int), grf=np.array([x[4] for x in s]),
             u=np.array([x[5] for x in s]), events=list(self.events), stats=stats,
             status="completed" if self.status == "running" else self.status, message=self.message)
+
+
+def _torques(u, t):
+    """The two torques a controller returned, as finite floats, or a SimulationError."""
+    try:
+        u0, u1 = u
+        u0, u1 = float(u0), float(u1)
+    except (TypeError, IndexError, ValueError):
+        u0 = u1 = math.nan
+    if not math.isfinite(u0 + u1):   # nan + x and inf - inf are nan; inf + x is inf
+        raise SimulationError(f"the controller returned {u!r} at t={t:.9g} s: it must return two finite torques")
+    return [u0, u1]
 
 
 def _hermite_min(g0, d0, g1, d1):

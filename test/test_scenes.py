@@ -116,14 +116,14 @@ def test_stance_fixed_integrates_three_coordinates_and_builds_no_impact_guard():
     sim = HybridSimulator(**kw)
     assert all(kind != "touchdown" for kind, _ in sim._guards())
     sim.advance(0.01, controller=s.controller())
-    assert sim._stepper.y.size == 7         # (q1, q2, q3, dq1, dq2, dq3, work): the 3-coordinate chain
+    assert len(sim._stepper.y) == 7         # (q1, q2, q3, dq1, dq2, dq3, work): the 3-coordinate chain
     r = s.simulate()
     assert r.status == "completed" and not r.events and r.t[-1] == pytest.approx(0.4)
     assert r.stats["max_constraint_drift_position"] == 0.0
     # the floating-base engine integrates the 11-dimensional state
     sim = HybridSimulator(**dict(kw, base="floating"))
     sim.advance(0.01, controller=s.controller())
-    assert sim._stepper.y.size == 11
+    assert len(sim._stepper.y) == 11
 
 
 def test_no_impact_guard_without_impact_and_no_grf_without_the_output():
