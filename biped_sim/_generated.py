@@ -18,13 +18,14 @@ def mass_matrix_constants(p):
     t7 = c_torso*m_torso
     t14 = c_leg*c_leg
     t15 = I_leg + m_leg*t14
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t3, t7, t14, t15,)
+    kc0 = 2*I_leg + I_torso + c_torso*c_torso*m_torso + t0*t14
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t3, t7, t14, t15, kc0,)
 
 
 def mass_matrix(q, k):
     """D(q), 5x5 row-major (25 values)."""
     x, y, q1, q2, q3 = q
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t3, t7, t14, t15 = k
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t3, t7, t14, t15, kc0 = k
     t2 = q1 + q3
     t4 = t3*cos(t2)
     t5 = q2 + q3
@@ -35,7 +36,7 @@ def mass_matrix(q, k):
     t11 = t3*sin(t5)
     t12 = -t11
     t13 = -t11 - t7*sin(q3) - t9
-    return (t1, 0, t4, t6, t8, 0, t1, t10, t12, t13, t4, t10, t15, 0, t15, t6, t12, 0, t15, t15, t8, t13, t15, t15, 2*I_leg + I_torso + c_torso*c_torso*m_torso + t0*t14,)
+    return (t1, 0, t4, t6, t8, 0, t1, t10, t12, t13, t4, t10, t15, 0, t15, t6, t12, 0, t15, t15, t8, t13, t15, t15, kc0,)
 
 
 def coriolis_matrix_constants(p):
@@ -84,14 +85,15 @@ def bias_forces_constants(p):
     t1 = c_torso*m_torso
     t5 = c_leg*m_leg
     t10 = 2*m_leg
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t1, t5, t10,)
+    kc0 = g*(m_torso + t10)
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t1, t5, t10, kc0,)
 
 
 def bias_forces(q, dq, k):
     """C(q, dq) dq + G(q)."""
     x, y, q1, q2, q3 = q
     dx, dy, dq1, dq2, dq3 = dq
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t1, t5, t10 = k
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t1, t5, t10, kc0 = k
     t0 = dq3*dq3
     t2 = t1*sin(q3)
     t3 = q1 + q3
@@ -105,7 +107,7 @@ def bias_forces(q, dq, k):
     t13 = dq1*t12
     t14 = t5*cos(t7)
     t15 = dq2*t14
-    return (-dq1*dq1*t6 - dq1*t11*t4 - dq2*dq2*t9 - dq2*t11*t8 - t0*t2 - t0*t6 - t0*t9, -dq3*(dq3*t1*cos(q3) + dq3*t12 + dq3*t14 + t13 + t15) + g*(m_torso + t10) - t13*(dq1 + dq3) - t15*(dq2 + dq3), -g*t6, -g*t9, -g*(t2 + t6 + t9),)
+    return (-dq1*dq1*t6 - dq1*t11*t4 - dq2*dq2*t9 - dq2*t11*t8 - t0*t2 - t0*t6 - t0*t9, -dq3*(dq3*t1*cos(q3) + dq3*t12 + dq3*t14 + t13 + t15) + kc0 - t13*(dq1 + dq3) - t15*(dq2 + dq3), -g*t6, -g*t9, -g*(t2 + t6 + t9),)
 
 
 def foot_positions_constants(p):
@@ -263,7 +265,10 @@ def stance_terms_1_constants(p):
     t8 = c_leg*m_leg
     t10 = c_torso*m_torso
     t16 = m_torso + t3
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16,)
+    kc0 = -g*t16
+    kc1 = t1 + t6
+    kc2 = 2*I_leg + I_torso + c_torso*c_torso*m_torso + 2*t0 + t6
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16, kc0, kc1, kc2,)
 
 
 def stance_terms_1(q, dq, u, k):
@@ -271,7 +276,7 @@ def stance_terms_1(q, dq, u, k):
     x, y, q1, q2, q3 = q
     dx, dy, dq1, dq2, dq3 = dq
     u1, u2 = u
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16 = k
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16, kc0, kc1, kc2 = k
     t7 = cos(q1 - q2)
     t9 = -l_leg*t7*t8
     t11 = l_leg*t10*cos(q1)
@@ -290,7 +295,7 @@ def stance_terms_1(q, dq, u, k):
     t25 = t8*cos(t24)
     t26 = dq2*t25
     t27 = t10*cos(q3)
-    t28 = dq3*(dq3*t22 + dq3*t25 + dq3*t27 + t23 + t26) - g*t16 + t17*t23 + t26*(dq2 + dq3)
+    t28 = dq3*(dq3*t22 + dq3*t25 + dq3*t27 + t23 + t26) + kc0 + t17*t23 + t26*(dq2 + dq3)
     t29 = l_leg*t14
     t30 = t18*t29
     t31 = dq3*dq3
@@ -303,7 +308,83 @@ def stance_terms_1(q, dq, u, k):
     t38 = t15 + t32 + t34
     t39 = t22 + t25 + t27
     t40 = -t29
-    return (t1 + t6, t9, -t11 + t12 + t6, t1, t12, 2*I_leg + I_torso + c_torso*c_torso*m_torso + 2*t0 - 2*t11 - t5*t7 + t6, g*t15 + t37 + u1, g*t34 + t21*t34 - t25*t30 + u2, g*t38 + t21*t38 - t30*t39 + t37, t20, 0, t20, t40, 0, t40, t30, t21, t16, t22, t25, t39, -t15, -t34, -t38, -t36, -t28,)
+    return (kc1, t9, -t11 + t12 + t6, t1, t12, kc2 - 2*t11 - t5*t7, g*t15 + t37 + u1, g*t34 + t21*t34 - t25*t30 + u2, g*t38 + t21*t38 - t30*t39 + t37, t20, 0, t20, t40, 0, t40, t30, t21, t16, t22, t25, t39, -t15, -t34, -t38, -t36, -t28,)
+
+
+def stance_floating_1_constants(p):
+    """Parameter-only subexpressions of stance_floating_1."""
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = p
+    t0 = c_leg*c_leg*m_leg
+    t1 = I_leg + t0
+    t2 = l_leg*l_leg
+    t3 = 2*m_leg
+    t4 = c_leg*t3
+    t5 = l_leg*t4
+    t6 = m_torso*t2 + t2*t3 - t5
+    t8 = c_leg*m_leg
+    t10 = c_torso*m_torso
+    t16 = m_torso + t3
+    kc0 = -g*t16
+    kc1 = t1 + t6
+    kc2 = 2*I_leg + I_torso + c_torso*c_torso*m_torso + 2*t0 + t6
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16, kc0, kc1, kc2,)
+
+
+def stance_floating_1(q, dq, u, k):
+    """Floating-base KKT (leg 1 on the ground) solved: (ddq (5), F (2)) as lists."""
+    x, y, q1, q2, q3 = q
+    dx, dy, dq1, dq2, dq3 = dq
+    u1, u2 = u
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16, kc0, kc1, kc2 = k
+    t7 = cos(q1 - q2)
+    t9 = -l_leg*t7*t8
+    t11 = l_leg*t10*cos(q1)
+    t12 = t1 + t9
+    t13 = q1 + q3
+    t14 = sin(t13)
+    t15 = t14*t8
+    t17 = dq1 + dq3
+    t18 = t17*t17
+    t19 = cos(t13)
+    t20 = l_leg*t19
+    t21 = t18*t20
+    t22 = t19*t8
+    t23 = dq1*t22
+    t24 = q2 + q3
+    t25 = t8*cos(t24)
+    t26 = dq2*t25
+    t27 = t10*cos(q3)
+    t28 = dq3*(dq3*t22 + dq3*t25 + dq3*t27 + t23 + t26) + kc0 + t17*t23 + t26*(dq2 + dq3)
+    t29 = l_leg*t14
+    t30 = t18*t29
+    t31 = dq3*dq3
+    t32 = t10*sin(q3)
+    t33 = sin(t24)
+    t34 = t33*t8
+    t35 = dq3*t4
+    t36 = dq1*dq1*t15 + dq1*t14*t35 + dq2*dq2*t34 + dq2*t33*t35 + t15*t31 + t31*t32 + t31*t34
+    t37 = -t20*(-t16*t30 + t36) + t29*(-t16*t21 + t28)
+    t38 = t15 + t32 + t34
+    t39 = t22 + t25 + t27
+    t40 = -t29
+    M02 = -t11 + t12 + t6
+    M22 = kc2 - 2*t11 - t5*t7
+    b0 = g*t15 + t37 + u1
+    b1 = g*t34 + t21*t34 - t25*t30 + u2
+    b2 = g*t38 + t21*t38 - t30*t39 + t37
+    l10 = t9/kc1
+    l20 = M02/kc1
+    d1 = -l10*t9 + t1
+    l21 = (-l20*t9 + t12)/d1
+    d2 = -M02*l20 + M22 - d1*l21*l21
+    z1 = -b0*l10 + b1
+    z2 = -b0*l20 + b2 - l21*z1
+    a3 = z2/d2
+    a2 = -a3*l21 + z1/d1
+    a1 = -a2*l10 - a3*l20 + b0/kc1
+    ax = -a1*t20 - a3*t20 + t30
+    ay = -a1*t40 - a3*t40 + t21
+    return [ax, ay, a1, a2, a3], [a1*t22 + a2*t25 + a3*t39 + ax*t16 - t36, -a1*t15 - a2*t34 - a3*t38 + ay*t16 - t28]
 
 
 def fixed_base_dynamics_1_constants(p):
@@ -320,15 +401,18 @@ def fixed_base_dynamics_1_constants(p):
     t12 = 2*l_leg
     t18 = 2*t7
     t19 = c_torso*m_torso
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t7, t9, t10, t11, t12, t18, t19,)
+    kc0 = m_leg*t0 + m_torso*t0 + t3
+    kc1 = I_leg + m_leg*t10
+    kc2 = 2*I_leg + I_torso + t2
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t7, t9, t10, t11, t12, t18, t19, kc0, kc1, kc2,)
 
 
 def fixed_base_dynamics_1(qs, dqs, u, k):
-    """Fixed-base chain pinned at the foot of leg 1: D_s (6 upper), B_s u - C_s dq_s - G_s (3)."""
+    """Fixed-base chain pinned at the foot of leg 1: ddq_s (3) of D_s ddq_s = B_s u - C_s dq_s - G_s."""
     q1, q2, q3 = qs
     dq1, dq2, dq3 = dqs
     u1, u2 = u
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t7, t9, t10, t11, t12, t18, t19 = k
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t7, t9, t10, t11, t12, t18, t19, kc0, kc1, kc2 = k
     t4 = q1 - q2
     t5 = cos(t4)
     t6 = c_leg*t5
@@ -344,7 +428,24 @@ def fixed_base_dynamics_1(qs, dqs, u, k):
     t23 = dq1 + dq3
     t24 = t13*t23
     t25 = dq1*(t14 + t20)
-    return (m_leg*t0 + m_torso*t0 + t3, -t6*t7, t3 - t7*(t1 + t6) - t9*(t1 + t8), I_leg + m_leg*t10, I_leg + t11*(c_leg - l_leg*t5), 2*I_leg + I_torso + m_leg*(t0 + t10 - t12*t6) + m_torso*(c_torso*c_torso + t0 - t12*t8) + t2, -g*t17*(-t11 + t18 + t9) + t16 + t21*(dq3*t14 + dq3*t20 + t15) + u1, -t11*(dq1*l_leg*t24 - g*t22 + t21*t24) + u2, g*(t11*t17 + t11*t22 - t17*t18 - t17*t9 + t19*sin(q3)) - l_leg*t23*t25 + t16 + t21*(t15 - t25),)
+    D01 = -t6*t7
+    D02 = t3 - t7*(t1 + t6) - t9*(t1 + t8)
+    D12 = I_leg + t11*(c_leg - l_leg*t5)
+    D22 = kc2 + m_leg*(t0 + t10 - t12*t6) + m_torso*(c_torso*c_torso + t0 - t12*t8)
+    r0 = -g*t17*(-t11 + t18 + t9) + t16 + t21*(dq3*t14 + dq3*t20 + t15) + u1
+    r1 = -t11*(dq1*l_leg*t24 - g*t22 + t21*t24) + u2
+    r2 = g*(t11*t17 + t11*t22 - t17*t18 - t17*t9 + t19*sin(q3)) - l_leg*t23*t25 + t16 + t21*(t15 - t25)
+    l10 = D01/kc0
+    l20 = D02/kc0
+    d1 = -D01*l10 + kc1
+    l21 = (-D01*l20 + D12)/d1
+    d2 = -D02*l20 + D22 - d1*l21*l21
+    z1 = -l10*r0 + r1
+    z2 = -l20*r0 - l21*z1 + r2
+    a3 = z2/d2
+    a2 = -a3*l21 + z1/d1
+    a1 = -a2*l10 - a3*l20 + r0/kc0
+    return [a1, a2, a3]
 
 
 def fixed_base_kinematics_1_constants(p):
@@ -385,4 +486,4 @@ def fixed_base_kinematics_1(qs, dqs, k):
     t24 = t1*t21
     return (-t1*t5, t7*t8, t11*t2, t12*t5, -t13*t8, -t16*t2, -t2*(dq3*(dq3*t16 + t19 - t22) + t17*t19 - t20*t22), -t2*(dq3*(dq3*t11 + t23 - t24) + t17*t23 - t20*t24), t15, t10, -t20*t9, t14*t20,)
 
-CONSTANTS = {'mass_matrix': mass_matrix_constants, 'coriolis_matrix': coriolis_matrix_constants, 'gravity_vector': gravity_vector_constants, 'bias_forces': bias_forces_constants, 'foot_positions': foot_positions_constants, 'foot_jacobian_1': foot_jacobian_1_constants, 'foot_jacobian_2': foot_jacobian_2_constants, 'foot_jacobian_dot_1': foot_jacobian_dot_1_constants, 'foot_jacobian_dot_2': foot_jacobian_dot_2_constants, 'foot_kinematics': foot_kinematics_constants, 'energy': energy_constants, 'com_position': com_position_constants, 'stance_terms_1': stance_terms_1_constants, 'fixed_base_dynamics_1': fixed_base_dynamics_1_constants, 'fixed_base_kinematics_1': fixed_base_kinematics_1_constants}
+CONSTANTS = {'mass_matrix': mass_matrix_constants, 'coriolis_matrix': coriolis_matrix_constants, 'gravity_vector': gravity_vector_constants, 'bias_forces': bias_forces_constants, 'foot_positions': foot_positions_constants, 'foot_jacobian_1': foot_jacobian_1_constants, 'foot_jacobian_2': foot_jacobian_2_constants, 'foot_jacobian_dot_1': foot_jacobian_dot_1_constants, 'foot_jacobian_dot_2': foot_jacobian_dot_2_constants, 'foot_kinematics': foot_kinematics_constants, 'energy': energy_constants, 'com_position': com_position_constants, 'stance_terms_1': stance_terms_1_constants, 'stance_floating_1': stance_floating_1_constants, 'fixed_base_dynamics_1': fixed_base_dynamics_1_constants, 'fixed_base_kinematics_1': fixed_base_kinematics_1_constants}

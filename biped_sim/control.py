@@ -107,12 +107,20 @@ class PDWalkingController(WalkingController):
     """
 
     def __call__(self, t, q, dq, stance_leg):
+        """(u1, u2), a tuple: this runs at every right-hand-side evaluation, so only y and dy of
+        :meth:`outputs` are computed (the PD law needs neither H nor the bias)."""
         if stance_leg == 0:
             return super().__call__(t, q, dq, stance_leg)
-        q = q.tolist() if type(q) is np.ndarray else [float(v) for v in q]
-        dq = dq.tolist() if type(dq) is np.ndarray else [float(v) for v in dq]
-        y, dy, _H, _bias = self.outputs(q, dq, stance_leg)
-        lim = self.torque_limit
-        u_swing = min(lim, max(-lim, -self.kp * y[1] - self.kd * dy[1]))
-        u_stance = min(lim, max(-lim, 2.0 * (self.kp * y[0] + self.kd * dy[0]) - u_swing))
-        return np.array([u_stance, u_swing] if stance_leg == 1 else [u_swing, u_stance])
+        if type(q) is not list:
+            q = q.tolist() if type(q) is np.ndarray else [float(v) for v in q]
+        if type(dq) is not list:
+            dq = dq.tolist() if type(dq) is np.ndarray else [float(v) for v in dq]
+        s, w = (2, 3) if stance_leg == 1 else (3, 2)
+        q3, dq3 = q[4], dq[4]
+        f, df, _ = self.swing_target(q[s] + q3 - math.pi)
+        y2 = q[w] + q3 - math.pi - f                    # y2 and dy2 = H2 dq_r as in outputs()
+        dy2 = dq[w] + dq3 - df * (dq[s] + dq3)
+        kp, kd, lim = self.kp, self.kd, self.torque_limit
+        u_swing = min(lim, max(-lim, -kp * y2 - kd * dy2))
+        u_stance = min(lim, max(-lim, 2.0 * (kp * (q3 - self.torso_pitch) + kd * dq3) - u_swing))
+        return (u_stance, u_swing) if stance_leg == 1 else (u_swing, u_stance)

@@ -39,12 +39,6 @@ def _inverse_sym3(a, b, c, d, e, f):
             (a * d - b * b) * inv_det)
 
 
-def _solve_sym3(a, b, c, d, e, f, r0, r1, r2):
-    """Solve [[a b c][b d e][c e f]] x = r (symmetric positive definite)."""
-    i00, i01, i02, i11, i12, i22 = _inverse_sym3(a, b, c, d, e, f)
-    return (i00 * r0 + i01 * r1 + i02 * r2, i01 * r0 + i11 * r1 + i12 * r2, i02 * r0 + i12 * r1 + i22 * r2)
-
-
 def stance_floating_fast(model, q, dq, u, stance_leg=1):
     """Floating-base stance KKT solution (ddq list, F list) for lists q, dq, u.
 
@@ -53,16 +47,9 @@ def stance_floating_fast(model, q, dq, u, stance_leg=1):
     space of J removes F; then F = D_bb ddq_base + D_br ddq_r + h_base (rows x, y, where J^T = I).
     """
     if stance_leg == 2:
-        ddq, F = stance_floating_fast(model, _swap(q), _swap(dq), (u[1], u[0]), 1)
+        ddq, F = gen.stance_floating_1(_swap(q), _swap(dq), (u[1], u[0]), model.k_stance)
         return _swap(ddq), F
-    (M00, M01, M02, M11, M12, M22, b0, b1, b2, A00, A01, A02, A10, A11, A12, g0, g1, m,
-     Dbr00, Dbr01, Dbr02, Dbr10, Dbr11, Dbr12, hb0, hb1) = gen.stance_terms_1(q, dq, u, model.k_stance)
-    a1, a2, a3 = _solve_sym3(M00, M01, M02, M11, M12, M22, b0, b1, b2)
-    ax = g0 - A00 * a1 - A01 * a2 - A02 * a3
-    ay = g1 - A10 * a1 - A11 * a2 - A12 * a3
-    F = [m * ax + Dbr00 * a1 + Dbr01 * a2 + Dbr02 * a3 + hb0,
-         m * ay + Dbr10 * a1 + Dbr11 * a2 + Dbr12 * a3 + hb1]
-    return [ax, ay, a1, a2, a3], F
+    return gen.stance_floating_1(q, dq, u, model.k_stance)
 
 
 def stance_joint_affine_fast(model, q, dq, stance_leg=1):
@@ -75,7 +62,7 @@ def stance_joint_affine_fast(model, q, dq, stance_leg=1):
     if stance_leg == 2:
         a, Bu = stance_joint_affine_fast(model, _swap(q), _swap(dq), 1)
         return [a[1], a[0], a[2]], [[Bu[1][1], Bu[1][0]], [Bu[0][1], Bu[0][0]], [Bu[2][1], Bu[2][0]]]
-    M00, M01, M02, M11, M12, M22, b0, b1, b2 = gen.stance_terms_1(q, dq, (0.0, 0.0), model.k_stance)[:9]
+    M00, M01, M02, M11, M12, M22, b0, b1, b2 = gen.stance_terms_1(q, dq, (0.0, 0.0), model.k["stance_terms_1"])[:9]
     i00, i01, i02, i11, i12, i22 = _inverse_sym3(M00, M01, M02, M11, M12, M22)
     a = [i00 * b0 + i01 * b1 + i02 * b2, i01 * b0 + i11 * b1 + i12 * b2, i02 * b0 + i12 * b1 + i22 * b2]
     Bu = [[i00, i01], [i01, i11], [i02, i12]]
@@ -88,7 +75,7 @@ def stance_fixed_accel_fast(model, qs, dqs, u, stance_leg=1):
     if stance_leg == 2:
         dd = stance_fixed_accel_fast(model, [qs[1], qs[0], qs[2]], [dqs[1], dqs[0], dqs[2]], (u[1], u[0]), 1)
         return [dd[1], dd[0], dd[2]]
-    return list(_solve_sym3(*gen.fixed_base_dynamics_1(qs, dqs, u, model.k_fixed)))
+    return gen.fixed_base_dynamics_1(qs, dqs, u, model.k_fixed)
 
 
 def stance_fixed_fast(model, qs, dqs, u, stance_leg=1):
@@ -125,19 +112,16 @@ def stance_dynamics(model: BipedModel, q, dq, u=None, stance_leg=1, base="floati
     taken as the one the pin implies (so it agrees with the floating base when J dq = 0).
     F is the force of the ground on the stance foot (N), in world axes.
     """
+    if type(q) is np.ndarray and type(dq) is np.ndarray and (u is None or type(u) is np.ndarray) \
+            and base == "floating" and stance_leg in (1, 2):
+        # fast path (float arrays of the right sizes): the closed form and two arrays, nothing else
+        ql, dql, ul = q.tolist(), dq.tolist(), [0.0, 0.0] if u is None else u.tolist()
+        if len(ql) == 5 and len(dql) == 5 and len(ul) == 2 and type(ql[0]) is float:
+            ddq, F = stance_floating_fast(model, ql, dql, ul, stance_leg)
+            if math.isfinite(sum(ddq) + sum(F)):
+                return np.array(ddq), np.array(F)
     if base not in ("floating", "fixed"):
         raise ValueError(f"base must be 'floating' or 'fixed', got {base!r}")
-    try:  # fast path: numpy inputs of the right size; anything odd falls through to the checks
-        ql, dql = q.tolist(), dq.tolist()
-        ul = [0.0, 0.0] if u is None else (u.tolist() if type(u) is np.ndarray else [float(v) for v in u])
-        if len(ql) == 5 and len(dql) == 5 and len(ul) == 2 and stance_leg in (1, 2):
-            ddq, F = _stance(model, ql, dql, ul, stance_leg, base)
-            out = ddq + F
-            if math.isfinite(sum(out)):
-                out = np.array(out)
-                return out[:5], out[5:]
-    except (AttributeError, TypeError, ValueError):
-        pass
     ql, dql, ul, leg = _check_stance_inputs(q, dq, u, stance_leg)
     ddq, F = _stance(model, ql, dql, ul, leg, base)
     if not math.isfinite(sum(ddq) + sum(F)):

@@ -99,7 +99,7 @@ class BipedModel:
         self.total_mass = params.m_torso + 2.0 * params.m_leg
         # parameter-only subexpressions of every closed form, computed once
         self.k = {name: constants(self.p) for name, constants in gen.CONSTANTS.items()}
-        self.k_stance = self.k["stance_terms_1"]
+        self.k_stance = self.k["stance_floating_1"]
         self.k_fixed = self.k["fixed_base_dynamics_1"]
         self.k_fixed_kin = self.k["fixed_base_kinematics_1"]
 

@@ -121,11 +121,65 @@ def py(ex):
     return POW2.sub(r"\1*\1", sp.pycode(ex, fully_qualified_modules=False))
 
 
-def fn(name, unpack, outputs, doc):
+def solve_sym3(M, b):
+    """x of [[M0 M1 M2][M1 M3 M4][M2 M4 M5]] x = b (symmetric positive definite) by LDL^T, as a list
+    of (name, expression) steps: three divisions and about twenty products, about half the
+    operations of the adjugate (the right-hand side runs this ~10^4 times a simulated second)."""
+    M0, M1, M2, M3, M4, M5 = M
+    l10, l20, l21, d1, d2, z1, z2 = sp.symbols("l10 l20 l21 d1 d2 z1 z2")
+    x = sp.symbols("a1 a2 a3")
+    return [(l10, M1 / M0), (l20, M2 / M0), (d1, M3 - l10 * M1), (l21, (M4 - l20 * M1) / d1),
+            (d2, M5 - l20 * M2 - l21 * l21 * d1), (z1, b[1] - l10 * b[0]), (z2, b[2] - l20 * b[0] - l21 * z1),
+            (x[2], z2 / d2), (x[1], z1 / d1 - l21 * x[2]), (x[0], b[0] / M0 - l10 * x[1] - l20 * x[2])]
+
+
+def _symbols(names):
+    return list(sp.symbols(" ".join(names)))
+
+
+STANCE_TERMS = _symbols("M00 M01 M02 M11 M12 M22 b0 b1 b2 A00 A01 A02 A10 A11 A12 g0 g1 m "
+                        "Dbr00 Dbr01 Dbr02 Dbr10 Dbr11 Dbr12 hb0 hb1".split())
+
+
+def stance_solve():
+    """The reduced floating-base KKT solution (see the module doc): ddq_r from Mr ddq_r = br, then the
+    base from the constraint rows, then F from the base rows of D ddq + h = J^T F + B u (J^T = I)."""
+    (M00, M01, M02, M11, M12, M22, b0, b1, b2, A00, A01, A02, A10, A11, A12, g0, g1, m,
+     Dbr00, Dbr01, Dbr02, Dbr10, Dbr11, Dbr12, hb0, hb1) = STANCE_TERMS
+    a1, a2, a3, ax, ay = sp.symbols("a1 a2 a3 ax ay")
+    steps = solve_sym3([M00, M01, M02, M11, M12, M22], [b0, b1, b2])
+    steps += [(ax, g0 - A00 * a1 - A01 * a2 - A02 * a3), (ay, g1 - A10 * a1 - A11 * a2 - A12 * a3)]
+    ret = ([ax, ay, a1, a2, a3], [m * ax + Dbr00 * a1 + Dbr01 * a2 + Dbr02 * a3 + hb0,
+                                  m * ay + Dbr10 * a1 + Dbr11 * a2 + Dbr12 * a3 + hb1])
+    return steps, ret
+
+
+FIXED_TERMS = _symbols("D00 D01 D02 D11 D12 D22 r0 r1 r2".split())
+
+
+def fixed_solve():
+    steps = solve_sym3(FIXED_TERMS[0:6], FIXED_TERMS[6:9])
+    return steps, (list(sp.symbols("a1 a2 a3")),)
+
+
+def split_constant(ex, const):
+    """(constant part, rest) of a sum: the parameter-only terms of an Add, to be hoisted."""
+    if not isinstance(ex, sp.Add):
+        return None, ex
+    c = [a for a in ex.args if a.free_symbols <= const and not a.is_number]
+    if len(c) < 2 and not (c and not isinstance(c[0], sp.Symbol)):
+        return None, ex
+    return sp.Add(*c), sp.Add(*[a for a in ex.args if a not in c])
+
+
+def fn(name, unpack, outputs, doc, names=None, tail=None):
     """Two functions of straight-line scalar code with shared subexpressions.
 
     ``<name>_constants(p)`` computes, once per model, every subexpression that depends on the
-    parameters only; ``<name>(..., k)`` takes that tuple, so the hot path repeats none of it.
+    parameters only (also the parameter-only terms of sums); ``<name>(..., k)`` takes that tuple,
+    so the hot path repeats none of it. With ``names`` and ``tail`` (a function giving (steps,
+    returned)), the outputs are bound to those names and the steps follow: outputs that are a
+    number or a symbol are substituted, so a zero entry costs nothing.
     """
     flat = []
     for o in outputs:
@@ -133,12 +187,24 @@ def fn(name, unpack, outputs, doc):
     repl, reduced = sp.cse(flat, symbols=sp.numbered_symbols("t"), optimizations="basic")
     const = set(PARAMS)
     hoisted, body = [], []
+    extra = sp.numbered_symbols("kc")
+
+    def hoist(ex):
+        c, rest = split_constant(ex, const)
+        if c is None:
+            return ex
+        s = next(extra)
+        const.add(s)
+        hoisted.append((s, c))
+        return rest + s
+
     for sym, ex in repl:
         if ex.free_symbols <= const:
             const.add(sym)
             hoisted.append((sym, ex))
         else:
-            body.append((sym, ex))
+            body.append((sym, hoist(ex)))
+    reduced = [hoist(r) for r in reduced]
     knames = [str(s) for s in PARAMS] + [str(s) for s, _ in hoisted]
     args = [u.split(" = ")[1] for u in unpack] + ["k"]
     lines = [f"def {name}_constants(p):",
@@ -150,12 +216,27 @@ def fn(name, unpack, outputs, doc):
     lines += ["    " + u for u in unpack]
     lines.append("    " + ", ".join(knames) + " = k")
     lines += [f"    {s} = {py(ex)}" for s, ex in body]
-    lines.append("    return (" + ", ".join(py(r) for r in reduced) + ",)")
+    if tail is None:
+        lines.append("    return (" + ", ".join(py(r) for r in reduced) + ",)")
+    else:
+        atoms = {}
+        for n, r in zip(names, reduced):
+            if r.is_Atom or (isinstance(r, sp.Mul) and len(r.args) == 2 and r.args[0] == -1 and r.args[1].is_Atom):
+                atoms[n] = r          # substituted below instead of bound
+            else:
+                lines.append(f"    {n} = {py(r)}")
+        steps, returned = tail()
+        for n, ex in steps:
+            lines.append(f"    {n} = {py(ex.subs(atoms))}")
+        out = ["[" + ", ".join(py(sp.sympify(e).subs(atoms)) for e in part) + "]" for part in returned]
+        lines.append("    return " + ", ".join(out))
     NAMES.append(name)
     return "\n".join(lines)
 
 
 NAMES = []
+STANCE_OUTPUTS = [Mr[0, 0], Mr[0, 1], Mr[0, 2], Mr[1, 1], Mr[1, 2], Mr[2, 2], br, A, gamma, m_total,
+                  Fexpr_rows[:, 2:], h[:2, 0]]
 UQ = "x, y, q1, q2, q3 = q"
 UDQ = "dx, dy, dq1, dq2, dq3 = dq"
 UU = "u1, u2 = u"
@@ -173,16 +254,18 @@ chunks = [
        "p_1 (2), p_2 (2), dp_1/dt (2), dp_2/dt (2)."),
     fn("energy", [UQ, UDQ], [T, V], "(T, V): kinetic and potential energy."),
     fn("com_position", [UQ], [com], "Centre of mass of the whole robot."),
-    fn("stance_terms_1", [UQ, UDQ, UU],
-       [Mr[0, 0], Mr[0, 1], Mr[0, 2], Mr[1, 1], Mr[1, 2], Mr[2, 2], br, A, gamma, m_total,
-        Fexpr_rows[:, 2:], h[:2, 0]],
+    fn("stance_terms_1", [UQ, UDQ, UU], STANCE_OUTPUTS,
        "Floating-base KKT (leg 1 on the ground), reduced: Mr (6 upper), br (3), A (6), gamma (2), "
        "m_total (1; D_bb = m_total I2), D_br (6), h_b (2)."),
+    fn("stance_floating_1", [UQ, UDQ, UU], STANCE_OUTPUTS,
+       "Floating-base KKT (leg 1 on the ground) solved: (ddq (5), F (2)) as lists.",
+       names=STANCE_TERMS, tail=stance_solve),
     # split in two so that the right-hand side evaluates only the accelerations; the force (from the
     # centre of mass) is needed only where a guard or an output asks for it
     fn("fixed_base_dynamics_1", ["q1, q2, q3 = qs", "dq1, dq2, dq3 = dqs", UU],
        [Ds[0, 0], Ds[0, 1], Ds[0, 2], Ds[1, 1], Ds[1, 2], Ds[2, 2], sp.Matrix([u1, u2, 0]) - hs],
-       "Fixed-base chain pinned at the foot of leg 1: D_s (6 upper), B_s u - C_s dq_s - G_s (3)."),
+       "Fixed-base chain pinned at the foot of leg 1: ddq_s (3) of D_s ddq_s = B_s u - C_s dq_s - G_s.",
+       names=FIXED_TERMS, tail=fixed_solve),
     fn("fixed_base_kinematics_1", ["q1, q2, q3 = qs", "dq1, dq2, dq3 = dqs"],
        [Jc, Jcdot_dq, -l_l * sp.Matrix([sp.sin(q1 + q3), sp.cos(q1 + q3)]), hip_s_vel],
        "Fixed-base chain pinned at the foot of leg 1: J_com (6), Jdot_com dq_s (2), hip minus foot (2), "
