@@ -28,11 +28,11 @@ bench: $(STAMP)
 	$(PY) -m biped_sim.bench
 
 # Regenerate biped_sim/_generated.py from the energies (needs sympy, installed here only) and
-# biped_sim/_dop853.py (the unrolled DOP853 step) from scipy's tableau.
+# biped_sim/_rk_steps.py (the unrolled Runge-Kutta steps) from scipy's tableaux.
 generate: $(STAMP)
 	@$(PY) -c "import sympy" 2>/dev/null || $(VENV)/bin/uv pip install -q --python $(PY) sympy==1.14.0
 	$(PY) tools/generate_model.py
-	$(PY) tools/generate_dop853.py
+	$(PY) tools/generate_rk.py
 
 clean-venv:
 	rm -rf $(VENV)

@@ -387,6 +387,82 @@ def stance_floating_1(q, dq, u, k):
     return [ax, ay, a1, a2, a3], [a1*t22 + a2*t25 + a3*t39 + ax*t16 - t36, -a1*t15 - a2*t34 - a3*t38 + ay*t16 - t28]
 
 
+def stance_floating_2_constants(p):
+    """Parameter-only subexpressions of stance_floating_2."""
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = p
+    t0 = c_leg*c_leg*m_leg
+    t1 = I_leg + t0
+    t2 = l_leg*l_leg
+    t3 = 2*m_leg
+    t4 = c_leg*t3
+    t5 = l_leg*t4
+    t6 = m_torso*t2 + t2*t3 - t5
+    t8 = c_leg*m_leg
+    t10 = c_torso*m_torso
+    t16 = m_torso + t3
+    kc0 = -g*t16
+    kc1 = t1 + t6
+    kc2 = 2*I_leg + I_torso + c_torso*c_torso*m_torso + 2*t0 + t6
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16, kc0, kc1, kc2,)
+
+
+def stance_floating_2(q, dq, u, k):
+    """Floating-base KKT (leg 2 on the ground) solved: (ddq (5), F (2)) as lists."""
+    x, y, q2, q1, q3 = q
+    dx, dy, dq2, dq1, dq3 = dq
+    u2, u1 = u
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16, kc0, kc1, kc2 = k
+    t7 = cos(q1 - q2)
+    t9 = -l_leg*t7*t8
+    t11 = l_leg*t10*cos(q1)
+    t12 = t1 + t9
+    t13 = q1 + q3
+    t14 = sin(t13)
+    t15 = t14*t8
+    t17 = dq1 + dq3
+    t18 = t17*t17
+    t19 = cos(t13)
+    t20 = l_leg*t19
+    t21 = t18*t20
+    t22 = t19*t8
+    t23 = dq1*t22
+    t24 = q2 + q3
+    t25 = t8*cos(t24)
+    t26 = dq2*t25
+    t27 = t10*cos(q3)
+    t28 = dq3*(dq3*t22 + dq3*t25 + dq3*t27 + t23 + t26) + kc0 + t17*t23 + t26*(dq2 + dq3)
+    t29 = l_leg*t14
+    t30 = t18*t29
+    t31 = dq3*dq3
+    t32 = t10*sin(q3)
+    t33 = sin(t24)
+    t34 = t33*t8
+    t35 = dq3*t4
+    t36 = dq1*dq1*t15 + dq1*t14*t35 + dq2*dq2*t34 + dq2*t33*t35 + t15*t31 + t31*t32 + t31*t34
+    t37 = -t20*(-t16*t30 + t36) + t29*(-t16*t21 + t28)
+    t38 = t15 + t32 + t34
+    t39 = t22 + t25 + t27
+    t40 = -t29
+    M02 = -t11 + t12 + t6
+    M22 = kc2 - 2*t11 - t5*t7
+    b0 = g*t15 + t37 + u1
+    b1 = g*t34 + t21*t34 - t25*t30 + u2
+    b2 = g*t38 + t21*t38 - t30*t39 + t37
+    l10 = t9/kc1
+    l20 = M02/kc1
+    d1 = -l10*t9 + t1
+    l21 = (-l20*t9 + t12)/d1
+    d2 = -M02*l20 + M22 - d1*l21*l21
+    z1 = -b0*l10 + b1
+    z2 = -b0*l20 + b2 - l21*z1
+    a3 = z2/d2
+    a2 = -a3*l21 + z1/d1
+    a1 = -a2*l10 - a3*l20 + b0/kc1
+    ax = -a1*t20 - a3*t20 + t30
+    ay = -a1*t40 - a3*t40 + t21
+    return [ax, ay, a2, a1, a3], [a1*t22 + a2*t25 + a3*t39 + ax*t16 - t36, -a1*t15 - a2*t34 - a3*t38 + ay*t16 - t28]
+
+
 def fixed_base_dynamics_1_constants(p):
     """Parameter-only subexpressions of fixed_base_dynamics_1."""
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = p
@@ -486,4 +562,4 @@ def fixed_base_kinematics_1(qs, dqs, k):
     t24 = t1*t21
     return (-t1*t5, t7*t8, t11*t2, t12*t5, -t13*t8, -t16*t2, -t2*(dq3*(dq3*t16 + t19 - t22) + t17*t19 - t20*t22), -t2*(dq3*(dq3*t11 + t23 - t24) + t17*t23 - t20*t24), t15, t10, -t20*t9, t14*t20,)
 
-CONSTANTS = {'mass_matrix': mass_matrix_constants, 'coriolis_matrix': coriolis_matrix_constants, 'gravity_vector': gravity_vector_constants, 'bias_forces': bias_forces_constants, 'foot_positions': foot_positions_constants, 'foot_jacobian_1': foot_jacobian_1_constants, 'foot_jacobian_2': foot_jacobian_2_constants, 'foot_jacobian_dot_1': foot_jacobian_dot_1_constants, 'foot_jacobian_dot_2': foot_jacobian_dot_2_constants, 'foot_kinematics': foot_kinematics_constants, 'energy': energy_constants, 'com_position': com_position_constants, 'stance_terms_1': stance_terms_1_constants, 'stance_floating_1': stance_floating_1_constants, 'fixed_base_dynamics_1': fixed_base_dynamics_1_constants, 'fixed_base_kinematics_1': fixed_base_kinematics_1_constants}
+CONSTANTS = {'mass_matrix': mass_matrix_constants, 'coriolis_matrix': coriolis_matrix_constants, 'gravity_vector': gravity_vector_constants, 'bias_forces': bias_forces_constants, 'foot_positions': foot_positions_constants, 'foot_jacobian_1': foot_jacobian_1_constants, 'foot_jacobian_2': foot_jacobian_2_constants, 'foot_jacobian_dot_1': foot_jacobian_dot_1_constants, 'foot_jacobian_dot_2': foot_jacobian_dot_2_constants, 'foot_kinematics': foot_kinematics_constants, 'energy': energy_constants, 'com_position': com_position_constants, 'stance_terms_1': stance_terms_1_constants, 'stance_floating_1': stance_floating_1_constants, 'stance_floating_2': stance_floating_2_constants, 'fixed_base_dynamics_1': fixed_base_dynamics_1_constants, 'fixed_base_kinematics_1': fixed_base_kinematics_1_constants}

@@ -9,8 +9,9 @@ Owns the equations of the section "Phases" of MODEL.md:
   * the notes' Delta = R o impact map (eq. 23-25)                                    (``delta``)
   * flight: D ddq + C dq + G = B u                                                  (``flight_dynamics``)
 
-Stance on leg 2 is stance on leg 1 of the relabeled state (the legs are identical), so one closed
-form serves both legs. The ``_fast`` functions work on Python lists and are the engine's hot path;
+Stance on leg 2 is stance on leg 1 of the relabeled state (the legs are identical): the generator
+emits leg 2's closed form from leg 1's derivation by relabeling (``stance_floating_2``), and the
+other functions here relabel at run time. The ``_fast`` functions work on Python lists and are the engine's hot path;
 the public functions validate their input and return numpy arrays.
 """
 from __future__ import annotations
@@ -47,8 +48,7 @@ def stance_floating_fast(model, q, dq, u, stance_leg=1):
     space of J removes F; then F = D_bb ddq_base + D_br ddq_r + h_base (rows x, y, where J^T = I).
     """
     if stance_leg == 2:
-        ddq, F = gen.stance_floating_1(_swap(q), _swap(dq), (u[1], u[0]), model.k_stance)
-        return _swap(ddq), F
+        return gen.stance_floating_2(q, dq, u, model.k_stance)
     return gen.stance_floating_1(q, dq, u, model.k_stance)
 
 

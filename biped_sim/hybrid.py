@@ -290,8 +290,8 @@ class HybridSimulator:
                 return ([c[0] - l_leg * sn, c[1] - l_leg * cs] + yl[0:3],
                         [-l_leg * cs * w, l_leg * sn * w] + yl[3:6], yl[6])
 
-            def from_phys(q, dq, w):
-                return list(q[2:]) + list(dq[2:]) + [w]
+            def from_phys(q, dq, w):   # lists
+                return q[2:] + dq[2:] + [w]
 
             def rhs(t, y):
                 qs, dqs = y[0:3], y[3:6]
@@ -308,11 +308,11 @@ class HybridSimulator:
             yl = y if type(y) is list else y.tolist()
             return yl[0:5], yl[5:10], yl[10]
 
-        def from_phys(q, dq, w):
-            return list(q) + list(dq) + [w]
+        def from_phys(q, dq, w):   # lists
+            return q + dq + [w]
 
         # the right-hand sides take and return lists (integrators.py): y = [q, dq, work of the motors]
-        if leg == 1:   # the closed form itself (stance on leg 2 goes through the relabeling)
+        if leg == 1:   # the generated closed forms themselves, one per stance leg
             k_stance, stance_1 = model.k_stance, gen.stance_floating_1
 
             def rhs(t, y):
@@ -322,10 +322,12 @@ class HybridSimulator:
                 sim._last_F = F
                 return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
         elif leg:
+            k_stance, stance_2 = model.k_stance, gen.stance_floating_2
+
             def rhs(t, y):
                 q, dq = y[0:5], y[5:10]
                 u = u_hold if ctrl is None else ctrl(t, q, dq)
-                ddq, F = stance_floating_fast(model, q, dq, u, leg)
+                ddq, F = stance_2(q, dq, u, k_stance)
                 sim._last_F = F
                 return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
         else:
@@ -406,11 +408,15 @@ class HybridSimulator:
         """Integrate to ``t_end`` (or until the run stops); returns the events of this interval."""
         if self.status != "running":
             return []
-        if u is not None:
-            ua = np.asarray(u, dtype=float)
-            if ua.shape != (2,) or not np.isfinite(ua).all():
+        if u is not None:   # (plain float checks: the node calls this every control period)
+            try:
+                u0, u1 = u
+                u0, u1 = float(u0), float(u1)
+            except (TypeError, ValueError):
+                u0 = math.nan
+            if not math.isfinite(u0 + u1):
                 raise ValueError(f"u must be two finite torques, got {u!r}")
-            self._u = ua.tolist()
+            self._u = [u0, u1]
         self._controller = controller
         n_events = len(self.events)
         wall0 = time.perf_counter()
@@ -432,7 +438,7 @@ class HybridSimulator:
             self._nfev_base += self._stepper.nfev
             self._rejected_base += self._stepper.nrejected
         rhs, to_phys, from_phys = self._mode_functions()
-        y0 = from_phys(self.q, self.dq, self.work)
+        y0 = from_phys(self.q.tolist(), self.dq.tolist(), self.work)
         self._to_phys = to_phys
         self._stepper = make_stepper(self.method, rhs, self.t, y0, t_bound, self.rtol, self.atol,
                                      step=self.opt.step, n_positions=(len(y0) - 1) // 2, h0=self._h,

@@ -223,7 +223,8 @@ def test_constraint_drift_is_measured_and_projection_removes_it(model):
 
 
 @pytest.mark.parametrize("method, extra", [("rk4", dict(step=1e-3)), ("semi_implicit_euler", dict(step=1e-4)),
-                                           ("radau", {}), ("bdf", {}), ("scipy_dop853", {})])
+                                           ("radau", {}), ("bdf", {}), ("scipy_dop853", {}), ("dopri5", {}),
+                                           ("scipy_rk45", {})])
 def test_every_integrator_walks_the_same_first_steps(model, walker, method, extra):
     q0, dq0 = walker.initial_state()
     ref = simulate(model, q0, dq0, 0.6, controller=walker, rtol=1e-10, atol=1e-10)

@@ -141,15 +141,16 @@ STANCE_TERMS = _symbols("M00 M01 M02 M11 M12 M22 b0 b1 b2 A00 A01 A02 A10 A11 A1
                         "Dbr00 Dbr01 Dbr02 Dbr10 Dbr11 Dbr12 hb0 hb1".split())
 
 
-def stance_solve():
+def stance_solve(swap=False):
     """The reduced floating-base KKT solution (see the module doc): ddq_r from Mr ddq_r = br, then the
-    base from the constraint rows, then F from the base rows of D ddq + h = J^T F + B u (J^T = I)."""
+    base from the constraint rows, then F from the base rows of D ddq + h = J^T F + B u (J^T = I).
+    ``swap``: the returned ddq in relabeled order (q1 <-> q2), for stance on leg 2."""
     (M00, M01, M02, M11, M12, M22, b0, b1, b2, A00, A01, A02, A10, A11, A12, g0, g1, m,
      Dbr00, Dbr01, Dbr02, Dbr10, Dbr11, Dbr12, hb0, hb1) = STANCE_TERMS
     a1, a2, a3, ax, ay = sp.symbols("a1 a2 a3 ax ay")
     steps = solve_sym3([M00, M01, M02, M11, M12, M22], [b0, b1, b2])
     steps += [(ax, g0 - A00 * a1 - A01 * a2 - A02 * a3), (ay, g1 - A10 * a1 - A11 * a2 - A12 * a3)]
-    ret = ([ax, ay, a1, a2, a3], [m * ax + Dbr00 * a1 + Dbr01 * a2 + Dbr02 * a3 + hb0,
+    ret = ([ax, ay, a2, a1, a3] if swap else [ax, ay, a1, a2, a3], [m * ax + Dbr00 * a1 + Dbr01 * a2 + Dbr02 * a3 + hb0,
                                   m * ay + Dbr10 * a1 + Dbr11 * a2 + Dbr12 * a3 + hb1])
     return steps, ret
 
@@ -260,6 +261,11 @@ chunks = [
     fn("stance_floating_1", [UQ, UDQ, UU], STANCE_OUTPUTS,
        "Floating-base KKT (leg 1 on the ground) solved: (ddq (5), F (2)) as lists.",
        names=STANCE_TERMS, tail=stance_solve),
+    # stance on leg 2 is stance on leg 1 of the relabeled state R x (the legs are identical): the
+    # same code reading q1 <-> q2 and u1 <-> u2 swapped, and returning ddq relabeled back
+    fn("stance_floating_2", ["x, y, q2, q1, q3 = q", "dx, dy, dq2, dq1, dq3 = dq", "u2, u1 = u"], STANCE_OUTPUTS,
+       "Floating-base KKT (leg 2 on the ground) solved: (ddq (5), F (2)) as lists.",
+       names=STANCE_TERMS, tail=lambda: stance_solve(swap=True)),
     # split in two so that the right-hand side evaluates only the accelerations; the force (from the
     # centre of mass) is needed only where a guard or an output asks for it
     fn("fixed_base_dynamics_1", ["q1, q2, q3 = qs", "dq1, dq2, dq3 = dqs", UU],
