@@ -112,13 +112,16 @@ def stance_dynamics(model: BipedModel, q, dq, u=None, stance_leg=1, base="floati
     taken as the one the pin implies (so it agrees with the floating base when J dq = 0).
     F is the force of the ground on the stance foot (N), in world axes.
     """
-    if type(q) is np.ndarray and type(dq) is np.ndarray and (u is None or type(u) is np.ndarray) \
-            and base == "floating" and stance_leg in (1, 2):
-        # fast path (float arrays of the right sizes): the closed form and two arrays, nothing else
-        ql, dql, ul = q.tolist(), dq.tolist(), [0.0, 0.0] if u is None else u.tolist()
-        if len(ql) == 5 and len(dql) == 5 and len(ul) == 2 and type(ql[0]) is float:
-            ddq, F = stance_floating_fast(model, ql, dql, ul, stance_leg)
-            if math.isfinite(sum(ddq) + sum(F)):
+    if base == "floating" and (stance_leg == 1 or stance_leg == 2):
+        # fast path: the generated closed form straight on the arrays' lists; anything it cannot
+        # take (lists, wrong sizes, nested arrays) raises here and goes through the checks below
+        try:
+            ddq, F = (gen.stance_floating_1 if stance_leg == 1 else gen.stance_floating_2)(
+                q.tolist(), dq.tolist(), [0.0, 0.0] if u is None else u.tolist(), model.k_stance)
+        except (AttributeError, TypeError, ValueError):
+            pass
+        else:
+            if math.isfinite(ddq[0] + ddq[1] + ddq[2] + ddq[3] + ddq[4] + F[0] + F[1]):
                 return np.array(ddq), np.array(F)
     if base not in ("floating", "fixed"):
         raise ValueError(f"base must be 'floating' or 'fixed', got {base!r}")
