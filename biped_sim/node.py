@@ -434,6 +434,7 @@ def _make_node_class():
             t = sim.t
             st = stamp(t)
             frame = foot_frame(sim.stance_leg)
+            state = []                     # recorded together: one hand-over to the recorder
             if self.pub_js is not None:
                 m = self._js_msg
                 if m is None:
@@ -444,7 +445,7 @@ def _make_node_class():
                     m.position = sim.q.tolist()
                     m.velocity = sim.dq.tolist()
                     m.effort = [0.0, 0.0, float(self.u[0]), float(self.u[1]), 0.0]
-                self._publish(self.pub_js, m, t)
+                state.append((self.pub_js, m))
             if self.pub_grf is not None and sim.stance_leg:
                 m = self._grf_msg
                 force = sim.ground_force
@@ -455,10 +456,14 @@ def _make_node_class():
                     m.header.frame_id = frame
                     m.wrench.force.x = float(force[0])
                     m.wrench.force.y = float(force[1])
-                self._publish(self.pub_grf, m, t)
+                state.append((self.pub_grf, m))
             if self.pub_clock is not None:
                 self._clock_msg.clock = st
-                self._publish(self.pub_clock, self._clock_msg, t)
+                state.append((self.pub_clock, self._clock_msg))
+            for pub, m in state:
+                pub.publish(m)
+            if self.recorder is not None:
+                self.recorder.write_batch(int(round(t * 1e9)), [(pub.topic_name, m) for pub, m in state])
 
         # -- time modes -------------------------------------------------------------------------
         def run(self, should_stop, executor):

@@ -51,13 +51,16 @@ def run_recorded(params, controller, recorder, progress=None):
     u = [0.0, 0.0]
 
     def publish_state():
-        t, ns = sim.t, M.to_ns(sim.t)
+        t = sim.t
+        state = []
         if js:
-            rec("/joint_states", M.joint_state_msg(t, sim.q, sim.dq, u, sim.stance_leg), ns)
+            state.append(("/joint_states", M.joint_state_msg(t, sim.q, sim.dq, u, sim.stance_leg)))
         if grf and sim.stance_leg:
-            rec("/ground_reaction", M.wrench_msg(t, sim.ground_force, sim.stance_leg), ns)
+            state.append(("/ground_reaction", M.wrench_msg(t, sim.ground_force, sim.stance_leg)))
         if clock:
-            rec("/clock", M.clock_msg(t), ns)
+            state.append(("/clock", M.clock_msg(t)))
+        if recorder is not None:
+            recorder.write_batch(M.to_ns(t), state)
 
     stop = []
     old = signal.getsignal(signal.SIGTERM)

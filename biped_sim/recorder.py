@@ -271,20 +271,29 @@ class BagRecorder:
         self._frame(b"T", json.dumps(info).encode())
 
     def write(self, topic: str, msg, t_ns: int):
-        """Queue one message (an rclpy message object, or its CDR bytes) at simulation time t_ns."""
-        if self._error is not None or self._closed:
-            self._check()
+        """Queue one message (an rclpy message object, or its CDR bytes) at simulation time t_ns (int)."""
+        self._hand_over(self._message_frame(topic, msg, t_ns))
+
+    def write_batch(self, t_ns: int, items):
+        """Queue several messages of the same time t_ns, ``items`` = [(topic, msg), ...], in one hand-over
+        (what the node publishes at the end of a control period)."""
+        self._hand_over(b"".join([self._message_frame(topic, msg, t_ns) for topic, msg in items]))
+
+    def _message_frame(self, topic, msg, t_ns):
+        # the simulation thread pays for this at every message: one test for all the checks
         entry = self._topics.get(topic)
-        if entry is None:
+        if entry is None or self._error is not None or self._closed:
+            self._check()
             raise ValueError(f"unknown topic {topic!r}: call add_topic first (topics: {sorted(self._topics)})")
-        data = msg if isinstance(msg, (bytes, bytearray, memoryview)) else entry[3](msg)
-        entry[2] += 1
-        head = _MSG_FRAME.pack(b"M", _MSG.size + len(data), entry[0], int(t_ns), entry[2])
+        data = msg if type(msg) is bytes else (
+            bytes(msg) if isinstance(msg, (bytearray, memoryview)) else entry[3](msg))
+        entry[2] = seq = entry[2] + 1
+        return _MSG_FRAME.pack(b"M", _MSG.size + len(data), entry[0], t_ns, seq) + data
+
+    def _hand_over(self, frames):
         with self._lock:
-            buf = self._buf
-            buf += head
-            buf += data
-            if len(buf) > 1 << 20:
+            self._buf += frames
+            if len(self._buf) > 1 << 20 and not self._wake.is_set():   # set once, not at every write
                 self._wake.set()
 
     def close(self):

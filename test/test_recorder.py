@@ -48,7 +48,7 @@ class Tee:
         self.types[topic] = type_name
         self.rec.add_topic(topic, type_name, *a, **k)
 
-    def write(self, topic, msg, t_ns):
+    def _keep(self, topic, msg, t_ns):
         if isinstance(msg, bytes):   # pre-serialised (the headless run's commands): what goes on the wire
             from rclpy.serialization import deserialize_message
 
@@ -56,7 +56,15 @@ class Tee:
             self.sent.append((topic, deserialize_message(msg, message_class(self.types[topic])), t_ns))
         else:
             self.sent.append((topic, msg, t_ns))
+
+    def write(self, topic, msg, t_ns):
+        self._keep(topic, msg, t_ns)
         self.rec.write(topic, msg, t_ns)
+
+    def write_batch(self, t_ns, items):
+        for topic, msg in items:
+            self._keep(topic, msg, t_ns)
+        self.rec.write_batch(t_ns, items)
 
 
 def walk_params(duration=1.0, **kw):
