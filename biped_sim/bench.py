@@ -158,7 +158,7 @@ def bench_walk(model, repeats=3, t_final=10.0):
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m biped_sim.bench", description=__doc__.split("\n")[0])
     parser.add_argument("--only", choices=("engine", "node", "record", "scenes"), help="run one group only")
-    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=7, help="timed repeats of each walk (alternating)")
     args = parser.parse_args(argv)
     model = BipedModel()
     if args.only in (None, "engine"):

@@ -62,7 +62,7 @@ def bench_recording(duration=2.0, repeat=3):
                     k[0] += 1
                     rec = BagRecorder(f"{tmp}/bag{k[0]}", parameters=params)
                 try:
-                    sim = run_recorded(params, scene.controller(), rec)
+                    sim = run_recorded(params, scene.controller(), rec, build_messages=True)
                 finally:
                     if rec is not None:
                         rec.close()

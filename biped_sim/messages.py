@@ -74,6 +74,10 @@ def impact_msg(event):
     return n.diagnostic_array(event.time, [n.event_status(event)])
 
 
+def foot_frame(stance_leg):
+    return _node().foot_frame(stance_leg)
+
+
 def clock_msg(t):
     from rosgraph_msgs.msg import Clock
     return Clock(clock=_node().stamp(t))

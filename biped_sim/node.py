@@ -434,7 +434,7 @@ def _make_node_class():
             t = sim.t
             st = stamp(t)
             frame = foot_frame(sim.stance_leg)
-            state = []                     # recorded together: one hand-over to the recorder
+            state = []
             if self.pub_js is not None:
                 m = self._js_msg
                 if m is None:
@@ -462,8 +462,12 @@ def _make_node_class():
                 state.append((self.pub_clock, self._clock_msg))
             for pub, m in state:
                 pub.publish(m)
-            if self.recorder is not None:
-                self.recorder.write_batch(int(round(t * 1e9)), [(pub.topic_name, m) for pub, m in state])
+            if self.recorder is not None and state:   # the same messages, packed in one call
+                self.recorder.write_state(
+                    int(round(t * 1e9)), tuple(p.topic_name if p is not None else None
+                                               for p in (self.pub_js, self.pub_grf, self.pub_clock)),
+                    frame, JOINT_NAMES, sim.q.tolist(), sim.dq.tolist(), [0.0, 0.0, float(self.u[0]), float(self.u[1]), 0.0],
+                    sim.ground_force if sim.stance_leg and self.pub_grf is not None else None)
 
         # -- time modes -------------------------------------------------------------------------
         def run(self, should_stop, executor):

@@ -31,12 +31,13 @@ def topics_for(params) -> dict:
 
 
 
-def run_recorded(params, controller, recorder, progress=None):
+def run_recorded(params, controller, recorder, progress=None, build_messages=False):
     """Run ``params`` (checked, see parameters.validate) in lockstep; record to ``recorder``.
 
     ``controller(t, q, dq, stance_leg) -> u`` or None (u = 0). ``recorder`` is a BagRecorder or None
-    (then nothing is written: the benchmark's baseline). SIGTERM ends the run early; the caller
-    closes the recorder. Returns the HybridSimulator at the end.
+    (then nothing is written). ``build_messages``: also build the state messages every period, as
+    the node does to publish them (the recording benchmark's loop; a headless run needs none).
+    SIGTERM ends the run early; the caller closes the recorder. Returns the HybridSimulator at the end.
     """
     from .hybrid import HybridSimulator
     sim = HybridSimulator(**engine_arguments(params), keep_samples=False)
@@ -50,17 +51,22 @@ def run_recorded(params, controller, recorder, progress=None):
     period, duration = params["control_period"], params["duration"]
     u = [0.0, 0.0]
 
+    topics_state = ("/joint_states" if js else None, "/ground_reaction" if grf else None, "/clock" if clock else None)
+
     def publish_state():
+        # the recorder packs the messages' content from the values in one call (write_state)
         t = sim.t
-        state = []
-        if js:
-            state.append(("/joint_states", M.joint_state_msg(t, sim.q, sim.dq, u, sim.stance_leg)))
-        if grf and sim.stance_leg:
-            state.append(("/ground_reaction", M.wrench_msg(t, sim.ground_force, sim.stance_leg)))
-        if clock:
-            state.append(("/clock", M.clock_msg(t)))
+        if build_messages:
+            if js:
+                M.joint_state_msg(t, sim.q, sim.dq, u, sim.stance_leg)
+            if grf and sim.stance_leg:
+                M.wrench_msg(t, sim.ground_force, sim.stance_leg)
+            if clock:
+                M.clock_msg(t)
         if recorder is not None:
-            recorder.write_batch(M.to_ns(t), state)
+            recorder.write_state(M.to_ns(t), topics_state, M.foot_frame(sim.stance_leg), M.JOINT_NAMES, sim.q.tolist(),
+                                 sim.dq.tolist(), [0.0, 0.0, float(u[0]), float(u[1]), 0.0],
+                                 sim.ground_force if sim.stance_leg else None)
 
     stop = []
     old = signal.getsignal(signal.SIGTERM)

@@ -66,6 +66,27 @@ class Tee:
             self._keep(topic, msg, t_ns)
         self.rec.write_batch(t_ns, items)
 
+    def write_state(self, t_ns, topics, frame_id, names, position, velocity, effort, force=None):
+        # the messages write_state stands for, built the rclpy way
+        from builtin_interfaces.msg import Time
+        from geometry_msgs.msg import WrenchStamped
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import JointState
+        stamp = Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
+        js, grf, clk = topics
+        if js:
+            m = JointState(name=list(names), position=list(position), velocity=list(velocity), effort=list(effort))
+            m.header.stamp, m.header.frame_id = stamp, frame_id
+            self._keep(js, m, t_ns)
+        if grf and force is not None:
+            m = WrenchStamped()
+            m.header.stamp, m.header.frame_id = stamp, frame_id
+            m.wrench.force.x, m.wrench.force.y = float(force[0]), float(force[1])
+            self._keep(grf, m, t_ns)
+        if clk:
+            self._keep(clk, Clock(clock=stamp), t_ns)
+        self.rec.write_state(t_ns, topics, frame_id, names, position, velocity, effort, force)
+
 
 def walk_params(duration=1.0, **kw):
     ctrl = WalkingController(BipedModel())
