@@ -519,8 +519,9 @@ class HybridSimulator:
         if not self.stance_leg or self.opt.base == "fixed":
             return q, dq
         leg = self.stance_leg
-        fx, fy = self._foot_xy(q, leg)
         i = 4 * (leg - 1)
+        fx = f[i]
+        fy = f[i + 1] - self._tan_s * fx        # f holds the height above the (sloped) ground
         self.stats["max_constraint_drift_position"] = max(self.stats["max_constraint_drift_position"],
                                                           math.hypot(fx - self.pin[0], fy - self.pin[1]))
         self.stats["max_constraint_drift_velocity"] = max(self.stats["max_constraint_drift_velocity"],
@@ -536,14 +537,16 @@ class HybridSimulator:
         return q, dq
 
     def _accept(self, t, q, dq, w, F=None):
+        """The state (q, dq: lists) at t becomes the current one, and a sample."""
         self.t = float(t)
         self.q, self.dq, self.work = np.array(q), np.array(dq), float(w)
         if F is None:
             F = self._force_at(self.t, list(q), list(dq)) if (self.opt.compute_grf and self.stance_leg) else [0.0, 0.0]
-        self._record(self.q, self.dq, self.stance_leg, F)
+        self._record(self.q, self.dq, self.stance_leg, F, (list(q), list(dq)))
 
-    def _record(self, q, dq, leg, F):
-        T, V = gen.energy(q.tolist(), dq.tolist(), self.model.k["energy"])
+    def _record(self, q, dq, leg, F, lists=None):
+        """A sample of the arrays q, dq (``lists``: the same as lists, if at hand) and the energy balance."""
+        T, V = gen.energy(*(lists or (q.tolist(), dq.tolist())), self.model.k["energy"])
         E = T + V
         residual = E - self.E0 - self.work + self.energy_lost
         self.stats["max_energy_balance_residual"] = max(self.stats["max_energy_balance_residual"], abs(residual))
