@@ -312,22 +312,14 @@ class HybridSimulator:
             return q + dq + [w]
 
         # the right-hand sides take and return lists (integrators.py): y = [q, dq, work of the motors]
-        if leg == 1:   # the generated closed forms themselves, one per stance leg
-            k_stance, stance_1 = model.k_stance, gen.stance_floating_1
+        if leg:   # the generated closed form itself, one per stance leg
+            k_stance = model.k_stance
+            stance = gen.stance_floating_1 if leg == 1 else gen.stance_floating_2
 
             def rhs(t, y):
                 q, dq = y[0:5], y[5:10]
                 u = u_hold if ctrl is None else ctrl(t, q, dq)
-                ddq, F = stance_1(q, dq, u, k_stance)
-                sim._last_F = F
-                return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
-        elif leg:
-            k_stance, stance_2 = model.k_stance, gen.stance_floating_2
-
-            def rhs(t, y):
-                q, dq = y[0:5], y[5:10]
-                u = u_hold if ctrl is None else ctrl(t, q, dq)
-                ddq, F = stance_2(q, dq, u, k_stance)
+                ddq, F = stance(q, dq, u, k_stance)
                 sim._last_F = F
                 return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
         else:
