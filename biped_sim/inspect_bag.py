@@ -13,6 +13,7 @@ import numpy as np
 
 from . import bagio
 from . import messages as M
+from .parameters import method_label
 
 
 def load_run(bag) -> dict:
@@ -72,7 +73,7 @@ def summary(bag, run=None) -> str:
     p = run["params"] or {}
     lines = [f"bag         {bag}",
              f"run         scene {p.get('scene', '?')}, time_mode {p.get('time_mode', '?')}, control_period "
-             f"{p.get('control_period', float('nan')):g} s, method {p.get('method', '?')}" if p else "run         (no biped_sim parameters record)",
+             f"{p.get('control_period', float('nan')):g} s, method {method_label(p)}" if p else "run         (no biped_sim parameters record)",
              f"duration    {(t1 - t0) / 1e9:.6g} s of simulated time (t = {t0 / 1e9:.6g} .. {t1 / 1e9:.6g} s)",
              "topics"]
     for topic in sorted(run["counts"]):

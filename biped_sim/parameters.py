@@ -154,6 +154,12 @@ def resolve_method(params: dict) -> str:
     return "dopri5" if params["control_period"] <= AUTO_DOPRI5_MAX_PERIOD else "dop853"
 
 
+def method_label(params: dict) -> str:
+    """``method`` as a report shows it: "auto (dopri5)" names what "auto" ran."""
+    m = params.get("method", "?")
+    return f"auto ({resolve_method(params)})" if m == "auto" and "control_period" in params else str(m)
+
+
 def engine_arguments(params: dict) -> dict:
     """Keyword arguments of ``HybridSimulator`` / ``simulate`` (and the model's) from checked values."""
     from .model import BipedModel

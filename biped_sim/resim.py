@@ -15,6 +15,7 @@ import math
 
 from . import bagio
 from . import messages as M
+from .parameters import method_label
 
 
 def _checked_command(data, params, u_held):
@@ -91,7 +92,7 @@ def format_report(rep) -> str:
     lines = [
         f"bag               {rep['bag']}",
         f"settings          scene {p['scene']}, time_mode {p['time_mode']}, control_period {p['control_period']:g} s, "
-        f"method {p['method']}, rtol {p['rtol']:g}, atol {p['atol']:g}, base {p['base']}",
+        f"method {method_label(p)}, rtol {p['rtol']:g}, atol {p['atol']:g}, base {p['base']}",
         f"replayed          {rep['commands']} torque commands, compared {rep['states']} joint_states "
         f"(to t = {rep['t_end']:.6g} s)",
         f"largest difference  |q| {rep['max_q']:.3g}, |dq| {rep['max_dq']:.3g}",
