@@ -97,9 +97,13 @@ def test_node_builds_only_the_scene_topics():
             sim = stack.enter_context(start_node({"time_mode": "lockstep", "record": False}, dom,
                                                  extra_args=scene_args(scene)))
             runs.append((scene, sim, stack.enter_context(Client(dom))))
+        # discovery reports a node's publishers one by one: wait for every one each scene must have
+        # (the last created, /diagnostics, included), not just the first
+        expected = {"stance_fixed": {"/joint_states", "/clock", "/diagnostics"},
+                    "walk": {"/impact", "/ground_reaction", "/joint_states", "/clock", "/diagnostics"}}
         _spin_all([r[2] for r in runs], lambda: all(("biped_sim", "/") in c.node.get_node_names_and_namespaces()
-                                                    and "/joint_states" in c.node_topics("biped_sim")[0]
-                                                    for _n, _p, c in runs), 60, "the nodes' publishers",
+                                                    and expected[n] <= set(c.node_topics("biped_sim")[0])
+                                                    for n, _p, c in runs), 60, "the nodes' publishers",
                   [r[1] for r in runs])
         for scene, _sim, c in runs:
             pubs[scene] = set(c.node_topics("biped_sim")[0])
