@@ -387,7 +387,9 @@ class HybridSimulator:
 
     def _guard_value(self, kind, leg, t, q, dq, feet=None, F=None):
         if kind == "touchdown":
-            feet = feet or self._feet(q, dq)
+            if feet is None:   # the height only (root finding evaluates this many times)
+                x, y = self._foot_xy(q, leg)
+                return y + self._tan_s * x
             return feet[4 * (leg - 1) + 1]
         F = F if F is not None else self._force_at(t, q, dq)
         n, tg = self._normal_tangent(F)
@@ -455,7 +457,7 @@ class HybridSimulator:
                 self._check_ground(st.t, feet)
             if event is not None:
                 t_ev, kind, legs = event
-                y_ev = st.dense_output()(t_ev)
+                y_ev = st.dense_at(t_ev)
                 qe, dqe, we = self._to_phys(y_ev)
                 self._accept(t_ev, qe, dqe, we)
                 self._apply_event(kind, legs, t_ev, qe, dqe)
@@ -597,7 +599,7 @@ class HybridSimulator:
                 continue
             t_root = self._root(st, kind, leg, *bracket)
             if kind == "touchdown" and self.stance_leg and self.opt.touchdown_rule == "front":
-                qr, dqr, _ = self._to_phys(st.dense_output()(t_root))
+                qr, dqr, _ = self._to_phys(st.dense_at(t_root))
                 fr = self._feet(qr, dqr)
                 if fr[4 * (leg - 1)] <= fr[4 * (self.stance_leg - 1)]:
                     self.stats["scuffs_ignored"] += 1
@@ -614,7 +616,7 @@ class HybridSimulator:
             if len(legs) == 1:  # the other foot may be within the tolerance without having crossed yet
                 other = 3 - leg
                 if self.armed[other - 1]:
-                    qe, dqe, _ = self._to_phys(st.dense_output()(t_first))
+                    qe, dqe, _ = self._to_phys(st.dense_at(t_first))
                     fe = self._feet(qe, dqe)
                     ht, vt = fe[4 * (other - 1) + 1], fe[4 * (other - 1) + 3]
                     if vt < 0 and ht <= -vt * self.opt.simultaneous_tol:
@@ -627,11 +629,10 @@ class HybridSimulator:
                 self.armed[leg - 1] = True
 
     def _sample_bracket(self, st, kind, leg, n=8):
-        dense = st.dense_output()
-        ts = np.linspace(st.t_old, st.t, n + 1)
+        ts = np.linspace(st.t_old, st.t, n + 1).tolist()
         prev = None
         for t in ts:
-            q, dq, _ = self._to_phys(dense(t))
+            q, dq, _ = self._to_phys(st.dense_at(t))
             g = self._guard_value(kind, leg, t, q, dq)
             if prev is not None and prev[1] > 0 and g <= 0:
                 return prev[0], t
@@ -639,10 +640,8 @@ class HybridSimulator:
         return None
 
     def _root(self, st, kind, leg, ta, tb):
-        dense = st.dense_output()
-
         def g(t):
-            q, dq, _ = self._to_phys(dense(t))
+            q, dq, _ = self._to_phys(st.dense_at(t))
             return self._guard_value(kind, leg, t, q, dq)
         ga, gb = g(ta), g(tb)
         if gb == 0.0:

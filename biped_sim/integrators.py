@@ -65,6 +65,10 @@ class _Stepper:
         """Continue from the state y (a list) instead of the one the last step computed."""
         self.y = list(y) if self.takes_lists else np.array(y, dtype=float)
 
+    def dense_at(self, t):
+        """The last step's dense output at t, as a list (what event location evaluates, many times)."""
+        return np.asarray(self.dense_output()(t)).tolist()
+
 
 class _ListRungeKutta(_Stepper):
     """An embedded explicit Runge-Kutta pair on lists, with scipy's step control (Hairer's).
@@ -166,6 +170,9 @@ class DOP853Stepper(_ListRungeKutta):
     C_EXTRA = _dop.C[_dop.N_STAGES + 1:]
     D = _dop.D
 
+    def dense_at(self, t):
+        return self.dense_output().at(t)
+
     def dense_output(self):
         if self._dense is None:
             h, t0 = self.h, self.t_old
@@ -215,17 +222,24 @@ class _PolynomialInterpolant:
 
 
 class _DOP853Interpolant:
+    """DOP853's 7th-order dense output (scipy's Dop853DenseOutput): a nested product in x and 1 - x."""
+
     def __init__(self, t_old, t, y_old, F_reversed):
         self.t_old, self.t, self.y_old, self.F = t_old, t, y_old, F_reversed
         self.h = t - t_old
+        self._rows = None
 
     def __call__(self, t):
+        return np.array(self.at(t))
+
+    def at(self, t):
+        """The same as a list, in plain floats: for 11 entries several times cheaper than numpy."""
+        if self._rows is None:
+            self._rows = list(zip(self.y_old.tolist(), *self.F.tolist()))
         x = (t - self.t_old) / self.h
-        y = np.zeros_like(self.y_old)
-        for i, f in enumerate(self.F):
-            y += f
-            y *= x if i % 2 == 0 else 1.0 - x
-        return y + self.y_old
+        u = 1.0 - x
+        return [((((((f0 * x + f1) * u + f2) * x + f3) * u + f4) * x + f5) * u + f6) * x + y0
+                for y0, f0, f1, f2, f3, f4, f5, f6 in self._rows]
 
 
 class _HermiteInterpolant:
