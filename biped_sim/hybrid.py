@@ -346,18 +346,7 @@ class HybridSimulator:
         if not getattr(ctrl, "accepts_lists", False):
             return lambda t, q, dq: _torques(ctrl(t, np.array(q), np.array(dq), leg), t)
 
-        def call(t, q, dq):
-            # _torques inlined: this runs at every right-hand-side evaluation
-            u = ctrl(t, q, dq, leg)
-            try:
-                u0, u1 = u
-                u = [float(u0), float(u1)]
-            except (TypeError, IndexError, ValueError):
-                return _torques(u, t)
-            if not math.isfinite(u[0] + u[1]):
-                return _torques(u, t)
-            return u
-        return call
+        return lambda t, q, dq: _torques(ctrl(t, q, dq, leg), t)
 
     def _force_at(self, t, q, dq):
         """Ground force on the stance foot at a physical state (zeros in flight)."""
@@ -403,14 +392,9 @@ class HybridSimulator:
         if self.status != "running":
             return []
         if u is not None:   # (plain float checks: the node calls this every control period)
-            try:
-                u0, u1 = u
-                u0, u1 = float(u0), float(u1)
-            except (TypeError, ValueError):
-                u0 = math.nan
-            if not math.isfinite(u0 + u1):
+            self._u = _two_finite_floats(u)
+            if self._u is None:
                 raise ValueError(f"u must be two finite torques, got {u!r}")
-            self._u = [u0, u1]
         self._controller = controller
         n_events = len(self.events)
         wall0 = time.perf_counter()
@@ -536,7 +520,7 @@ class HybridSimulator:
         self.q, self.dq, self.work = np.array(q), np.array(dq), float(w)
         if F is None:
             F = self._force_at(self.t, list(q), list(dq)) if (self.opt.compute_grf and self.stance_leg) else [0.0, 0.0]
-        self._record(self.q, self.dq, self.stance_leg, F, (list(q), list(dq)))
+        self._record(self.q, self.dq, self.stance_leg, F, (q, dq))
 
     def _record(self, q, dq, leg, F, lists=None):
         """A sample of the arrays q, dq (``lists``: the same as lists, if at hand) and the energy balance."""
@@ -778,16 +762,22 @@ class HybridSimulator:
             status="completed" if self.status == "running" else self.status, message=self.message)
 
 
-def _torques(u, t):
-    """The two torques a controller returned, as finite floats, or a SimulationError."""
+def _two_finite_floats(u):
+    """[u0, u1] as Python floats if u is two finite numbers, else None (runs at every evaluation)."""
     try:
         u0, u1 = u
         u0, u1 = float(u0), float(u1)
     except (TypeError, IndexError, ValueError):
-        u0 = u1 = math.nan
-    if not math.isfinite(u0 + u1):   # nan + x and inf - inf are nan; inf + x is inf
+        return None
+    return [u0, u1] if math.isfinite(u0 + u1) else None   # nan + x, inf - inf: nan; inf + x: inf
+
+
+def _torques(u, t):
+    """The two torques a controller returned, as finite floats, or a SimulationError."""
+    out = _two_finite_floats(u)
+    if out is None:
         raise SimulationError(f"the controller returned {u!r} at t={t:.9g} s: it must return two finite torques")
-    return [u0, u1]
+    return out
 
 
 def _hermite_min(g0, d0, g1, d1):

@@ -571,12 +571,18 @@ def _make_node_class():
                 f"{self.k} control periods to t={self.sim.t:.6f} s: engine {1e3 * self.sim.stats['wall_time'] / k:.3f} ms "
                 f"(wall) and process CPU {1e3 * cpu / k:.3f} ms per period; commands {self.counts}")
 
-        def flush(self, timeout=1.0):
-            """Wait (bounded) until subscribers acknowledged what was published."""
+        def flush(self, timeout=5.0):
+            """Wait (at most ``timeout`` s in all) until subscribers acknowledged what was published: a
+            reliable message still unacknowledged when the node exits is lost, and a subscriber on a
+            loaded machine can be seconds behind a lockstep run that ends."""
             from rclpy.duration import Duration
+            deadline = time.monotonic() + timeout
             for pub in self._publishers_by_output().values():
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
                 try:
-                    pub.wait_for_all_acked(Duration(seconds=timeout))
+                    pub.wait_for_all_acked(Duration(seconds=left))
                 except Exception:
                     pass
 

@@ -277,18 +277,13 @@ class BagRecorder:
         """Queue one message (an rclpy message object, or its CDR bytes) at simulation time t_ns (int)."""
         self._hand_over(self._message_frame(topic, msg, t_ns))
 
-    def write_batch(self, t_ns: int, items):
-        """Queue several messages of the same time t_ns, ``items`` = [(topic, msg), ...], in one hand-over
-        (what the node publishes at the end of a control period)."""
-        self._hand_over(b"".join([self._message_frame(topic, msg, t_ns) for topic, msg in items]))
-
     def write_state(self, t_ns: int, topics, frame_id: str, names, position, velocity, effort, force=None):
         """The state messages of one control period, packed in one call: ``topics`` = (joint_states,
         ground_reaction, clock) topic names, None for those not written (ground_reaction also when
-        ``force`` is None). The bytes are those of ``write_batch`` with the node's JointState(header
+        ``force`` is None). The bytes are those of the node's JointState(header
         (stamp t_ns, frame_id), names, position, velocity, effort), WrenchStamped(force; zero
-        torque) and Clock; one pack instead of three serialisations keeps recording near 10 us a
-        period (bench_record)."""
+        torque) and Clock, as three ``write`` calls would queue them; one pack instead of three
+        serialisations keeps recording near 10 us a period (bench_record)."""
         js, grf, clk = topics
         if force is None:
             grf = None

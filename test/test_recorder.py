@@ -61,11 +61,6 @@ class Tee:
         self._keep(topic, msg, t_ns)
         self.rec.write(topic, msg, t_ns)
 
-    def write_batch(self, t_ns, items):
-        for topic, msg in items:
-            self._keep(topic, msg, t_ns)
-        self.rec.write_batch(t_ns, items)
-
     def write_state(self, t_ns, topics, frame_id, names, position, velocity, effort, force=None):
         # the messages write_state stands for, built the rclpy way
         from builtin_interfaces.msg import Time
