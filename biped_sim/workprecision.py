@@ -56,6 +56,7 @@ LADDER_FULL = {
     "dop853": [1e-3, 1e-5, 1e-7, 1e-9, 1e-11],
     "scipy_dop853": [1e-3, 1e-5, 1e-7, 1e-9, 1e-11],
     "scipy_rk45": [1e-3, 1e-5, 1e-7, 1e-9],
+    "dopri5": [1e-3, 1e-5, 1e-7, 1e-9],
     "radau": [1e-3, 1e-5, 1e-7, 1e-9],
     "bdf": [1e-3, 1e-5, 1e-7],
     "rk4": [1e-2, 5e-3, 2.5e-3, 1.25e-3],
@@ -66,6 +67,7 @@ LADDER_QUICK = {
     "dop853": [1e-5, 1e-9],
     "scipy_dop853": [1e-5, 1e-9],
     "scipy_rk45": [1e-5],
+    "dopri5": [1e-5],
     "radau": [1e-5],
     "rk4": [1e-2, 5e-3],
     "semi_implicit_euler": [2e-3],
@@ -73,6 +75,7 @@ LADDER_QUICK = {
 }
 STYLE = {  # colour, marker
     "dop853": ("tab:blue", "o"), "scipy_dop853": ("tab:cyan", "s"), "scipy_rk45": ("tab:green", "^"),
+    "dopri5": ("tab:olive", "<"),
     "radau": ("tab:red", "D"), "bdf": ("tab:purple", "v"), "rk4": ("tab:orange", "P"),
     "semi_implicit_euler": ("tab:brown", "X"), "solve_ivp_DOP853": ("tab:gray", "*"),
 }
