@@ -346,7 +346,11 @@ class HybridSimulator:
         if not getattr(ctrl, "accepts_lists", False):
             return lambda t, q, dq: _torques(ctrl(t, np.array(q), np.array(dq), leg), t)
 
-        return lambda t, q, dq: _torques(ctrl(t, q, dq, leg), t)
+        def call(t, q, dq):   # at every right-hand-side evaluation: one check, the message only on failure
+            u = ctrl(t, q, dq, leg)
+            v = _two_finite_floats(u)
+            return v if v is not None else _torques(u, t)
+        return call
 
     def _force_at(self, t, q, dq):
         """Ground force on the stance foot at a physical state (zeros in flight)."""
