@@ -3,8 +3,9 @@
 Owns the numerical integration of one continuous phase (no physics, no events): a stepper has
 ``t``, ``y``, ``step()`` (one accepted step, or a failure with a message), ``dense_output()`` over
 the last step, and counters ``nfev``, ``naccepted``, ``nrejected``. The right-hand side
-``fun(t, y)`` takes and returns lists of floats (``dop853`` works on lists; the others adapt). The hybrid engine
-(``hybrid.py``) locates guards on the dense output and restarts a stepper after every reset.
+``fun(t, y)`` takes and returns lists of floats (``dop853`` and ``dopri5`` work on lists, the others
+adapt). The hybrid engine (``hybrid.py``) locates guards on the dense output and restarts a stepper
+after every reset.
 
 Methods (``make_stepper(name, ...)``):
   * ``dop853``   adaptive explicit Runge-Kutta 8(5,3) of Dormand and Prince with its 7th-order
@@ -56,7 +57,7 @@ class _Stepper:
 
     def restart(self, t0, y0, t_bound, h=None):
         self.t = float(t0)
-        self.y = np.array(y0, dtype=float)
+        self.y = [float(v) for v in y0] if self.takes_lists else np.array(y0, dtype=float)
         self.t_bound = float(t_bound)
         self.t_old = self.t
         self.y_old = self.y
@@ -88,10 +89,8 @@ class _ListRungeKutta(_Stepper):
         super().__init__(fun, t0, y0, t_bound)
 
     def restart(self, t0, y0, t_bound, h=None):
-        self.t = self.t_old = float(t0)
-        self.y = self.y_old = [float(v) for v in y0]
+        super().restart(t0, y0, t_bound)
         self._step = self.STEPS.get(len(self.y), self.GENERIC_STEP)   # unrolled for the engine's sizes
-        self.t_bound = float(t_bound)
         self.f = self.fun(self.t, self.y)
         self.nfev += 1
         if h is not None:
