@@ -193,6 +193,12 @@ class Client:
         self.spin_until(lambda: publisher.get_subscription_count() > 0, timeout,
                         f"a match for our publisher on {publisher.topic_name}", proc)
 
+    def wait_subscribed(self, topic, timeout=DISCOVERY_TIMEOUT, proc=None):
+        """Until our subscription on ``topic`` is matched by a publisher (so that nothing it sends from
+        now on is missed, even by a run that ends before discovery would otherwise complete)."""
+        sub = next(s for s in self.node.subscriptions if s.topic_name == topic)
+        self.spin_until(lambda: sub.get_publisher_count() > 0, timeout, f"a publisher on {topic}", proc)
+
     def wait_for_node(self, name, namespace="/", timeout=DISCOVERY_TIMEOUT, proc=None):
         self.spin_until(lambda: (name, namespace) in self.node.get_node_names_and_namespaces(), timeout,
                         f"node {namespace}{name}", proc)

@@ -57,10 +57,14 @@ def test_lockstep_walk_with_the_controller_node_matches_headless():
             dom = stack.enter_context(ros_domain())
             sim = stack.enter_context(start_node({"duration": duration, "record": False}, dom,
                                                  extra_args=scene_args("walk")))
+            c = stack.enter_context(Client(dom))
+            js = c.collect("/joint_states", JointState)
+            # matched before the controller starts: the lockstep run takes about a second, less than
+            # discovery may take, and the node exits at its end
+            c.wait_subscribed("/joint_states", proc=sim)
             ctl = stack.enter_context(start_node({"stance_source": source}, dom, executable="walk_controller",
                                                  extra_args=scene_args("walk")))
-            c = stack.enter_context(Client(dom))
-            runs.append((sim, ctl, c, c.collect("/joint_states", JointState)))
+            runs.append((sim, ctl, c, js))
         procs = [p for r in runs for p in r[:2]]
         _spin_all([r[2] for r in runs], lambda: all(r[3] and _t(r[3][-1]) >= duration for r in runs), 90,
                   f"the state at t = {duration} s in both runs", procs)
