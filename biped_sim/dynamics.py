@@ -116,8 +116,8 @@ def stance_dynamics(model: BipedModel, q, dq, u=None, stance_leg=1, base="floati
         # fast path: the generated closed form straight on the arrays' lists; anything it cannot
         # take (lists, wrong sizes, nested arrays) raises here and goes through the checks below
         try:
-            ddq, F = (gen.stance_floating_1 if stance_leg == 1 else gen.stance_floating_2)(
-                q.tolist(), dq.tolist(), [0.0, 0.0] if u is None else u.tolist(), model.k_stance)
+            ddq, F = stance_floating_fast(model, q.tolist(), dq.tolist(),
+                                          [0.0, 0.0] if u is None else u.tolist(), stance_leg)
         except (AttributeError, TypeError, ValueError):
             pass
         else:

@@ -435,6 +435,8 @@ def _make_node_class():
             st = stamp(t)
             frame = foot_frame(sim.stance_leg)
             state = []
+            q, dq = sim.q.tolist(), sim.dq.tolist()
+            effort = [0.0, 0.0, float(self.u[0]), float(self.u[1]), 0.0]
             if self.pub_js is not None:
                 m = self._js_msg
                 if m is None:
@@ -442,9 +444,9 @@ def _make_node_class():
                 else:
                     m.header.stamp = st
                     m.header.frame_id = frame
-                    m.position = sim.q.tolist()
-                    m.velocity = sim.dq.tolist()
-                    m.effort = [0.0, 0.0, float(self.u[0]), float(self.u[1]), 0.0]
+                    m.position = q
+                    m.velocity = dq
+                    m.effort = effort
                 state.append((self.pub_js, m))
             if self.pub_grf is not None and sim.stance_leg:
                 m = self._grf_msg
@@ -466,7 +468,7 @@ def _make_node_class():
                 self.recorder.write_state(
                     int(round(t * 1e9)), tuple(p.topic_name if p is not None else None
                                                for p in (self.pub_js, self.pub_grf, self.pub_clock)),
-                    frame, JOINT_NAMES, sim.q.tolist(), sim.dq.tolist(), [0.0, 0.0, float(self.u[0]), float(self.u[1]), 0.0],
+                    frame, JOINT_NAMES, q, dq, effort,
                     sim.ground_force if sim.stance_leg and self.pub_grf is not None else None)
 
         # -- time modes -------------------------------------------------------------------------

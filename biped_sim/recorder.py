@@ -323,7 +323,7 @@ class BagRecorder:
             else:
                 part, const = CLOCK_FORMAT, None
             # the frame's length field counts the message header (_MSG) and the CDR payload
-            fmt += "cIHqI" + part
+            fmt += _MSG_FRAME.format.lstrip("<") + part
             entries.append((entry, (kind, _MSG.size + struct.calcsize("<" + part), const)))
         return struct.Struct(fmt).pack, entries
 
