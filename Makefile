@@ -9,10 +9,12 @@ PYTHON  ?= $(shell command -v python3.11 || command -v python3)
 venv: $(STAMP)
 
 # uv installs the stack in ~8 s here (pip: ~45 s); pip stays as the fallback.
-$(STAMP): requirements.txt setup.py setup.cfg
+# --reinstall-package: uv would keep an installed editable biped_sim and not rebuild the compiled
+# twin (biped_sim/_cmodel.c) after a change to it.
+$(STAMP): requirements.txt setup.py setup.cfg biped_sim/_cmodel.c
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	@if $(PY) -m pip install -q uv==0.13.8 >/dev/null 2>&1; then \
-	    $(VENV)/bin/uv pip install -q --python $(PY) -r requirements.txt -e . ; \
+	    $(VENV)/bin/uv pip install -q --python $(PY) -r requirements.txt --reinstall-package biped_sim -e . ; \
 	else \
 	    $(PY) -m pip install -q -r requirements.txt -e . ; \
 	fi
@@ -27,12 +29,15 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) -m biped_sim.bench
 
-# Regenerate biped_sim/_generated.py from the energies (needs sympy, installed here only) and
-# biped_sim/_rk_steps.py (the unrolled Runge-Kutta steps) from scipy's tableaux.
+# Regenerate biped_sim/_generated.py from the energies (needs sympy, installed here only), its
+# compiled twin biped_sim/_cmodel.c, and biped_sim/_rk_steps.py (the unrolled Runge-Kutta steps)
+# from scipy's tableaux; then rebuild the twin.
 generate: $(STAMP)
 	@$(PY) -c "import sympy" 2>/dev/null || $(VENV)/bin/uv pip install -q --python $(PY) sympy==1.14.0
 	$(PY) tools/generate_model.py
+	$(PY) tools/generate_c.py
 	$(PY) tools/generate_rk.py
+	$(MAKE) --always-make venv
 
 clean-venv:
 	rm -rf $(VENV)
