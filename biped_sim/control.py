@@ -39,12 +39,23 @@ class WalkingController:
         self.clearance, self.lag = float(clearance), float(lag)
         self.kp, self.kd, self.torque_limit = float(kp), float(kd), float(torque_limit)
 
+    @property
+    def step_angle(self):
+        return self._step_angle
+
+    @step_angle.setter
+    def step_angle(self, value):
+        # the parameter-only terms of swing_target, once (it runs at every right-hand-side evaluation)
+        self._step_angle = value
+        self._a2 = value ** 2
+        self._ddb = -2.0 / self._a2
+
     def swing_target(self, phi_s):
         """f(phi_s) and its first two derivatives."""
-        a2 = self.step_angle ** 2
+        a2 = self._a2
         b = 1.0 - phi_s * phi_s / a2
         db = -2.0 * phi_s / a2
-        ddb = -2.0 / a2
+        ddb = self._ddb
         c, l = self.clearance, self.lag
         f = -phi_s * (1.0 + c * b) + l * b
         df = -(1.0 + c * b) - phi_s * c * db + l * db
@@ -121,6 +132,11 @@ class PDWalkingController(WalkingController):
         y2 = q[w] + q3 - math.pi - f                    # y2 and dy2 = H2 dq_r as in outputs()
         dy2 = dq[w] + dq3 - df * (dq[s] + dq3)
         kp, kd, lim = self.kp, self.kd, self.torque_limit
-        u_swing = min(lim, max(-lim, -kp * y2 - kd * dy2))
-        u_stance = min(lim, max(-lim, 2.0 * (kp * (q3 - self.torso_pitch) + kd * dq3) - u_swing))
+        # clipped to [-lim, lim] as min(lim, max(-lim, v)) does (a NaN becomes -lim), without the calls
+        u_swing = -kp * y2 - kd * dy2
+        u_swing = u_swing if u_swing > -lim else -lim
+        u_swing = u_swing if u_swing < lim else lim
+        u_stance = 2.0 * (kp * (q3 - self.torso_pitch) + kd * dq3) - u_swing
+        u_stance = u_stance if u_stance > -lim else -lim
+        u_stance = u_stance if u_stance < lim else lim
         return (u_stance, u_swing) if stance_leg == 1 else (u_swing, u_stance)
