@@ -29,14 +29,14 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) -m biped_sim.bench
 
-# Regenerate biped_sim/_generated.py from the energies (needs sympy, installed here only), its
-# compiled twin biped_sim/_cmodel.c, and biped_sim/_rk_steps.py (the unrolled Runge-Kutta steps)
-# from scipy's tableaux; then rebuild the twin.
+# Regenerate biped_sim/_generated.py from the energies (needs sympy, installed here only),
+# biped_sim/_rk_steps.py (the unrolled Runge-Kutta steps) from scipy's tableaux, and from both
+# their compiled twin biped_sim/_cmodel.c; then rebuild the twin.
 generate: $(STAMP)
 	@$(PY) -c "import sympy" 2>/dev/null || $(VENV)/bin/uv pip install -q --python $(PY) sympy==1.14.0
 	$(PY) tools/generate_model.py
-	$(PY) tools/generate_c.py
 	$(PY) tools/generate_rk.py
+	$(PY) tools/generate_c.py
 	$(MAKE) --always-make venv
 
 clean-venv:

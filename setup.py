@@ -13,9 +13,9 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/msg_configs", glob("msg_configs/*.yaml")),
     ],
-    # the compiled twin of _generated.py (biped_sim/closed_form.py): optional, so that a machine
-    # without a C compiler still installs and runs the same code in Python, about 10x slower per
-    # closed-form call; no floating-point contraction, so that its results are the Python code's bits
+    # the compiled twin of the generated code (biped_sim/compiled.py): optional, so that a machine
+    # without a C compiler still installs and runs the same code in Python, several times slower;
+    # no floating-point contraction, so that its results are the Python code's bits
     ext_modules=[Extension("biped_sim._cmodel", ["biped_sim/_cmodel.c"],
                            extra_compile_args=["-O2", "-ffp-contract=off"], optional=True)],
     install_requires=["setuptools", "numpy", "scipy"],

@@ -1,13 +1,13 @@
-"""The closed forms of MODEL.md (D, C, G, feet, J, Jdot, energy, the stance KKT solution) as the
-engine calls them: ``gen``.
+"""The generated code as the engine calls it: ``gen``, the closed forms of MODEL.md (D, C, G, feet,
+J, Jdot, energy, the stance KKT solution), and ``rk``, the unrolled Runge-Kutta steps.
 
-Owns one choice. ``_generated.py`` (Python, generated from the energies by tools/generate_model.py)
-is the definition; ``_cmodel`` is its compiled twin (C, generated from ``_generated.py`` by
-tools/generate_c.py and built by setup.py as an optional extension), which performs the same IEEE
-operations in the same order and so returns the same bits, about ten times faster. ``gen`` is the
-twin when it was built from the current ``_generated.py``, else ``_generated`` itself; results do
-not depend on which (test/test_closed_form.py). ``BIPED_SIM_CLOSED_FORM=python`` forces the
-Python code.
+Owns one choice. ``_generated.py`` (generated from the energies by tools/generate_model.py) and
+``_rk_steps.py`` (generated from scipy's tableaux by tools/generate_rk.py) are the definitions;
+``_cmodel`` is their compiled twin (C, generated from both by tools/generate_c.py and built by
+setup.py as an optional extension), which performs the same IEEE operations in the same order and
+so returns the same bits, several times faster. ``gen`` and ``rk`` use the twin when it was built
+from the current sources, else the Python code; results do not depend on which
+(test/test_compiled.py). ``BIPED_SIM_PURE_PYTHON=1`` forces the Python code.
 """
 from __future__ import annotations
 
@@ -16,29 +16,40 @@ import os
 import types
 from pathlib import Path
 
-from . import _generated
+from . import _generated, _rk_steps
+
+SOURCES = (_generated, _rk_steps)
 
 
 def _compiled_twin():
     """(the _cmodel module or None, why not)."""
-    if os.environ.get("BIPED_SIM_CLOSED_FORM", "").lower() == "python":
-        return None, "BIPED_SIM_CLOSED_FORM=python"
+    if os.environ.get("BIPED_SIM_PURE_PYTHON", "") not in ("", "0"):
+        return None, "BIPED_SIM_PURE_PYTHON is set"
     try:
         from . import _cmodel
     except ImportError as exc:
         return None, f"the compiled twin was not built ({exc}); reinstall with a C compiler: make venv"
-    digest = hashlib.sha256(Path(_generated.__file__).read_bytes()).hexdigest()
+    digest = hashlib.sha256(b"".join(Path(m.__file__).read_bytes() for m in SOURCES)).hexdigest()
     if _cmodel.SOURCE_SHA256 != digest:
-        return None, "the compiled twin is older than _generated.py; rebuild it: make venv"
+        return None, "the compiled twin is older than the generated Python code; rebuild it: make venv"
     return _cmodel, ""
 
 
-_twin, WHY_PYTHON = _compiled_twin()
-#: "C" or "Python": which code ``gen`` runs (``WHY_PYTHON`` says why when it is Python)
-IMPLEMENTATION = "C" if _twin else "Python"
+def _with_twin(module, twin):
+    """The module's public names, its functions replaced by their twins (in its tables too)."""
+    ns = types.SimpleNamespace(**{n: v for n, v in vars(module).items() if not n.startswith("_")})
+    if twin is None:
+        return ns
+    for name, value in vars(ns).items():
+        if callable(value) and hasattr(twin, name):
+            setattr(ns, name, getattr(twin, name))
+        elif isinstance(value, dict):   # e.g. DOP853_STEPS: state size -> step function
+            setattr(ns, name, {k: getattr(twin, getattr(v, "__name__", ""), v) for k, v in value.items()})
+    return ns
 
-gen = types.SimpleNamespace(**{name: getattr(_generated, name) for name in dir(_generated) if not name.startswith("_")})
-if _twin is not None:
-    for _name in dir(_twin):
-        if not _name.startswith("_") and _name != "SOURCE_SHA256":
-            setattr(gen, _name, getattr(_twin, _name))
+
+_twin, WHY_PYTHON = _compiled_twin()
+#: "C" or "Python": which code ``gen`` and ``rk`` run (``WHY_PYTHON`` says why when it is Python)
+IMPLEMENTATION = "C" if _twin else "Python"
+gen = _with_twin(_generated, _twin)
+rk = _with_twin(_rk_steps, _twin)

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from .closed_form import gen
+from .compiled import gen
 from .model import BipedModel, as_state_vector, check_leg
 
 

@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import brentq
 
-from .closed_form import IMPLEMENTATION as CLOSED_FORM, gen
+from .compiled import IMPLEMENTATION as GENERATED_CODE, gen
 from .dynamics import (flight_fast, impact_map, stance_fixed_accel_fast, stance_fixed_fast,
                        stance_floating_fast)
 from .integrators import (ADAPTIVE_METHODS, FIXED_STEP_METHODS, METHODS, StepFailure,
@@ -759,7 +759,7 @@ class HybridSimulator:
         stats["energy_lost_at_impacts"] = self.energy_lost
         stats["motor_work"] = self.work
         stats["method"] = self.method
-        stats["closed_form"] = CLOSED_FORM   # "C" (the compiled twin) or "Python": same results
+        stats["generated_code"] = GENERATED_CODE   # "C" (the compiled twin) or "Python": same results
         return SimulationResult(
             t=t, q=np.array([x[1] for x in s]), dq=np.array([x[2] for x in s]),
             stance_leg=np.array([x[3] for x in s], dtype=int), grf=np.array([x[4] for x in s]),

@@ -29,7 +29,7 @@ import numpy as np
 from scipy.integrate import BDF, DOP853 as _ScipyDOP853, RK45, Radau
 from scipy.integrate._ivp import dop853_coefficients as _dop  # coefficient tables only
 
-from . import _rk_steps as _rk
+from .compiled import rk as _rk
 
 FIXED_STEP_METHODS = ("rk4", "semi_implicit_euler")
 ADAPTIVE_METHODS = ("dop853", "dopri5", "radau", "bdf", "scipy_dop853", "scipy_rk45")

@@ -12,7 +12,7 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from .closed_form import gen
+from .compiled import gen
 
 #: Actuation matrix of MODEL.md: two hip motors acting on q1 and q2.
 B = np.array([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 0.0]])

@@ -205,7 +205,7 @@ def _make_node_class():
     from std_msgs.msg import Float64MultiArray
     from diagnostic_msgs.msg import DiagnosticArray
 
-    from .closed_form import IMPLEMENTATION as CLOSED_FORM, WHY_PYTHON
+    from .compiled import IMPLEMENTATION as GENERATED_CODE, WHY_PYTHON
     from .hybrid import HybridSimulator
 
     class SimNode(Node):
@@ -263,7 +263,7 @@ def _make_node_class():
                 f"biped_sim: time_mode={self.mode}, control_period={self.period:g} s, duration={self.duration:g} s, "
                 f"outputs={sorted(out)}, phases={sorted(prm['phases'])}, base={prm['base']}, "
                 f"method={self.sim.method}" + (" (auto)" if prm["method"] == "auto" else "")
-                + f", closed form {CLOSED_FORM}" + (f" ({WHY_PYTHON})" if WHY_PYTHON else "")
+                + f", generated code in {GENERATED_CODE}" + (f" ({WHY_PYTHON})" if WHY_PYTHON else "")
                 + (f", recording to {self.bag_path}" if self.recorder else ""))
 
         # -- recording ------------------------------------------------------------------------

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ..closed_form import WHY_PYTHON
+from ..compiled import WHY_PYTHON
 from ..control import WalkingController
 from ..hybrid import simulate
 from ..integrators import FIXED_STEP_METHODS, METHODS
@@ -107,8 +107,7 @@ def print_summary(result):
     rows = [
         ("status", result.status + (f" ({result.message})" if result.message else "")),
         ("method", s["method"]),
-        ("closed form", "C (compiled twin of _generated.py)" if s["closed_form"] == "C"
-         else f"Python ({WHY_PYTHON})"),
+        ("generated code", "C (the compiled twin)" if s["generated_code"] == "C" else f"Python ({WHY_PYTHON})"),
         ("simulated time", f"{s['simulated_time']:.6g} s"),
         ("wall time", f"{s['wall_time']:.4g} s"),
         ("real-time factor", f"{s['real_time_factor']:.3g}" if math.isfinite(s["real_time_factor"]) else "inf"),
