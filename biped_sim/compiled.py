@@ -27,8 +27,8 @@ def _compiled_twin():
         return None, "BIPED_SIM_PURE_PYTHON is set"
     try:
         from . import _cmodel
-    except ImportError as exc:
-        return None, f"the compiled twin was not built ({exc}); reinstall with a C compiler: make venv"
+    except ImportError:
+        return None, "the compiled twin biped_sim/_cmodel was not built: install gcc and the Python headers, then make venv"
     digest = hashlib.sha256(b"".join(Path(m.__file__).read_bytes() for m in SOURCES)).hexdigest()
     if _cmodel.SOURCE_SHA256 != digest:
         return None, "the compiled twin is older than the generated Python code; rebuild it: make venv"
