@@ -5,7 +5,8 @@ median over repeats measured in this one process, and comparisons are made side 
 
 Engine figures:
   * ``stance_dynamics`` per call (public API, numpy in and out), beside the literal KKT solve of
-    MODEL.md with ``np.linalg.solve`` on the same inputs;
+    MODEL.md with ``np.linalg.solve`` on the same inputs and the Python closed form that the
+    compiled twin replaces (``BIPED_SIM_PURE_PYTHON=1`` runs everything on the Python code);
   * a 10 s walking run (the PD walking law, continuous feedback, >= 14 impacts) integrated to a
     final-state error of 1e-9 by this engine and by ``scipy.integrate.solve_ivp(method="DOP853",
     events=...)`` driving the same right-hand side (``stance_floating_fast`` and the same
@@ -26,6 +27,8 @@ import timeit
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from . import _generated
+from .compiled import IMPLEMENTATION, WHY_PYTHON
 from .control import PDWalkingController
 from .dynamics import impact_map, stance_dynamics, stance_floating_fast
 from .hybrid import simulate
@@ -56,6 +59,7 @@ def bench_stance(model):
     rows = [
         ("stance_dynamics (public API, numpy in/out)", _median_us(lambda: stance_dynamics(model, q, dq, u), 20000)),
         ("stance_floating_fast (engine hot path, lists)", _median_us(lambda: stance_floating_fast(model, ql, dql, (0.0, 0.0)), 20000)),
+        ("the same closed form in Python (_generated.py)", _median_us(lambda: _generated.stance_floating_1(ql, dql, (0.0, 0.0), model.k_stance), 20000)),
         ("stance_dynamics(base='fixed') (pinned chain)", _median_us(lambda: stance_dynamics(model, q, dq, u, base="fixed"), 20000)),
         ("literal 7x7 KKT with np.linalg.solve", _median_us(literal_kkt, 2000)),
     ]
@@ -163,6 +167,7 @@ def main(argv=None):
     model = BipedModel()
     if args.only in (None, "engine"):
         print("biped_sim engine benchmark (python -m biped_sim.bench --only engine)")
+        print(f"generated code: {IMPLEMENTATION}" + (f" ({WHY_PYTHON})" if WHY_PYTHON else " (the compiled twin)"))
         bench_stance(model)
         bench_walk(model, repeats=args.repeats)
         sys.stdout.flush()
