@@ -12,7 +12,12 @@ Engine figures:
     events=...)`` driving the same right-hand side (``stance_floating_fast`` and the same
     controller) with the same impact map; each at the loosest tolerance of a ladder that reaches
     the error, against a reference run at rtol = atol = 1e-13 (its own error estimated by
-    solve_ivp at the same tolerance).
+    solve_ivp at the same tolerance);
+  * what ``method:=auto`` of the node chooses between: a 2 s walk advanced one control period at a
+    time as the node does (commands of the walking controller, recorded once from a 1e-13
+    reference run that advances each period in 8 slices, and replayed to both methods), for
+    periods of 1 to 20 ms: evaluations and wall time per period, and the largest state error at the
+    period boundaries against the reference.
 """
 from __future__ import annotations
 
@@ -31,7 +36,8 @@ from . import _generated
 from .compiled import IMPLEMENTATION, WHY_PYTHON
 from .control import PDWalkingController
 from .dynamics import impact_map, stance_dynamics, stance_floating_fast
-from .hybrid import simulate
+from .hybrid import HybridSimulator, simulate
+from .parameters import AUTO_DOPRI5_MAX_PERIOD
 from .model import BipedModel
 
 # a fine ladder (ratio about 1.4 between rungs) so that neither method is charged for more accuracy
@@ -159,6 +165,48 @@ def bench_walk(model, repeats=3, t_final=10.0):
     return found
 
 
+def bench_control_periods(model, periods=(0.001, 0.005, 0.01, 0.02), t_final=2.0, repeats=3):
+    """dopri5 against dop853 per control period, as the node's ``method:=auto`` chooses (see the
+    module docstring); returns {period: {method: (evaluations, ms, error)}}."""
+    from .control import WalkingController
+    ctrl = WalkingController(model)
+    q0, dq0 = ctrl.initial_state()
+    print(f"\n== one control period at a time, as the node advances ({t_final:g} s walk, rtol=atol=1e-9; "
+          f"method:=auto takes dopri5 up to {AUTO_DOPRI5_MAX_PERIOD * 1e3:g} ms) ==")
+    print(f"  {'period':>8s}  {'method':8s} {'evals/period':>12s} {'ms/period':>10s} {'max error':>10s}")
+    out = {}
+    for period in periods:
+        n = int(round(t_final / period))
+        # the reference advances each period in 8 slices: a period caps every step, and a run capped
+        # like the measured ones would take their very steps (then 1e-9 and 1e-13 give the same bits)
+        ref = HybridSimulator(model, q0, dq0, rtol=1e-13, atol=1e-13, method="dop853")
+        commands, states = [], []
+        for k in range(n):
+            commands.append(ctrl(ref.t, ref.q, ref.dq, ref.stance_leg))
+            for j in range(1, 9):
+                ref.advance((k + j / 8) * period, u=commands[-1])
+            states.append(np.concatenate([ref.q, ref.dq]))
+        out[period] = {}
+        for method in ("dopri5", "dop853"):
+            walls, err = [], 0.0
+            for r in range(repeats):
+                sim = HybridSimulator(model, q0, dq0, rtol=1e-9, atol=1e-9, method=method)
+                t0 = time.perf_counter()
+                for k in range(n):
+                    sim.advance((k + 1) * period, u=commands[k])
+                walls.append(time.perf_counter() - t0)
+                if r == 0:   # the runs are identical; the error is measured once, outside the timing
+                    check = HybridSimulator(model, q0, dq0, rtol=1e-9, atol=1e-9, method=method)
+                    for k in range(n):
+                        check.advance((k + 1) * period, u=commands[k])
+                        err = max(err, float(np.max(np.abs(np.concatenate([check.q, check.dq]) - states[k]))))
+            evals = sim.stats["rhs_evaluations"] / n
+            ms = statistics.median(walls) / n * 1e3
+            out[period][method] = (evals, ms, err)
+            print(f"  {period * 1e3:6g} ms  {method:8s} {evals:12.2f} {ms:10.4f} {err:10.2g}")
+    return out
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m biped_sim.bench", description=__doc__.split("\n")[0])
     parser.add_argument("--only", choices=("engine", "node", "record", "scenes"), help="run one group only")
@@ -170,6 +218,7 @@ def main(argv=None):
         print(f"generated code: {IMPLEMENTATION}" + (f" ({WHY_PYTHON})" if WHY_PYTHON else " (the compiled twin)"))
         bench_stance(model)
         bench_walk(model, repeats=args.repeats)
+        bench_control_periods(model)
         sys.stdout.flush()
     for group, module in (("node", "bench_node"), ("record", "bench_record"), ("scenes", "bench_scenes")):
         if args.only in (None, group):
