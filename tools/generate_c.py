@@ -171,18 +171,17 @@ class Function:
         Each part is put into its parent as soon as it exists (a tuple or list being filled may
         hold NULLs), so after a failed allocation releasing the outermost one releases all."""
         name = f"py_r{next(counter)}"   # generated names never start with py_
-        if isinstance(node, (ast.Tuple, ast.List)):
-            self.lines.append(f"    PyObject *{name} = Py{kind(node)}_New({len(node.elts)});")
-        elif isinstance(node, ast.Name) and node.id in self.objects:   # an object at hand: no allocation
+        if isinstance(node, ast.Name) and node.id in self.objects:   # an object at hand: no allocation
             self.lines.append(f"    PyObject *{name} = {node.id};")
             self.lines.append(f"    Py_INCREF({name});")
-            self.lines.append(f"    Py{kind(parent[0])}_SET_ITEM({parent[1]}, {parent[2]}, {name});")
-            return name
-        elif isinstance(node, ast.Constant) and type(node.value) is int:
-            self.lines.append(f"    PyObject *{name} = PyLong_FromLong({node.value}L);")
         else:
-            self.lines.append(f"    PyObject *{name} = PyFloat_FromDouble({self.expr(node)});")
-        self.lines.append(f"    if ({name} == NULL) " + ("goto done;" if parent is None else "{ Py_DECREF(py_r0); goto done; }"))
+            if isinstance(node, (ast.Tuple, ast.List)):
+                self.lines.append(f"    PyObject *{name} = Py{kind(node)}_New({len(node.elts)});")
+            elif isinstance(node, ast.Constant) and type(node.value) is int:
+                self.lines.append(f"    PyObject *{name} = PyLong_FromLong({node.value}L);")
+            else:
+                self.lines.append(f"    PyObject *{name} = PyFloat_FromDouble({self.expr(node)});")
+            self.lines.append(f"    if ({name} == NULL) " + ("goto done;" if parent is None else "{ Py_DECREF(py_r0); goto done; }"))
         if parent is not None:
             self.lines.append(f"    Py{kind(parent[0])}_SET_ITEM({parent[1]}, {parent[2]}, {name});")
         if isinstance(node, (ast.Tuple, ast.List)):
