@@ -10,8 +10,8 @@ venv: $(STAMP)
 
 # uv installs the stack in ~8 s here (pip: ~45 s); pip stays as the fallback.
 # --reinstall-package: uv would keep an installed editable biped_sim and not rebuild the compiled
-# twin (biped_sim/_cmodel.c) after a change to it.
-$(STAMP): requirements.txt setup.py setup.cfg biped_sim/_cmodel.c
+# twin (biped_sim/engine/_gen/_cmodel.c) after a change to it.
+$(STAMP): requirements.txt setup.py setup.cfg biped_sim/engine/_gen/_cmodel.c
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	@if $(PY) -m pip install -q uv==0.13.8 >/dev/null 2>&1; then \
 	    $(VENV)/bin/uv pip install -q --python $(PY) -r requirements.txt --reinstall-package biped_sim -e . ; \
@@ -21,17 +21,17 @@ $(STAMP): requirements.txt setup.py setup.cfg biped_sim/_cmodel.c
 	@touch $(STAMP)
 
 demo: $(STAMP)
-	$(PY) -m biped_sim.demo
+	$(PY) -m biped_sim.cli.demo
 
 test: $(STAMP)
 	$(PY) -m pytest -q test
 
 bench: $(STAMP)
-	$(PY) -m biped_sim.bench
+	$(PY) -m benchmarks.bench
 
-# Regenerate biped_sim/_generated.py from the energies (needs sympy, installed here only),
-# biped_sim/_rk_steps.py (the unrolled Runge-Kutta steps) from scipy's tableaux, and from both
-# their compiled twin biped_sim/_cmodel.c; then rebuild the twin.
+# Regenerate biped_sim/engine/_gen/closed_forms.py from the energies (needs sympy, installed here only),
+# biped_sim/engine/_gen/rk_steps.py (the unrolled Runge-Kutta steps) from scipy's tableaux, and from both
+# their compiled twin biped_sim/engine/_gen/_cmodel.c; then rebuild the twin.
 generate: $(STAMP)
 	@$(PY) -c "import sympy" 2>/dev/null || $(VENV)/bin/uv pip install -q --python $(PY) sympy==1.14.0
 	$(PY) tools/generate_model.py

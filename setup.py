@@ -7,16 +7,16 @@ package_name = "biped_sim"
 setup(
     name=package_name,
     version="0.1.0",
-    packages=find_packages(exclude=["test"]),
+    packages=find_packages(exclude=["test", "test.*", "benchmarks", "benchmarks.*"]),
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/msg_configs", glob("msg_configs/*.yaml")),
     ],
-    # the compiled twin of the generated code (biped_sim/compiled.py): optional, so that a machine
+    # the compiled twin of the generated code (biped_sim/engine/compiled.py): optional, so that a machine
     # without a C compiler still installs and runs the same code in Python, several times slower;
     # no floating-point contraction, so that its results are the Python code's bits
-    ext_modules=[Extension("biped_sim._cmodel", ["biped_sim/_cmodel.c"],
+    ext_modules=[Extension("biped_sim.engine._gen._cmodel", ["biped_sim/engine/_gen/_cmodel.c"],
                            extra_compile_args=["-O2", "-ffp-contract=off"], optional=True)],
     install_requires=["setuptools", "numpy", "scipy"],
     zip_safe=True,
@@ -28,11 +28,10 @@ setup(
     entry_points={
         "console_scripts": [
             "biped-sim = biped_sim.cli:main",
-            "sim_node = biped_sim.node:main",
-            "torque_pub = biped_sim.torque_pub:main",
-            "biped_echo = biped_sim.echo:main",
-            "replay = biped_sim.replay:main",
-            "walk_controller = biped_sim.walk_controller_node:main",
+            "sim_node = biped_sim.ros.sim_node:main",
+            "torque_pub = biped_sim.ros.torque_pub:main",
+            "biped_echo = biped_sim.ros.echo:main",
+            "walk_controller = biped_sim.ros.walk_controller:main",
         ],
     },
 )

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Generate biped_sim/_generated.py: closed-form model expressions from the energies (MODEL.md).
+"""Generate biped_sim/engine/_gen/closed_forms.py: closed-form model expressions from the energies (MODEL.md).
 
 Run once whenever the model changes (``make generate``); the package never imports sympy.
 Everything is derived from the kinetic and potential energies of MODEL.md:
@@ -20,7 +20,7 @@ import re
 
 import sympy as sp
 
-OUT = pathlib.Path(__file__).resolve().parent.parent / "biped_sim" / "_generated.py"
+OUT = pathlib.Path(__file__).resolve().parent.parent / "biped_sim" / "engine" / "_gen" / "closed_forms.py"
 
 PARAMS = sp.symbols("m_torso I_torso l_torso c_torso m_leg I_leg l_leg c_leg g", real=True)
 m_t, I_t, l_t, c_t, m_l, I_l, l_l, c_l, g = PARAMS

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Generate biped_sim/_rk_steps.py: one step of each explicit Runge-Kutta pair, unrolled over lists.
+"""Generate biped_sim/engine/_gen/rk_steps.py: one step of each explicit Runge-Kutta pair, unrolled over lists.
 
 Run whenever a tableau changes (never, in practice; ``make generate`` runs it). The coefficients
 are scipy's (``scipy.integrate._ivp``): Dormand-Prince 8(5,3) as in scipy's ``DOP853`` and
@@ -17,7 +17,7 @@ import pathlib
 from scipy.integrate._ivp import dop853_coefficients as dop
 from scipy.integrate._ivp.rk import RK45
 
-OUT = pathlib.Path(__file__).resolve().parent.parent / "biped_sim" / "_rk_steps.py"
+OUT = pathlib.Path(__file__).resolve().parent.parent / "biped_sim" / "engine" / "_gen" / "rk_steps.py"
 UNROLLED = (7, 11)   # the engine's state sizes: fixed-base stance; floating base (with the work)
 
 

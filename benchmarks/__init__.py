@@ -1,0 +1,1 @@
+"""`make bench`: the benchmarks (not installed with the package)."""

@@ -1,0 +1,197 @@
+"""The periodic gait of a scene: fixed point and linearisation of the step-to-step Poincare map.
+
+Owns the gait analysis of ``biped-sim gait`` (the engine headless, continuous feedback of the
+scene's controller). The Poincare section is the set of post-impact states Delta(S), written in
+stance/swing labels (after the relabeling the new stance leg is called "stance" again):
+
+  z = [q_st, q_sw, q3, dq_st, dq_sw, dq3]        (joint angles and rates, 6 numbers)
+
+* the translation invariance in x (and the hip height) is removed by pinning the stance foot at the
+  origin: the hip follows from the joints (``stance_state``);
+* the section constraint -- both feet on the ground: h(q_st, q_sw, q3) = 0 -- leaves a
+  5-dimensional section. The map is linearised on it: with U (6 x 5) an orthonormal basis of the
+  section's tangent space (velocities free, configuration tangent to h = 0),
+  A = U^T dP/dz U (5 x 5) by central finite differences. (The full 6 x 6 Jacobian has one more,
+  zero, eigenvalue: a shift along the flow lands on the same next impact.)
+
+The fixed point is found by Newton's method on U^T (P(z) - z) = 0 with the same Jacobian, each
+iterate projected back onto h = 0. The step map P integrates one stance phase with the controller
+until the swing foot touches down (the engine's touchdown guard and impact map).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from biped_sim.engine.hybrid import HybridSimulator, stance_state
+
+
+@dataclass
+class Gait:
+    z: np.ndarray                 # fixed point: post-impact [q_st, q_sw, q3, dq_st, dq_sw, dq3]
+    step_length: float            # m, between the feet at touchdown (along the ground)
+    step_period: float            # s
+    speed: float                  # m/s, step_length / step_period
+    cost_of_transport: float      # sum over the hips of |u dq| integrated over a step / (m g step_length)
+    motor_work: float             # J per step, signed (u . dq integrated)
+    eigenvalues: np.ndarray       # of the 5 x 5 linearised Poincare map, largest modulus first
+    residual: float               # |P(z) - z| at the fixed point
+    newton_iterations: int
+    max_torque: float             # N m, largest |u| over the step
+    slope: float
+
+    @property
+    def stable(self) -> bool:
+        return bool(np.all(np.abs(self.eigenvalues) < 1.0))
+
+
+class StepMap:
+    """The step-to-step map of a controller on the engine (stance leg called leg 1)."""
+
+    def __init__(self, model, controller, rtol=1e-10, atol=1e-10, slope=0.0, method="dop853", **options):
+        self.model, self.controller = model, controller
+        self.slope = float(slope)
+        self.kw = dict(rtol=rtol, atol=atol, method=method, slope=self.slope, max_events=1,
+                       phases=frozenset({"stance", "impact"}), **options)
+
+    def state(self, z):
+        """Physical (q, dq) of a section point, stance leg 1 with its foot at the origin."""
+        return stance_state(self.model, z[0:3], z[3:6], stance_leg=1)
+
+    def height(self, qj):
+        """Height of the swing foot above the ground with the stance foot at the origin (h = 0 on S)."""
+        q, _ = stance_state(self.model, qj, [0.0, 0.0, 0.0], stance_leg=1)
+        p = self.model.foot_position(q, 2)
+        return float(p[1] + math.tan(self.slope) * p[0])
+
+    def run(self, z, max_time=5.0, **extra):
+        """Integrate one step from z; returns (z_next, simulator)."""
+        q, dq = self.state(np.asarray(z, float))
+        sim = HybridSimulator(self.model, q, dq, stance_leg=1, **dict(self.kw, **extra))
+        sim.advance(max_time, controller=self.controller)
+        ev = sim.events[-1] if sim.events else None
+        if ev is None or ev.kind != "touchdown" or ev.leg != 2:
+            why = sim.message or (ev.message if ev else f"no touchdown within {max_time} s")
+            raise RuntimeError(f"the step from z={np.round(z, 6).tolist()} does not end in a touchdown: {why}")
+        qe, dqp = ev.q, ev.dq_plus          # leg 2 is the new stance leg: relabel
+        return np.array([qe[3], qe[2], qe[4], dqp[3], dqp[2], dqp[4]]), sim
+
+    def __call__(self, z):
+        return self.run(z)[0]
+
+    def basis(self, z, eps=1e-7):
+        """Orthonormal basis (6 x 5) of the section's tangent space at z."""
+        qj = np.asarray(z[0:3], float)
+        grad = np.array([(self.height(qj + eps * e) - self.height(qj - eps * e)) / (2 * eps) for e in np.eye(3)])
+        n = np.concatenate([grad, np.zeros(3)])
+        n /= np.linalg.norm(n)
+        # the orthogonal complement of n: the last 5 left singular vectors of n
+        u, _s, _vt = np.linalg.svd(n.reshape(6, 1))
+        return u[:, 1:], grad
+
+    def project(self, z, grad=None):
+        """z moved along the configuration gradient of h until h = 0 (Newton)."""
+        z = np.array(z, float)
+        for _ in range(20):
+            h = self.height(z[0:3])
+            if abs(h) < 1e-14:
+                break
+            if grad is None or _ > 0:
+                _U, grad = self.basis(z)
+            z[0:3] -= h * grad / (grad @ grad)
+        return z
+
+    def jacobian(self, z, U, eps=1e-6):
+        cols = []
+        for i in range(U.shape[1]):
+            cols.append((self(z + eps * U[:, i]) - self(z - eps * U[:, i])) / (2 * eps))
+        return U.T @ np.column_stack(cols)
+
+
+def find_gait(model, controller, z0=None, slope=0.0, warmup_steps=2, tol=1e-9, max_iter=12, **options) -> Gait:
+    """Fixed point of the step map, its figures and the eigenvalues of the linearised map."""
+    smap = StepMap(model, controller, slope=slope, **options)
+    if z0 is None:
+        q, dq = controller.initial_state()
+        z0 = np.concatenate([q[2:], dq[2:]])
+        if slope:   # rotate the flat-ground start onto the slope
+            z0[2] += slope
+    z = np.asarray(z0, float)
+    for _ in range(warmup_steps):
+        z = smap(z)
+    it, A = 0, None
+    for it in range(1, max_iter + 1):
+        U, grad = smap.basis(z)
+        Pz = smap(z)
+        r = Pz - z
+        if np.linalg.norm(r) < tol:
+            break
+        if A is None or it % 4 == 0:     # chord Newton: one Jacobian serves a few iterations
+            A = smap.jacobian(z, U)
+        delta = np.linalg.solve(A - np.eye(U.shape[1]), -(U.T @ r))
+        z = smap.project(z + U @ delta, grad)
+    U, _ = smap.basis(z)
+    z_next, _sim = smap.run(z)
+    residual = float(np.linalg.norm(z_next - z))
+    A = smap.jacobian(z, U)
+    eig = np.linalg.eigvals(A)
+    eig = eig[np.argsort(-np.abs(eig))]
+    return _figures(smap, z, eig, residual, it)
+
+
+def _figures(smap, z, eig, residual, iterations) -> Gait:
+    model, ctrl = smap.model, smap.controller
+    # one step again with short steps, to integrate |u dq| by the trapezoidal rule
+    _z, sim = smap.run(z, max_step=1e-3)
+    res = sim.result()
+    ev = sim.events[-1]
+    T = ev.time
+    p1, p2 = model.foot_position(ev.q, 1), model.foot_position(ev.q, 2)
+    L = float(np.linalg.norm(p2 - p1))
+    keep = res.t <= T
+    t, q, dq = res.t[keep], res.q[keep], res.dq[keep]
+    u = np.array([ctrl(ti, qi, dqi, 1) for ti, qi, dqi in zip(t, q, dq)])
+    pw_abs = np.abs(u[:, 0] * dq[:, 2]) + np.abs(u[:, 1] * dq[:, 3])
+    work_abs = float(np.trapezoid(pw_abs, t))
+    prm = model.parameters
+    mass = prm.m_torso + 2 * prm.m_leg
+    return Gait(z=z, step_length=L, step_period=T, speed=L / T, cost_of_transport=work_abs / (mass * prm.g * L),
+                motor_work=float(sim.work), eigenvalues=eig, residual=residual, newton_iterations=iterations,
+                max_torque=float(np.max(np.abs(u))), slope=smap.slope)
+
+
+def scene_gait(scene) -> Gait:
+    """The periodic gait of a scene with a controller (``load_scene(...)``)."""
+    ctrl = scene.controller()
+    if ctrl is None:
+        raise ValueError(f"scene {scene.name!r} has no walk_controller section: there is no gait to find")
+    if scene.params["base"] != "floating" or "impact" not in scene.phases:
+        raise ValueError(f"scene {scene.name!r} has no impacts (phases {sorted(scene.phases)}): a gait needs "
+                         "the 'impact' phase")
+    kw = scene.engine_arguments()
+    return find_gait(kw["model"], ctrl, slope=kw["slope"], touchdown_rule=kw["touchdown_rule"])
+
+
+def format_gait(g: Gait) -> str:
+    rows = [
+        ("fixed point z*", "[" + ", ".join(f"{v:.6f}" for v in g.z) + "]  (q_st, q_sw, q3, dq_st, dq_sw, dq3 after impact)"),
+        ("|P(z*) - z*|", f"{g.residual:.2e}  ({g.newton_iterations} Newton iterations)"),
+        ("step length", f"{g.step_length:.4f} m"),
+        ("step period", f"{g.step_period:.4f} s"),
+        ("speed", f"{g.speed:.4f} m/s"),
+        ("cost of transport", f"{g.cost_of_transport:.4f}  (sum |u dq| dt / (m g L))"),
+        ("motor work per step", f"{g.motor_work:.3f} J (signed)"),
+        ("max |u|", f"{g.max_torque:.1f} N m"),
+        ("eigenvalues", ", ".join(_c(e) for e in g.eigenvalues)),
+        ("|eigenvalues|", ", ".join(f"{abs(e):.4g}" for e in g.eigenvalues)),
+        ("stable", f"{'yes' if g.stable else 'NO'} (all inside the unit circle: max |lambda| = "
+                   f"{np.max(np.abs(g.eigenvalues)):.4f})"),
+    ]
+    w = max(len(k) for k, _ in rows)
+    return "\n".join(f"{k:>{w}}  {v}" for k, v in rows)
+
+
+def _c(e):
+    return f"{e.real:.4g}" if abs(e.imag) < 1e-12 else f"{e.real:.4g}{e.imag:+.4g}j"

@@ -1,0 +1,37 @@
+"""``biped-sim``: the command line of the headless simulator (no ROS needed).
+
+Owns argument parsing and dispatch only; each subcommand lives in ``biped_sim/cli/<name>.py``
+with ``register(subparsers)`` (adds its parser, sets ``func``).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+COMMANDS = ("simulate", "accuracy", "stability", "gait", "resim", "inspect", "recover", "replay")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="biped-sim",
+        description="Headless hybrid-dynamics simulation of the planar three-link biped (MODEL.md).",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="Run 'biped-sim COMMAND --help' for the options of a command.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in COMMANDS:
+        importlib.import_module(f"biped_sim.cli.{name}").register(sub)
+    return parser
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except ValueError as exc:  # bad input: one clear line, no traceback
+        print(f"biped-sim {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

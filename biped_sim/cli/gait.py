@@ -1,0 +1,29 @@
+"""``biped-sim gait``: the periodic gait of a scene and the eigenvalues of its Poincare map (gait.py)."""
+from __future__ import annotations
+
+import time
+
+
+def register(sub):
+    p = sub.add_parser(
+        "gait", help="find the periodic gait of a scene and the eigenvalues of its Poincare map",
+        description="With the engine headless (continuous feedback of the scene's walking controller), find "
+                    "the fixed point of the step-to-step Poincare map on the post-impact section (Newton's "
+                    "method, finite-difference Jacobian on the 5-dimensional section: the x translation and "
+                    "the section constraint removed) and print the step length, speed, step period, cost of "
+                    "transport and the eigenvalues of the linearised map (all inside the unit circle: the "
+                    "gait is locally stable).")
+    p.add_argument("--scene", default="walk", metavar="NAME|PATH", help="scene with a walk_controller section "
+                   "(default: walk)")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    from biped_sim.analysis.gait import format_gait, scene_gait
+    from biped_sim.config.scenes import load_scene
+    scene = load_scene(args.scene)
+    t0 = time.perf_counter()
+    g = scene_gait(scene)
+    print(f"scene {scene.name}: periodic gait (slope {g.slope:g} rad), found in {time.perf_counter() - t0:.2f} s")
+    print(format_gait(g))
+    return 0 if g.stable else 1

@@ -1,0 +1,126 @@
+"""``biped-sim simulate``: one headless run, with the run's figures (hybrid.simulate)."""
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+
+from biped_sim.engine.compiled import WHY_PYTHON
+from biped_sim.control.walking import WalkingController
+from biped_sim.engine.hybrid import simulate
+from biped_sim.engine.integrators import FIXED_STEP_METHODS, METHODS
+from biped_sim.engine.model import BipedModel
+
+
+def _floats(n):
+    def parse(text):
+        try:
+            vals = [float(v) for v in text.replace(",", " ").split()]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {n} numbers, got {text!r}")
+        if len(vals) != n:
+            raise argparse.ArgumentTypeError(f"expected {n} numbers, got {len(vals)} in {text!r}")
+        return vals
+    return parse
+
+
+def register(sub):
+    p = sub.add_parser(
+        "simulate", help="run the hybrid simulation headless and print its figures",
+        description="Run the hybrid simulation headless and print the run's figures: wall time, "
+                    "real-time factor, steps, right-hand-side evaluations, events, constraint drift "
+                    "and energy-balance residual. Without --q0/--dq0 it starts on the reference "
+                    "walking gait.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--scene", metavar="NAME|PATH",
+                   help="run a scene (msg_configs/NAME.yaml or a YAML path): its initial state, phases, options "
+                        "and controller, torques held over its control_period as the node does; --duration "
+                        "overrides its duration, --continuous feeds back continuously; other options are ignored")
+    p.add_argument("--continuous", action="store_true", help="with --scene: continuous feedback instead of held torques")
+    p.add_argument("--duration", type=float, default=None, help="simulated time (s) [default: 10, or the scene's]")
+    p.add_argument("--q0", type=_floats(5), help="initial q = 'x y q1 q2 q3' (m, rad), physical coordinates")
+    p.add_argument("--dq0", type=_floats(5), help="initial dq (m/s, rad/s)")
+    p.add_argument("--stance-leg", type=int, choices=(0, 1, 2), default=1, help="initial stance leg (0: flight)")
+    p.add_argument("--controller", choices=("walk", "none"), default="walk",
+                   help="'walk': the reference walking controller; 'none': u = 0 (passive)")
+    p.add_argument("--method", choices=METHODS, default="dop853", help="integrator")
+    p.add_argument("--rtol", type=float, default=1e-9, help="relative tolerance (adaptive methods)")
+    p.add_argument("--atol", type=float, default=1e-9, help="absolute tolerance (adaptive methods)")
+    p.add_argument("--step", type=float, default=1e-3, help=f"step size (s) of {', '.join(FIXED_STEP_METHODS)}")
+    p.add_argument("--control-period", type=float, default=None,
+                   help="hold the torque over this period (s), as the node does; default: continuous feedback")
+    p.add_argument("--mu", type=float, default=None, help="friction coefficient (default: enough friction)")
+    p.add_argument("--base", choices=("floating", "fixed"), default="floating", help="stance method")
+    p.add_argument("--events", action="store_true", help="list every event")
+    p.add_argument("--record", nargs="?", const="", default=None, metavar="DIR",
+                   help="record the run to a rosbag2/MCAP bag DIR/<scene>-<UTC time>/ (DIR default: bags), run in "
+                        "lockstep as the node runs it (control period: --control-period or the scene's, 1 ms "
+                        "without); see the README, section 'Recording, replay, re-simulation'")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    if args.record is not None:
+        from biped_sim.recording.record_run import simulate_recorded
+        return _report(simulate_recorded(args), args)
+    if args.scene:
+        from biped_sim.config.scenes import load_scene
+        scene = load_scene(args.scene)
+        overrides = {} if args.duration is None else {"t_final": args.duration}
+        print(f"scene {scene.name} ({scene.path}): phases {sorted(scene.phases)}, base {scene.params['base']}, "
+              f"controller {'walk' if scene.controller_params else 'none (u = 0)'}")
+        result = scene.simulate(hold=not args.continuous, **overrides)
+        return _report(result, args)
+    if args.duration is None:
+        args.duration = 10.0
+    model = BipedModel()
+    ctrl = WalkingController(model)
+    if (args.q0 is None) != (args.dq0 is None):
+        raise ValueError("give both --q0 and --dq0, or neither")
+    q0, dq0 = (args.q0, args.dq0) if args.q0 is not None else ctrl.initial_state()
+    options = dict(base=args.base)
+    if args.method in FIXED_STEP_METHODS:
+        options["step"] = args.step
+    if args.base == "fixed":
+        options["phases"] = frozenset({"stance", "impact"})
+    result = simulate(model, q0, dq0, args.duration, controller=ctrl if args.controller == "walk" else None,
+                      stance_leg=args.stance_leg, rtol=args.rtol, atol=args.atol, method=args.method,
+                      control_period=args.control_period, mu=args.mu, **options)
+    return _report(result, args)
+
+
+def _report(result, args):
+    print_summary(result)
+    if args.events:
+        for e in result.events:
+            extra = f" impulse={np.round(e.impulse, 6).tolist()}" if e.impulse is not None else ""
+            print(f"  {e.time:14.9f} s  {e.kind:16s} leg {e.leg}{extra} {'; '.join(e.warnings)} {e.message}")
+    return 0 if result.status == "completed" else 1
+
+
+def print_summary(result):
+    s = result.stats
+    kinds = {}
+    for e in result.events:
+        kinds[e.kind] = kinds.get(e.kind, 0) + 1
+    rows = [
+        ("status", result.status + (f" ({result.message})" if result.message else "")),
+        ("method", s["method"]),
+        ("generated code", "C (the compiled twin)" if s["generated_code"] == "C" else f"Python ({WHY_PYTHON})"),
+        ("simulated time", f"{s['simulated_time']:.6g} s"),
+        ("wall time", f"{s['wall_time']:.4g} s"),
+        ("real-time factor", f"{s['real_time_factor']:.3g}" if math.isfinite(s["real_time_factor"]) else "inf"),
+        ("steps (rejected)", f"{s['steps']} ({s['rejected_steps']})"),
+        ("rhs evaluations", f"{s['rhs_evaluations']}"),
+        ("events", ", ".join(f"{k} {v}" for k, v in kinds.items()) or "none"),
+        ("max constraint drift", f"|p_st - c| {s['max_constraint_drift_position']:.3g} m, "
+                                 f"|J dq| {s['max_constraint_drift_velocity']:.3g} m/s"),
+        ("energy balance residual", f"final {s['energy_balance_residual']:.3g} J, "
+                                    f"max {s['max_energy_balance_residual']:.3g} J"),
+        ("energy lost at impacts", f"{s['energy_lost_at_impacts']:.6g} J"),
+        ("motor work", f"{s['motor_work']:.6g} J"),
+    ]
+    w = max(len(k) for k, _ in rows)
+    for k, v in rows:
+        print(f"{k:>{w}}  {v}")

@@ -1,0 +1,179 @@
+"""The simulator's parameters: one table for the node (ROS parameters), scene files and the CLI.
+
+Owns names, types, defaults, ranges and descriptions of every setting of a run, and their
+validation (no ROS import: the node turns this table into ``declare_parameter`` calls, the scene
+loader checks a YAML file's ``biped_sim: ros__parameters:`` section against it, and both build the
+engine's arguments with :func:`engine_arguments`). Names in CONTRACT_NAMES are used by outside
+tests and must not change.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from biped_sim.engine.hybrid import PHASES
+from biped_sim.engine.integrators import FIXED_STEP_METHODS, METHODS
+from biped_sim.engine.model import BipedParameters
+
+CONTRACT_NAMES = ("time_mode", "control_period", "initial_q", "initial_dq", "initial_stance_leg",
+                  "rtol", "atol", "duration")
+OUTPUTS = ("joint_states", "ground_reaction", "impact", "clock")
+
+
+@dataclass(frozen=True)
+class Param:
+    name: str
+    type: type            # float, int, bool, str, or list (of floats / of str, see item)
+    default: object
+    description: str
+    low: float | None = None
+    high: float | None = None
+    choices: tuple | None = None
+    item: type | None = None      # element type of a list
+    length: int | None = None     # fixed list length
+
+    def check(self, value):
+        """The value converted to this parameter's type, or ValueError naming the parameter."""
+        where = f"parameter '{self.name}'"
+        if self.type is list:
+            if not isinstance(value, (list, tuple)):
+                raise ValueError(f"{where} must be a list of {self.item.__name__}, got {value!r}")
+            if self.length is not None and len(value) != self.length:
+                raise ValueError(f"{where} must have {self.length} entries, got {len(value)}: {list(value)!r}")
+            out = []
+            for v in value:
+                if self.item is float:
+                    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                        raise ValueError(f"{where} must hold finite numbers, got {list(value)!r}")
+                    out.append(float(v))
+                else:
+                    if not isinstance(v, str) or (self.choices and v not in self.choices):
+                        raise ValueError(f"{where}: {v!r} is not one of {list(self.choices)}")
+                    out.append(v)
+            return out
+        if self.type is bool:
+            if not isinstance(value, bool):
+                raise ValueError(f"{where} must be true or false, got {value!r}")
+            return value
+        if self.type is str:
+            if not isinstance(value, str):
+                raise ValueError(f"{where} must be a string, got {value!r}")
+            if self.choices and value not in self.choices:
+                raise ValueError(f"{where} must be one of {list(self.choices)}, got {value!r}")
+            return value
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ValueError(f"{where} must be a number, got {value!r}")
+        if self.type is int:
+            if float(value) != int(value):
+                raise ValueError(f"{where} must be an integer, got {value!r}")
+            value = int(value)
+            if self.choices and value not in self.choices:
+                raise ValueError(f"{where} must be one of {list(self.choices)}, got {value!r}")
+        else:
+            value = float(value)
+            if not math.isfinite(value):
+                raise ValueError(f"{where} must be finite, got {value!r}")
+        if self.low is not None and value < self.low or self.high is not None and value > self.high:
+            raise ValueError(f"{where} must be in [{self.low}, {self.high}], got {value!r}")
+        return value
+
+
+_defaults = BipedParameters()
+PARAMETERS = [
+    Param("scene", str, "custom", "name of the scene (used in the bag's name)"),
+    Param("time_mode", str, "realtime", "realtime: sim time follows the wall clock times rate_factor; "
+          "fast: as fast as possible; lockstep: one control period per torque command",
+          choices=("realtime", "fast", "lockstep")),
+    Param("rate_factor", float, 1.0, "realtime mode: simulated seconds per wall-clock second", 1e-3, 1e3),
+    Param("control_period", float, 0.001, "torque hold period (s): the engine advances one period per step",
+          1e-5, 1.0),
+    Param("publish_rate", float, 1000.0, "joint_states/ground_reaction/clock publish rate (Hz, simulated time)",
+          0.1, 1e5),
+    Param("duration", float, 0.0, "simulated time to run (s); 0 = until stopped", 0.0, 1e7),
+    Param("initial_q", list, [0.0, 1.0, math.pi, math.pi, 0.0],
+          "initial q = [x, y, q1, q2, q3] (m, rad), physical coordinates", item=float, length=5),
+    Param("initial_dq", list, [0.0] * 5, "initial dq (m/s, rad/s)", item=float, length=5),
+    Param("initial_stance_leg", int, 1, "initial stance leg: 1, 2, or 0 (flight)", choices=(0, 1, 2)),
+    Param("method", str, "auto", "integrator; auto: dopri5 for control periods up to "
+          "5 ms (one step per period reaches the tolerance with 7 evaluations against dop853's 13), "
+          "dop853 for longer ones", choices=("auto",) + METHODS),
+    Param("rtol", float, 1e-9, "relative tolerance (adaptive methods)", 1e-14, 0.1),
+    Param("atol", float, 1e-9, "absolute tolerance (adaptive methods)", 1e-14, 0.1),
+    Param("step", float, 1e-4, f"step size (s) of the fixed-step methods ({', '.join(FIXED_STEP_METHODS)})",
+          1e-7, 0.1),
+    Param("base", str, "floating", "stance method: floating (KKT) or fixed (3-coordinate pinned chain)",
+          choices=("floating", "fixed")),
+    Param("phases", list, ["stance", "impact", "flight"], "phases this scene needs", item=str,
+          choices=tuple(sorted(PHASES))),
+    Param("outputs", list, list(OUTPUTS), "topics to publish (and record)", item=str, choices=OUTPUTS),
+    Param("touchdown_rule", str, "front", "front: only touchdowns in front of the stance foot count; any",
+          choices=("front", "any")),
+    Param("slope", float, 0.0, "ground slope (rad); positive: the ground falls in +x", -0.5, 0.5),
+    Param("mu", float, 0.0, "friction coefficient; 0 = enough friction (slip never checked)", 0.0, 100.0),
+    Param("on_slip", str, "stop", "stop the run on slip, or keep the foot pinned and go on",
+          choices=("stop", "continue")),
+    Param("torque_limit", float, 1000.0, "largest accepted hip torque (N m)", 0.0, 1e9),
+    Param("torque_limit_action", str, "reject", "a command beyond the limit is rejected or clipped",
+          choices=("reject", "clip")),
+    Param("command_timeout", float, 0.5, "no command for this long (wall s): zero torque and a warning; "
+          "0 disables (never in lockstep)", 0.0, 3600.0),
+    Param("record", bool, True, "record the run to an MCAP bag"),
+    Param("bag_dir", str, "bags", "folder for bags; each run records to <bag_dir>/<scene>-<UTC time>/"),
+] + [
+    Param(f"model.{name}", float, float(getattr(_defaults, name)), f"model parameter {name} (SI)",
+          0.0 if name == "g" else 1e-9, 1e9)
+    for name in ("m_torso", "I_torso", "l_torso", "m_leg", "I_leg", "l_leg", "g")
+]
+BY_NAME = {p.name: p for p in PARAMETERS}
+
+
+def validate(values: dict, table=None, owner: str = "") -> dict:
+    """All parameters of ``table`` (default: the simulator's), defaults filled in, after checking
+    ``values``; a ValueError names the culprit and the allowed names. ``owner`` prefixes the message
+    (e.g. "walk_controller ")."""
+    table = PARAMETERS if table is None else table
+    by_name = {p.name: p for p in table}
+    unknown = sorted(set(values) - set(by_name))
+    if unknown:
+        raise ValueError(f"unknown {owner}parameter(s) {unknown}; allowed: {', '.join(by_name)}")
+    out = {p.name: p.default for p in table}
+    for name, value in values.items():
+        out[name] = by_name[name].check(value)
+    return out
+
+
+#: control periods up to this use dopri5 under method "auto". Measured (python -m benchmarks.bench
+#: --only engine, last table): at 1 ms dopri5 and dop853 reach the same error over a walk, dopri5
+#: with 7 evaluations a period instead of 13; at 5 ms dopri5's error is 4.9e-9 against dop853's
+#: 2e-11. Bags store "auto", and resim resolves it with this bound: changing it changes which
+#: method re-simulates the bags recorded between the old and the new bound.
+AUTO_DOPRI5_MAX_PERIOD = 0.005
+
+
+def resolve_method(params: dict) -> str:
+    """The integrator a run uses: ``method``, with "auto" resolved from ``control_period``."""
+    if params["method"] != "auto":
+        return params["method"]
+    return "dopri5" if params["control_period"] <= AUTO_DOPRI5_MAX_PERIOD else "dop853"
+
+
+def method_label(params: dict) -> str:
+    """``method`` as a report shows it: "auto (dopri5)" names what "auto" ran."""
+    m = params.get("method", "?")
+    return f"auto ({resolve_method(params)})" if m == "auto" and "control_period" in params else str(m)
+
+
+def engine_arguments(params: dict) -> dict:
+    """Keyword arguments of ``HybridSimulator`` / ``simulate`` (and the model's) from checked values."""
+    from biped_sim.engine.model import BipedModel
+    model = BipedModel(**{n.split(".", 1)[1]: params[n] for n in params if n.startswith("model.")})
+    phases = frozenset(params["phases"])
+    kwargs = dict(model=model, q0=params["initial_q"], dq0=params["initial_dq"],
+                  stance_leg=params["initial_stance_leg"], rtol=params["rtol"], atol=params["atol"],
+                  method=resolve_method(params), mu=params["mu"] or None, base=params["base"], phases=phases,
+                  touchdown_rule=params["touchdown_rule"], slope=params["slope"],
+                  stop_on_slip=params["on_slip"] == "stop",
+                  compute_grf="ground_reaction" in params["outputs"])
+    if params["method"] in FIXED_STEP_METHODS:
+        kwargs["step"] = params["step"]
+    return kwargs

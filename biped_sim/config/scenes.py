@@ -1,0 +1,205 @@
+"""Scenes: what a run needs, read from ``msg_configs/<name>.yaml`` (ROS 2 parameter YAML).
+
+Owns the scene loader and the walking controller's parameter table. A scene file holds
+
+* ``biped_sim: ros__parameters: {...}``: the simulation node's parameters (names, types and ranges
+  from :mod:`biped_sim.config.parameters`); among them ``phases`` (the hybrid phases the run may enter) and
+  ``outputs`` (the topics the node publishes and the recorder records), so that the engine and the
+  node build only those;
+* optionally ``walk_controller: ros__parameters: {...}``: the reference walking controller's
+  parameters (:data:`CONTROLLER_PARAMETERS`), read by the ``walk_controller`` node and, headless, by
+  :meth:`Scene.controller`. A scene without this section runs with u = 0.
+
+``load_scene("walk")`` finds ``msg_configs`` next to the package (a source checkout or an editable
+install), then in ``share/biped_sim/msg_configs`` of an ament index if one is present; a path to a
+``.yaml`` file works too. No ROS import here: the CLI uses it headless.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from biped_sim.config import parameters as P
+
+NODE_SECTION = "biped_sim"
+CONTROLLER_SECTION = "walk_controller"
+
+#: Parameters of the ``walk_controller`` node (the scene file's ``walk_controller`` section).
+#: The gains and shape constants are those of :class:`biped_sim.control.walking.WalkingController`; the
+#: model and slope must match the simulation's (the loader checks it).
+CONTROLLER_PARAMETERS = [
+    P.Param("torso_pitch", float, 0.15, "virtual constraint: absolute torso angle to hold (rad, + leans forward)",
+            -1.0, 1.0),
+    P.Param("step_angle", float, 0.2, "virtual constraint: stance-leg angle from vertical at touchdown (rad)",
+            0.01, 1.0),
+    P.Param("clearance", float, 0.5, "virtual constraint: swing-leg bend that lifts the foot at mid-stance (-)",
+            0.0, 5.0),
+    P.Param("lag", float, -0.04, "virtual constraint: shift of the mid-stance graze (rad; < 0: behind the stance foot)",
+            -0.5, 0.5),
+    P.Param("kp", float, 200.0, "output PD gain, proportional (1/s^2)", 0.0, 1e6),
+    P.Param("kd", float, 30.0, "output PD gain, derivative (1/s)", 0.0, 1e4),
+    P.Param("torque_limit", float, 500.0, "the controller clips its torques to +-this (N m)", 0.0, 1e6),
+    P.Param("contact_height_tol", float, 1e-4,
+            "stance detection: a foot is on the ground when within this height of it (m)", 1e-9, 0.1),
+    P.Param("contact_speed_tol", float, 1e-3,
+            "stance detection: ... and slower than this (m/s); the pinned stance foot is at rest", 1e-9, 1.0),
+    P.BY_NAME["slope"],
+] + [p for p in P.PARAMETERS if p.name.startswith("model.")]
+CONTROLLER_BY_NAME = {p.name: p for p in CONTROLLER_PARAMETERS}
+_SHARED_WITH_SIM = [p.name for p in CONTROLLER_PARAMETERS if p.name == "slope" or p.name.startswith("model.")]
+_GAINS = ("torso_pitch", "step_angle", "clearance", "lag", "kp", "kd", "torque_limit")
+
+
+def validate_controller(values: dict) -> dict:
+    """All controller parameters (defaults filled in) after checking ``values``; ValueError names the culprit."""
+    return P.validate(values, CONTROLLER_PARAMETERS, owner="walk_controller ")
+
+
+def make_controller(cparams: dict):
+    """A :class:`WalkingController` from checked controller parameters."""
+    from biped_sim.control.walking import WalkingController
+    from biped_sim.engine.model import BipedModel
+    model = BipedModel(**{n.split(".", 1)[1]: cparams[n] for n in cparams if n.startswith("model.")})
+    return WalkingController(model, **{k: cparams[k] for k in _GAINS})
+
+
+def scene_dirs() -> list[Path]:
+    """Where scene files are looked up, in order."""
+    dirs = [Path(__file__).resolve().parents[2] / "msg_configs"]
+    try:  # an installed ROS 2 package; optional
+        from ament_index_python.packages import get_package_share_directory
+        dirs.append(Path(get_package_share_directory("biped_sim")) / "msg_configs")
+    except Exception:
+        pass
+    return dirs
+
+
+def available_scenes() -> list[str]:
+    names = set()
+    for d in scene_dirs():
+        if d.is_dir():
+            names.update(p.stem for p in d.glob("*.yaml"))
+    return sorted(names)
+
+
+def scene_path(name_or_path) -> Path:
+    text = str(name_or_path)
+    p = Path(text)
+    if text.endswith((".yaml", ".yml")) or p.parent != Path("."):
+        if not p.is_file():
+            raise ValueError(f"scene file {text!r} does not exist")
+        return p
+    for d in scene_dirs():
+        cand = d / f"{text}.yaml"
+        if cand.is_file():
+            return cand
+    raise ValueError(f"unknown scene {text!r}; available: {', '.join(available_scenes()) or 'none'} "
+                     f"(looked in {', '.join(str(d) for d in scene_dirs())}), or give a path to a .yaml file")
+
+
+@dataclass
+class Scene:
+    """A loaded scene: checked node parameters and (optionally) controller parameters."""
+    name: str
+    path: Path
+    params: dict                              # all sim-node parameters, defaults filled in
+    controller_params: dict | None = None     # None: no controller (u = 0)
+    given: dict = field(default_factory=dict)  # the node parameters the file sets
+
+    @property
+    def phases(self) -> frozenset:
+        return frozenset(self.params["phases"])
+
+    @property
+    def outputs(self) -> tuple:
+        return tuple(self.params["outputs"])
+
+    @property
+    def duration(self) -> float:
+        return self.params["duration"]
+
+    def engine_arguments(self) -> dict:
+        """Keyword arguments of ``HybridSimulator`` (``model``, ``q0``, ``dq0``, ... , options)."""
+        return P.engine_arguments(self.params)
+
+    def controller(self):
+        """A fresh WalkingController with the scene's parameters, or None (u = 0)."""
+        return None if self.controller_params is None else make_controller(self.controller_params)
+
+    def simulate_kwargs(self, hold=True) -> dict:
+        """Keyword arguments of :func:`biped_sim.engine.hybrid.simulate`, ``t_final`` and ``controller`` included.
+
+        ``hold=True`` holds each torque over ``control_period`` as the node does (the node in lockstep
+        with the walk_controller gives this same run); ``hold=False``: continuous feedback.
+        """
+        kw = self.engine_arguments()
+        kw["t_final"] = self.duration
+        kw["controller"] = self.controller()
+        if kw["controller"] is not None and hold:
+            kw["control_period"] = self.params["control_period"]
+        return kw
+
+    def simulate(self, hold=True, **overrides):
+        from biped_sim.engine.hybrid import simulate
+        kw = self.simulate_kwargs(hold)
+        kw.update(overrides)
+        return simulate(**kw)
+
+
+def load_scene(name_or_path) -> Scene:
+    """Read, check and return a scene (a name in msg_configs/ or a path to a YAML file)."""
+    path = scene_path(name_or_path)
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ValueError(f"scene {path}: not valid YAML: {exc}") from None
+    if not isinstance(doc, dict):
+        raise ValueError(f"scene {path}: expected a mapping with a '{NODE_SECTION}' section")
+    unknown = sorted(set(doc) - {NODE_SECTION, CONTROLLER_SECTION})
+    if unknown:
+        raise ValueError(f"scene {path}: unknown section(s) {unknown}; allowed: {NODE_SECTION}, {CONTROLLER_SECTION}")
+    given = _section(doc, NODE_SECTION, path)
+    try:
+        params = P.validate(given)
+    except ValueError as exc:
+        raise ValueError(f"scene {path}, section {NODE_SECTION}: {exc}") from None
+    for key in ("phases", "outputs"):
+        if key not in given:
+            raise ValueError(f"scene {path}: section {NODE_SECTION} must declare '{key}' (allowed values: "
+                             f"{list(P.BY_NAME[key].choices)})")
+    cparams = None
+    if CONTROLLER_SECTION in doc:
+        cgiven = _section(doc, CONTROLLER_SECTION, path)
+        try:
+            cparams = validate_controller(cgiven)
+        except ValueError as exc:
+            raise ValueError(f"scene {path}, section {CONTROLLER_SECTION}: {exc}") from None
+        for name in _SHARED_WITH_SIM:
+            if not math.isclose(cparams[name], params[name], rel_tol=1e-12, abs_tol=1e-15):
+                raise ValueError(f"scene {path}: {CONTROLLER_SECTION} parameter '{name}' = {cparams[name]!r} "
+                                 f"differs from the simulation's {params[name]!r}; set it to the same value "
+                                 "in both sections")
+    name = params["scene"] if given.get("scene") else path.stem
+    return Scene(name=name, path=path, params=params, controller_params=cparams, given=given)
+
+
+def _section(doc, key, path) -> dict:
+    sec = doc.get(key)
+    if not isinstance(sec, dict) or set(sec) != {"ros__parameters"} or not isinstance(sec["ros__parameters"], dict):
+        raise ValueError(f"scene {path}: section '{key}' must hold exactly 'ros__parameters: {{...}}'")
+    return _flatten(sec["ros__parameters"])
+
+
+def _flatten(d, prefix="") -> dict:
+    """ROS 2 parameter YAML allows nested maps for dotted names (model: {g: 9.81} -> model.g)."""
+    out = {}
+    for k, v in d.items():
+        name = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(_flatten(v, name + "."))
+        else:
+            out[name] = v
+    return out

@@ -1,0 +1,136 @@
+"""Reading our bags back: the MCAP file of a bag directory, its run parameters, its messages.
+
+Owns the read side used by ``replay``, ``resim``, ``inspect`` and ``recover`` (the tests use the
+independent readers, ``rosbags`` and ``mcap_ros2``). Messages come in log-time order (ties in file
+order) as ``(topic, type, log_time_ns, cdr_bytes)``; :func:`decode` turns the bytes into the
+rclpy message. A bag whose writer was killed (no summary) is read up to its last whole chunk.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+
+def mcap_path(bag) -> Path:
+    """The .mcap of a bag directory (or the file itself)."""
+    p = Path(bag)
+    if p.is_file():
+        return p
+    if not p.is_dir():
+        raise ValueError(f"no bag at {p}: give a bag directory (with metadata.yaml and a .mcap) or a .mcap file")
+    files = sorted(p.glob("*.mcap"))
+    if not files:
+        raise ValueError(f"{p} holds no .mcap file")
+    return files[0]
+
+
+def read_metadata(bag) -> dict:
+    """{record name: {key: value}} of the MCAP metadata records (``biped_sim``, ``rosbag2``)."""
+    from mcap.reader import make_reader
+    out = {}
+    with open(mcap_path(bag), "rb") as f:
+        try:
+            for m in make_reader(f).iter_metadata():
+                out[m.name] = dict(m.metadata)
+        except Exception:  # noqa: BLE001 - a truncated file: scan it
+            f.seek(0)
+            out = _scan_metadata(f)
+    return out
+
+
+def _scan_metadata(f):
+    from mcap.records import Metadata
+    from mcap.stream_reader import StreamReader
+    out = {}
+    try:
+        for rec in StreamReader(f, emit_chunks=True).records:
+            if isinstance(rec, Metadata):
+                out[rec.name] = dict(rec.metadata)
+    except Exception:  # noqa: BLE001
+        pass
+    return out
+
+
+def run_parameters(bag) -> dict:
+    """The run's checked parameters (the ``biped_sim`` metadata record), or ValueError."""
+    meta = read_metadata(bag).get("biped_sim")
+    if not meta or "parameters" not in meta:
+        raise ValueError(f"{bag} has no biped_sim parameters record: it was not recorded by biped_sim")
+    return json.loads(meta["parameters"])
+
+
+def _reader_and_summary(f):
+    """An MCAP reader of ``f`` and its summary, or None for a file cut short (no summary section)."""
+    from mcap.reader import make_reader
+    r = make_reader(f)
+    try:
+        return r, r.get_summary()
+    except Exception:  # noqa: BLE001  (a truncated file raises from deep inside the reader)
+        return r, None
+
+
+def channels(bag) -> dict:
+    """{topic: type} of the bag."""
+    with open(mcap_path(bag), "rb") as f:
+        _r, s = _reader_and_summary(f)
+        if s is not None:
+            return {c.topic: s.schemas[c.schema_id].name for c in s.channels.values()}
+    out = {}
+    for topic, typ, _t, _d in messages(bag):
+        out.setdefault(topic, typ)
+    return out
+
+
+def messages(bag, topics=None, start_ns=None):
+    """Yield (topic, type, log_time_ns, data) in log-time order; a truncated file up to its last chunk."""
+    with open(mcap_path(bag), "rb") as f:
+        r, summary = _reader_and_summary(f)
+        if summary is None:
+            yield from _scan_messages(f, topics, start_ns)
+            return
+        for schema, channel, msg in r.iter_messages(topics=topics, start_time=start_ns, log_time_order=True):
+            yield channel.topic, schema.name, msg.log_time, msg.data
+
+
+def _scan_messages(f, topics, start_ns):
+    from mcap.records import Channel, Chunk, Message, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+    f.seek(0)
+    schemas, chans, out = {}, {}, []
+    try:
+        for rec in StreamReader(f, emit_chunks=True).records:
+            recs = breakup_chunk(rec) if isinstance(rec, Chunk) else [rec]
+            for r in recs:
+                if isinstance(r, Schema):
+                    schemas[r.id] = r
+                elif isinstance(r, Channel):
+                    chans[r.id] = r
+                elif isinstance(r, Message):
+                    c = chans[r.channel_id]
+                    if (topics is None or c.topic in topics) and (start_ns is None or r.log_time >= start_ns):
+                        out.append((c.topic, schemas[c.schema_id].name, r.log_time, r.data))
+    except Exception:  # noqa: BLE001 - the truncated tail
+        pass
+    out.sort(key=lambda m: m[2])  # stable: ties stay in file order
+    yield from out
+
+
+_classes = {}
+
+
+def decode(type_name, data):
+    """CDR bytes -> the rclpy message."""
+    from rclpy.serialization import deserialize_message
+    cls = _classes.get(type_name)
+    if cls is None:
+        from biped_sim.recording.messages import message_class
+        cls = _classes[type_name] = message_class(type_name)
+    return deserialize_message(data, cls)
+
+
+def find_topic(topics, suffix):
+    """The topic among ``topics`` whose last name component is ``suffix`` (namespaced runs), or None."""
+    for t in topics:
+        if t == suffix or t.endswith("/" + suffix.lstrip("/")):
+            return t
+    return None

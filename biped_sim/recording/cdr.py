@@ -1,0 +1,152 @@
+"""Fast CDR serialisation of the recorder's hot message types (the recorder's ``write`` path).
+
+Owns the bytes only, not the message layout: it serialises the rclpy message objects the node's
+functions build (:mod:`biped_sim.recording.messages`), in plain little-endian CDR (XCDR1, encapsulation
+``00 01 00 00``) as rmw_fastrtps does. ``rclpy.serialization.serialize_message`` costs 10-60 us a
+message here; this costs 2-4 us, which keeps recording within its budget (bench_record). Types
+other than the four below, or shapes not seen before, go to rclpy's serialiser; the tests check
+that both decode to the same message.
+
+CDR rules used: primitives aligned to their size (relative to the end of the 4-byte encapsulation
+header); a string is a uint32 length including the NUL, the bytes, the NUL; a sequence is a uint32
+count, then its elements.
+"""
+from __future__ import annotations
+
+import struct
+
+_HEAD = b"\x00\x01\x00\x00"
+_II = struct.Struct("<iI")
+
+
+def _pad(offset, align):
+    return (-offset) % align
+
+
+def _string(buf, off, s):
+    b = s.encode() + b"\x00"
+    p = _pad(off, 4)
+    buf += b"\x00" * p + struct.pack("<I", len(b)) + b
+    return off + p + 4 + len(b)
+
+
+def _joint_state_layout(frame_id, names, n_pos, n_vel, n_eff):
+    """(constant bytes after the stamp, struct for the three float sequences) of a JointState shape."""
+    buf = bytearray()
+    off = 8                                      # after stamp (sec, nanosec)
+    off = _string(buf, off, frame_id)
+    p = _pad(off, 4)
+    buf += b"\x00" * p + struct.pack("<I", len(names))
+    off += p + 4
+    for name in names:
+        off = _string(buf, off, name)
+    fmt = "<"
+    for n in (n_pos, n_vel, n_eff):
+        p = _pad(off, 4)
+        fmt += f"{p}xI" if p else "I"
+        off += p + 4
+        if n:
+            p = _pad(off, 8)
+            fmt += (f"{p}x" if p else "") + f"{n}d"
+            off += p + 8 * n
+    return bytes(buf), struct.Struct(fmt)
+
+
+_js_cache = {}
+
+
+def joint_state(m):
+    h = m.header
+    names = m.name
+    pos, vel, eff = m.position, m.velocity, m.effort
+    key = (h.frame_id, tuple(names), len(pos), len(vel), len(eff))
+    lay = _js_cache.get(key)
+    if lay is None:
+        lay = _js_cache[key] = _joint_state_layout(*key)
+    st = h.stamp
+    return b"".join((_HEAD, _II.pack(st.sec, st.nanosec), lay[0],
+                     lay[1].pack(len(pos), *pos, len(vel), *vel, len(eff), *eff)))
+
+
+_wrench_cache = {}
+
+
+def wrench_stamped(m):
+    h = m.header
+    st = _wrench_cache.get(h.frame_id)
+    if st is None:
+        fmt, const = wrench_stamped_format(h.frame_id)
+        st = _wrench_cache[h.frame_id] = (struct.Struct("<" + fmt), const)
+    f, t = m.wrench.force, m.wrench.torque
+    s = h.stamp
+    return st[0].pack(_HEAD, s.sec, s.nanosec, st[1], f.x, f.y, f.z, t.x, t.y, t.z)
+
+
+def clock(m):
+    c = m.clock
+    return _HEAD + _II.pack(c.sec, c.nanosec)
+
+
+_f64_cache = {}
+
+
+def float64_multi_array(m):
+    if m.layout.dim:
+        return None
+    return float64_multi_array_data(m.data, m.layout.data_offset)
+
+
+def float64_multi_array_data(data, data_offset=0):
+    """The CDR of ``std_msgs/Float64MultiArray(data=data)`` (empty layout) without building the message:
+    ``simulate --record`` records its commands with it (the node records the messages it receives)."""
+    n = len(data)
+    s = _f64_cache.get(n)
+    if s is None:
+        # layout.dim count (0), layout.data_offset, data count, (pad to 8), data
+        s = _f64_cache[n] = struct.Struct(f"<III4x{n}d" if n else "<III")
+    return _HEAD + s.pack(0, data_offset, n, *data)
+
+
+# -- the same layouts as struct formats, for packing a whole period's state in one call -------------
+def joint_state_format(frame_id, names, n):
+    """(format without byte order, constant) of a JointState with ``n`` positions, velocities and
+    efforts; its values are (HEAD, sec, nanosec, constant, n, *position, n, *velocity, n, *effort)."""
+    const, st = _joint_state_layout(frame_id, tuple(names), n, n, n)
+    return f"4siI{len(const)}s" + st.format.lstrip("<"), const
+
+
+def wrench_stamped_format(frame_id):
+    """(format, constant) of a WrenchStamped: values (HEAD, sec, nanosec, constant, fx, fy, fz, tx, ty, tz)."""
+    buf = bytearray()
+    off = _string(buf, 8, frame_id)
+    p = _pad(off, 8)
+    return f"4siI{len(buf)}s" + (f"{p}x6d" if p else "6d"), bytes(buf)
+
+
+CLOCK_FORMAT = "4siI"          # values (HEAD, sec, nanosec)
+
+
+#: encoders that return None for shapes they do not handle (then rclpy serialises)
+MAY_DECLINE = {"std_msgs/msg/Float64MultiArray"}
+
+ENCODERS = {
+    "sensor_msgs/msg/JointState": joint_state,
+    "geometry_msgs/msg/WrenchStamped": wrench_stamped,
+    "rosgraph_msgs/msg/Clock": clock,
+    "std_msgs/msg/Float64MultiArray": float64_multi_array,
+}
+
+
+def serializer(type_name):
+    """A function msg -> CDR bytes for ``type_name`` (the fast one if there is one, else rclpy's)."""
+    from rclpy.serialization import serialize_message
+    fast = ENCODERS.get(type_name)
+    if fast is None:
+        return serialize_message
+    if type_name not in MAY_DECLINE:
+        return fast
+
+    def ser(msg):
+        out = fast(msg)
+        return serialize_message(msg) if out is None else out
+    return ser

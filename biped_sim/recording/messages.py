@@ -1,0 +1,195 @@
+"""Arrays <-> ROS messages for the recorder, ``simulate --record``, replay, resim and inspect.
+
+There is ONE conversion from the engine's arrays to messages, the ``*_message`` functions here
+(the node publishes with them, the recorder and the tools reuse them), and the way back, from a
+decoded message (rclpy, ``rosbags`` or ``mcap_ros2`` objects alike) to plain values. The ROS message
+packages are imported inside the functions, so that reading a bag needs no rclpy.
+
+Topics (names relative to the node's namespace) and their types:
+
+* ``joint_states`` (``sensor_msgs/msg/JointState``): q, dq, effort = B u = [0, 0, u1, u2, 0];
+  ``frame_id`` names the stance foot (``foot_1``/``foot_2``/``flight``).
+* ``ground_reaction`` (``geometry_msgs/msg/WrenchStamped``): the ground's force on the stance foot.
+* ``impact`` (``diagnostic_msgs/msg/DiagnosticArray``): one status per impact, stamped with the
+  located impact time; keys kind, time, foot, q, dq_minus, dq_plus, impulse, energy_loss, ...
+* ``diagnostics`` (``diagnostic_msgs/msg/DiagnosticArray``): other events and the run's status.
+* ``/clock`` (``rosgraph_msgs/msg/Clock``), ``hip_torque`` (``std_msgs/msg/Float64MultiArray``, in).
+
+Times are integer nanoseconds of simulation time: :func:`to_ns` rounds as the node's ``stamp`` does.
+"""
+from __future__ import annotations
+
+import ast
+import math
+
+JOINT_NAMES = ("base_x", "base_y", "hip_1", "hip_2", "torso_pitch")
+IMPACT_KINDS = ("touchdown", "double_touchdown")
+
+# topic (relative name) -> ROS type name, as rosbag2 writes it
+TOPIC_TYPES = {
+    "joint_states": "sensor_msgs/msg/JointState",
+    "ground_reaction": "geometry_msgs/msg/WrenchStamped",
+    "impact": "diagnostic_msgs/msg/DiagnosticArray",
+    "diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
+    "clock": "rosgraph_msgs/msg/Clock",
+    "hip_torque": "std_msgs/msg/Float64MultiArray",
+}
+
+
+def to_ns(t: float) -> int:
+    """Simulation time (s) -> integer nanoseconds, rounded (the node's ``stamp``)."""
+    return int(round(t * 1e9))
+
+
+def message_class(type_name: str):
+    """``"pkg/msg/Name"`` -> the rclpy message class."""
+    import importlib
+    pkg, _, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{pkg}.msg"), name)
+
+
+# -- arrays -> messages: the one conversion (the node publishes these) ---------------------------
+def stamp(t):
+    """builtin_interfaces/Time of a simulated time in seconds (rounded to the nanosecond)."""
+    from builtin_interfaces.msg import Time
+    ns = int(round(t * 1e9))
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def foot_frame(stance_leg):
+    return f"foot_{stance_leg}" if stance_leg else "flight"
+
+
+def joint_state_message(t, q, dq, u, stance_leg):
+    """sensor_msgs/JointState; effort = B u = [0, 0, u1, u2, 0]; frame_id names the stance foot."""
+    from sensor_msgs.msg import JointState
+    msg = JointState()
+    msg.header.stamp = stamp(t)
+    msg.header.frame_id = foot_frame(stance_leg)
+    msg.name = list(JOINT_NAMES)
+    msg.position = [float(v) for v in q]
+    msg.velocity = [float(v) for v in dq]
+    msg.effort = [0.0, 0.0, float(u[0]), float(u[1]), 0.0]
+    return msg
+
+
+def wrench_message(t, force, stance_leg):
+    """geometry_msgs/WrenchStamped: the ground's force on the stance foot (world axes, N)."""
+    from geometry_msgs.msg import WrenchStamped
+    msg = WrenchStamped()
+    msg.header.stamp = stamp(t)
+    msg.header.frame_id = foot_frame(stance_leg)
+    msg.wrench.force.x = float(force[0])
+    msg.wrench.force.y = float(force[1])
+    return msg
+
+
+def _floats(values):
+    return "[" + ", ".join(repr(float(v)) for v in values) + "]"
+
+
+def event_status(event, prefix="biped_sim"):
+    """diagnostic_msgs/DiagnosticStatus of an engine Event (the README section on the node lists every key)."""
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+    st = DiagnosticStatus()
+    if event.kind in IMPACT_KINDS:
+        st.level = DiagnosticStatus.WARN if event.warnings else DiagnosticStatus.OK
+        st.name = f"{prefix}/impact"
+        st.message = (f"{event.kind}: foot {event.leg} touched down at t={event.time:.9f} s"
+                      + ("; " + "; ".join(event.warnings) if event.warnings else ""))
+    elif event.kind in ("error", "zeno") or event.message and event.kind != "liftoff":
+        st.level = DiagnosticStatus.ERROR
+        st.name = f"{prefix}/{event.kind}"
+        st.message = event.message or event.kind
+    else:
+        st.level = DiagnosticStatus.OK
+        st.name = f"{prefix}/{event.kind}"
+        st.message = event.message or f"{event.kind} of foot {event.leg} at t={event.time:.9f} s"
+    st.hardware_id = f"foot_{event.leg}" if event.leg else ""
+    kv = [("kind", event.kind), ("time", repr(float(event.time))), ("foot", str(event.leg)),
+          ("stance_leg_before", str(event.stance_leg_before)), ("stance_leg_after", str(event.stance_leg_after)),
+          ("q", _floats(event.q)), ("dq_minus", _floats(event.dq_minus)), ("dq_plus", _floats(event.dq_plus)),
+          ("impulse", _floats(event.impulse) if event.impulse is not None else "[]"),
+          ("energy_loss", repr(float(event.energy_loss))), ("warnings", "; ".join(event.warnings))]
+    st.values = [KeyValue(key=k, value=v) for k, v in kv]
+    return st
+
+
+def diagnostic_array(t, statuses):
+    from diagnostic_msgs.msg import DiagnosticArray
+    msg = DiagnosticArray()
+    msg.header.stamp = stamp(t)
+    msg.status = list(statuses)
+    return msg
+
+
+def status_values(status):
+    """{key: value} of a DiagnosticStatus (strings)."""
+    return {kv.key: kv.value for kv in status.values}
+
+
+def impact_msg(event):
+    """The ``impact`` (or, for other kinds, ``diagnostics``) message of an engine Event."""
+    return diagnostic_array(event.time, [event_status(event)])
+
+
+def clock_msg(t):
+    from rosgraph_msgs.msg import Clock
+    return Clock(clock=stamp(t))
+
+
+def torque_msg(u):
+    from std_msgs.msg import Float64MultiArray
+    return Float64MultiArray(data=[float(u[0]), float(u[1])])
+
+
+# -- messages -> plain values (any decoded form) ---------------------------------------------------
+def stamp_ns(stamp) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def joint_state_values(m):
+    """(t_ns, q, dq, u, stance_leg) of a JointState."""
+    fid = m.header.frame_id
+    leg = int(fid.split("_")[1]) if fid.startswith("foot_") else 0
+    eff = list(m.effort)
+    u = [eff[2], eff[3]] if len(eff) >= 4 else [0.0, 0.0]
+    return stamp_ns(m.header.stamp), list(m.position), list(m.velocity), u, leg
+
+
+def wrench_values(m):
+    """(t_ns, [Fx, Fy], stance_leg) of a WrenchStamped."""
+    fid = m.header.frame_id
+    leg = int(fid.split("_")[1]) if fid.startswith("foot_") else 0
+    return stamp_ns(m.header.stamp), [m.wrench.force.x, m.wrench.force.y], leg
+
+
+def _value(text):
+    if text in ("", "[]"):
+        return [] if text == "[]" else ""
+    try:
+        return ast.literal_eval(text)
+    except (ValueError, SyntaxError):
+        return text
+
+
+def event_values(m):
+    """Events of a DiagnosticArray (``impact``/``diagnostics``): list of dicts, values parsed."""
+    out = []
+    for st in m.status:
+        d = {kv.key: _value(kv.value) for kv in st.values}
+        lvl = st.level
+        d["name"], d["message"], d["level"] = st.name, st.message, lvl[0] if isinstance(lvl, (bytes, bytearray)) else int(lvl)
+        d["t_ns"] = stamp_ns(m.header.stamp)
+        out.append(d)
+    return out
+
+
+def clock_ns(m) -> int:
+    return stamp_ns(m.clock)
+
+
+def torque_values(m):
+    """The two torques of a command, or None if it is not two finite numbers."""
+    d = [float(v) for v in m.data]
+    return d if len(d) == 2 and all(math.isfinite(v) for v in d) else None

@@ -1,0 +1,148 @@
+"""A headless run recorded to a bag, exactly as the node records a ``lockstep`` run.
+
+Owns ``simulate --record``: the engine advances one control period per torque command (the
+controller is called at the start of each period and its torques are held, as
+``hybrid.simulate(..., control_period=...)`` and the node's lockstep mode do), and every message
+the node would publish is written with the node's message functions (:mod:`biped_sim.recording.messages`):
+``/hip_torque`` (the command, at the start of its period), ``/impact`` (at the located impact
+time), ``/diagnostics`` (other events), then ``/joint_states``, ``/ground_reaction`` (in stance)
+and ``/clock`` at the end of the period. The state at t = 0 is written first.
+"""
+from __future__ import annotations
+
+import signal
+
+from biped_sim.recording import messages as M
+from biped_sim.recording.cdr import float64_multi_array_data
+from biped_sim.config.parameters import engine_arguments
+
+
+def topics_for(params) -> dict:
+    """{full topic name: type} that a run with these parameters publishes (and records)."""
+    out = {}
+    for name in params["outputs"]:
+        if name == "impact" and "impact" not in params["phases"]:
+            continue
+        out["/" + name] = M.TOPIC_TYPES[name]
+    out["/diagnostics"] = M.TOPIC_TYPES["diagnostics"]
+    out["/hip_torque"] = M.TOPIC_TYPES["hip_torque"]
+    return out
+
+
+
+
+def run_recorded(params, controller, recorder, progress=None, build_messages=False):
+    """Run ``params`` (checked, see parameters.validate) in lockstep; record to ``recorder``.
+
+    ``controller(t, q, dq, stance_leg) -> u`` or None (u = 0). ``recorder`` is a BagRecorder or None
+    (then nothing is written). ``build_messages``: also build the state messages every period, as
+    the node does to publish them (the recording benchmark's loop; a headless run needs none).
+    SIGTERM ends the run early; the caller closes the recorder. Returns the HybridSimulator at the end.
+    """
+    from biped_sim.engine.hybrid import HybridSimulator
+    sim = HybridSimulator(**engine_arguments(params), keep_samples=False)
+    topics = topics_for(params)
+    if recorder is not None:
+        for name, typ in topics.items():
+            recorder.add_topic(name, typ)
+    rec = recorder.write if recorder is not None else (lambda *a: None)
+    js, grf, clock, imp = ("/joint_states" in topics, "/ground_reaction" in topics, "/clock" in topics,
+                           "/impact" in topics)
+    period, duration = params["control_period"], params["duration"]
+    u = [0.0, 0.0]
+
+    topics_state = ("/joint_states" if js else None, "/ground_reaction" if grf else None, "/clock" if clock else None)
+
+    def publish_state():
+        # the recorder packs the messages' content from the values in one call (write_state)
+        t = sim.t
+        if build_messages:
+            if js:
+                M.joint_state_message(t, sim.q, sim.dq, u, sim.stance_leg)
+            if grf and sim.stance_leg:
+                M.wrench_message(t, sim.ground_force, sim.stance_leg)
+            if clock:
+                M.clock_msg(t)
+        if recorder is not None:
+            recorder.write_state(M.to_ns(t), topics_state, M.foot_frame(sim.stance_leg), M.JOINT_NAMES, sim.q.tolist(),
+                                 sim.dq.tolist(), [0.0, 0.0, float(u[0]), float(u[1]), 0.0],
+                                 sim.ground_force if sim.stance_leg else None)
+
+    stop = []
+    old = signal.getsignal(signal.SIGTERM)
+    try:
+        signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
+    except ValueError:  # not the main thread
+        old = None
+    try:
+        publish_state()
+        k = 0
+        while sim.status == "running" and sim.t < duration and not stop:
+            if controller is not None:
+                u = [float(v) for v in controller(sim.t, sim.q.copy(), sim.dq.copy(), sim.stance_leg)]
+            if recorder is not None:   # the command's CDR (what M.torque_msg(u) serialises to)
+                rec("/hip_torque", float64_multi_array_data(u), M.to_ns(sim.t))
+            events = sim.advance(min((k + 1) * period, duration), u=u)
+            k += 1
+            for ev in events:
+                if ev.kind in M.IMPACT_KINDS:
+                    if imp:
+                        rec("/impact", M.impact_msg(ev), M.to_ns(ev.time))
+                else:
+                    rec("/diagnostics", M.impact_msg(ev), M.to_ns(ev.time))
+            publish_state()
+            if progress is not None:
+                progress(sim)
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGTERM, old)
+    return sim
+
+
+def params_from_args(args):
+    """(checked parameters, controller) of a ``biped-sim simulate`` command line (with or without --scene)."""
+    from biped_sim.config import parameters as P
+    if args.scene:
+        from biped_sim.config.scenes import load_scene
+        scene = load_scene(args.scene)
+        params = dict(scene.params)
+        if args.duration is not None:
+            params["duration"] = float(args.duration)
+        params["time_mode"] = "lockstep"
+        return P.validate(params), scene.controller()
+    from biped_sim.control.walking import WalkingController
+    from biped_sim.engine.integrators import FIXED_STEP_METHODS
+    from biped_sim.engine.model import BipedModel
+    ctrl = WalkingController(BipedModel())
+    if (args.q0 is None) != (args.dq0 is None):
+        raise ValueError("give both --q0 and --dq0, or neither")
+    q0, dq0 = (args.q0, args.dq0) if args.q0 is not None else ctrl.initial_state()
+    values = dict(scene="simulate", time_mode="lockstep", duration=10.0 if args.duration is None else args.duration,
+                  initial_q=[float(v) for v in q0], initial_dq=[float(v) for v in dq0],
+                  initial_stance_leg=args.stance_leg, method=args.method, rtol=args.rtol, atol=args.atol,
+                  control_period=args.control_period or 0.001, mu=args.mu or 0.0, base=args.base,
+                  on_slip="stop")
+    values["publish_rate"] = 1.0 / values["control_period"]
+    if args.method in FIXED_STEP_METHODS:
+        values["step"] = args.step
+    if args.base == "fixed":
+        values["phases"] = ["stance", "impact"]
+    return P.validate(values), (ctrl if args.controller == "walk" else None)
+
+
+def simulate_recorded(args):
+    """``biped-sim simulate --record [DIR]``: the run in lockstep, recorded to DIR/<scene>-<UTC time>/."""
+    from biped_sim.recording.recorder import BagRecorder, default_bag_path
+    params, controller = params_from_args(args)
+    folder = args.record or params["bag_dir"]
+    path = default_bag_path(folder, params["scene"])
+    params["bag_dir"] = str(folder)
+    rec = BagRecorder(path, parameters=params)
+    print(f"recording to {path}", flush=True)
+    try:
+        sim = run_recorded(params, controller, rec)
+    finally:
+        rec.close()
+    print(f"recorded {sum(rec.message_counts.values())} messages: "
+          + ", ".join(f"{k} {v}" for k, v in rec.message_counts.items()))
+    return sim.result()

@@ -1,0 +1,346 @@
+"""Bags written by the recorder, read back by independent readers (``rosbags``, ``mcap``/``mcap_ros2``).
+
+Owns the recorder's contract tests (issue 4): the rosbag2 layout (metadata.yaml v9, one ros2-profile
+MCAP with ros2msg schemas, cdr channels with QoS and type hashes, the rosbag2 record), counts equal
+to what was published, monotonic times, decoded values equal to the published ones (decoded
+messages are compared, never CDR bytes), bit-exact resim, the start-up errors, and bags left by
+SIGTERM and SIGKILL (with ``biped-sim recover`` when the writer dies too).
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+pytest.importorskip("rclpy")
+from mcap.reader import make_reader  # noqa: E402
+from mcap.records import Chunk  # noqa: E402
+from mcap.stream_reader import StreamReader, breakup_chunk  # noqa: E402
+from mcap_ros2.decoder import DecoderFactory  # noqa: E402
+from rosbags.rosbag2 import Reader  # noqa: E402
+from rosbags.typesys import Stores, get_typestore  # noqa: E402
+
+from biped_sim.config import parameters as P  # noqa: E402
+from biped_sim.control.walking import WalkingController  # noqa: E402
+from biped_sim.engine.model import BipedModel  # noqa: E402
+from biped_sim.recording.record_run import run_recorded  # noqa: E402
+from biped_sim.recording.recorder import BagRecorder  # noqa: E402
+from biped_sim.recording.resim import format_report, resim  # noqa: E402
+
+BIN = Path(sys.executable).parent
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+
+
+class Tee:
+    """A recorder that also keeps every (topic, message, t_ns) it is given: what was 'published'."""
+
+    def __init__(self, rec):
+        self.rec, self.sent, self.types = rec, [], {}
+
+    def add_topic(self, topic, type_name, *a, **k):
+        self.types[topic] = type_name
+        self.rec.add_topic(topic, type_name, *a, **k)
+
+    def _keep(self, topic, msg, t_ns):
+        if isinstance(msg, bytes):   # pre-serialised (the headless run's commands): what goes on the wire
+            from rclpy.serialization import deserialize_message
+
+            from biped_sim.recording.messages import message_class
+            self.sent.append((topic, deserialize_message(msg, message_class(self.types[topic])), t_ns))
+        else:
+            self.sent.append((topic, msg, t_ns))
+
+    def write(self, topic, msg, t_ns):
+        self._keep(topic, msg, t_ns)
+        self.rec.write(topic, msg, t_ns)
+
+    def write_state(self, t_ns, topics, frame_id, names, position, velocity, effort, force=None):
+        # the messages write_state stands for, built the rclpy way
+        from builtin_interfaces.msg import Time
+        from geometry_msgs.msg import WrenchStamped
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import JointState
+        stamp = Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
+        js, grf, clk = topics
+        if js:
+            m = JointState(name=list(names), position=list(position), velocity=list(velocity), effort=list(effort))
+            m.header.stamp, m.header.frame_id = stamp, frame_id
+            self._keep(js, m, t_ns)
+        if grf and force is not None:
+            m = WrenchStamped()
+            m.header.stamp, m.header.frame_id = stamp, frame_id
+            m.wrench.force.x, m.wrench.force.y = float(force[0]), float(force[1])
+            self._keep(grf, m, t_ns)
+        if clk:
+            self._keep(clk, Clock(clock=stamp), t_ns)
+        self.rec.write_state(t_ns, topics, frame_id, names, position, velocity, effort, force)
+
+
+def walk_params(duration=1.0, **kw):
+    ctrl = WalkingController(BipedModel())
+    q0, dq0 = ctrl.initial_state()
+    values = dict(scene="testwalk", time_mode="lockstep", duration=duration, control_period=0.002,
+                  initial_q=[float(v) for v in q0], initial_dq=[float(v) for v in dq0])
+    values.update(kw)
+    return P.validate(values), ctrl
+
+
+@pytest.fixture(scope="module")
+def headless_bag(tmp_path_factory):
+    params, ctrl = walk_params()
+    path = tmp_path_factory.mktemp("bags") / "walk"
+    tee = Tee(BagRecorder(path, parameters=params))
+    sim = run_recorded(params, ctrl, tee)
+    tee.rec.close()
+    assert sim.status == "running" and sim.t == params["duration"] and sim.stats["impacts"] >= 2
+    return path, tee.sent, params
+
+
+# -- comparing decoded messages (any reader's objects) with the published rclpy ones -------------------
+def stamp(m):
+    return m.sec * 1_000_000_000 + m.nanosec
+
+
+def plain(topic, m):
+    """The values of a message as plain Python data (same for rclpy, rosbags and mcap_ros2 objects)."""
+    if topic == "/joint_states":
+        return (stamp(m.header.stamp), m.header.frame_id, list(m.name), [float(v) for v in m.position],
+                [float(v) for v in m.velocity], [float(v) for v in m.effort])
+    if topic == "/ground_reaction":
+        f, tq = m.wrench.force, m.wrench.torque
+        return stamp(m.header.stamp), m.header.frame_id, (f.x, f.y, f.z), (tq.x, tq.y, tq.z)
+    if topic in ("/impact", "/diagnostics"):
+        return stamp(m.header.stamp), [(s.name, s.message, s.hardware_id, [(kv.key, kv.value) for kv in s.values])
+                                       for s in m.status]
+    if topic == "/clock":
+        return stamp(m.clock)
+    if topic == "/hip_torque":
+        return [float(v) for v in m.data]
+    raise AssertionError(topic)
+
+
+def by_topic(items):
+    out = {}
+    for topic, value, t_ns in items:
+        out.setdefault(topic, []).append((t_ns, value))
+    return out
+
+
+def test_rosbags_reads_the_bag_with_the_published_counts_times_and_values(headless_bag):
+    path, sent, params = headless_bag
+    meta = yaml.safe_load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["version"] == 9 and meta["storage_identifier"] == "mcap" and meta["ros_distro"] == "jazzy"
+    assert meta["relative_file_paths"] == ["walk_0.mcap"] and meta["files"][0]["path"] == "walk_0.mcap"
+    assert meta["message_count"] == len(sent) == meta["files"][0]["message_count"]
+    assert meta["duration"]["nanoseconds"] == round(params["duration"] * 1e9)
+    for tm in meta["topics_with_message_count"]:
+        md = tm["topic_metadata"]
+        assert md["serialization_format"] == "cdr" and md["type_description_hash"].startswith("RIHS01_")
+        assert md["offered_qos_profiles"][0]["reliability"] == "reliable"
+    published = by_topic([(t, plain(t, m), ns) for t, m, ns in sent])
+    got = []
+    with Reader(path) as reader:
+        assert reader.message_count == len(sent)
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        assert counts == {t: len(v) for t, v in published.items()} | {
+            t: 0 for t in counts if t not in published}
+        for conn, t_ns, raw in reader.messages():
+            got.append((conn.topic, plain(conn.topic, TYPESTORE.deserialize_cdr(raw, conn.msgtype)), t_ns))
+    assert by_topic(got) == published
+    for topic, items in by_topic(got).items():
+        times = [t for t, _ in items]
+        assert times == sorted(times), f"{topic}: times not monotonic"
+    js = by_topic(got)["/joint_states"]
+    assert [t for t, _ in js] == [v[0] for _, v in js]      # log time = header stamp = simulation time
+    assert len(js) == round(params["duration"] / params["control_period"]) + 1
+
+
+def test_mcap_reader_sees_a_ros2_bag_with_schemas_qos_hashes_and_records(headless_bag):
+    path, sent, params = headless_bag
+    with open(path / "walk_0.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        assert reader.get_header().profile == "ros2"
+        summary = reader.get_summary()
+        assert summary.statistics.message_count == len(sent) and summary.statistics.chunk_count >= 1
+        assert all(ci.compression == "zstd" for ci in summary.chunk_indexes)
+        schemas = {s.name: s for s in summary.schemas.values()}
+        js = schemas["sensor_msgs/msg/JointState"]
+        assert js.encoding == "ros2msg"
+        text = js.data.decode()
+        assert "float64[] position" in text and "\n" + "=" * 80 + "\nMSG: std_msgs/Header\n" in text
+        assert "MSG: builtin_interfaces/Time" in text
+        for ch in summary.channels.values():
+            assert ch.message_encoding == "cdr"
+            assert yaml.safe_load(ch.metadata["offered_qos_profiles"])[0]["history"] == "keep_last"
+            assert ch.metadata["topic_type_hash"].startswith("RIHS01_")
+        records = {m.name: m.metadata for m in reader.iter_metadata()}
+        bag_meta = yaml.safe_load(records["rosbag2"]["serialized_metadata"])
+        assert bag_meta["version"] == 9 and bag_meta["message_count"] == len(sent)
+        assert json.loads(records["biped_sim"]["parameters"]) == params
+        got = [(ch.topic, plain(ch.topic, dec), msg.log_time)
+               for _s, ch, msg, dec in reader.iter_decoded_messages(log_time_order=False)]
+    assert by_topic(got) == by_topic([(t, plain(t, m), ns) for t, m, ns in sent])
+
+
+def test_resim_reproduces_a_lockstep_run_exactly_and_names_the_first_difference(headless_bag, tmp_path):
+    path, sent, params = headless_bag
+    rep = resim(path)
+    assert rep["identical"] and rep["max_q"] == 0.0 and rep["max_dq"] == 0.0, format_report(rep)
+    assert rep["states"] == sum(t == "/joint_states" for t, _, _ in sent)
+    assert rep["commands"] == sum(t == "/hip_torque" for t, _, _ in sent) and len(rep["impacts_recorded"]) >= 2
+    # a bag whose recorded settings are not the run's: resim finds the first state that differs
+    run_params, ctrl = walk_params(0.2)
+    told, _ = walk_params(0.2, **{"model.m_torso": 10.001})
+    rec = BagRecorder(tmp_path / "other", parameters=told)
+    run_recorded(run_params, ctrl, rec)
+    rec.close()
+    rep = resim(tmp_path / "other")
+    assert not rep["identical"] and rep["first"]["topic"] == "/joint_states" and rep["first"]["index"] >= 1
+    out = subprocess.run([str(BIN / "biped-sim"), "resim", str(tmp_path / "other")], capture_output=True, text=True,
+                         timeout=60)
+    assert out.returncode == 1 and "DIFFERENT: first at /joint_states message #" in out.stdout
+
+
+def test_unwritable_path_full_disk_and_used_directory_fail_at_start(tmp_path):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        if os.access(ro, os.W_OK):   # root ignores permissions: use a path that cannot be created
+            bad = Path("/proc/biped_sim_bag")
+        else:
+            bad = ro / "bag"
+        with pytest.raises(OSError, match="bag"):
+            BagRecorder(bad)
+    finally:
+        ro.chmod(0o700)
+    with pytest.raises(OSError, match="not enough free disk space"):
+        BagRecorder(tmp_path / "full", min_free_bytes=1 << 62)
+    used = tmp_path / "used"
+    used.mkdir()
+    (used / "x").write_text("x")
+    with pytest.raises(ValueError, match="not an empty directory"):
+        BagRecorder(used)
+
+
+# -- signals -------------------------------------------------------------------------------------------
+def start_recording(folder):
+    proc = subprocess.Popen([str(BIN / "biped-sim"), "simulate", "--scene", "walk", "--duration", "60",
+                             "--record", str(folder)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    line = proc.stdout.readline()
+    assert line.startswith("recording to "), line
+    bag = Path(line.split("recording to ", 1)[1].strip())
+    mcap = bag / f"{bag.name}_0.mcap"
+    end = time.monotonic() + 60
+    while count_complete(mcap)[0] < 300:      # some chunks on disk
+        assert proc.poll() is None and time.monotonic() < end, "the recording did not start"
+        time.sleep(0.2)
+    return proc, bag
+
+
+def count_complete(mcap):
+    """(messages, chunks) in the complete chunks of a (possibly cut) MCAP file, by the mcap stream reader."""
+    n = chunks = 0
+    try:
+        with open(mcap, "rb") as f:
+            for rec in StreamReader(f, emit_chunks=True).records:
+                if isinstance(rec, Chunk):
+                    chunks += 1
+                    n += sum(1 for r in breakup_chunk(rec) if type(r).__name__ == "Message")
+    except Exception:  # noqa: BLE001 - the cut tail
+        pass
+    return n, chunks
+
+
+def read_all(bag):
+    """Messages per topic by rosbags, checked against metadata.yaml; plus the same through mcap_ros2."""
+    with Reader(bag) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        got = {}
+        for conn, t_ns, raw in reader.messages():
+            TYPESTORE.deserialize_cdr(raw, conn.msgtype)
+            got[conn.topic] = got.get(conn.topic, 0) + 1
+    assert {t: n for t, n in counts.items() if n} == got
+    with open(next(Path(bag).glob("*.mcap")), "rb") as f:
+        n = sum(1 for _ in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages())
+    assert n == sum(got.values())
+    return got
+
+
+def wait_for(path, timeout=30):
+    end = time.monotonic() + timeout
+    while not path.exists():
+        assert time.monotonic() < end, f"{path} did not appear"
+        time.sleep(0.1)
+
+
+def writer_pid(pid):
+    children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+    assert children, "no writer process"
+    return int(children[0])
+
+
+def test_sigterm_and_sigkill_of_a_recording_process_leave_readable_bags(tmp_path):
+    # SIGTERM: the run stops, the recorder closes the bag
+    proc, bag = start_recording(tmp_path)
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(60) == 0
+    got = read_all(bag)
+    assert got["/joint_states"] >= 100 and got["/hip_torque"] == got["/joint_states"] - 1
+    assert resim(bag)["identical"]
+    # SIGKILL of the recording process: the writer process sees its input end and finalises the bag
+    proc, bag = start_recording(tmp_path)
+    on_disk, _ = count_complete(bag / f"{bag.name}_0.mcap")
+    proc.kill()
+    proc.wait(10)
+    wait_for(bag / "metadata.yaml")
+    got = read_all(bag)
+    assert sum(got.values()) >= on_disk
+    assert resim(bag)["identical"]
+
+
+def test_sigkill_of_process_and_writer_keeps_every_chunk_and_recover_repairs_the_bag(tmp_path):
+    proc, bag = start_recording(tmp_path)
+    writer = writer_pid(proc.pid)
+    os.kill(writer, signal.SIGKILL)
+    proc.kill()
+    proc.wait(10)
+    mcap = bag / f"{bag.name}_0.mcap"
+    assert not (bag / "metadata.yaml").exists()
+    kept, chunks = count_complete(mcap)
+    assert kept >= 300 and chunks >= 1
+    out = subprocess.run([str(BIN / "biped-sim"), "recover", str(bag)], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stdout + out.stderr
+    got = read_all(bag)
+    assert sum(got.values()) == kept                     # every message of every complete chunk
+    assert (bag / f"{mcap.name}.truncated").exists()
+    rep = resim(bag)                                      # the parameters record survives too
+    assert rep["identical"] and rep["states"] == got["/joint_states"]
+
+
+def test_fast_cdr_decodes_like_the_message_it_encodes():
+    from geometry_msgs.msg import WrenchStamped
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64MultiArray
+
+    from biped_sim.recording import messages as M
+    from biped_sim.recording.cdr import serializer
+    q = [0.1, 1.0000001, 3.3, 3.2, -0.15]
+    cases = [("sensor_msgs/msg/JointState", "/joint_states", M.joint_state_message(1.234567891, q, q, [1.5, -2.5], 1)),
+             ("sensor_msgs/msg/JointState", "/joint_states", M.joint_state_message(0.0, q, q, [0, 0], 0)),
+             ("sensor_msgs/msg/JointState", "/joint_states", JointState(name=["a"], position=[1.0])),
+             ("geometry_msgs/msg/WrenchStamped", "/ground_reaction", M.wrench_message(3.5, [1.5, -2.5], 2)),
+             ("geometry_msgs/msg/WrenchStamped", "/ground_reaction", WrenchStamped()),
+             ("rosgraph_msgs/msg/Clock", "/clock", M.clock_msg(12.000000001)),
+             ("std_msgs/msg/Float64MultiArray", "/hip_torque", M.torque_msg([3.0, -4.5])),
+             ("std_msgs/msg/Float64MultiArray", "/hip_torque", Float64MultiArray(data=[]))]
+    for typ, topic, msg in cases:
+        decoded = TYPESTORE.deserialize_cdr(serializer(typ)(msg), typ)
+        assert plain(topic, decoded) == plain(topic, msg), (typ, msg)

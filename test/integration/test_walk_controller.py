@@ -1,0 +1,130 @@
+"""The walk_controller node with the sim node over DDS (real processes), and scenes on the node side."""
+import contextlib
+import re
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+from ros_helpers import Client, ros_domain, start_node  # noqa: E402
+
+from biped_sim.config.scenes import load_scene  # noqa: E402
+from biped_sim.ros.walk_controller import stance_from_state  # noqa: E402
+
+pytest.importorskip("rclpy")
+from sensor_msgs.msg import JointState  # noqa: E402
+
+
+def scene_args(name):
+    return ["--ros-args", "--params-file", str(load_scene(name).path)]
+
+
+def test_stance_from_state_agrees_with_the_engine():
+    """The state-derived rule (the foot on the ground and at rest) along walking runs, impacts included."""
+    for name in ("walk", "slope", "drop"):
+        s = load_scene(name)
+        r = s.simulate(hold=False, t_final=2.0)
+        model, slope = s.engine_arguments()["model"], s.params["slope"]
+        legs = [stance_from_state(model, q, dq, slope) for q, dq in zip(r.q, r.dq)]
+        assert legs == r.stance_leg.tolist(), name
+
+
+def _spin_all(clients, predicate, timeout, what, procs=()):
+    end = time.monotonic() + timeout
+    while not predicate():
+        for p in procs:
+            code = p.proc.poll()
+            assert code in (None, 0) or predicate(), f"a process failed ({code}) waiting for {what}:\n{p.output()}"
+        assert time.monotonic() < end, f"timed out waiting for {what}\n" + "\n".join(p.output() for p in procs)
+        for c in clients:
+            c.spin_once(0.02)
+
+
+def _t(m):
+    return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+
+
+def test_lockstep_walk_with_the_controller_node_matches_headless():
+    """sim_node (walk scene, lockstep) and walk_controller in two processes, once with the stance leg from
+    the frame id (auto) and once from the state, side by side in two ROS domains."""
+    duration, sources = 0.6, ("auto", "state")
+    with contextlib.ExitStack() as stack:
+        runs = []
+        for source in sources:
+            dom = stack.enter_context(ros_domain())
+            sim = stack.enter_context(start_node({"duration": duration, "record": False}, dom,
+                                                 extra_args=scene_args("walk")))
+            c = stack.enter_context(Client(dom))
+            js = c.collect("/joint_states", JointState)
+            # matched before the controller starts: the lockstep run takes about a second, less than
+            # discovery may take, and the node exits at its end
+            c.wait_subscribed("/joint_states", proc=sim)
+            ctl = stack.enter_context(start_node({"stance_source": source}, dom, executable="walk_controller",
+                                                 extra_args=scene_args("walk")))
+            runs.append((sim, ctl, c, js))
+        procs = [p for r in runs for p in r[:2]]
+        _spin_all([r[2] for r in runs], lambda: all(r[3] and _t(r[3][-1]) >= duration for r in runs), 90,
+                  f"the state at t = {duration} s in both runs", procs)
+        logs = []
+        for sim, ctl, _c, _js in runs:
+            assert ctl.stop() == 0
+            logs.append(ctl.output())
+            assert sim.wait(20) == 0, sim.output()
+    ref = load_scene("walk").simulate(hold=True, t_final=duration)   # the same run headless
+    assert len(ref.impacts) == 1 and ref.impacts[0].time < 0.5   # the stance leg changes on the way
+    for source, (_s, _ctl, _c, js), log in zip(sources, runs, logs):
+        last = js[-1]
+        assert list(last.position) == ref.q[-1].tolist() and list(last.velocity) == ref.dq[-1].tolist(), source
+        # every joint_states message answered exactly once (t = 0 .. 0.6 s: 601 states; the last ends the run)
+        m = re.search(r"after (\d+) commands \((\d+) duplicate", log)
+        assert m and int(m.group(1)) == round(duration / 0.001) + 1 and int(m.group(2)) == 0, log
+        assert f"stance_source='{source}'" in log
+
+
+def test_controller_refuses_unknown_parameters():
+    with ros_domain() as dom:
+        with start_node({"kq": 1.0}, dom, executable="walk_controller") as ctl:
+            assert ctl.wait(20) == 2
+            out = ctl.output()
+    assert "unknown parameter(s) ['kq']" in out and "kp (double in" in out
+
+
+def test_node_builds_only_the_scene_topics():
+    pubs = {}
+    with contextlib.ExitStack() as stack:
+        runs = []
+        for scene in ("stance_fixed", "walk"):
+            dom = stack.enter_context(ros_domain())
+            sim = stack.enter_context(start_node({"time_mode": "lockstep", "record": False}, dom,
+                                                 extra_args=scene_args(scene)))
+            runs.append((scene, sim, stack.enter_context(Client(dom))))
+        # discovery reports a node's publishers one by one: wait for every one each scene must have
+        # (the last created, /diagnostics, included), not just the first
+        expected = {"stance_fixed": {"/joint_states", "/clock", "/diagnostics"},
+                    "walk": {"/impact", "/ground_reaction", "/joint_states", "/clock", "/diagnostics"}}
+        _spin_all([r[2] for r in runs], lambda: all(("biped_sim", "/") in c.node.get_node_names_and_namespaces()
+                                                    and expected[n] <= set(c.node_topics("biped_sim")[0])
+                                                    for n, _p, c in runs), 60, "the nodes' publishers",
+                  [r[1] for r in runs])
+        for scene, _sim, c in runs:
+            pubs[scene] = set(c.node_topics("biped_sim")[0])
+    fixed, walk = pubs["stance_fixed"], pubs["walk"]
+    assert "/impact" not in fixed and "/ground_reaction" not in fixed and {"/joint_states", "/clock"} <= fixed
+    assert {"/impact", "/ground_reaction", "/joint_states", "/clock"} <= walk
+
+
+def test_only_declared_topics_are_recorded(tmp_path):
+    from biped_sim.recording import bagio
+    with ros_domain() as dom:
+        with start_node({"time_mode": "fast", "record": True, "bag_dir": str(tmp_path)}, dom,
+                        extra_args=scene_args("stance_fixed")) as sim:
+            assert sim.wait(60) == 0, sim.output()
+    bags = [p for p in tmp_path.iterdir() if p.is_dir()]
+    assert len(bags) == 1
+    topics = set(bagio.channels(bags[0]))
+    assert "/joint_states" in topics and "/clock" in topics
+    assert "/impact" not in topics and "/ground_reaction" not in topics
+    assert np.all([not t.endswith(("impact", "ground_reaction")) for t in topics])

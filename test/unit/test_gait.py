@@ -1,0 +1,69 @@
+"""The periodic gait of the walk scene: fixed point, figures and Poincare eigenvalues (issue 6)."""
+import numpy as np
+import pytest
+
+from biped_sim.cli import main as cli_main
+from biped_sim.analysis.gait import StepMap, scene_gait
+from biped_sim.config.scenes import load_scene
+
+
+@pytest.fixture(scope="module")
+def walk_gait():
+    return scene_gait(load_scene("walk"))
+
+
+def test_walk_has_a_stable_periodic_gait(walk_gait):
+    g = walk_gait
+    assert g.residual < 1e-8
+    assert g.eigenvalues.shape == (5,)              # the 5-dimensional section
+    assert np.all(np.abs(g.eigenvalues) < 1.0) and g.stable
+    assert 0.3 < g.step_length < 0.5 and 0.4 < g.step_period < 0.6
+    assert g.speed == pytest.approx(g.step_length / g.step_period)
+    assert 0.0 < g.cost_of_transport < 1.0
+    assert g.max_torque < load_scene("walk").controller_params["torque_limit"]
+
+
+def test_fixed_point_is_on_the_section_and_maps_to_itself(walk_gait):
+    s = load_scene("walk")
+    smap = StepMap(s.engine_arguments()["model"], s.controller())
+    z = walk_gait.z
+    assert abs(smap.height(z[0:3])) < 1e-9          # both feet on the ground after the impact
+    assert np.linalg.norm(smap(z) - z) < 1e-8
+
+
+def test_the_simulation_converges_to_the_fixed_point(walk_gait):
+    """The headless run (continuous and held torques) settles on the gait that Newton finds."""
+    s = load_scene("walk")
+    for hold in (False, True):
+        r = s.simulate(hold=hold, t_final=10.0 if not hold else 5.0)
+        periods = np.diff([e.time for e in r.impacts])
+        tol = 2e-3 if not hold else 5e-3
+        assert periods[-1] == pytest.approx(walk_gait.step_period, abs=tol)
+    # the largest eigenvalue is the rate at which the step period settles
+    ratio = np.abs(np.diff(periods[-6:]))
+    assert np.all(ratio[1:] <= ratio[:-1] * 1.05)
+
+
+def test_the_section_removes_the_flow_direction(walk_gait):
+    """The full 6 x 6 Jacobian has one more eigenvalue, zero; the other five are those of the section."""
+    s = load_scene("walk")
+    smap = StepMap(s.engine_arguments()["model"], s.controller())
+    z, eps = walk_gait.z, 1e-6
+    J = np.column_stack([(smap(z + eps * e) - smap(z - eps * e)) / (2 * eps) for e in np.eye(6)])
+    full = np.sort(np.abs(np.linalg.eigvals(J)))
+    assert full[0] < 1e-4
+    assert np.allclose(full[1:], np.sort(np.abs(walk_gait.eigenvalues)), rtol=1e-3, atol=1e-5)
+
+
+def test_scene_without_controller_or_impacts_is_refused():
+    with pytest.raises(ValueError, match="no walk_controller"):
+        scene_gait(load_scene("passive"))
+    with pytest.raises(ValueError, match="needs the 'impact' phase"):
+        scene_gait(load_scene("stance_fixed"))
+
+
+def test_cli_gait(capsys):
+    assert cli_main(["gait", "--scene", "slope"]) == 0
+    out = capsys.readouterr().out
+    for word in ("step length", "speed", "step period", "cost of transport", "eigenvalues", "stable  yes"):
+        assert word in out

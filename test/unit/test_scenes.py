@@ -1,0 +1,177 @@
+"""Scenes: loading and checking, each scene's run, and what a scene leaves out (issue 6)."""
+import math
+
+import numpy as np
+import pytest
+import yaml
+
+from biped_sim.config import parameters as P
+from biped_sim.cli import main as cli_main
+from biped_sim.control.walking import WalkingController
+from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.config.scenes import CONTROLLER_PARAMETERS, available_scenes, load_scene
+
+SCENES = ("walk", "slope", "drop", "stance_fixed", "passive")
+
+
+def _scene_file(tmp_path, name="walk", sim=None, ctrl=None, drop_ctrl=False):
+    doc = yaml.safe_load(load_scene(name).path.read_text())
+    doc["biped_sim"]["ros__parameters"].update(sim or {})
+    if drop_ctrl:
+        doc.pop("walk_controller", None)
+    elif ctrl:
+        doc["walk_controller"]["ros__parameters"].update(ctrl)
+    path = tmp_path / "scene.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def test_the_five_scenes_exist_and_declare_phases_and_outputs():
+    assert set(SCENES) <= set(available_scenes())
+    for name in SCENES:
+        s = load_scene(name)
+        assert s.name == name
+        assert "phases" in s.given and "outputs" in s.given
+        assert s.phases <= set(P.BY_NAME["phases"].choices) and set(s.outputs) <= set(P.OUTPUTS)
+
+
+def test_load_by_path_and_unknown_name(tmp_path):
+    s = load_scene(load_scene("walk").path)
+    assert s.params["initial_stance_leg"] == 1
+    with pytest.raises(ValueError, match="unknown scene 'nope'.*walk"):
+        load_scene("nope")
+
+
+def test_unknown_or_ill_typed_keys_are_named_with_the_allowed_values(tmp_path):
+    with pytest.raises(ValueError, match=r"unknown parameter\(s\) \['bogus'\]; allowed: .*time_mode"):
+        load_scene(_scene_file(tmp_path, sim={"bogus": 1}))
+    with pytest.raises(ValueError, match="'phases': 'jump' is not one of"):
+        load_scene(_scene_file(tmp_path, sim={"phases": ["stance", "jump"]}))
+    with pytest.raises(ValueError, match="'time_mode' must be one of"):
+        load_scene(_scene_file(tmp_path, sim={"time_mode": "slow"}))
+    with pytest.raises(ValueError, match="'duration' must be a number"):
+        load_scene(_scene_file(tmp_path, sim={"duration": "long"}))
+    with pytest.raises(ValueError, match=r"walk_controller.*unknown walk_controller parameter\(s\) \['kq'\]; allowed: .*kp"):
+        load_scene(_scene_file(tmp_path, ctrl={"kq": 1.0}))
+    with pytest.raises(ValueError, match="'slope' = 0.1 differs from the simulation's 0.0"):
+        load_scene(_scene_file(tmp_path, ctrl={"slope": 0.1}))
+
+
+def test_a_scene_must_declare_phases_and_outputs(tmp_path):
+    path = _scene_file(tmp_path)
+    doc = yaml.safe_load(path.read_text())
+    del doc["biped_sim"]["ros__parameters"]["outputs"]
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ValueError, match="must declare 'outputs'"):
+        load_scene(path)
+
+
+def test_controller_follows_the_scene():
+    walk = load_scene("walk")
+    c = walk.controller()
+    assert isinstance(c, WalkingController) and c.torso_pitch == 0.15 and c.kp == 200.0
+    assert load_scene("slope").controller().torso_pitch == 0.05
+    assert load_scene("passive").controller() is None
+    assert {p.name for p in CONTROLLER_PARAMETERS} >= {"torso_pitch", "step_angle", "kp", "kd", "slope"}
+
+
+def test_walk_reaches_20_steps_and_hold_matches_continuous():
+    walk = load_scene("walk")
+    assert walk.phases == {"stance", "impact"}
+    cont = walk.simulate(hold=False)
+    assert cont.status == "completed" and len(cont.impacts) >= 20
+    assert all(e.kind == "touchdown" and not e.warnings for e in cont.events)
+    # the node's run (torques held over control_period) gives the same gait
+    held = walk.simulate(hold=True, t_final=3.0)
+    assert held.status == "completed"
+    tc = [e.time for e in cont.impacts if e.time < 3.0]
+    th = [e.time for e in held.impacts]
+    assert len(tc) == len(th) and np.max(np.abs(np.subtract(tc, th))) < 2e-3
+
+
+def test_slope_walks_down():
+    s = load_scene("slope")
+    r = s.simulate(hold=False)
+    assert r.status == "completed" and len(r.impacts) >= 20
+    periods = np.diff([e.time for e in r.impacts])
+    assert np.ptp(periods[-4:]) < 1e-3          # periodic
+    x = r.q[-1][0]
+    assert x > 5.0 and r.q[-1][1] < r.q[0][1] - 5.0 * math.tan(0.03) + 0.05   # downhill
+
+
+def test_drop_flight_touchdown_stance():
+    s = load_scene("drop")
+    assert s.params["initial_stance_leg"] == 0 and "flight" in s.phases
+    r = s.simulate(hold=False)
+    assert r.status == "completed"
+    first = r.events[0]
+    assert first.kind == "touchdown" and first.stance_leg_before == 0 and first.stance_leg_after == 1
+    assert r.stance_leg[0] == 0 and r.stance_leg[-1] in (1, 2) and len(r.impacts) >= 2
+
+
+def test_stance_fixed_integrates_three_coordinates_and_builds_no_impact_guard():
+    s = load_scene("stance_fixed")
+    kw = s.engine_arguments()
+    assert kw["base"] == "fixed" and kw["phases"] == {"stance"} and kw["compute_grf"] is False
+    sim = HybridSimulator(**kw)
+    assert all(kind != "touchdown" for kind, _ in sim._guards())
+    sim.advance(0.01, controller=s.controller())
+    assert len(sim._stepper.y) == 7         # (q1, q2, q3, dq1, dq2, dq3, work): the 3-coordinate chain
+    r = s.simulate()
+    assert r.status == "completed" and not r.events and r.t[-1] == pytest.approx(0.4)
+    assert r.stats["max_constraint_drift_position"] == 0.0
+    # the floating-base engine integrates the 11-dimensional state
+    sim = HybridSimulator(**dict(kw, base="floating"))
+    sim.advance(0.01, controller=s.controller())
+    assert len(sim._stepper.y) == 11
+
+
+def test_no_impact_guard_without_impact_and_no_grf_without_the_output():
+    kw = load_scene("walk").engine_arguments()
+    assert kw["compute_grf"] is True
+    assert ("touchdown", 2) in _guards_after_swing_lifts(kw)
+    assert all(k != "touchdown" for k, _ in _guards_after_swing_lifts(dict(kw, phases=frozenset({"stance"}))))
+    assert load_scene("stance_fixed").engine_arguments()["compute_grf"] is False
+
+
+def _guards_after_swing_lifts(kw):
+    sim = HybridSimulator(**kw)
+    sim.advance(0.05, controller=load_scene("walk").controller())
+    return sim._guards()
+
+
+def test_passive_runs_without_controller_to_a_touchdown():
+    s = load_scene("passive")
+    assert s.controller_params is None
+    r = s.simulate()
+    assert r.status == "completed" and [e.kind for e in r.events] == ["touchdown"]
+    assert r.events[0].time == pytest.approx(0.214, abs=2e-3)
+    assert np.all(r.u == 0.0)
+
+
+def test_liftoff_in_a_scene_without_flight_stops_and_names_the_phase(tmp_path):
+    q, dq = WalkingController(load_scene("walk").engine_arguments()["model"]).initial_state(speed=4.0)
+    path = _scene_file(tmp_path, sim={"initial_q": q.tolist(), "initial_dq": dq.tolist(), "duration": 1.0})
+    r = load_scene(path).simulate(hold=False)
+    assert r.status == "stopped"
+    assert "add 'flight' to its phases" in r.message and r.events[-1].kind == "error"
+
+
+def test_slip_in_a_scene_without_slip_stops_with_a_message(tmp_path):
+    path = _scene_file(tmp_path, sim={"mu": 0.05, "on_slip": "stop", "duration": 2.0})
+    r = load_scene(path).simulate(hold=False)
+    assert r.status == "stopped" and "slip" in r.message and "no sliding phase" in r.message
+
+
+def test_cli_simulate_scene(capsys):
+    assert cli_main(["simulate", "--scene", "passive"]) == 0
+    out = capsys.readouterr().out
+    assert "scene passive" in out and "touchdown 1" in out
+    assert cli_main(["simulate", "--scene", "walk", "--duration", "1"]) == 0
+    assert "touchdown 2" in capsys.readouterr().out
+    assert cli_main(["simulate", "--scene", "nope"]) == 2
+
+
+def test_touchdown_in_a_scene_without_impact_stops_and_names_the_phase():
+    r = load_scene("stance_fixed").simulate(hold=False, t_final=1.0)
+    assert r.status == "stopped" and "add 'impact'" in r.message and r.t[-1] < 0.6
