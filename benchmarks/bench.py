@@ -36,7 +36,8 @@ from biped_sim.engine._gen import closed_forms as _generated
 from biped_sim.engine.compiled import IMPLEMENTATION, WHY_PYTHON
 from biped_sim.control.walking import PDWalkingController
 from biped_sim.engine.dynamics import impact_map, stance_dynamics, stance_floating_fast
-from biped_sim.engine.hybrid import HybridSimulator, simulate
+from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.engine.simulate import simulate
 from biped_sim.config.parameters import AUTO_DOPRI5_MAX_PERIOD
 from biped_sim.engine.model import BipedModel
 

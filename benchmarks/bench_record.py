@@ -38,7 +38,7 @@ def _runs(duration, period):
 
 def bench(duration=2.0, period=0.001, repeats=5, folder=None):
     """The headless figures (see the module docstring); lists of real-time factors per configuration."""
-    from biped_sim.engine.hybrid import simulate
+    from biped_sim.engine.simulate import simulate
     from biped_sim.config.parameters import engine_arguments
     from biped_sim.recording.record_run import run_recorded, topics_for
     from biped_sim.recording.recorder import BagRecorder

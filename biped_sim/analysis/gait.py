@@ -25,7 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from biped_sim.engine.hybrid import HybridSimulator, stance_state
+from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.engine.simulate import stance_state
 
 
 @dataclass

@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from biped_sim.control.walking import WalkingController
-from biped_sim.engine.hybrid import HybridSimulator, simulate, stance_state
+from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.engine.simulate import simulate, stance_state
 from biped_sim.engine.model import BipedModel
 
 #: deliberately broken settings, each with the case it must make FAIL
@@ -328,7 +329,7 @@ def case_long_walk(quick, broken):
     r = sim.result()
     wall = time.perf_counter() - t0
     # energy-balance residual at each impact (after the reset): growth per step by least squares
-    res = [abs(s[6]) for i, s in enumerate(sim._samples[1:], 1) if s[0] == sim._samples[i - 1][0]]
+    res = [abs(e) for i, e in enumerate(r.energy_balance[1:], 1) if r.t[i] == r.t[i - 1]]
     k = np.arange(1, len(res) + 1)
     slope = float(np.polyfit(k, res, 1)[0]) if len(res) > 2 else math.nan
     gaps = np.diff([e.time for e in r.impacts])

@@ -45,7 +45,8 @@ from scipy.integrate import solve_ivp
 
 from biped_sim.control.walking import WalkingController
 from biped_sim.engine.dynamics import stance_floating_fast
-from biped_sim.engine.hybrid import HybridSimulator, simulate, stance_state
+from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.engine.simulate import simulate, stance_state
 from biped_sim.engine.integrators import FIXED_STEP_METHODS
 from biped_sim.engine.model import BipedModel
 
@@ -147,29 +148,18 @@ def trajectory(result):
                       result.stats["max_constraint_drift_position"], result.stats["max_energy_balance_residual"])
 
 
-class _DenseSimulator(HybridSimulator):
-    """The engine, keeping the dense output (7th order for dop853) of every accepted step."""
-
-    def __init__(self, *a, **k):
-        self.pieces = []          # (segment index, t_start, t_end, interpolant)
-        super().__init__(*a, **k)
-
-    def _accept(self, t, q, dq, w, F=None):
-        st = self._stepper
-        if st is not None and t > st.t_old:
-            # called before the projection changes st.y: the interpolant is the integrator's own
-            self.pieces.append((self.stats["impacts"], st.t_old, float(t), st.dense_output()))
-        super()._accept(t, q, dq, w, F)
-
-
 class Reference:
     """The reference run, evaluated at any time of any of its hybrid segments by its dense output."""
 
     def __init__(self, model, case, tol=1e-13):
         ctrl = WalkingController(model) if case.walking else None
         t0 = time.perf_counter()
-        sim = _DenseSimulator(model, case.q0, case.dq0, case.stance_leg, tol, tol, "dop853", None,
-                              **case.options)
+        pieces = []   # (hybrid segment, t_start, t_end, the integrator's own interpolant) of every step
+
+        def keep(t_start, t_end, interpolant):
+            pieces.append((sim.stats["impacts"], t_start, t_end, interpolant))
+        sim = HybridSimulator(model, case.q0, case.dq0, case.stance_leg, tol, tol, "dop853", None,
+                              on_step=keep, **case.options)
         sim.advance(case.t_final, controller=ctrl)
         self.wall = time.perf_counter() - t0
         self.result = sim.result()
@@ -177,7 +167,7 @@ class Reference:
             raise RuntimeError(f"reference run of {case.name} failed: {self.result.message}")
         self.traj = trajectory(self.result)
         self.pieces = {}
-        for seg, ta, tb, f in sim.pieces:
+        for seg, ta, tb, f in pieces:
             self.pieces.setdefault(seg, []).append((ta, tb, f))
         self.starts = {k: np.array([p[0] for p in v]) for k, v in self.pieces.items()}
 

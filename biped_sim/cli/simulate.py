@@ -8,7 +8,7 @@ import numpy as np
 
 from biped_sim.engine.compiled import WHY_PYTHON
 from biped_sim.control.walking import WalkingController
-from biped_sim.engine.hybrid import simulate
+from biped_sim.engine.simulate import simulate
 from biped_sim.engine.integrators import FIXED_STEP_METHODS, METHODS
 from biped_sim.engine.model import BipedModel
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from biped_sim.engine.hybrid import PHASES
+from biped_sim.engine.options import PHASES
 from biped_sim.engine.integrators import FIXED_STEP_METHODS, METHODS
 from biped_sim.engine.model import BipedParameters
 

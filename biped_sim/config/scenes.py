@@ -130,7 +130,7 @@ class Scene:
         return None if self.controller_params is None else make_controller(self.controller_params)
 
     def simulate_kwargs(self, hold=True) -> dict:
-        """Keyword arguments of :func:`biped_sim.engine.hybrid.simulate`, ``t_final`` and ``controller`` included.
+        """Keyword arguments of :func:`biped_sim.engine.simulate.simulate`, ``t_final`` and ``controller`` included.
 
         ``hold=True`` holds each torque over ``control_period`` as the node does (the node in lockstep
         with the walk_controller gives this same run); ``hold=False``: continuous feedback.
@@ -143,7 +143,7 @@ class Scene:
         return kw
 
     def simulate(self, hold=True, **overrides):
-        from biped_sim.engine.hybrid import simulate
+        from biped_sim.engine.simulate import simulate
         kw = self.simulate_kwargs(hold)
         kw.update(overrides)
         return simulate(**kw)

@@ -102,7 +102,7 @@ class WalkingController:
 
         ``speed`` is the stance leg's angular rate (rad/s); returns physical (q, dq).
         """
-        from biped_sim.engine.hybrid import stance_state
+        from biped_sim.engine.simulate import stance_state
         a, pitch = self.step_angle, self.torso_pitch
         f, df, _ = self.swing_target(-a)
         return stance_state(self.model, [math.pi - a - pitch, math.pi + f - pitch, pitch], [speed, df * speed, 0.0])

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 from scipy.integrate import BDF, DOP853 as _ScipyDOP853, RK45, Radau
-from scipy.integrate._ivp import dop853_coefficients as _dop  # coefficient tables only
+from scipy.integrate import DOP853 as _SCIPY_DOP853   # its public coefficient tables only
 
 from biped_sim.engine.compiled import rk as _rk
 
@@ -164,10 +164,11 @@ class DOP853Stepper(_ListRungeKutta):
     """Dormand-Prince 8(5,3), the algorithm of scipy's DOP853. The three extra stages of its
     7th-order dense output are computed only when ``dense_output()`` is asked for, which the
     hybrid engine does only in steps where a guard may have crossed."""
-    STEPS, GENERIC_STEP, ERROR_ORDER, N_STAGES = _rk.DOP853_STEPS, staticmethod(_rk.dop853_step), 7, _dop.N_STAGES
-    A_EXTRA = _dop.A[_dop.N_STAGES + 1:]
-    C_EXTRA = _dop.C[_dop.N_STAGES + 1:]
-    D = _dop.D
+    STEPS, GENERIC_STEP, ERROR_ORDER = _rk.DOP853_STEPS, staticmethod(_rk.dop853_step), 7
+    N_STAGES = _SCIPY_DOP853.n_stages                       # 12
+    A_EXTRA, C_EXTRA, D = _SCIPY_DOP853.A_EXTRA, _SCIPY_DOP853.C_EXTRA, _SCIPY_DOP853.D
+    N_STAGES_EXTENDED = A_EXTRA.shape[1]                    # 16: three more stages for the dense output
+    INTERPOLATOR_POWER = D.shape[0] + 3                     # 7
 
     def dense_at(self, t):
         return self.dense_output().at(t)
@@ -176,14 +177,14 @@ class DOP853Stepper(_ListRungeKutta):
         if self._dense is None:
             h, t0 = self.h, self.t_old
             y0 = np.array(self.y_old)
-            K = np.empty((_dop.N_STAGES_EXTENDED, y0.size))
-            K[:_dop.N_STAGES + 1] = self._stages
-            K[:_dop.N_STAGES + 1] *= h
-            for s, (a, c) in enumerate(zip(self.A_EXTRA, self.C_EXTRA), start=_dop.N_STAGES + 1):
+            K = np.empty((self.N_STAGES_EXTENDED, y0.size))
+            K[:self.N_STAGES + 1] = self._stages
+            K[:self.N_STAGES + 1] *= h
+            for s, (a, c) in enumerate(zip(self.A_EXTRA, self.C_EXTRA), start=self.N_STAGES + 1):
                 K[s] = self.fun(t0 + c * h, (y0 + np.dot(a[:s], K[:s])).tolist())
                 K[s] *= h
             self.nfev += 3
-            F = np.empty((_dop.INTERPOLATOR_POWER, y0.size))
+            F = np.empty((self.INTERPOLATOR_POWER, y0.size))
             dy = np.array(self.y) - y0
             F[0] = dy
             F[1] = K[0] - dy

@@ -76,14 +76,14 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
         old = None
     try:
         publish_state()
-        k = 0
         while sim.status == "running" and sim.t < duration and not stop:
             if controller is not None:
-                u = [float(v) for v in controller(sim.t, sim.q.copy(), sim.dq.copy(), sim.stance_leg)]
+                u = sim.command(controller)
+                if u is None:       # the controller failed: the run ends "failed" with its message
+                    break
             if recorder is not None:   # the command's CDR (what M.torque_msg(u) serialises to)
                 rec("/hip_torque", float64_multi_array_data(u), M.to_ns(sim.t))
-            events = sim.advance(min((k + 1) * period, duration), u=u)
-            k += 1
+            events = sim.advance_period(period, u=u, t_final=duration)
             for ev in events:
                 if ev.kind in M.IMPACT_KINDS:
                     if imp:

@@ -2,7 +2,7 @@
 
 Owns ``biped-sim resim``. The parameters come from the bag's ``biped_sim`` metadata record; the
 engine is built with ``parameters.engine_arguments`` as the node builds it, and advanced the way
-the node does: one ``advance`` per control period to ``(k + 1) * control_period`` (capped at
+the node does: one ``advance_period`` per control period (the engine's one zero-order hold, to ``(k + 1) * control_period``, capped at
 ``duration``), with the torques of the last valid command held (the node's checks: two finite
 values within ``torque_limit``, else rejected or clipped per ``torque_limit_action``). Each
 recorded ``joint_states`` message is compared with the engine's state at its stamp, and each
@@ -43,15 +43,11 @@ def resim(bag, progress=None) -> dict:
         raise ValueError(f"{bag} has no joint_states topic to compare with")
     sim = HybridSimulator(**engine_arguments(params), keep_samples=False)
     period, duration = params["control_period"], params["duration"]
-    state = dict(k=0, u=[0.0, 0.0])
+    state = dict(u=[0.0, 0.0])
 
     def advance_to(t_ns):
         while M.to_ns(sim.t) < t_ns and sim.status == "running":
-            t_next = (state["k"] + 1) * period
-            if duration > 0:
-                t_next = min(t_next, duration)
-            sim.advance(t_next, u=state["u"])
-            state["k"] += 1
+            sim.advance_period(period, u=state["u"], t_final=duration)
 
     rep = dict(bag=str(bag), params=params, commands=0, states=0, max_dq=0.0, max_q=0.0, first=None,
                impacts_recorded=[], status=None, message="", t_end=0.0)

@@ -293,11 +293,8 @@ def _make_node_class():
         def step(self):
             """Advance one control period with the held torques; publish its events."""
             sim = self.sim
-            t_next = (self.k + 1) * self.period
-            if self.duration > 0 and t_next >= self.duration - 1e-9 * self.period:
-                t_next = self.duration       # the last period ends exactly at the duration
-            events = sim.advance(t_next, u=self.u)
-            self.k += 1
+            events = sim.advance_period(self.period, u=self.u, t_final=self.duration)
+            self.k = sim.control_periods
             for ev in events:
                 self._publish_event(ev)
             if sim.status != "running" and not self.stopped:

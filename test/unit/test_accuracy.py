@@ -65,14 +65,15 @@ def test_reference_error_estimated_and_default_on_front(bench):
     assert "scipy_dop853 rtol=atol=1e-12" in out
     for case in ("passive_fall", "walking", "drop"):
         assert f"default dop853 tol=1e-9 on {case}: " in out
-        line = next(l for l in out.splitlines() if l.startswith(f"default dop853 tol=1e-9 on {case}"))
-        # on the front of the measured points, or (timing noise on a shared machine) within 2x in time
-        # of a faster run that is at least as accurate
-        if "NOT on" in line:
-            d = next(r for r in bench["rows"] if r["case"] == case and r["default"] == "True")
-            better = [r for r in bench["rows"] if r["case"] == case and float(r["time"]) < float(d["time"])
-                      and float(r["err_run"]) < float(d["err_run"])]
-            assert all(2 * float(r["time"]) > float(d["time"]) for r in better), line
+        # on the front in work (right-hand-side evaluations: the same on every machine, unlike wall
+        # time, which the report's front uses and which a loaded machine reorders): no run that
+        # places its events right takes at most the default's evaluations and is more accurate
+        d = next(r for r in bench["rows"] if r["case"] == case and r["default"] == "True")
+        better = [f"{r['method']} {r['setting']}: {r['rhs']} evaluations, error {r['err_run']}"
+                  for r in bench["rows"] if r["case"] == case and r is not d and r["rhs"]
+                  and not math.isinf(float(r["err_event"]))
+                  and int(r["rhs"]) <= int(d["rhs"]) and float(r["err_run"]) < float(d["err_run"])]
+        assert not better, (case, d["rhs"], d["err_run"], better)
 
 
 def test_front_logic():

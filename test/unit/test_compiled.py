@@ -147,7 +147,7 @@ import json
 import numpy as np
 from biped_sim.engine import compiled
 from biped_sim.control.walking import WalkingController, PDWalkingController
-from biped_sim.engine.hybrid import simulate
+from biped_sim.engine.simulate import simulate
 from biped_sim.engine.model import BipedModel
 model = BipedModel()
 out = {"implementation": compiled.IMPLEMENTATION}

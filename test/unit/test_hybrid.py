@@ -7,7 +7,9 @@ from scipy.integrate import solve_ivp
 
 from biped_sim.control.walking import WalkingController
 from biped_sim.engine.dynamics import flight_dynamics
-from biped_sim.engine.hybrid import HybridSimulator, _hermite_min, simulate, stance_state
+from biped_sim.engine.guards import hermite_lower_bound
+from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.engine.simulate import simulate, stance_state
 from biped_sim.engine.model import BipedModel
 
 STANCE_ONLY = frozenset({"stance"})
@@ -152,8 +154,8 @@ def test_a_guard_crossed_twice_inside_one_step_is_found(model):
 
 
 def test_hermite_bound_sees_a_dip():
-    assert _hermite_min(1e-3, -0.05, 1e-3, 0.05) < 0
-    assert _hermite_min(1e-3, 0.01, 2e-3, 0.01) > 0
+    assert hermite_lower_bound(1e-3, -0.05, 1e-3, 0.05) < 0
+    assert hermite_lower_bound(1e-3, 0.01, 2e-3, 0.01) > 0
 
 
 def test_drop_lands_and_goes_on_in_stance(model):

@@ -114,16 +114,16 @@ def test_stance_fixed_integrates_three_coordinates_and_builds_no_impact_guard():
     kw = s.engine_arguments()
     assert kw["base"] == "fixed" and kw["phases"] == {"stance"} and kw["compute_grf"] is False
     sim = HybridSimulator(**kw)
-    assert all(kind != "touchdown" for kind, _ in sim._guards())
+    assert all(kind != "touchdown" for kind, _ in sim.active_guards())
     sim.advance(0.01, controller=s.controller())
-    assert len(sim._stepper.y) == 7         # (q1, q2, q3, dq1, dq2, dq3, work): the 3-coordinate chain
+    assert sim.integrated_size == 7         # (q1, q2, q3, dq1, dq2, dq3, work): the 3-coordinate chain
     r = s.simulate()
     assert r.status == "completed" and not r.events and r.t[-1] == pytest.approx(0.4)
     assert r.stats["max_constraint_drift_position"] == 0.0
     # the floating-base engine integrates the 11-dimensional state
     sim = HybridSimulator(**dict(kw, base="floating"))
     sim.advance(0.01, controller=s.controller())
-    assert len(sim._stepper.y) == 11
+    assert sim.integrated_size == 11
 
 
 def test_no_impact_guard_without_impact_and_no_grf_without_the_output():
@@ -137,7 +137,7 @@ def test_no_impact_guard_without_impact_and_no_grf_without_the_output():
 def _guards_after_swing_lifts(kw):
     sim = HybridSimulator(**kw)
     sim.advance(0.05, controller=load_scene("walk").controller())
-    return sim._guards()
+    return sim.active_guards()
 
 
 def test_passive_runs_without_controller_to_a_touchdown():

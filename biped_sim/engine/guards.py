@@ -1,0 +1,338 @@
+"""The guards (witness functions) of the hybrid system, and how a crossing is located.
+
+A guard is a scalar function of the state that is positive while the current mode holds; the mode
+ends where it crosses zero going down (every guard here has that one direction, as Drake's witness
+functions ``FootCollision`` and the liftoff witness do):
+
+* ``touchdown_guard``: the swing foot's height above the ground (MODEL.md "Impact"); armed only once
+  the foot has been above the ground by more than ``arm_height``, so that the guard, zero right after
+  its own reset, cannot fire again at once;
+* ``liftoff_guard``: the normal component of the ground force on the stance foot (the KKT force of
+  "Stance"); its crossing ends stance (flight follows where the scene has it);
+* ``slip_guard``: ``mu F_n - |F_t|``, the margin inside the friction cone (only with ``mu`` given).
+
+The event locator brackets a crossing between a step's two ends (or, for touchdown, a dip inside
+the step screened by a cubic Hermite through the end heights and rates) and finds its time on the
+integrator's dense output with ``brentq``, to ``event_tol`` seconds.
+
+Feet travel as :class:`FootState` pairs (x, height above the sloped ground, and their rates).
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from scipy.optimize import brentq
+
+from biped_sim.engine.compiled import gen
+from biped_sim.engine.results import SceneAssumptionError, SimulationError
+
+
+class FootState(NamedTuple):
+    """One foot: world x (m), height above the (sloped) ground (m), and their rates (m/s)."""
+    x: float
+    height: float
+    dx: float
+    dheight: float
+
+
+def foot_states(model, q, dq, tan_slope=0.0) -> tuple[FootState, FootState]:
+    """(foot 1, foot 2) at the physical state (lists q, dq); heights measured across the slope."""
+    p1x, p1y, p2x, p2y, v1x, v1y, v2x, v2y = gen.foot_kinematics(q, dq, model.k["foot_kinematics"])
+    t = tan_slope
+    return (FootState(p1x, p1y + t * p1x, v1x, v1y + t * v1x),
+            FootState(p2x, p2y + t * p2x, v2x, v2y + t * v2x))
+
+
+def foot_xy(model, q, leg):
+    """(x, y) of foot ``leg`` (1 or 2) at the configuration q (a list)."""
+    p = gen.foot_positions(q, model.k["foot_positions"])
+    return p[2 * leg - 2], p[2 * leg - 1]
+
+
+def foot_height(model, q, leg, tan_slope=0.0) -> float:
+    """Height of foot ``leg`` above the ground: the touchdown guard from q alone (root finding)."""
+    x, y = foot_xy(model, q, leg)
+    return y + tan_slope * x
+
+
+class Ground(NamedTuple):
+    """The ground line through the origin at angle ``slope`` (rad; positive: it falls in +x)."""
+    slope: float
+    sin: float
+    cos: float
+    tan: float
+
+    @classmethod
+    def of(cls, slope: float) -> "Ground":
+        return cls(slope, math.sin(slope), math.cos(slope), math.tan(slope))
+
+
+def normal_tangent(F, ground: Ground):
+    """(normal, tangential) components of a ground force or impulse [Fx, Fy] on the ground line."""
+    s, c = ground.sin, ground.cos
+    return F[0] * s + F[1] * c, F[0] * c - F[1] * s
+
+
+# -- the guards: positive while the mode holds, an event where they cross zero going down --------
+def touchdown_guard(feet, leg) -> float:
+    """Swing foot ``leg``'s height above the ground."""
+    return feet[leg - 1].height
+
+
+def liftoff_guard(normal, tangential) -> float:
+    """The normal ground force on the stance foot (N)."""
+    return normal
+
+
+def slip_guard(normal, tangential, mu) -> float:
+    """The friction-cone margin mu F_n - |F_t| (N)."""
+    return mu * normal - abs(tangential)
+
+
+class Guard(NamedTuple):
+    """An active guard: its kind ("touchdown", "liftoff", "slip") and the foot it watches."""
+    kind: str
+    leg: int
+
+
+def active_guards(stance_leg, armed, phases, mu) -> list[Guard]:
+    """The guards of the current mode: the armed swing foot's touchdown (both feet's in flight), and
+    in stance the liftoff and, with a friction coefficient, the slip of the stance foot."""
+    guards = []
+    if stance_leg:
+        swing = 3 - stance_leg
+        if "impact" in phases and armed[swing - 1]:
+            guards.append(Guard("touchdown", swing))
+        guards.append(Guard("liftoff", stance_leg))
+        if mu is not None:
+            guards.append(Guard("slip", stance_leg))
+    elif "impact" in phases:
+        guards.extend(Guard("touchdown", leg) for leg in (1, 2) if armed[leg - 1])
+    return guards
+
+
+# -- locating a crossing -----------------------------------------------------------------------
+def hermite_lower_bound(g0, d0, g1, d1) -> float:
+    """Minimum over [0, 1] of the cubic Hermite through (0, g0, d0) and (1, g1, d1) (a screen for a
+    dip of the touchdown guard inside a step whose ends are both above the ground)."""
+    # p(s) = g0 + d0 s + (3(g1-g0) - 2 d0 - d1) s^2 + (2(g0-g1) + d0 + d1) s^3
+    a, b, c = 3 * (2 * (g0 - g1) + d0 + d1), 2 * (3 * (g1 - g0) - 2 * d0 - d1), d0
+    cands = [0.0, 1.0]
+    if abs(a) > 1e-300:
+        disc = b * b - 4 * a * c
+        if disc >= 0:
+            r = math.sqrt(disc)
+            cands += [(-b + r) / (2 * a), (-b - r) / (2 * a)]
+    elif abs(b) > 1e-300:
+        cands.append(-c / b)
+    best = min(g0, g1)
+    for s in cands:
+        if 0.0 < s < 1.0:
+            best = min(best, g0 + s * (d0 + s * ((3 * (g1 - g0) - 2 * d0 - d1) + s * (2 * (g0 - g1) + d0 + d1))))
+    return best
+
+
+def sample_bracket(guard_at, t_old, t_new, n=8):
+    """The first sub-interval of [t_old, t_new] (n equal parts) over which ``guard_at(t)`` goes from
+    positive to <= 0, or None."""
+    prev = None
+    for t in np.linspace(t_old, t_new, n + 1).tolist():
+        g = guard_at(t)
+        if prev is not None and prev[1] > 0 and g <= 0:
+            return prev[0], t
+        prev = (t, g)
+    return None
+
+
+def locate_crossing(guard_at, ta, tb, event_tol) -> float:
+    """The time in [ta, tb] where ``guard_at`` (positive at ta, <= 0 at tb) crosses zero, to
+    ``event_tol`` seconds (an end of the bracket where the guard is already zero there)."""
+    ga, gb = guard_at(ta), guard_at(tb)
+    if gb == 0.0:
+        return tb
+    if ga <= 0:
+        return ta
+    return brentq(guard_at, ta, tb, xtol=event_tol, rtol=4 * np.finfo(float).eps, maxiter=200)
+
+
+# -- the ground as a constraint on states ----------------------------------------------------------
+def check_initial_contact(feet, stance_leg, tol):
+    """A ValueError unless the initial state agrees with its mode: in stance, the stance foot on the
+    ground and at rest and the swing foot not below it; in flight, both feet not below it."""
+    if stance_leg:
+        f = feet[stance_leg - 1]
+        if abs(f.height) > tol:
+            raise ValueError(f"initial state: the stance foot (leg {stance_leg}) is {f.height:.6g} m "
+                             f"above the ground (tolerance {tol:g} m); place the hip so that the foot is on "
+                             "the ground (biped_sim.stance_state does this)")
+        if math.hypot(f.dx, f.dheight) > tol:
+            raise ValueError(f"initial state: the stance foot (leg {stance_leg}) moves at "
+                             f"({f.dx:.6g}, {f.dheight:.6g}) m/s; it must be at rest (J dq = 0; "
+                             "biped_sim.stance_state gives a consistent dq)")
+        swing = feet[2 - stance_leg]
+        if swing.height < -tol:
+            raise ValueError(f"initial state: the swing foot (leg {3 - stance_leg}) is {-swing.height:.6g} m "
+                             "below the ground")
+    else:
+        for leg in (1, 2):
+            if feet[leg - 1].height < -tol:
+                raise ValueError(f"initial state in flight: foot {leg} is below the ground")
+
+
+def check_ground(t, feet, stance_leg, opt, last_impact):
+    """Raise where a free foot is below the ground in a way the run cannot go on from: without an
+    impact phase, any touchdown that would count (SceneAssumptionError: the run stops); with one, a
+    foot deeper than ``opt.max_penetration`` (SimulationError: the robot fell, or the model's
+    assumptions failed at the last impact)."""
+    if "impact" not in opt.phases:
+        # no touchdown guard is built; a swing foot that reaches the ground where a touchdown
+        # would count leaves the scene's assumptions: say so instead of walking through the ground
+        for leg in (1, 2):
+            f = feet[leg - 1]
+            if leg != stance_leg and f.height < 0.0 and (
+                    not stance_leg or opt.touchdown_rule == "any" or f.x > feet[stance_leg - 1].x):
+                raise SceneAssumptionError(
+                    f"foot {leg} touches the ground at t={t:.9g} s (it is {-f.height:.3g} m below "
+                    f"at the end of the step), but this scene has no impact phase: add 'impact' to its phases")
+        return
+    for leg in (1, 2):
+        depth = -feet[leg - 1].height
+        if leg == stance_leg or depth <= opt.max_penetration:
+            continue
+        if last_impact is not None and last_impact.kind == "double_touchdown":
+            raise SimulationError(
+                f"foot {leg} goes {depth:.3g} m into the ground at t={t:.9g} s after the double touchdown at "
+                f"t={last_impact.time:.9g} s: double support is not modelled (the run continued on foot "
+                f"{last_impact.leg} only)")
+        if last_impact is not None and last_impact.warnings and leg == last_impact.stance_leg_before:
+            raise SimulationError(
+                f"foot {leg} goes {depth:.3g} m into the ground at t={t:.9g} s: at the impact of "
+                f"t={last_impact.time:.9g} s {'; '.join(last_impact.warnings)}, so the feet stay in contact "
+                f"(impacts accumulating, Zeno-like, or double support), which the model does not cover")
+        raise SimulationError(
+            f"foot {leg} is {depth:.3g} m below the ground at t={t:.9g} s: the robot fell or the foot passed "
+            f"the ground where no touchdown counts (touchdown_rule={opt.touchdown_rule!r}, "
+            f"phases={sorted(opt.phases)})")
+
+
+# -- the one event locator -------------------------------------------------------------------------
+class EventLocator:
+    """Finds the earliest guard crossing inside each accepted step, on the step's dense output.
+
+    Owns the guards' discrete state: which feet are ``armed`` (a foot's touchdown guard counts only
+    once it has been higher than ``arm_height``) and which guards are ``latched`` (a guard that just
+    fired and was not reset, a slip with ``stop_on_slip=False``, stays off until it is positive at a
+    step's end). The caller hands in, per step, the stepper ``st`` (``t_old``, ``t``, ``y_old``,
+    ``dense_at``), ``to_phys(y) -> (q, dq, work)``, the state and feet at the step's end, and
+    ``force_at(t, q, dq) -> [Fx, Fy]`` for the stance guards.
+    """
+
+    def __init__(self, model, ground, opt, mu, feet, stance_leg):
+        self.model, self.ground, self.opt, self.mu = model, ground, opt, mu
+        self.armed = [feet[0].height > opt.arm_height, feet[1].height > opt.arm_height]
+        if stance_leg:
+            self.armed[stance_leg - 1] = False
+        self.latched: set = set()
+        self.scuffs = 0          # touchdowns behind the stance foot ignored under touchdown_rule "front"
+        self._feet_end = self._force_end = (None, None)   # (t, value) at the last step's end
+
+    def guards(self, stance_leg):
+        return active_guards(stance_leg, self.armed, self.opt.phases, self.mu)
+
+    def after_reset(self, event):
+        """Disarm the feet the reset put on the ground (or that just left it)."""
+        if event.kind == "double_touchdown":
+            self.armed = [False, False]
+        for leg in (event.stance_leg_after, event.stance_leg_before):
+            if leg:
+                self.armed[leg - 1] = False
+
+    def _value(self, guard, t, q, dq, force_at, feet=None, F=None):
+        if guard.kind == "touchdown":
+            if feet is None:   # the height only (root finding evaluates this many times)
+                return foot_height(self.model, q, guard.leg, self.ground.tan)
+            return touchdown_guard(feet, guard.leg)
+        n, tg = normal_tangent(F if F is not None else force_at(t, q, dq), self.ground)
+        return liftoff_guard(n, tg) if guard.kind == "liftoff" else slip_guard(n, tg, self.mu)
+
+    def locate(self, st, to_phys, stance_leg, q1, dq1, feet1, force_at, F_end=None):
+        """((time, guard, legs) of the earliest crossing, or None; the force at the step's end).
+
+        ``F_end``: the stance force at the step's end if the caller has it (the stepper's last
+        evaluation), else it is computed here."""
+        guards = self.guards(stance_leg)
+        if not guards:
+            self._arm(feet1, stance_leg)
+            return None, None
+        # the step's start is the last step's end: its feet and force are known (the projection
+        # since moved the state by the drift only, ~1e-14)
+        q0 = dq0 = None
+        feet0 = self._feet_end[1] if self._feet_end[0] == st.t_old else None
+        if feet0 is None:
+            q0, dq0, _ = to_phys(st.y_old)
+            feet0 = foot_states(self.model, q0, dq0, self.ground.tan)
+        self._feet_end = (st.t, feet1)
+        F0 = F1 = None
+        if stance_leg:
+            F0 = self._force_end[1] if self._force_end[0] == st.t_old else None
+            if F0 is None:
+                if q0 is None:
+                    q0, dq0, _ = to_phys(st.y_old)
+                F0 = force_at(st.t_old, q0, dq0)
+            F1 = F_end if F_end is not None else force_at(st.t, q1, dq1)
+            self._force_end = (st.t, F1)
+        roots = []
+        for guard in guards:
+            g1 = self._value(guard, st.t, q1, dq1, force_at, feet1, F1)
+            if guard in self.latched:
+                if g1 > 0:
+                    self.latched.discard(guard)
+                continue
+            g0 = self._value(guard, st.t_old, q0, dq0, force_at, feet0, F0)
+
+            def guard_at(t, guard=guard):
+                q, dq, _ = to_phys(st.dense_at(t))
+                return self._value(guard, t, q, dq, force_at)
+            bracket = None
+            if g0 > 0 and g1 <= 0:
+                bracket = (st.t_old, st.t)
+            elif guard.kind == "touchdown" and g0 > 0 and g1 > 0:
+                h = st.t - st.t_old
+                f0, f1 = feet0[guard.leg - 1], feet1[guard.leg - 1]
+                if hermite_lower_bound(g0, f0.dheight * h, g1, f1.dheight * h) <= 0:
+                    bracket = sample_bracket(guard_at, st.t_old, st.t)
+            if bracket is None:
+                continue
+            t_root = locate_crossing(guard_at, *bracket, self.opt.event_tol)
+            if guard.kind == "touchdown" and stance_leg and self.opt.touchdown_rule == "front":
+                fr = self._feet_at(st, to_phys, t_root)
+                if fr[guard.leg - 1].x <= fr[stance_leg - 1].x:
+                    self.scuffs += 1
+                    continue
+            roots.append((t_root, guard))
+        if not roots:
+            self._arm(feet1, stance_leg)
+            return None, F1
+        roots.sort()
+        t_first, guard = roots[0]
+        legs = [guard.leg]
+        if guard.kind == "touchdown" and not stance_leg:
+            legs += [g.leg for t, g in roots[1:] if g.kind == "touchdown" and t - t_first <= self.opt.simultaneous_tol]
+            other = 3 - guard.leg
+            if len(legs) == 1 and self.armed[other - 1]:
+                # the other foot may be within the tolerance without having crossed yet
+                fo = self._feet_at(st, to_phys, t_first)[other - 1]
+                if fo.dheight < 0 and fo.height <= -fo.dheight * self.opt.simultaneous_tol:
+                    legs.append(other)
+        return (t_first, guard, sorted(set(legs))), F1
+
+    def _feet_at(self, st, to_phys, t):
+        q, dq, _ = to_phys(st.dense_at(t))
+        return foot_states(self.model, q, dq, self.ground.tan)
+
+    def _arm(self, feet, stance_leg):
+        for leg in (1, 2):
+            if not self.armed[leg - 1] and leg != stance_leg and feet[leg - 1].height > self.opt.arm_height:
+                self.armed[leg - 1] = True

@@ -1,0 +1,116 @@
+"""The continuous dynamics of each mode as the integrator sees them: right-hand sides on lists.
+
+A mode is (stance leg 1 or 2, or flight) x (floating or fixed base). For each, ``mode_functions``
+returns ``rhs(t, y)`` and the maps between the integrator's state ``y`` and the physical state:
+
+* floating base (stance and flight): ``y = q + dq + [work]``, 11 values; the stance right-hand side
+  is the generated closed form of MODEL.md "Stance, floating-base" (its KKT force is handed to
+  ``force_sink`` at each evaluation, so that the step's last force needs no second solve);
+* fixed base: ``y = (q1, q2, q3) + (dq1, dq2, dq3) + [work]``, 7 values, and the hip hangs from the
+  stance foot's pin ``c`` (MODEL.md "Stance, fixed-base").
+
+The last entry integrates the motors' power ``u1 dq1 + u2 dq2``, for the energy balance.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from biped_sim.engine.compiled import gen
+from biped_sim.engine.dynamics import flight_fast, stance_fixed_accel_fast
+from biped_sim.engine.results import SimulationError
+
+
+def two_finite_floats(u):
+    """[u0, u1] as Python floats if u is two finite numbers, else None (runs at every evaluation)."""
+    try:
+        u0, u1 = u
+        u0, u1 = float(u0), float(u1)
+    except (TypeError, IndexError, ValueError):
+        return None
+    return [u0, u1] if math.isfinite(u0 + u1) else None   # nan + x, inf - inf: nan; inf + x: inf
+
+
+def checked_torques(u, t):
+    """The two torques a controller returned, as finite floats, or a SimulationError."""
+    out = two_finite_floats(u)
+    if out is None:
+        raise SimulationError(f"the controller returned {u!r} at t={t:.9g} s: it must return two finite torques")
+    return out
+
+
+def bind_controller(controller, stance_leg):
+    """``controller(t, q, dq, stance_leg)`` as ``f(t, q, dq)`` on lists, with its torques checked; None
+    for no controller. A controller that sets ``accepts_lists = True`` takes q, dq as lists (no array
+    round trip)."""
+    if controller is None:
+        return None
+    if not getattr(controller, "accepts_lists", False):
+        return lambda t, q, dq: checked_torques(controller(t, np.array(q), np.array(dq), stance_leg), t)
+
+    def call(t, q, dq):   # at every right-hand-side evaluation: one check, the message only on failure
+        u = controller(t, q, dq, stance_leg)
+        v = two_finite_floats(u)
+        return v if v is not None else checked_torques(u, t)
+    return call
+
+
+def mode_functions(model, stance_leg, base, pin, u_hold, control, force_sink):
+    """(rhs, to_physical, from_physical) of a mode. ``control(t, q, dq) -> u`` (lists) or None to hold
+    ``u_hold``; ``force_sink(F)`` receives the floating-base stance force of each evaluation."""
+    if stance_leg and base == "fixed":
+        return _fixed_base_functions(model, stance_leg, pin, u_hold, control)
+
+    def to_phys(y):
+        yl = y if type(y) is list else y.tolist()
+        return yl[0:5], yl[5:10], yl[10]
+
+    def from_phys(q, dq, w):   # lists
+        return q + dq + [w]
+
+    if stance_leg:   # the generated closed form itself, one per stance leg
+        k_stance = model.k_stance
+        stance = gen.stance_floating_1 if stance_leg == 1 else gen.stance_floating_2
+
+        def rhs(t, y):
+            q, dq = y[0:5], y[5:10]
+            u = u_hold if control is None else control(t, q, dq)
+            ddq, F = stance(q, dq, u, k_stance)
+            force_sink(F)
+            return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
+    else:
+        def rhs(t, y):
+            q, dq = y[0:5], y[5:10]
+            u = u_hold if control is None else control(t, q, dq)
+            ddq = flight_fast(model, q, dq, u)
+            return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
+    return rhs, to_phys, from_phys
+
+
+def _fixed_base_functions(model, stance_leg, pin, u_hold, control):
+    c = pin
+    l_leg = model.parameters.l_leg
+    i = stance_leg - 1
+
+    def to_phys(y):
+        # the hip hangs from the pin: hip = c - l (sin th, cos th), th = q_stance + q3
+        yl = y if type(y) is list else y.tolist()
+        th, w = yl[i] + yl[2], yl[3 + i] + yl[5]
+        sn, cs = math.sin(th), math.cos(th)
+        return ([c[0] - l_leg * sn, c[1] - l_leg * cs] + yl[0:3],
+                [-l_leg * cs * w, l_leg * sn * w] + yl[3:6], yl[6])
+
+    def from_phys(q, dq, w):   # lists
+        return q[2:] + dq[2:] + [w]
+
+    def rhs(t, y):
+        qs, dqs = y[0:3], y[3:6]
+        if control is None:
+            u = u_hold
+        else:
+            q, dq, _ = to_phys(y)
+            u = control(t, q, dq)
+        dds = stance_fixed_accel_fast(model, qs, dqs, u, stance_leg)   # no force: guards ask for it
+        return dqs + dds + [u[0] * dqs[0] + u[1] * dqs[1]]
+    return rhs, to_phys, from_phys

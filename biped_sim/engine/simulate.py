@@ -1,0 +1,53 @@
+"""The one-call API: ``simulate`` a run from a state, and ``stance_state`` to build a consistent one."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.engine.model import BipedModel, as_state_vector
+from biped_sim.engine.results import SimulationResult
+
+
+def stance_state(model: BipedModel, joints, joint_rates, stance_leg=1, foot=(0.0, 0.0)):
+    """A consistent stance state: the hip placed so that the stance foot is at ``foot`` and at rest.
+
+    ``joints = (q1, q2, q3)`` and ``joint_rates = (dq1, dq2, dq3)``; returns physical (q, dq).
+    """
+    qs = as_state_vector(joints, "joints", 3)
+    dqs = as_state_vector(joint_rates, "joint_rates", 3)
+    l = model.parameters.l_leg  # noqa: E741 (the leg length, as MODEL.md names it)
+    i = 0 if stance_leg == 1 else 1
+    th, dth = qs[i] + qs[2], dqs[i] + dqs[2]
+    hip = np.array(foot, float) - l * np.array([math.sin(th), math.cos(th)])
+    dhip = -l * np.array([math.cos(th), -math.sin(th)]) * dth
+    return np.concatenate([hip, qs]), np.concatenate([dhip, dqs])
+
+
+def simulate(model, q0, dq0, t_final, controller=None, stance_leg=1, rtol=1e-9, atol=1e-9,
+             method="dop853", control_period=None, mu=None, **options) -> SimulationResult:
+    """Simulate the hybrid biped from (q0, dq0) to ``t_final`` seconds.
+
+    ``controller(t, q, dq, stance_leg) -> u`` (u[0] on hip 1, u[1] on hip 2, physical legs) is called
+    at every right-hand-side evaluation, or once per ``control_period`` and held (zero-order hold,
+    as the node does; the torque is held through an impact inside the period). ``mu=None`` means
+    enough friction. ``options`` are the fields of :class:`Options` (``base``, ``phases``,
+    ``touchdown_rule``, ``stop_on_slip``, ``project_constraints``, ``step`` for fixed-step methods,
+    ``slope``, ...). A run that leaves the scene's assumptions or whose integration fails ends with
+    ``result.status`` "stopped" or "failed", a final event, and ``result.message``; bad arguments
+    raise ``ValueError``.
+    """
+    if not (isinstance(t_final, (int, float)) and math.isfinite(t_final) and t_final >= 0):
+        raise ValueError(f"t_final must be a finite number >= 0, got {t_final!r}")
+    if control_period is not None and not (isinstance(control_period, (int, float)) and control_period > 0):
+        raise ValueError(f"control_period must be None or a positive number of seconds, got {control_period!r}")
+    if controller is not None and not callable(controller):
+        raise ValueError("controller must be callable as controller(t, q, dq, stance_leg) -> u")
+    sim = HybridSimulator(model, q0, dq0, stance_leg, rtol, atol, method, mu, **options)
+    if controller is None or control_period is None:
+        sim.advance(t_final, controller=controller)
+    else:
+        while sim.status == "running" and sim.t < t_final:
+            sim.advance_period(control_period, controller=controller, t_final=t_final)
+    return sim.result()

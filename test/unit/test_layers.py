@@ -1,0 +1,79 @@
+"""The package tree is the architecture: each layer imports only from the layers before it.
+
+    engine <- control <- config <- analysis, recording <- ros <- cli
+
+Every import counts, also one inside a function (a lazy import is still a dependency), and the
+engine imports nothing but the standard library, numpy and scipy (no ROS, not even lazily).
+"""
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[2] / "biped_sim"
+LEVEL = {"engine": 0, "control": 1, "config": 2, "analysis": 3, "recording": 3, "ros": 4, "cli": 5}
+ENGINE_THIRD_PARTY = {"numpy", "scipy"}
+
+
+def _imports(path):
+    """(line, module) of every import in a file, relative imports resolved."""
+    tree = ast.parse(path.read_text(), str(path))
+    package = ".".join(path.relative_to(PACKAGE.parent).with_suffix("").parts[:-1])
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield node.lineno, alias.name
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                yield node.lineno, ".".join(base + ([node.module] if node.module else []))
+            else:
+                yield node.lineno, node.module
+
+
+def _layer(module):
+    parts = module.split(".")
+    return parts[1] if parts[0] == "biped_sim" and len(parts) > 1 and parts[1] in LEVEL else None
+
+
+def test_every_layer_imports_only_from_the_layers_before_it():
+    wrong = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        rel = path.relative_to(PACKAGE)
+        if len(rel.parts) == 1:          # biped_sim/__init__.py re-exports the public API
+            continue
+        own = rel.parts[0]
+        for line, module in _imports(path):
+            target = _layer(module)
+            if target is not None and target != own and LEVEL[target] >= LEVEL[own]:
+                wrong.append(f"{rel}:{line} ({own}) imports {module} ({target})")
+    assert not wrong, "imports against the layer order:\n" + "\n".join(wrong)
+
+
+def test_the_engine_imports_only_the_standard_library_numpy_and_scipy():
+    wrong = []
+    for path in sorted((PACKAGE / "engine").rglob("*.py")):
+        for line, module in _imports(path):
+            top = module.split(".")[0]
+            if top == "biped_sim":
+                if _layer(module) != "engine":
+                    wrong.append(f"{path.relative_to(PACKAGE)}:{line} imports {module}")
+            elif top not in ENGINE_THIRD_PARTY and top not in sys.stdlib_module_names and top != "__future__":
+                wrong.append(f"{path.relative_to(PACKAGE)}:{line} imports {module}")
+    assert not wrong, "the engine imports outside numpy, scipy and the standard library:\n" + "\n".join(wrong)
+
+
+def test_a_whole_scene_runs_with_rclpy_and_mcap_absent():
+    code = ("import sys\n"
+            "for name in ('rclpy', 'mcap', 'mcap_ros2', 'rosbags', 'sensor_msgs', 'std_msgs'):\n"
+            "    sys.modules[name] = None   # any import of them raises ImportError\n"
+            "import biped_sim as bs\n"
+            "r = bs.load_scene('walk').simulate(t_final=1)\n"
+            "print(r.status, len(r.impacts))\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'mcap', 'rosidl_runtime_py')"
+            " and sys.modules[m] is not None))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    status, impacts = out.stdout.splitlines()[0].split()
+    assert status == "completed" and int(impacts) >= 2, out.stdout
+    assert out.stdout.splitlines()[1] == "[]", out.stdout
