@@ -116,12 +116,13 @@ def stance_dynamics(model: BipedModel, q, dq, u=None, stance_leg=1, base="floati
         # fast path: the generated closed form straight on the arrays' lists; anything it cannot
         # take (lists, wrong sizes, nested arrays) raises here and goes through the checks below
         try:
-            ddq, F = stance_floating_fast(model, q.tolist(), dq.tolist(),
-                                          [0.0, 0.0] if u is None else u.tolist(), stance_leg)
+            ql, dql, ul = q.tolist(), dq.tolist(), [0.0, 0.0] if u is None else u.tolist()
+            ddq, F = stance_floating_fast(model, ql, dql, ul, stance_leg)
         except (AttributeError, TypeError, ValueError):
             pass
         else:
-            if math.isfinite(ddq[0] + ddq[1] + ddq[2] + ddq[3] + ddq[4] + F[0] + F[1]):
+            # x and y do not enter the dynamics: check the inputs too, not only the outputs
+            if math.isfinite(ddq[0] + ddq[1] + ddq[2] + ddq[3] + ddq[4] + F[0] + F[1] + sum(ql) + sum(dql)):
                 return np.array(ddq), np.array(F)
     if base not in ("floating", "fixed"):
         raise ValueError(f"base must be 'floating' or 'fixed', got {base!r}")

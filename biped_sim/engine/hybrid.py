@@ -27,6 +27,7 @@ is set so that J dq = 0 -- and the drift seen *before* the projection is reporte
 from __future__ import annotations
 
 import math
+import numbers
 import time
 
 import numpy as np
@@ -37,10 +38,14 @@ from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
 from biped_sim.engine.integrators import ADAPTIVE_METHODS, FIXED_STEP_METHODS, METHODS, StepFailure, make_stepper
 from biped_sim.engine.model import BipedModel, as_state_vector
 from biped_sim.engine.modes import bind_controller, mode_functions, two_finite_floats
-from biped_sim.engine.options import Options
+from biped_sim.engine.options import Options, check_number
 from biped_sim.engine.resets import liftoff_reset, slip_event, touchdown_reset
 from biped_sim.engine.results import (IMPACT_KINDS, Event, SceneAssumptionError, SimulationError,
                                       SimulationResult)
+
+
+#: the smallest relative tolerance the adaptive methods accept (100 eps, as scipy's solvers)
+MIN_RTOL = 100 * np.finfo(float).eps
 
 
 class HybridSimulator:
@@ -63,16 +68,19 @@ class HybridSimulator:
             raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
         if method in FIXED_STEP_METHODS and not self.opt.step:
             raise ValueError(f"method {method!r} is fixed-step: give step=<seconds>")
-        for name, v in (("rtol", rtol), ("atol", atol)):
-            if method in ADAPTIVE_METHODS and not (isinstance(v, (int, float)) and 0 < v < 1):
-                raise ValueError(f"{name} must be a number in (0, 1), got {v!r}")
-        if mu is not None and not (isinstance(mu, (int, float)) and mu >= 0 and math.isfinite(mu)):
-            raise ValueError(f"mu must be None or a finite number >= 0, got {mu!r}")
+        if method in ADAPTIVE_METHODS:
+            # below ~100 eps a step's error estimate is roundoff: the tolerance cannot be met
+            check_number("rtol", rtol, MIN_RTOL, 1.0, f"relative; double precision delivers no less than {MIN_RTOL:.3g}",
+                         open_high=True)
+            check_number("atol", atol, 0.0, 1.0, "absolute", open_low=True, open_high=True)
+        if mu is not None:
+            check_number("mu", mu, 0.0, math.inf, "friction coefficient, or None for enough friction")
         self.method, self.rtol, self.atol, self.mu = method, rtol, atol, mu
         q0 = as_state_vector(q0, "q0")
         dq0 = as_state_vector(dq0, "dq0")
-        if stance_leg not in (0, 1, 2):
+        if isinstance(stance_leg, bool) or not isinstance(stance_leg, (int, np.integer)) or stance_leg not in (0, 1, 2):
             raise ValueError(f"stance_leg must be 1, 2 or 0 (flight), got {stance_leg!r}")
+        stance_leg = int(stance_leg)
         if stance_leg == 0 and "flight" not in self.opt.phases:
             raise ValueError("stance_leg=0 starts in flight, but the phases do not include 'flight'")
         if stance_leg != 0 and "stance" not in self.opt.phases:
@@ -144,6 +152,8 @@ class HybridSimulator:
     # -- main loop ----------------------------------------------------------------------------
     def advance(self, t_end, u=None, controller=None):
         """Integrate to ``t_end`` (or until the run stops); returns the events of this interval."""
+        if not (isinstance(t_end, numbers.Real) and not isinstance(t_end, bool) and math.isfinite(t_end)):
+            raise ValueError(f"t_end must be a finite number of seconds, got {t_end!r}")
         if self.status != "running":
             return []
         if u is not None:   # (plain float checks: the node calls this every control period)

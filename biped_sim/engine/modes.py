@@ -46,11 +46,13 @@ def bind_controller(controller, stance_leg):
     round trip)."""
     if controller is None:
         return None
-    if not getattr(controller, "accepts_lists", False):
-        return lambda t, q, dq: checked_torques(controller(t, np.array(q), np.array(dq), stance_leg), t)
+    lists = getattr(controller, "accepts_lists", False)
 
     def call(t, q, dq):   # at every right-hand-side evaluation: one check, the message only on failure
-        u = controller(t, q, dq, stance_leg)
+        try:
+            u = controller(t, q, dq, stance_leg) if lists else controller(t, np.array(q), np.array(dq), stance_leg)
+        except Exception as exc:   # a fault of the user's code ends the run "failed", with its message
+            raise SimulationError(f"the controller raised {type(exc).__name__} at t={t:.9g} s: {exc}") from exc
         v = two_finite_floats(u)
         return v if v is not None else checked_torques(u, t)
     return call

@@ -1,6 +1,8 @@
 """The options of a hybrid run (``Options``): which phases, which guards, which tolerances."""
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,3 +44,32 @@ class Options:
             raise ValueError("the fixed-base method has no flight phase: use base='floating' or drop 'flight'")
         if self.touchdown_rule not in ("front", "any"):
             raise ValueError(f"touchdown_rule must be 'front' or 'any', got {self.touchdown_rule!r}")
+        check_number("slope", self.slope, -math.pi / 2, math.pi / 2, "rad, strictly between -pi/2 and pi/2",
+                     open_low=True, open_high=True)
+        for name, low, what in (("event_tol", 0.0, "s"), ("contact_tol", 0.0, "m and m/s"),
+                                ("zeno_interval", 0.0, "s"), ("max_speed", 0.0, "m/s and rad/s"),
+                                ("max_penetration", 0.0, "m")):
+            check_number(name, getattr(self, name), low, math.inf, what, open_low=True)
+        for name, what in (("arm_height", "m"), ("simultaneous_tol", "s")):
+            check_number(name, getattr(self, name), 0.0, math.inf, what)
+        check_number("max_step", self.max_step, 0.0, math.inf, "s, or inf for no limit", open_low=True,
+                     allow_inf=True)
+        if self.step is not None:
+            check_number("step", self.step, 0.0, math.inf, "s", open_low=True)
+        for name in ("max_events", "zeno_count"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 1:
+                raise ValueError(f"{name} must be a whole number >= 1, got {v!r}")
+
+
+def check_number(name, value, low, high, what, open_low=False, open_high=False, allow_inf=False):
+    """A ValueError naming ``name`` unless ``value`` is a real number (not a bool) in the range."""
+    ok = isinstance(value, numbers.Real) and not isinstance(value, bool)
+    if ok:
+        v = float(value)
+        ok = (math.isfinite(v) or allow_inf and v == math.inf) and (v > low if open_low else v >= low) and (
+            v < high if open_high else v <= high)
+    if not ok:
+        lo = "(" if open_low else "["
+        hi = ")" if open_high or high == math.inf else "]"
+        raise ValueError(f"{name} must be a number in {lo}{low:g}, {high:g}{hi} ({what}), got {value!r}")

@@ -7,6 +7,7 @@ import numpy as np
 
 from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.engine.model import BipedModel, as_state_vector
+from biped_sim.engine.options import check_number
 from biped_sim.engine.results import SimulationResult
 
 
@@ -38,10 +39,12 @@ def simulate(model, q0, dq0, t_final, controller=None, stance_leg=1, rtol=1e-9, 
     ``result.status`` "stopped" or "failed", a final event, and ``result.message``; bad arguments
     raise ``ValueError``.
     """
-    if not (isinstance(t_final, (int, float)) and math.isfinite(t_final) and t_final >= 0):
-        raise ValueError(f"t_final must be a finite number >= 0, got {t_final!r}")
-    if control_period is not None and not (isinstance(control_period, (int, float)) and control_period > 0):
-        raise ValueError(f"control_period must be None or a positive number of seconds, got {control_period!r}")
+    check_number("t_final", t_final, 0.0, math.inf, "s")
+    if control_period is not None:
+        check_number("control_period", control_period, 0.0, math.inf, "s", open_low=True)
+        if controller is None:
+            raise ValueError("control_period needs a controller to hold once per period: give "
+                             "controller=..., or leave control_period out for u = 0")
     if controller is not None and not callable(controller):
         raise ValueError("controller must be callable as controller(t, q, dq, stance_leg) -> u")
     sim = HybridSimulator(model, q0, dq0, stance_leg, rtol, atol, method, mu, **options)

@@ -1,0 +1,105 @@
+"""Hybrid edges (issue 14): bad arguments are refused before a run, a controller fault ends the run
+"failed" with its message in both control modes, and no run ends "completed" with a wrong answer."""
+import math
+
+import numpy as np
+import pytest
+
+import biped_sim as bs
+
+MODEL = bs.BipedModel()
+WALKER = bs.WalkingController(MODEL)
+Q0, DQ0 = WALKER.initial_state()
+
+
+def _run(t_final=0.05, **kw):
+    return bs.simulate(MODEL, Q0, DQ0, t_final, **kw)
+
+
+@pytest.mark.parametrize("index, vector, value", [(0, "q", math.nan), (1, "q", math.nan),
+                                                  (0, "dq", math.inf), (1, "dq", -math.inf)])
+def test_stance_dynamics_refuses_non_finite_base_coordinates(index, vector, value):
+    # x, y and their rates do not enter the dynamics, so the closed form alone would not notice
+    q, dq = Q0.copy(), DQ0.copy()
+    (q if vector == "q" else dq)[index] = value
+    with pytest.raises(ValueError, match=rf"{vector} has non-finite entries at index \[{index}\]"):
+        bs.stance_dynamics(MODEL, q, dq)
+
+
+BAD_TORQUES = ["ab", {"a": 1.0}, 1 + 2j, [1.0], [1.0, 2.0, 3.0], [math.nan, 0.0], None]
+
+
+@pytest.mark.parametrize("control_period", [None, 0.01])
+@pytest.mark.parametrize("bad", BAD_TORQUES, ids=repr)
+def test_a_controller_returning_anything_but_two_finite_torques_fails_the_run(bad, control_period):
+    r = _run(controller=lambda *a: bad, control_period=control_period)
+    assert r.status == "failed"
+    assert f"the controller returned {bad!r}" in r.message and "two finite torques" in r.message
+    assert r.events[-1].kind == "error"
+
+
+@pytest.mark.parametrize("control_period", [None, 0.01])
+def test_a_controller_that_raises_fails_the_run_with_its_message(control_period):
+    def controller(t, q, dq, stance_leg):
+        if t > 0.02:
+            raise RuntimeError("gain table missing")
+        return [0.0, 0.0]
+    r = _run(controller=controller, control_period=control_period)
+    assert r.status == "failed"
+    assert "the controller raised RuntimeError" in r.message and "gain table missing" in r.message
+    # the run stops at the last accepted state before the fault (continuous feedback: the start of
+    # the step in which a stage asked past t = 0.02; held torque: the period that would start after it)
+    assert r.t[-1] <= 0.03 and (control_period is None or r.t[-1] >= 0.02)
+
+
+@pytest.mark.parametrize("name, value, allowed", [
+    ("slope", math.nan, "strictly between -pi/2 and pi/2"), ("slope", math.inf, "pi/2"),
+    ("slope", math.pi / 2, "pi/2"), ("slope", -2.0, "pi/2"),
+    ("event_tol", -1e-12, "event_tol"), ("event_tol", math.nan, "event_tol"),
+    ("max_step", -1.0, "max_step"), ("max_step", math.nan, "max_step"),
+    ("arm_height", -1e-9, "arm_height"), ("arm_height", math.nan, "arm_height"),
+    ("contact_tol", -1e-6, "contact_tol"), ("contact_tol", math.nan, "contact_tol"),
+    ("max_events", 0, "max_events"), ("zeno_count", 2.5, "zeno_count"),
+])
+def test_options_out_of_range_are_refused_by_name(name, value, allowed):
+    with pytest.raises(ValueError, match=rf"{name} must be .*got {value!r}".replace("(", r"\(").replace(")", r"\)")):
+        _run(**{name: value})
+    with pytest.raises(ValueError, match=allowed.replace("(", r"\(")):
+        _run(**{name: value})
+
+
+@pytest.mark.parametrize("step", [-1e-3, 0.0, math.nan, math.inf])
+def test_a_fixed_step_method_refuses_a_step_that_is_not_positive_and_finite(step):
+    with pytest.raises(ValueError, match="step must be a number in"):
+        _run(method="rk4", step=step)
+
+
+def test_rtol_below_double_precision_is_refused():
+    with pytest.raises(ValueError, match="rtol .*double precision"):
+        _run(rtol=1e-20, atol=1e-20)
+    assert _run(rtol=1e-13, atol=1e-13).status == "completed"
+
+
+def test_t_final_accepts_numpy_numbers_and_refuses_booleans():
+    assert _run(t_final=np.int64(0)).status == "completed"
+    assert _run(t_final=np.float64(0.01)).t[-1] == 0.01
+    with pytest.raises(ValueError, match="t_final .*got True"):
+        _run(t_final=True)
+
+
+@pytest.mark.parametrize("leg", [1.0, True, "1", 3, -1])
+def test_stance_leg_must_be_the_integer_0_1_or_2(leg):
+    with pytest.raises(ValueError, match="stance_leg must be 1, 2 or 0"):
+        _run(stance_leg=leg)
+
+
+def test_control_period_without_a_controller_is_refused():
+    with pytest.raises(ValueError, match="control_period needs a controller"):
+        _run(control_period=0.01)
+
+
+@pytest.mark.parametrize("t_end", [math.nan, math.inf, "1", None])
+def test_advance_refuses_a_time_that_is_not_a_finite_number(t_end):
+    sim = bs.HybridSimulator(MODEL, Q0, DQ0)
+    with pytest.raises(ValueError, match="t_end must be a finite number"):
+        sim.advance(t_end)
