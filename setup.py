@@ -12,19 +12,26 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/msg_configs", glob("msg_configs/*.yaml")),
+        ("share/" + package_name + "/launch", glob("launch/*.launch.py")),
     ],
     # the compiled twin of the generated code (biped_sim/engine/compiled.py): optional, so that a machine
     # without a C compiler still installs and runs the same code in Python, several times slower;
     # no floating-point contraction, so that its results are the Python code's bits
     ext_modules=[Extension("biped_sim.engine._gen._cmodel", ["biped_sim/engine/_gen/_cmodel.c"],
                            extra_compile_args=["-O2", "-ffp-contract=off"], optional=True)],
-    install_requires=["setuptools", "numpy", "scipy"],
+    # every third-party import of the installed package; ROS packages (rclpy, the message packages,
+    # ament_index_python) come from a ROS installation and are declared in package.xml instead
+    install_requires=["numpy", "scipy", "PyYAML", "mcap"],
+    extras_require={
+        # imported only where a figure is drawn (biped-sim inspect, biped-sim accuracy)
+        "plot": ["matplotlib"],
+    },
+    # the test environment (pytest, the independent bag readers, colcon, ruff) is pinned in requirements.txt
     zip_safe=True,
     maintainer="biped_sim team",
     maintainer_email="biped_sim@example.com",
     description="Exact hybrid-dynamics simulator of a planar three-link biped, as an rclpy node.",
     license="Apache-2.0",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "biped-sim = biped_sim.cli:main",
