@@ -32,14 +32,14 @@ import timeit
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from biped_sim.config.parameters import AUTO_DOPRI5_MAX_PERIOD
+from biped_sim.control.walking import PDWalkingController
 from biped_sim.engine._gen import closed_forms as _generated
 from biped_sim.engine.compiled import IMPLEMENTATION, WHY_PYTHON
-from biped_sim.control.walking import PDWalkingController
 from biped_sim.engine.dynamics import impact_map, stance_dynamics, stance_floating_fast
 from biped_sim.engine.hybrid import HybridSimulator
-from biped_sim.engine.simulate import simulate
-from biped_sim.config.parameters import AUTO_DOPRI5_MAX_PERIOD
 from biped_sim.engine.model import BipedModel
+from biped_sim.engine.simulate import simulate
 
 # a fine ladder (ratio about 1.4 between rungs) so that neither method is charged for more accuracy
 # than the target asks: each runs at its loosest rung that reaches TARGET_ERROR
@@ -65,9 +65,12 @@ def bench_stance(model):
     ql, dql = q.tolist(), dq.tolist()
     rows = [
         ("stance_dynamics (public API, numpy in/out)", _median_us(lambda: stance_dynamics(model, q, dq, u), 20000)),
-        ("stance_floating_fast (engine hot path, lists)", _median_us(lambda: stance_floating_fast(model, ql, dql, (0.0, 0.0)), 20000)),
-        ("the same closed form in Python (_generated.py)", _median_us(lambda: _generated.stance_floating_1(ql, dql, (0.0, 0.0), model.k_stance), 20000)),
-        ("stance_dynamics(base='fixed') (pinned chain)", _median_us(lambda: stance_dynamics(model, q, dq, u, base="fixed"), 20000)),
+        ("stance_floating_fast (engine hot path, lists)",
+         _median_us(lambda: stance_floating_fast(model, ql, dql, (0.0, 0.0)), 20000)),
+        ("the same closed form in Python (closed_forms.py)",
+         _median_us(lambda: _generated.stance_floating_1(ql, dql, (0.0, 0.0), model.k_stance), 20000)),
+        ("stance_dynamics(base='fixed') (pinned chain)",
+         _median_us(lambda: stance_dynamics(model, q, dq, u, base="fixed"), 20000)),
         ("literal 7x7 KKT with np.linalg.solve", _median_us(literal_kkt, 2000)),
     ]
     print("\n== stance dynamics, median per call (7 repeats) ==")
@@ -126,7 +129,8 @@ def walk_engine(model, ctrl, q0, dq0, t_final, rtol, atol):
 def bench_walk(model, repeats=3, t_final=10.0):
     ctrl = PDWalkingController(model)
     q0, dq0 = ctrl.initial_state()
-    print(f"\n== {t_final:g} s walk (PD walking law, continuous feedback) to a final-state error of {TARGET_ERROR:g} ==")
+    print(f"\n== {t_final:g} s walk (PD walking law, continuous feedback) to a final-state error of "
+          f"{TARGET_ERROR:g} ==")
     ref, n_ref, _, _ = walk_engine(model, ctrl, q0, dq0, t_final, 1e-13, 1e-13)
     ref_ivp, n_ivp, _ = walk_solve_ivp(model, ctrl, q0, dq0, t_final, 1e-13, 1e-13)
     ref_err = np.max(np.abs(ref - ref_ivp))

@@ -200,7 +200,8 @@ def bench_realtime(seconds=5.0, rate=1000.0):
     sim = [(a[1].sec + a[1].nanosec * 1e-9) for a in arrivals]
     node_line = next((ln.split("realtime figures: ", 1)[1] for ln in log.splitlines() if "realtime figures" in ln),
                      "(none)")
-    return dict(node=node_line, rate=len(periods) / (times[-1] - times[0]), target=rate, jitter_p50=_percentile(jitter, 50),
+    return dict(node=node_line, rate=len(periods) / (times[-1] - times[0]), target=rate,
+                jitter_p50=_percentile(jitter, 50),
                 jitter_p99=_percentile(jitter, 99), period_p50=_percentile(periods, 50),
                 period_p99=_percentile(periods, 99), rtf=(sim[-1] - sim[0]) / (times[-1] - times[0]),
                 lag_warnings=log.count("cannot keep up"))
@@ -295,7 +296,8 @@ def main(argv=None):
             print(f"{name}: {r['error']}\n{r.get('log', '')[-3000:]}")
         else:
             print(f"{name}: {r['rate']:.0f} steps/s (runs: {r['parts']}), round trip p50 {r['rtt_p50'] * 1e3:.3f} ms, "
-                  f"p99 {r['rtt_p99'] * 1e3:.3f} ms ({r['steps']} steps; controller {r['ctrl_mean'] * 1e3:.3f} ms/step)")
+                  f"p99 {r['rtt_p99'] * 1e3:.3f} ms ({r['steps']} steps; "
+                  f"controller {r['ctrl_mean'] * 1e3:.3f} ms/step)")
             if r.get("node"):
                 print(f"    node: {r['node']}")
     if "error" not in bare and "error" not in sim:

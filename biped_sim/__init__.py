@@ -14,12 +14,12 @@ The public API is re-exported here: ``import biped_sim as bs; bs.load_scene("wal
 """
 __version__ = "0.1.0"
 
-from biped_sim.engine.model import BipedModel, BipedParameters
+from biped_sim.config.scenes import Scene, available_scenes, load_scene
+from biped_sim.control.walking import PDWalkingController, WalkingController
 from biped_sim.engine.dynamics import flight_dynamics, impact_map, relabel, stance_dynamics
 from biped_sim.engine.hybrid import Event, HybridSimulator, Options, SimulationResult
+from biped_sim.engine.model import BipedModel, BipedParameters
 from biped_sim.engine.simulate import simulate, stance_state
-from biped_sim.control.walking import PDWalkingController, WalkingController
-from biped_sim.config.scenes import Scene, available_scenes, load_scene
 
 __all__ = ["BipedModel", "BipedParameters", "stance_dynamics", "impact_map", "relabel", "flight_dynamics",
            "HybridSimulator", "Options", "Event", "SimulationResult", "simulate", "stance_state",

@@ -2,7 +2,8 @@
 """Generate biped_sim/engine/_gen/rk_steps.py: one step of each explicit Runge-Kutta pair, unrolled over lists.
 
 Run whenever a tableau changes (never, in practice; ``make generate`` runs it). The coefficients
-are scipy's (the public class attributes of ``scipy.integrate.DOP853`` and ``RK45``): Dormand-Prince 8(5,3) as in scipy's ``DOP853`` and
+are scipy's (the public class attributes of ``scipy.integrate.DOP853`` and ``RK45``):
+Dormand-Prince 8(5,3) as in scipy's ``DOP853`` and
 Dormand-Prince 5(4) as in scipy's ``RK45``, with the same error norms and step control.
 
 Why generated and unrolled: the engine's states have 7 or 11 entries, and for vectors that short
@@ -14,7 +15,7 @@ conversion at all.
 """
 import pathlib
 
-from scipy.integrate import DOP853, RK45   # their public coefficient tables
+from scipy.integrate import DOP853, RK45  # their public coefficient tables
 
 OUT = pathlib.Path(__file__).resolve().parent.parent / "biped_sim" / "engine" / "_gen" / "rk_steps.py"
 UNROLLED = (7, 11)   # the engine's state sizes: fixed-base stance; floating base (with the work)

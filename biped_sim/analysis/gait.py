@@ -177,7 +177,8 @@ def scene_gait(scene) -> Gait:
 
 def format_gait(g: Gait) -> str:
     rows = [
-        ("fixed point z*", "[" + ", ".join(f"{v:.6f}" for v in g.z) + "]  (q_st, q_sw, q3, dq_st, dq_sw, dq3 after impact)"),
+        ("fixed point z*", "[" + ", ".join(f"{v:.6f}" for v in g.z)
+         + "]  (q_st, q_sw, q3, dq_st, dq_sw, dq3 after impact)"),
         ("|P(z*) - z*|", f"{g.residual:.2e}  ({g.newton_iterations} Newton iterations)"),
         ("step length", f"{g.step_length:.4f} m"),
         ("step period", f"{g.step_period:.4f} s"),

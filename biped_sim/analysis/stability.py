@@ -23,8 +23,8 @@ import numpy as np
 
 from biped_sim.control.walking import WalkingController
 from biped_sim.engine.hybrid import HybridSimulator
-from biped_sim.engine.simulate import simulate, stance_state
 from biped_sim.engine.model import BipedModel
+from biped_sim.engine.simulate import simulate, stance_state
 
 #: deliberately broken settings, each with the case it must make FAIL
 BREAKS = {
@@ -128,7 +128,7 @@ def case_stiff_pd(quick, broken):
         ok = ("radau" in done and "bdf" in done and spread <= 1e-4
               and all(_finite(v[0]) or v[0].status == "failed" for v in runs.values())
               and all(_clear(v[0]) for v in runs.values()))
-        for k, (r, w) in runs.items():
+        for k, (r, _wall) in runs.items():
             if k in done:
                 ok = ok and _invariants(m, r, drift_tol=1e-6, energy_rtol=1e-5)[0]
         figs = "; ".join(f"{k} {r.stats['steps']} steps {r.stats['rhs_evaluations']} rhs {w:.2f} s"
@@ -356,7 +356,8 @@ def case_long_passive(quick, broken):
     ok = ok and r.status == "completed" and not r.events
     eb = r.stats["max_energy_balance_residual"]
     return [Verdict("long", f"passive spin {T:g} s", ok,
-                    f"{r.stats['steps']} steps, {len(r.events)} events; {figs}; growth {eb / T:.2g} J/s", time.perf_counter() - t0)]
+                    f"{r.stats['steps']} steps, {len(r.events)} events; {figs}; growth {eb / T:.2g} J/s",
+                    time.perf_counter() - t0)]
 
 
 # -- bad numbers ----------------------------------------------------------------------------------

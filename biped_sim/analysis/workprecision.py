@@ -10,7 +10,8 @@ Owns the accuracy benchmark behind ``biped-sim accuracy`` (issue 5). Every integ
   * ``drop``          from flight (``stance_leg=0``), u = 0, 0.9 s: lands on foot 1 and falls in stance.
 
 Errors are measured against a reference run (``dop853`` at rtol = atol = 1e-13) whose own 7th-order
-dense output is kept for every step, so that it can be evaluated at any time. The reference's own error is estimated by a second, independent run
+dense output is kept for every step, so that it can be evaluated at any time. The reference's own
+error is estimated by a second, independent run
 (``radau``, an implicit collocation method, or ``scipy_dop853``, scipy's separate implementation)
 measured exactly like a test run. Per run:
 
@@ -46,9 +47,9 @@ from scipy.integrate import solve_ivp
 from biped_sim.control.walking import WalkingController
 from biped_sim.engine.dynamics import stance_floating_fast
 from biped_sim.engine.hybrid import HybridSimulator
-from biped_sim.engine.simulate import simulate, stance_state
 from biped_sim.engine.integrators import FIXED_STEP_METHODS
 from biped_sim.engine.model import BipedModel
+from biped_sim.engine.simulate import simulate, stance_state
 
 DEFAULT = ("dop853", 1e-9)  # simulate()'s default: method dop853, rtol = atol = 1e-9
 
@@ -260,7 +261,8 @@ def run_benchmark(quick=False, repeats=None, progress=True, cases_filter=None):
         prog(f"{case.name}: second reference {second[0]} rtol {second[1]:g}")
         r2, wall2 = run_case(model, case, *second)
         e_end, e_run, e_ev, match = ref.compare(trajectory(r2))
-        refs[case.name] = dict(case=case.name, description=case.description, reference=f"dop853 rtol=atol={ref_tol:g}", second=f"{second[0]} rtol=atol={second[1]:g}",
+        refs[case.name] = dict(case=case.name, description=case.description,
+                               reference=f"dop853 rtol=atol={ref_tol:g}", second=f"{second[0]} rtol=atol={second[1]:g}",
                                err_end=e_end, err_run=e_run, err_event=e_ev, impacts=len(ref.traj.event_times),
                                ref_time=wall_ref, ref_steps=r_ref.stats["steps"], second_time=wall2,
                                second_steps=r2.stats["steps"], match=match)

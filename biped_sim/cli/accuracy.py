@@ -37,7 +37,8 @@ def run(args):
     front = wp.front(rows)
     md += "\n### On the front (no other run both faster and more accurate over the run)\n\n"
     for case, pts in front.items():
-        md += f"- {case}: " + ", ".join(f"{r['method']} {r['setting']}" for r in sorted(pts, key=lambda r: r['time'])) + "\n"
+        by_time = sorted(pts, key=lambda r: r["time"])
+        md += f"- {case}: " + ", ".join(f"{r['method']} {r['setting']}" for r in by_time) + "\n"
     with open(os.path.join(args.out, "accuracy.md"), "w") as f:
         f.write(md)
     wp.write_csv(rows, os.path.join(args.out, "accuracy.csv"))

@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 
-from biped_sim.engine.compiled import WHY_PYTHON
 from biped_sim.control.walking import WalkingController
-from biped_sim.engine.simulate import simulate
+from biped_sim.engine.compiled import WHY_PYTHON
 from biped_sim.engine.integrators import FIXED_STEP_METHODS, METHODS
 from biped_sim.engine.model import BipedModel
+from biped_sim.engine.simulate import simulate
 
 
 def _floats(n):
@@ -18,7 +18,7 @@ def _floats(n):
         try:
             vals = [float(v) for v in text.replace(",", " ").split()]
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {n} numbers, got {text!r}")
+            raise argparse.ArgumentTypeError(f"expected {n} numbers, got {text!r}") from None
         if len(vals) != n:
             raise argparse.ArgumentTypeError(f"expected {n} numbers, got {len(vals)} in {text!r}")
         return vals
@@ -37,7 +37,8 @@ def register(sub):
                    help="run a scene (msg_configs/NAME.yaml or a YAML path): its initial state, phases, options "
                         "and controller, torques held over its control_period as the node does; --duration "
                         "overrides its duration, --continuous feeds back continuously; other options are ignored")
-    p.add_argument("--continuous", action="store_true", help="with --scene: continuous feedback instead of held torques")
+    p.add_argument("--continuous", action="store_true",
+                   help="with --scene: continuous feedback instead of held torques")
     p.add_argument("--duration", type=float, default=None, help="simulated time (s) [default: 10, or the scene's]")
     p.add_argument("--q0", type=_floats(5), help="initial q = 'x y q1 q2 q3' (m, rad), physical coordinates")
     p.add_argument("--dq0", type=_floats(5), help="initial dq (m/s, rad/s)")

@@ -11,9 +11,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from biped_sim.engine.options import PHASES
 from biped_sim.engine.integrators import FIXED_STEP_METHODS, METHODS
 from biped_sim.engine.model import BipedParameters
+from biped_sim.engine.options import PHASES
 
 CONTRACT_NAMES = ("time_mode", "control_period", "initial_q", "initial_dq", "initial_stance_leg",
                   "rtol", "atol", "duration")

@@ -28,7 +28,8 @@ def _compiled_twin():
     try:
         from biped_sim.engine._gen import _cmodel
     except ImportError:
-        return None, "the compiled twin biped_sim/engine/_gen/_cmodel was not built: install gcc and the Python headers, then make venv"
+        return None, ("the compiled twin biped_sim/engine/_gen/_cmodel was not built: install gcc and the Python "
+                      "headers, then make venv")
     digest = hashlib.sha256(b"".join(Path(m.__file__).read_bytes() for m in SOURCES)).hexdigest()
     if _cmodel.SOURCE_SHA256 != digest:
         return None, "the compiled twin is older than the generated Python code; rebuild it: make venv"

@@ -40,9 +40,7 @@ from biped_sim.engine.model import BipedModel, as_state_vector
 from biped_sim.engine.modes import bind_controller, mode_functions, two_finite_floats
 from biped_sim.engine.options import Options, check_number
 from biped_sim.engine.resets import liftoff_reset, slip_event, touchdown_reset
-from biped_sim.engine.results import (IMPACT_KINDS, Event, SceneAssumptionError, SimulationError,
-                                      SimulationResult)
-
+from biped_sim.engine.results import IMPACT_KINDS, Event, SceneAssumptionError, SimulationError, SimulationResult
 
 #: the smallest relative tolerance the adaptive methods accept (100 eps, as scipy's solvers)
 MIN_RTOL = 100 * np.finfo(float).eps
@@ -70,8 +68,8 @@ class HybridSimulator:
             raise ValueError(f"method {method!r} is fixed-step: give step=<seconds>")
         if method in ADAPTIVE_METHODS:
             # below ~100 eps a step's error estimate is roundoff: the tolerance cannot be met
-            check_number("rtol", rtol, MIN_RTOL, 1.0, f"relative; double precision delivers no less than {MIN_RTOL:.3g}",
-                         open_high=True)
+            check_number("rtol", rtol, MIN_RTOL, 1.0,
+                         f"relative; double precision delivers no less than {MIN_RTOL:.3g}", open_high=True)
             check_number("atol", atol, 0.0, 1.0, "absolute", open_low=True, open_high=True)
         if mu is not None:
             check_number("mu", mu, 0.0, math.inf, "friction coefficient, or None for enough friction")

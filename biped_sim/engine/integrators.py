@@ -26,8 +26,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.integrate import BDF, DOP853 as _ScipyDOP853, RK45, Radau
-from scipy.integrate import DOP853 as _SCIPY_DOP853   # its public coefficient tables only
+from scipy.integrate import (
+    BDF,
+    DOP853 as _SCIPY_DOP853,  # its public coefficient tables only
+    DOP853 as _ScipyDOP853,
+    RK45,
+    Radau,
+)
 
 from biped_sim.engine.compiled import rk as _rk
 
@@ -141,7 +146,8 @@ class _ListRungeKutta(_Stepper):
             if err < 1.0:
                 if not math.isfinite(sum(y_new)):
                     raise StepFailure(f"the state became non-finite at t={t + h:.9g} s")
-                factor = self.MAX_FACTOR if err == 0.0 else min(self.MAX_FACTOR, self.SAFETY * err ** self.error_exponent)
+                factor = (self.MAX_FACTOR if err == 0.0
+                          else min(self.MAX_FACTOR, self.SAFETY * err ** self.error_exponent))
                 if rejected:
                     factor = min(1.0, factor)
                 self.h_abs = h_abs * factor

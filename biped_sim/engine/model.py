@@ -150,7 +150,8 @@ class BipedModel:
     def foot_velocity(self, q, dq, leg: int) -> np.ndarray:
         leg = check_leg(leg)
         q, dq = as_state_vector(q, "q"), as_state_vector(dq, "dq")
-        return np.array(gen.foot_kinematics(q.tolist(), dq.tolist(), self.k["foot_kinematics"])[2 * leg + 2: 2 * leg + 4])
+        v = gen.foot_kinematics(q.tolist(), dq.tolist(), self.k["foot_kinematics"])
+        return np.array(v[2 * leg + 2: 2 * leg + 4])
 
     # -- energy (kept so that tests and run statistics can check conservation) ---------------------
     def kinetic_energy(self, q, dq) -> float:

@@ -115,7 +115,9 @@ def test_bad_arguments_and_failing_right_hand_sides_raise_what_the_python_code_r
     class Stop(Exception):
         pass
 
-    def fails_at_third(t, y, calls=[]):
+    calls = []
+
+    def fails_at_third(t, y):
         calls.append(t)
         if len(calls) == 3:
             raise Stop("from the right-hand side")
@@ -123,7 +125,7 @@ def test_bad_arguments_and_failing_right_hand_sides_raise_what_the_python_code_r
     for module in (_rk_steps, twin()):
         with pytest.raises(Stop, match="from the right-hand side"):
             module.dop853_step_7(fails_at_third, 0.0, [0.0] * 7, [0.0] * 7, 0.1, 1e-9, 1e-9)
-        fails_at_third.__defaults__[0].clear()
+        calls.clear()
         with pytest.raises(ValueError):   # a right-hand side of the wrong length
             module.dopri5_step_7(lambda t, y: [0.0] * 6, 0.0, [0.0] * 7, [0.0] * 7, 0.1, 1e-9, 1e-9)
         with pytest.raises(TypeError):

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from biped_sim.cli import main as cli_main
 from biped_sim.analysis.gait import StepMap, scene_gait
+from biped_sim.cli import main as cli_main
 from biped_sim.config.scenes import load_scene
 
 

@@ -9,8 +9,8 @@ from biped_sim.control.walking import WalkingController
 from biped_sim.engine.dynamics import flight_dynamics
 from biped_sim.engine.guards import hermite_lower_bound
 from biped_sim.engine.hybrid import HybridSimulator
-from biped_sim.engine.simulate import simulate, stance_state
 from biped_sim.engine.model import BipedModel
+from biped_sim.engine.simulate import simulate, stance_state
 
 STANCE_ONLY = frozenset({"stance"})
 

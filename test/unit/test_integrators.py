@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 from scipy.integrate import DOP853, RK45, solve_ivp
 
+from biped_sim.config.parameters import resolve_method, validate
 from biped_sim.engine._gen import rk_steps as _rk_steps
 from biped_sim.engine.integrators import DOP853Stepper, DOPRI5Stepper
-from biped_sim.config.parameters import resolve_method, validate
 
 
 def oscillator_list(t, y):

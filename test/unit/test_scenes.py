@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 import yaml
 
-from biped_sim.config import parameters as P
 from biped_sim.cli import main as cli_main
+from biped_sim.config import parameters as P
+from biped_sim.config.scenes import CONTROLLER_PARAMETERS, available_scenes, load_scene
 from biped_sim.control.walking import WalkingController
 from biped_sim.engine.hybrid import HybridSimulator
-from biped_sim.config.scenes import CONTROLLER_PARAMETERS, available_scenes, load_scene
 
 SCENES = ("walk", "slope", "drop", "stance_fixed", "passive")
 
@@ -51,7 +51,8 @@ def test_unknown_or_ill_typed_keys_are_named_with_the_allowed_values(tmp_path):
         load_scene(_scene_file(tmp_path, sim={"time_mode": "slow"}))
     with pytest.raises(ValueError, match="'duration' must be a number"):
         load_scene(_scene_file(tmp_path, sim={"duration": "long"}))
-    with pytest.raises(ValueError, match=r"walk_controller.*unknown walk_controller parameter\(s\) \['kq'\]; allowed: .*kp"):
+    with pytest.raises(ValueError,
+                       match=r"walk_controller.*unknown walk_controller parameter\(s\) \['kq'\]; allowed: .*kp"):
         load_scene(_scene_file(tmp_path, ctrl={"kq": 1.0}))
     with pytest.raises(ValueError, match="'slope' = 0.1 differs from the simulation's 0.0"):
         load_scene(_scene_file(tmp_path, ctrl={"slope": 0.1}))
