@@ -160,7 +160,8 @@ def locate_crossing(guard_at, ta, tb, event_tol) -> float:
 # -- the ground as a constraint on states ----------------------------------------------------------
 def check_initial_contact(feet, stance_leg, tol):
     """A ValueError unless the initial state agrees with its mode: in stance, the stance foot on the
-    ground and at rest and the swing foot not below it; in flight, both feet not below it."""
+    ground and at rest and the swing foot not below it; in flight, both feet not below it; and no free
+    foot on the ground moving into it (that is an impact still to apply, not a state to start from)."""
     if stance_leg:
         f = feet[stance_leg - 1]
         if abs(f.height) > tol:
@@ -179,6 +180,13 @@ def check_initial_contact(feet, stance_leg, tol):
         for leg in (1, 2):
             if feet[leg - 1].height < -tol:
                 raise ValueError(f"initial state in flight: foot {leg} is below the ground")
+    for leg in (1, 2):
+        f = feet[leg - 1]
+        if leg != stance_leg and f.height <= 0.0 and f.dheight < -tol:
+            raise ValueError(
+                f"initial state: the contact of foot {leg} is ambiguous: it is on the ground ({f.height:.3g} m) and "
+                f"moving into it at {f.dheight:.3g} m/s, an impact that has not been applied; start from the state "
+                "after the impact (biped_sim.impact_map), or with the foot above the ground")
 
 
 def check_ground(t, feet, stance_leg, opt, last_impact):
@@ -231,7 +239,9 @@ class EventLocator:
 
     def __init__(self, model, ground, opt, mu, feet, stance_leg):
         self.model, self.ground, self.opt, self.mu = model, ground, opt, mu
-        self.armed = [feet[0].height > opt.arm_height, feet[1].height > opt.arm_height]
+        # at the start no reset has just happened, so a free foot above the ground, however little,
+        # is armed at once: its crossing is found (a foot on it arms when it rises above arm_height)
+        self.armed = [feet[0].height > 0.0, feet[1].height > 0.0]
         if stance_leg:
             self.armed[stance_leg - 1] = False
         self.latched: set = set()

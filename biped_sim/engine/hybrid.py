@@ -103,7 +103,8 @@ class HybridSimulator:
         self._controller = None
         self._h = None
         self._stepper = None
-        self._last_F = [0.0, 0.0]
+        self._last_F, self._last_u = [0.0, 0.0], [0.0, 0.0]   # the last right-hand-side evaluation's
+        self._initial_sample_pending = True    # the t0 sample, redone under the first advance's torque
         self._recent_impacts: list[float] = []
         self.stats = dict(steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
                           max_constraint_drift_position=0.0, max_constraint_drift_velocity=0.0,
@@ -111,7 +112,8 @@ class HybridSimulator:
         self._nfev_base = 0
         self._rejected_base = 0
         self._samples = []
-        self._record(self.q, self.dq, self.stance_leg, self._force_at(self.t, self.q.tolist(), self.dq.tolist()))
+        self._record(self.q, self.dq, self.stance_leg, self._force_at(self.t, self.q.tolist(), self.dq.tolist()),
+                     self.u)
 
     def feet(self, q, dq):
         """(foot 1, foot 2) as :class:`~biped_sim.engine.guards.FootState` at a physical state (lists)."""
@@ -138,11 +140,17 @@ class HybridSimulator:
         """u = controller(t, q, dq, stance_leg) as a list of two finite floats (lists q, dq)."""
         return bind_controller(controller or self._controller, self.stance_leg)(t, q, dq)
 
-    def _force_at(self, t, q, dq):
-        """Ground force on the stance foot at a physical state (zeros in flight)."""
+    def _torque_at(self, t, q, dq):
+        """The torque applied at a physical state (lists): the held one, or the controller's."""
+        return list(self._u) if self._controller is None else self._call_controller(t, q, dq)
+
+    def _force_at(self, t, q, dq, u=None):
+        """Ground force on the stance foot at a physical state under torque u (by default the one
+        applied there); zeros in flight."""
         if not self.stance_leg:
             return [0.0, 0.0]
-        u = self._u if self._controller is None else self._call_controller(t, q, dq)
+        if u is None:
+            u = self._torque_at(t, q, dq)
         if self.opt.base == "fixed":
             return stance_fixed_fast(self.model, q[2:], dq[2:], u, self.stance_leg)[1]
         return stance_floating_fast(self.model, q, dq, u, self.stance_leg)[1]
@@ -162,6 +170,9 @@ class HybridSimulator:
         n_events = len(self.events)
         wall0 = time.perf_counter()
         try:
+            if self._initial_sample_pending:
+                self._initial_sample_pending = False
+                self._redo_initial_sample()
             self._integrate(float(t_end))
         except SceneAssumptionError as exc:
             self._fail(str(exc), status="stopped")
@@ -209,15 +220,26 @@ class HybridSimulator:
             self._rejected_base += self._stepper.nrejected
         rhs, to_phys, from_phys = mode_functions(
             self.model, self.stance_leg, self.opt.base, self.pin, self._u,
-            bind_controller(self._controller, self.stance_leg), self._keep_force)
+            bind_controller(self._controller, self.stance_leg), self._keep_evaluation)
         y0 = from_phys(self.q.tolist(), self.dq.tolist(), self.work)
         self._to_phys = to_phys
         self._stepper = make_stepper(self.method, rhs, self.t, y0, t_bound, self.rtol, self.atol,
                                      step=self.opt.step, n_positions=(len(y0) - 1) // 2, h0=self._h,
                                      max_step=self.opt.max_step)
 
-    def _keep_force(self, F):
-        self._last_F = F
+    def _keep_evaluation(self, F, u):
+        if F is not None:
+            self._last_F = F
+        self._last_u = u
+
+    def _redo_initial_sample(self):
+        """The t0 sample under the torque applied at t0 (known only now: the held torque or the
+        controller of this first advance), and the ground force under it."""
+        q, dq = self.q.tolist(), self.dq.tolist()
+        u = self._torque_at(self.t, q, dq)
+        F = self._force_at(self.t, q, dq, u)
+        self._samples.pop()
+        self._record(self.q, self.dq, self.stance_leg, F, u, (q, dq))
 
     def _integrate(self, t_end):
         self._new_stepper(t_end)
@@ -232,8 +254,10 @@ class HybridSimulator:
                                       f"{self.opt.max_speed:g} (dq={np.round(dq, 3).tolist()})")
             feet = self.feet(q, dq)   # the end state's feet, shared by the checks below
             # our steppers evaluate the right-hand side last at the step's end (FSAL): reuse its
-            # stance force (the fixed-base right-hand side computes no force)
-            fsal = self.stance_leg and st.last_eval_at_end and self.opt.base == "floating"
+            # torque and stance force (the fixed-base right-hand side computes no force)
+            at_end = st.last_eval_at_end
+            u_end = list(self._last_u) if at_end else None
+            fsal = self.stance_leg and at_end and self.opt.base == "floating"
             event, F_end = self.locator.locate(st, self._to_phys, self.stance_leg, q, dq, feet, self._force_at,
                                                list(self._last_F) if fsal else None)
             self.stats["scuffs_ignored"] = self.locator.scuffs
@@ -242,7 +266,7 @@ class HybridSimulator:
                 # the ground by more than max_penetration before its touchdown is located
                 G.check_ground(st.t, feet, self.stance_leg, self.opt, self.last_impact)
                 q, dq = self._project(q, dq, feet)
-                self._accept(st.t, q, dq, w, F_end)
+                self._accept(st.t, q, dq, w, F_end, u_end)
                 if self.opt.project_constraints and self.stance_leg and self.opt.base == "floating":
                     st.replace_y(q + dq + [w])  # continue from the projected state
                 continue
@@ -281,25 +305,29 @@ class HybridSimulator:
         dq[1] -= f.dheight - self.ground.tan * f.dx
         return q, dq
 
-    def _accept(self, t, q, dq, w, F=None):
-        """The state (q, dq: lists) at t becomes the current one, and a sample."""
+    def _accept(self, t, q, dq, w, F=None, u=None):
+        """The state (q, dq: lists) at t becomes the current one, and a sample (with the torque u
+        applied there and the ground force F under it, computed here where not given)."""
         st = self._stepper
         if self.on_step is not None and st is not None and t > st.t_old:
             self.on_step(st.t_old, float(t), st.dense_output())
         self.t = float(t)
         self.q, self.dq, self.work = np.array(q), np.array(dq), float(w)
+        if u is None:
+            u = self._torque_at(self.t, list(q), list(dq))
         if F is None:
-            F = self._force_at(self.t, list(q), list(dq)) if (self.opt.compute_grf and self.stance_leg) else [0.0, 0.0]
-        self._record(self.q, self.dq, self.stance_leg, F, (q, dq))
+            F = self._force_at(self.t, list(q), list(dq), u) if (self.opt.compute_grf and self.stance_leg) else [0.0, 0.0]
+        self._record(self.q, self.dq, self.stance_leg, F, u, (q, dq))
 
-    def _record(self, q, dq, leg, F, lists=None):
-        """A sample of the arrays q, dq (``lists``: the same as lists, if at hand) and the energy balance."""
+    def _record(self, q, dq, leg, F, u, lists=None):
+        """A sample of the arrays q, dq (``lists``: the same as lists, if at hand), the torque u applied
+        there, and the energy balance."""
         T, V = gen.energy(*(lists or (q.tolist(), dq.tolist())), self.model.k["energy"])
         residual = T + V - self.E0 - self.work + self.energy_lost
         self.stats["max_energy_balance_residual"] = max(self.stats["max_energy_balance_residual"], abs(residual))
         if not self.opt.keep_samples:
             self._samples.clear()
-        self._samples.append((self.t, q, dq, leg, F, list(self._u), residual))
+        self._samples.append((self.t, q, dq, leg, F, u, residual))
 
     # -- resets -------------------------------------------------------------------------------
     def _reset(self, guard, legs, t, q, dq):
@@ -313,7 +341,8 @@ class HybridSimulator:
             self.pin = list(G.foot_xy(self.model, list(q), ev.stance_leg_after))
             self.locator.after_reset(ev)
             self.dq = ev.dq_plus
-            self._record(self.q, self.dq, self.stance_leg, self._force_at(t, list(q), ev.dq_plus.tolist()))
+            u = self._torque_at(t, list(q), ev.dq_plus.tolist())
+            self._record(self.q, self.dq, self.stance_leg, self._force_at(t, list(q), ev.dq_plus.tolist(), u), u)
             self.stats["impacts"] += 1
             self._push_event(ev)
             self._check_zeno(t)

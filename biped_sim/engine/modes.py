@@ -4,12 +4,14 @@ A mode is (stance leg 1 or 2, or flight) x (floating or fixed base). For each, `
 returns ``rhs(t, y)`` and the maps between the integrator's state ``y`` and the physical state:
 
 * floating base (stance and flight): ``y = q + dq + [work]``, 11 values; the stance right-hand side
-  is the generated closed form of MODEL.md "Stance, floating-base" (its KKT force is handed to
-  ``force_sink`` at each evaluation, so that the step's last force needs no second solve);
+  is the generated closed form of MODEL.md "Stance, floating-base";
 * fixed base: ``y = (q1, q2, q3) + (dq1, dq2, dq3) + [work]``, 7 values, and the hip hangs from the
   stance foot's pin ``c`` (MODEL.md "Stance, fixed-base").
 
-The last entry integrates the motors' power ``u1 dq1 + u2 dq2``, for the energy balance.
+The last entry integrates the motors' power ``u1 dq1 + u2 dq2``, for the energy balance. Every
+evaluation hands its torque (and, in floating-base stance, its KKT force; else None) to
+``sink(F, u)``: the steppers evaluate last at the step's end, so the sample there needs neither a
+second solve nor a second controller call.
 """
 from __future__ import annotations
 
@@ -58,11 +60,11 @@ def bind_controller(controller, stance_leg):
     return call
 
 
-def mode_functions(model, stance_leg, base, pin, u_hold, control, force_sink):
+def mode_functions(model, stance_leg, base, pin, u_hold, control, sink):
     """(rhs, to_physical, from_physical) of a mode. ``control(t, q, dq) -> u`` (lists) or None to hold
-    ``u_hold``; ``force_sink(F)`` receives the floating-base stance force of each evaluation."""
+    ``u_hold``; ``sink(F, u)`` receives each evaluation's force (or None) and torque."""
     if stance_leg and base == "fixed":
-        return _fixed_base_functions(model, stance_leg, pin, u_hold, control)
+        return _fixed_base_functions(model, stance_leg, pin, u_hold, control, sink)
 
     def to_phys(y):
         yl = y if type(y) is list else y.tolist()
@@ -79,18 +81,19 @@ def mode_functions(model, stance_leg, base, pin, u_hold, control, force_sink):
             q, dq = y[0:5], y[5:10]
             u = u_hold if control is None else control(t, q, dq)
             ddq, F = stance(q, dq, u, k_stance)
-            force_sink(F)
+            sink(F, u)
             return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
     else:
         def rhs(t, y):
             q, dq = y[0:5], y[5:10]
             u = u_hold if control is None else control(t, q, dq)
             ddq = flight_fast(model, q, dq, u)
+            sink(None, u)
             return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
     return rhs, to_phys, from_phys
 
 
-def _fixed_base_functions(model, stance_leg, pin, u_hold, control):
+def _fixed_base_functions(model, stance_leg, pin, u_hold, control, sink):
     c = pin
     l_leg = model.parameters.l_leg
     i = stance_leg - 1
@@ -114,5 +117,6 @@ def _fixed_base_functions(model, stance_leg, pin, u_hold, control):
             q, dq, _ = to_phys(y)
             u = control(t, q, dq)
         dds = stance_fixed_accel_fast(model, qs, dqs, u, stance_leg)   # no force: guards ask for it
+        sink(None, u)
         return dqs + dds + [u[0] * dqs[0] + u[1] * dqs[1]]
     return rhs, to_phys, from_phys

@@ -103,3 +103,51 @@ def test_advance_refuses_a_time_that_is_not_a_finite_number(t_end):
     sim = bs.HybridSimulator(MODEL, Q0, DQ0)
     with pytest.raises(ValueError, match="t_end must be a finite number"):
         sim.advance(t_end)
+
+
+# -- item 5: the torque at every sample is the one applied there --------------------------------------
+@pytest.mark.parametrize("control_period", [None, 0.01])
+def test_result_u_is_the_torque_applied_at_each_sample_and_grf0_is_under_it(control_period):
+    r = _run(t_final=1.2, controller=WALKER, control_period=control_period)
+    assert r.status == "completed" and len(r.impacts) >= 2
+    assert np.abs(r.u).max() > 10.0                       # not all zeros
+    if control_period is None:
+        # continuous feedback: the controller's torque at the sample's own state (the projection
+        # after a step moves the state by the constraint drift only)
+        expected = np.array([WALKER(t, q, dq, int(leg)) for t, q, dq, leg in zip(r.t, r.q, r.dq, r.stance_leg)])
+    else:
+        # zero-order hold: the torque computed at the start of the sample's control period (the
+        # period that ends at a sample is still under the torque it started with)
+        period_start = np.floor(r.t / control_period - 1e-9) * control_period
+        period_start[0] = 0.0
+        first = {}
+        for k in range(len(r.t)):
+            first.setdefault(round(period_start[k] / control_period), k)
+        expected = np.array([r.u[first[round(p / control_period)]] for p in period_start])
+        assert np.array_equal(r.u[0], WALKER(0.0, Q0, DQ0, 1))
+    assert np.allclose(r.u, expected, rtol=1e-9, atol=1e-9)
+    F0 = bs.stance_dynamics(MODEL, Q0, DQ0, r.u[0])[1]
+    assert np.allclose(r.grf[0], F0, rtol=1e-12, atol=1e-9)
+
+
+# -- item 6: a free foot starting just above the ground, or on it moving down --------------------------
+def _swing_foot_just_above(height, swing_rate=0.0):
+    """Stance leg 1 behind the hip, swing foot 2 in front at ``height`` above the ground (a positive
+    ``swing_rate`` of its hip moves it down)."""
+    a = 0.2
+    delta = math.acos(math.cos(a) - height)
+    return bs.stance_state(MODEL, [math.pi + a, math.pi - delta, 0.0], [0.0, swing_rate, 0.0])
+
+
+@pytest.mark.parametrize("height", [1e-9, 1e-12, 1e-6])
+def test_a_free_foot_starting_just_above_the_ground_has_its_touchdown_found(height):
+    q, dq = _swing_foot_just_above(height)
+    r = bs.simulate(MODEL, q, dq, 0.05)
+    assert r.events and r.events[0].kind == "touchdown" and r.events[0].leg == 2, (r.status, r.message)
+    assert r.events[0].time < 0.01
+
+
+def test_a_free_foot_on_the_ground_moving_into_it_is_refused_as_ambiguous():
+    q, dq = _swing_foot_just_above(0.0, swing_rate=0.5)
+    with pytest.raises(ValueError, match="contact of foot 2 is ambiguous"):
+        bs.simulate(MODEL, q, dq, 0.1)
