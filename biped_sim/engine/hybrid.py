@@ -173,6 +173,7 @@ class HybridSimulator:
             if self._initial_sample_pending:
                 self._initial_sample_pending = False
                 self._redo_initial_sample()
+                self._check_stance_start(self.t)
             self._integrate(float(t_end))
         except SceneAssumptionError as exc:
             self._fail(str(exc), status="stopped")
@@ -346,6 +347,8 @@ class HybridSimulator:
             self.stats["impacts"] += 1
             self._push_event(ev)
             self._check_zeno(t)
+            if self.status == "running":
+                self._check_stance_start(t)
         elif guard.kind == "liftoff":
             ev = liftoff_reset(t, qa, dqa, old, "flight" in self.opt.phases)
             if ev.kind == "error":
@@ -363,6 +366,21 @@ class HybridSimulator:
             if self.opt.stop_on_slip:
                 self._stop("stopped", ev.message + "; the model has no sliding phase (raise mu, or "
                            "set stop_on_slip=False to keep the foot pinned)")
+
+    def _check_stance_start(self, t):
+        """A stance that starts with the ground pulling on the foot (normal force < 0), or with the
+        force outside the friction cone, ends at that instant: the liftoff and slip guards are
+        already past zero there, so no crossing inside a step would ever find them."""
+        if not self.stance_leg:
+            return
+        t0, q, dq, leg, F, u, residual = self._samples[-1]
+        n, tg = G.normal_tangent(F, self.ground)
+        if n < 0.0:
+            self._reset(G.Guard("liftoff", leg), [leg], t, q.tolist(), dq.tolist())
+            if self.stance_leg == 0:    # in flight from this very instant: so is the sample just taken
+                self._samples[-1] = (t0, q, dq, 0, [0.0, 0.0], u, residual)
+        elif self.mu is not None and G.slip_guard(n, tg, self.mu) < 0.0:
+            self._reset(G.Guard("slip", leg), [leg], t, q.tolist(), dq.tolist())
 
     def _push_event(self, ev):
         self.events.append(ev)

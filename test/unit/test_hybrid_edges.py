@@ -151,3 +151,32 @@ def test_a_free_foot_on_the_ground_moving_into_it_is_refused_as_ambiguous():
     q, dq = _swing_foot_just_above(0.0, swing_rate=0.5)
     with pytest.raises(ValueError, match="contact of foot 2 is ambiguous"):
         bs.simulate(MODEL, q, dq, 0.1)
+
+
+# -- item 2: a stance that starts with the ground pulling on the foot ---------------------------------
+def _spinning_stance():
+    """The whole robot rotating about the stance foot at 4 rad/s: the hip's centripetal acceleration
+    (16 m/s^2) exceeds g, so the ground would have to pull (Fy = -83 N at t = 0)."""
+    return bs.stance_state(MODEL, [math.pi - 0.1, math.pi + 0.1, 0.0], [0.0, 0.0, 4.0])
+
+
+def test_a_negative_normal_force_at_t0_is_a_liftoff_at_t0_or_a_clear_stop():
+    q, dq = _spinning_stance()
+    assert bs.stance_dynamics(MODEL, q, dq)[1][1] < -80.0
+    r = bs.simulate(MODEL, q, dq, 0.2)
+    assert r.events[0].kind == "liftoff" and r.events[0].time == 0.0
+    assert r.stance_leg[0] == 0 and not np.any((r.stance_leg > 0) & (r.grf[:, 1] < -1e-9))
+    stopped = bs.simulate(MODEL, q, dq, 0.2, phases=frozenset({"stance", "impact"}))
+    assert stopped.status == "stopped" and "would lift off at t=0 s" in stopped.message
+    assert "add 'flight'" in stopped.message
+
+
+def test_a_negative_normal_force_right_after_an_impact_is_a_liftoff_at_that_impact():
+    # a fast horizontal landing on a straight leg: after the impact the body swings over the foot at
+    # 5 rad/s, more than the ground can hold down; the robot bounces from foot to foot
+    q = np.array([0.0, math.cos(0.05) + 0.01, math.pi + 0.05, math.pi - 0.3, 0.0])
+    dq = np.array([5.0, -0.5, 0.0, 0.0, 0.0])
+    r = bs.simulate(MODEL, q, dq, 0.3, stance_leg=0)
+    kinds = [(e.kind, e.time) for e in r.events]
+    assert kinds[0][0] == "touchdown" and kinds[1] == ("liftoff", kinds[0][1])
+    assert not np.any((r.stance_leg > 0) & (r.grf[:, 1] < -1e-9)), "a stance sample with the ground pulling"
