@@ -30,21 +30,33 @@ Headless, the same controller runs in-process (``Scene.controller()`` as the ``s
 from __future__ import annotations
 
 import math
-import signal
 import sys
 
 import numpy as np
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
 
+from biped_sim.config.parameters import Param
+from biped_sim.config.scenes import CONTROLLER_PARAMETERS, make_controller
 from biped_sim.recording.messages import JOINT_NAMES
-from biped_sim.config.scenes import CONTROLLER_PARAMETERS, make_controller, validate_controller
+from biped_sim.ros import startup
+from biped_sim.ros.parameters import declare_from_table, value_less_override_message
+from biped_sim.ros.startup import StartupError
 
 STANCE_SOURCES = ("auto", "state", "frame_id")
-ROS_OWN_PARAMETERS = ("use_sim_time", "start_type_description_service")
+PARAMETERS = CONTROLLER_PARAMETERS + [Param(
+    "stance_source", str, "auto", "where the stance leg comes from: auto (the joint_states frame_id if it "
+    "names a foot, else the state), state (the foot on the ground and at rest), frame_id",
+    choices=STANCE_SOURCES)]
 QOS_DEPTH = 100
-
-
-class StartupError(Exception):
-    pass
+COMMAND_QOS = QoSProfile(depth=QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+# transient_local: the state at t = 0 that a lockstep sim node published before we started
+STATE_QOS = QoSProfile(depth=QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def stance_from_state(model, q, dq, slope=0.0, height_tol=1e-4, speed_tol=1e-3) -> int:
@@ -66,172 +78,102 @@ def stance_from_frame(frame_id: str):
     return {"foot_1": 1, "foot_2": 2, "flight": 0}.get(frame_id)
 
 
-def _allowed(p) -> str:
-    kind = {float: "double", int: "integer", bool: "bool", str: "string"}[p.type]
-    if p.choices:
-        return f"{kind}, one of {list(p.choices)}"
-    if p.low is not None:
-        return f"{kind} in [{p.low}, {p.high}]"
-    return kind
+class WalkControllerNode(Node):
+    """One hip_torque command per joint_states message, from the reference walking controller."""
 
-
-def _parameter_table():
-    from biped_sim.config import parameters as P
-    return CONTROLLER_PARAMETERS + [P.Param(
-        "stance_source", str, "auto", "where the stance leg comes from: auto (the joint_states frame_id if it "
-        "names a foot, else the state), state (the foot on the ground and at rest), frame_id",
-        choices=STANCE_SOURCES)]
-
-
-def read_parameters(node) -> dict:
-    """Check the overrides (params file, -p) against the table, declare every parameter, return the values."""
-    from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-    from rclpy.parameter import Parameter
-    table = _parameter_table()
-    by_name = {p.name: p for p in table}
-    overrides = dict(getattr(node, "_parameter_overrides", {}) or {})
-    unknown = sorted(n for n in overrides if n not in by_name and n not in ROS_OWN_PARAMETERS
-                     and not n.startswith("qos_overrides."))
-    if unknown:
-        raise StartupError(f"unknown parameter(s) {unknown} for node 'walk_controller'. Allowed parameters: "
-                           + "; ".join(f"{p.name} ({_allowed(p)})" for p in table) + ".")
-    raw = {n: overrides[n].value for n in overrides if n in by_name}
-    source = raw.pop("stance_source", "auto")
-    try:
-        values = validate_controller(raw)
-        values["stance_source"] = by_name["stance_source"].check(source)
-    except ValueError as exc:
-        raise StartupError(str(exc)) from None
-    types = {float: Parameter.Type.DOUBLE, str: Parameter.Type.STRING}
-    for p in table:
-        d = ParameterDescriptor(name=p.name, type=types[p.type].value,
-                                description=f"{p.description} ({_allowed(p)}; default {p.default!r})", read_only=True)
-        if p.type is float and p.low is not None:
-            d.floating_point_range = [FloatingPointRange(from_value=float(p.low), to_value=float(p.high), step=0.0)]
-        if p.choices:
-            d.additional_constraints = f"one of {list(p.choices)}"
-        node.declare_parameter(p.name, values[p.name], d, ignore_override=True)
-    return values
-
-
-def _make_node_class():
-    from rclpy.node import Node
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-    from sensor_msgs.msg import JointState
-    from std_msgs.msg import Float64MultiArray
-
-    class WalkControllerNode(Node):
-        def __init__(self, context=None):
+    def __init__(self, context=None):
+        try:
             super().__init__("walk_controller", context=context,
-                             automatically_declare_parameters_from_overrides=False)
-            self.values = v = read_parameters(self)
-            self.ctrl = make_controller(v)
-            self.source = v["stance_source"]
-            self.answered = 0
-            self.duplicates = 0
-            self.failures = 0
-            self._last = None
-            self._pending = []          # states received before the hip_torque subscriber matched
-            self.pub = self.create_publisher(Float64MultiArray, "hip_torque",
-                                             QoSProfile(depth=QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE))
-            # transient_local: the state at t = 0 that a lockstep sim node published before we started
-            self.sub = self.create_subscription(
-                JointState, "joint_states", self._on_state,
-                QoSProfile(depth=QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.TRANSIENT_LOCAL))
-            self.timer = self.create_timer(0.01, self._flush_pending)
-            self.get_logger().info(
-                "walk_controller: " + ", ".join(f"{k}={v[k]!r}" for k in ("torso_pitch", "step_angle", "clearance",
-                                                                           "lag", "kp", "kd", "slope", "stance_source")))
+                             automatically_declare_parameters_from_overrides=True)
+        except ValueError as exc:
+            raise StartupError(value_less_override_message(exc) or exc) from None
+        self.values = v = declare_from_table(self, PARAMETERS)
+        self.ctrl = make_controller(v)
+        self.source = v["stance_source"]
+        self.answered = 0
+        self.duplicates = 0
+        self.failures = 0
+        self._last = None
+        self._pending = []          # states received before the hip_torque subscriber matched
+        self.pub = self.create_publisher(Float64MultiArray, "hip_torque", COMMAND_QOS)
+        self.sub = self.create_subscription(JointState, "joint_states", self._on_state, STATE_QOS)
+        self.timer = self.create_timer(0.01, self._flush_pending)
+        self.get_logger().info(
+            "walk_controller: " + ", ".join(f"{k}={v[k]!r}" for k in ("torso_pitch", "step_angle", "clearance",
+                                                                       "lag", "kp", "kd", "slope", "stance_source")))
 
-        def _matched(self):
-            """Every hip_torque subscriber known to the graph (the sim node's among them) is matched."""
-            n = self.pub.get_subscription_count()
-            return n > 0 and n >= self.count_subscribers(self.pub.topic_name)
+    def _matched(self):
+        """Every hip_torque subscriber known to the graph (the sim node's among them) is matched."""
+        n = self.pub.get_subscription_count()
+        return n > 0 and n >= self.count_subscribers(self.pub.topic_name)
 
-        def _flush_pending(self):
-            if self._pending and self._matched():
-                pending, self._pending = self._pending, []
-                for msg in pending:
-                    self._answer(msg)
+    def _flush_pending(self):
+        if self._pending and self._matched():
+            pending, self._pending = self._pending, []
+            for msg in pending:
+                self._answer(msg)
 
-        def _on_state(self, msg):
-            if self._pending or not self._matched():
-                self._pending.append(msg)      # a command sent now could be lost: answer once matched
-                return
-            self._answer(msg)
+    def _on_state(self, msg):
+        if self._pending or not self._matched():
+            self._pending.append(msg)      # a command sent now could be lost: answer once matched
+            return
+        self._answer(msg)
 
-        def _answer(self, msg):
-            key = (msg.header.stamp.sec, msg.header.stamp.nanosec, tuple(msg.position), tuple(msg.velocity))
-            if key == self._last:
-                self.duplicates += 1
-                return
-            self._last = key
-            try:
-                idx = [list(msg.name).index(n) for n in JOINT_NAMES]
-                q = np.array([msg.position[i] for i in idx])
-                dq = np.array([msg.velocity[i] for i in idx])
-            except (ValueError, IndexError):
-                self.get_logger().error(f"joint_states without the joints {list(JOINT_NAMES)} (got names "
-                                        f"{list(msg.name)}): not answered", throttle_duration_sec=1.0)
-                return
-            t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-            try:
-                leg = self.stance_leg(msg.header.frame_id, q, dq)
-                u = self.ctrl(t, q, dq, leg)
-                if not np.all(np.isfinite(u)):
-                    raise FloatingPointError(f"torques {u}")
-            except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
-                self.failures += 1
-                self.get_logger().error(f"control law failed at t={t:.6f} s ({exc}): sending zero torque",
-                                        throttle_duration_sec=1.0)
-                u = [0.0, 0.0]
-            self.pub.publish(Float64MultiArray(data=[float(u[0]), float(u[1])]))
-            self.answered += 1
+    def _answer(self, msg):
+        key = (msg.header.stamp.sec, msg.header.stamp.nanosec, tuple(msg.position), tuple(msg.velocity))
+        if key == self._last:
+            self.duplicates += 1
+            return
+        self._last = key
+        try:
+            idx = [list(msg.name).index(n) for n in JOINT_NAMES]
+            q = np.array([msg.position[i] for i in idx])
+            dq = np.array([msg.velocity[i] for i in idx])
+        except (ValueError, IndexError):
+            self.get_logger().error(f"joint_states without the joints {list(JOINT_NAMES)} (got names "
+                                    f"{list(msg.name)}): not answered", throttle_duration_sec=1.0)
+            return
+        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        try:
+            leg = self.stance_leg(msg.header.frame_id, q, dq)
+            u = self.ctrl(t, q, dq, leg)
+            if not np.all(np.isfinite(u)):
+                raise FloatingPointError(f"torques {u}")
+        except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+            self.failures += 1
+            self.get_logger().error(f"control law failed at t={t:.6f} s ({exc}): sending zero torque",
+                                    throttle_duration_sec=1.0)
+            u = [0.0, 0.0]
+        self.pub.publish(Float64MultiArray(data=[float(u[0]), float(u[1])]))
+        self.answered += 1
 
-        def stance_leg(self, frame_id, q, dq) -> int:
-            if self.source != "state":
-                leg = stance_from_frame(frame_id)
-                if leg is not None:
-                    return leg
-                if self.source == "frame_id":
-                    raise ValueError(f"joint_states frame_id {frame_id!r} names no stance foot")
-            v = self.values
-            return stance_from_state(self.ctrl.model, q, dq, v["slope"], v["contact_height_tol"],
-                                     v["contact_speed_tol"])
-
-    return WalkControllerNode
+    def stance_leg(self, frame_id, q, dq) -> int:
+        if self.source != "state":
+            leg = stance_from_frame(frame_id)
+            if leg is not None:
+                return leg
+            if self.source == "frame_id":
+                raise ValueError(f"joint_states frame_id {frame_id!r} names no stance foot")
+        v = self.values
+        return stance_from_state(self.ctrl.model, q, dq, v["slope"], v["contact_height_tol"],
+                                 v["contact_speed_tol"])
 
 
 def main(argv=None):
-    args = sys.argv if argv is None else argv
-    try:
-        import rclpy
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.signals import SignalHandlerOptions
-    except ImportError as exc:
-        print(f"walk_controller: error: rclpy is not available ({exc})", file=sys.stderr)
-        return 2
-    stop = []
-    try:
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    except Exception as exc:
-        print(f"walk_controller: error: cannot read the ROS arguments: {exc}", file=sys.stderr)
-        return 2
-    signal.signal(signal.SIGINT, lambda s, f: stop.append(s))
-    signal.signal(signal.SIGTERM, lambda s, f: stop.append(s))
+    stop = startup.init("walk_controller", sys.argv if argv is None else argv)
+    if stop is None:
+        return startup.EXIT_REFUSED
     node = None
     try:
         try:
-            node = _make_node_class()()
+            node = WalkControllerNode()
         except StartupError as exc:
-            print(f"walk_controller: error: {exc}", file=sys.stderr)
-            return 2
+            return startup.refuse("walk_controller", exc)
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         while not stop:
             executor.spin_once(timeout_sec=0.1)
-        node.get_logger().info(f"{signal.Signals(stop[0]).name}: shutting down after {node.answered} commands "
+        node.get_logger().info(f"{startup.signal_name(stop[0])}: shutting down after {node.answered} commands "
                                f"({node.duplicates} duplicate states skipped, {node.failures} failures)")
     finally:
         if node is not None:

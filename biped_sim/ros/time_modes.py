@@ -1,0 +1,148 @@
+"""The run loops of ``sim_node``'s three time modes, and their clocks.
+
+Owns when the node steps and publishes: ``lockstep`` (each command steps once: the loop only
+spins), ``fast`` (step as fast as possible) and ``realtime`` (simulated time t is due at wall time
+``start + t / rate_factor``: :class:`RealtimePacer` sleeps until then, says when the loop falls
+behind, and measures the achieved rate). Both publish at ``publish_rate`` in simulated time,
+whatever the control period (:class:`PublishSchedule`). The loops drive a
+:class:`biped_sim.ros.sim_node.SimNode` through its ``check_timeout``, ``step`` and
+``publish_state``; the pacing and the schedule are plain Python.
+"""
+from __future__ import annotations
+
+import contextlib
+import math
+import threading
+import time
+
+#: a loop that is behind says so at most this often (wall s)
+LAG_REPORT_INTERVAL = 2.0
+#: time.sleep overshoots by ~0.1 ms here: sleep until this much before the deadline, then spin
+SLEEP_MARGIN = 1.5e-4
+MAX_PUBLICATION_TIMES = 1_000_000
+
+
+class PublishSchedule:
+    """The states to publish: the first at or after each multiple of 1 / ``publish_rate`` (simulated s)."""
+
+    def __init__(self, publish_rate: float):
+        self.period = 1.0 / publish_rate
+        self.next = self.period
+
+    def due(self, t: float) -> bool:
+        """True if the state at ``t`` is to be published (and the next one scheduled)."""
+        if t < self.next - 1e-12:
+            return False
+        self.next = (math.floor(t / self.period + 1e-9) + 1) * self.period
+        return True
+
+
+class RealtimePacer:
+    """Holds a loop to the wall clock: simulated time t is due at ``start + t / rate_factor``."""
+
+    def __init__(self, rate_factor: float, control_period: float, publish_period: float):
+        self.rate = rate_factor
+        self.lag_tolerance = max(control_period / rate_factor, 0.005)
+        self.publish_period = publish_period / rate_factor      # wall s between publications
+        self.start = time.monotonic()
+        self.cpu_start = time.process_time()
+        self.last_lag_report = self.start
+        self.lag_reports = 0
+        self.publication_times = []                             # wall clock (figures)
+
+    def wait_until(self, t: float) -> str | None:
+        """Sleep until simulated time ``t`` is due; a warning if it is already late by more than a
+        control period (at most one every LAG_REPORT_INTERVAL s)."""
+        deadline = self.start + t / self.rate
+        now = time.monotonic()
+        warning = None
+        if now > deadline + self.lag_tolerance and now - self.last_lag_report > LAG_REPORT_INTERVAL:
+            self.last_lag_report = now
+            self.lag_reports += 1
+            warning = (f"realtime: cannot keep up: simulated time {t:.3f} s is {(now - deadline) * self.rate:.3f} s "
+                       f"behind the wall clock x rate_factor {self.rate:g} (achieved real-time factor "
+                       f"{t / (now - self.start):.3g}); lower publish_rate or rate_factor, raise control_period, "
+                       "or use time_mode fast")
+        left = deadline - time.monotonic()
+        if left > 2e-4:                  # shorter sleeps are not worth their overshoot
+            time.sleep(left - SLEEP_MARGIN)
+        while time.monotonic() < deadline:
+            pass
+        return warning
+
+    def published(self):
+        if len(self.publication_times) < MAX_PUBLICATION_TIMES:
+            self.publication_times.append(time.monotonic())
+
+    def figures(self, t: float, control_periods: int) -> dict | None:
+        """Achieved publish rate and period jitter (wall), real-time factor and CPU time per control
+        period of the run so far; None with fewer than 3 publications."""
+        walls = self.publication_times
+        if len(walls) < 3:
+            return None
+        d = sorted(abs((b - a) - self.publish_period) for a, b in zip(walls, walls[1:]))
+        pick = lambda q: d[min(len(d) - 1, int(q * (len(d) - 1)))]  # noqa: E731
+        return dict(publications=len(walls), rate=(len(walls) - 1) / (walls[-1] - walls[0]), jitter_p50=pick(0.5),
+                    jitter_p99=pick(0.99), rtf=t / (time.monotonic() - self.start),
+                    cpu=(time.process_time() - self.cpu_start) / max(1, control_periods))
+
+    def report(self, t: float, control_periods: int) -> str | None:
+        """The figures in one line (``benchmarks/bench_node.py`` reads it after "realtime figures: ")."""
+        f = self.figures(t, control_periods)
+        if f is None:
+            return None
+        return (f"realtime figures: {f['publications']} states published at {f['rate']:.1f} Hz (wall; target "
+                f"{1 / self.publish_period:.1f} Hz), period jitter p50 {f['jitter_p50'] * 1e6:.0f} us, "
+                f"p99 {f['jitter_p99'] * 1e6:.0f} us, real-time factor {f['rtf']:.3f}; CPU time of this process "
+                f"{f['cpu'] * 1e3:.3f} ms per control period")
+
+
+def run_lockstep(node, should_stop, executor):
+    """Spin until the duration is reached: the command callback steps and publishes."""
+    while not should_stop() and not node.finished:
+        executor.spin_once(timeout_sec=0.1)
+
+
+def run_fast(node, should_stop):
+    schedule = PublishSchedule(node.params["publish_rate"])
+    while not (node.stopped or node.finished or should_stop()):
+        node.check_timeout()
+        node.step()
+        if schedule.due(node.sim.t) or node.finished or node.stopped:
+            node.publish_state()
+
+
+def run_realtime(node, should_stop):
+    schedule = PublishSchedule(node.params["publish_rate"])
+    pacer = RealtimePacer(node.params["rate_factor"], node.period, schedule.period)
+    k0 = node.sim.control_periods
+    while not (node.stopped or node.finished or should_stop()):
+        node.check_timeout()
+        node.step()                      # compute ahead: the state at the end of this period
+        late = pacer.wait_until(node.sim.t)
+        if late:
+            node.get_logger().warning(late)
+        if schedule.due(node.sim.t) or node.finished or node.stopped:
+            pacer.published()
+            node.publish_state()
+    report = pacer.report(node.sim.t, node.sim.control_periods - k0)
+    if report:
+        node.get_logger().info(report)
+
+
+@contextlib.contextmanager
+def spinning_in_background(executor):
+    """The executor spinning in a second thread while the body runs: in realtime and fast the
+    command callback only stores the command, so that waiting for commands costs the loop nothing."""
+    done = threading.Event()
+
+    def spin():
+        while not done.is_set():
+            executor.spin_once(timeout_sec=0.05)
+    spinner = threading.Thread(target=spin, name="biped_sim-commands", daemon=True)
+    spinner.start()
+    try:
+        yield
+    finally:
+        done.set()
+        spinner.join(timeout=2.0)
