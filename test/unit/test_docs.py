@@ -1,0 +1,94 @@
+"""Every ```python block of README.md and docs/*.md runs as written.
+
+The rule: each block is a whole script on its own. It runs in a fresh interpreter (this test's
+``sys.executable``, the worktree's ``.venv``), with the repository root as the working directory and a
+timeout; blocks of one page share nothing, so a reader can copy any one block and run it. A block
+fails the test when it exits with a non-zero status (an exception, a failed ``assert``); its stderr
+is the failure message.
+
+Blocks that need ROS (nodes, DDS) are written as ```bash or ```console blocks and are not run here;
+a block that writes a bag starts the recorder's writer process, so it is marked ``slow`` like the
+other tests that do (``pytest -m "not slow"`` leaves it out).
+"""
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+TIMEOUT_S = 60
+# A fence opens with ```python at the start of a line (indented fences, inside list items, too)
+# and closes with ``` at the same indentation.
+FENCE = re.compile(r"^(?P<indent>[ \t]*)```python[ \t]*\n(?P<body>.*?)^(?P=indent)```[ \t]*$", re.M | re.S)
+WRITES_A_BAG = ("--record", "BagRecorder")
+
+
+def python_blocks(page: Path):
+    """(line number of the fence, the block's code without the fence's indentation)."""
+    text = page.read_text()
+    for match in FENCE.finditer(text):
+        yield text.count("\n", 0, match.start()) + 1, textwrap.dedent(match["body"])
+
+
+def _cases():
+    for page in PAGES:
+        for line, code in python_blocks(page):
+            marks = [pytest.mark.slow] if any(word in code for word in WRITES_A_BAG) else []
+            yield pytest.param(code, id=f"{page.relative_to(ROOT)}:{line}", marks=marks)
+
+
+def test_the_pages_have_python_blocks():
+    assert any(True for page in PAGES for _ in python_blocks(page)), "no ```python block found"
+
+
+@pytest.mark.parametrize("code", list(_cases()))
+def test_python_block_runs(code):
+    env = dict(os.environ, MPLBACKEND="Agg", PYTHONDONTWRITEBYTECODE="1")
+    try:
+        proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True,
+                              text=True, timeout=TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"the block did not finish in {TIMEOUT_S} s")
+    assert proc.returncode == 0, f"the block stopped (exit code {proc.returncode}):\n{proc.stderr[-3000:]}"
+
+
+LINK = re.compile(r"\[[^\]]*\]\((?P<target>[^)\s]+)\)")
+
+
+def _anchor(heading: str) -> str:
+    """GitHub's anchor of a heading: lower case, punctuation other than - and _ dropped, spaces to -."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def _anchors(page: Path) -> set:
+    text = re.sub(r"^```.*?^```", "", page.read_text(), flags=re.M | re.S)   # no headings in code blocks
+    return {_anchor(m[1]) for m in re.finditer(r"^#+ (.*)$", text, re.M)}
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_links_stay_inside_the_repository_and_resolve(page):
+    for match in LINK.finditer(page.read_text()):
+        target = match["target"]
+        if target.startswith(("http://", "https://")):
+            continue
+        path, _, anchor = target.partition("#")
+        file = (page.parent / path).resolve() if path else page
+        assert ROOT in file.parents or file == ROOT, f"{target}: outside the repository"
+        assert file.exists(), f"{target}: no such file"
+        if anchor and file.suffix == ".md":
+            assert anchor in _anchors(file), f"{target}: no heading with that anchor in {file.name}"
+
+
+def test_the_node_page_lists_every_parameter():
+    from biped_sim.config.parameters import PARAMETERS
+    text = (ROOT / "docs" / "node.md").read_text()
+    section = text[text.index("\n## Parameters"):text.index("\n## Topics")]
+    listed = re.findall(r"^\| `([\w.]+)` \|", section, re.M)
+    assert listed == [p.name for p in PARAMETERS], "docs/node.md's parameter table differs from PARAMETERS"
