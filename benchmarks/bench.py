@@ -5,7 +5,7 @@ median over repeats measured in this one process, and comparisons are made side 
 
 Engine figures:
   * ``stance_dynamics`` per call (public API, numpy in and out), beside the literal KKT solve of
-    MODEL.md with ``np.linalg.solve`` on the same inputs and the Python closed form that the
+    docs/model.md with ``np.linalg.solve`` on the same inputs and the Python closed form that the
     compiled twin replaces (``BIPED_SIM_PURE_PYTHON=1`` runs everything on the Python code);
   * a 10 s walking run (the PD walking law, continuous feedback, >= 14 impacts) integrated to a
     final-state error of 1e-9 by this engine and by ``scipy.integrate.solve_ivp(method="DOP853",

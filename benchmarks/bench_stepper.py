@@ -8,7 +8,7 @@ import time
 import numpy as np
 from scipy.integrate import DOP853
 
-from biped_sim.integrators import DOP853Stepper
+from biped_sim.engine.integrators import DOP853Stepper
 
 ZEROS = [0.0] * 9
 

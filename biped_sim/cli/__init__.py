@@ -15,7 +15,7 @@ COMMANDS = ("simulate", "accuracy", "stability", "gait", "resim", "inspect", "re
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="biped-sim",
-        description="Headless hybrid-dynamics simulation of the planar three-link biped (MODEL.md).",
+        description="Headless hybrid-dynamics simulation of the planar three-link biped (docs/model.md).",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="Run 'biped-sim COMMAND --help' for the options of a command.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
@@ -25,6 +25,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["replay"]:
+        # its own parser (a ROS tool's arguments, --ros-args included): argparse would take a
+        # leading '--help' for biped-sim's rather than hand it on
+        from biped_sim.cli.replay import run_argv
+        return run_argv(argv[1:])
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)

@@ -14,5 +14,9 @@ def register(sub):
 
 
 def run(args):
+    return run_argv(args.argv)
+
+
+def run_argv(argv):
     from biped_sim.ros.replay import main
-    return main(args.argv)
+    return main(argv)

@@ -57,7 +57,7 @@ def register(sub):
     p.add_argument("--record", nargs="?", const="", default=None, metavar="DIR",
                    help="record the run to a rosbag2/MCAP bag DIR/<scene>-<UTC time>/ (DIR default: bags), run in "
                         "lockstep as the node runs it (control period: --control-period or the scene's, 1 ms "
-                        "without); see the README, section 'Recording, replay, re-simulation'")
+                        "without); see docs/recording.md")
     p.set_defaults(func=run)
 
 

@@ -1,6 +1,6 @@
 """Reference walking controller: virtual constraints enforced by input-output linearisation.
 
-Owns the walking feedback law (not an equation of MODEL.md; it uses ``stance_dynamics``, which is
+Owns the walking feedback law (not an equation of docs/model.md; it uses ``stance_dynamics``, which is
 affine in u). With phi_i = q_i + q3 - pi the absolute angle of leg i from straight down (phi > 0:
 foot behind the hip), the two outputs (hybrid-zero-dynamics style, Westervelt and Grizzle) are
 

@@ -1,4 +1,4 @@
-"""The generated code as the engine calls it: ``gen``, the closed forms of MODEL.md (D, C, G, feet,
+"""The generated code as the engine calls it: ``gen``, the closed forms of docs/model.md (D, C, G, feet,
 J, Jdot, energy, the stance KKT solution), and ``rk``, the unrolled Runge-Kutta steps.
 
 Owns one choice. ``_gen/closed_forms.py`` (generated from the energies by tools/generate_model.py) and

@@ -1,6 +1,6 @@
-"""Phase dynamics of MODEL.md: stance (floating- and fixed-base), flight, impact map, relabeling.
+"""Phase dynamics of docs/model.md: stance (floating- and fixed-base), flight, impact map, relabeling.
 
-Owns the equations of the section "Phases" of MODEL.md:
+Owns the equations of the section "Phases" of docs/model.md:
   * stance, floating base: [D -J^T; J 0][ddq; F] = [-C dq - G + B u; -Jdot dq]   (``stance_dynamics``)
   * stance, fixed base: the foot is a pin, the chain has 3 coordinates, F recovered
                                                                   (``stance_dynamics(base="fixed")``)
@@ -105,9 +105,9 @@ def _check_stance_inputs(q, dq, u, stance_leg):
 
 
 def stance_dynamics(model: BipedModel, q, dq, u=None, stance_leg=1, base="floating"):
-    """Stance phase of MODEL.md: (ddq, F) with the foot of ``stance_leg`` on the ground.
+    """Stance phase of docs/model.md: (ddq, F) with the foot of ``stance_leg`` on the ground.
 
-    ``base="floating"`` solves the KKT system of MODEL.md with the given (q, dq), whatever the
+    ``base="floating"`` solves the KKT system of docs/model.md with the given (q, dq), whatever the
     foot's velocity. ``base="fixed"`` uses the three-coordinate pinned chain: the base velocity is
     taken as the one the pin implies (so it agrees with the floating base when J dq = 0).
     F is the force of the ground on the stance foot (N), in world axes.
@@ -163,7 +163,7 @@ def _impact_jacobian(model, q, impact_leg):
 
 
 def impact_map(model: BipedModel, q, dq_minus, impact_leg=2):
-    """Rigid plastic impact of ``impact_leg`` (MODEL.md "Impact"), before relabeling.
+    """Rigid plastic impact of ``impact_leg`` (docs/model.md "Impact"), before relabeling.
 
     Solves [D -J^T; J 0][dq+; F_imp] = [D dq-; 0]. ``impact_leg`` is 1, 2, or (1, 2) for both feet
     at once (then the impulse has 4 entries, foot 1 first). Returns (dq_plus, impulse) with the
@@ -187,7 +187,7 @@ R = np.array([[1, 0, 0, 0, 0], [0, 1, 0, 0, 0], [0, 0, 0, 1, 0], [0, 0, 1, 0, 0]
 
 
 def relabel(q, dq):
-    """Relabeling R of MODEL.md: swap stance and swing leg (q1 <-> q2); R R = I."""
+    """Relabeling R of docs/model.md: swap stance and swing leg (q1 <-> q2); R R = I."""
     q = as_state_vector(q, "q")
     dq = as_state_vector(dq, "dq")
     return R @ q, R @ dq

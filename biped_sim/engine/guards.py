@@ -4,7 +4,7 @@ A guard is a scalar function of the state that is positive while the current mod
 ends where it crosses zero going down (every guard here has that one direction, as Drake's witness
 functions ``FootCollision`` and the liftoff witness do):
 
-* ``touchdown_guard``: the swing foot's height above the ground (MODEL.md "Impact"); armed only once
+* ``touchdown_guard``: the swing foot's height above the ground (docs/model.md "Impact"); armed only once
   the foot has been above the ground by more than ``arm_height``, so that the guard, zero right after
   its own reset, cannot fire again at once;
 * ``liftoff_guard``: the normal component of the ground force on the stance foot (the KKT force of

@@ -1,6 +1,6 @@
 """The hybrid simulation: integrate a mode, locate its guards, apply the reset, and keep the run.
 
-Owns the hybrid system of MODEL.md "Phases" (stance on leg 1 or 2, impact with relabeling, flight)
+Owns the hybrid system of docs/model.md "Phases" (stance on leg 1 or 2, impact with relabeling, flight)
 and its bookkeeping. The pieces it puts together each live in their own module: the continuous
 dynamics of a mode (``modes.py``, on ``dynamics.py``), the steppers (``integrators.py``), the
 guards and the event locator (``guards.py``), the resets (``resets.py``), the options
@@ -317,7 +317,8 @@ class HybridSimulator:
         if u is None:
             u = self._torque_at(self.t, list(q), list(dq))
         if F is None:
-            F = self._force_at(self.t, list(q), list(dq), u) if (self.opt.compute_grf and self.stance_leg) else [0.0, 0.0]
+            grf = self.opt.compute_grf and self.stance_leg
+            F = self._force_at(self.t, list(q), list(dq), u) if grf else [0.0, 0.0]
         self._record(self.q, self.dq, self.stance_leg, F, u, (q, dq))
 
     def _record(self, q, dq, leg, F, u, lists=None):

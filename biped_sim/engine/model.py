@@ -1,7 +1,7 @@
-"""The three-link biped of MODEL.md: parameters, D(q), C(q, dq), G(q), B, feet, J, Jdot, energy.
+"""The three-link biped of docs/model.md: parameters, D(q), C(q, dq), G(q), B, feet, J, Jdot, energy.
 
 Owns the model's parameters and the evaluation of the closed forms in ``_generated.py`` (which
-``tools/generate_model.py`` derives from the energies; MODEL.md "Configuration and conventions").
+``tools/generate_model.py`` derives from the energies; docs/model.md "Configuration and conventions").
 Coordinates are ``q = [x, y, q1, q2, q3]``: hip position, leg angles relative to the torso, absolute
 torso angle; angle 0 points up. Plain numpy, no ROS.
 """
@@ -14,7 +14,7 @@ import numpy as np
 
 from biped_sim.engine.compiled import gen
 
-#: Actuation matrix of MODEL.md: two hip motors acting on q1 and q2.
+#: Actuation matrix of docs/model.md: two hip motors acting on q1 and q2.
 B = np.array([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 0.0]])
 COORDINATE_NAMES = ("base_x", "base_y", "hip_1", "hip_2", "torso_pitch")
 
@@ -35,10 +35,10 @@ def as_state_vector(v, name: str, n: int = 5) -> np.ndarray:
 
 @dataclass(frozen=True)
 class BipedParameters:
-    """Physical constants (SI units); defaults are the table of MODEL.md.
+    """Physical constants (SI units); defaults are the table of docs/model.md.
 
     ``c_torso`` and ``c_leg`` are the distances of the links' centres of mass from the hip; by
-    default half the link length (uniform links, as in MODEL.md).
+    default half the link length (uniform links, as in docs/model.md).
     """
     m_torso: float = 10.0
     I_torso: float = 1.0
@@ -106,7 +106,7 @@ class BipedModel:
     def __repr__(self):
         return f"BipedModel({self.parameters})"
 
-    # -- dynamics terms (MODEL.md: D = d^2T/d dq^2, C from Christoffel symbols, G = dV/dq) ----------
+    # -- dynamics terms (docs/model.md: D = d^2T/d dq^2, C from Christoffel symbols, G = dV/dq) ----------
     def mass_matrix(self, q) -> np.ndarray:
         """D(q), 5x5 symmetric positive definite."""
         q = as_state_vector(q, "q")
@@ -118,7 +118,7 @@ class BipedModel:
         return np.array(gen.coriolis_matrix(q.tolist(), dq.tolist(), self.k["coriolis_matrix"])).reshape(5, 5)
 
     def gravity(self, q) -> np.ndarray:
-        """G(q) = dV/dq (depends on q only; MODEL.md notes the homework's slip G(dq))."""
+        """G(q) = dV/dq (depends on q only; docs/model.md notes the homework's slip G(dq))."""
         q = as_state_vector(q, "q")
         return np.array(gen.gravity_vector(q.tolist(), self.k["gravity_vector"]))
 
@@ -127,7 +127,7 @@ class BipedModel:
         q, dq = as_state_vector(q, "q"), as_state_vector(dq, "dq")
         return np.array(gen.bias_forces(q.tolist(), dq.tolist(), self.k["bias_forces"]))
 
-    # -- feet (MODEL.md: p_i = (x + l_leg sin(qi + q3), y + l_leg cos(qi + q3))) ---------------------
+    # -- feet (docs/model.md: p_i = (x + l_leg sin(qi + q3), y + l_leg cos(qi + q3))) ---------------------
     def foot_position(self, q, leg: int) -> np.ndarray:
         leg = check_leg(leg)
         q = as_state_vector(q, "q")

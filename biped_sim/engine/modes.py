@@ -4,9 +4,9 @@ A mode is (stance leg 1 or 2, or flight) x (floating or fixed base). For each, `
 returns ``rhs(t, y)`` and the maps between the integrator's state ``y`` and the physical state:
 
 * floating base (stance and flight): ``y = q + dq + [work]``, 11 values; the stance right-hand side
-  is the generated closed form of MODEL.md "Stance, floating-base";
+  is the generated closed form of docs/model.md "Stance, floating-base";
 * fixed base: ``y = (q1, q2, q3) + (dq1, dq2, dq3) + [work]``, 7 values, and the hip hangs from the
-  stance foot's pin ``c`` (MODEL.md "Stance, fixed-base").
+  stance foot's pin ``c`` (docs/model.md "Stance, fixed-base").
 
 The last entry integrates the motors' power ``u1 dq1 + u2 dq2``, for the energy balance. Every
 evaluation hands its torque (and, in floating-base stance, its KKT force; else None) to

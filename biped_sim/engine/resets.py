@@ -4,7 +4,7 @@ Each reset is a named function of the state at the event that returns the :class
 simulator then takes the new mode from it (``stance_leg_after``, ``dq_plus``), as Drake's compass
 gait takes its new state from ``CollisionDynamics``.
 
-* ``touchdown_reset``: the rigid plastic impact of MODEL.md "Impact" (``impact_map``, one foot or
+* ``touchdown_reset``: the rigid plastic impact of docs/model.md "Impact" (``impact_map``, one foot or
   both at once), then relabeling: the foot that landed is the new stance foot (for a double
   touchdown, the one that took the larger normal impulse: double support is not modelled);
 * ``liftoff_reset``: the stance foot leaves the ground; the velocities are unchanged, flight follows;

@@ -18,7 +18,7 @@ def stance_state(model: BipedModel, joints, joint_rates, stance_leg=1, foot=(0.0
     """
     qs = as_state_vector(joints, "joints", 3)
     dqs = as_state_vector(joint_rates, "joint_rates", 3)
-    l = model.parameters.l_leg  # noqa: E741 (the leg length, as MODEL.md names it)
+    l = model.parameters.l_leg  # noqa: E741 (the leg length, as docs/model.md names it)
     i = 0 if stance_leg == 1 else 1
     th, dth = qs[i] + qs[2], dqs[i] + dqs[2]
     hip = np.array(foot, float) - l * np.array([math.sin(th), math.cos(th)])

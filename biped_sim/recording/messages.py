@@ -89,7 +89,7 @@ def _floats(values):
 
 
 def event_status(event, prefix="biped_sim"):
-    """diagnostic_msgs/DiagnosticStatus of an engine Event (the README section on the node lists every key)."""
+    """diagnostic_msgs/DiagnosticStatus of an engine Event (docs/node.md lists every key)."""
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
     st = DiagnosticStatus()
     if event.kind in IMPACT_KINDS:

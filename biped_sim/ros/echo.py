@@ -30,7 +30,8 @@ def format_message(topic, msg, digits=4):
                 f"dq={_v(msg.velocity, digits)} u={_v(u, 2)}")
     if topic == "ground_reaction":
         f = msg.wrench.force
-        return f"{_t(msg.header.stamp)} ground_reaction {msg.header.frame_id:7s} F=[{f.x:.{digits}f}, {f.y:.{digits}f}] N"
+        return (f"{_t(msg.header.stamp)} ground_reaction {msg.header.frame_id:7s} "
+                f"F=[{f.x:.{digits}f}, {f.y:.{digits}f}] N")
     if topic == "clock":
         return f"{_t(msg.clock)} clock"
     lines = []

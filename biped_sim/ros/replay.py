@@ -27,7 +27,8 @@ def build_parser():
         epilog="examples:\n"
                "  biped-sim replay bags/walk-20261122T025314059Z\n"
                "  biped-sim replay BAG --rate 0.5 --loop --topics /joint_states /impact\n"
-               "  biped-sim replay BAG --start-offset 2.0 --clock 100   # /clock at 100 Hz; run others with use_sim_time\n"
+               "  biped-sim replay BAG --start-offset 2.0 --clock 100\n"
+               "      (/clock at 100 Hz; run the other nodes with use_sim_time)\n"
                "Other ROS arguments go after --ros-args (e.g. --ros-args -r __ns:=/replay).")
     p.add_argument("bag", metavar="BAG", help="bag directory (or its .mcap file)")
     p.add_argument("-r", "--rate", type=float, default=1.0, help="playback speed factor (2: twice as fast)")
@@ -127,8 +128,8 @@ def main(argv=None):
     pubs = {t: node.create_publisher(message_class(channels[t]), t, _qos(args.bag, t)) for t in topics}
     clock_pub = None
     if args.clock is not None:
-        from rosgraph_msgs.msg import Clock
         from rclpy.qos import QoSProfile
+        from rosgraph_msgs.msg import Clock
         clock_pub = node.create_publisher(Clock, "/clock", QoSProfile(depth=100))
     all_pubs = list(pubs.values()) + ([clock_pub] if clock_pub else [])
     msgs = list(bagio.messages(args.bag, topics=topics))

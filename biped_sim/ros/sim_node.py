@@ -32,8 +32,18 @@ from std_msgs.msg import Float64MultiArray
 from biped_sim.config import parameters as P
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, WHY_PYTHON
 from biped_sim.engine.hybrid import HybridSimulator
-from biped_sim.recording.messages import (IMPACT_KINDS, JOINT_NAMES, TOPIC_TYPES, diagnostic_array, event_status,
-                                          foot_frame, joint_state_message, stamp, to_ns, wrench_message)
+from biped_sim.recording.messages import (
+    IMPACT_KINDS,
+    JOINT_NAMES,
+    TOPIC_TYPES,
+    diagnostic_array,
+    event_status,
+    foot_frame,
+    joint_state_message,
+    stamp,
+    to_ns,
+    wrench_message,
+)
 from biped_sim.ros import startup
 from biped_sim.ros.parameters import declare_from_table, value_less_override_message
 from biped_sim.ros.startup import StartupError
@@ -108,7 +118,7 @@ class SimNode(Node):
     # -- recording ------------------------------------------------------------------------------
     def _open_recorder(self):
         try:
-            from biped_sim.recording.recorder import BagRecorder   # optional: needs mcap
+            from biped_sim.recording.recorder import BagRecorder  # optional: needs mcap
         except ModuleNotFoundError as exc:
             if exc.name != "biped_sim.recording.recorder":
                 raise
@@ -317,10 +327,11 @@ class SimNode(Node):
 
     def log_figures(self):
         """The run's cost: control periods, engine time and this process's CPU time per period."""
-        k = max(1, self.sim.control_periods)
+        n = self.sim.control_periods
+        k = max(1, n)
         cpu = getattr(self, "_cpu_end", time.process_time()) - getattr(self, "_cpu_run0", 0.0)
         self.get_logger().info(
-            f"{self.sim.control_periods} control periods to t={self.sim.t:.6f} s: engine {1e3 * self.sim.stats['wall_time'] / k:.3f} ms "
+            f"{n} control periods to t={self.sim.t:.6f} s: engine {1e3 * self.sim.stats['wall_time'] / k:.3f} ms "
             f"(wall) and process CPU {1e3 * cpu / k:.3f} ms per period; commands {self.counts}")
 
     def flush(self, timeout=5.0):

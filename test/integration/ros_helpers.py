@@ -92,7 +92,8 @@ class NodeProcess:
         try:
             return self.proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
-            raise AssertionError(f"{self.argv[0]} did not exit within {timeout} s\n--- log ---\n{self.output()}") from None
+            raise AssertionError(
+                f"{self.argv[0]} did not exit within {timeout} s\n--- log ---\n{self.output()}") from None
 
     def stop(self, sig=signal.SIGTERM, timeout=15.0) -> int:
         """Send ``sig`` (if still running) and return the exit code; SIGKILL after ``timeout``."""

@@ -25,8 +25,8 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 
 from biped_sim.control.walking import WalkingController  # noqa: E402
-from biped_sim.engine.simulate import simulate  # noqa: E402
 from biped_sim.engine.model import BipedModel  # noqa: E402
+from biped_sim.engine.simulate import simulate  # noqa: E402
 
 BASE = {"record": False}
 ERROR = 2

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from ros_helpers import Client, ros_domain, start_node  # noqa: E402
-
 from biped_sim.config.scenes import load_scene  # noqa: E402
+
+from ros_helpers import Client, ros_domain, start_node  # noqa: E402
 
 pytest.importorskip("rclpy")
 from sensor_msgs.msg import JointState  # noqa: E402

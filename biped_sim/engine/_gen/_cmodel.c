@@ -2707,7 +2707,7 @@ PyInit__cmodel(void)
 {
     PyObject *m = PyModule_Create(&module);
     if (m == NULL) return NULL;
-    if (PyModule_AddStringConstant(m, "SOURCE_SHA256", "d3f1c4bb7150b659952234333f3985266c9f2769fcb1033d3f327c53be61638a") < 0) {
+    if (PyModule_AddStringConstant(m, "SOURCE_SHA256", "65074b67f8931089e2ca0a41000b866b2d493cf514e387df9fd9135ddd43e9b3") < 0) {
         Py_DECREF(m);
         return NULL;
     }
