@@ -35,10 +35,10 @@ setup(
     entry_points={
         "console_scripts": [
             "biped-sim = biped_sim.cli:main",
-            "sim_node = biped_sim.ros.sim_node:main",
-            "torque_pub = biped_sim.ros.torque_pub:main",
-            "biped_echo = biped_sim.ros.echo:main",
-            "walk_controller = biped_sim.ros.walk_controller:main",
+            "sim_node = biped_sim.ros:sim_node",
+            "torque_pub = biped_sim.ros:torque_pub",
+            "biped_echo = biped_sim.ros:biped_echo",
+            "walk_controller = biped_sim.ros:walk_controller",
         ],
     },
 )

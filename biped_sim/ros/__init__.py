@@ -1,0 +1,27 @@
+"""The ROS 2 layer: the nodes (``sim_node``, ``walk_controller``) and the small tools.
+
+The console scripts enter through :func:`entry_point`, so that a machine without rclpy (or one of
+the message packages) gets one line saying what to install instead of an ImportError traceback.
+"""
+import importlib
+import sys
+
+
+def entry_point(command, module):
+    """The ``main`` of ``biped_sim.ros.<module>``, imported only when the command runs."""
+    def main():
+        try:
+            target = importlib.import_module(f"biped_sim.ros.{module}")
+        except ImportError as exc:
+            print(f"{command}: error: cannot import the ROS 2 Python packages ({exc}); install ROS 2 Jazzy's "
+                  "rclpy and message packages (make venv does, from PyPI) or source a ROS 2 Jazzy install",
+                  file=sys.stderr)
+            return 2
+        return target.main()
+    return main
+
+
+sim_node = entry_point("sim_node", "sim_node")
+walk_controller = entry_point("walk_controller", "walk_controller")
+torque_pub = entry_point("torque_pub", "torque_pub")
+biped_echo = entry_point("biped_echo", "echo")

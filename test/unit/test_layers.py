@@ -77,3 +77,12 @@ def test_a_whole_scene_runs_with_rclpy_and_mcap_absent():
     status, impacts = out.stdout.splitlines()[0].split()
     assert status == "completed" and int(impacts) >= 2, out.stdout
     assert out.stdout.splitlines()[1] == "[]", out.stdout
+
+
+def test_a_ros_command_without_rclpy_says_what_to_install_in_one_line():
+    code = ("import sys\nsys.modules['rclpy'] = None\n"
+            "from biped_sim.ros import sim_node\nsys.exit(sim_node())\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2, out
+    assert out.stderr.startswith("sim_node: error: cannot import the ROS 2 Python packages"), out.stderr
+    assert "Traceback" not in out.stderr and len(out.stderr.strip().splitlines()) == 1
