@@ -1,7 +1,7 @@
-"""Benchmark: what recording costs a run (``python -m benchmarks.bench_record``).
+"""Benchmark: what recording costs a run, and what the bag's file writer costs (``python -m benchmarks.bench_record``).
 
-Owns the recording benchmark of issue 4. The walking scene runs headless the way the node runs
-it (one ``advance`` per control period, every state message built with the node's message
+Owns the recording benchmark of issues 4 and 13. The walking scene runs headless the way the node
+runs it (one ``advance`` per control period, every state message built with the node's message
 functions, as ``fast`` mode publishes them) three ways, interleaved and repeated:
 
 * ``engine``: ``hybrid.simulate(..., control_period=...)``, no messages at all;
@@ -9,9 +9,17 @@ functions, as ``fast`` mode publishes them) three ways, interleaved and repeated
 * ``record``: the same loop with every message recorded to a bag (serialised, handed to the
   writer process).
 
-It prints the real-time factor (simulated s per wall s) of each (best of the repeats), the cost
-ratio of recording relative to ``publish`` (the issue's target: at most 10 %) and relative to the
-bare engine, the time ``close()`` takes after the run, and the bag's size.
+It prints the real-time factor (simulated s per wall s) of each, the cost of recording relative to
+``publish`` (the issue's target: at most 10 %), the writer process's CPU and the bag's size.
+
+Then the file writers, on the messages of the recorded bag (the same bytes, as the writer process
+receives them): the writer process's loop (frames -> MCAP file -> end of the bag) with our
+``McapFileWriter`` (mcap's public record classes), with the public ``mcap.writer.Writer``
+(``add_message``), and with the writer this project used before issue 13 (``mcap.writer.Writer``
+with its private chunk builder, kept here only as the baseline); and ``rosbags.rosbag2.Writer``
+(in-process, zstd storage compression), which cannot write our bag (see docs/recording.md) but is
+the other public writer. Each: microseconds per message and messages per second, median of the
+repeats, and the ratio to our writer.
 """
 from __future__ import annotations
 
@@ -36,16 +44,22 @@ def _runs(duration, period):
     return params, ctrl
 
 
+#: the file writers of the writer process that the whole-run figures compare (key: its "record" configuration)
+RECORD_WRITERS = {"record": None,                                                  # McapFileWriter (used)
+                  "record_public": "benchmarks.bench_record:PublicMcapWriter",
+                  "record_before": "benchmarks.bench_record:PrivateApiMcapWriter"}
+
+
 def bench(duration=2.0, period=0.001, repeats=5, folder=None):
     """The headless figures (see the module docstring); lists of real-time factors per configuration."""
-    from biped_sim.engine.simulate import simulate
     from biped_sim.config.parameters import engine_arguments
+    from biped_sim.engine.simulate import simulate
     from biped_sim.recording.record_run import run_recorded, topics_for
     from biped_sim.recording.recorder import BagRecorder
     params, ctrl = _runs(duration, period)
     tmp = Path(folder or tempfile.mkdtemp(prefix="bench-record-"))
-    res = {k: [] for k in ("engine", "publish", "record", "engine_cpu", "publish_cpu", "record_cpu", "close",
-                           "writer_cpu")}
+    res = {k + tail: [] for k in ("engine", "publish", *RECORD_WRITERS) for tail in ("", "_cpu")}
+    res.update({k + tail: [] for k in RECORD_WRITERS for tail in ("_close", "_writer_cpu", "_writer_run_cpu")})
     kw = engine_arguments(params)
     model = kw.pop("model")
     kw = {k: v for k, v in kw.items() if k not in ("q0", "dq0")}
@@ -61,24 +75,34 @@ def bench(duration=2.0, period=0.001, repeats=5, folder=None):
         timed("engine", lambda: simulate(model, params["initial_q"], params["initial_dq"], duration, controller=ctrl,
                                          control_period=period, **kw))
         timed("publish", lambda: run_recorded(params, ctrl, None, build_messages=True))
-        path = tmp / f"bag{i}"
-        rec = BagRecorder(path, parameters=params)
-        for name, typ in topics_for(params).items():   # as the node does before its run
-            rec.add_topic(name, typ)
-        _wait_idle(rec._proc.pid)        # let the writer process finish starting (imports: ~1 s of CPU here)
-        w0 = _proc_cpu(rec._proc.pid)
-        timed("record", lambda: run_recorded(params, ctrl, rec, build_messages=True))
-        w1 = _proc_cpu(rec._proc.pid)
-        t1 = time.perf_counter()
-        rec.close()
-        res["close"].append(time.perf_counter() - t1)
-        res["writer_cpu"].append(w1 - w0)
-        res["size"] = sum(f.stat().st_size for f in path.iterdir())
-        res["messages"] = sum(rec.message_counts.values())
+        for key, file_writer in RECORD_WRITERS.items():
+            path = tmp / f"{key}{i}"
+            children0 = _children_cpu()
+            rec = BagRecorder(path, parameters=params, file_writer=file_writer)
+            for name, typ in topics_for(params).items():   # as the node does before its run
+                rec.add_topic(name, typ)
+            _wait_idle(rec.writer_pid)      # let the writer process finish starting (imports: ~1 s of CPU here)
+            start_cpu = _proc_cpu(rec.writer_pid)
+            timed(key, lambda: run_recorded(params, ctrl, rec, build_messages=True))
+            res[key + "_writer_run_cpu"].append(_proc_cpu(rec.writer_pid) - start_cpu)
+            t1 = time.perf_counter()
+            rec.close()
+            res[key + "_close"].append(time.perf_counter() - t1)
+            # the writer's CPU from the end of its start-up to its exit (the run and the end of the bag)
+            res[key + "_writer_cpu"].append(_children_cpu() - children0 - start_cpu)
+            res["size"] = sum(f.stat().st_size for f in path.iterdir())
+            res["messages"] = sum(rec.message_counts.values())
     res["write_us"] = _write_cost(params, tmp / "isolated")
+    res["writers"] = file_writer_bench(tmp / f"record{repeats - 1}", tmp / "writers", repeats)
     if folder is None:
         shutil.rmtree(tmp, ignore_errors=True)
     return res
+
+
+def _children_cpu():
+    """CPU seconds (user + system) of this process's children that have ended."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
 
 
 def _wait_idle(pid, timeout=15.0):
@@ -126,6 +150,179 @@ def _write_cost(params, path, n=4000):
     return best
 
 
+# -- the bag's file writer: ours against the public mcap Writer, the pre-issue-13 writer and rosbags ------
+class PublicMcapWriter:
+    """``mcap.writer.Writer`` (public API only) behind the file-writer interface ``write_frames`` uses."""
+
+    def __init__(self, f, profile, library, compression="zstd", chunk_size=1024 * 1024):
+        from mcap.writer import CompressionType, Writer
+        ctype = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}[compression]
+        self.writer = Writer(f, chunk_size=chunk_size, compression=ctype)
+        self.writer.start(profile=profile, library=library)
+        self.message_counts = {}
+        self.message_start_time = self.message_end_time = None
+        self.add_message = self._counting(self.writer.add_message)
+
+    def _counting(self, add):
+        # the counts and time range finish_bag needs (the writer loop before issue 13 kept them itself)
+        counts = self.message_counts
+
+        def add_message(channel_id, log_time, data, publish_time, sequence=0):
+            add(channel_id, log_time=log_time, data=data, publish_time=publish_time, sequence=sequence)
+            counts[channel_id] += 1
+            if self.message_start_time is None or log_time < self.message_start_time:
+                self.message_start_time = log_time
+            if self.message_end_time is None or log_time > self.message_end_time:
+                self.message_end_time = log_time
+        return add_message
+
+    def add_schema(self, name, encoding, data):
+        return self.writer.register_schema(name, encoding, data)
+
+    def add_channel(self, topic, message_encoding, schema_id, metadata):
+        cid = self.writer.register_channel(topic, message_encoding, schema_id, metadata)
+        self.message_counts[cid] = 0
+        return cid
+
+    def add_metadata(self, name, metadata):
+        self.writer.add_metadata(name, metadata)
+
+    def flush(self):
+        self.writer.flush()
+
+    def finish(self):
+        self.writer.finish()
+
+
+class PrivateApiMcapWriter(PublicMcapWriter):
+    """The writer before issue 13, kept ONLY as this benchmark's baseline: ``mcap.writer.Writer`` whose
+    ``add_message`` is replaced by one ``struct.pack`` into its private chunk builder (mcap 1.6
+    internals; with other internals it falls back to the public ``add_message``)."""
+
+    def __init__(self, *a, **k):
+        super().__init__(*a, **k)
+        self.add_message = self._counting(_private_chunk_builder_add(self.writer, k.get("chunk_size", 1024 * 1024)))
+
+
+def _private_chunk_builder_add(w, chunk_size):
+    import struct
+
+    from mcap.records import MessageIndex
+    try:
+        stats = w._Writer__statistics
+        cb = w._Writer__chunk_builder
+        finalize = w._Writer__finalize_chunk
+        cb.message_indices, cb.num_messages, cb.record_writer, stats.channel_message_counts  # noqa: B018
+    except AttributeError:
+        return w.add_message
+    pack = struct.Struct("<BQHIQQ").pack
+
+    def add(cid, log_time, data, publish_time, sequence):
+        t = log_time
+        if stats.message_count == 0 or t < stats.message_start_time:
+            stats.message_start_time = t
+        if t > stats.message_end_time:
+            stats.message_end_time = t
+        stats.channel_message_counts[cid] += 1
+        stats.message_count += 1
+        if cb.num_messages == 0 or t < cb.message_start_time:
+            cb.message_start_time = t
+        if t > cb.message_end_time:
+            cb.message_end_time = t
+        idx = cb.message_indices.get(cid)
+        if idx is None:
+            idx = cb.message_indices[cid] = MessageIndex(channel_id=cid, records=[])
+        b = cb.record_writer._buffer      # replaced by a new one when a chunk ends
+        idx.records.append((t, b.tell()))
+        cb.num_messages += 1
+        b.write(pack(5, 22 + len(data), cid, sequence, t, publish_time))
+        b.write(data)
+        if b.tell() > chunk_size:
+            finalize()
+    return add
+
+
+def _frames_of(bag):
+    """(the frames a BagRecorder sends its writer process for ``bag``: topics only, topics and messages;
+    the messages; {topic: type})."""
+    import json
+
+    from biped_sim.recording import bagio
+    from biped_sim.recording.bagformat import message_definition, qos_dict, type_hash
+    from biped_sim.recording.writer import FRAME, MESSAGE, MESSAGE_FRAME
+    head, body, ids, seq = bytearray(), bytearray(), {}, {}
+    types = bagio.channels(bag)
+    messages = list(bagio.messages(bag))
+    for topic, typ in types.items():
+        ids[topic] = len(ids) + 1
+        info = json.dumps(dict(id=ids[topic], name=topic, type=typ, qos=[qos_dict()], hash=type_hash(typ),
+                               definition=message_definition(typ))).encode()
+        head += FRAME.pack(b"T", len(info)) + info
+    for topic, _typ, t_ns, data in messages:
+        seq[topic] = seq.get(topic, 0) + 1
+        body += MESSAGE_FRAME.pack(b"M", MESSAGE.size + len(data), ids[topic], t_ns, seq[topic]) + data
+    return bytes(head), bytes(head + body), messages, types
+
+
+def file_writer_bench(bag, folder, repeats):
+    """The file writers on ``bag``'s messages: {writer: [CPU us per message]} (the cost of the messages:
+    a whole bag's minus that of the same bag without messages) and {writer + "_bag": [CPU ms of a bag
+    without messages]} (start, topics, end of bag)."""
+    from rosbags.rosbag2 import Reader
+
+    from biped_sim.recording.mcapfile import McapFileWriter
+    writers = {"ours": McapFileWriter, "public": PublicMcapWriter, "before": PrivateApiMcapWriter, "rosbags": None}
+    empty, full, messages, types = _frames_of(bag)
+    out = {k + tail: [] for k in writers for tail in ("", "_bag")}
+    folder = Path(folder)
+    for i in range(repeats):
+        for name, cls in writers.items():
+            costs = []
+            for frames, n in ((empty, 0), (full, len(messages))):
+                bag_dir = folder / f"{name}{i}-{n}"
+                costs.append(_rosbags_write(bag_dir, messages[:n], types) if cls is None else
+                             _write_frames(bag_dir, frames, cls))
+                if i == 0 and n:      # a writer whose bag rosbags does not read in full does not count
+                    with Reader(bag_dir) as r:
+                        assert r.message_count == n, (name, r.message_count)
+            out[name].append((costs[1] - costs[0]) / len(messages) * 1e6)
+            out[name + "_bag"].append(costs[0] * 1e3)
+    out["messages"] = len(messages)
+    return out
+
+
+def _write_frames(bag_dir, frames, file_writer):
+    """CPU s of the writer process's loop writing ``frames`` to a bag in ``bag_dir`` with ``file_writer``."""
+    import io
+
+    from biped_sim.recording.writer import write_frames
+    bag_dir.mkdir(parents=True)
+    with open(bag_dir / "b_0.mcap", "wb") as f:
+        c0 = time.process_time()
+        code = write_frames(io.BytesIO(frames), f, bag_dir, "b_0.mcap", file_writer=file_writer)
+        cpu = time.process_time() - c0
+    assert code == 0, f"{file_writer.__name__} failed"
+    return cpu
+
+
+def _rosbags_write(path, messages, types):
+    """CPU s of ``rosbags.rosbag2.Writer`` (MCAP, zstd chunks) writing ``messages``: connections, write, close."""
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
+
+    from biped_sim.recording.bagformat import message_definition, type_hash
+    c0 = time.process_time()
+    w = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    w.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+    w.open()
+    conns = {t: w.add_connection(t, typ, msgdef=message_definition(typ), rihs01=type_hash(typ))
+             for t, typ in types.items()}
+    write = w.write
+    for topic, _typ, t_ns, data in messages:
+        write(conns[topic], t_ns, data)
+    w.close()
+    return time.process_time() - c0
+
+
 def node_bench(duration=3.0, repeats=3):
     """``sim_node`` in ``fast`` mode (1 kHz publish rate, u = 0 from the balanced default state), with and
     without recording: the real-time factor from the node's own log times (start line to 'reached')."""
@@ -153,7 +350,8 @@ def node_bench(duration=3.0, repeats=3):
                         "-p", "scene:=bench"]
                 p = subprocess.run(args, env=env, capture_output=True, text=True, timeout=300)
                 lines = (p.stdout + p.stderr).splitlines()
-                t0 = next((float(stamp.search(x).group(1)) for x in lines if "time_mode=fast" in x and stamp.search(x)), None)
+                t0 = next((float(stamp.search(x).group(1)) for x in lines
+                           if "time_mode=fast" in x and stamp.search(x)), None)
                 t1 = next((float(stamp.search(x).group(1)) for x in lines if "reached" in x and stamp.search(x)), None)
                 if t0 is None or t1 is None or p.returncode != 0:
                     shutil.rmtree(tmp, ignore_errors=True)
@@ -161,6 +359,27 @@ def node_bench(duration=3.0, repeats=3):
                 out[record].append(duration / (t1 - t0))
     shutil.rmtree(tmp, ignore_errors=True)
     return out
+
+
+def _print_file_writers(r, med, a):
+    w = r["writers"]
+    mw = {k: sorted(v)[len(v) // 2] for k, v in w.items() if isinstance(v, list)}
+    ours = mw["ours"]
+    rate = r["messages"] / (a.duration / med["record"])      # messages per wall s in the recorded runs
+    per_message = r["write_us"] / 4                           # 4 messages a period: write + write_state
+    print(f"  bag file writer, on the {w['messages']} messages of a recorded run as the writer process receives "
+          f"them (frames -> MCAP file -> end of bag); CPU, median of {len(w['ours'])} interleaved repeats: us per "
+          f"message (a bag's minus the same bag's without messages), messages/s, ratio to ours, the share of a CPU "
+          f"at the recorded runs' median rate ({rate:.0f} messages/s), and ms for a bag without messages:")
+    for key, label in (("ours", "McapFileWriter (mcap's public records; used)"),
+                       ("public", "mcap.writer.Writer.add_message (public API)"),
+                       ("before", "mcap.writer.Writer + private chunk builder (before)"),
+                       ("rosbags", "rosbags.rosbag2.Writer (in-process; not our bag)")):
+        us = mw[key]
+        print(f"    {label:52s} {us:5.2f} us/message  {1e6 / us:8.0f} messages/s  x{us / ours:4.2f}  "
+              f"{us * rate / 1e4:4.1f} % of a CPU  {mw[key + '_bag']:5.1f} ms/bag")
+    print(f"    (the simulating process's hand-over, the same whichever file writer: {per_message:.1f} us a message; a "
+          f"file writer in that process would add its us/message there)")
 
 
 def main(argv=None):
@@ -175,7 +394,7 @@ def main(argv=None):
     p.add_argument("--node-duration", type=float, default=3.0, help="simulated seconds per sim_node run")
     a = p.parse_args(argv)
     r = bench(a.duration, a.period, a.repeats)
-    best = {k: max(v) for k, v in r.items() if isinstance(v, list) and v and k not in ("close", "writer_cpu")}
+    best = {k: max(v) for k, v in r.items() if isinstance(v, list) and v}
     med = {k: sorted(v)[len(v) // 2] for k, v in r.items() if isinstance(v, list) and v}
     print(f"walking scene, {a.duration:g} s simulated per run, control period {a.period * 1e3:g} ms; recorded: "
           f"joint_states, ground_reaction, clock, hip_torque every period ({r['messages']} messages); best of "
@@ -190,19 +409,31 @@ def main(argv=None):
     # median of the paired ratios is the steadiest figure on a shared machine
     paired = sorted(1.0 - r["record_cpu"][i] / r["publish_cpu"][i] for i in range(len(r["record_cpu"])))
     print(f"  recording cost (paired): {paired[len(paired) // 2] * 100:5.1f} % of the CPU real-time factor, median "
-          f"of {len(paired)} back-to-back pairs (range {paired[0] * 100:.1f} to {paired[-1] * 100:.1f} %; target <= 10 %: "
+          f"of {len(paired)} back-to-back pairs (range {paired[0] * 100:.1f} to {paired[-1] * 100:.1f} %; "
+          f"target <= 10 %: "
           f"{'met' if paired[len(paired) // 2] <= 0.10 else 'not met'})")
     for label, d in (("best", best), ("median", med)):
         cost = 1.0 - d["record"] / d["publish"]
         cost_cpu = 1.0 - d["record_cpu"] / d["publish_cpu"]
-        print(f"  recording cost ({label:6s}): {cost * 100:5.1f} % of the wall real-time factor, {cost_cpu * 100:5.1f} % "
+        print(f"  recording cost ({label:6s}): {cost * 100:5.1f} % of the wall real-time factor, "
+              f"{cost_cpu * 100:5.1f} % "
               f"of the CPU one (target <= 10 %: {'met' if cost <= 0.10 else 'not met'} / "
               f"{'met' if cost_cpu <= 0.10 else 'not met'})")
     per_period = a.period / best["publish_cpu"] * 1e6
     print(f"  recording work in the simulating process, measured alone: {r['write_us']:.1f} us per control period "
           f"= {r['write_us'] / per_period * 100:.1f} % of the {per_period:.0f} us CPU a period of the node loop takes")
-    print(f"  writer process: {min(r['writer_cpu']) / (a.duration / best['record']) * 100:.0f} % of a CPU during the "
-          f"recorded run (nice 10; another core when one is free); close() {min(r['close']) * 1e3:.0f} ms after the run")
+    print(f"  whole run with each file writer in the writer process (nice 10), medians of {a.repeats}: recording "
+          f"cost (paired, CPU real-time factor of the simulating process), wall real-time factor, the writer's CPU "
+          f"during the run (share of a CPU) and from the end of its start-up to its exit (per message), close():")
+    for key, label in (("record", "McapFileWriter (mcap's public records; used)"),
+                       ("record_public", "mcap.writer.Writer.add_message (public API)"),
+                       ("record_before", "mcap.writer.Writer + private chunk builder (before)")):
+        pairs = sorted(1.0 - r[key + "_cpu"][i] / r["publish_cpu"][i] for i in range(a.repeats))
+        share = sorted(c * w / a.duration * 100 for c, w in zip(r[key + "_writer_run_cpu"], r[key]))
+        print(f"    {label:52s} cost {pairs[len(pairs) // 2] * 100:5.1f} %  wall RTF {med[key]:6.3f}  writer "
+              f"{share[len(share) // 2]:5.1f} % of a CPU, {med[key + '_writer_cpu'] / r['messages'] * 1e6:5.1f} "
+              f"us/message  close() {med[key + '_close'] * 1e3:4.0f} ms")
+    _print_file_writers(r, med, a)
     if a.node:
         nb = node_bench(a.node_duration, a.repeats if a.repeats < 3 else 3)
         if nb is None:
@@ -210,7 +441,8 @@ def main(argv=None):
         else:
             off, on = max(nb[False]), max(nb[True])
             print(f"  sim_node, time_mode fast, {a.node_duration:g} s at 1 kHz publish rate (u = 0, balanced start), "
-                  f"{len(nb[False])} runs each: real-time factor without recording {sorted(round(v, 3) for v in nb[False])}, "
+                  f"{len(nb[False])} runs each: real-time factor without recording "
+                  f"{sorted(round(v, 3) for v in nb[False])}, "
                   f"with {sorted(round(v, 3) for v in nb[True])} -> cost of the best {(1 - on / off) * 100:.1f} %")
     print(f"  bag: {r['size'] / 1e6:.2f} MB for {a.duration:g} s ({r['size'] / r['messages']:.0f} B per message, "
           f"zstd chunks)")

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import struct
 
-_HEAD = b"\x00\x01\x00\x00"
+#: the CDR encapsulation header every serialised message starts with (little-endian plain CDR)
+ENCAPSULATION_HEADER = b"\x00\x01\x00\x00"
 _II = struct.Struct("<iI")
 
 
@@ -64,7 +65,7 @@ def joint_state(m):
     if lay is None:
         lay = _js_cache[key] = _joint_state_layout(*key)
     st = h.stamp
-    return b"".join((_HEAD, _II.pack(st.sec, st.nanosec), lay[0],
+    return b"".join((ENCAPSULATION_HEADER, _II.pack(st.sec, st.nanosec), lay[0],
                      lay[1].pack(len(pos), *pos, len(vel), *vel, len(eff), *eff)))
 
 
@@ -79,12 +80,12 @@ def wrench_stamped(m):
         st = _wrench_cache[h.frame_id] = (struct.Struct("<" + fmt), const)
     f, t = m.wrench.force, m.wrench.torque
     s = h.stamp
-    return st[0].pack(_HEAD, s.sec, s.nanosec, st[1], f.x, f.y, f.z, t.x, t.y, t.z)
+    return st[0].pack(ENCAPSULATION_HEADER, s.sec, s.nanosec, st[1], f.x, f.y, f.z, t.x, t.y, t.z)
 
 
 def clock(m):
     c = m.clock
-    return _HEAD + _II.pack(c.sec, c.nanosec)
+    return ENCAPSULATION_HEADER + _II.pack(c.sec, c.nanosec)
 
 
 _f64_cache = {}
@@ -104,26 +105,27 @@ def float64_multi_array_data(data, data_offset=0):
     if s is None:
         # layout.dim count (0), layout.data_offset, data count, (pad to 8), data
         s = _f64_cache[n] = struct.Struct(f"<III4x{n}d" if n else "<III")
-    return _HEAD + s.pack(0, data_offset, n, *data)
+    return ENCAPSULATION_HEADER + s.pack(0, data_offset, n, *data)
 
 
 # -- the same layouts as struct formats, for packing a whole period's state in one call -------------
 def joint_state_format(frame_id, names, n):
     """(format without byte order, constant) of a JointState with ``n`` positions, velocities and
-    efforts; its values are (HEAD, sec, nanosec, constant, n, *position, n, *velocity, n, *effort)."""
+    efforts; its values are (ENCAPSULATION_HEADER, sec, nanosec, constant, n, *position, n, *velocity, n, *effort)."""
     const, st = _joint_state_layout(frame_id, tuple(names), n, n, n)
     return f"4siI{len(const)}s" + st.format.lstrip("<"), const
 
 
 def wrench_stamped_format(frame_id):
-    """(format, constant) of a WrenchStamped: values (HEAD, sec, nanosec, constant, fx, fy, fz, tx, ty, tz)."""
+    """(format, constant) of a WrenchStamped: values (ENCAPSULATION_HEADER, sec, nanosec, constant, fx, fy,
+    fz, tx, ty, tz)."""
     buf = bytearray()
     off = _string(buf, 8, frame_id)
     p = _pad(off, 8)
     return f"4siI{len(buf)}s" + (f"{p}x6d" if p else "6d"), bytes(buf)
 
 
-CLOCK_FORMAT = "4siI"          # values (HEAD, sec, nanosec)
+CLOCK_FORMAT = "4siI"          # values (ENCAPSULATION_HEADER, sec, nanosec)
 
 
 #: encoders that return None for shapes they do not handle (then rclpy serialises)

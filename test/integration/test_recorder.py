@@ -11,9 +11,11 @@ from __future__ import annotations
 import json
 import os
 import signal
+import struct
 import subprocess
 import sys
 import time
+import zlib
 from pathlib import Path
 
 import pytest
@@ -264,7 +266,7 @@ def read_all(bag):
     with Reader(bag) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
         got = {}
-        for conn, t_ns, raw in reader.messages():
+        for conn, _t_ns, raw in reader.messages():
             TYPESTORE.deserialize_cdr(raw, conn.msgtype)
             got[conn.topic] = got.get(conn.topic, 0) + 1
     assert {t: n for t, n in counts.items() if n} == got
@@ -344,3 +346,49 @@ def test_fast_cdr_decodes_like_the_message_it_encodes():
     for typ, topic, msg in cases:
         decoded = TYPESTORE.deserialize_cdr(serializer(typ)(msg), typ)
         assert plain(topic, decoded) == plain(topic, msg), (typ, msg)
+
+
+@pytest.mark.parametrize("compression", ["lz4", "none"])
+def test_small_chunks_and_each_compression_give_a_bag_both_readers_index_alike(tmp_path, compression):
+    # many chunks: the chunk and message indexes, the statistics and the summary offsets of our MCAP
+    # writer (biped_sim.recording.mcapfile) are what mcap's indexed reader and rosbags rely on
+    params, ctrl = walk_params(0.3)
+    tee = Tee(BagRecorder(tmp_path / "bag", parameters=params, compression=compression, chunk_size=4096))
+    run_recorded(params, ctrl, tee)
+    tee.rec.close()
+    published = by_topic([(t, plain(t, m), ns) for t, m, ns in tee.sent])
+    with open(tmp_path / "bag" / "bag_0.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        summary = reader.get_summary()
+        assert summary.statistics.chunk_count == len(summary.chunk_indexes) > 10
+        assert {ci.compression for ci in summary.chunk_indexes} == {"" if compression == "none" else compression}
+        assert summary.statistics.message_count == len(tee.sent)
+        assert dict(summary.statistics.channel_message_counts) == {
+            cid: len(published[ch.topic]) for cid, ch in summary.channels.items() if ch.topic in published}
+        got = [(ch.topic, plain(ch.topic, dec), msg.log_time)
+               for _s, ch, msg, dec in reader.iter_decoded_messages(log_time_order=True)]
+    assert by_topic(got) == published
+    assert [t for _, _, t in got] == sorted(t for _, _, t in got)
+    with open(tmp_path / "bag" / "bag_0.mcap", "rb") as f:      # every record and chunk CRC checks out
+        n = sum(1 for rec in StreamReader(f, emit_chunks=False, validate_crcs=True).records
+                if type(rec).__name__ == "Message")
+    assert n == len(tee.sent)
+    data = (tmp_path / "bag" / "bag_0.mcap").read_bytes()      # the footer's CRC of the summary section
+    _op, _len, summary_start, _offsets, crc = struct.unpack("<BQQQI", data[-37:-8])
+    assert crc == zlib.crc32(data[summary_start:-12])
+    with Reader(tmp_path / "bag") as reader:
+        got = [(c.topic, plain(c.topic, TYPESTORE.deserialize_cdr(raw, c.msgtype)), t)
+               for c, t, raw in reader.messages()]
+    assert by_topic(got) == published
+
+
+def test_the_recording_package_uses_no_private_api_of_a_dependency():
+    # issue 13: no name-mangled members (obj._Class__name) and no private modules of mcap or rosbags
+    import re
+
+    import biped_sim.recording
+    folder = Path(biped_sim.recording.__file__).parent
+    private = re.compile(r"\._[A-Za-z0-9]*__\w|\bfrom (mcap|rosbags)\S*\._|\bimport (mcap|rosbags)\S*\._")
+    hits = [f"{p.name}:{i}: {line.strip()}" for p in sorted(folder.glob("*.py"))
+            for i, line in enumerate(p.read_text().splitlines(), 1) if private.search(line)]
+    assert not hits, "\n".join(hits)

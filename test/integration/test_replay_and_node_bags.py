@@ -78,7 +78,8 @@ def test_replay_delivers_every_message_in_order(tmp_path):
         imp = c.collect("/impact", DiagnosticArray, transient_local=False)
         clk = c.collect("/clock", Clock, transient_local=False)
         t0 = time.monotonic()
-        proc = subprocess.Popen([str(BIN / "biped-sim"), "replay", str(tmp_path / "bag"), "--rate", "2", "--wait-subscribers", "20",
+        proc = subprocess.Popen([str(BIN / "biped-sim"), "replay", str(tmp_path / "bag"), "--rate", "2",
+                                 "--wait-subscribers", "20",
                                  "--exclude", "/ground_reaction"], env=ros_env(dom), stdout=subprocess.PIPE,
                                 stderr=subprocess.STDOUT, text=True)
         try:

@@ -1,0 +1,78 @@
+"""``recover``: a bag whose writer was killed (SIGKILL, power loss) rewritten into a clean one.
+
+Owns the repair of a bag cut short: its MCAP has every chunk written before the kill (the writer
+process ends a chunk at least every 0.5 s) but no summary, and there is no metadata.yaml. The bag
+is rewritten by the same writer and ended by the same ``finish_bag`` as a recording, so a recovered
+bag has the layout of one that was closed (``biped-sim recover``).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from biped_sim.recording.bagformat import PROFILE
+
+
+def recover(bag_dir, compression="zstd") -> dict:
+    """Rewrite a bag's MCAP cut short (SIGKILL, power loss) into a clean one; regenerate metadata.yaml.
+
+    Reads records in file order until the first incomplete one: every chunk written before the
+    kill is kept (CRC-checked). The original file is kept as ``<name>.mcap.truncated``. Returns
+    dict(path, kept, messages, topics={topic: count}, end=why the original ended, "" if whole).
+    """
+    import yaml
+    from mcap.records import Channel, Chunk, Message, Metadata, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    from biped_sim.recording.mcapfile import McapFileWriter
+    from biped_sim.recording.writer import finish_bag
+    bag_dir = Path(bag_dir)
+    files = sorted(bag_dir.glob("*.mcap"))
+    if not files:
+        raise ValueError(f"no .mcap file in {bag_dir}")
+    src = files[0]
+    schemas, channels, metadata, messages = {}, {}, [], []
+    problem = ""
+
+    def take(rec):
+        if isinstance(rec, Schema):
+            schemas[rec.id] = rec
+        elif isinstance(rec, Channel):
+            channels[rec.id] = rec
+        elif isinstance(rec, Message):
+            messages.append(rec)
+
+    with open(src, "rb") as f:
+        reader = StreamReader(f, emit_chunks=True, validate_crcs=True)
+        try:
+            for rec in reader.records:
+                if isinstance(rec, Chunk):
+                    for r in breakup_chunk(rec, validate_crc=True):
+                        take(r)
+                elif isinstance(rec, Metadata):
+                    if rec.name != "rosbag2":          # written anew below
+                        metadata.append(rec)
+                else:
+                    take(rec)
+        except Exception as exc:  # noqa: BLE001 - the truncated tail
+            problem = f"{type(exc).__name__}: {exc}" if str(exc) else f"{type(exc).__name__} (cut at {f.tell()} bytes)"
+    kept = src.with_name(src.name + ".truncated")
+    os.replace(src, kept)
+    with open(src, "wb") as out:
+        w = McapFileWriter(out, PROFILE, "biped_sim recover (mcap python records)", compression=compression)
+        for m in metadata:
+            w.add_metadata(m.name, m.metadata)
+        schema_of = {s.id: w.add_schema(s.name, s.encoding, s.data) for s in schemas.values()}
+        topics, channel_of = {}, {}
+        for c in channels.values():
+            channel_of[c.id] = w.add_channel(c.topic, c.message_encoding, schema_of.get(c.schema_id, 0), c.metadata)
+            topics[channel_of[c.id]] = dict(
+                name=c.topic, type=schemas[c.schema_id].name if c.schema_id in schemas else "",
+                qos=yaml.safe_load(c.metadata.get("offered_qos_profiles", "")) or [],
+                hash=c.metadata.get("topic_type_hash", ""))
+        for m in messages:
+            if m.channel_id in channel_of:
+                w.add_message(channel_of[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence)
+        info = finish_bag(w, out, bag_dir, src.name, topics)
+    return dict(path=str(src), kept=str(kept), messages=len(messages), end=problem,
+                topics={t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]})
