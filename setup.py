@@ -21,7 +21,9 @@ setup(
                            extra_compile_args=["-O2", "-ffp-contract=off"], optional=True)],
     # every third-party import of the installed package; ROS packages (rclpy, the message packages,
     # ament_index_python) come from a ROS installation and are declared in package.xml instead
-    install_requires=["numpy", "scipy", "PyYAML", "mcap"],
+    # zstandard and lz4 (chunk compression of the bag writer, recording/mcapfile.py) come with mcap;
+    # named here since the writer imports them itself
+    install_requires=["numpy", "scipy", "PyYAML", "mcap", "zstandard", "lz4"],
     extras_require={
         # imported only where a figure is drawn (biped-sim inspect, biped-sim accuracy)
         "plot": ["matplotlib"],

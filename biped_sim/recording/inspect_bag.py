@@ -11,9 +11,8 @@ import math
 
 import numpy as np
 
-from biped_sim.recording import bagio
-from biped_sim.recording import messages as M
 from biped_sim.config.parameters import method_label
+from biped_sim.recording import bagio, messages as M
 
 
 def load_run(bag) -> dict:
@@ -73,7 +72,8 @@ def summary(bag, run=None) -> str:
     p = run["params"] or {}
     lines = [f"bag         {bag}",
              f"run         scene {p.get('scene', '?')}, time_mode {p.get('time_mode', '?')}, control_period "
-             f"{p.get('control_period', float('nan')):g} s, method {method_label(p)}" if p else "run         (no biped_sim parameters record)",
+             f"{p.get('control_period', float('nan')):g} s, method {method_label(p)}"
+             if p else "run         (no biped_sim parameters record)",
              f"duration    {(t1 - t0) / 1e9:.6g} s of simulated time (t = {t0 / 1e9:.6g} .. {t1 / 1e9:.6g} s)",
              "topics"]
     for topic in sorted(run["counts"]):
@@ -87,7 +87,8 @@ def summary(bag, run=None) -> str:
     t, q = run["t"], run["q"]
     if len(t):
         dist = q[-1, 0] - q[0, 0]
-        lines.append(f"distance    {dist:.4g} m in {t[-1] - t[0]:.4g} s (mean speed {dist / max(t[-1] - t[0], 1e-12):.3g} m/s), "
+        span = t[-1] - t[0]
+        lines.append(f"distance    {dist:.4g} m in {span:.4g} s (mean speed {dist / max(span, 1e-12):.3g} m/s), "
                      f"hip height {q[:, 1].min():.3g} .. {q[:, 1].max():.3g} m")
         if len(imps) >= 2:
             ti = np.array([e["time"] for e in imps])
@@ -96,7 +97,8 @@ def summary(bag, run=None) -> str:
                          f"{np.max(np.diff(ti)):.4g}), length {np.mean(np.diff(xs)):.4g} m")
         if run["u"].size:
             u = run["u"]
-            lines.append(f"torques     |u1| max {np.abs(u[:, 0]).max():.4g} N m, |u2| max {np.abs(u[:, 1]).max():.4g} N m, "
+            u1, u2 = np.abs(u[:, 0]).max(), np.abs(u[:, 1]).max()
+            lines.append(f"torques     |u1| max {u1:.4g} N m, |u2| max {u2:.4g} N m, "
                          f"rms {math.sqrt(float(np.mean(u ** 2))):.4g} N m")
         if len(run["grf"]):
             F = run["grf"]
@@ -118,7 +120,8 @@ def _foot_x(e, params):
     q = e.get("q")
     if not isinstance(q, list) or len(q) != 5:
         return float("nan")
-    return float(_model(params).foot_position(np.array(q), int(e["foot"]) if e.get("foot") in (1, 2, "1", "2") else 1)[0])
+    foot = int(e["foot"]) if e.get("foot") in (1, 2, "1", "2") else 1
+    return float(_model(params).foot_position(np.array(q), foot)[0])
 
 
 def plot(bag, png, run=None, frames=14):

@@ -179,7 +179,8 @@ def event_values(m):
     for st in m.status:
         d = {kv.key: _value(kv.value) for kv in st.values}
         lvl = st.level
-        d["name"], d["message"], d["level"] = st.name, st.message, lvl[0] if isinstance(lvl, (bytes, bytearray)) else int(lvl)
+        d["name"], d["message"] = st.name, st.message
+        d["level"] = lvl[0] if isinstance(lvl, (bytes, bytearray)) else int(lvl)
         d["t_ns"] = stamp_ns(m.header.stamp)
         out.append(d)
     return out

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import signal
 
+from biped_sim.config.parameters import engine_arguments
 from biped_sim.recording import messages as M
 from biped_sim.recording.cdr import float64_multi_array_data
-from biped_sim.config.parameters import engine_arguments
 
 
 def topics_for(params) -> dict:

@@ -2,20 +2,19 @@
 
 Owns ``biped-sim resim``. The parameters come from the bag's ``biped_sim`` metadata record; the
 engine is built with ``parameters.engine_arguments`` as the node builds it, and advanced the way
-the node does: one ``advance_period`` per control period (the engine's one zero-order hold, to ``(k + 1) * control_period``, capped at
-``duration``), with the torques of the last valid command held (the node's checks: two finite
-values within ``torque_limit``, else rejected or clipped per ``torque_limit_action``). Each
-recorded ``joint_states`` message is compared with the engine's state at its stamp, and each
-recorded impact with the engine's; a lockstep run of the same version and settings is
-reproduced exactly (difference 0.0).
+the node does: one ``advance_period`` per control period (the engine's one zero-order hold, to
+``(k + 1) * control_period``, capped at ``duration``), with the torques of the last valid command
+held (the node's checks: two finite values within ``torque_limit``, else rejected or clipped per
+``torque_limit_action``). Each recorded ``joint_states`` message is compared with the engine's
+state at its stamp, and each recorded impact with the engine's; a lockstep run of the same
+version and settings is reproduced exactly (difference 0.0).
 """
 from __future__ import annotations
 
 import math
 
-from biped_sim.recording import bagio
-from biped_sim.recording import messages as M
 from biped_sim.config.parameters import method_label
+from biped_sim.recording import bagio, messages as M
 
 
 def _checked_command(data, params, u_held):
@@ -32,8 +31,8 @@ def _checked_command(data, params, u_held):
 
 def resim(bag, progress=None) -> dict:
     """Re-simulate ``bag``; returns a report dict (see :func:`format_report`)."""
-    from biped_sim.engine.hybrid import HybridSimulator
     from biped_sim.config.parameters import engine_arguments, validate
+    from biped_sim.engine.hybrid import HybridSimulator
     params = validate(bagio.run_parameters(bag))
     topics = bagio.channels(bag)
     t_js = bagio.find_topic(topics, "joint_states")
@@ -100,7 +99,8 @@ def format_report(rep) -> str:
     else:
         f = rep["first"]
         if f is not None:
-            lines.append(f"result            DIFFERENT: first at {f['topic']} message #{f['index']} (t = {f['t']:.9f} s): "
+            lines.append(f"result            DIFFERENT: first at {f['topic']} message #{f['index']} "
+                         f"(t = {f['t']:.9f} s): "
                          f"|q| {f['dpos']:.3g}, |dq| {f['dq']:.3g}")
             lines.append(f"  recorded q       {f['recorded']}")
             lines.append(f"  re-simulated q   {f['resimulated']}")

@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[2]
 # the rosdep key package.xml names for each pip distribution imported (rosdep has no key for mcap
 # alone; mcap-ros2-support's key installs it)
 ROSDEP_KEY = {"numpy": "python3-numpy", "scipy": "python3-scipy", "PyYAML": "python3-yaml",
-              "mcap": "mcap-ros2-support", "matplotlib": "python3-matplotlib"}
+              "mcap": "mcap-ros2-support", "matplotlib": "python3-matplotlib", "zstandard": "python3-zstandard",
+              "lz4": "python3-lz4"}
 
 
 def test_ruff_is_clean():
