@@ -36,6 +36,7 @@ from biped_sim.engine import guards as G
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, gen
 from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
 from biped_sim.engine.integrators import ADAPTIVE_METHODS, FIXED_STEP_METHODS, METHODS, StepFailure, make_stepper
+from biped_sim.engine.locator import EventLocator
 from biped_sim.engine.model import BipedModel, as_state_vector
 from biped_sim.engine.modes import bind_controller, mode_functions, two_finite_floats
 from biped_sim.engine.options import Options, check_number
@@ -94,7 +95,7 @@ class HybridSimulator:
         self.energy_lost = 0.0
         self.E0 = model.energy(q0, dq0)
         self.events: list[Event] = []
-        self.locator = G.EventLocator(model, self.ground, self.opt, mu, feet, stance_leg)
+        self.locator = EventLocator(model, self.ground, self.opt, mu, feet, stance_leg)
         self.pin = list(G.foot_xy(model, q0.tolist(), stance_leg)) if stance_leg else None
         self.status, self.message = "running", ""
         self.control_periods = 0            # advance_period calls so far
@@ -106,9 +107,10 @@ class HybridSimulator:
         self._last_F, self._last_u = [0.0, 0.0], [0.0, 0.0]   # the last right-hand-side evaluation's
         self._initial_sample_pending = True    # the t0 sample, redone under the first advance's torque
         self._recent_impacts: list[float] = []
+        self._mode_event_times: list[float] = []   # the events that changed the mode (not the scuffs)
         self.stats = dict(steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
                           max_constraint_drift_position=0.0, max_constraint_drift_velocity=0.0,
-                          max_energy_balance_residual=0.0, scuffs_ignored=0, wall_time=0.0)
+                          max_energy_balance_residual=0.0, scuffs_ignored=0, deepest_scuff=0.0, wall_time=0.0)
         self._nfev_base = 0
         self._rejected_base = 0
         self._samples = []
@@ -261,7 +263,8 @@ class HybridSimulator:
             fsal = self.stance_leg and at_end and self.opt.base == "floating"
             event, F_end = self.locator.locate(st, self._to_phys, self.stance_leg, q, dq, feet, self._force_at,
                                                list(self._last_F) if fsal else None)
-            self.stats["scuffs_ignored"] = self.locator.scuffs
+            while self.locator.scuff_events:
+                self._push_event(self.locator.scuff_events.pop(0))
             if event is None:
                 # checked only when no guard crossed in this step: a long free-flight step can pass
                 # the ground by more than max_penetration before its touchdown is located
@@ -386,10 +389,13 @@ class HybridSimulator:
     def _push_event(self, ev):
         self.events.append(ev)
         self.stats["events"] = len(self.events)
-        if len(self.events) >= self.opt.max_events:
-            self._stop("stopped", f"stopped after {len(self.events)} events (max_events)")
-        recent = self.events[-50:]
-        if len(recent) == 50 and recent[-1].time - recent[0].time < 1e-9:
+        if ev.kind == "scuff":      # a report, not a change of mode: max_events counts the changes
+            return
+        self._mode_event_times.append(ev.time)
+        if len(self._mode_event_times) >= self.opt.max_events:
+            self._stop("stopped", f"stopped after {len(self._mode_event_times)} events (max_events)")
+        recent = self._mode_event_times[-50:]
+        if len(recent) == 50 and recent[-1] - recent[0] < 1e-9:
             self._stop("stopped", f"event loop: 50 events within 1e-9 s ending at t={ev.time:.9g} s "
                                   f"(last: {ev.kind} of leg {ev.leg}); the run stops instead of hanging")
 
@@ -424,6 +430,8 @@ class HybridSimulator:
     def result(self) -> SimulationResult:
         s = self._samples
         stats = dict(self.stats)
+        stats["scuffs_ignored"] = self.locator.scuffs
+        stats["deepest_scuff"] = self.locator.deepest_scuff      # m
         stats["simulated_time"] = self.t - self.t0
         stats["real_time_factor"] = stats["simulated_time"] / stats["wall_time"] if stats["wall_time"] > 0 else math.inf
         stats["energy_balance_residual"] = float(s[-1][6]) if s else 0.0

@@ -15,6 +15,8 @@ class Options:
     base: str = "floating"
     phases: frozenset = PHASES
     touchdown_rule: str = "front"
+    scuff_depth: float = 3e-3          # m; a swing foot deeper than this behind the stance foot stops the run
+    front_tol: float = 1e-5            # m; a touchdown within this of the stance foot's x counts as behind
     stop_on_slip: bool = True
     project_constraints: bool = True
     step: float | None = None          # fixed-step methods: the step size (s)
@@ -47,6 +49,7 @@ class Options:
         check_number("slope", self.slope, -math.pi / 2, math.pi / 2, "rad, strictly between -pi/2 and pi/2",
                      open_low=True, open_high=True)
         for name, low, what in (("event_tol", 0.0, "s"), ("contact_tol", 0.0, "m and m/s"),
+                                ("scuff_depth", 0.0, "m"), ("front_tol", 0.0, "m"),
                                 ("zeno_interval", 0.0, "s"), ("max_speed", 0.0, "m/s and rad/s"),
                                 ("max_penetration", 0.0, "m")):
             check_number(name, getattr(self, name), low, math.inf, what, open_low=True)

@@ -97,7 +97,7 @@ def event_status(event, prefix="biped_sim"):
         st.name = f"{prefix}/impact"
         st.message = (f"{event.kind}: foot {event.leg} touched down at t={event.time:.9f} s"
                       + ("; " + "; ".join(event.warnings) if event.warnings else ""))
-    elif event.kind in ("error", "zeno") or event.message and event.kind != "liftoff":
+    elif event.kind in ("error", "zeno") or event.message and event.kind not in ("liftoff", "scuff"):
         st.level = DiagnosticStatus.ERROR
         st.name = f"{prefix}/{event.kind}"
         st.message = event.message or event.kind

@@ -180,3 +180,42 @@ def test_a_negative_normal_force_right_after_an_impact_is_a_liftoff_at_that_impa
     kinds = [(e.kind, e.time) for e in r.events]
     assert kinds[0][0] == "touchdown" and kinds[1] == ("liftoff", kinds[0][1])
     assert not np.any((r.stance_leg > 0) & (r.grf[:, 1] < -1e-9)), "a stance sample with the ground pulling"
+
+
+# -- item 1: the scuffs of touchdown_rule "front" are reported and bounded ------------------------------
+def test_the_walk_reports_each_scuff_and_stays_within_scuff_depth():
+    r = bs.load_scene("walk").simulate(hold=False)
+    scuffs = [e for e in r.events if e.kind == "scuff"]
+    assert r.status == "completed" and len(scuffs) == r.stats["scuffs_ignored"] >= 20
+    assert 1e-4 < r.stats["deepest_scuff"] < 1e-3            # the gait dips 0.6 mm near mid-stance
+    first = scuffs[0]
+    assert first.leg == 2 and "scuffed the ground behind the stance foot" in first.message and " deep at " in first.message
+    # each scuff lies between two impacts and is reported once, in time order
+    assert [e.time for e in r.events] == sorted(e.time for e in r.events)
+
+
+def test_falling_back_onto_the_rear_foot_stops_with_which_foot_when_and_how_deep():
+    r = bs.load_scene("passive").simulate(t_final=2.0)
+    assert r.status == "stopped", r.message
+    assert "foot 1 went" in r.message and "deeper than scuff_depth=0.003 m" in r.message
+    depth = float(r.message.split("foot 1 went ")[1].split(" m below")[0])
+    assert depth > 0.003
+    # a larger bound lets the same fall go on further, a tighter one stops it earlier
+    assert bs.load_scene("passive").simulate(t_final=2.0, scuff_depth=1e-3).t[-1] <= r.t[-1]
+
+
+def test_touchdown_rule_any_takes_the_mid_stance_crossing_as_a_touchdown():
+    r = bs.load_scene("walk").simulate(hold=False, t_final=0.3, touchdown_rule="any")
+    assert r.events and r.events[0].kind == "touchdown" and r.events[0].time < 0.2
+
+
+# -- item 4: a crossing at the stance foot's x is not decided by roundoff -------------------------------
+def test_a_crossing_at_the_stance_foot_is_decided_the_same_at_every_tolerance():
+    # the swing leg rotates onto the stance leg: its foot reaches the ground exactly at the stance
+    # foot (the legs coincide), then moves under the ground in front of it
+    q, dq = bs.stance_state(MODEL, [math.pi + 0.2, math.pi + 0.25, 0.0], [0.0, -1.0, 0.0])
+    outcomes = set()
+    for tol in (1e-6, 1e-8, 1e-10, 1e-12):
+        r = bs.simulate(MODEL, q, dq, 0.3, rtol=tol, atol=tol)
+        outcomes.add((r.status, tuple(e.kind for e in r.events), "in front of the stance foot" in r.message))
+    assert outcomes == {("stopped", ("error",), True)}, outcomes

@@ -1,0 +1,202 @@
+"""The one event locator: the earliest guard crossing inside each accepted step, and the scuffs.
+
+Under ``touchdown_rule="front"`` a swing foot that goes below the ground behind the stance foot
+(straight legs without knees graze the ground near mid-stance) is not a touchdown: that is the
+modelling assumption of the compass-gait literature (Drake's ``FootCollision`` guard too). Here it is
+explicit and bounded: each such excursion is a *scuff*, tracked from the down-crossing until the foot
+is above the ground again, reported as an Event (kind ``scuff``: when, which foot, deepest dip), and
+a scuff deeper than ``scuff_depth``, or one that carries the foot under the ground to the front of
+the stance foot, stops the run (``SceneAssumptionError``: status "stopped"). A down-crossing within
+``front_tol`` of the stance foot's x counts as behind, so that roundoff cannot decide it.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from biped_sim.engine.guards import (
+    active_guards,
+    foot_height,
+    foot_states,
+    hermite_lower_bound,
+    liftoff_guard,
+    locate_crossing,
+    normal_tangent,
+    sample_bracket,
+    slip_guard,
+    touchdown_guard,
+)
+from biped_sim.engine.results import Event, SceneAssumptionError
+
+
+class EventLocator:
+    """Finds the earliest guard crossing inside each accepted step, on the step's dense output.
+
+    Owns the guards' discrete state: which feet are ``armed`` (a foot's touchdown guard counts only
+    once it has been higher than ``arm_height``) and which guards are ``latched`` (a guard that just
+    fired and was not reset, a slip with ``stop_on_slip=False``, stays off until it is positive at a
+    step's end). The caller hands in, per step, the stepper ``st`` (``t_old``, ``t``, ``y_old``,
+    ``dense_at``), ``to_phys(y) -> (q, dq, work)``, the state and feet at the step's end, and
+    ``force_at(t, q, dq) -> [Fx, Fy]`` for the stance guards.
+    """
+
+    def __init__(self, model, ground, opt, mu, feet, stance_leg):
+        self.model, self.ground, self.opt, self.mu = model, ground, opt, mu
+        # at the start no reset has just happened, so a free foot above the ground, however little,
+        # is armed at once: its crossing is found (a foot on it arms when it rises above arm_height)
+        self.armed = [feet[0].height > 0.0, feet[1].height > 0.0]
+        if stance_leg:
+            self.armed[stance_leg - 1] = False
+        self.latched: set = set()
+        self.scuffs = 0          # touchdowns behind the stance foot ignored under touchdown_rule "front"
+        self.deepest_scuff = 0.0  # m, the deepest dip of any scuff so far
+        self.active_scuffs: dict = {}   # leg -> [t_start, deepest, t_deepest] while that foot is under
+        self.scuff_events: list = []    # finished scuffs, for the simulator to report
+        self._feet_end = self._force_end = (None, None)   # (t, value) at the last step's end
+
+    def guards(self, stance_leg):
+        return active_guards(stance_leg, self.armed, self.opt.phases, self.mu)
+
+    def after_reset(self, event):
+        """Disarm the feet the reset put on the ground (or that just left it)."""
+        for leg in self.active_scuffs:
+            # a liftoff with the other foot still under the ground behind: no mode of the model has
+            # a free foot below the ground
+            raise SceneAssumptionError(
+                f"the stance foot (leg {event.stance_leg_before}) {event.kind} at t={event.time:.9g} s while foot "
+                f"{leg} is still below the ground behind it (a scuff since t={self.active_scuffs[leg][0]:.9g} s): "
+                "the model has no contact there")
+        if event.kind == "double_touchdown":
+            self.armed = [False, False]
+        for leg in (event.stance_leg_after, event.stance_leg_before):
+            if leg:
+                self.armed[leg - 1] = False
+
+    def _value(self, guard, t, q, dq, force_at, feet=None, F=None):
+        if guard.kind == "touchdown":
+            if feet is None:   # the height only (root finding evaluates this many times)
+                return foot_height(self.model, q, guard.leg, self.ground.tan)
+            return touchdown_guard(feet, guard.leg)
+        n, tg = normal_tangent(F if F is not None else force_at(t, q, dq), self.ground)
+        return liftoff_guard(n, tg) if guard.kind == "liftoff" else slip_guard(n, tg, self.mu)
+
+    def locate(self, st, to_phys, stance_leg, q1, dq1, feet1, force_at, F_end=None):
+        """((time, guard, legs) of the earliest crossing, or None; the force at the step's end).
+
+        ``F_end``: the stance force at the step's end if the caller has it (the stepper's last
+        evaluation), else it is computed here."""
+        guards = self.guards(stance_leg)
+        if not guards:
+            self._arm(feet1, stance_leg)
+            return None, None
+        # the step's start is the last step's end: its feet and force are known (the projection
+        # since moved the state by the drift only, ~1e-14)
+        q0 = dq0 = None
+        feet0 = self._feet_end[1] if self._feet_end[0] == st.t_old else None
+        if feet0 is None:
+            q0, dq0, _ = to_phys(st.y_old)
+            feet0 = foot_states(self.model, q0, dq0, self.ground.tan)
+        self._feet_end = (st.t, feet1)
+        F0 = F1 = None
+        if stance_leg:
+            F0 = self._force_end[1] if self._force_end[0] == st.t_old else None
+            if F0 is None:
+                if q0 is None:
+                    q0, dq0, _ = to_phys(st.y_old)
+                F0 = force_at(st.t_old, q0, dq0)
+            F1 = F_end if F_end is not None else force_at(st.t, q1, dq1)
+            self._force_end = (st.t, F1)
+        roots = []
+        for guard in guards:
+            g1 = self._value(guard, st.t, q1, dq1, force_at, feet1, F1)
+            if guard in self.latched:
+                if g1 > 0:
+                    self.latched.discard(guard)
+                continue
+            g0 = self._value(guard, st.t_old, q0, dq0, force_at, feet0, F0)
+
+            def guard_at(t, guard=guard):
+                q, dq, _ = to_phys(st.dense_at(t))
+                return self._value(guard, t, q, dq, force_at)
+            bracket = None
+            if g0 > 0 and g1 <= 0:
+                bracket = (st.t_old, st.t)
+            elif guard.kind == "touchdown" and g0 > 0 and g1 > 0:
+                h = st.t - st.t_old
+                f0, f1 = feet0[guard.leg - 1], feet1[guard.leg - 1]
+                if hermite_lower_bound(g0, f0.dheight * h, g1, f1.dheight * h) <= 0:
+                    bracket = sample_bracket(guard_at, st.t_old, st.t)
+            if bracket is None:
+                continue
+            t_root = locate_crossing(guard_at, *bracket, self.opt.event_tol)
+            if guard.kind == "touchdown" and stance_leg and self.opt.touchdown_rule == "front":
+                fr = self._feet_at(st, to_phys, t_root)
+                if fr[guard.leg - 1].x <= fr[stance_leg - 1].x + self.opt.front_tol:
+                    self.scuffs += 1
+                    self.active_scuffs[guard.leg] = [t_root, 0.0, t_root]
+                    continue
+            roots.append((t_root, guard))
+        t_end = min(roots)[0] if roots else st.t
+        if self.active_scuffs:
+            self._track_scuffs(st, to_phys, stance_leg, t_end)
+        if not roots:
+            self._arm(feet1, stance_leg)
+            return None, F1
+        roots.sort()
+        t_first, guard = roots[0]
+        legs = [guard.leg]
+        if guard.kind == "touchdown" and not stance_leg:
+            legs += [g.leg for t, g in roots[1:] if g.kind == "touchdown" and t - t_first <= self.opt.simultaneous_tol]
+            other = 3 - guard.leg
+            if len(legs) == 1 and self.armed[other - 1]:
+                # the other foot may be within the tolerance without having crossed yet
+                fo = self._feet_at(st, to_phys, t_first)[other - 1]
+                if fo.dheight < 0 and fo.height <= -fo.dheight * self.opt.simultaneous_tol:
+                    legs.append(other)
+        return (t_first, guard, sorted(set(legs))), F1
+
+    def _track_scuffs(self, st, to_phys, stance_leg, t_end, n=8):
+        """Follow each scuffing foot over the step up to ``t_end``: its deepest dip (on n + 1 points of
+        the dense output), the end of the scuff when it is above the ground again, and the two ways
+        a scuff leaves the model (deeper than scuff_depth; under the ground in front)."""
+        for leg, scuff in list(self.active_scuffs.items()):
+            t0 = max(scuff[0], st.t_old)
+            for t in np.linspace(t0, t_end, n + 1).tolist():
+                feet = self._feet_at(st, to_phys, t)
+                depth = -feet[leg - 1].height
+                if depth > scuff[1]:
+                    scuff[1], scuff[2] = depth, t
+                if depth > 0 and feet[leg - 1].x > feet[stance_leg - 1].x + self.opt.front_tol:
+                    raise SceneAssumptionError(
+                        f"foot {leg} went below the ground behind the stance foot at t={scuff[0]:.9g} s and is "
+                        f"{depth:.3g} m below it in front of the stance foot at t={t:.9g} s: a touchdown there "
+                        "cannot be placed (the legs are too long for this gait; touchdown_rule='any' makes every "
+                        "crossing a touchdown)")
+            self.deepest_scuff = max(self.deepest_scuff, scuff[1])
+            if scuff[1] > self.opt.scuff_depth:
+                raise SceneAssumptionError(
+                    f"foot {leg} went {scuff[1]:.3g} m below the ground behind the stance foot (leg {stance_leg}) "
+                    f"at t={scuff[2]:.9g} s, deeper than scuff_depth={self.opt.scuff_depth:g} m: the robot is "
+                    "falling onto that foot, which the model (touchdown_rule='front') does not let touch down")
+            end = self._feet_at(st, to_phys, t_end)[leg - 1]
+            if end.height > 0.0:
+                del self.active_scuffs[leg]
+                self.scuff_events.append(self._scuff_event(st, to_phys, leg, stance_leg, scuff, t_end))
+
+    def _scuff_event(self, st, to_phys, leg, stance_leg, scuff, t_up):
+        t_start, depth, t_deep = scuff
+        q, dq, _ = to_phys(st.dense_at(t_deep)) if st.t_old <= t_deep <= st.t else (None, None, None)
+        q = np.array(q) if q is not None else np.full(5, np.nan)
+        dq = np.array(dq) if dq is not None else np.full(5, np.nan)
+        return Event(t_start, "scuff", leg, q, dq, dq.copy(), None, stance_leg, stance_leg,
+                     message=f"foot {leg} scuffed the ground behind the stance foot from t={t_start:.9g} s to "
+                             f"t={t_up:.9g} s, {depth:.3g} m deep at t={t_deep:.9g} s (the assumption of "
+                             f"touchdown_rule='front'; bounded by scuff_depth={self.opt.scuff_depth:g} m)")
+
+    def _feet_at(self, st, to_phys, t):
+        q, dq, _ = to_phys(st.dense_at(t))
+        return foot_states(self.model, q, dq, self.ground.tan)
+
+    def _arm(self, feet, stance_leg):
+        for leg in (1, 2):
+            if not self.armed[leg - 1] and leg != stance_leg and feet[leg - 1].height > self.opt.arm_height:
+                self.armed[leg - 1] = True
