@@ -26,7 +26,6 @@ import numpy as np
 from scipy.optimize import brentq
 
 from biped_sim.engine.compiled import gen
-from biped_sim.engine.results import SceneAssumptionError, SimulationError
 
 
 class FootState(NamedTuple):
@@ -187,39 +186,3 @@ def check_initial_contact(feet, stance_leg, tol):
                 f"initial state: the contact of foot {leg} is ambiguous: it is on the ground ({f.height:.3g} m) and "
                 f"moving into it at {f.dheight:.3g} m/s, an impact that has not been applied; start from the state "
                 "after the impact (biped_sim.impact_map), or with the foot above the ground")
-
-
-def check_ground(t, feet, stance_leg, opt, last_impact):
-    """Raise where a free foot is below the ground in a way the run cannot go on from: without an
-    impact phase, any touchdown that would count (SceneAssumptionError: the run stops); with one, a
-    foot deeper than ``opt.max_penetration`` (SimulationError: the robot fell, or the model's
-    assumptions failed at the last impact)."""
-    if "impact" not in opt.phases:
-        # no touchdown guard is built; a swing foot that reaches the ground where a touchdown
-        # would count leaves the scene's assumptions: say so instead of walking through the ground
-        for leg in (1, 2):
-            f = feet[leg - 1]
-            if leg != stance_leg and f.height < 0.0 and (
-                    not stance_leg or opt.touchdown_rule == "any" or f.x > feet[stance_leg - 1].x):
-                raise SceneAssumptionError(
-                    f"foot {leg} touches the ground at t={t:.9g} s (it is {-f.height:.3g} m below "
-                    f"at the end of the step), but this scene has no impact phase: add 'impact' to its phases")
-        return
-    for leg in (1, 2):
-        depth = -feet[leg - 1].height
-        if leg == stance_leg or depth <= opt.max_penetration:
-            continue
-        if last_impact is not None and last_impact.kind == "double_touchdown":
-            raise SimulationError(
-                f"foot {leg} goes {depth:.3g} m into the ground at t={t:.9g} s after the double touchdown at "
-                f"t={last_impact.time:.9g} s: double support is not modelled (the run continued on foot "
-                f"{last_impact.leg} only)")
-        if last_impact is not None and last_impact.warnings and leg == last_impact.stance_leg_before:
-            raise SimulationError(
-                f"foot {leg} goes {depth:.3g} m into the ground at t={t:.9g} s: at the impact of "
-                f"t={last_impact.time:.9g} s {'; '.join(last_impact.warnings)}, so the feet stay in contact "
-                f"(impacts accumulating, Zeno-like, or double support), which the model does not cover")
-        raise SimulationError(
-            f"foot {leg} is {depth:.3g} m below the ground at t={t:.9g} s: the robot fell or the foot passed "
-            f"the ground where no touchdown counts (touchdown_rule={opt.touchdown_rule!r}, "
-            f"phases={sorted(opt.phases)})")

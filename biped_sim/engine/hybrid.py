@@ -36,6 +36,7 @@ from biped_sim.engine import guards as G
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, gen
 from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
 from biped_sim.engine.integrators import ADAPTIVE_METHODS, FIXED_STEP_METHODS, METHODS, StepFailure, make_stepper
+from biped_sim.engine.invariants import check_impact, check_sample
 from biped_sim.engine.locator import EventLocator
 from biped_sim.engine.model import BipedModel, as_state_vector
 from biped_sim.engine.modes import bind_controller, mode_functions, two_finite_floats
@@ -266,11 +267,11 @@ class HybridSimulator:
             while self.locator.scuff_events:
                 self._push_event(self.locator.scuff_events.pop(0))
             if event is None:
-                # checked only when no guard crossed in this step: a long free-flight step can pass
-                # the ground by more than max_penetration before its touchdown is located
-                G.check_ground(st.t, feet, self.stance_leg, self.opt, self.last_impact)
                 q, dq = self._project(q, dq, feet)
                 self._accept(st.t, q, dq, w, F_end, u_end)
+                if self.opt.check_invariants:
+                    check_sample(self.t, q, dq, feet, self.stance_leg, self._samples[-1][4], self.ground, self.mu,
+                                 self.opt, self.locator.active_scuffs, self.last_impact)
                 if self.opt.project_constraints and self.stance_leg and self.opt.base == "floating":
                     st.replace_y(q + dq + [w])  # continue from the projected state
                 continue
@@ -351,6 +352,13 @@ class HybridSimulator:
             self.stats["impacts"] += 1
             self._push_event(ev)
             self._check_zeno(t)
+            if self.status == "running" and self.opt.check_invariants:
+                gaps = [b - a for a, b in zip(self._recent_impacts, self._recent_impacts[1:])]
+                zeno = check_impact(ev, self.feet(list(q), ev.dq_plus.tolist()), self.ground, gaps)
+                if zeno is not None:
+                    self.events.append(Event(t, "zeno", self.stance_leg, self.q.copy(), self.dq.copy(),
+                                             self.dq.copy(), message=zeno))
+                    self._stop("stopped", zeno)
             if self.status == "running":
                 self._check_stance_start(t)
         elif guard.kind == "liftoff":

@@ -30,8 +30,9 @@ class Options:
     zeno_interval: float = 1e-6        # s; this many impacts in a row closer than it stop the run
     zeno_count: int = 20
     max_speed: float = 1e4             # a velocity entry above this is a diverging state
-    max_penetration: float = 0.05      # m; a free foot this deep below the ground: the robot fell
-                                       # or a touchdown was missed (checked when impacts are modelled)
+    ground_tol: float = 1e-9           # m; invariant: no free foot lower than this below the ground
+    force_tol: float = 1e-6            # N; invariant: stance normal force and friction margin above -this
+    check_invariants: bool = True      # check them after every step and reset (docs/engine.md)
     compute_grf: bool = True
     keep_samples: bool = True          # False: keep only the last sample (a long-running node)
 
@@ -51,7 +52,7 @@ class Options:
         for name, low, what in (("event_tol", 0.0, "s"), ("contact_tol", 0.0, "m and m/s"),
                                 ("scuff_depth", 0.0, "m"), ("front_tol", 0.0, "m"),
                                 ("zeno_interval", 0.0, "s"), ("max_speed", 0.0, "m/s and rad/s"),
-                                ("max_penetration", 0.0, "m")):
+                                ("ground_tol", 0.0, "m"), ("force_tol", 0.0, "N")):
             check_number(name, getattr(self, name), low, math.inf, what, open_low=True)
         for name, what in (("arm_height", "m"), ("simultaneous_tol", "s")):
             check_number(name, getattr(self, name), 0.0, math.inf, what)

@@ -220,3 +220,42 @@ def test_a_crossing_at_the_stance_foot_is_decided_the_same_at_every_tolerance():
         r = bs.simulate(MODEL, q, dq, 0.3, rtol=tol, atol=tol)
         outcomes.add((r.status, tuple(e.kind for e in r.events), "in front of the stance foot" in r.message))
     assert outcomes == {("stopped", ("error",), True)}, outcomes
+
+
+# -- item 7: the rocking V stops as Zeno -----------------------------------------------------------------
+def test_a_rocking_v_whose_impacts_accumulate_stops_as_zeno_not_as_a_fall():
+    from biped_sim.analysis.stability import HipPD
+    q0, dq0 = bs.stance_state(MODEL, [math.pi - 0.3, math.pi + 0.3, 0.0], [0.0, 0.0, 0.3])
+    r = bs.simulate(MODEL, q0, dq0, 5.0, controller=HipPD(1e4, 200.0, q0[2:4]), touchdown_rule="any")
+    gaps = np.diff([e.time for e in r.impacts])
+    assert r.status == "stopped" and r.events[-1].kind == "zeno", r.message
+    assert "impacts accumulate (Zeno" in r.message and "fell" not in r.message
+    assert len(gaps) >= 4 and np.all(np.diff(gaps[-4:]) < 0)
+
+
+# -- the invariants: what "completed" means ------------------------------------------------------------
+def test_every_sample_of_a_completed_run_keeps_the_invariants():
+    for scene, kw in (("walk", dict(hold=False)), ("walk", dict(hold=True)), ("slope", {}), ("drop", {})):
+        r = bs.load_scene(scene).simulate(**kw)
+        assert r.status == "completed", (scene, r.message)
+        _assert_invariants(r, bs.load_scene(scene).engine_arguments().get("slope", 0.0))
+
+
+def _assert_invariants(r, slope, ground_tol=1e-9, force_tol=1e-6, scuff_depth=3e-3):
+    """Every sample: finite; each foot at or above the ground (a scuff behind the stance foot within
+    scuff_depth excepted); in stance, the ground pushes."""
+    assert np.all(np.isfinite(r.q)) and np.all(np.isfinite(r.dq))
+    s, c, tn = math.sin(slope), math.cos(slope), math.tan(slope)
+    for k in range(len(r.t)):
+        feet = [MODEL.foot_position(r.q[k], leg) for leg in (1, 2)]
+        heights = [p[1] + tn * p[0] for p in feet]
+        leg = int(r.stance_leg[k])
+        for j in (1, 2):
+            if j == leg:
+                continue
+            behind = leg and feet[j - 1][0] <= feet[leg - 1][0] + 1e-5
+            floor = -scuff_depth if behind else -ground_tol
+            assert heights[j - 1] >= floor, (k, r.t[k], j, heights[j - 1])
+        if leg:
+            n = r.grf[k][0] * s + r.grf[k][1] * c
+            assert n >= -force_tol, (k, r.t[k], n)

@@ -1,0 +1,91 @@
+"""The invariants of a correct run, checked after every accepted step and every reset.
+
+A run that ends "completed" has all of these true at every sample (docs/engine.md, "What a correct
+run is"); a violated one is a bug or an edge the model does not cover, and the run stops with
+status "failed" (``InvariantViolation``), saying which invariant, when and by how much:
+
+* the state is finite;
+* every foot is at or above the ground (``ground_tol``); the one stated exception is a scuff of
+  ``touchdown_rule="front"``, bounded by ``scuff_depth`` (``locator.py``);
+* in stance, the ground pushes (normal force >= -``force_tol``) and, with a friction coefficient and
+  ``stop_on_slip``, the force is inside the friction cone;
+* an impact pushes (every normal impulse >= 0) and leaves every foot that stays on the ground at rest
+  or moving up: the old stance foot must leave the ground (an impact after which it does not is the
+  limit of impacts that accumulate: a ``zeno`` stop where the last gaps shrank, else a violation).
+
+Scene assumptions that are not invariants (no impact or flight phase where one is needed) stop the
+run with status "stopped" (``SceneAssumptionError``) instead.
+"""
+from __future__ import annotations
+
+import math
+
+from biped_sim.engine.guards import normal_tangent
+from biped_sim.engine.results import SceneAssumptionError, SimulationError
+
+
+class InvariantViolation(SimulationError):
+    """An invariant of a correct run does not hold: the run ends "failed"."""
+
+
+def check_sample(t, q, dq, feet, stance_leg, F, ground, mu, opt, scuffing, last_impact):
+    """The invariants of an accepted sample (lists q, dq; ``scuffing``: the legs under the ground
+    in a scuff)."""
+    if not math.isfinite(sum(q) + sum(dq)):
+        raise InvariantViolation(f"invariant 'finite state' violated at t={t:.9g} s: q={q}, dq={dq}")
+    for leg in (1, 2):
+        f = feet[leg - 1]
+        if leg == stance_leg or leg in scuffing or f.height >= -opt.ground_tol:
+            continue
+        if "impact" not in opt.phases:
+            # no touchdown guard is built: the scene, not the run, is at fault; behind the stance
+            # foot it is the scuff of touchdown_rule "front", bounded the same way
+            behind = stance_leg and opt.touchdown_rule == "front" and f.x <= feet[stance_leg - 1].x + opt.front_tol
+            if behind and -f.height <= opt.scuff_depth:
+                continue
+            raise SceneAssumptionError(
+                f"foot {leg} touches the ground at t={t:.9g} s (it is {-f.height:.3g} m below at the end of the "
+                "step" + (f", behind the stance foot: deeper than scuff_depth={opt.scuff_depth:g} m" if behind else "")
+                + "), but this scene has no impact phase: add 'impact' to its phases")
+        why = ""
+        if last_impact is not None and last_impact.kind == "double_touchdown":
+            why = (f" after the double touchdown at t={last_impact.time:.9g} s: double support is not modelled "
+                   f"(the run continued on foot {last_impact.leg} only)")
+        raise InvariantViolation(
+            f"invariant 'feet at or above the ground' violated: foot {leg} is {-f.height:.3g} m below the ground "
+            f"at t={t:.9g} s (tolerance ground_tol={opt.ground_tol:g} m){why}")
+    if stance_leg:
+        n, tg = normal_tangent(F, ground)
+        if n < -opt.force_tol:
+            raise InvariantViolation(
+                f"invariant 'the ground pushes' violated: the normal force on the stance foot (leg {stance_leg}) "
+                f"is {n:.6g} N at t={t:.9g} s (a liftoff was not found)")
+        if mu is not None and opt.stop_on_slip and mu * n - abs(tg) < -opt.force_tol:
+            raise InvariantViolation(
+                f"invariant 'inside the friction cone' violated at t={t:.9g} s: |F_t| = {abs(tg):.6g} N > "
+                f"mu F_n = {mu * n:.6g} N (a slip was not found)")
+
+
+def check_impact(event, feet_after, ground, recent_gaps):
+    """The invariants of an impact (``feet_after``: at the state after it). Returns the message of a
+    Zeno stop, or None; raises InvariantViolation otherwise."""
+    landing = [1, 2] if event.kind == "double_touchdown" else [event.leg]
+    for j, leg in enumerate(landing):
+        n = normal_tangent(event.impulse[2 * j: 2 * j + 2], ground)[0]
+        if n < 0.0:
+            raise InvariantViolation(
+                f"invariant 'an impact pushes' violated at t={event.time:.9g} s: the ground's impulse on foot {leg} "
+                f"pulls it ({n:.6g} N s normal): a plastic impact there is not physical")
+    old = event.stance_leg_before
+    if old and old not in landing and feet_after[old - 1].dheight < 0.0:
+        v = feet_after[old - 1].dheight
+        if len(recent_gaps) >= 3 and all(b < a for a, b in zip(recent_gaps, recent_gaps[1:])):
+            return (f"the impacts accumulate (Zeno behaviour): the gaps between the last impacts shrink "
+                    f"({', '.join(f'{g:.3g}' for g in recent_gaps[-4:])} s) and after the impact at "
+                    f"t={event.time:.9g} s the old stance foot (leg {old}) no longer leaves the ground ({v:.3g} m/s): "
+                    "both feet stay on the ground (double support, the Zeno limit), which the model does not cover")
+        raise InvariantViolation(
+            f"invariant 'the old stance foot leaves the ground' violated at the impact of t={event.time:.9g} s: "
+            f"foot {old} moves into the ground at {v:.3g} m/s after it, so both feet stay in contact (double "
+            "support), which the model does not cover")
+    return None
