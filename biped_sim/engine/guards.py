@@ -11,8 +11,8 @@ functions ``FootCollision`` and the liftoff witness do):
   "Stance"); its crossing ends stance (flight follows where the scene has it);
 * ``slip_guard``: ``mu F_n - |F_t|``, the margin inside the friction cone (only with ``mu`` given).
 
-The event locator brackets a crossing between a step's two ends (or, for touchdown, a dip inside
-the step screened by a cubic Hermite through the end heights and rates) and finds its time on the
+The event locator (``locator.py``) brackets a crossing between a step's two ends (or, for touchdown,
+a dip inside the step, found with a guarantee by ``grazing.py``) and finds its time on the
 integrator's dense output with ``brentq``, to ``event_tol`` seconds.
 
 Feet travel as :class:`FootState` pairs (x, height above the sloped ground, and their rates).
@@ -113,38 +113,6 @@ def active_guards(stance_leg, armed, phases, mu) -> list[Guard]:
 
 
 # -- locating a crossing -----------------------------------------------------------------------
-def hermite_lower_bound(g0, d0, g1, d1) -> float:
-    """Minimum over [0, 1] of the cubic Hermite through (0, g0, d0) and (1, g1, d1) (a screen for a
-    dip of the touchdown guard inside a step whose ends are both above the ground)."""
-    # p(s) = g0 + d0 s + (3(g1-g0) - 2 d0 - d1) s^2 + (2(g0-g1) + d0 + d1) s^3
-    a, b, c = 3 * (2 * (g0 - g1) + d0 + d1), 2 * (3 * (g1 - g0) - 2 * d0 - d1), d0
-    cands = [0.0, 1.0]
-    if abs(a) > 1e-300:
-        disc = b * b - 4 * a * c
-        if disc >= 0:
-            r = math.sqrt(disc)
-            cands += [(-b + r) / (2 * a), (-b - r) / (2 * a)]
-    elif abs(b) > 1e-300:
-        cands.append(-c / b)
-    best = min(g0, g1)
-    for s in cands:
-        if 0.0 < s < 1.0:
-            best = min(best, g0 + s * (d0 + s * ((3 * (g1 - g0) - 2 * d0 - d1) + s * (2 * (g0 - g1) + d0 + d1))))
-    return best
-
-
-def sample_bracket(guard_at, t_old, t_new, n=8):
-    """The first sub-interval of [t_old, t_new] (n equal parts) over which ``guard_at(t)`` goes from
-    positive to <= 0, or None."""
-    prev = None
-    for t in np.linspace(t_old, t_new, n + 1).tolist():
-        g = guard_at(t)
-        if prev is not None and prev[1] > 0 and g <= 0:
-            return prev[0], t
-        prev = (t, g)
-    return None
-
-
 def locate_crossing(guard_at, ta, tb, event_tol) -> float:
     """The time in [ta, tb] where ``guard_at`` (positive at ta, <= 0 at tb) crosses zero, to
     ``event_tol`` seconds (an end of the bracket where the guard is already zero there)."""

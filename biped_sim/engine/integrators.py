@@ -226,9 +226,35 @@ class _PolynomialInterpolant:
         x = (t - self.t_old) / self.h
         return self.y_old + self.h * (self.Q @ np.cumprod(np.full(self.Q.shape[1], x)))
 
+    def poly_coefficients(self, cols):
+        """Power-basis coefficients in x of the entries ``cols``: one row a power (0 to 7)."""
+        C = np.zeros((8, len(cols)))
+        C[0] = self.y_old[cols]
+        C[1:1 + self.Q.shape[1]] = self.h * self.Q[cols].T
+        return C
+
+
+def _nested_to_power_basis():
+    """The matrix taking [y0, f0, ..., f6] to the power-basis coefficients (x^0 .. x^7) of
+    ((((((f0 x + f1) u + f2) x + f3) u + f4) x + f5) u + f6) x + y0, u = 1 - x (linear in its inputs)."""
+    from numpy.polynomial import polynomial as P
+    columns = []
+    for j in range(8):
+        v = np.eye(8)[j]
+        p = np.array([v[1]])
+        for i, factor in enumerate(([0.0, 1.0], [1.0, -1.0]) * 3 + ([0.0, 1.0],)):
+            p = P.polyadd(P.polymul(p, factor), [v[i + 2] if i < 6 else v[0]])
+        columns.append(np.pad(p, (0, 8 - len(p))))
+    return np.array(columns).T
+
 
 class _DOP853Interpolant:
     """DOP853's 7th-order dense output (scipy's Dop853DenseOutput): a nested product in x and 1 - x."""
+    TO_POWER_BASIS = _nested_to_power_basis()
+
+    def poly_coefficients(self, cols):
+        """Power-basis coefficients in x of the entries ``cols``: one row a power (0 to 7)."""
+        return self.TO_POWER_BASIS @ np.vstack([self.y_old[cols], self.F[:, cols]])
 
     def __init__(self, t_old, t, y_old, F_reversed):
         self.t_old, self.t, self.y_old, self.F = t_old, t, y_old, F_reversed

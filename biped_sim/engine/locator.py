@@ -13,18 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from biped_sim.engine.guards import (
-    active_guards,
-    foot_height,
-    foot_states,
-    hermite_lower_bound,
-    liftoff_guard,
-    locate_crossing,
-    normal_tangent,
-    sample_bracket,
-    slip_guard,
-    touchdown_guard,
-)
+from biped_sim.engine import guards as G
+from biped_sim.engine.grazing import dip_bracket
 from biped_sim.engine.results import Event, SceneAssumptionError
 
 
@@ -54,7 +44,7 @@ class EventLocator:
         self._feet_end = self._force_end = (None, None)   # (t, value) at the last step's end
 
     def guards(self, stance_leg):
-        return active_guards(stance_leg, self.armed, self.opt.phases, self.mu)
+        return G.active_guards(stance_leg, self.armed, self.opt.phases, self.mu)
 
     def after_reset(self, event):
         """Disarm the feet the reset put on the ground (or that just left it)."""
@@ -74,10 +64,10 @@ class EventLocator:
     def _value(self, guard, t, q, dq, force_at, feet=None, F=None):
         if guard.kind == "touchdown":
             if feet is None:   # the height only (root finding evaluates this many times)
-                return foot_height(self.model, q, guard.leg, self.ground.tan)
-            return touchdown_guard(feet, guard.leg)
-        n, tg = normal_tangent(F if F is not None else force_at(t, q, dq), self.ground)
-        return liftoff_guard(n, tg) if guard.kind == "liftoff" else slip_guard(n, tg, self.mu)
+                return G.foot_height(self.model, q, guard.leg, self.ground.tan)
+            return G.touchdown_guard(feet, guard.leg)
+        n, tg = G.normal_tangent(F if F is not None else force_at(t, q, dq), self.ground)
+        return G.liftoff_guard(n, tg) if guard.kind == "liftoff" else G.slip_guard(n, tg, self.mu)
 
     def locate(self, st, to_phys, stance_leg, q1, dq1, feet1, force_at, F_end=None):
         """((time, guard, legs) of the earliest crossing, or None; the force at the step's end).
@@ -94,7 +84,7 @@ class EventLocator:
         feet0 = self._feet_end[1] if self._feet_end[0] == st.t_old else None
         if feet0 is None:
             q0, dq0, _ = to_phys(st.y_old)
-            feet0 = foot_states(self.model, q0, dq0, self.ground.tan)
+            feet0 = G.foot_states(self.model, q0, dq0, self.ground.tan)
         self._feet_end = (st.t, feet1)
         F0 = F1 = None
         if stance_leg:
@@ -121,13 +111,12 @@ class EventLocator:
             if g0 > 0 and g1 <= 0:
                 bracket = (st.t_old, st.t)
             elif guard.kind == "touchdown" and g0 > 0 and g1 > 0:
-                h = st.t - st.t_old
-                f0, f1 = feet0[guard.leg - 1], feet1[guard.leg - 1]
-                if hermite_lower_bound(g0, f0.dheight * h, g1, f1.dheight * h) <= 0:
-                    bracket = sample_bracket(guard_at, st.t_old, st.t)
+                # both ends above the ground: a dip in between is found with its guarantee
+                bracket = dip_bracket(st, to_phys, guard_at, guard.leg, stance_leg, self.opt.base == "fixed",
+                                      self.model.parameters.l_leg, self.ground.tan, g0, g1, self.opt.graze_tol)
             if bracket is None:
                 continue
-            t_root = locate_crossing(guard_at, *bracket, self.opt.event_tol)
+            t_root = G.locate_crossing(guard_at, *bracket, self.opt.event_tol)
             if guard.kind == "touchdown" and stance_leg and self.opt.touchdown_rule == "front":
                 fr = self._feet_at(st, to_phys, t_root)
                 if fr[guard.leg - 1].x <= fr[stance_leg - 1].x + self.opt.front_tol:
@@ -194,7 +183,7 @@ class EventLocator:
 
     def _feet_at(self, st, to_phys, t):
         q, dq, _ = to_phys(st.dense_at(t))
-        return foot_states(self.model, q, dq, self.ground.tan)
+        return G.foot_states(self.model, q, dq, self.ground.tan)
 
     def _arm(self, feet, stance_leg):
         for leg in (1, 2):

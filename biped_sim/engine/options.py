@@ -24,6 +24,7 @@ class Options:
     slope: float = 0.0                 # ground angle (rad), positive: the ground falls in +x
     arm_height: float = 1e-9           # m above the ground that arms a foot's touchdown guard
     event_tol: float = 1e-13           # s, root-finding tolerance on event times
+    graze_tol: float = 1e-10           # m; a dip of a swing foot deeper than this inside a step is found
     simultaneous_tol: float = 1e-9     # s, two touchdowns closer than this are one double touchdown
     contact_tol: float = 1e-6          # m and m/s, initial-state check of the stance foot
     max_events: int = 100_000
@@ -50,7 +51,7 @@ class Options:
         check_number("slope", self.slope, -math.pi / 2, math.pi / 2, "rad, strictly between -pi/2 and pi/2",
                      open_low=True, open_high=True)
         for name, low, what in (("event_tol", 0.0, "s"), ("contact_tol", 0.0, "m and m/s"),
-                                ("scuff_depth", 0.0, "m"), ("front_tol", 0.0, "m"),
+                                ("scuff_depth", 0.0, "m"), ("front_tol", 0.0, "m"), ("graze_tol", 0.0, "m"),
                                 ("zeno_interval", 0.0, "s"), ("max_speed", 0.0, "m/s and rad/s"),
                                 ("ground_tol", 0.0, "m"), ("force_tol", 0.0, "N")):
             check_number(name, getattr(self, name), low, math.inf, what, open_low=True)

@@ -7,7 +7,6 @@ from scipy.integrate import solve_ivp
 
 from biped_sim.control.walking import WalkingController
 from biped_sim.engine.dynamics import flight_dynamics
-from biped_sim.engine.guards import hermite_lower_bound
 from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.engine.model import BipedModel
 from biped_sim.engine.simulate import simulate, stance_state
@@ -154,11 +153,6 @@ def test_a_guard_crossed_twice_inside_one_step_is_found(model):
     big = simulate(model, q0, dq0, 0.1, stance_leg=0, method="rk4", step=0.1)
     assert ref.impacts[0].leg == big.impacts[0].leg == 2
     assert abs(ref.impacts[0].time - big.impacts[0].time) < 1e-4
-
-
-def test_hermite_bound_sees_a_dip():
-    assert hermite_lower_bound(1e-3, -0.05, 1e-3, 0.05) < 0
-    assert hermite_lower_bound(1e-3, 0.01, 2e-3, 0.01) > 0
 
 
 def test_drop_lands_and_goes_on_in_stance(model):
