@@ -162,18 +162,39 @@ def _impact_jacobian(model, q, impact_leg):
     return np.vstack([model.foot_jacobian(q, leg) for leg in legs])
 
 
+#: above this condition number of J D^-1 J^T a double impact's impulses are not determined by the
+#: data (the feet nearly at one point): the post-impact velocity still is, and is what is computed
+IMPACT_CONDITION_LIMIT = 1e8
+
+
+def impact_condition(model: BipedModel, q, impact_leg) -> float:
+    """Condition number of J D^-1 J^T of an impact (1 ... inf; large only for both feet at once with
+    the feet nearly at one point)."""
+    J = _impact_jacobian(model, as_state_vector(q, "q"), impact_leg)
+    return float(np.linalg.cond(J @ np.linalg.solve(model.mass_matrix(q), J.T)))
+
+
 def impact_map(model: BipedModel, q, dq_minus, impact_leg=2):
     """Rigid plastic impact of ``impact_leg`` (docs/model.md "Impact"), before relabeling.
 
     Solves [D -J^T; J 0][dq+; F_imp] = [D dq-; 0]. ``impact_leg`` is 1, 2, or (1, 2) for both feet
     at once (then the impulse has 4 entries, foot 1 first). Returns (dq_plus, impulse) with the
-    impulse of the ground on the foot in N s.
+    impulse of the ground on the foot in N s. Where that system is ill-conditioned (both feet at
+    nearly one point: ``impact_condition`` above ``IMPACT_CONDITION_LIMIT``), the post-impact velocity
+    is the unique one with J dq+ = 0 and the impulses are the smallest that give it (their split
+    between the feet is not determined), never impulses blown up by the near-singular solve.
     """
     q = as_state_vector(q, "q")
     dq_minus = as_state_vector(dq_minus, "dq_minus")
     D = model.mass_matrix(q)
     J = _impact_jacobian(model, q, impact_leg)
     k = J.shape[0]
+    if k == 4:
+        Dinv_JT = np.linalg.solve(D, J.T)
+        A = J @ Dinv_JT
+        if np.linalg.cond(A) > IMPACT_CONDITION_LIMIT:
+            impulse = -np.linalg.pinv(A, rcond=1.0 / IMPACT_CONDITION_LIMIT, hermitian=True) @ (J @ dq_minus)
+            return dq_minus + Dinv_JT @ impulse, impulse
     K = np.zeros((5 + k, 5 + k))
     K[:5, :5] = D
     K[:5, 5:] = -J.T

@@ -354,7 +354,8 @@ class HybridSimulator:
             self._check_zeno(t)
             if self.status == "running" and self.opt.check_invariants:
                 gaps = [b - a for a, b in zip(self._recent_impacts, self._recent_impacts[1:])]
-                zeno = check_impact(ev, self.feet(list(q), ev.dq_plus.tolist()), self.ground, gaps)
+                zeno = check_impact(ev, self.feet(list(q), ev.dq_plus.tolist()), self.ground, gaps,
+                                    self.opt.impulse_tol, self.opt.contact_tol)
                 if zeno is not None:
                     self.events.append(Event(t, "zeno", self.stance_leg, self.q.copy(), self.dq.copy(),
                                              self.dq.copy(), message=zeno))

@@ -9,7 +9,7 @@ status "failed" (``InvariantViolation``), saying which invariant, when and by ho
   ``touchdown_rule="front"``, bounded by ``scuff_depth`` (``locator.py``);
 * in stance, the ground pushes (normal force >= -``force_tol``) and, with a friction coefficient and
   ``stop_on_slip``, the force is inside the friction cone;
-* an impact pushes (every normal impulse >= 0) and leaves every foot that stays on the ground at rest
+* an impact pushes (every normal impulse >= -``impulse_tol``) and leaves every foot that stays on the ground at rest
   or moving up: the old stance foot must leave the ground (an impact after which it does not is the
   limit of impacts that accumulate: a ``zeno`` stop where the last gaps shrank, else a violation).
 
@@ -66,18 +66,19 @@ def check_sample(t, q, dq, feet, stance_leg, F, ground, mu, opt, scuffing, last_
                 f"mu F_n = {mu * n:.6g} N (a slip was not found)")
 
 
-def check_impact(event, feet_after, ground, recent_gaps):
+def check_impact(event, feet_after, ground, recent_gaps, impulse_tol, rest_tol):
     """The invariants of an impact (``feet_after``: at the state after it). Returns the message of a
-    Zeno stop, or None; raises InvariantViolation otherwise."""
+    Zeno stop, or None; raises InvariantViolation otherwise. The old stance foot must leave the
+    ground faster than ``rest_tol`` (m/s): at rest on it, both feet are on the ground."""
     landing = [1, 2] if event.kind == "double_touchdown" else [event.leg]
     for j, leg in enumerate(landing):
         n = normal_tangent(event.impulse[2 * j: 2 * j + 2], ground)[0]
-        if n < 0.0:
+        if n < -impulse_tol:
             raise InvariantViolation(
                 f"invariant 'an impact pushes' violated at t={event.time:.9g} s: the ground's impulse on foot {leg} "
                 f"pulls it ({n:.6g} N s normal): a plastic impact there is not physical")
     old = event.stance_leg_before
-    if old and old not in landing and feet_after[old - 1].dheight < 0.0:
+    if old and old not in landing and feet_after[old - 1].dheight < rest_tol:
         v = feet_after[old - 1].dheight
         if len(recent_gaps) >= 3 and all(b < a for a, b in zip(recent_gaps, recent_gaps[1:])):
             return (f"the impacts accumulate (Zeno behaviour): the gaps between the last impacts shrink "
@@ -86,6 +87,6 @@ def check_impact(event, feet_after, ground, recent_gaps):
                     "both feet stay on the ground (double support, the Zeno limit), which the model does not cover")
         raise InvariantViolation(
             f"invariant 'the old stance foot leaves the ground' violated at the impact of t={event.time:.9g} s: "
-            f"foot {old} moves into the ground at {v:.3g} m/s after it, so both feet stay in contact (double "
-            "support), which the model does not cover")
+            f"foot {old} {'moves into the ground' if v < 0 else 'stays on the ground'} ({v:.3g} m/s) after it, so "
+            "both feet stay in contact: double support is not modelled")
     return None

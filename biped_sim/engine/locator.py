@@ -75,7 +75,7 @@ class EventLocator:
         ``F_end``: the stance force at the step's end if the caller has it (the stepper's last
         evaluation), else it is computed here."""
         guards = self.guards(stance_leg)
-        if not guards:
+        if not guards and not self._resting_feet_pushed_in(feet1, stance_leg):
             self._arm(feet1, stance_leg)
             return None, None
         # the step's start is the last step's end: its feet and force are known (the projection
@@ -117,13 +117,19 @@ class EventLocator:
             if bracket is None:
                 continue
             t_root = G.locate_crossing(guard_at, *bracket, self.opt.event_tol)
-            if guard.kind == "touchdown" and stance_leg and self.opt.touchdown_rule == "front":
-                fr = self._feet_at(st, to_phys, t_root)
-                if fr[guard.leg - 1].x <= fr[stance_leg - 1].x + self.opt.front_tol:
-                    self.scuffs += 1
-                    self.active_scuffs[guard.leg] = [t_root, 0.0, t_root]
-                    continue
-            roots.append((t_root, guard))
+            if not self._is_scuff(st, to_phys, guard, stance_leg, t_root):
+                roots.append((t_root, guard))
+        for leg in self._resting_feet_pushed_in(feet1, stance_leg):
+            # a free foot on the ground that is not armed (it just lifted off, or started there at rest)
+            # and that the dynamics push into it: a touchdown from where it rests, not a crossing
+            guard = G.Guard("touchdown", leg)
+
+            def guard_at(t, guard=guard):
+                q, dq, _ = to_phys(st.dense_at(t))
+                return self._value(guard, t, q, dq, force_at)
+            t_root = G.locate_crossing(guard_at, st.t_old, st.t, self.opt.event_tol)
+            if not self._is_scuff(st, to_phys, guard, stance_leg, t_root):
+                roots.append((t_root, guard))
         t_end = min(roots)[0] if roots else st.t
         if self.active_scuffs:
             self._track_scuffs(st, to_phys, stance_leg, t_end)
@@ -142,6 +148,24 @@ class EventLocator:
                 if fo.dheight < 0 and fo.height <= -fo.dheight * self.opt.simultaneous_tol:
                     legs.append(other)
         return (t_first, guard, sorted(set(legs))), F1
+
+    def _is_scuff(self, st, to_phys, guard, stance_leg, t_root):
+        """Under touchdown_rule "front", a touchdown at or behind the stance foot is a scuff: start
+        following it."""
+        if guard.kind != "touchdown" or not stance_leg or self.opt.touchdown_rule != "front":
+            return False
+        fr = self._feet_at(st, to_phys, t_root)
+        if fr[guard.leg - 1].x > fr[stance_leg - 1].x + self.opt.front_tol:
+            return False
+        self.scuffs += 1
+        self.active_scuffs[guard.leg] = [t_root, 0.0, t_root]
+        return True
+
+    def _resting_feet_pushed_in(self, feet, stance_leg):
+        if "impact" not in self.opt.phases:
+            return []
+        return [leg for leg in (1, 2) if leg != stance_leg and not self.armed[leg - 1]
+                and leg not in self.active_scuffs and feet[leg - 1].height < -self.opt.ground_tol]
 
     def _track_scuffs(self, st, to_phys, stance_leg, t_end, n=8):
         """Follow each scuffing foot over the step up to ``t_end``: its deepest dip (on n + 1 points of

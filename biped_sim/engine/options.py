@@ -33,6 +33,7 @@ class Options:
     max_speed: float = 1e4             # a velocity entry above this is a diverging state
     ground_tol: float = 1e-9           # m; invariant: no free foot lower than this below the ground
     force_tol: float = 1e-6            # N; invariant: stance normal force and friction margin above -this
+    impulse_tol: float = 1e-6          # N s; invariant: every normal impulse of an impact above -this
     check_invariants: bool = True      # check them after every step and reset (docs/engine.md)
     compute_grf: bool = True
     keep_samples: bool = True          # False: keep only the last sample (a long-running node)
@@ -53,7 +54,7 @@ class Options:
         for name, low, what in (("event_tol", 0.0, "s"), ("contact_tol", 0.0, "m and m/s"),
                                 ("scuff_depth", 0.0, "m"), ("front_tol", 0.0, "m"), ("graze_tol", 0.0, "m"),
                                 ("zeno_interval", 0.0, "s"), ("max_speed", 0.0, "m/s and rad/s"),
-                                ("ground_tol", 0.0, "m"), ("force_tol", 0.0, "N")):
+                                ("ground_tol", 0.0, "m"), ("force_tol", 0.0, "N"), ("impulse_tol", 0.0, "N s")):
             check_number(name, getattr(self, name), low, math.inf, what, open_low=True)
         for name, what in (("arm_height", "m"), ("simultaneous_tol", "s")):
             check_number(name, getattr(self, name), 0.0, math.inf, what)

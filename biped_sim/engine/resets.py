@@ -12,7 +12,7 @@ gait takes its new state from ``CollisionDynamics``.
 """
 from __future__ import annotations
 
-from biped_sim.engine.dynamics import impact_map
+from biped_sim.engine.dynamics import IMPACT_CONDITION_LIMIT, impact_condition, impact_map
 from biped_sim.engine.guards import foot_states, normal_tangent
 from biped_sim.engine.results import Event
 
@@ -37,6 +37,11 @@ def impact_warnings(model, q, dq_plus, impulse, legs, old, ground, mu) -> list[s
     impulse must push (and lie inside the friction cone, with ``mu``)."""
     warnings = []
     feet = foot_states(model, q.tolist(), dq_plus.tolist(), ground.tan)
+    if len(legs) == 2 and impact_condition(model, q, (1, 2)) > IMPACT_CONDITION_LIMIT:
+        gap = abs(feet[0].x - feet[1].x)
+        warnings.append(f"the feet land {gap:.3g} m apart, nearly at one point: the post-impact velocity is "
+                        "determined, the split of the impulse between them is not (the smallest impulses are "
+                        "reported)")
     if old and old not in legs and feet[old - 1].dheight < 0:
         warnings.append(f"the old stance foot (leg {old}) does not leave the ground after the impact "
                         f"(vertical velocity {feet[old - 1].dheight:.6g} m/s)")

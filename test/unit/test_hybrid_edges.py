@@ -7,6 +7,8 @@ import pytest
 
 import biped_sim as bs
 
+from run_checks import assert_invariants
+
 MODEL = bs.BipedModel()
 WALKER = bs.WalkingController(MODEL)
 Q0, DQ0 = WALKER.initial_state()
@@ -238,27 +240,7 @@ def test_every_sample_of_a_completed_run_keeps_the_invariants():
     for scene, kw in (("walk", dict(hold=False)), ("walk", dict(hold=True)), ("slope", {}), ("drop", {})):
         r = bs.load_scene(scene).simulate(**kw)
         assert r.status == "completed", (scene, r.message)
-        _assert_invariants(r, bs.load_scene(scene).engine_arguments().get("slope", 0.0))
-
-
-def _assert_invariants(r, slope, ground_tol=1e-9, force_tol=1e-6, scuff_depth=3e-3):
-    """Every sample: finite; each foot at or above the ground (a scuff behind the stance foot within
-    scuff_depth excepted); in stance, the ground pushes."""
-    assert np.all(np.isfinite(r.q)) and np.all(np.isfinite(r.dq))
-    s, c, tn = math.sin(slope), math.cos(slope), math.tan(slope)
-    for k in range(len(r.t)):
-        feet = [MODEL.foot_position(r.q[k], leg) for leg in (1, 2)]
-        heights = [p[1] + tn * p[0] for p in feet]
-        leg = int(r.stance_leg[k])
-        for j in (1, 2):
-            if j == leg:
-                continue
-            behind = leg and feet[j - 1][0] <= feet[leg - 1][0] + 1e-5
-            floor = -scuff_depth if behind else -ground_tol
-            assert heights[j - 1] >= floor, (k, r.t[k], j, heights[j - 1])
-        if leg:
-            n = r.grf[k][0] * s + r.grf[k][1] * c
-            assert n >= -force_tol, (k, r.t[k], n)
+        assert_invariants(MODEL, r, bs.load_scene(scene).engine_arguments().get("slope", 0.0))
 
 
 # -- item 3: a dip inside one step is found, with a stated guarantee -----------------------------------

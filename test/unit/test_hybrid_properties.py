@@ -1,0 +1,75 @@
+"""Property-based (hypothesis): over random physically valid starts -- in stance on either foot, in
+flight, landing on one foot or on both -- with held or continuous torques, slopes and friction
+coefficients, every run ends "completed" with every invariant true at every sample (its scuffs
+within scuff_depth), or "stopped" / "failed" with a message. None ends "completed" wrong.
+"""
+import math
+
+import numpy as np
+from hypothesis import HealthCheck, event, given, settings, strategies as st
+
+import biped_sim as bs
+
+from run_checks import assert_invariants
+
+MODEL = bs.BipedModel()
+L = MODEL.parameters.l_leg
+angle = st.floats(-0.6, 0.6)
+rate = st.floats(-2.0, 2.0)
+torque = st.floats(-60.0, 60.0)
+slope = st.floats(-0.2, 0.2)
+friction = st.one_of(st.none(), st.floats(0.2, 1.5))
+
+
+@st.composite
+def stance_start(draw):
+    leg = draw(st.sampled_from([1, 2]))
+    a = draw(angle)                      # stance leg from the vertical
+    b = draw(st.floats(-0.8, 0.8))       # swing leg from the vertical
+    torso = draw(st.floats(-0.4, 0.4))
+    joints = [math.pi + a - torso, math.pi + b - torso, torso] if leg == 1 else [math.pi + b - torso,
+                                                                                  math.pi + a - torso, torso]
+    rates = [draw(rate), draw(rate), draw(rate)]
+    q, dq = bs.stance_state(MODEL, joints, rates, stance_leg=leg)
+    return q, dq, leg
+
+
+@st.composite
+def flight_start(draw):
+    a, b, torso = draw(angle), draw(angle), draw(st.floats(-0.4, 0.4))
+    if draw(st.booleans()):              # a symmetric V: both feet land at once
+        b = -a
+    low = max(math.cos(a), math.cos(b)) * L
+    height = low + draw(st.floats(0.0, 0.3))
+    q = np.array([0.0, height, math.pi + a - torso, math.pi + b - torso, torso])
+    dq = np.array([draw(rate), draw(st.floats(-1.0, 1.0)), draw(rate), draw(rate), draw(rate)])
+    return q, dq, 0
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(start=st.one_of(stance_start(), flight_start()), u=st.tuples(torque, torque), ground=slope,
+       mu=friction, held=st.booleans())
+def test_no_run_ends_completed_with_a_violated_invariant(start, u, ground, mu, held):
+    q, dq, leg = start
+    if ground and leg:   # the stance foot on the sloped ground: shift the state along the slope's normal
+        q = q.copy()
+        foot = MODEL.foot_position(q, leg)
+        q[1] -= math.tan(ground) * foot[0]
+    if leg == 0:
+        q = q.copy()
+        q[1] += max(0.0, -min(MODEL.foot_position(q, k)[1] + math.tan(ground) * MODEL.foot_position(q, k)[0]
+                                for k in (1, 2))) + 1e-6
+    controller = lambda t, q, dq, stance_leg: u  # noqa: E731
+    try:
+        r = bs.simulate(MODEL, q, dq, 0.4, controller=controller, stance_leg=leg, mu=mu, slope=ground,
+                        control_period=0.01 if held else None)
+    except ValueError as exc:   # a start the model refuses (a foot below the ground, an ambiguous contact)
+        assert str(exc)
+        event("refused")
+        return
+    event(f"{r.status}, {'flight' if leg == 0 else 'stance'} start, {len(r.impacts)} impacts")
+    if r.status == "completed":
+        assert_invariants(MODEL, r, ground)
+        assert r.stats["deepest_scuff"] <= 3e-3
+    else:
+        assert r.status in ("stopped", "failed") and r.message, (r.status, r.message)
