@@ -21,10 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from biped_sim.analysis.edge_cases import edge_verdicts
+from biped_sim.analysis.verify import result_violations
 from biped_sim.control.walking import WalkingController
 from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.engine.model import BipedModel
-from biped_sim.engine.simulate import simulate, stance_state
+from biped_sim.engine.simulate import simulate as _simulate, stance_state
 
 #: deliberately broken settings, each with the case it must make FAIL
 BREAKS = {
@@ -68,6 +70,15 @@ class ConstantTorque:
 
     def __call__(self, t, q, dq, stance_leg):
         return self.u
+
+
+#: every result a case produced, judged by run_suite: a row passes only if each keeps the invariants
+_RUNS: list = []
+
+
+def simulate(*a, **k):
+    _RUNS.append(_simulate(*a, **k))
+    return _RUNS[-1]
 
 
 def _finite(r):
@@ -332,6 +343,7 @@ def case_long_walk(quick, broken):
     sim = HybridSimulator(m, *c.initial_state(), max_events=n)
     sim.advance(n * 0.49 + 1.0, controller=c)
     r = sim.result()
+    _RUNS.append(r)
     wall = time.perf_counter() - t0
     # energy-balance residual at each impact (after the reset): growth per step by least squares
     res = [abs(e) for i, e in enumerate(r.energy_balance[1:], 1) if r.t[i] == r.t[i - 1]]
@@ -401,9 +413,14 @@ def case_bad_numbers(quick, broken):
     return [Verdict("bad", label, ok, fig) for label, ok, fig in checks]
 
 
+def case_edges(quick, broken):
+    """The hybrid edges (biped_sim/analysis/edge_cases.py)."""
+    return edge_verdicts(quick, lambda name, ok, figures, seconds: Verdict("edge", name, ok, figures, seconds))
+
+
 CASES = [case_stiff_pd, case_constraint_drift, case_compliant_ground, case_mass_ratios, case_large_torque,
          case_large_velocity, case_near_singular, case_grazing, case_near_zeno, case_double_touchdown,
-         case_guard_after_reset, case_long_walk, case_long_passive, case_bad_numbers]
+         case_guard_after_reset, case_long_walk, case_long_passive, case_bad_numbers, case_edges]
 
 
 def run_suite(quick=False, broken=None, report=None, only=None):
@@ -417,10 +434,17 @@ def run_suite(quick=False, broken=None, report=None, only=None):
         if only and name not in only:
             continue
         t0 = time.perf_counter()
+        _RUNS.clear()
         try:
             vs = case(quick, broken)
         except Exception as exc:  # a case that crashes is a FAIL with the cause, never a silent pass
             vs = [Verdict("error", name, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)]
+        # a row is PASS only if every sample of every run of its case keeps the invariants
+        bad = [v for r in _RUNS for v in result_violations(BipedModel(), r)]
+        if bad:
+            for v in vs:
+                if v.ok:
+                    v.ok, v.figures = False, f"{v.figures}; INVARIANT: {bad[0]}"
         for v in vs:
             out.append(v)
             if report:

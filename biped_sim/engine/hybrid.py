@@ -3,8 +3,9 @@
 Owns the hybrid system of docs/model.md "Phases" (stance on leg 1 or 2, impact with relabeling, flight)
 and its bookkeeping. The pieces it puts together each live in their own module: the continuous
 dynamics of a mode (``modes.py``, on ``dynamics.py``), the steppers (``integrators.py``), the
-guards and the event locator (``guards.py``), the resets (``resets.py``), the options
-(``options.py``) and what a run returns (``results.py``).
+guards (``guards.py``) and the event locator with its scuffs (``locator.py``, ``grazing.py``), the
+resets (``resets.py``), the invariants checked after every step and reset (``invariants.py``), the
+options (``options.py``) and what a run returns (``results.py``).
 
 State, as in Drake's compass gait:
   * continuous: ``q = [x, y, q1, q2, q3]`` and ``dq`` in *physical* coordinates (leg 1 stays leg 1
@@ -14,15 +15,9 @@ State, as in Drake's compass gait:
   * discrete: the stance foot's pin ``c`` (where it touched down);
   * abstract: ``stance_leg`` (1, 2, or 0 in flight).
 
-With the default ``touchdown_rule="front"`` only a touchdown in front of the stance foot (larger x,
-the walking direction) counts: the down-crossing behind it when straight legs scuff the ground near
-mid-stance is ignored (counted in ``stats["scuffs_ignored"]``); ``"any"`` takes every crossing. In
-flight, touchdowns of both feet within ``simultaneous_tol`` seconds are one ``double_touchdown``.
-
 Constraint drift (floating base): after each accepted step the state is projected back onto the
-constraint manifold -- the hip is placed so that the stance foot is at its pin and the base velocity
-is set so that J dq = 0 -- and the drift seen *before* the projection is reported.
-``project_constraints=False`` turns this off, to measure the raw drift.
+constraint manifold (``modes.project_onto_pin``) and the drift seen *before* the projection is
+reported; ``project_constraints=False`` turns this off, to measure the raw drift.
 """
 from __future__ import annotations
 
@@ -35,17 +30,14 @@ import numpy as np
 from biped_sim.engine import guards as G
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, gen
 from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
-from biped_sim.engine.integrators import ADAPTIVE_METHODS, FIXED_STEP_METHODS, METHODS, StepFailure, make_stepper
-from biped_sim.engine.invariants import check_impact, check_sample
+from biped_sim.engine.integrators import StepFailure, make_stepper
+from biped_sim.engine.invariants import ImpactHistory, check_impact, check_sample
 from biped_sim.engine.locator import EventLocator
 from biped_sim.engine.model import BipedModel, as_state_vector
-from biped_sim.engine.modes import bind_controller, mode_functions, two_finite_floats
-from biped_sim.engine.options import Options, check_number
+from biped_sim.engine.modes import bind_controller, mode_functions, project_onto_pin, two_finite_floats
+from biped_sim.engine.options import Options, check_run_arguments
 from biped_sim.engine.resets import liftoff_reset, slip_event, touchdown_reset
 from biped_sim.engine.results import IMPACT_KINDS, Event, SceneAssumptionError, SimulationError, SimulationResult
-
-#: the smallest relative tolerance the adaptive methods accept (100 eps, as scipy's solvers)
-MIN_RTOL = 100 * np.finfo(float).eps
 
 
 class HybridSimulator:
@@ -64,27 +56,10 @@ class HybridSimulator:
         self.model = model
         self.opt = Options(**options)
         self.opt.check()
-        if method not in METHODS:
-            raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-        if method in FIXED_STEP_METHODS and not self.opt.step:
-            raise ValueError(f"method {method!r} is fixed-step: give step=<seconds>")
-        if method in ADAPTIVE_METHODS:
-            # below ~100 eps a step's error estimate is roundoff: the tolerance cannot be met
-            check_number("rtol", rtol, MIN_RTOL, 1.0,
-                         f"relative; double precision delivers no less than {MIN_RTOL:.3g}", open_high=True)
-            check_number("atol", atol, 0.0, 1.0, "absolute", open_low=True, open_high=True)
-        if mu is not None:
-            check_number("mu", mu, 0.0, math.inf, "friction coefficient, or None for enough friction")
+        stance_leg = check_run_arguments(self.opt, method, rtol, atol, mu, stance_leg)
         self.method, self.rtol, self.atol, self.mu = method, rtol, atol, mu
         q0 = as_state_vector(q0, "q0")
         dq0 = as_state_vector(dq0, "dq0")
-        if isinstance(stance_leg, bool) or not isinstance(stance_leg, (int, np.integer)) or stance_leg not in (0, 1, 2):
-            raise ValueError(f"stance_leg must be 1, 2 or 0 (flight), got {stance_leg!r}")
-        stance_leg = int(stance_leg)
-        if stance_leg == 0 and "flight" not in self.opt.phases:
-            raise ValueError("stance_leg=0 starts in flight, but the phases do not include 'flight'")
-        if stance_leg != 0 and "stance" not in self.opt.phases:
-            raise ValueError("the phases do not include 'stance': start in flight with stance_leg=0")
         self.p = model.p
         self.ground = G.Ground.of(self.opt.slope)
         feet = self.feet(q0.tolist(), dq0.tolist())
@@ -107,7 +82,7 @@ class HybridSimulator:
         self._stepper = None
         self._last_F, self._last_u = [0.0, 0.0], [0.0, 0.0]   # the last right-hand-side evaluation's
         self._initial_sample_pending = True    # the t0 sample, redone under the first advance's torque
-        self._recent_impacts: list[float] = []
+        self.impacts = ImpactHistory(self.opt.zeno_count, self.opt.zeno_interval)
         self._mode_event_times: list[float] = []   # the events that changed the mode (not the scuffs)
         self.stats = dict(steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
                           max_constraint_drift_position=0.0, max_constraint_drift_velocity=0.0,
@@ -294,20 +269,11 @@ class HybridSimulator:
         """Measure the stance constraint drift and (by default) remove it; ``feet`` at (q, dq)."""
         if not self.stance_leg or self.opt.base == "fixed":
             return q, dq
-        f = feet[self.stance_leg - 1]
-        fy = f.height - self.ground.tan * f.x        # the foot's y (its height is across the slope)
-        self.stats["max_constraint_drift_position"] = max(self.stats["max_constraint_drift_position"],
-                                                          math.hypot(f.x - self.pin[0], fy - self.pin[1]))
-        self.stats["max_constraint_drift_velocity"] = max(self.stats["max_constraint_drift_velocity"],
-                                                          math.hypot(f.dx, f.dheight))
-        if not self.opt.project_constraints:
-            return q, dq
-        q = list(q)
-        dq = list(dq)
-        q[0] += self.pin[0] - f.x
-        q[1] += self.pin[1] - fy
-        dq[0] -= f.dx                     # J = [I2 | A]: subtracting J dq from dq_base makes J dq = 0
-        dq[1] -= f.dheight - self.ground.tan * f.dx
+        q, dq, drift, rate = project_onto_pin(q, dq, feet[self.stance_leg - 1], self.pin, self.ground.tan,
+                                              self.opt.project_constraints)
+        s = self.stats
+        s["max_constraint_drift_position"] = max(s["max_constraint_drift_position"], drift)
+        s["max_constraint_drift_velocity"] = max(s["max_constraint_drift_velocity"], rate)
         return q, dq
 
     def _accept(self, t, q, dq, w, F=None, u=None):
@@ -351,15 +317,14 @@ class HybridSimulator:
             self._record(self.q, self.dq, self.stance_leg, self._force_at(t, list(q), ev.dq_plus.tolist(), u), u)
             self.stats["impacts"] += 1
             self._push_event(ev)
-            self._check_zeno(t)
-            if self.status == "running" and self.opt.check_invariants:
-                gaps = [b - a for a, b in zip(self._recent_impacts, self._recent_impacts[1:])]
-                zeno = check_impact(ev, self.feet(list(q), ev.dq_plus.tolist()), self.ground, gaps,
+            zeno = self.impacts.record(t)
+            if zeno is None and self.status == "running" and self.opt.check_invariants:
+                zeno = check_impact(ev, self.feet(list(q), ev.dq_plus.tolist()), self.ground, self.impacts.gaps(),
                                     self.opt.impulse_tol, self.opt.contact_tol)
-                if zeno is not None:
-                    self.events.append(Event(t, "zeno", self.stance_leg, self.q.copy(), self.dq.copy(),
-                                             self.dq.copy(), message=zeno))
-                    self._stop("stopped", zeno)
+            if zeno is not None:
+                self.events.append(Event(t, "zeno", self.stance_leg, self.q.copy(), self.dq.copy(), self.dq.copy(),
+                                         message=zeno))
+                self._stop("stopped", zeno)
             if self.status == "running":
                 self._check_stance_start(t)
         elif guard.kind == "liftoff":
@@ -408,18 +373,6 @@ class HybridSimulator:
             self._stop("stopped", f"event loop: 50 events within 1e-9 s ending at t={ev.time:.9g} s "
                                   f"(last: {ev.kind} of leg {ev.leg}); the run stops instead of hanging")
 
-    def _check_zeno(self, t):
-        r = self._recent_impacts
-        r.append(t)
-        if len(r) > self.opt.zeno_count + 1:
-            del r[0]
-        if len(r) == self.opt.zeno_count + 1 and all(b - a < self.opt.zeno_interval for a, b in zip(r, r[1:])):
-            msg = (f"{self.opt.zeno_count} impacts in a row less than {self.opt.zeno_interval:g} s apart "
-                   f"ending at t={t:.9g} s: the impacts accumulate (Zeno behaviour); the run stops")
-            self.events.append(Event(t, "zeno", self.stance_leg, self.q.copy(), self.dq.copy(), self.dq.copy(),
-                                     message=msg))
-            self._stop("stopped", msg)
-
     def _stop(self, status, message):
         self.status, self.message = status, message
 
@@ -448,9 +401,6 @@ class HybridSimulator:
         stats["motor_work"] = self.work
         stats["method"] = self.method
         stats["generated_code"] = GENERATED_CODE   # "C" (the compiled twin) or "Python": same results
-        return SimulationResult(
-            t=np.array([x[0] for x in s]), q=np.array([x[1] for x in s]), dq=np.array([x[2] for x in s]),
-            stance_leg=np.array([x[3] for x in s], dtype=int), grf=np.array([x[4] for x in s]),
-            u=np.array([x[5] for x in s]), events=list(self.events), stats=stats,
-            status="completed" if self.status == "running" else self.status, message=self.message,
-            energy_balance=np.array([x[6] for x in s]))
+        return SimulationResult.from_samples(s, list(self.events), stats,
+                                             "completed" if self.status == "running" else self.status,
+                                             self.message, self.opt)

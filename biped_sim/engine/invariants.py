@@ -90,3 +90,25 @@ def check_impact(event, feet_after, ground, recent_gaps, impulse_tol, rest_tol):
             f"foot {old} {'moves into the ground' if v < 0 else 'stays on the ground'} ({v:.3g} m/s) after it, so "
             "both feet stay in contact: double support is not modelled")
     return None
+
+
+class ImpactHistory:
+    """The times of the last impacts: ``zeno_count`` impacts in a row closer than ``zeno_interval``
+    are a Zeno stop (``record`` returns its message), and the gaps feed ``check_impact``."""
+
+    def __init__(self, zeno_count, zeno_interval):
+        self.count, self.interval = zeno_count, zeno_interval
+        self.times: list[float] = []
+
+    def record(self, t):
+        self.times.append(t)
+        if len(self.times) > max(self.count + 1, 5):
+            del self.times[0]
+        last = self.times[-(self.count + 1):]
+        if len(last) == self.count + 1 and all(b - a < self.interval for a, b in zip(last, last[1:])):
+            return (f"{self.count} impacts in a row less than {self.interval:g} s apart ending at t={t:.9g} s: "
+                    "the impacts accumulate (Zeno behaviour); the run stops")
+        return None
+
+    def gaps(self):
+        return [b - a for a, b in zip(self.times, self.times[1:])]

@@ -120,3 +120,20 @@ def _fixed_base_functions(model, stance_leg, pin, u_hold, control, sink):
         sink(None, u)
         return dqs + dds + [u[0] * dqs[0] + u[1] * dqs[1]]
     return rhs, to_phys, from_phys
+
+
+def project_onto_pin(q, dq, foot, pin, tan_slope, project=True):
+    """(q, dq, drift, drift rate) of a floating-base stance state whose stance foot (``foot``, its
+    FootState) has drifted from its pin: the drift |p - c| and |J dq| before the projection, and the
+    state projected back (the hip moved by the drift, the base velocity set so that J dq = 0) where
+    ``project``, else unchanged. Lists in, lists out."""
+    fy = foot.height - tan_slope * foot.x        # the foot's y (its height is across the slope)
+    drift, rate = math.hypot(foot.x - pin[0], fy - pin[1]), math.hypot(foot.dx, foot.dheight)
+    if not project:
+        return q, dq, drift, rate
+    q, dq = list(q), list(dq)
+    q[0] += pin[0] - foot.x
+    q[1] += pin[1] - fy
+    dq[0] -= foot.dx                     # J = [I2 | A]: subtracting J dq from dq_base makes J dq = 0
+    dq[1] -= foot.dheight - tan_slope * foot.dx
+    return q, dq, drift, rate

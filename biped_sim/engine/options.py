@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from biped_sim.engine.integrators import ADAPTIVE_METHODS, FIXED_STEP_METHODS, METHODS
+
 PHASES = frozenset({"stance", "impact", "flight"})
 
 
@@ -79,3 +81,31 @@ def check_number(name, value, low, high, what, open_low=False, open_high=False, 
         lo = "(" if open_low else "["
         hi = ")" if open_high or high == math.inf else "]"
         raise ValueError(f"{name} must be a number in {lo}{low:g}, {high:g}{hi} ({what}), got {value!r}")
+
+
+#: the smallest relative tolerance the adaptive methods accept (100 eps, as scipy's solvers)
+MIN_RTOL = 100 * np.finfo(float).eps
+
+
+def check_run_arguments(opt, method, rtol, atol, mu, stance_leg) -> int:
+    """A ValueError naming the argument unless the run's method, tolerances, friction and starting
+    mode are allowed (with these options); returns stance_leg as an int."""
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    if method in FIXED_STEP_METHODS and not opt.step:
+        raise ValueError(f"method {method!r} is fixed-step: give step=<seconds>")
+    if method in ADAPTIVE_METHODS:
+        # below ~100 eps a step's error estimate is roundoff: the tolerance cannot be met
+        check_number("rtol", rtol, MIN_RTOL, 1.0,
+                     f"relative; double precision delivers no less than {MIN_RTOL:.3g}", open_high=True)
+        check_number("atol", atol, 0.0, 1.0, "absolute", open_low=True, open_high=True)
+    if mu is not None:
+        check_number("mu", mu, 0.0, math.inf, "friction coefficient, or None for enough friction")
+    if isinstance(stance_leg, bool) or not isinstance(stance_leg, (int, np.integer)) or stance_leg not in (0, 1, 2):
+        raise ValueError(f"stance_leg must be 1, 2 or 0 (flight), got {stance_leg!r}")
+    stance_leg = int(stance_leg)
+    if stance_leg == 0 and "flight" not in opt.phases:
+        raise ValueError("stance_leg=0 starts in flight, but the phases do not include 'flight'")
+    if stance_leg != 0 and "stance" not in opt.phases:
+        raise ValueError("the phases do not include 'stance': start in flight with stance_leg=0")
+    return stance_leg

@@ -54,6 +54,17 @@ class SimulationResult:
     message: str = ""
     #: per sample: E - E0 - motor work + energy lost at impacts (J); ~0 up to the integration error
     energy_balance: np.ndarray | None = None
+    #: the run's Options (slope, scuff_depth and the tolerances its invariants were checked with)
+    options: object = None
+
+    @classmethod
+    def from_samples(cls, samples, events, stats, status, message, options):
+        """From the simulator's samples: tuples (t, q, dq, stance_leg, F, u, energy-balance residual)."""
+        columns = list(zip(*samples)) if samples else [()] * 7
+        return cls(t=np.array(columns[0]), q=np.array(columns[1]), dq=np.array(columns[2]),
+                   stance_leg=np.array(columns[3], dtype=int), grf=np.array(columns[4]), u=np.array(columns[5]),
+                   events=events, stats=stats, status=status, message=message,
+                   energy_balance=np.array(columns[6]), options=options)
 
     @property
     def impacts(self):
