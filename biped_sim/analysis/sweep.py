@@ -13,6 +13,7 @@ from __future__ import annotations
 import inspect
 import itertools
 import math
+import multiprocessing
 import os
 import pickle
 import signal
@@ -20,7 +21,6 @@ import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import fields
-from multiprocessing import get_context
 from pathlib import Path
 
 from biped_sim.config.scenes import load_scene, scene_path
@@ -175,8 +175,8 @@ def default_workers() -> int:
 def _run_processes(tasks, workers, _address):
     """(index, row) of every task, as the runs finish, on a pool of ``workers`` processes.
 
-    Spawned processes (no fork of a parent that may hold threads, e.g. a plotting or Ray thread)
-    that ignore SIGINT: Ctrl-C reaches the parent only, which stops the pool and its workers.
+    Workers forked by the fork server (:func:`_start_method`) that ignore SIGINT: Ctrl-C reaches
+    the parent only, which stops the pool and its workers.
     A worker that dies (a crash, the OOM killer) fails the runs in flight as rows and a new pool
     takes the rest.
     """
@@ -215,7 +215,19 @@ def _died(task) -> dict:
 
 
 def _new_pool(workers):
-    return ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"), initializer=_ignore_sigint)
+    return ProcessPoolExecutor(max_workers=workers, mp_context=_start_method(), initializer=_ignore_sigint)
+
+
+def _start_method():
+    """The fork server where there is one (POSIX): a clean single-threaded process that imports the
+    engine once (numpy, scipy: ~2 s on a loaded machine) and forks the workers of every pool this
+    process starts, so that a pool costs that import once and not once per worker or per sweep.
+    Elsewhere spawned processes. Never a fork of this process, which may hold threads."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload([__name__])
+        return context
+    return multiprocessing.get_context("spawn")
 
 
 def _ignore_sigint():
@@ -249,10 +261,12 @@ def _run_ray(tasks, workers, address):
         if address is None and not os.environ.get("RAY_ADDRESS"):
             ray.init(num_cpus=workers or default_workers(), include_dashboard=False, log_to_driver=False)
         else:
+            address = address or os.environ["RAY_ADDRESS"]
+            _check_reachable(address)
             try:
                 ray.init(address=address, log_to_driver=False)
             except ConnectionError as exc:
-                raise ValueError(f"no Ray cluster at {address or os.environ.get('RAY_ADDRESS')}: {exc}") from None
+                raise ValueError(f"no Ray cluster at {address}: {exc}") from None
     slots = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
     remote = ray.remote(num_cpus=1, max_retries=0)(run_one)
     pending = iter(enumerate(tasks))
@@ -275,6 +289,19 @@ def _run_ray(tasks, workers, address):
             ray.cancel(ref, force=True)
         if started:
             ray.shutdown()
+
+
+def _check_reachable(address, timeout=5.0):
+    """A ValueError unless something listens at a ``host:port`` address (``ray.init`` would retry an
+    unreachable one for minutes); "auto" and ``ray://`` addresses are left to Ray."""
+    import socket
+    host, sep, port = address.rpartition(":")
+    if address == "auto" or "://" in address or not sep or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as exc:
+        raise ValueError(f"no Ray cluster at {address}: {exc} (start one with: ray start --head)") from None
 
 
 def _empty_outcome(status, message) -> dict:
