@@ -111,7 +111,8 @@ def run(args):
     print(f"{len(rows)} runs of {args.scene} ({failed} not completed) in {wall:.1f} s, {len(rows) / wall:.2f} runs/s "
           f"({args.backend}, {args.workers or 'all'} workers); wrote {out}")
     if args.plot:
-        sw.plot(rows, list(grid), args.plot, title=f"biped-sim sweep {args.scene}")
+        title = f"biped-sim sweep {args.scene}" + (f", {args.duration:g} s a run" if args.duration else "")
+        sw.plot(rows, list(grid), args.plot, title=title)
         print(f"wrote {args.plot}")
     return 0
 
