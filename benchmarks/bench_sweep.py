@@ -44,7 +44,12 @@ def timed_sweep(scene, grid, duration, workers, backend="process"):
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_sweep", description=__doc__.split("\n")[0])
     parser.add_argument("--no-ray", action="store_true", help="leave out the Ray figures")
+    parser.add_argument("--scaling", action="store_true",
+                        help="instead: the figures of docs/scaling.md (a run compiled and in pure Python, Ray on a "
+                             "local multi-process cluster, a row's size and memory, the CSV writer)")
     args = parser.parse_args(argv)
+    if args.scaling:
+        return scaling_figures()
     cores = default_workers()
     n = len(GRID["kp"]) * len(GRID["step_angle"])
     print(f"== sweep: {n} runs of the walk scene, {DURATION:g} s each (torques held 1 ms), {cores} cores ==")
@@ -89,6 +94,97 @@ def main(argv=None):
         extra = (wall - startup - own) / m * 1e3
         print(f"  {backend:8s} {wall:6.2f} s, start-up {startup:.2f} s: {extra:.2f} ms a task beyond the runs' "
               f"own time ({own / m * cores * 1e3:.2f} ms a run)  [{_load()}]")
+    return 0
+
+
+def scaling_figures():
+    """The figures docs/scaling.md plans with."""
+    import pickle
+    import signal
+    import socket
+    import subprocess
+    import sys
+    import tempfile
+    import tracemalloc
+
+    from biped_sim.analysis.sweep import write_csv
+    print("== one run of the walk scene (10 s simulated, torques held 1 ms), in this process ==")
+    for env in ({}, {"BIPED_SIM_PURE_PYTHON": "1"}):
+        code = ("import time; from biped_sim.analysis.sweep import run_one; run_one('walk', {}, 1.0); "
+                "t = time.perf_counter(); [run_one('walk', {}) for _ in range(3)]; "
+                "print((time.perf_counter() - t) / 3)")
+        out = subprocess.run([sys.executable, "-c", code], env=dict(os.environ, **env), capture_output=True,
+                             text=True, check=True).stdout
+        print(f"  {'pure Python' if env else 'compiled twin':14s} {float(out):.3f} s a run (mean of 3)"
+              f"  [{_load()}]")
+    row = run_one("walk", {"kp": 200.0}, 1.0)
+    size = len(pickle.dumps(row))
+    tracemalloc.start()
+    rows = [pickle.loads(pickle.dumps(dict(row, index=i))) for i in range(10_000)]
+    mem = tracemalloc.get_traced_memory()[0] / len(rows)
+    tracemalloc.stop()
+    with tempfile.TemporaryDirectory() as tmp:
+        rows = rows * 10
+        for i, r in enumerate(rows):
+            r["index"] = i
+        t = time.perf_counter()
+        write_csv(rows, ["kp"], os.path.join(tmp, "rows.csv"))
+        wall = time.perf_counter() - t
+        csv_bytes = os.path.getsize(os.path.join(tmp, "rows.csv")) / len(rows)
+    print(f"== a row: {size} bytes pickled (what a worker sends back), {mem:.0f} bytes in memory, "
+          f"{csv_bytes:.0f} bytes of CSV; the CSV writer: {len(rows) / wall:,.0f} rows/s  [{_load()}]")
+    try:
+        import ray
+    except ImportError:
+        print("  Ray: not installed; no cluster figures")
+        return 0
+    with socket.socket() as sk:
+        sk.bind(("127.0.0.1", 0))
+        port = sk.getsockname()[1]
+    cores = default_workers()
+    # a throw-away cluster on this machine, without Ray's token authentication (both ends say so)
+    os.environ["RAY_AUTH_MODE"] = "disabled"
+    print(f"== Ray on a local multi-process cluster: ray start --head --num-cpus {cores} --port {port} --block ==")
+    t0 = time.perf_counter()
+    head = subprocess.Popen([os.path.join(os.path.dirname(sys.executable), "ray"), "start", "--head", "--block",
+                             f"--num-cpus={cores}", f"--port={port}", "--include-dashboard=false",
+                             "--disable-usage-stats"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True, env=dict(os.environ, RAY_AUTH_MODE="disabled"))
+    try:
+        address = f"127.0.0.1:{port}"
+        while True:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                if time.perf_counter() - t0 > 120 or head.poll() is not None:
+                    raise RuntimeError("the Ray head did not start") from None
+                time.sleep(0.2)
+        print(f"  head up in {time.perf_counter() - t0:.1f} s  [{_load()}]")
+        ray.init(address=address, log_to_driver=False)   # the sweep below joins this driver's connection
+        m = len(TINY_GRID["model.g"])
+        for attempt in ("first (workers start, import the engine)", "second (workers warm)"):
+            wall, rows, startup = timed_sweep("passive", TINY_GRID, None, cores, backend="ray")
+            own = sum(r["wall_time"] for r in rows) / cores
+            print(f"  {m} runs of 1 ms, {attempt}: {wall:.2f} s, {(wall - own) / m * 1e3:.2f} ms a task beyond "
+                  f"the runs' own time  [{_load()}]")
+        refs = [ray.put(dict(row, index=i)) for i in range(2000)]
+        t = time.perf_counter()
+        for ref in refs:
+            ray.get(ref)
+        print(f"  fetching a row's result in the driver: {(time.perf_counter() - t) / len(refs) * 1e6:.0f} us "
+              f"(ray.get of one {size}-byte row, 2000 times)  [{_load()}]")
+        wall, rows, startup = timed_sweep("walk", GRID, DURATION, cores, backend="ray")
+        n = len(rows)
+        print(f"  {n} walk runs of {DURATION:g} s: {wall:.2f} s, {n / wall:.2f} runs/s  [{_load()}]")
+        ray.shutdown()
+    finally:
+        os.killpg(head.pid, signal.SIGTERM)    # the head's process group: ray start --block and what it started
+        head.wait(timeout=60)
+        # ray start leaves the address of its cluster here, and a later ray.init() would try to join it
+        marker = os.path.join(tempfile.gettempdir(), "ray", "ray_current_cluster")
+        if os.path.exists(marker) and open(marker).read().strip().endswith(f":{port}"):
+            os.remove(marker)
     return 0
 
 

@@ -259,7 +259,9 @@ def _run_ray(tasks, workers, address):
     started = not ray.is_initialized()
     if started:
         if address is None and not os.environ.get("RAY_ADDRESS"):
-            ray.init(num_cpus=workers or default_workers(), include_dashboard=False, log_to_driver=False)
+            # "local": a new Ray of our own, even where a cluster of this machine (ray start) is running
+            ray.init(address="local", num_cpus=workers or default_workers(), include_dashboard=False,
+                     log_to_driver=False)
         else:
             address = address or os.environ["RAY_ADDRESS"]
             _check_reachable(address)

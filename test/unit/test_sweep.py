@@ -201,3 +201,18 @@ def test_ctrl_c_stops_the_sweep_and_writes_the_runs_done(tmp_path):
 def test_interrupted_sweep_keeps_its_rows():
     stop = SweepInterrupted([{"index": 0}], 4)
     assert isinstance(stop, KeyboardInterrupt) and stop.rows == [{"index": 0}] and stop.total == 4
+
+
+def test_the_basin_is_a_sweep_around_the_fixed_point():
+    from biped_sim.analysis.basin import AXES, basin
+    gait, rows = basin("walk", span=(0.2, 0.4), num=3, duration=1.0, workers=2)
+    assert [(r[AXES[0]], r[AXES[1]]) for r in rows] == [(a, b) for a in (-0.2, 0.0, 0.2) for b in (-0.4, 0.0, 0.4)]
+    centre = rows[4]
+    assert centre["status"] == "completed" and centre["impacts"] >= 2     # z* walks
+    assert centre["initial_dq"][2:] == gait.z[3:6].tolist() and centre["initial_stance_leg"] == 1
+    # a row is the single run with its overrides (continuous feedback, as biped-sim gait)
+    overrides = {k: centre[k] for k in ("initial_stance_leg", "initial_q", "initial_dq")}
+    r = bs.load_scene("walk", overrides=overrides).simulate(hold=False, t_final=1.0)
+    assert centre["q_end"] == r.q[-1].tolist()
+    with pytest.raises(ValueError, match="num must be an integer >= 2"):
+        basin("walk", num=1)
