@@ -180,7 +180,7 @@ def _run_processes(tasks, workers, _address):
     A worker that dies (a crash, the OOM killer) fails the runs in flight as rows and a new pool
     takes the rest.
     """
-    workers = workers or default_workers()
+    workers = min(workers or default_workers(), len(tasks))
     pending = iter(enumerate(tasks))
     pool = _new_pool(workers)
     in_flight = {}
@@ -317,12 +317,14 @@ def _plain_value(v):
 
 
 def _scene_argument(scene) -> str:
-    """The scene as the workers load it: a name in msg_configs/ or a path (a Scene object would lose
-    nothing here only if it had no overrides, so it is not accepted)."""
+    """The scene as the workers load it: a name in msg_configs/ stays a name (a cluster's nodes find
+    their own copy); a path becomes absolute (the fork server keeps the directory it started in)."""
     if not isinstance(scene, (str, Path)):
         raise ValueError(f"scene must be a scene name or a path to a scene file, got {scene!r}")
-    scene_path(scene)   # ValueError: unknown scene, with the available ones
-    return str(scene)
+    path = scene_path(scene)   # ValueError: unknown scene, with the available ones
+    text = str(scene)
+    is_path = text.endswith((".yaml", ".yml")) or Path(text).parent != Path(".")
+    return str(path.resolve()) if is_path else text
 
 
 def csv_columns(names) -> list[str]:

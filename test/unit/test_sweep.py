@@ -22,6 +22,7 @@ from biped_sim.cli import main
 from biped_sim.cli.sweep import parse_set
 
 CLI = str(Path(sys.executable).parent / "biped-sim")
+ROOT = Path(__file__).resolve().parents[2]
 GRID = {"kp": [80.0, 400.0], "step_angle": [0.15, 0.25]}
 DURATION = 0.6
 
@@ -216,3 +217,11 @@ def test_the_basin_is_a_sweep_around_the_fixed_point():
     assert centre["q_end"] == r.q[-1].tolist()
     with pytest.raises(ValueError, match="num must be an integer >= 2"):
         basin("walk", num=1)
+
+
+def test_a_scene_file_given_by_a_relative_path(tmp_path, monkeypatch):
+    bs.sweep("passive", {"duration": [0.1]}, workers=1)       # the fork server starts in this directory
+    (tmp_path / "mine.yaml").write_text((ROOT / "msg_configs" / "passive.yaml").read_text())
+    monkeypatch.chdir(tmp_path)
+    rows = bs.sweep("mine.yaml", {"duration": [0.1, 0.2]}, workers=2)
+    assert [r["status"] for r in rows] == ["completed"] * 2 and rows[1]["t_end"] == 0.2
