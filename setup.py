@@ -27,6 +27,8 @@ setup(
     extras_require={
         # imported only where a figure is drawn (biped-sim inspect, biped-sim accuracy)
         "plot": ["matplotlib"],
+        # backend="ray" of biped_sim.sweep / biped-sim sweep --backend ray (biped_sim/analysis/sweep.py)
+        "ray": ["ray"],
     },
     # the test environment (pytest, the independent bag readers, colcon, ruff) is pinned in requirements.txt
     zip_safe=True,

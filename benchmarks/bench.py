@@ -214,7 +214,7 @@ def bench_control_periods(model, periods=(0.001, 0.005, 0.01, 0.02), t_final=2.0
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench", description=__doc__.split("\n")[0])
-    parser.add_argument("--only", choices=("engine", "node", "record", "scenes"), help="run one group only")
+    parser.add_argument("--only", choices=("engine", "node", "record", "scenes", "sweep"), help="run one group only")
     parser.add_argument("--repeats", type=int, default=7, help="timed repeats of each walk (alternating)")
     args = parser.parse_args(argv)
     model = BipedModel()
@@ -225,16 +225,17 @@ def main(argv=None):
         bench_walk(model, repeats=args.repeats)
         bench_control_periods(model)
         sys.stdout.flush()
-    for group, module in (("node", "bench_node"), ("record", "bench_record"), ("scenes", "bench_scenes")):
+    for group, module in (("node", "bench_node"), ("record", "bench_record"), ("scenes", "bench_scenes"),
+                          ("sweep", "bench_sweep")):
         if args.only in (None, group):
             try:
-                mod = importlib.import_module(f"biped_sim.{module}")
+                mod = importlib.import_module(f"benchmarks.{module}")
             except ModuleNotFoundError as exc:
-                if exc.name != f"biped_sim.{module}":
+                if exc.name != f"benchmarks.{module}":
                     raise
                 print(f"\n(no {module} yet)")
                 continue
-            print(f"\n==== biped_sim.{module} ====")
+            print(f"\n==== benchmarks.{module} ====")
             sys.stdout.flush()
             mod.main([]) if _takes_argv(mod.main) else mod.main()
     return 0

@@ -14,6 +14,7 @@ The public API is re-exported here: ``import biped_sim as bs; bs.load_scene("wal
 """
 __version__ = "0.1.0"
 
+from biped_sim.analysis.sweep import sweep
 from biped_sim.config.scenes import Scene, available_scenes, load_scene
 from biped_sim.control.walking import PDWalkingController, WalkingController
 from biped_sim.engine.dynamics import flight_dynamics, impact_map, relabel, stance_dynamics
@@ -23,4 +24,5 @@ from biped_sim.engine.simulate import simulate, stance_state
 
 __all__ = ["BipedModel", "BipedParameters", "stance_dynamics", "impact_map", "relabel", "flight_dynamics",
            "HybridSimulator", "Options", "Event", "SimulationResult", "simulate", "stance_state",
-           "WalkingController", "PDWalkingController", "Scene", "load_scene", "available_scenes"]
+           "WalkingController", "PDWalkingController", "Scene", "load_scene", "available_scenes",
+           "sweep"]

@@ -9,7 +9,7 @@ import argparse
 import importlib
 import sys
 
-COMMANDS = ("simulate", "accuracy", "stability", "gait", "resim", "inspect", "recover", "replay")
+COMMANDS = ("simulate", "accuracy", "stability", "gait", "sweep", "basin", "resim", "inspect", "recover", "replay")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -17,6 +17,7 @@ install), then in ``share/biped_sim/msg_configs`` of an ament index if one is pr
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -149,8 +150,12 @@ class Scene:
         return simulate(**kw)
 
 
-def load_scene(name_or_path) -> Scene:
-    """Read, check and return a scene (a name in msg_configs/ or a path to a YAML file)."""
+def load_scene(name_or_path, overrides=None) -> Scene:
+    """Read, check and return a scene (a name in msg_configs/ or a path to a YAML file).
+
+    ``overrides`` maps parameter names to values that replace the file's (see
+    :func:`apply_overrides` for the names); the result is checked exactly as if the file said them.
+    """
     path = scene_path(name_or_path)
     try:
         doc = yaml.safe_load(path.read_text())
@@ -162,6 +167,9 @@ def load_scene(name_or_path) -> Scene:
     if unknown:
         raise ValueError(f"scene {path}: unknown section(s) {unknown}; allowed: {NODE_SECTION}, {CONTROLLER_SECTION}")
     given = _section(doc, NODE_SECTION, path)
+    cgiven = _section(doc, CONTROLLER_SECTION, path) if CONTROLLER_SECTION in doc else None
+    if overrides:
+        given, cgiven = apply_overrides(given, cgiven, overrides, path)
     try:
         params = P.validate(given)
     except ValueError as exc:
@@ -171,8 +179,7 @@ def load_scene(name_or_path) -> Scene:
             raise ValueError(f"scene {path}: section {NODE_SECTION} must declare '{key}' (allowed values: "
                              f"{list(P.BY_NAME[key].choices)})")
     cparams = None
-    if CONTROLLER_SECTION in doc:
-        cgiven = _section(doc, CONTROLLER_SECTION, path)
+    if cgiven is not None:
         try:
             cparams = validate_controller(cgiven)
         except ValueError as exc:
@@ -184,6 +191,90 @@ def load_scene(name_or_path) -> Scene:
                                  "in both sections")
     name = params["scene"] if given.get("scene") else path.stem
     return Scene(name=name, path=path, params=params, controller_params=cparams, given=given)
+
+
+_OVERRIDE_NAME = re.compile(r"(?:(?P<section>biped_sim|walk_controller)\.)?(?P<name>[A-Za-z_][\w.]*?)"
+                            r"(?:\[(?P<index>\d+)\])?")
+
+
+def override_targets(key, has_controller: bool) -> list[tuple[str, str, int | None]]:
+    """Where an override name lands: [(section, parameter, list index or None), ...].
+
+    Names are those of the scene file: a node parameter (``duration``, ``initial_q``), a controller
+    parameter (``kp``), an element of a list (``initial_dq[2]``), or a section-qualified name
+    (``walk_controller.kp``, ``biped_sim.slope``). A bare name that is in both sections goes to both
+    where the loader requires them to be equal (``slope``, ``model.*``); a name in both that may
+    differ (``torque_limit``) must be qualified. ValueError names the problem and the allowed names.
+    """
+    m = _OVERRIDE_NAME.fullmatch(key) if isinstance(key, str) else None
+    if m is None:
+        raise ValueError(f"override {key!r} is not a parameter name (NAME, NAME[i], {NODE_SECTION}.NAME or "
+                         f"{CONTROLLER_SECTION}.NAME)")
+    section, name, index = m["section"], m["name"], m["index"]
+    tables = {NODE_SECTION: P.BY_NAME, CONTROLLER_SECTION: CONTROLLER_BY_NAME}
+    if section is not None:
+        sections = [section] if name in tables[section] else []
+    else:
+        sections = [s for s in (NODE_SECTION, CONTROLLER_SECTION) if name in tables[s]]
+    if not sections:
+        where = f"in section {section}" if section else "in this scene's sections"
+        lists = [p.name for p in P.PARAMETERS if p.type is list and p.item is float]
+        raise ValueError(f"unknown override {key!r}: no parameter {name!r} {where}; allowed: "
+                         f"{', '.join(P.BY_NAME)} ({NODE_SECTION}); {', '.join(CONTROLLER_BY_NAME)} "
+                         f"({CONTROLLER_SECTION}); an element of a list as {lists[0]}[i] ({', '.join(lists)}); "
+                         f"a name of both sections as {NODE_SECTION}.NAME or {CONTROLLER_SECTION}.NAME")
+    if len(sections) == 2 and name not in _SHARED_WITH_SIM:
+        raise ValueError(f"override {key!r}: '{name}' is a parameter of both sections, with different meanings; "
+                         f"write {NODE_SECTION}.{name} or {CONTROLLER_SECTION}.{name}")
+    if CONTROLLER_SECTION in sections and not has_controller:
+        if sections == [CONTROLLER_SECTION]:
+            raise ValueError(f"override {key!r}: this scene has no {CONTROLLER_SECTION} section (it runs with "
+                             "u = 0), so it has no controller parameter to set")
+        sections = [NODE_SECTION]
+    param = tables[sections[0]][name]
+    if index is not None:
+        if param.type is not list:
+            raise ValueError(f"override {key!r}: '{name}' is not a list; write {name} = value")
+        if param.length is not None and int(index) >= param.length:
+            raise ValueError(f"override {key!r}: '{name}' has {param.length} entries (indices 0 to "
+                             f"{param.length - 1})")
+    return [(s, name, None if index is None else int(index)) for s in sections]
+
+
+def apply_overrides(given: dict, cgiven: dict | None, overrides: dict, path) -> tuple[dict, dict | None]:
+    """The node and controller sections of a scene file with ``overrides`` put in (see
+    :func:`override_targets`); each overridden value is checked here, by the check the loader
+    applies to the file, so that a ValueError names the override."""
+    if not isinstance(overrides, dict):
+        raise ValueError(f"overrides must be a mapping of parameter names to values, got {overrides!r}")
+    sections = {NODE_SECTION: dict(given), CONTROLLER_SECTION: None if cgiven is None else dict(cgiven)}
+    tables = {NODE_SECTION: P.BY_NAME, CONTROLLER_SECTION: CONTROLLER_BY_NAME}
+    seen = {}
+    for key, value in overrides.items():
+        try:
+            targets = override_targets(key, cgiven is not None)
+        except ValueError as exc:
+            raise ValueError(f"scene {path}: {exc}") from None
+        for section, name, index in targets:
+            for (s, n, i), earlier in seen.items():   # the same entry twice, or a list and one of its entries
+                if (s, n) == (section, name) and (i is None or index is None or i == index):
+                    raise ValueError(f"scene {path}: overrides {earlier!r} and {key!r} both set "
+                                     f"{section}.{name}; give one")
+            seen[(section, name, index)] = key
+            param, values = tables[section][name], sections[section]
+            if index is None:
+                new = value
+            else:
+                new = list(values.get(name, param.default))
+                if index >= len(new):
+                    raise ValueError(f"scene {path}, override {key!r}: '{name}' has {len(new)} entries")
+                new[index] = value
+            try:
+                param.check(new)
+            except ValueError as exc:
+                raise ValueError(f"scene {path}, override {key!r}: {exc}") from None
+            values[name] = new
+    return sections[NODE_SECTION], sections[CONTROLLER_SECTION]
 
 
 def _section(doc, key, path) -> dict:

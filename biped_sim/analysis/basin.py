@@ -1,0 +1,54 @@
+"""The basin of attraction of a scene's periodic gait, on a 2-D slice of initial states: a sweep.
+
+Owns the slice: the fixed point z* of the step-to-step map (:func:`biped_sim.analysis.gait.scene_gait`,
+post-impact, stance leg 1 with its foot at the origin), and around it a grid of post-impact joint
+rates, the stance-leg rate dq_st and the torso rate dq3 moved by up to +-span, the configuration
+kept at z*. Each point becomes a consistent initial state (the hip velocity that keeps the stance
+foot at rest, :func:`biped_sim.engine.simulate.stance_state`), given to the sweep as whole
+``initial_q`` / ``initial_dq`` overrides, so that every run is a plain
+``load_scene(scene, overrides=...).simulate(...)`` and a row of :func:`biped_sim.analysis.sweep.sweep`.
+The runs use continuous feedback (``hold=False``), the feedback ``biped-sim gait`` finds z* with.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from biped_sim.analysis.gait import scene_gait
+from biped_sim.analysis.sweep import sweep
+from biped_sim.config.scenes import load_scene
+from biped_sim.engine.simulate import stance_state
+
+AXES = ("d_dq_stance", "d_dq_torso")
+
+
+def basin(scene, span=(1.0, 2.0), num=11, duration=None, workers=None, backend="process", progress=None, **run):
+    """(gait, rows): the gait of ``scene`` and one sweep row per point of the slice, each with the
+    point's offsets from z* as ``d_dq_stance`` and ``d_dq_torso`` (rad/s), in row-major order
+    (d_dq_stance slowest). ``span`` = the largest offsets (rad/s), ``num`` points along each axis."""
+    if isinstance(num, bool) or not isinstance(num, int) or num < 2:
+        raise ValueError(f"num must be an integer >= 2 (points along each axis), got {num!r}")
+    spans = [float(s) for s in span]
+    if len(spans) != 2 or any(not s > 0 for s in spans):
+        raise ValueError(f"span must be two positive rates (rad/s), got {span!r}")
+    s = load_scene(scene)
+    gait = scene_gait(s)
+    z = gait.z
+    offsets = [[a * (2 * i - (num - 1)) / (num - 1) for i in range(num)] for a in spans]
+    q0, _ = stance_state(s.engine_arguments()["model"], z[0:3], z[3:6], stance_leg=1)
+    points, initial_dq = [], []
+    for d_st in offsets[0]:
+        for d_torso in offsets[1]:
+            _, dq = stance_state(s.engine_arguments()["model"], z[0:3], z[3:6] + [d_st, 0.0, d_torso], stance_leg=1)
+            points.append((d_st, d_torso))
+            initial_dq.append(dq.tolist())
+    grid = {"initial_stance_leg": [1], "initial_q": [q0.tolist()], "initial_dq": initial_dq}
+    rows = sweep(scene, grid, duration=duration, workers=workers, backend=backend, progress=progress,
+                 **dict(dict(hold=False), **run))
+    for row, (d_st, d_torso) in zip(rows, points):
+        row[AXES[0]], row[AXES[1]] = d_st, d_torso
+    return gait, rows
+
+
+def walked(rows, min_steps) -> np.ndarray:
+    """True where a run completed with at least ``min_steps`` impacts."""
+    return np.array([r["status"] == "completed" and r["impacts"] >= min_steps for r in rows])

@@ -1,0 +1,392 @@
+"""Sweeps: one scene run over the product of a parameter grid, on every core or on a Ray cluster.
+
+Owns the grid (its names and values checked before any run), the one task every backend runs
+(:func:`run_one`: ``load_scene(scene, overrides=...).simulate(...)`` and its summary row), and the
+two backends: a process pool of the standard library (``backend="process"``) and Ray
+(``backend="ray"``, the optional extra ``pip install biped_sim[ray]``). Both keep a bounded number
+of tasks in flight and put the rows back in grid order, so that the result does not depend on the
+backend, the number of workers or the completion order (each run is one deterministic process-local
+computation). docs/sweeps.md shows the API and ``biped-sim sweep``.
+"""
+from __future__ import annotations
+
+import inspect
+import itertools
+import math
+import multiprocessing
+import os
+import pickle
+import signal
+import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import fields
+from pathlib import Path
+
+from biped_sim.config.scenes import load_scene, scene_path
+from biped_sim.engine.options import Options
+from biped_sim.engine.simulate import simulate
+
+BACKENDS = ("process", "ray")
+#: the outcome columns of a row, after the swept parameters (docs/sweeps.md says what each is)
+OUTCOME = ("status", "message", "impacts", "t_end", "x_end", "mean_speed", "q_end", "dq_end",
+           "energy_residual", "drift", "wall_time")
+#: runs in flight per worker: enough that a worker never waits for the next task, few enough that a
+#: grid of millions of runs is not turned into millions of pending futures at once
+IN_FLIGHT_PER_WORKER = 4
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a sweep: the pool is stopped; ``rows`` holds the runs that finished, in grid
+    order (each row carries its ``index`` in the grid), and ``total`` the number of runs in the grid."""
+
+    def __init__(self, rows, total):
+        super().__init__(f"sweep interrupted after {len(rows)} of {total} runs")
+        self.rows, self.total = rows, total
+
+
+def grid_runs(grid) -> tuple[list[str], list[list], list[dict]]:
+    """The swept names, their values (numpy scalars as Python numbers) and one overrides dict per run:
+    the grid's product, row-major over the names in the order given (the last name varies fastest)."""
+    if not isinstance(grid, dict) or not grid:
+        raise ValueError(f"grid must be a non-empty mapping of parameter names to lists of values, got {grid!r}")
+    names, columns = [], []
+    for name, values in grid.items():
+        if isinstance(values, (str, bytes)) or not hasattr(values, "__iter__"):
+            raise ValueError(f"grid[{name!r}] must be a list of values, got {values!r}")
+        values = [_plain_value(v) for v in values]
+        if not values:
+            raise ValueError(f"grid[{name!r}] is empty: give at least one value")
+        names.append(name)
+        columns.append(values)
+    return names, columns, [dict(zip(names, combo)) for combo in itertools.product(*columns)]
+
+
+def check_sweep(scene, grid, duration=None, run_options=None) -> list[dict]:
+    """Everything a sweep can be refused for, before any run starts: the scene, every name and every
+    value of the grid (each value with the other names at their first value, so that a bad value
+    is named), ``duration`` and the run options (their names, and the engine's own check of those
+    that are :class:`Options`). A value the engine refuses only when it starts (an initial state
+    whose stance foot moves) is that run's "error" row. Returns the runs (:func:`grid_runs`);
+    raises ValueError."""
+    scene = _scene_argument(scene)
+    names, columns, runs = grid_runs(grid)
+    first = runs[0]
+    for name, values in zip(names, columns):
+        for value in values:
+            load_scene(scene, overrides=dict(first, **{name: value}))
+    if duration is not None and (isinstance(duration, bool) or not isinstance(duration, (int, float))
+                                 or not math.isfinite(duration) or duration <= 0):
+        raise ValueError(f"duration must be a positive number of seconds (or None: the scene's), got {duration!r}")
+    run_options = dict(run_options or {})
+    if "t_final" in run_options:
+        raise ValueError("give the run's length as duration=..., not t_final")
+    try:
+        pickle.dumps(run_options)
+    except Exception as exc:
+        raise ValueError(f"run options must be picklable to reach the workers: {exc}") from None
+    known = {"hold"} | (set(inspect.signature(simulate).parameters) - {"options", "t_final"}) \
+        | {f.name for f in fields(Options)}
+    unknown = sorted(set(run_options) - known)
+    if unknown:
+        raise ValueError(f"unknown run option(s) {unknown}; allowed: {', '.join(sorted(known))}")
+    Options(**{k: v for k, v in run_options.items() if k in {f.name for f in fields(Options)}}).check()
+    return runs
+
+
+def run_one(scene, overrides: dict, duration=None, run_options=None) -> dict:
+    """One run of a sweep and its row: ``load_scene(scene, overrides=overrides).simulate(t_final=
+    duration, **run_options)`` (``duration=None``: the scene's). An exception inside the run is a
+    row with status "error" and its message; it is never raised."""
+    t0 = time.perf_counter()
+    row = dict(overrides)
+    try:
+        s = load_scene(scene, overrides=overrides)
+        kwargs = dict(run_options or {})
+        if duration is not None:
+            kwargs["t_final"] = duration
+        row.update(summary(s.simulate(**kwargs), s.params["initial_q"][0]))
+    except Exception as exc:   # a sweep's rows say what failed; the sweep goes on
+        row.update(_empty_outcome("error", f"{type(exc).__name__}: {exc}"))
+    row["wall_time"] = time.perf_counter() - t0
+    return row
+
+
+def summary(result, x0: float) -> dict:
+    """The outcome columns of a finished run (all but ``wall_time``): ``x_end`` is the distance the
+    hip travelled along x from ``x0``, ``energy_residual`` the largest energy-balance residual of
+    the run (J) and ``drift`` its largest constraint drift (m or m/s), both from ``result.stats``:
+    the run's own error estimate, at no extra cost."""
+    st = result.stats
+    t_end = float(result.t[-1]) if len(result.t) else 0.0
+    x_end = float(result.q[-1][0]) - x0 if len(result.q) else math.nan
+    return dict(status=result.status, message=result.message, impacts=len(result.impacts), t_end=t_end,
+                x_end=x_end, mean_speed=x_end / t_end if t_end > 0 else 0.0,
+                q_end=[float(v) for v in result.q[-1]], dq_end=[float(v) for v in result.dq[-1]],
+                energy_residual=float(st["max_energy_balance_residual"]),
+                drift=float(max(st["max_constraint_drift_position"], st["max_constraint_drift_velocity"])))
+
+
+def sweep(scene, grid, duration=None, workers=None, backend="process", *, ray_address=None, progress=None,
+          **run_options) -> list[dict]:
+    """Run ``scene`` at every point of ``grid`` and return one row (a dict) per run, in grid order.
+
+    ``grid`` maps parameter names, as the scene file writes them (``kp``, ``initial_dq[2]``,
+    ``walk_controller.kp``; :func:`biped_sim.config.scenes.override_targets`), to lists of values; the
+    runs are its product, row-major over the names in the order given. A row holds the parameter
+    values, then :data:`OUTCOME`; it equals, bit for bit, the single run
+    ``load_scene(scene, overrides=point).simulate(t_final=duration, **run_options)``.
+    ``workers=None``: every core (Ray: the cluster's CPUs); ``backend`` "process" or "ray"
+    (``ray_address`` for a running cluster, else a local one). ``progress(done, total, row)`` is
+    called after each run. A failed run is a row with its status and message; a bad name, value or
+    option is a ValueError before any run; Ctrl-C raises :class:`SweepInterrupted` with the rows done.
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ValueError(f"workers must be a positive integer (or None: every core), got {workers!r}")
+    if ray_address is not None and backend != "ray":
+        raise ValueError("ray_address needs backend='ray'")
+    scene = _scene_argument(scene)
+    runs = check_sweep(scene, grid, duration, run_options)
+    tasks = [(scene, point, duration, run_options) for point in runs]
+    execute = _run_ray if backend == "ray" else _run_processes
+    rows = [None] * len(tasks)
+    done = 0
+    try:
+        for index, row in execute(tasks, workers, ray_address):
+            rows[index] = dict(index=index, **row)
+            done += 1
+            if progress is not None:
+                progress(done, len(tasks), rows[index])
+    except KeyboardInterrupt:
+        raise SweepInterrupted([r for r in rows if r is not None], len(tasks)) from None
+    return rows
+
+
+def default_workers() -> int:
+    """Every core this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:   # not on Linux
+        return os.cpu_count() or 1
+
+
+def _run_processes(tasks, workers, _address):
+    """(index, row) of every task, as the runs finish, on a pool of ``workers`` processes.
+
+    Workers forked by the fork server (:func:`_start_method`) that ignore SIGINT: Ctrl-C reaches
+    the parent only, which stops the pool and its workers.
+    A worker that dies (a crash, the OOM killer) fails the runs in flight as rows and a new pool
+    takes the rest.
+    """
+    workers = min(workers or default_workers(), len(tasks))
+    pending = iter(enumerate(tasks))
+    pool = _new_pool(workers)
+    in_flight = {}
+    try:
+        while True:
+            for index, task in itertools.islice(pending, workers * IN_FLIGHT_PER_WORKER - len(in_flight)):
+                in_flight[pool.submit(run_one, *task)] = index
+            if not in_flight:
+                return
+            finished, _ = wait(in_flight, return_when=FIRST_COMPLETED)
+            broken = False
+            for future in finished:
+                index = in_flight.pop(future)
+                try:
+                    yield index, future.result()
+                except BrokenProcessPool:
+                    broken = True
+                    yield index, _died(tasks[index])
+            if broken:   # the other runs in flight died with the pool
+                for index in in_flight.values():
+                    yield index, _died(tasks[index])
+                in_flight.clear()
+                pool.shutdown(wait=False, cancel_futures=True)
+                pool = _new_pool(workers)
+    finally:
+        _stop_pool(pool)
+
+
+def _died(task) -> dict:
+    return dict(task[1], **_empty_outcome("error", "the worker process died during this run or one beside it "
+                                                   "(a crash or the out-of-memory killer)"), wall_time=0.0)
+
+
+def _new_pool(workers):
+    return ProcessPoolExecutor(max_workers=workers, mp_context=_start_method(), initializer=_ignore_sigint)
+
+
+def _start_method():
+    """The fork server where there is one (POSIX): a clean single-threaded process that imports the
+    engine once (numpy, scipy: ~2 s on a loaded machine) and forks the workers of every pool this
+    process starts, so that a pool costs that import once and not once per worker or per sweep.
+    Elsewhere spawned processes. Never a fork of this process, which may hold threads."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload([__name__])
+        return context
+    return multiprocessing.get_context("spawn")
+
+
+def _ignore_sigint():
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _stop_pool(pool):
+    """Shut the pool down without waiting for the runs in flight (after Ctrl-C they are not wanted).
+    The executor has no public way to stop a running task: its worker processes are terminated."""
+    processes = list(getattr(pool, "_processes", {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        if p.is_alive():
+            p.terminate()
+    for p in processes:
+        p.join(timeout=5)
+
+
+def _run_ray(tasks, workers, address):
+    """(index, row) of every task, as the runs finish, as Ray tasks of :func:`run_one` (one CPU each).
+
+    Joins the cluster at ``address`` (or Ray's own ``RAY_ADDRESS``), else starts a local one with
+    ``workers`` CPUs and stops it at the end; Ctrl-C cancels the tasks in flight.
+    """
+    try:
+        import ray
+    except ImportError:
+        raise ValueError("backend 'ray' needs Ray: pip install 'biped_sim[ray]' (or ray==2.60.0)") from None
+    started = not ray.is_initialized()
+    if started:
+        if address is None and not os.environ.get("RAY_ADDRESS"):
+            # "local": a new Ray of our own, even where a cluster of this machine (ray start) is running
+            ray.init(address="local", num_cpus=workers or default_workers(), include_dashboard=False,
+                     log_to_driver=False)
+        else:
+            address = address or os.environ["RAY_ADDRESS"]
+            _check_reachable(address)
+            try:
+                ray.init(address=address, log_to_driver=False)
+            except ConnectionError as exc:
+                raise ValueError(f"no Ray cluster at {address}: {exc}") from None
+    slots = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
+    remote = ray.remote(num_cpus=1, max_retries=0)(run_one)
+    pending = iter(enumerate(tasks))
+    in_flight = {}
+    try:
+        while True:
+            for index, task in itertools.islice(pending, slots * IN_FLIGHT_PER_WORKER - len(in_flight)):
+                in_flight[remote.remote(*task)] = index
+            if not in_flight:
+                return
+            ready, _ = ray.wait(list(in_flight), num_returns=1)
+            for ref in ready:
+                index = in_flight.pop(ref)
+                try:
+                    yield index, ray.get(ref)
+                except ray.exceptions.RayError as exc:   # the worker died; run_one itself never raises
+                    yield index, dict(tasks[index][1], **_empty_outcome("error", f"Ray: {exc}"), wall_time=0.0)
+    finally:
+        for ref in in_flight:
+            ray.cancel(ref, force=True)
+        if started:
+            ray.shutdown()
+
+
+def _check_reachable(address, timeout=5.0):
+    """A ValueError unless something listens at a ``host:port`` address (``ray.init`` would retry an
+    unreachable one for minutes); "auto" and ``ray://`` addresses are left to Ray."""
+    import socket
+    host, sep, port = address.rpartition(":")
+    if address == "auto" or "://" in address or not sep or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as exc:
+        raise ValueError(f"no Ray cluster at {address}: {exc} (start one with: ray start --head)") from None
+
+
+def _empty_outcome(status, message) -> dict:
+    return dict(status=status, message=message, impacts=0, t_end=math.nan, x_end=math.nan, mean_speed=math.nan,
+                q_end=[math.nan] * 5, dq_end=[math.nan] * 5, energy_residual=math.nan, drift=math.nan)
+
+
+def _plain_value(v):
+    """A grid value as load_scene's overrides take it: a numpy scalar as the Python number."""
+    return v.item() if hasattr(v, "item") and hasattr(v, "dtype") and getattr(v, "ndim", 1) == 0 else v
+
+
+def _scene_argument(scene) -> str:
+    """The scene as the workers load it: a name in msg_configs/ stays a name (a cluster's nodes find
+    their own copy); a path becomes absolute (the fork server keeps the directory it started in)."""
+    if not isinstance(scene, (str, Path)):
+        raise ValueError(f"scene must be a scene name or a path to a scene file, got {scene!r}")
+    path = scene_path(scene)   # ValueError: unknown scene, with the available ones
+    text = str(scene)
+    is_path = text.endswith((".yaml", ".yml")) or Path(text).parent != Path(".")
+    return str(path.resolve()) if is_path else text
+
+
+def csv_columns(names) -> list[str]:
+    """The CSV's columns: the grid index, the swept names, the outcome, q_end[i] and dq_end[i]."""
+    scalars = [c for c in OUTCOME if c not in ("q_end", "dq_end")]
+    return ["index", *names, *scalars] + [f"q_end[{i}]" for i in range(5)] + [f"dq_end[{i}]" for i in range(5)]
+
+
+def write_csv(rows, names, path):
+    """One line per row (numbers as Python's repr: they read back to the same bits)."""
+    import csv
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(csv_columns(names))
+        for r in rows:
+            w.writerow([r["index"], *(r[n] for n in names), *(r[c] for c in OUTCOME if c not in ("q_end", "dq_end")),
+                        *r["q_end"], *r["dq_end"]])
+
+
+def plot(rows, names, path, title="sweep"):
+    """Steps walked (impacts) over the first two swept names as a heat map, the runs that did not
+    complete marked with a cross; along the one swept name as a line. With more than two names the
+    map is the slice at the first value of the others (the title says so)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    rest = {n: rows[0][n] for n in names[2:]}
+    sl = [r for r in rows if all(r[n] == v for n, v in rest.items())]
+    if rest:
+        title += " (at " + ", ".join(f"{n}={v}" for n, v in rest.items()) + ")"
+    fig, ax = plt.subplots(figsize=(7.5, 5.5) if len(names) > 1 else (7, 4))
+    if len(names) == 1:
+        x = [r[names[0]] for r in sl]
+        ax.plot(x, [r["impacts"] for r in sl], "o-", color="tab:blue", label="steps (impacts)")
+        bad = [r for r in sl if r["status"] != "completed"]
+        ax.plot([r[names[0]] for r in bad], [r["impacts"] for r in bad], "x", color="tab:red", ms=10, mew=2,
+                label="did not complete")
+        ax.set_xlabel(names[0])
+        ax.set_ylabel("steps walked (impacts)")
+        ax.legend()
+    else:
+        ys = list(dict.fromkeys(r[names[0]] for r in sl))
+        xs = list(dict.fromkeys(r[names[1]] for r in sl))
+        grid = [[math.nan] * len(xs) for _ in ys]
+        for r in sl:
+            grid[ys.index(r[names[0]])][xs.index(r[names[1]])] = r["impacts"]
+        im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis", interpolation="nearest")
+        fig.colorbar(im, ax=ax, label="steps walked (impacts)")
+        bad = [r for r in sl if r["status"] != "completed"]
+        ax.plot([xs.index(r[names[1]]) for r in bad], [ys.index(r[names[0]]) for r in bad], "x", color="tab:red",
+                ms=7, mew=1.5, label="did not complete (fell, stopped or error)")
+        for values, setter, labels in ((xs, ax.set_xticks, ax.set_xticklabels),
+                                       (ys, ax.set_yticks, ax.set_yticklabels)):
+            every = max(1, len(values) // 8)
+            ticks = list(range(0, len(values), every))
+            setter(ticks)
+            labels([f"{values[i]:.4g}" if isinstance(values[i], float) else str(values[i]) for i in ticks])
+        ax.set_xlabel(names[1])
+        ax.set_ylabel(names[0])
+        if bad:
+            ax.legend(loc="upper right", fontsize=8)
+    ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

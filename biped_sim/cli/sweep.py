@@ -1,0 +1,137 @@
+"""``biped-sim sweep``: a scene run over a parameter grid on every core (or Ray), to a CSV and a map.
+
+Owns the command line only: parsing ``--set NAME=START:STOP:NUM`` / ``NAME=v1,v2,...``, the progress
+line, the CSV, the exit status; the sweep, its rows and its figure are biped_sim.analysis.sweep's.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+from biped_sim.analysis import sweep as sw
+
+
+def register(sub):
+    p = sub.add_parser(
+        "sweep", help="run a scene over a parameter grid on every core (or a Ray cluster): CSV and map",
+        description="Run SCENE at every point of the product of the --set grids (row-major: the last --set "
+                    "varies fastest), in parallel, and write one CSV row per run: the parameter values, status, "
+                    "message, impacts (steps walked), t_end, x_end (distance the hip travelled), mean_speed, "
+                    "energy_residual and drift (the run's own error estimate), wall_time, q_end and dq_end. "
+                    "Names are those of the scene file: kp, step_angle, duration, initial_q[0], "
+                    "walk_controller.torque_limit, ... (docs/sweeps.md). A failed run is a row; Ctrl-C writes "
+                    "the runs done.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("scene", help="a scene name in msg_configs/ (walk, slope, ...) or a path to a .yaml file")
+    p.add_argument("--set", dest="grid", action="append", required=True, metavar="NAME=VALUES",
+                   help="a swept parameter: NAME=START:STOP:NUM (NUM values evenly spaced, both ends included) or "
+                        "NAME=v1,v2,... (repeatable; the first two make the map's axes)")
+    p.add_argument("--duration", type=float, default=None, help="simulated seconds per run (default: the scene's)")
+    p.add_argument("--workers", type=int, default=None, help="parallel runs (default: every core; Ray: its CPUs)")
+    p.add_argument("--backend", choices=sw.BACKENDS, default="process",
+                   help="process: a pool of processes on this machine; ray: Ray tasks (pip install biped_sim[ray])")
+    p.add_argument("--ray-address", default=None, help="a running Ray cluster (ray start --head; 'auto'); "
+                                                      "default: a local Ray started for this sweep")
+    p.add_argument("--continuous", action="store_true",
+                   help="continuous feedback instead of torques held over control_period (the node's run)")
+    p.add_argument("-o", "--output", required=True, help="the CSV to write (one row per run)")
+    p.add_argument("--plot", default=None, help="a PNG: steps walked over the first two swept names (a heat map, "
+                                                "failures marked) or along the one swept name")
+    p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
+    p.set_defaults(func=run)
+
+
+def parse_set(text: str) -> tuple[str, list]:
+    """``NAME=START:STOP:NUM`` or ``NAME=v1,v2,...`` -> (NAME, values); ValueError for a malformed one."""
+    name, eq, spec = text.partition("=")
+    name, spec = name.strip(), spec.strip()
+    if not eq or not name or not spec:
+        raise ValueError(f"--set {text!r}: expected NAME=START:STOP:NUM or NAME=v1,v2,...")
+    if ":" in spec:
+        parts = spec.split(":")
+        try:
+            start, stop, num = float(parts[0]), float(parts[1]), int(parts[2])
+            if len(parts) != 3:
+                raise IndexError
+        except (ValueError, IndexError):
+            raise ValueError(f"--set {text!r}: START:STOP:NUM needs two numbers and a count, "
+                             "e.g. kp=50:500:10") from None
+        if num < 1 or not (math.isfinite(start) and math.isfinite(stop)):
+            raise ValueError(f"--set {text!r}: NUM must be >= 1 and START, STOP finite")
+        if num == 1:
+            return name, [start]
+        # each value computed alone (not accumulated), so that the CSV shows the value a run used
+        return name, [start + (stop - start) * i / (num - 1) for i in range(num)]
+    return name, [_scalar(v.strip()) for v in spec.split(",")]
+
+
+def _scalar(text: str):
+    """A value as a scene file would mean it: an integer, a number, true/false, else a string."""
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return {"true": True, "false": False}.get(text.lower(), text)
+
+
+def run(args):
+    grid = {}
+    for text in args.grid:
+        name, values = parse_set(text)
+        if name in grid:
+            raise ValueError(f"--set {name} given twice: give its values in one --set")
+        grid[name] = values
+    out = Path(args.output)
+    if not out.parent.is_dir():
+        raise ValueError(f"-o {args.output}: folder {out.parent} does not exist")
+    if args.plot and not Path(args.plot).parent.is_dir():
+        raise ValueError(f"--plot {args.plot}: folder {Path(args.plot).parent} does not exist")
+    total = math.prod(len(v) for v in grid.values())
+    progress = None if args.no_progress else ProgressLine(total)
+    options = {"hold": False} if args.continuous else {}
+    t0 = time.perf_counter()
+    try:
+        rows = sw.sweep(args.scene, grid, duration=args.duration, workers=args.workers, backend=args.backend,
+                        ray_address=args.ray_address, progress=progress, **options)
+    except sw.SweepInterrupted as stop:
+        if progress:
+            progress.end()
+        sw.write_csv(stop.rows, list(grid), out)
+        print(f"interrupted: {len(stop.rows)} of {stop.total} runs done, written to {out}", file=sys.stderr)
+        return 130
+    if progress:
+        progress.end()
+    wall = time.perf_counter() - t0
+    sw.write_csv(rows, list(grid), out)
+    failed = sum(r["status"] != "completed" for r in rows)
+    print(f"{len(rows)} runs of {args.scene} ({failed} not completed) in {wall:.1f} s, {len(rows) / wall:.2f} runs/s "
+          f"({args.backend}, {args.workers or 'all'} workers); wrote {out}")
+    if args.plot:
+        title = f"biped-sim sweep {args.scene}" + (f", {args.duration:g} s a run" if args.duration else "")
+        sw.plot(rows, list(grid), args.plot, title=title)
+        print(f"wrote {args.plot}")
+    return 0
+
+
+class ProgressLine:
+    """``[done/total] failures  elapsed  left`` on one stderr line, rewritten in place."""
+
+    def __init__(self, total, stream=None):
+        self.total, self.t0, self.failures = total, time.perf_counter(), 0
+        self.stream = sys.stderr if stream is None else stream
+
+    def __call__(self, done, total, row):
+        self.failures += row["status"] != "completed"
+        elapsed = time.perf_counter() - self.t0
+        left = elapsed / done * (total - done)
+        self.stream.write(f"\r[{done}/{total}] {self.failures} not completed, {elapsed:.0f} s elapsed, "
+                          f"~{left:.0f} s left   ")
+        self.stream.flush()
+
+    def end(self):
+        self.stream.write("\n")
+        self.stream.flush()

@@ -1,0 +1,227 @@
+"""Sweeps (issue 17): load_scene's overrides, biped_sim.sweep on the process pool, biped-sim sweep.
+
+The rows must be the single runs, bit for bit, whatever the number of workers; a bad name or value
+is refused before any run; failing runs are rows. The Ray backend's agreement is
+test/integration/test_sweep_ray.py.
+"""
+import csv
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import biped_sim as bs
+from biped_sim.analysis.sweep import OUTCOME, SweepInterrupted, grid_runs
+from biped_sim.cli import main
+from biped_sim.cli.sweep import parse_set
+
+CLI = str(Path(sys.executable).parent / "biped-sim")
+ROOT = Path(__file__).resolve().parents[2]
+GRID = {"kp": [80.0, 400.0], "step_angle": [0.15, 0.25]}
+DURATION = 0.6
+
+
+# ---- load_scene(name, overrides=...) ----
+
+def test_overrides_land_where_the_scene_file_would_put_them():
+    s = bs.load_scene("walk", overrides={"kp": 300, "initial_q[4]": 0.2, "duration": 2.0,
+                                         "walk_controller.torque_limit": 300.0, "biped_sim.torque_limit": 600.0})
+    assert s.controller_params["kp"] == 300.0 and s.params["duration"] == 2.0
+    assert s.params["initial_q"][4] == 0.2
+    assert s.params["initial_q"][:4] == bs.load_scene("walk").params["initial_q"][:4]
+    assert s.controller_params["torque_limit"] == 300.0 and s.params["torque_limit"] == 600.0
+    # slope is in both sections and must match: a bare slope sets both, a qualified one only its own
+    s = bs.load_scene("walk", overrides={"slope": 0.02})
+    assert s.params["slope"] == s.controller_params["slope"] == 0.02
+    s = bs.load_scene("walk", overrides={"biped_sim.slope": 0.02, "walk_controller.slope": 0.02})
+    assert s.params["slope"] == s.controller_params["slope"] == 0.02
+    assert bs.load_scene("passive", overrides={"slope": 0.01}).params["slope"] == 0.01   # no controller section
+    assert bs.load_scene("walk", overrides={}).params == bs.load_scene("walk").params
+
+
+@pytest.mark.parametrize("overrides, message", [
+    ({"kpp": 1.0}, r"unknown override 'kpp'.*allowed: scene, time_mode.*torso_pitch, step_angle.*initial_q\[i\]"),
+    ({"walk_controller.duration": 1.0}, r"unknown override 'walk_controller.duration': no parameter 'duration' in "
+                                        "section walk_controller"),
+    ({"kp": "stiff"}, r"override 'kp': parameter 'kp' must be a number, got 'stiff'"),
+    ({"kp": -1.0}, r"override 'kp': parameter 'kp' must be in \[0.0, 1000000.0\]"),
+    ({"record": 1}, r"parameter 'record' must be true or false"),
+    ({"initial_dq[1]": "x"}, r"override 'initial_dq\[1\]': parameter 'initial_dq' must hold finite numbers"),
+    ({"initial_dq[5]": 0.0}, r"'initial_dq' has 5 entries \(indices 0 to 4\)"),
+    ({"kp[0]": 1.0}, r"'kp' is not a list"),
+    ({"torque_limit": 100.0}, r"'torque_limit' is a parameter of both sections.*biped_sim.torque_limit or "
+                              "walk_controller.torque_limit"),
+    ({"slope": 0.01, "biped_sim.slope": 0.01}, r"overrides 'slope' and 'biped_sim.slope' both set biped_sim.slope"),
+    ({"initial_q": [0.0, 1.0, 3.0, 3.2, 0.1], "initial_q[0]": 0.0}, r"both set biped_sim.initial_q"),
+    ({"walk_controller.slope": 0.02}, r"walk_controller parameter 'slope' = 0.02 differs from the simulation's"),
+    ({"phases": ["stance", "hop"]}, r"'hop' is not one of"),
+])
+def test_a_bad_override_is_refused_as_in_a_scene_file(overrides, message):
+    with pytest.raises(ValueError, match=message):
+        bs.load_scene("walk", overrides=overrides)
+
+
+def test_a_controller_parameter_needs_a_controller_section():
+    with pytest.raises(ValueError, match="override 'kp': this scene has no walk_controller section"):
+        bs.load_scene("passive", overrides={"kp": 100.0})
+
+
+# ---- the grid ----
+
+def test_the_runs_are_the_product_row_major_over_the_names_in_order():
+    names, columns, runs = grid_runs({"b": [1, 2], "a": np.array([0.5, 0.25, 0.0])})
+    assert names == ["b", "a"] and columns[1] == [0.5, 0.25, 0.0] and type(columns[1][0]) is float
+    assert [(r["b"], r["a"]) for r in runs] == [(1, 0.5), (1, 0.25), (1, 0.0), (2, 0.5), (2, 0.25), (2, 0.0)]
+
+
+def test_the_command_line_values():
+    assert parse_set("kp=50:150:3") == ("kp", [50.0, 100.0, 150.0])
+    assert parse_set("initial_dq[2]=0.5, 1,2e-1") == ("initial_dq[2]", [0.5, 1, 0.2])
+    assert parse_set("record=true,false") == ("record", [True, False])
+    assert parse_set("x=1:2:1") == ("x", [1.0])
+    for bad in ("kp", "kp=", "kp=1:2", "kp=1:2:x", "kp=1:2:0", "=1,2"):
+        with pytest.raises(ValueError, match="--set"):
+            parse_set(bad)
+
+
+# ---- bs.sweep ----
+
+def _outcome(rows):
+    """The rows without their wall times (the one column that is not the run's)."""
+    return [{k: v for k, v in r.items() if k != "wall_time"} for r in rows]
+
+
+def test_rows_are_the_single_runs_bit_for_bit_and_workers_do_not_change_them():
+    calls = []
+    rows2 = bs.sweep("walk", GRID, duration=DURATION, workers=2, progress=lambda d, n, r: calls.append((d, n)))
+    rows1 = bs.sweep("walk", GRID, duration=DURATION, workers=1)
+    assert calls == [(i, 4) for i in range(1, 5)]
+    assert _outcome(rows1) == _outcome(rows2)
+    assert [(r["index"], r["kp"], r["step_angle"]) for r in rows2] == [
+        (0, 80.0, 0.15), (1, 80.0, 0.25), (2, 400.0, 0.15), (3, 400.0, 0.25)]
+    for row in rows2:
+        assert list(row) == ["index", "kp", "step_angle", *OUTCOME]
+        s = bs.load_scene("walk", overrides={"kp": row["kp"], "step_angle": row["step_angle"]})
+        r = s.simulate(t_final=DURATION)
+        assert row["status"] == r.status == "completed" and row["message"] == r.message
+        assert row["q_end"] == r.q[-1].tolist() and row["dq_end"] == r.dq[-1].tolist()   # ==: the same bits
+        assert row["impacts"] == len(r.impacts) >= 1 and row["t_end"] == r.t[-1] == DURATION
+        assert row["x_end"] == r.q[-1][0] - r.q[0][0] > 0.2
+        assert row["mean_speed"] == row["x_end"] / DURATION
+        assert row["energy_residual"] == r.stats["max_energy_balance_residual"] < 1e-6
+        assert row["drift"] == max(r.stats["max_constraint_drift_position"], r.stats["max_constraint_drift_velocity"])
+        assert row["wall_time"] > 0
+    assert len({tuple(r["q_end"]) for r in rows2}) == 4   # the parameters did reach the runs
+
+
+def test_failing_runs_are_rows_and_the_sweep_completes():
+    # passive falls when run past 0.5 s; a moving stance foot is refused by the engine when the run starts
+    rows = bs.sweep("passive", {"initial_dq[0]": [0.0, 0.3], "duration": [0.5, 2.0]}, workers=2)
+    assert [(r["status"], r["impacts"]) for r in rows][:2] == [("completed", 1), ("failed", 1)]
+    assert "the robot fell" in rows[1]["message"]
+    for r in rows[2:]:
+        assert r["status"] == "error" and "ValueError: initial state: the stance foot (leg 1) moves" in r["message"]
+        assert math.isnan(r["x_end"]) and r["impacts"] == 0
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(grid={"kpp": [1.0]}), "unknown override 'kpp'"),
+    (dict(grid={"kp": [100.0, 200.0, "x"]}), "override 'kp': parameter 'kp' must be a number, got 'x'"),
+    (dict(grid={"kp": []}), r"grid\['kp'\] is empty"),
+    (dict(grid={"kp": 3.0}), r"grid\['kp'\] must be a list"),
+    (dict(grid={"kp": [1.0]}, duration=-1), "duration must be a positive number"),
+    (dict(grid={"kp": [1.0]}, rtoll=1e-6), r"unknown run option\(s\) \['rtoll'\]"),
+    (dict(grid={"kp": [1.0]}, touchdown_rule="back"), "touchdown_rule must be 'front' or 'any'"),
+    (dict(grid={"kp": [1.0]}, backend="dask"), "backend must be one of process, ray"),
+    (dict(grid={"kp": [1.0]}, workers=0), "workers must be a positive integer"),
+    (dict(grid={"kp": [1.0]}, scene="nowhere"), "unknown scene 'nowhere'"),
+])
+def test_a_bad_sweep_is_refused_before_any_run(kwargs, message):
+    calls = []
+    kwargs = dict(dict(scene="walk", duration=0.1, progress=lambda *a: calls.append(a)), **kwargs)
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match=message):
+        bs.sweep(**kwargs)
+    assert not calls and time.perf_counter() - t0 < 2.0   # no pool was started, no run made
+
+
+# ---- biped-sim sweep ----
+
+def test_the_command_writes_a_row_per_run_and_the_map(tmp_path, capsys):
+    out, png = tmp_path / "gains.csv", tmp_path / "gains.png"
+    assert main(["sweep", "walk", "--set", "kp=80:400:2", "--set", "step_angle=0.15,0.25", "--duration",
+                 str(DURATION), "--workers", "2", "-o", str(out), "--plot", str(png)]) == 0
+    with open(out) as f:
+        table = list(csv.DictReader(f))
+    rows = bs.sweep("walk", GRID, duration=DURATION, workers=2)
+    assert len(table) == 4 and [float(t["kp"]) for t in table] == [80.0, 80.0, 400.0, 400.0]
+    for t, r in zip(table, rows):   # the CSV reads back to the same bits
+        assert [float(t[f"q_end[{i}]"]) for i in range(5)] == r["q_end"] and int(t["impacts"]) == r["impacts"]
+        assert t["status"] == "completed" and float(t["x_end"]) == r["x_end"]
+    assert png.stat().st_size > 10_000
+    err = capsys.readouterr().err
+    assert "[4/4] 0 not completed" in err
+
+
+def test_a_users_mistake_is_one_line_and_exit_2(tmp_path):
+    for args in (["--set", "kpx=1,2"], ["--set", "kp=1:2"], ["--set", "kp=1", "--set", "kp=2"],
+                 ["--set", "kp=1", "-o", str(tmp_path / "no" / "x.csv")]):
+        argv = ["sweep", "walk", *args] + ([] if "-o" in args else ["-o", str(tmp_path / "x.csv")])
+        p = subprocess.run([CLI, *argv], capture_output=True, text=True)
+        assert p.returncode == 2 and p.stderr.count("\n") == 1 and "Traceback" not in p.stderr, p.stderr
+        assert p.stderr.startswith("biped-sim sweep: error: ")
+
+
+def test_ctrl_c_stops_the_sweep_and_writes_the_runs_done(tmp_path):
+    out = tmp_path / "partial.csv"
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    p = subprocess.Popen([CLI, "sweep", "walk", "--set", "kp=50:500:40",
+                          "--duration", "1", "--workers", "2", "-o", str(out)], stderr=subprocess.PIPE, text=True,
+                         env=env, start_new_session=True)
+    seen = ""
+    while "[2/40]" not in seen:            # two runs done: the pool is running
+        ch = p.stderr.read(1)
+        assert ch, seen
+        seen += ch
+    os.killpg(p.pid, signal.SIGINT)        # Ctrl-C reaches the terminal's whole process group
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130, err
+    assert "interrupted:" in err and "Traceback" not in err
+    with open(out) as f:
+        table = list(csv.DictReader(f))
+    assert 2 <= len(table) < 40 and all(t["status"] == "completed" for t in table)
+    assert [int(t["index"]) for t in table] == sorted(int(t["index"]) for t in table)
+
+
+def test_interrupted_sweep_keeps_its_rows():
+    stop = SweepInterrupted([{"index": 0}], 4)
+    assert isinstance(stop, KeyboardInterrupt) and stop.rows == [{"index": 0}] and stop.total == 4
+
+
+def test_the_basin_is_a_sweep_around_the_fixed_point():
+    from biped_sim.analysis.basin import AXES, basin
+    gait, rows = basin("walk", span=(0.2, 0.4), num=3, duration=1.0, workers=2)
+    assert [(r[AXES[0]], r[AXES[1]]) for r in rows] == [(a, b) for a in (-0.2, 0.0, 0.2) for b in (-0.4, 0.0, 0.4)]
+    centre = rows[4]
+    assert centre["status"] == "completed" and centre["impacts"] >= 2     # z* walks
+    assert centre["initial_dq"][2:] == gait.z[3:6].tolist() and centre["initial_stance_leg"] == 1
+    # a row is the single run with its overrides (continuous feedback, as biped-sim gait)
+    overrides = {k: centre[k] for k in ("initial_stance_leg", "initial_q", "initial_dq")}
+    r = bs.load_scene("walk", overrides=overrides).simulate(hold=False, t_final=1.0)
+    assert centre["q_end"] == r.q[-1].tolist()
+    with pytest.raises(ValueError, match="num must be an integer >= 2"):
+        basin("walk", num=1)
+
+
+def test_a_scene_file_given_by_a_relative_path(tmp_path, monkeypatch):
+    bs.sweep("passive", {"duration": [0.1]}, workers=1)       # the fork server starts in this directory
+    (tmp_path / "mine.yaml").write_text((ROOT / "msg_configs" / "passive.yaml").read_text())
+    monkeypatch.chdir(tmp_path)
+    rows = bs.sweep("mine.yaml", {"duration": [0.1, 0.2]}, workers=2)
+    assert [r["status"] for r in rows] == ["completed"] * 2 and rows[1]["t_end"] == 0.2
