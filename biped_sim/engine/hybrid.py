@@ -36,7 +36,7 @@ from biped_sim.engine.locator import EventLocator
 from biped_sim.engine.model import BipedModel, as_state_vector
 from biped_sim.engine.modes import bind_controller, mode_functions, project_onto_pin, two_finite_floats
 from biped_sim.engine.options import Options, check_run_arguments
-from biped_sim.engine.resets import liftoff_reset, slip_event, touchdown_reset
+from biped_sim.engine.resets import double_touchdown_reset, liftoff_reset, slip_event, touchdown_reset
 from biped_sim.engine.results import IMPACT_KINDS, Event, SceneAssumptionError, SimulationError, SimulationResult
 
 
@@ -307,7 +307,8 @@ class HybridSimulator:
         qa, dqa = np.array(q), np.array(dq)
         old = self.stance_leg
         if guard.kind == "touchdown":
-            ev = touchdown_reset(self.model, t, qa, dqa, legs, old, self.ground, self.mu)
+            ev = (double_touchdown_reset(self.model, t, qa, dqa, old, self.ground, self.mu) if len(legs) == 2
+                  else touchdown_reset(self.model, t, qa, dqa, legs, old, self.ground, self.mu))
             self.energy_lost += ev.energy_loss
             self.stance_leg = ev.stance_leg_after
             self.pin = list(G.foot_xy(self.model, list(q), ev.stance_leg_after))

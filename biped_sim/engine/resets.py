@@ -4,9 +4,10 @@ Each reset is a named function of the state at the event that returns the :class
 simulator then takes the new mode from it (``stance_leg_after``, ``dq_plus``), as Drake's compass
 gait takes its new state from ``CollisionDynamics``.
 
-* ``touchdown_reset``: the rigid plastic impact of docs/model.md "Impact" (``impact_map``, one foot or
-  both at once), then relabeling: the foot that landed is the new stance foot (for a double
-  touchdown, the one that took the larger normal impulse: double support is not modelled);
+* ``touchdown_reset``: the rigid plastic impact of docs/model.md "Impact" (``impact_map``), then
+  relabeling: the foot that landed is the new stance foot; ``double_touchdown_reset``: both feet at
+  once, the new stance foot the one that took the larger normal impulse (double support is not
+  modelled);
 * ``liftoff_reset``: the stance foot leaves the ground; the velocities are unchanged, flight follows;
 * ``slip_event``: the ground force leaves the friction cone; the model has no sliding phase.
 """
@@ -30,6 +31,12 @@ def touchdown_reset(model, t, q, dq, legs, stance_leg, ground, mu=None) -> Event
     loss = model.energy(q, dq) - model.energy(q, dq_plus)
     warnings = impact_warnings(model, q, dq_plus, impulse, legs, stance_leg, ground, mu)
     return Event(t, kind, new, q, dq, dq_plus, impulse, stance_leg, new, loss, warnings)
+
+
+def double_touchdown_reset(model, t, q, dq, stance_leg, ground, mu=None) -> Event:
+    """Both feet land at once (within ``simultaneous_tol``): the plastic impact of both, the run goes
+    on in stance on the foot that took the larger normal impulse (double support is not modelled)."""
+    return touchdown_reset(model, t, q, dq, [1, 2], stance_leg, ground, mu)
 
 
 def impact_warnings(model, q, dq_plus, impulse, legs, old, ground, mu) -> list[str]:
