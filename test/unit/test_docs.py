@@ -7,8 +7,9 @@ fails the test when it exits with a non-zero status (an exception, a failed ``as
 is the failure message.
 
 Blocks that need ROS (nodes, DDS) are written as ```bash or ```console blocks and are not run here;
-a block that writes a bag starts the recorder's writer process, so it is marked ``slow`` like the
-other tests that do (``pytest -m "not slow"`` leaves it out).
+a block that writes a bag starts the recorder's writer process, and one that sweeps starts a process
+pool, so they are marked ``slow`` like the other tests that start processes (``pytest -m "not slow"``
+leaves them out).
 """
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ TIMEOUT_S = 60
 # A fence opens with ```python at the start of a line (indented fences, inside list items, too)
 # and closes with ``` at the same indentation.
 FENCE = re.compile(r"^(?P<indent>[ \t]*)```python[ \t]*\n(?P<body>.*?)^(?P=indent)```[ \t]*$", re.M | re.S)
-WRITES_A_BAG = ("--record", "BagRecorder")
+STARTS_PROCESSES = ("--record", "BagRecorder", "bs.sweep(", "biped_sim.sweep(")
 
 
 def python_blocks(page: Path):
@@ -40,7 +41,7 @@ def python_blocks(page: Path):
 def _cases():
     for page in PAGES:
         for line, code in python_blocks(page):
-            marks = [pytest.mark.slow] if any(word in code for word in WRITES_A_BAG) else []
+            marks = [pytest.mark.slow] if any(word in code for word in STARTS_PROCESSES) else []
             yield pytest.param(code, id=f"{page.relative_to(ROOT)}:{line}", marks=marks)
 
 
