@@ -7,9 +7,9 @@ fails the test when it exits with a non-zero status (an exception, a failed ``as
 is the failure message.
 
 Blocks that need ROS (nodes, DDS) are written as ```bash or ```console blocks and are not run here;
-a block that writes a bag starts the recorder's writer process, and one that sweeps starts a process
-pool, so they are marked ``slow`` like the other tests that start processes (``pytest -m "not slow"``
-leaves them out).
+every block runs in an interpreter of its own (and some start more: the recorder's writer process, a
+process pool), so the blocks are marked ``slow`` like the other tests that start processes
+(``pytest -m "not slow"`` leaves them out and keeps the checks of the links).
 """
 from __future__ import annotations
 
@@ -28,7 +28,6 @@ TIMEOUT_S = 60
 # A fence opens with ```python at the start of a line (indented fences, inside list items, too)
 # and closes with ``` at the same indentation.
 FENCE = re.compile(r"^(?P<indent>[ \t]*)```python[ \t]*\n(?P<body>.*?)^(?P=indent)```[ \t]*$", re.M | re.S)
-STARTS_PROCESSES = ("--record", "BagRecorder", "bs.sweep(", "biped_sim.sweep(")
 
 
 def python_blocks(page: Path):
@@ -41,8 +40,7 @@ def python_blocks(page: Path):
 def _cases():
     for page in PAGES:
         for line, code in python_blocks(page):
-            marks = [pytest.mark.slow] if any(word in code for word in STARTS_PROCESSES) else []
-            yield pytest.param(code, id=f"{page.relative_to(ROOT)}:{line}", marks=marks)
+            yield pytest.param(code, id=f"{page.relative_to(ROOT)}:{line}", marks=[pytest.mark.slow])
 
 
 def test_the_pages_have_python_blocks():
