@@ -103,10 +103,7 @@ class EventLocator:
                     self.latched.discard(guard)
                 continue
             g0 = self._value(guard, st.t_old, q0, dq0, force_at, feet0, F0)
-
-            def guard_at(t, guard=guard):
-                q, dq, _ = to_phys(st.dense_at(t))
-                return self._value(guard, t, q, dq, force_at)
+            guard_at = self._on_dense_output(st, to_phys, guard, force_at)
             bracket = None
             if g0 > 0 and g1 <= 0:
                 bracket = (st.t_old, st.t)
@@ -123,10 +120,7 @@ class EventLocator:
             # a free foot on the ground that is not armed (it just lifted off, or started there at rest)
             # and that the dynamics push into it: a touchdown from where it rests, not a crossing
             guard = G.Guard("touchdown", leg)
-
-            def guard_at(t, guard=guard):
-                q, dq, _ = to_phys(st.dense_at(t))
-                return self._value(guard, t, q, dq, force_at)
+            guard_at = self._on_dense_output(st, to_phys, guard, force_at)
             t_root = G.locate_crossing(guard_at, st.t_old, st.t, self.opt.event_tol)
             if not self._is_scuff(st, to_phys, guard, stance_leg, t_root):
                 roots.append((t_root, guard))
@@ -148,6 +142,13 @@ class EventLocator:
                 if fo.dheight < 0 and fo.height <= -fo.dheight * self.opt.simultaneous_tol:
                     legs.append(other)
         return (t_first, guard, sorted(set(legs))), F1
+
+    def _on_dense_output(self, st, to_phys, guard, force_at):
+        """The guard as a function of time along the last step's dense output (for root finding)."""
+        def guard_at(t):
+            q, dq, _ = to_phys(st.dense_at(t))
+            return self._value(guard, t, q, dq, force_at)
+        return guard_at
 
     def _is_scuff(self, st, to_phys, guard, stance_leg, t_root):
         """Under touchdown_rule "front", a touchdown at or behind the stance foot is a scuff: start
