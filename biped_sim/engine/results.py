@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-EVENT_KINDS = ("touchdown", "double_touchdown", "liftoff", "slip", "error", "zeno")
+EVENT_KINDS = ("touchdown", "double_touchdown", "liftoff", "slip", "scuff", "error", "zeno")
 IMPACT_KINDS = ("touchdown", "double_touchdown")
 
 
@@ -20,7 +20,9 @@ class Event:
     kind: ``touchdown`` (the impact map was applied to foot ``leg``), ``double_touchdown`` (both
     feet at once; ``leg`` is the new stance foot, ``impulse`` has 4 entries, foot 1 first),
     ``liftoff`` (foot ``leg`` leaves the ground; flight follows), ``slip`` (foot ``leg`` would slip),
-    ``error`` (the run stopped: ``message`` says why), ``zeno`` (impacts accumulate; the run stopped).
+    ``scuff`` (foot ``leg`` passed under the ground behind the stance foot, within ``scuff_depth``: a
+    report, the mode does not change; ``message`` says when and how deep), ``error`` (the run stopped:
+    ``message`` says why), ``zeno`` (impacts accumulate; the run stopped).
     ``impulse`` is the ground's impulse on the foot (N s), for touchdowns only.
     ``warnings`` lists violated contact assumptions of an impact (the old stance foot does not leave
     the ground, the impulse is outside the friction cone).
