@@ -37,7 +37,14 @@ from biped_sim.engine.model import BipedModel, as_state_vector
 from biped_sim.engine.modes import bind_controller, mode_functions, project_onto_pin, two_finite_floats
 from biped_sim.engine.options import Options, check_run_arguments
 from biped_sim.engine.resets import double_touchdown_reset, liftoff_reset, slip_event, touchdown_reset
-from biped_sim.engine.results import IMPACT_KINDS, Event, SceneAssumptionError, SimulationError, SimulationResult
+from biped_sim.engine.results import (
+    IMPACT_KINDS,
+    Event,
+    Samples,
+    SceneAssumptionError,
+    SimulationError,
+    SimulationResult,
+)
 
 
 class HybridSimulator:
@@ -89,7 +96,7 @@ class HybridSimulator:
                           max_energy_balance_residual=0.0, scuffs_ignored=0, deepest_scuff=0.0, wall_time=0.0)
         self._nfev_base = 0
         self._rejected_base = 0
-        self._samples = []
+        self._samples = Samples(keep=self.opt.keep_samples)
         self._record(self.q, self.dq, self.stance_leg, self._force_at(self.t, self.q.tolist(), self.dq.tolist()),
                      self.u)
 
@@ -245,7 +252,7 @@ class HybridSimulator:
                 q, dq = self._project(q, dq, feet)
                 self._accept(st.t, q, dq, w, F_end, u_end)
                 if self.opt.check_invariants:
-                    check_sample(self.t, q, dq, feet, self.stance_leg, self._samples[-1][4], self.ground, self.mu,
+                    check_sample(self.t, q, dq, feet, self.stance_leg, self._samples.last_force(), self.ground, self.mu,
                                  self.opt, self.locator.active_scuffs, self.last_impact)
                 if self.opt.project_constraints and self.stance_leg and self.opt.base == "floating":
                     st.replace_y(q + dq + [w])  # continue from the projected state
@@ -297,9 +304,7 @@ class HybridSimulator:
         T, V = gen.energy(*(lists or (q.tolist(), dq.tolist())), self.model.k["energy"])
         residual = T + V - self.E0 - self.work + self.energy_lost
         self.stats["max_energy_balance_residual"] = max(self.stats["max_energy_balance_residual"], abs(residual))
-        if not self.opt.keep_samples:
-            self._samples.clear()
-        self._samples.append((self.t, q, dq, leg, F, u, residual))
+        self._samples.append(self.t, q, dq, leg, F, u, residual)
 
     # -- resets -------------------------------------------------------------------------------
     def _reset(self, guard, legs, t, q, dq):
@@ -352,12 +357,12 @@ class HybridSimulator:
         already past zero there, so no crossing inside a step would ever find them."""
         if not self.stance_leg:
             return
-        t0, q, dq, leg, F, u, residual = self._samples[-1]
+        t0, q, dq, leg, F, u, residual = self._samples.last()
         n, tg = G.normal_tangent(F, self.ground)
         if n < 0.0:
             self._reset(G.Guard("liftoff", leg), [leg], t, q.tolist(), dq.tolist())
             if self.stance_leg == 0:    # in flight from this very instant: so is the sample just taken
-                self._samples[-1] = (t0, q, dq, 0, [0.0, 0.0], u, residual)
+                self._samples.set_last_in_flight()
         elif self.mu is not None and G.slip_guard(n, tg, self.mu) < 0.0:
             self._reset(G.Guard("slip", leg), [leg], t, q.tolist(), dq.tolist())
 
@@ -388,7 +393,7 @@ class HybridSimulator:
     @property
     def ground_force(self):
         """Ground force on the stance foot at the last accepted sample, [Fx, Fy] (N); zeros in flight."""
-        return list(self._samples[-1][4])
+        return self._samples.last_force()
 
     def result(self) -> SimulationResult:
         s = self._samples
@@ -397,7 +402,7 @@ class HybridSimulator:
         stats["deepest_scuff"] = self.locator.deepest_scuff      # m
         stats["simulated_time"] = self.t - self.t0
         stats["real_time_factor"] = stats["simulated_time"] / stats["wall_time"] if stats["wall_time"] > 0 else math.inf
-        stats["energy_balance_residual"] = float(s[-1][6]) if s else 0.0
+        stats["energy_balance_residual"] = s.last()[6] if len(s) else 0.0
         stats["energy_lost_at_impacts"] = self.energy_lost
         stats["motor_work"] = self.work
         stats["method"] = self.method

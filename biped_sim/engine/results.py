@@ -61,12 +61,11 @@ class SimulationResult:
 
     @classmethod
     def from_samples(cls, samples, events, stats, status, message, options):
-        """From the simulator's samples: tuples (t, q, dq, stance_leg, F, u, energy-balance residual)."""
-        columns = list(zip(*samples)) if samples else [()] * 7
-        return cls(t=np.array(columns[0]), q=np.array(columns[1]), dq=np.array(columns[2]),
-                   stance_leg=np.array(columns[3], dtype=int), grf=np.array(columns[4]), u=np.array(columns[5]),
-                   events=events, stats=stats, status=status, message=message,
-                   energy_balance=np.array(columns[6]), options=options)
+        """From the simulator's :class:`Samples`."""
+        d = samples.rows()
+        return cls(t=d[:, 0].copy(), q=d[:, 1:6].copy(), dq=d[:, 6:11].copy(), stance_leg=d[:, 11].astype(int),
+                   grf=d[:, 12:14].copy(), u=d[:, 14:16].copy(), events=events, stats=stats, status=status,
+                   message=message, energy_balance=d[:, 16].copy(), options=options)
 
     @property
     def impacts(self):
@@ -79,3 +78,47 @@ class SimulationError(RuntimeError):
 
 class SceneAssumptionError(SimulationError):
     """The physics left the scene's declared phases: the run stops (status "stopped")."""
+
+
+class Samples:
+    """A run's samples in one flat float array that grows by doubling: a row a sample,
+    ``[t, q (5), dq (5), stance_leg, F (2), u (2), energy-balance residual]`` (17 floats, 136 bytes;
+    a tuple of lists and arrays took about 870). ``keep=False`` keeps the last sample only (a node
+    that runs for hours)."""
+    WIDTH = 17
+
+    def __init__(self, keep=True):
+        self.keep = keep
+        self._data = np.empty((256 if keep else 1, self.WIDTH))
+        self.n = 0
+
+    def append(self, t, q, dq, leg, F, u, residual):
+        if not self.keep:
+            self.n = 0
+        elif self.n == len(self._data):
+            self._data = np.concatenate([self._data, np.empty_like(self._data)])
+        self._data[self.n] = [t, *q, *dq, leg, F[0], F[1], u[0], u[1], residual]
+        self.n += 1
+
+    def pop(self):
+        self.n -= 1
+
+    def last(self):
+        """(t, q, dq, stance_leg, F, u, residual) of the last sample: arrays q, dq; lists F, u."""
+        r = self._data[self.n - 1]
+        return (float(r[0]), r[1:6].copy(), r[6:11].copy(), int(r[11]), r[12:14].tolist(), r[14:16].tolist(),
+                float(r[16]))
+
+    def set_last_in_flight(self):
+        """The last sample is a flight sample (a stance that ended the instant it began)."""
+        self._data[self.n - 1, 11] = 0
+        self._data[self.n - 1, 12:14] = 0.0
+
+    def last_force(self):
+        return self._data[self.n - 1, 12:14].tolist()
+
+    def rows(self):
+        return self._data[:self.n]
+
+    def __len__(self):
+        return self.n
