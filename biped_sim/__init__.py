@@ -14,15 +14,32 @@ The public API is re-exported here: ``import biped_sim as bs; bs.load_scene("wal
 """
 __version__ = "0.1.0"
 
-from biped_sim.analysis.sweep import sweep
-from biped_sim.config.scenes import Scene, available_scenes, load_scene
-from biped_sim.control.walking import PDWalkingController, WalkingController
-from biped_sim.engine.dynamics import flight_dynamics, impact_map, relabel, stance_dynamics
-from biped_sim.engine.hybrid import Event, HybridSimulator, Options, SimulationResult
-from biped_sim.engine.model import BipedModel, BipedParameters
-from biped_sim.engine.simulate import simulate, stance_state
+import importlib
 
-__all__ = ["BipedModel", "BipedParameters", "stance_dynamics", "impact_map", "relabel", "flight_dynamics",
-           "HybridSimulator", "Options", "Event", "SimulationResult", "simulate", "stance_state",
-           "WalkingController", "PDWalkingController", "Scene", "load_scene", "available_scenes",
-           "sweep"]
+#: the public API and where each name lives. Imported on first use (PEP 562), so that importing a
+#: subpackage -- the bag writer process runs ``python -m biped_sim.recording.writer`` -- does not
+#: pay for the engine and scipy (about 2.5 s here).
+_PUBLIC = {
+    "BipedModel": "biped_sim.engine.model", "BipedParameters": "biped_sim.engine.model",
+    "stance_dynamics": "biped_sim.engine.dynamics", "impact_map": "biped_sim.engine.dynamics",
+    "relabel": "biped_sim.engine.dynamics", "flight_dynamics": "biped_sim.engine.dynamics",
+    "HybridSimulator": "biped_sim.engine.hybrid", "Options": "biped_sim.engine.options",
+    "Event": "biped_sim.engine.results", "SimulationResult": "biped_sim.engine.results",
+    "simulate": "biped_sim.engine.simulate", "stance_state": "biped_sim.engine.simulate",
+    "WalkingController": "biped_sim.control.walking", "PDWalkingController": "biped_sim.control.walking",
+    "Scene": "biped_sim.config.scenes", "load_scene": "biped_sim.config.scenes",
+    "available_scenes": "biped_sim.config.scenes", "sweep": "biped_sim.analysis.sweep",
+}
+__all__ = list(_PUBLIC)
+
+
+def __getattr__(name):
+    if name not in _PUBLIC:
+        raise AttributeError(f"module 'biped_sim' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_PUBLIC[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_PUBLIC))
