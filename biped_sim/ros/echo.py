@@ -74,6 +74,7 @@ def main(argv=None):
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import WrenchStamped
+    from rclpy.executors import ExternalShutdownException
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState
@@ -99,7 +100,7 @@ def main(argv=None):
     try:
         while not (args.count and printed[0] >= args.count) and not (end and time.monotonic() > end):
             rclpy.spin_once(node, timeout_sec=0.1)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):  # Ctrl-C; SIGTERM (rclpy's handler)
         pass
     finally:
         node.destroy_node()

@@ -39,6 +39,23 @@ def allowed_values(p: Param) -> str:
     return kind
 
 
+def usage_text(program: str, node_name: str, summary: str, table: list, subscribes: dict, publishes: dict) -> str:
+    """What ``program --help`` prints: how to give parameters, the topics ({name: type}) and every
+    entry of ``table`` with what it accepts and its default."""
+    def topics(d):
+        return ", ".join(f"{name} ({kind})" for name, kind in d.items())
+    lines = [f"usage: {program} [--ros-args [-p NAME:=VALUE ...] [--params-file FILE] [-r __node:=NAME]]", "",
+             summary, "",
+             f"The node is named '{node_name}': a params file gives its parameters under "
+             f"'{node_name}: ros__parameters:'.",
+             f"Subscribes: {topics(subscribes)}", f"Publishes: {topics(publishes)}", "",
+             "Parameters (-p NAME:=VALUE, or a params file; lists of numbers written as floats, e.g. [0.0, 1.0]):"]
+    for p in table:
+        lines.append(f"  {p.name}: {allowed_values(p)}; default {p.default!r}")
+        lines.append(f"      {p.description}")
+    return "\n".join(lines)
+
+
 def ros_type(p: Param) -> Parameter.Type:
     if p.type is list:
         return Parameter.Type.DOUBLE_ARRAY if p.item is float else Parameter.Type.STRING_ARRAY

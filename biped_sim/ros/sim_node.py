@@ -45,7 +45,7 @@ from biped_sim.recording.messages import (
     wrench_message,
 )
 from biped_sim.ros import startup
-from biped_sim.ros.parameters import declare_from_table, value_less_override_message
+from biped_sim.ros.parameters import declare_from_table, usage_text, value_less_override_message
 from biped_sim.ros.startup import StartupError
 from biped_sim.ros.time_modes import run_fast, run_lockstep, run_realtime, spinning_in_background
 
@@ -349,8 +349,20 @@ class SimNode(Node):
                 pass
 
 
+def usage() -> str:
+    topics = {t: TOPIC_TYPES[t] for t in ("joint_states", "ground_reaction", "impact", "diagnostics", "clock")}
+    topics["/clock"] = topics.pop("clock")
+    return usage_text("sim_node", "biped_sim", "Simulate the planar three-link biped; hip torques in, the state "
+                      "out, the run recorded to a bag (record, bag_dir). Stop it with Ctrl-C or SIGTERM.",
+                      P.PARAMETERS, {"hip_torque": TOPIC_TYPES["hip_torque"]}, topics)
+
+
 def main(argv=None):
-    stop = startup.init("sim_node", sys.argv if argv is None else argv)
+    argv = sys.argv if argv is None else argv
+    code = startup.read_command_line("sim_node", argv, usage)
+    if code is not None:
+        return code
+    stop = startup.init("sim_node", argv)
     if stop is None:
         return startup.EXIT_REFUSED
     node = None

@@ -7,8 +7,10 @@ cleanly (final status, bag closed) instead of being interrupted inside a callbac
 """
 from __future__ import annotations
 
+import re
 import signal
 import sys
+from pathlib import Path
 
 import rclpy
 from rclpy.signals import SignalHandlerOptions
@@ -26,13 +28,64 @@ def refuse(program: str, why) -> int:
     return EXIT_REFUSED
 
 
+def own_arguments(args: list) -> list:
+    """The arguments of ``args`` (without the program name) that are not ROS's: those outside
+    ``--ros-args ... [--]`` (rcl's grammar: ``--`` ends the ROS arguments, ``--ros-args`` opens them)."""
+    own, in_ros = [], False
+    for a in args:
+        if a == "--ros-args":
+            in_ros = True
+        elif in_ros and a == "--":
+            in_ros = False
+        elif not in_ros:
+            own.append(a)
+    return own
+
+
+def read_command_line(program: str, argv: list, usage) -> int | None:
+    """The nodes take no arguments of their own, only ROS's: None to go on and start the node, or
+    the exit code after printing ``usage()`` (``-h``/``--help``: 0) or refusing anything else (2).
+    Without it an argument before ``--ros-args`` was ignored and ``--help`` started a recording node."""
+    own = own_arguments(argv[1:])
+    if not own:
+        return None
+    if "-h" in own or "--help" in own:
+        print(usage())
+        return 0
+    return refuse(program, f"unknown argument(s) {' '.join(own)}: {program} takes only ROS arguments, after "
+                           f"--ros-args (e.g. {program} --ros-args -p NAME:=VALUE); {program} --help lists them")
+
+
+def mixed_list_message(text: str) -> str | None:
+    """The refusal for rcl's "Sequence should be of same type" (a list of integers and doubles, e.g.
+    ``initial_q:=[0, 1, 3.14, 3.14, 0]``), naming the parameter where the arguments show it; None
+    for any other error. rcl's YAML reader types each number by its spelling and refuses a mix."""
+    if "Sequence should be of same type" not in text:
+        return None
+    name = None
+    rule = re.search(r"override rule: '-p ([^:=']+):=", text)
+    if rule:
+        name = rule.group(1)
+    else:  # a params file: rcl names the file and the line (1-based) of the list
+        where = re.search(r"params file: '--params-file ([^']+)'.*?line_num (\d+)", text)
+        if where:
+            try:
+                line = Path(where.group(1)).read_text().splitlines()[int(where.group(2)) - 1]
+                name = line.split(":")[0].strip().lstrip("- ") or None
+            except (OSError, IndexError, ValueError):
+                pass
+    what = f"parameter '{name}' mixes" if name else "a list parameter mixes"
+    return (f"{what} integers and floats (rcl refuses a list of mixed types): write every number of the "
+            "list as a float, e.g. [0.0, 1.0, 3.14, 3.14, 0.0]")
+
+
 def init(program: str, args: list) -> list | None:
     """``rclpy.init`` with ``args`` and the stop signals caught: returns the list each SIGINT/SIGTERM
     is appended to, or None (after :func:`refuse`) if the ROS arguments cannot be read."""
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # a bad --ros-args or params file; rcl says which, e.g. a list of mixed types
-        refuse(program, f"cannot read the ROS arguments: {exc}")
+        refuse(program, mixed_list_message(str(exc)) or f"cannot read the ROS arguments: {exc}")
         return None
     stop = []
     signal.signal(signal.SIGINT, lambda signum, _frame: stop.append(signum))

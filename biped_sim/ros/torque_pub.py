@@ -78,6 +78,7 @@ def main(argv=None):
         return 2
 
     import rclpy
+    from rclpy.executors import ExternalShutdownException
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray
@@ -127,7 +128,7 @@ def main(argv=None):
             print(f"published {u} on {topic}")
         from rclpy.duration import Duration
         pub.wait_for_all_acked(Duration(seconds=2.0))
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):  # Ctrl-C; SIGTERM (rclpy's handler)
         pass
     finally:
         node.destroy_node()

@@ -42,9 +42,9 @@ from std_msgs.msg import Float64MultiArray
 
 from biped_sim.config.parameters import Param
 from biped_sim.config.scenes import CONTROLLER_PARAMETERS, make_controller
-from biped_sim.recording.messages import JOINT_NAMES
+from biped_sim.recording.messages import JOINT_NAMES, TOPIC_TYPES
 from biped_sim.ros import startup
-from biped_sim.ros.parameters import declare_from_table, value_less_override_message
+from biped_sim.ros.parameters import declare_from_table, usage_text, value_less_override_message
 from biped_sim.ros.startup import StartupError
 
 STANCE_SOURCES = ("auto", "state", "frame_id")
@@ -159,8 +159,19 @@ class WalkControllerNode(Node):
                                  v["contact_speed_tol"])
 
 
+def usage() -> str:
+    return usage_text("walk_controller", "walk_controller", "The reference walking controller: one hip torque "
+                      "command per joint_states message (so that it drives a lockstep sim_node). Stop it with "
+                      "Ctrl-C or SIGTERM.", PARAMETERS, {"joint_states": TOPIC_TYPES["joint_states"]},
+                      {"hip_torque": TOPIC_TYPES["hip_torque"]})
+
+
 def main(argv=None):
-    stop = startup.init("walk_controller", sys.argv if argv is None else argv)
+    argv = sys.argv if argv is None else argv
+    code = startup.read_command_line("walk_controller", argv, usage)
+    if code is not None:
+        return code
+    stop = startup.init("walk_controller", argv)
     if stop is None:
         return startup.EXIT_REFUSED
     node = None
