@@ -78,9 +78,15 @@ def main(argv=None):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState
+
+    from biped_sim.ros import startup
     types = dict(joint_states=JointState, ground_reaction=WrenchStamped, impact=DiagnosticArray,
                  diagnostics=DiagnosticArray, clock=Clock)
-    rclpy.init()
+    # SIGINT and SIGTERM set a flag the loop reads (rclpy's own handlers shut the context down under
+    # a running wait, and spin_once then raises RCLError: a traceback for a plain stop)
+    stop = startup.init("biped_echo", None)
+    if stop is None:
+        return startup.EXIT_REFUSED
     node = rclpy.create_node("biped_echo")
     qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL if args.history else DurabilityPolicy.VOLATILE)
@@ -98,9 +104,9 @@ def main(argv=None):
         node.create_subscription(types[t], "/clock" if t == "clock" else t, callback(t), qos)
     end = time.monotonic() + args.timeout if args.timeout else None
     try:
-        while not (args.count and printed[0] >= args.count) and not (end and time.monotonic() > end):
+        while not stop and not (args.count and printed[0] >= args.count) and not (end and time.monotonic() > end):
             rclpy.spin_once(node, timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):  # Ctrl-C; SIGTERM (rclpy's handler)
+    except (KeyboardInterrupt, ExternalShutdownException):  # a stop that came another way
         pass
     finally:
         node.destroy_node()

@@ -82,7 +82,13 @@ def main(argv=None):
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray
-    rclpy.init()
+
+    from biped_sim.ros import startup
+    # SIGINT and SIGTERM set a flag the loops read (rclpy's own handlers shut the context down under
+    # a running wait, and spin_once then raises RCLError: a traceback for a plain stop)
+    stop = startup.init("torque_pub", None)
+    if stop is None:
+        return startup.EXIT_REFUSED
     node = rclpy.create_node("torque_pub")
     qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
     pub = node.create_publisher(Float64MultiArray, args.topic, qos)
@@ -97,7 +103,7 @@ def main(argv=None):
         return u
     try:
         end = time.monotonic() + args.wait
-        while pub.get_subscription_count() == 0:
+        while pub.get_subscription_count() == 0 and not stop:
             if time.monotonic() > end:
                 print(f"torque_pub: error: nobody subscribes to {topic} after {args.wait:g} s "
                       "(is sim_node running, on this ROS_DOMAIN_ID?)", file=sys.stderr)
@@ -113,12 +119,12 @@ def main(argv=None):
             node.create_subscription(JointState, args.states, on_state,
                                      QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                                                 durability=DurabilityPolicy.TRANSIENT_LOCAL))
-            while not args.steps or sent < args.steps:
+            while not stop and (not args.steps or sent < args.steps):
                 rclpy.spin_once(node, timeout_sec=0.1)
         elif args.rate:
             t0 = time.monotonic()
             k = 0
-            while not args.duration or time.monotonic() - t0 < args.duration:
+            while not stop and (not args.duration or time.monotonic() - t0 < args.duration):
                 send(k / args.rate)
                 k += 1
                 while time.monotonic() < t0 + k / args.rate:
@@ -128,7 +134,7 @@ def main(argv=None):
             print(f"published {u} on {topic}")
         from rclpy.duration import Duration
         pub.wait_for_all_acked(Duration(seconds=2.0))
-    except (KeyboardInterrupt, ExternalShutdownException):  # Ctrl-C; SIGTERM (rclpy's handler)
+    except (KeyboardInterrupt, ExternalShutdownException):  # a stop that came another way
         pass
     finally:
         node.destroy_node()
