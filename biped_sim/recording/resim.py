@@ -49,7 +49,7 @@ def resim(bag, progress=None) -> dict:
             sim.advance_period(period, u=state["u"], t_final=duration)
 
     rep = dict(bag=str(bag), params=params, commands=0, states=0, max_dq=0.0, max_q=0.0, first=None,
-               impacts_recorded=[], status=None, message="", t_end=0.0)
+               impacts_recorded=[], status=None, message="", t_end=0.0, t_last_state=-math.inf)
     for topic, typ, t_ns, data in bagio.messages(bag, topics=[t for t in (t_js, t_cmd, t_imp) if t]):
         msg = bagio.decode(typ, data)
         if topic == t_cmd:
@@ -62,6 +62,7 @@ def resim(bag, progress=None) -> dict:
             advance_to(t_ns)
             ts, q, dq, _u, _leg = M.joint_state_values(msg)
             rep["states"] += 1
+            rep["t_last_state"] = ts / 1e9
             dqe = max(abs(a - b) for a, b in zip(q, sim.q.tolist()))
             dve = max(abs(a - b) for a, b in zip(dq, sim.dq.tolist()))
             if M.to_ns(sim.t) != ts:
@@ -74,6 +75,11 @@ def resim(bag, progress=None) -> dict:
             if progress is not None:
                 progress(rep)
     rep["impacts_resimulated"] = [e.time for e in sim.events if e.kind in M.IMPACT_KINDS]
+    # impacts are compared up to the last state compared: a bag cut short (a killed recording, then
+    # recovered) can end between an impact's message and the next state, where resim has not gone
+    last = rep["t_last_state"]
+    rep["impacts_recorded"] = [t for t in rep["impacts_recorded"] if t <= last]
+    rep["impacts_resimulated"] = [t for t in rep["impacts_resimulated"] if t <= last]
     rep["impact_dt"] = (max((abs(a - b) for a, b in zip(rep["impacts_recorded"], rep["impacts_resimulated"])),
                             default=0.0)
                         if len(rep["impacts_recorded"]) == len(rep["impacts_resimulated"]) else math.inf)
