@@ -191,8 +191,7 @@ class EventLocator:
                     f"foot {leg} went {scuff[1]:.3g} m below the ground behind the stance foot (leg {stance_leg}) "
                     f"at t={scuff[2]:.9g} s, deeper than scuff_depth={self.opt.scuff_depth:g} m: the robot is "
                     "falling onto that foot, which the model (touchdown_rule='front') does not let touch down")
-            end = self._feet_at(st, to_phys, t_end)[leg - 1]
-            if end.height > 0.0:
+            if feet[leg - 1].height > 0.0:     # the loop's last point is t_end
                 del self.active_scuffs[leg]
                 self.scuff_events.append(self._scuff_event(st, to_phys, leg, stance_leg, scuff, t_end))
 
