@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-EVENT_KINDS = ("touchdown", "double_touchdown", "liftoff", "slip", "scuff", "error", "zeno")
+EVENT_KINDS = ("touchdown", "double_touchdown", "liftoff", "slip", "scuff", "error", "zeno", "push")
 IMPACT_KINDS = ("touchdown", "double_touchdown")
 
 
@@ -23,7 +23,10 @@ class Event:
     ``scuff`` (foot ``leg`` passed under the ground behind the stance foot, within ``scuff_depth``: a
     report, the mode does not change; ``message`` says when and how deep), ``error`` (the run stopped:
     ``message`` says why), ``zeno`` (impacts accumulate; the run stopped).
-    ``impulse`` is the ground's impulse on the foot (N s), for touchdowns only.
+    ``push`` (an impulse ``push`` (N s, [x forward, y up]) on the hip, applied as a velocity jump;
+    ``leg`` is the stance foot then (0 in flight), ``stance_leg_after`` 0 if it lifted the foot off).
+    ``impulse`` is the ground's impulse on the foot (N s), for touchdowns and pushes.
+    ``energy_loss`` is the kinetic energy the event took out (J; negative for a push that adds energy).
     ``warnings`` lists violated contact assumptions of an impact (the old stance foot does not leave
     the ground, the impulse is outside the friction cone).
     """
@@ -39,6 +42,7 @@ class Event:
     energy_loss: float = 0.0
     warnings: list = field(default_factory=list)
     message: str = ""
+    push: np.ndarray | None = None
 
 
 @dataclass
@@ -54,7 +58,7 @@ class SimulationResult:
     stats: dict
     status: str = "completed"     # "completed", "stopped" (a scene's assumption left), "failed"
     message: str = ""
-    #: per sample: E - E0 - motor work + energy lost at impacts (J); ~0 up to the integration error
+    #: per sample: E - E0 - motor work - work of pushes + energy lost at impacts (J); ~0 up to the integration error
     energy_balance: np.ndarray | None = None
     #: the run's Options (slope, scuff_depth and the tolerances its invariants were checked with)
     options: object = None
