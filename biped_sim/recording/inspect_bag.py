@@ -109,6 +109,13 @@ def summary(bag, run=None) -> str:
             lines.append(f"energy      {loss:.4g} J lost in impacts")
     if run["commands"]:
         lines.append(f"commands    {len(run['commands'])} on hip_torque")
+    pushes = [e for e in run["events"] if e.get("kind") == "push"]
+    if pushes:
+        lines.append(f"pushes      {len(pushes)}: " + ", ".join(
+            f"t={e['time']:.4f} s P={e['push']} N s" for e in pushes[:4]) + (" ..." if len(pushes) > 4 else ""))
+    for e in run["events"]:      # a ~/reset of the node: this bag starts or ends there (docs/recording.md)
+        if e.get("name") == "biped_sim/reset":
+            lines.append(f"reset       {e.get('message')}")
     ends = [e for e in run["events"] if e.get("name", "").endswith("/run") or e.get("level", 0) >= 2]
     if ends:
         e = ends[-1]

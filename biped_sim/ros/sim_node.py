@@ -46,6 +46,7 @@ from biped_sim.recording.messages import (
 )
 from biped_sim.ros import startup
 from biped_sim.ros.parameters import declare_from_table, usage_text, value_less_override_message
+from biped_sim.ros.sim_control import SimControl
 from biped_sim.ros.startup import StartupError
 from biped_sim.ros.time_modes import run_fast, run_lockstep, run_realtime, spinning_in_background
 
@@ -92,6 +93,7 @@ class SimNode(Node):
         self.pub_clock = self._publisher(Clock, "/clock") if "clock" in out else None
         self.pub_diag = self._publisher(DiagnosticArray, "diagnostics")
         self.sub = self.create_subscription(Float64MultiArray, "hip_torque", self._on_command, COMMAND_QOS)
+        self.control = SimControl(self, COMMAND_QOS)    # ~/pause, ~/step, ~/reset and the push topic
         self._js_msg = self._grf_msg = None
         self._clock_msg = Clock()
         self.recorder = self.bag_path = None
@@ -116,7 +118,7 @@ class SimNode(Node):
         return {k: v for k, v in pubs.items() if v is not None}
 
     # -- recording ------------------------------------------------------------------------------
-    def _open_recorder(self):
+    def _open_recorder(self, path=None):
         try:
             from biped_sim.recording.recorder import BagRecorder  # optional: needs mcap
         except ModuleNotFoundError as exc:
@@ -126,7 +128,7 @@ class SimNode(Node):
                                       "this run is not recorded")
             return
         when = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-        self.bag_path = os.path.join(self.params["bag_dir"], f"{self.params['scene']}-{when}")
+        self.bag_path = path or os.path.join(self.params["bag_dir"], f"{self.params['scene']}-{when}")
         try:
             self.recorder = BagRecorder(self.bag_path, parameters=dict(self.params))
         except (OSError, ValueError) as exc:
@@ -167,6 +169,8 @@ class SimNode(Node):
 
     def _lockstep(self, t):
         """One control period per command, then its state."""
+        if self.control.hold_in_lockstep():    # paused: this command steps once on resume
+            return
         if self.finished or self.stopped:
             self.counts["ignored"] += 1
             self.get_logger().warning(
@@ -212,7 +216,11 @@ class SimNode(Node):
 
     # -- stepping and publishing ----------------------------------------------------------------
     def step(self):
-        """Advance one control period with the held torques; publish its events."""
+        """Advance one control period with the held torques (after the pushes received since the
+        last one); publish its events."""
+        for impulse in self.control.take_pushes():
+            for ev in self.sim.push(impulse):
+                self._publish_event(ev)
         events = self.sim.advance_period(self.period, u=self.u, t_final=self.duration)
         for ev in events:
             self._publish_event(ev)
@@ -311,12 +319,17 @@ class SimNode(Node):
         self._cpu_run0 = time.process_time()
         self.publish_state()
         if self.mode == "lockstep":     # the command callback steps and publishes
-            run_lockstep(self, should_stop, executor)
-            self._end_run(should_stop, lambda: executor.spin_once(timeout_sec=0.1))
-            return
+            while True:
+                run_lockstep(self, should_stop, executor)
+                self._end_run(should_stop, lambda: executor.spin_once(timeout_sec=0.1))
+                if should_stop() or self.finished or self.stopped:
+                    return              # else a ~/reset restarted a stopped run
         with spinning_in_background(executor):
-            (run_fast if self.mode == "fast" else run_realtime)(self, should_stop)
-            self._end_run(should_stop, lambda: time.sleep(0.05))
+            while True:
+                (run_fast if self.mode == "fast" else run_realtime)(self, should_stop)
+                self._end_run(should_stop, lambda: self.control.between_periods(should_stop) or time.sleep(0.05))
+                if should_stop() or self.finished or self.stopped:
+                    return
 
     def _end_run(self, should_stop, wait):
         self._cpu_end = time.process_time()
@@ -354,7 +367,7 @@ def usage() -> str:
     topics["/clock"] = topics.pop("clock")
     return usage_text("sim_node", "biped_sim", "Simulate the planar three-link biped; hip torques in, the state "
                       "out, the run recorded to a bag (record, bag_dir). Stop it with Ctrl-C or SIGTERM.",
-                      P.PARAMETERS, {"hip_torque": TOPIC_TYPES["hip_torque"]}, topics)
+                      P.PARAMETERS, {"hip_torque": TOPIC_TYPES["hip_torque"], "push": TOPIC_TYPES["push"]}, topics)
 
 
 def main(argv=None):
