@@ -213,3 +213,27 @@ def test_lockstep_pause_holds_commands_step_is_refused_and_resim_replays_the_pus
     bag, = [p for p in tmp_path.iterdir() if p.is_dir()]
     report = resim(bag)
     assert report["pushes"] == 1 and report["identical"], report
+
+
+def test_fast_reset_restarts_a_run_the_engine_stopped():
+    # the walk's start without its controller falls: the engine stops, the node stays up; ~/reset
+    # starts the run again from t = 0, and it falls again the same way
+    params = dict(time_mode="fast", record=False, initial_q=SCENE["initial_q"], initial_dq=SCENE["initial_dq"],
+                  phases=["stance", "impact"], publish_rate=100.0)
+    with ros_domain() as dom, start_node(params, dom) as proc, Client(dom) as c:
+        js = c.collect("/joint_states", JointState)
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        srv = Control(c, proc)
+        runs = lambda: [v for _t, v, _m in events(diag, "biped_sim/run")]  # noqa: E731
+        c.spin_until(lambda: runs(), timeout=60, what="the engine's stop", proc=proc)
+        first = runs()[0]
+        assert first["status"] == "stopped"
+        refused = srv.step()
+        assert not refused.success
+        answer = srv.reset()
+        assert answer.success, answer.message
+        c.spin_until(lambda: len(runs()) == 2, timeout=60, what="the second stop", proc=proc)
+        second = runs()[1]
+        assert second["status"] == "stopped" and second["time"] == first["time"]
+        assert any(ns(m.header.stamp) == 0 for m in js[1:])       # time went back to 0
+        assert proc.stop() == 0
