@@ -24,6 +24,7 @@ from biped_sim.config import parameters as P
 from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.engine.resets import check_push
 from biped_sim.recording.messages import TOPIC_TYPES, diagnostic_array, to_ns
+from biped_sim.ros.startup import StartupError
 
 #: a ~/step or ~/reset callback waits this long (wall s) for the loop to do it, then answers failure
 REQUEST_TIMEOUT = 10.0
@@ -205,7 +206,11 @@ class SimControl:
         if node.recorder is not None:
             req.old_recorder = node.recorder
             node.recorder = None
-            node._open_recorder(new_bag)
+            try:
+                node._open_recorder(new_bag)
+            except StartupError as exc:   # the run goes on, unrecorded, and says so
+                node.get_logger().error(f"~/reset: {exc}; the run after the reset is NOT recorded")
+                new_bag = None
         node.sim = HybridSimulator(**P.engine_arguments(node.params), keep_samples=False)
         node.u = [0.0, 0.0]
         node.finished = node.stopped = node.timed_out = False
