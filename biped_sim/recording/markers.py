@@ -68,9 +68,9 @@ def _marker(header, mid, kind, colour, scale, points=(), position=None):
     return m
 
 
-def _deleted(header, mid):
+def _deleted(header, mid, kind):
     from visualization_msgs.msg import Marker
-    return Marker(header=header, ns=NAMESPACE, id=mid, action=Marker.DELETE)
+    return Marker(header=header, ns=NAMESPACE, id=mid, type=kind, action=Marker.DELETE)
 
 
 def marker_array(t, figure, stance_leg, force, slope=0.0, flash_at=None):
@@ -101,7 +101,7 @@ def marker_array(t, figure, stance_leg, force, slope=0.0, flash_at=None):
         out.append(_marker(header, FORCE, Marker.ARROW, FORCE_COLOUR, (0.02, 0.05, 0.06),
                            (foot, force_arrow_end(foot, force))))
     else:
-        out.append(_deleted(header, FORCE))
+        out.append(_deleted(header, FORCE, Marker.ARROW))
     x0, x1 = hip[0] - GROUND_HALF_LENGTH, hip[0] + GROUND_HALF_LENGTH
     out.append(_marker(header, GROUND, Marker.LINE_STRIP, GROUND_COLOUR, (0.02, 0, 0),
                        ((x0, ground_y(x0, slope)), (x1, ground_y(x1, slope)))))
@@ -110,7 +110,7 @@ def marker_array(t, figure, stance_leg, force, slope=0.0, flash_at=None):
         m.lifetime = Duration(sec=0, nanosec=int(FLASH_DURATION * 1e9))
         out.append(m)
     else:
-        out.append(_deleted(header, FLASH))
+        out.append(_deleted(header, FLASH, Marker.SPHERE))
     return MarkerArray(markers=out)
 
 

@@ -80,6 +80,7 @@ def test_a_known_stance_state_gives_the_nine_markers_in_world_x_z():
 def test_in_flight_and_without_an_impact_the_arrow_and_the_flash_are_deleted():
     m = by_id(MK.marker_array(0.5, MODEL.stick_figure(Q), 0, [99.0, 99.0]))
     assert m[MK.FORCE].action == Marker.DELETE and m[MK.FLASH].action == Marker.DELETE
+    assert (m[MK.FORCE].type, m[MK.FLASH].type) == (Marker.ARROW, Marker.SPHERE)   # same id, same type
     assert m[MK.FOOT_1].color.r == m[MK.FOOT_2].color.r == pytest.approx(MK.SWING_FOOT_COLOUR[0])
     g0, g1 = (xz(p) for p in m[MK.GROUND].points)
     assert g0[1] == g1[1] == 0.0                      # flat ground at slope 0
