@@ -134,3 +134,19 @@ def test_markers_is_an_output_and_walk_has_it_a_scene_without_it_builds_no_strea
     params = P.validate(dict(outputs=["joint_states", "markers"]))
     assert P.engine_arguments(params)["compute_grf"] is True
     assert P.engine_arguments(P.validate(dict(outputs=["joint_states"])))["compute_grf"] is False
+
+
+def test_the_foxglove_layout_shows_the_markers_and_plots_topics_the_node_publishes():
+    import json
+    from pathlib import Path
+    layout = json.loads((Path(__file__).resolve().parents[2] / "foxglove" / "biped_sim_layout.json").read_text())
+    panels = layout["configById"]
+
+    def leaves(node):
+        return [node] if isinstance(node, str) else leaves(node["first"]) + leaves(node["second"])
+    assert sorted(leaves(layout["layout"])) == sorted(panels)          # every panel placed, none missing
+    assert panels["3D!biped"]["topics"]["/markers"]["visible"] is True
+    topics = {"/" + k for k in P.OUTPUTS if k != "clock"} | {"/diagnostics"}
+    used = {p["value"].split(".")[0] for k, c in panels.items() if k.startswith("Plot!") for p in c["paths"]}
+    used |= {c["topicPath"] for k, c in panels.items() if k.startswith("RawMessages!")}
+    assert used <= topics and {"/joint_states", "/ground_reaction", "/impact"} <= used
