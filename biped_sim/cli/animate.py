@@ -7,11 +7,12 @@ import sys
 def register(sub):
     p = sub.add_parser(
         "animate", help="a recorded run (BAG) or a scene run headless (--scene) as a GIF or MP4",
-        description="Draw a run as a moving stick figure (leg 1 blue, leg 2 orange, torso green, the stance "
-                    "foot red) with the ground reaction force as an arrow (400 N per m), a flash at each "
-                    "touchdown and the simulated time; at real-time speed unless --speed says otherwise. "
-                    "GIF through Pillow; MP4 needs imageio-ffmpeg (pip install imageio-ffmpeg). A progress "
-                    "bar goes to stderr.",
+        description="Draw a run as a moving stick figure (leg 1 blue, leg 2 orange, torso green, the\n"
+                    "stance foot red) with the ground reaction force as an arrow (400 N per m), a flash at\n"
+                    "each touchdown and the simulated time; at real-time speed unless --speed says otherwise.\n"
+                    "GIF through Pillow (its frame delays are whole hundredths of a second: --fps is rounded\n"
+                    "to one, 30 to 33.3, at most 50); MP4 needs imageio-ffmpeg (pip install imageio-ffmpeg).\n"
+                    "A progress bar goes to stderr.",
         epilog="examples:\n  biped-sim animate bags/walk-20261123T230501832Z -o walk.gif\n"
                "  biped-sim animate --scene walk --duration 5 -o walk.mp4 --fps 30\n"
                "  biped-sim animate --scene slope --speed 0.5 -o slow.gif",
@@ -68,7 +69,7 @@ def run(args):
         track = A.track_from_bag(args.bag)
         source = args.bag
     bar = None if args.quiet else A.ProgressBar()
-    n = A.write(track, args.output, fps=args.fps, speed=args.speed, start=args.start, duration=args.duration,
+    n, fps = A.write(track, args.output, fps=args.fps, speed=args.speed, start=args.start, duration=args.duration,
                 progress=bar)
-    print(f"wrote {args.output}: {n} frames at {args.fps:g} fps, speed {args.speed:g}x, from {source}")
+    print(f"wrote {args.output}: {n} frames at {fps:.4g} fps, speed {args.speed:g}x, from {source}")
     return 0

@@ -183,15 +183,23 @@ class MissingEncoder(ValueError):
     """MP4 asked for, imageio-ffmpeg not installed."""
 
 
-def write(track: Track, path, fps=20.0, speed=1.0, start=None, duration=None, progress=None) -> int:
-    """Write the animation to ``path`` (.gif or .mp4); returns the number of frames."""
+def gif_fps(fps: float) -> float:
+    """The frame rate a GIF can keep: its delays are whole hundredths of a second (at least 2: browsers
+    slow down shorter ones), so 30 fps becomes 33.3 fps, and the speed stays exact."""
+    return 100.0 / max(2, round(100.0 / fps))
+
+
+def write(track: Track, path, fps=20.0, speed=1.0, start=None, duration=None, progress=None):
+    """Write the animation to ``path`` (.gif or .mp4); returns (number of frames, frame rate used)."""
     kind = check_output(path)
+    if kind == "gif":
+        fps = gif_fps(fps)
     times = frame_times(track, fps, speed, start, duration)
     images = frames(track, times, progress)
     if kind == "gif":
         first = next(images)
         first.save(path, save_all=True, append_images=list(images), duration=round(1000 / fps), loop=0)
-        return len(times)
+        return len(times), fps
     import imageio_ffmpeg
     writer = imageio_ffmpeg.write_frames(str(path), (WIDTH, HEIGHT), fps=fps, quality=7)
     writer.send(None)
@@ -200,7 +208,7 @@ def write(track: Track, path, fps=20.0, speed=1.0, start=None, duration=None, pr
             writer.send(img.convert("RGB").tobytes())
     finally:
         writer.close()
-    return len(times)
+    return len(times), fps
 
 
 class ProgressBar:

@@ -51,6 +51,10 @@ def test_speed_and_start_choose_the_frames(tmp_path):
     assert len(frames) == 6                                     # 1 s of simulated time at 2x: 0.5 s at 10 fps
 
 
+def test_a_gif_keeps_the_speed_with_delays_in_hundredths():
+    assert A.gif_fps(20) == 20 and A.gif_fps(30) == pytest.approx(100 / 3) and A.gif_fps(200) == 50
+
+
 def test_frame_times_follow_speed_and_fps():
     track = A.Track(np.linspace(0, 3, 3001), np.zeros((3001, 5)), np.ones(3001, int), np.zeros((3001, 2)), [],
                     None)
