@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import math
 
+from biped_sim.engine.results import IMPACT_KINDS
+
 #: ground force arrow: this many newtons per metre of arrow (the weight of the default robot,
 #: 196 N, is a 0.49 m arrow)
 NEWTONS_PER_METRE = 400.0
@@ -132,7 +134,6 @@ class MarkerStream:
     def poll(self, now: float, sim, force: bool = False):
         """The MarkerArray of ``sim``'s state (``t``, ``q``, ``stance_leg``, ``ground_force``,
         ``events``) if one is due at ``now`` (or ``force``), else None."""
-        from biped_sim.engine.results import IMPACT_KINDS
         events = sim.events
         if len(events) > self.n_events:
             touchdowns = [e for e in events[self.n_events:] if e.kind in IMPACT_KINDS]
