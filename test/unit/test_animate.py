@@ -72,6 +72,17 @@ def test_mp4_without_imageio_ffmpeg_says_what_to_install(tmp_path, capsys):
     assert not (tmp_path / "w.mp4").exists()
 
 
+@pytest.mark.skipif(importlib.util.find_spec("imageio_ffmpeg") is None, reason="imageio-ffmpeg is not installed")
+def test_mp4_through_imageio_ffmpeg(tmp_path):
+    import imageio_ffmpeg
+    out = tmp_path / "w.mp4"
+    assert biped_sim(["animate", "--scene", "walk", "--duration", "1", "--fps", "10", "-q", "-o", str(out)]) == 0
+    reader = imageio_ffmpeg.read_frames(str(out))
+    meta = next(reader)
+    assert meta["size"] == (A.WIDTH, A.HEIGHT) and meta["fps"] == 10
+    assert sum(1 for _ in reader) == 11
+
+
 def _not_a_biped_bag(path):
     from mcap.writer import Writer
     path.mkdir()
