@@ -318,6 +318,7 @@ class HybridSimulator:
     # -- resets -------------------------------------------------------------------------------
     def _reset(self, guard, legs, t, q, dq):
         """Apply the reset of the guard that fired, take the new mode from its event."""
+        self._samples.keep_last()       # the sample at the event, before its reset
         qa, dqa = np.array(q), np.array(dq)
         old = self.stance_leg
         if guard.kind == "touchdown":
@@ -376,6 +377,7 @@ class HybridSimulator:
             self._reset(G.Guard("slip", leg), [leg], t, q.tolist(), dq.tolist())
 
     def _push_event(self, ev):
+        self._samples.keep_last()       # the sample after the event's reset
         self.events.append(ev)
         self.stats["events"] = len(self.events)
         if ev.kind == "scuff":      # a report, not a change of mode: max_events counts the changes

@@ -14,6 +14,8 @@ Topics (names relative to the node's namespace) and their types:
   located impact time; keys kind, time, foot, q, dq_minus, dq_plus, impulse, energy_loss, ...
 * ``diagnostics`` (``diagnostic_msgs/msg/DiagnosticArray``): other events and the run's status.
 * ``/clock`` (``rosgraph_msgs/msg/Clock``), ``hip_torque`` (``std_msgs/msg/Float64MultiArray``, in).
+* ``markers`` (``visualization_msgs/msg/MarkerArray``): the robot drawn, built by
+  :mod:`biped_sim.recording.markers`.
 
 Times are integer nanoseconds of simulation time: :func:`to_ns` rounds as the node's ``stamp`` does.
 """
@@ -33,6 +35,7 @@ TOPIC_TYPES = {
     "diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
     "clock": "rosgraph_msgs/msg/Clock",
     "hip_torque": "std_msgs/msg/Float64MultiArray",
+    "markers": "visualization_msgs/msg/MarkerArray",
     "push": "geometry_msgs/msg/Vector3Stamped",
 }
 

@@ -25,13 +25,16 @@ from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
+from visualization_msgs.msg import MarkerArray
 
 from biped_sim.config import parameters as P
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, WHY_PYTHON
 from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.recording.markers import MarkerStream
 from biped_sim.recording.messages import (
     IMPACT_KINDS,
     JOINT_NAMES,
@@ -92,6 +95,9 @@ class SimNode(Node):
                            if "impact" in out and "impact" in prm["phases"] else None)
         self.pub_clock = self._publisher(Clock, "/clock") if "clock" in out else None
         self.pub_diag = self._publisher(DiagnosticArray, "diagnostics")
+        # the robot drawn, at marker_rate of wall time; a scene without "markers" computes nothing for it
+        self.pub_markers = self._publisher(MarkerArray, "markers") if "markers" in out else None
+        self.markers = MarkerStream(self.sim.model, prm["slope"], prm["marker_rate"]) if "markers" in out else None
         self.sub = self.create_subscription(Float64MultiArray, "hip_torque", self._on_command, COMMAND_QOS)
         self.control = SimControl(self, COMMAND_QOS)    # ~/pause, ~/step, ~/reset and the push topic
         self._js_msg = self._grf_msg = None
@@ -114,7 +120,7 @@ class SimNode(Node):
     def publishers_by_output(self) -> dict:
         """{output name (a key of TOPIC_TYPES): publisher} of the topics this run publishes."""
         pubs = dict(joint_states=self.pub_js, ground_reaction=self.pub_grf, impact=self.pub_impact,
-                    clock=self.pub_clock, diagnostics=self.pub_diag)
+                    clock=self.pub_clock, diagnostics=self.pub_diag, markers=self.pub_markers)
         return {k: v for k, v in pubs.items() if v is not None}
 
     # -- recording ------------------------------------------------------------------------------
@@ -311,6 +317,10 @@ class SimNode(Node):
                                 for p in (self.pub_js, self.pub_grf, self.pub_clock)),
                 frame, JOINT_NAMES, q, dq, effort,
                 sim.ground_force if sim.stance_leg and self.pub_grf is not None else None)
+        if self.markers is not None:   # the last state of a run is always drawn
+            msg = self.markers.poll(time.monotonic(), sim, force=self.finished or self.stopped)
+            if msg is not None:   # serialised once for the topic and the bag (1.2 ms a MarkerArray)
+                self._publish(self.pub_markers, serialize_message(msg), t)
 
     # -- time modes ---------------------------------------------------------------------------
     def run(self, should_stop, executor):
@@ -363,7 +373,8 @@ class SimNode(Node):
 
 
 def usage() -> str:
-    topics = {t: TOPIC_TYPES[t] for t in ("joint_states", "ground_reaction", "impact", "diagnostics", "clock")}
+    topics = {t: TOPIC_TYPES[t] for t in ("joint_states", "ground_reaction", "impact", "diagnostics", "clock",
+                                          "markers")}
     topics["/clock"] = topics.pop("clock")
     return usage_text("sim_node", "biped_sim", "Simulate the planar three-link biped; hip torques in, the state "
                       "out, the run recorded to a bag (record, bag_dir). Stop it with Ctrl-C or SIGTERM.",
