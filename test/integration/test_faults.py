@@ -243,12 +243,11 @@ def test_recover_takes_a_bag_whose_writer_was_killed(tmp_path):
 def test_bag_tools_refuse_a_file_that_is_not_mcap_in_one_line(command, content, tmp_path):
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(content)
-    program = "replay" if command == "replay" else f"biped-sim {command}"
-    line = one_error_line(biped_sim(command, bad), program)
+    line = one_error_line(biped_sim(command, bad), f"biped-sim {command}")
     assert "is not an MCAP file" in line and "biped_sim" not in line.split("error:")[1].split("(")[0], line
 
 
-@pytest.mark.parametrize("command", ["inspect", "resim"])
+@pytest.mark.parametrize("command", ["inspect", "resim", "replay"])
 def test_bag_tools_say_a_file_cut_to_a_few_bytes_holds_nothing(command, tmp_path):
     bad = tmp_path / "cut.mcap"
     bad.write_bytes(b"\x89MCAP0\r\n\x01\x02")
@@ -266,6 +265,9 @@ def test_inspect_says_a_bag_is_cut_short_and_to_recover_it(whole_bag, tmp_path):
     assert "CUT SHORT" in done.stdout and f"biped-sim recover {bag}" in done.stdout, done.stdout
     resim = biped_sim("resim", bag)
     assert resim.returncode == 0 and "cut short" in resim.stdout, resim.stdout + resim.stderr
+    replay = biped_sim("replay", bag, "--list")
+    assert replay.returncode == 0 and "/joint_states" in replay.stdout, replay.stdout + replay.stderr
+    assert "cut short" in replay.stderr and "biped-sim recover" in replay.stderr, replay.stderr
 
 
 def test_a_bag_of_another_program_is_announced_or_refused(tmp_path):
@@ -316,8 +318,7 @@ def test_every_biped_sim_command_answers_bad_input_with_one_line(tmp_path):
     cases = bad_inputs(tmp_path)
     assert set(cases) == set(COMMANDS), "give every new sub-command a bad input here"
     for command, (args, expected) in cases.items():
-        program = "replay" if command == "replay" else f"biped-sim {command}"
-        line = one_error_line(biped_sim(command, *args, timeout=60), program)
+        line = one_error_line(biped_sim(command, *args, timeout=60), f"biped-sim {command}")
         assert expected in line, (command, line)
 
 
