@@ -217,6 +217,8 @@ def test_recover_refuses_a_bag_being_recorded_and_the_recording_ends_whole(tmp_p
         line = one_error_line(biped_sim("recover", bag), "biped-sim recover")
         assert "being recorded right now" in line, line
         assert sorted(p.name for p in bag.iterdir()) == [f"{bag.name}_0.mcap"]      # not renamed
+        looked = biped_sim("inspect", bag, "--no-png")
+        assert looked.returncode == 0 and "BEING RECORDED right now" in looked.stdout, looked.stdout + looked.stderr
     finally:
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(60) == 143
