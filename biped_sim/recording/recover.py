@@ -101,7 +101,10 @@ def recover(bag_dir, compression="zstd") -> dict:
         tmp.unlink(missing_ok=True)      # the original is untouched
         raise
     kept = kept_name(src)
-    os.link(src, kept)
+    try:
+        os.link(src, kept)           # the original under its kept name, and still in place
+    except OSError:                  # a file system without hard links: move it (kept is a free name)
+        os.replace(src, kept)
     os.replace(tmp, src)
     return dict(path=str(src), kept=str(kept), messages=len(messages), end=problem,
                 topics={t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]})
