@@ -74,8 +74,9 @@ def summary(bag, run=None) -> str:
     if run.get("being_written"):
         lines.append(f"file        BEING RECORDED right now ({run['cut']}): this is the run so far")
     elif run.get("cut"):
-        lines.append(f"file        {run['cut'].upper()[:9]}{run['cut'][9:]}: this is the run up to its last complete "
-                     f"chunk, not the whole run; run 'biped-sim recover {bag}' to repair the file")
+        where = run["cut"].removeprefix("cut short")      # " at N bytes (why)", in capitals to be seen
+        lines.append(f"file        CUT SHORT{where}: this is the run up to its last complete chunk, not the whole "
+                     f"run; run 'biped-sim recover {bag}' to repair the file")
     lines += [f"run         scene {p.get('scene', '?')}, time_mode {p.get('time_mode', '?')}, control_period "
               f"{p.get('control_period', float('nan')):g} s, method {method_label(p)}"
               if p else "run         NOT RECORDED BY biped_sim (no biped_sim parameters record): its topics only",

@@ -41,9 +41,11 @@ def recover(bag_dir, compression="zstd") -> dict:
     from biped_sim.recording.mcapfile import McapFileWriter
     from biped_sim.recording.writer import finish_bag
     bag_dir = Path(bag_dir)
-    src = bagio.mcap_path(bag_dir)          # ValueError: no bag, or not MCAP
-    if bag_dir.is_file():
+    if bag_dir.is_file():       # the bag's .mcap: its folder is the bag (metadata.yaml is written there)
+        if bag_dir.suffix != ".mcap":
+            raise ValueError(f"{bag_dir} is not a bag's .mcap file: give the bag directory")
         bag_dir = bag_dir.parent
+    src = bagio.mcap_path(bag_dir)          # ValueError: no bag, or not MCAP
     if bagio.being_written(src):
         raise CommandError(f"{src} is being recorded right now (a bag writer holds it): wait until the "
                            "recording ends; nothing was changed")
