@@ -93,9 +93,12 @@ def test_recover_never_overwrites_a_kept_original(whole_bag, tmp_path):
     kept = bag / f"{mcap.name}.truncated"
     assert kept.read_bytes() == first_cut
     recovered = read_all(bag)
-    # run again on the recovered bag: refused, nothing touched
+    # run again on the recovered bag, or on the kept original: refused, nothing touched
+    metadata = (bag / "metadata.yaml").read_bytes()
     one_error_line(biped_sim("recover", bag), "biped-sim recover")
+    assert "give the bag directory" in one_error_line(biped_sim("recover", kept), "biped-sim recover")
     assert kept.read_bytes() == first_cut and read_all(bag) == recovered
+    assert (bag / "metadata.yaml").read_bytes() == metadata
     # the bag cut again (another kill of a recording into the same folder): a new free name for its original
     cut_before_summary(mcap)
     second_cut = mcap.read_bytes()
