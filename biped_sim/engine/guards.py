@@ -125,12 +125,15 @@ def locate_crossing(guard_at, ta, tb, event_tol) -> float:
 
 
 # -- the ground as a constraint on states ----------------------------------------------------------
-def check_initial_contact(feet, stance_leg, tol, ground_tol):
+def check_initial_contact(feet, stance_leg, opt):
     """A ValueError unless the initial state agrees with its mode: in stance, the stance foot on the
-    ground within ``tol`` and at rest, and the swing foot not below it; in flight, both feet not below
-    it; and no free foot on the ground moving into it (that is an impact still to apply, not a state to
-    start from). "Not below" is the invariant's own bound, ``ground_tol``: a start the run's check of
-    every sample would reject is refused here, before it can end "completed" with its first sample wrong."""
+    ground within ``contact_tol`` and at rest, and the swing foot not below it; in flight, both feet
+    not below it; and no free foot on the ground moving into it (that is an impact still to apply, not
+    a state to start from). "Not below" is the invariant's own bound, ``ground_tol``, with the run's
+    one allowance: a swing foot behind the stance foot (``touchdown_rule`` "front") may be up to
+    ``scuff_depth`` below, a scuff (as right after an impact, perturbed). A start the check of every
+    sample would reject is refused here, before it can end "completed" with its first sample wrong."""
+    tol = opt.contact_tol
     if stance_leg:
         f = feet[stance_leg - 1]
         if abs(f.height) > tol:
@@ -142,14 +145,17 @@ def check_initial_contact(feet, stance_leg, tol, ground_tol):
                              f"({f.dx:.6g}, {f.dheight:.6g}) m/s; it must be at rest (J dq = 0; "
                              "biped_sim.stance_state gives a consistent dq)")
         swing = feet[2 - stance_leg]
-        if swing.height < -ground_tol:
-            raise ValueError(f"initial state: the swing foot (leg {3 - stance_leg}) is {-swing.height:.6g} m "
-                             f"below the ground (ground_tol {ground_tol:g} m); raise the hip or the foot")
+        behind = opt.touchdown_rule == "front" and swing.x <= f.x + opt.front_tol
+        if swing.height < -(opt.scuff_depth if behind else opt.ground_tol):
+            raise ValueError(
+                f"initial state: the swing foot (leg {3 - stance_leg}) is {-swing.height:.6g} m below the ground "
+                + (f"behind the stance foot (scuff_depth {opt.scuff_depth:g} m)" if behind else
+                   f"(ground_tol {opt.ground_tol:g} m)") + "; raise the hip or the foot")
     else:
         for leg in (1, 2):
-            if feet[leg - 1].height < -ground_tol:
+            if feet[leg - 1].height < -opt.ground_tol:
                 raise ValueError(f"initial state in flight: foot {leg} is {-feet[leg - 1].height:.6g} m below the "
-                                 f"ground (ground_tol {ground_tol:g} m); raise the hip")
+                                 f"ground (ground_tol {opt.ground_tol:g} m); raise the hip")
     for leg in (1, 2):
         f = feet[leg - 1]
         if leg != stance_leg and f.height <= 0.0 and f.dheight < -tol:

@@ -153,6 +153,28 @@ def test_a_free_foot_on_the_ground_moving_into_it_is_refused_as_ambiguous():
         bs.simulate(MODEL, q, dq, 0.1)
 
 
+@pytest.mark.parametrize("side, depth, refused", [
+    (+1, 3e-8, True),      # in front, deeper than ground_tol: a touchdown that was never applied
+    (+1, 5e-10, False),    # in front, within ground_tol
+    (-1, 2e-7, False),     # behind the stance foot: a scuff within scuff_depth (a perturbed post-impact state)
+    (-1, 4e-3, True),      # behind, deeper than scuff_depth
+])
+def test_a_swing_foot_below_the_ground_at_the_start_is_refused_by_the_runs_own_bounds(side, depth, refused):
+    """The start check and the invariant of every sample agree: what the run would call a violation is
+    refused before it starts. The swing leg hangs straight under the hip, the stance leg is tilted by
+    ``a`` so that the hip is ``depth`` lower than a leg's length (side +1: the swing foot in front)."""
+    a = side * math.acos(1.0 - depth / MODEL.parameters.l_leg)
+    q, dq = bs.stance_state(MODEL, [math.pi + a, math.pi, 0.0], [0.0, 0.0, 0.0], stance_leg=1)
+    swing = MODEL.foot_position(q, 2)
+    assert swing[1] == pytest.approx(-depth, rel=1e-6) and np.sign(swing[0]) == side
+    if refused:
+        with pytest.raises(ValueError, match=r"swing foot \(leg 2\) is .* below the ground"):
+            bs.simulate(MODEL, q, dq, 0.05)
+    else:
+        r = bs.simulate(MODEL, q, dq, 0.05)
+        assert r.status != "completed" or not violations(MODEL, r), violations(MODEL, r)
+
+
 # -- item 2: a stance that starts with the ground pulling on the foot ---------------------------------
 def test_a_negative_normal_force_at_t0_is_a_liftoff_at_t0_or_a_clear_stop():
     q, dq = spinning_stance(MODEL)
