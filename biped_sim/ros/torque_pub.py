@@ -83,6 +83,7 @@ def main(argv=None):
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray
 
+    from biped_sim.recording.messages import stamp_ns, torque_msg
     from biped_sim.ros import startup
     # SIGINT and SIGTERM set a flag the loops read (rclpy's own handlers shut the context down under
     # a running wait, and spin_once then raises RCLError: a traceback for a plain stop)
@@ -95,10 +96,11 @@ def main(argv=None):
     topic = pub.topic_name
     sent = 0
 
-    def send(t):
+    def send(t, answers_ns=None):
         nonlocal sent
         u = torques(t)
-        pub.publish(Float64MultiArray(data=u))
+        # --lockstep: tagged with the state it answers, so that the node can tell a stale command
+        pub.publish(torque_msg(u, answers_ns) if answers_ns is not None else Float64MultiArray(data=u))
         sent += 1
         return u
     try:
@@ -115,7 +117,7 @@ def main(argv=None):
             def on_state(msg):
                 if args.steps and sent >= args.steps:
                     return
-                send(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9)
+                send(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, stamp_ns(msg.header.stamp))
             node.create_subscription(JointState, args.states, on_state,
                                      QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                                                 durability=DurabilityPolicy.TRANSIENT_LOCAL))
