@@ -19,7 +19,7 @@ pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from rosbags.rosbag2 import Reader  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
-from std_msgs.msg import Float64MultiArray  # noqa: E402
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension  # noqa: E402
 
 from biped_sim.config.scenes import load_scene  # noqa: E402
 from biped_sim.recording import messages as M  # noqa: E402
@@ -80,7 +80,7 @@ def one_line(log: str, text: str) -> str:
 
 # -- item 5: a restarted controller, a stale command ------------------------------------------------
 def test_lockstep_ignores_a_command_that_answers_another_state_than_the_newest(tmp_path):
-    params = dict(time_mode="lockstep", scene="stale", record=True, bag_dir=str(tmp_path), lockstep_warn_after=0.0)
+    params = dict(time_mode="lockstep", scene="stale", record=True, bag_dir=str(tmp_path))
     with ros_domain() as dom, start_node(params, dom) as proc, Client(dom) as c:
         js = c.collect("/joint_states", JointState)
         diag = c.collect("/diagnostics", DiagnosticArray)
@@ -89,7 +89,12 @@ def test_lockstep_ignores_a_command_that_answers_another_state_than_the_newest(t
         c.spin_until(lambda: js, what="the state at t = 0", proc=proc)
 
         def send(u, answers, states):
-            pub.publish(M.torque_msg(u, answers))
+            """A command tagged as docs/node.md says: layout.dim[0].label = "answers <sec>.<nanosec>"."""
+            msg = Float64MultiArray(data=u)
+            if answers is not None:
+                sec, nsec = divmod(answers, 1_000_000_000)
+                msg.layout.dim = [MultiArrayDimension(label=f"answers {sec}.{nsec:09d}", size=2, stride=2)]
+            pub.publish(msg)
             if states:
                 c.spin_until(lambda: len(js) >= states, 10, f"state {states}", proc)
         newest = lambda: M.stamp_ns(js[-1].header.stamp)  # noqa: E731
@@ -165,7 +170,7 @@ def test_a_second_controller_is_named_at_once_and_cannot_change_the_run():
 
 
 def test_two_simulations_on_one_domain_name_each_other():
-    params = {"time_mode": "lockstep", "record": False, "lockstep_warn_after": 0.0}
+    params = {"time_mode": "lockstep", "record": False}
     with ros_domain() as dom, start_node(params, dom) as a, \
             start_node(params, dom, extra_args=["--ros-args", "-r", "__node:=other_sim"]) as b:
         said = {a: "another node also publishes /joint_states: /other_sim.",
