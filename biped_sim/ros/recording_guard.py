@@ -32,9 +32,11 @@ def failure_message(path, exc: Exception, t: float) -> str:
     why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
     if str(path) not in why:
         why = f"recording to {path} failed: {why}"
+    disk_full = any(s in why for s in ("No space left", "Disk quota", "File too large"))
     return (f"{why} (at t={t:.6f} s; {free_space(path)}). The run stops here: the bag holds the run up to "
-            f"about this time (if biped-sim inspect says it is cut short: biped-sim recover {path}). Free "
-            "some space or set bag_dir to another disk (or record:=false), then start the run again")
+            f"about this time (if biped-sim inspect says it is cut short: biped-sim recover {path}). "
+            + ("Free some space or set bag_dir to another disk (or record:=false), then start the run again"
+               if disk_full else "Start the run again (record:=false runs it without a bag)"))
 
 
 class GuardedRecorder:
