@@ -117,6 +117,28 @@ def test_lockstep_ignores_a_command_that_answers_another_state_than_the_newest(t
     assert rep["identical"] and rep["commands"] == 6 and rep["states"] == 5, format_report(rep)
 
 
+def test_a_tagged_command_is_recorded_as_rclpy_and_rosbags_read_it():
+    """The recorder's fast CDR of a labelled layout (the tag) decodes to the message it encodes."""
+    from rclpy.serialization import deserialize_message
+    from rosbags.typesys import Stores, get_typestore
+    from std_msgs.msg import MultiArrayLayout
+
+    from biped_sim.recording.cdr import serializer
+    encode = serializer("std_msgs/msg/Float64MultiArray")
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    dims = [MultiArrayDimension(label="abc", size=1, stride=3), MultiArrayDimension(label="", size=2, stride=5)]
+    for msg in (M.torque_msg([1.5, -2.5], 1_234_567_891), M.torque_msg([0.0, 0.0], 0),
+                Float64MultiArray(data=[1.5], layout=MultiArrayLayout(dim=dims, data_offset=3)),
+                Float64MultiArray(data=[], layout=MultiArrayLayout(dim=dims[:1]))):
+        data = encode(msg)
+        assert deserialize_message(data, Float64MultiArray) == msg
+        other = typestore.deserialize_cdr(data, "std_msgs/msg/Float64MultiArray")
+        assert [(d.label, d.size, d.stride) for d in other.layout.dim] == [(d.label, d.size, d.stride)
+                                                                           for d in msg.layout.dim]
+        assert list(other.data) == list(msg.data) and M.answered_ns(other) == M.answered_ns(msg)
+    assert M.answered_ns(M.torque_msg([1.0, 2.0], 1_234_567_891)) == 1_234_567_891
+
+
 def test_a_restarted_controller_goes_on_from_the_newest_state(tmp_path):
     """The walk in lockstep; its controller stopped at t >= 0.3 s and another started: the second
     gets the node's last 100 states (transient local) and must answer only the newest."""
