@@ -115,9 +115,10 @@ class WalkControllerNode(Node):
 
     def _flush_pending(self):
         if self._pending and self._matched():
-            # answer the newest only: the older ones (the node's history, for a controller started
-            # after the node) are states a lockstep node has gone past, and it would ignore the answers
-            newest = max(self._pending, key=lambda m: stamp_ns(m.header.stamp))
+            # answer the newest only (the last to arrive: a publisher's history comes in order, and
+            # after a reset of the node its time goes back): the older ones (the node's history, for
+            # a controller started after the node) are states a lockstep node has gone past
+            newest = self._pending[-1]
             self.older += len(self._pending) - 1
             self._pending = []
             self._answer(newest)
