@@ -25,8 +25,10 @@ setup(
     # named here since the writer imports them itself
     install_requires=["numpy", "scipy", "PyYAML", "mcap", "zstandard", "lz4"],
     extras_require={
-        # imported only where a figure is drawn (biped-sim inspect, biped-sim accuracy)
-        "plot": ["matplotlib"],
+        # imported only where a figure is drawn (biped-sim inspect, biped-sim accuracy, biped-sim animate)
+        "plot": ["matplotlib", "pillow"],
+        # MP4 output of biped-sim animate (its wheel bundles an ffmpeg binary: not installed by default)
+        "video": ["imageio-ffmpeg"],
         # backend="ray" of biped_sim.sweep / biped-sim sweep --backend ray (biped_sim/analysis/sweep.py)
         "ray": ["ray"],
     },

@@ -9,7 +9,8 @@ import argparse
 import importlib
 import sys
 
-COMMANDS = ("simulate", "accuracy", "stability", "gait", "sweep", "basin", "resim", "inspect", "recover", "replay")
+COMMANDS = ("simulate", "accuracy", "stability", "gait", "sweep", "basin", "resim", "inspect", "recover", "replay",
+            "animate")
 
 
 def build_parser() -> argparse.ArgumentParser:

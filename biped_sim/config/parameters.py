@@ -17,7 +17,9 @@ from biped_sim.engine.options import PHASES
 
 CONTRACT_NAMES = ("time_mode", "control_period", "initial_q", "initial_dq", "initial_stance_leg",
                   "rtol", "atol", "duration")
-OUTPUTS = ("joint_states", "ground_reaction", "impact", "clock")
+OUTPUTS = ("joint_states", "ground_reaction", "impact", "clock", "markers")
+#: the outputs of a run that does not name them: the numbers; a scene adds "markers" to be seen
+DEFAULT_OUTPUTS = ("joint_states", "ground_reaction", "impact", "clock")
 
 
 @dataclass(frozen=True)
@@ -89,6 +91,8 @@ PARAMETERS = [
           1e-5, 1.0),
     Param("publish_rate", float, 1000.0, "joint_states/ground_reaction/clock publish rate (Hz, simulated time)",
           0.1, 1e5),
+    Param("marker_rate", float, 30.0, "markers publish rate (Hz of wall time, in every time mode; only with "
+          "markers in outputs)", 0.1, 1000.0),
     Param("duration", float, 0.0, "simulated time to run (s); 0 = until stopped", 0.0, 1e7),
     Param("initial_q", list, [0.0, 1.0, math.pi, math.pi, 0.0],
           "initial q = [x, y, q1, q2, q3] (m, rad), physical coordinates", item=float, length=5),
@@ -105,7 +109,7 @@ PARAMETERS = [
           choices=("floating", "fixed")),
     Param("phases", list, ["stance", "impact", "flight"], "phases this scene needs", item=str,
           choices=tuple(sorted(PHASES))),
-    Param("outputs", list, list(OUTPUTS), "topics to publish (and record)", item=str, choices=OUTPUTS),
+    Param("outputs", list, list(DEFAULT_OUTPUTS), "topics to publish (and record)", item=str, choices=OUTPUTS),
     Param("touchdown_rule", str, "front", "front: only touchdowns in front of the stance foot count; any",
           choices=("front", "any")),
     Param("slope", float, 0.0, "ground slope (rad); positive: the ground falls in +x", -0.5, 0.5),
@@ -178,7 +182,7 @@ def engine_arguments(params: dict) -> dict:
                   method=resolve_method(params), mu=params["mu"] or None, base=params["base"], phases=phases,
                   touchdown_rule=params["touchdown_rule"], slope=params["slope"],
                   stop_on_slip=params["on_slip"] == "stop",
-                  compute_grf="ground_reaction" in params["outputs"])
+                  compute_grf=bool({"ground_reaction", "markers"} & set(params["outputs"])))
     if params["method"] in FIXED_STEP_METHODS:
         kwargs["step"] = params["step"]
     return kwargs

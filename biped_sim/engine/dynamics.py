@@ -5,6 +5,7 @@ Owns the equations of the section "Phases" of docs/model.md:
   * stance, fixed base: the foot is a pin, the chain has 3 coordinates, F recovered
                                                                   (``stance_dynamics(base="fixed")``)
   * impact of a leg: [D -J_i^T; J_i 0][dq+; F_imp] = [D dq-; 0]                   (``impact_map``)
+  * a push P on the hip: the same system with D dq + J_hip^T P on the right     (``push_response``)
   * relabeling R (swap the legs, R R = I)                                            (``relabel``)
   * the notes' Delta = R o impact map (eq. 23-25)                                    (``delta``)
   * flight: D ddq + C dq + G = B u                                                  (``flight_dynamics``)
@@ -186,21 +187,56 @@ def impact_map(model: BipedModel, q, dq_minus, impact_leg=2):
     """
     q = as_state_vector(q, "q")
     dq_minus = as_state_vector(dq_minus, "dq_minus")
-    D = model.mass_matrix(q)
-    J = _impact_jacobian(model, q, impact_leg)
+    return constrained_impulse_response(model.mass_matrix(q), _impact_jacobian(model, q, impact_leg), dq_minus)
+
+
+def constrained_impulse_response(D, J, dq, generalized_impulse=None):
+    """The velocity jump of an impulse with the contacts J held: the KKT system of docs/model.md
+    "Impact", [D -J^T; J 0][dq+; Lambda] = [D dq + tau; 0], with ``tau`` the generalized impulse
+    (N s; none for an impact, J_hip^T P for a push). Returns (dq+, Lambda): Lambda is the impulse
+    of the ground on the feet (N s). With four constraint rows (both feet) an ill-conditioned
+    J D^-1 J^T gives the smallest impulses (see :func:`impact_map`)."""
+    rhs = D @ dq if generalized_impulse is None else D @ dq + generalized_impulse
     k = J.shape[0]
     if k == 4:
         Dinv_JT = np.linalg.solve(D, J.T)
         A = J @ Dinv_JT
         if np.linalg.cond(A) > IMPACT_CONDITION_LIMIT:
-            impulse = -np.linalg.pinv(A, rcond=1.0 / IMPACT_CONDITION_LIMIT, hermitian=True) @ (J @ dq_minus)
-            return dq_minus + Dinv_JT @ impulse, impulse
+            dq_free = dq if generalized_impulse is None else dq + np.linalg.solve(D, generalized_impulse)
+            impulse = -np.linalg.pinv(A, rcond=1.0 / IMPACT_CONDITION_LIMIT, hermitian=True) @ (J @ dq_free)
+            return dq_free + Dinv_JT @ impulse, impulse
     K = np.zeros((5 + k, 5 + k))
     K[:5, :5] = D
     K[:5, 5:] = -J.T
     K[5:, :5] = J
-    sol = np.linalg.solve(K, np.concatenate([D @ dq_minus, np.zeros(k)]))
+    sol = np.linalg.solve(K, np.concatenate([rhs, np.zeros(k)]))
     return sol[:5], sol[5:]
+
+
+#: J_hip = d(hip)/dq: the hip is the base point (x, y) of q, so J_hip = [I2 | 0] (2 x 5)
+J_HIP = np.hstack([np.eye(2), np.zeros((2, 3))])
+
+
+def push_response(model: BipedModel, q, dq, impulse, stance_leg):
+    """A push: the impulse P (N s, world axes: x forward, y up) on the hip, as an instantaneous
+    velocity change (docs/engine.md "Pushes").
+
+    In stance the stance foot stays pinned: [D -J_st^T; J_st 0][dq+; Lambda] = [D dq + J_hip^T P; 0]
+    (:func:`constrained_impulse_response`, the impact's system), Lambda the ground's impulse on the
+    stance foot; in flight (``stance_leg`` 0) dq+ = dq + D^-1 J_hip^T P and Lambda = 0. The fixed
+    base gives the same dq+ (its chain's hip Jacobian is J_hip restricted to the pinned motions).
+    Returns (dq+, Lambda) as arrays. Whether the ground can give Lambda (it can only push) is the
+    simulator's question."""
+    q = as_state_vector(q, "q")
+    dq = as_state_vector(dq, "dq")
+    P = as_state_vector(impulse, "impulse", 2)
+    if not P.any():     # no push: exactly the state it was given (no rounding of a solve)
+        return dq.copy(), np.zeros(2)
+    D = model.mass_matrix(q)
+    tau = J_HIP.T @ P
+    if not stance_leg:
+        return dq + np.linalg.solve(D, tau), np.zeros(2)
+    return constrained_impulse_response(D, model.foot_jacobian(q, check_leg(stance_leg)), dq, tau)
 
 
 R = np.array([[1, 0, 0, 0, 0], [0, 1, 0, 0, 0], [0, 0, 0, 1, 0], [0, 0, 1, 0, 0], [0, 0, 0, 0, 1]],

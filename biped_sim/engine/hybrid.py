@@ -36,6 +36,7 @@ from biped_sim.engine.locator import EventLocator
 from biped_sim.engine.model import BipedModel, as_state_vector
 from biped_sim.engine.modes import bind_controller, mode_functions, project_onto_pin, two_finite_floats
 from biped_sim.engine.options import Options, check_run_arguments
+from biped_sim.engine.pushes import apply_push
 from biped_sim.engine.resets import double_touchdown_reset, liftoff_reset, slip_event, touchdown_reset
 from biped_sim.engine.results import (
     IMPACT_KINDS,
@@ -76,6 +77,7 @@ class HybridSimulator:
         self.q, self.dq = q0.copy(), dq0.copy()
         self.work = 0.0
         self.energy_lost = 0.0
+        self.push_work = 0.0                # kinetic energy added by pushes (J)
         self.E0 = model.energy(q0, dq0)
         self.events: list[Event] = []
         self.locator = EventLocator(model, self.ground, self.opt, mu, feet, stance_leg)
@@ -93,7 +95,7 @@ class HybridSimulator:
         self._mode_event_times: list[float] = []   # the events that changed the mode (not the scuffs)
         self.stats = dict(steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
                           max_constraint_drift_position=0.0, max_constraint_drift_velocity=0.0,
-                          max_energy_balance_residual=0.0, scuffs_ignored=0, deepest_scuff=0.0, wall_time=0.0)
+                          max_energy_balance_residual=0.0, pushes=0, scuffs_ignored=0, deepest_scuff=0.0, wall_time=0.0)
         self._nfev_base = 0
         self._rejected_base = 0
         self._samples = Samples(keep=self.opt.keep_samples)
@@ -190,6 +192,13 @@ class HybridSimulator:
             if u is None:
                 return self.events[-1:]
         return self.advance(t_next, u=u)
+
+    def push(self, impulse):
+        """A push: the impulse (N s, [x forward, y up]) on the hip, applied now, between two
+        ``advance`` calls (so at the start of the next control period), as a velocity jump with
+        the stance foot held (:mod:`biped_sim.engine.pushes`). Returns its events. A bad impulse
+        (not two finite numbers, above ``PUSH_IMPULSE_LIMIT``) raises ValueError."""
+        return apply_push(self, impulse)
 
     def command(self, controller):
         """``controller(t, q, dq, stance_leg)`` at the current state as two finite floats, or None
@@ -302,13 +311,14 @@ class HybridSimulator:
         """A sample of the arrays q, dq (``lists``: the same as lists, if at hand), the torque u applied
         there, and the energy balance."""
         T, V = gen.energy(*(lists or (q.tolist(), dq.tolist())), self.model.k["energy"])
-        residual = T + V - self.E0 - self.work + self.energy_lost
+        residual = T + V - self.E0 - self.work - self.push_work + self.energy_lost
         self.stats["max_energy_balance_residual"] = max(self.stats["max_energy_balance_residual"], abs(residual))
         self._samples.append(self.t, q, dq, leg, F, u, residual)
 
     # -- resets -------------------------------------------------------------------------------
     def _reset(self, guard, legs, t, q, dq):
         """Apply the reset of the guard that fired, take the new mode from its event."""
+        self._samples.keep_last()       # the sample at the event, before its reset
         qa, dqa = np.array(q), np.array(dq)
         old = self.stance_leg
         if guard.kind == "touchdown":
@@ -367,6 +377,7 @@ class HybridSimulator:
             self._reset(G.Guard("slip", leg), [leg], t, q.tolist(), dq.tolist())
 
     def _push_event(self, ev):
+        self._samples.keep_last()       # the sample after the event's reset
         self.events.append(ev)
         self.stats["events"] = len(self.events)
         if ev.kind == "scuff":      # a report, not a change of mode: max_events counts the changes
@@ -405,6 +416,7 @@ class HybridSimulator:
         stats["energy_balance_residual"] = s.last()[6] if len(s) else 0.0
         stats["energy_lost_at_impacts"] = self.energy_lost
         stats["motor_work"] = self.work
+        stats["push_work"] = self.push_work
         stats["method"] = self.method
         stats["generated_code"] = GENERATED_CODE   # "C" (the compiled twin) or "Python": same results
         return SimulationResult.from_samples(s, list(self.events), stats,

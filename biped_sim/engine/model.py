@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -31,6 +32,14 @@ def as_state_vector(v, name: str, n: int = 5) -> np.ndarray:
         bad = [i for i in range(n) if not math.isfinite(a[i])]
         raise ValueError(f"{name} has non-finite entries at index {bad}: {a.tolist()}")
     return a
+
+
+class StickFigure(NamedTuple):
+    """The points that draw the robot, (x, y) in the model's plane (m): hip, feet, torso tip."""
+    hip: np.ndarray
+    foot_1: np.ndarray
+    foot_2: np.ndarray
+    torso_tip: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -132,6 +141,15 @@ class BipedModel:
         leg = check_leg(leg)
         q = as_state_vector(q, "q")
         return np.array(gen.foot_positions(q.tolist(), self.k["foot_positions"])[2 * leg - 2: 2 * leg])
+
+    def stick_figure(self, q) -> StickFigure:
+        """Hip (x, y), both feet (``foot_position``) and the torso's tip, hip + l_torso (sin q3, cos q3):
+        the one geometry of the markers and the animation."""
+        q = as_state_vector(q, "q")
+        p = gen.foot_positions(q.tolist(), self.k["foot_positions"])
+        l_torso = self.parameters.l_torso
+        return StickFigure(q[:2].copy(), np.array(p[0:2]), np.array(p[2:4]),
+                           np.array([q[0] + l_torso * math.sin(q[4]), q[1] + l_torso * math.cos(q[4])]))
 
     def foot_jacobian(self, q, leg: int) -> np.ndarray:
         """J_i = d p_i / dq (2 x 5)."""

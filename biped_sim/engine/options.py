@@ -38,7 +38,9 @@ class Options:
     impulse_tol: float = 1e-6          # N s; invariant: every normal impulse of an impact above -this
     check_invariants: bool = True      # check them after every step and reset (docs/engine.md)
     compute_grf: bool = True
-    keep_samples: bool = True          # False: keep only the last sample (a long-running node)
+    # True: every accepted step; N: every Nth, the event samples and the last; "events": the first,
+    # the event samples and the last; False: the last only (a long-running node)
+    keep_samples: bool | int | str = True
 
     def check(self):
         if self.base not in ("floating", "fixed"):
@@ -64,6 +66,10 @@ class Options:
                      allow_inf=True)
         if self.step is not None:
             check_number("step", self.step, 0.0, math.inf, "s", open_low=True)
+        k = self.keep_samples
+        if not (isinstance(k, bool) or k == "events" or isinstance(k, numbers.Integral) and k >= 1):
+            raise ValueError(f"keep_samples must be True, False, 'events' or a whole number N >= 1 (every Nth "
+                             f"sample), got {k!r}")
         for name in ("max_events", "zeno_count"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 1:

@@ -9,13 +9,22 @@ gait takes its new state from ``CollisionDynamics``.
   once, the new stance foot the one that took the larger normal impulse (double support is not
   modelled);
 * ``liftoff_reset``: the stance foot leaves the ground; the velocities are unchanged, flight follows;
-* ``slip_event``: the ground force leaves the friction cone; the model has no sliding phase.
+* ``slip_event``: the ground force leaves the friction cone; the model has no sliding phase;
+* ``push_reset``: an impulse on the hip from outside (``push_response``), with the stance foot held
+  while the ground can hold it.
 """
 from __future__ import annotations
 
-from biped_sim.engine.dynamics import IMPACT_CONDITION_LIMIT, impact_condition, impact_map
+import numpy as np
+
+from biped_sim.engine.dynamics import IMPACT_CONDITION_LIMIT, impact_condition, impact_map, push_response
 from biped_sim.engine.guards import foot_states, normal_tangent
+from biped_sim.engine.model import as_state_vector
 from biped_sim.engine.results import Event
+
+#: the largest push accepted (N s, magnitude): 100 N s would throw the 20 kg reference robot at 5 m/s;
+#: a larger one is a typo or a unit error (N instead of N s over a short time), not a disturbance
+PUSH_IMPULSE_LIMIT = 100.0
 
 
 def touchdown_reset(model, t, q, dq, legs, stance_leg, ground, mu=None) -> Event:
@@ -80,3 +89,51 @@ def slip_event(t, q, dq, stance_leg, F, ground, mu) -> Event:
     return Event(t, "slip", stance_leg, q, dq, dq.copy(), None, stance_leg, stance_leg,
                  message=f"the stance foot (leg {stance_leg}) would slip at t={t:.9g} s: |F_t| = {abs(tg):.6g} N "
                          f"> mu F_n = {mu * n:.6g} N (mu = {mu:g})")
+
+
+def check_push(impulse, name="impulse") -> np.ndarray:
+    """The push as an array of two finite floats within PUSH_IMPULSE_LIMIT, or a ValueError naming ``name``."""
+    if isinstance(impulse, (str, bytes)):
+        raise ValueError(f"{name} must be 2 numbers (N s: x forward, y up), got {impulse!r}")
+    P = as_state_vector(impulse, name, 2)
+    size = float(np.hypot(P[0], P[1]))
+    if size > PUSH_IMPULSE_LIMIT:
+        raise ValueError(f"{name} is {size:.6g} N s, above the limit of {PUSH_IMPULSE_LIMIT:g} N s "
+                         f"(an impulse, N s, not a force): {P.tolist()}")
+    return P
+
+
+def push_reset(model, t, q, dq, impulse, stance_leg, ground, mu, flight_allowed) -> Event:
+    """A push ``impulse`` (N s) on the hip at the state (q, dq) (arrays): the ``push`` Event.
+
+    In stance the foot is held (``push_response``) if the ground's impulse on it pushes (normal
+    >= 0). If it would have to pull, the contact is unilateral: the foot leaves the ground with the
+    free response (``stance_leg_after`` 0; the simulator follows with a liftoff), or, without a
+    flight phase, or if the free response would drive the foot into the ground (a sliding contact,
+    not modelled), an ``error`` Event: the run stops. A ground impulse outside the friction cone
+    (with ``mu``) is a warning of the event."""
+    P = check_push(impulse)
+    dq_plus, ground_impulse = push_response(model, q, dq, P, stance_leg)
+    after, warnings = stance_leg, []
+    if stance_leg:
+        n, tg = normal_tangent(ground_impulse, ground)
+        if n < 0.0:
+            dq_free, ground_impulse = push_response(model, q, dq, P, 0)
+            rate = foot_states(model, q.tolist(), dq_free.tolist(), ground.tan)[stance_leg - 1].dheight
+            why = None
+            if not flight_allowed:
+                why = "this scene has no flight phase: add 'flight' to its phases"
+            elif rate < 0.0:
+                why = (f"without the ground the foot would move into it ({rate:.6g} m/s): a sliding contact, "
+                       "which the model does not have")
+            if why is not None:
+                return Event(t, "error", stance_leg, q, dq, dq.copy(), None, stance_leg, stance_leg, push=P,
+                             message=f"the push {P.tolist()} N s at t={t:.9g} s lifts the stance foot (leg "
+                                     f"{stance_leg}) off the ground (holding it would need a pull of {-n:.6g} "
+                                     f"N s), but {why}")
+            dq_plus, after = dq_free, 0
+        elif mu is not None and abs(tg) > mu * n:
+            warnings.append(f"the ground's impulse on foot {stance_leg} is outside the friction cone "
+                            f"(|tangential| {abs(tg):.6g} > mu * normal {mu * n:.6g} N s)")
+    loss = model.energy(q, dq) - model.energy(q, dq_plus)
+    return Event(t, "push", stance_leg, q, dq, dq_plus, ground_impulse, stance_leg, after, loss, warnings, push=P)

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-EVENT_KINDS = ("touchdown", "double_touchdown", "liftoff", "slip", "scuff", "error", "zeno")
+EVENT_KINDS = ("touchdown", "double_touchdown", "liftoff", "slip", "scuff", "error", "zeno", "push")
 IMPACT_KINDS = ("touchdown", "double_touchdown")
 
 
@@ -23,7 +23,10 @@ class Event:
     ``scuff`` (foot ``leg`` passed under the ground behind the stance foot, within ``scuff_depth``: a
     report, the mode does not change; ``message`` says when and how deep), ``error`` (the run stopped:
     ``message`` says why), ``zeno`` (impacts accumulate; the run stopped).
-    ``impulse`` is the ground's impulse on the foot (N s), for touchdowns only.
+    ``push`` (an impulse ``push`` (N s, [x forward, y up]) on the hip, applied as a velocity jump;
+    ``leg`` is the stance foot then (0 in flight), ``stance_leg_after`` 0 if it lifted the foot off).
+    ``impulse`` is the ground's impulse on the foot (N s), for touchdowns and pushes.
+    ``energy_loss`` is the kinetic energy the event took out (J; negative for a push that adds energy).
     ``warnings`` lists violated contact assumptions of an impact (the old stance foot does not leave
     the ground, the impulse is outside the friction cone).
     """
@@ -39,6 +42,7 @@ class Event:
     energy_loss: float = 0.0
     warnings: list = field(default_factory=list)
     message: str = ""
+    push: np.ndarray | None = None
 
 
 @dataclass
@@ -54,7 +58,7 @@ class SimulationResult:
     stats: dict
     status: str = "completed"     # "completed", "stopped" (a scene's assumption left), "failed"
     message: str = ""
-    #: per sample: E - E0 - motor work + energy lost at impacts (J); ~0 up to the integration error
+    #: per sample: E - E0 - motor work - work of pushes + energy lost at impacts (J); ~0 up to the integration error
     energy_balance: np.ndarray | None = None
     #: the run's Options (slope, scuff_depth and the tolerances its invariants were checked with)
     options: object = None
@@ -83,25 +87,44 @@ class SceneAssumptionError(SimulationError):
 class Samples:
     """A run's samples in one flat float array that grows by doubling: a row a sample,
     ``[t, q (5), dq (5), stance_leg, F (2), u (2), energy-balance residual]`` (17 floats, 136 bytes;
-    a tuple of lists and arrays took about 870). ``keep=False`` keeps the last sample only (a node
-    that runs for hours)."""
+    a tuple of lists and arrays took about 870).
+
+    ``keep``: True keeps every sample; an int N keeps every Nth (the first, the N+1st, ...), the samples
+    of each event (before and after its reset) and the last one; ``"events"`` keeps only the first, the
+    event samples and the last one;
+    False keeps the last sample only (a node that runs for hours). The newest sample is always the
+    last row: one that will not be kept is overwritten by the next (``provisional``)."""
     WIDTH = 17
 
     def __init__(self, keep=True):
         self.keep = keep
-        self._data = np.empty((256 if keep else 1, self.WIDTH))
+        self.every = 1 if keep is True else 0 if keep is False or keep == "events" else keep
+        self._data = np.empty((256 if keep is not False else 1, self.WIDTH))
         self.n = 0
+        self.appended = 0
+        self.provisional = False
 
     def append(self, t, q, dq, leg, F, u, residual):
-        if not self.keep:
+        if self.keep is False:
             self.n = 0
+        elif self.provisional:
+            self.n -= 1
         elif self.n == len(self._data):
             self._data = np.concatenate([self._data, np.empty_like(self._data)])
         self._data[self.n] = [t, *q, *dq, leg, F[0], F[1], u[0], u[1], residual]
         self.n += 1
+        self.appended += 1
+        # the first sample (the initial state) is always kept
+        self.provisional = self.appended > 1 and (not self.every or (self.appended - 1) % self.every != 0)
+
+    def keep_last(self):
+        """Keep the newest sample (an event's) whatever ``keep`` thins out."""
+        self.provisional = False
 
     def pop(self):
         self.n -= 1
+        self.appended -= 1
+        self.provisional = False
 
     def last(self):
         """(t, q, dq, stance_leg, F, u, residual) of the last sample: arrays q, dq; lists F, u."""

@@ -8,6 +8,7 @@ import numpy as np
 from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.engine.model import BipedModel, as_state_vector
 from biped_sim.engine.options import check_number
+from biped_sim.engine.resets import check_push
 from biped_sim.engine.results import SimulationResult
 
 
@@ -27,7 +28,7 @@ def stance_state(model: BipedModel, joints, joint_rates, stance_leg=1, foot=(0.0
 
 
 def simulate(model, q0, dq0, t_final, controller=None, stance_leg=1, rtol=1e-9, atol=1e-9,
-             method="dop853", control_period=None, mu=None, **options) -> SimulationResult:
+             method="dop853", control_period=None, mu=None, pushes=(), **options) -> SimulationResult:
     """Simulate the hybrid biped from (q0, dq0) to ``t_final`` seconds.
 
     ``controller(t, q, dq, stance_leg) -> u`` (u[0] on hip 1, u[1] on hip 2, physical legs) is called
@@ -35,7 +36,10 @@ def simulate(model, q0, dq0, t_final, controller=None, stance_leg=1, rtol=1e-9, 
     as the node does; the torque is held through an impact inside the period). ``mu=None`` means
     enough friction. ``options`` are the fields of :class:`Options` (``base``, ``phases``,
     ``touchdown_rule``, ``stop_on_slip``, ``project_constraints``, ``step`` for fixed-step methods,
-    ``slope``, ...). A run that leaves the scene's assumptions or whose integration fails ends with
+    ``slope``, ...). ``pushes = [(t, impulse), ...]``: impulses (N s, [x forward, y up]) on the hip
+    (``HybridSimulator.push``), each applied at its time t, or with a ``control_period`` at the start
+    of the first period that starts at or after t, as the node applies its ``push`` topic. A run
+    that leaves the scene's assumptions or whose integration fails ends with
     ``result.status`` "stopped" or "failed", a final event, and ``result.message``; bad arguments
     raise ``ValueError``.
     """
@@ -47,10 +51,40 @@ def simulate(model, q0, dq0, t_final, controller=None, stance_leg=1, rtol=1e-9, 
                              "controller=..., or leave control_period out for u = 0")
     if controller is not None and not callable(controller):
         raise ValueError("controller must be callable as controller(t, q, dq, stance_leg) -> u")
+    pushes = _checked_pushes(pushes, t_final)
     sim = HybridSimulator(model, q0, dq0, stance_leg, rtol, atol, method, mu, **options)
     if controller is None or control_period is None:
+        for t_push, impulse in pushes:
+            sim.advance(t_push, controller=controller)
+            sim.push(impulse)
         sim.advance(t_final, controller=controller)
     else:
+        due = 0
         while sim.status == "running" and sim.t < t_final:
+            due = _push_due(sim, pushes, due, 1e-9 * control_period)
             sim.advance_period(control_period, controller=controller, t_final=t_final)
+        _push_due(sim, pushes, due, 1e-9 * control_period)
     return sim.result()
+
+
+def _checked_pushes(pushes, t_final):
+    """``pushes`` as a list of (time, impulse array) sorted by time, or a ValueError naming the entry."""
+    try:
+        entries = list(pushes)
+    except TypeError:
+        raise ValueError(f"pushes must be a list of (t, impulse) pairs, got {pushes!r}") from None
+    out = []
+    for i, entry in enumerate(entries):
+        if not (isinstance(entry, (tuple, list)) and len(entry) == 2):
+            raise ValueError(f"pushes[{i}] must be a pair (t, impulse), got {entry!r}")
+        check_number(f"pushes[{i}] time", entry[0], 0.0, t_final, "s, within the run")
+        out.append((float(entry[0]), check_push(entry[1], f"pushes[{i}] impulse")))
+    return sorted(out, key=lambda p: p[0])
+
+
+def _push_due(sim, pushes, i, tol):
+    """Apply the pushes from index i whose time has come (at or before sim.t, within tol); the next index."""
+    while i < len(pushes) and pushes[i][0] <= sim.t + tol and sim.status == "running":
+        sim.push(pushes[i][1])
+        i += 1
+    return i

@@ -58,7 +58,8 @@ def load_run(bag) -> dict:
     return run
 
 
-def _model(params):
+def run_model(params):
+    """The BipedModel of a run's parameters (the defaults without them)."""
     from biped_sim.engine.model import BipedModel
     if not params:
         return BipedModel()
@@ -109,6 +110,13 @@ def summary(bag, run=None) -> str:
             lines.append(f"energy      {loss:.4g} J lost in impacts")
     if run["commands"]:
         lines.append(f"commands    {len(run['commands'])} on hip_torque")
+    pushes = [e for e in run["events"] if e.get("kind") == "push"]
+    if pushes:
+        lines.append(f"pushes      {len(pushes)}: " + ", ".join(
+            f"t={e['time']:.4f} s P={e['push']} N s" for e in pushes[:4]) + (" ..." if len(pushes) > 4 else ""))
+    for e in run["events"]:      # a ~/reset of the node: this bag starts or ends there (docs/recording.md)
+        if e.get("name") == "biped_sim/reset":
+            lines.append(f"reset       {e.get('message')}")
     ends = [e for e in run["events"] if e.get("name", "").endswith("/run") or e.get("level", 0) >= 2]
     if ends:
         e = ends[-1]
@@ -121,7 +129,7 @@ def _foot_x(e, params):
     if not isinstance(q, list) or len(q) != 5:
         return float("nan")
     foot = int(e["foot"]) if e.get("foot") in (1, 2, "1", "2") else 1
-    return float(_model(params).foot_position(np.array(q), foot)[0])
+    return float(run_model(params).foot_position(np.array(q), foot)[0])
 
 
 def plot(bag, png, run=None, frames=14):
@@ -132,7 +140,7 @@ def plot(bag, png, run=None, frames=14):
     run = run or load_run(bag)
     t, q, u = run["t"], run["q"], run["u"]
     p = run["params"] or {}
-    model = _model(p)
+    model = run_model(p)
     imp_t = [e["time"] for e in run["impacts"]]
     fig = plt.figure(figsize=(12, 12), constrained_layout=True)
     gs = fig.add_gridspec(4, 1, height_ratios=[1.1, 1, 0.8, 1.6])
@@ -178,7 +186,6 @@ def plot(bag, png, run=None, frames=14):
     if len(t):
         idx = np.unique(np.linspace(0, len(t) - 1, frames).round().astype(int))
         slope = float(p.get("slope", 0.0) or 0.0)
-        l_t = model.parameters.l_torso
         xs = []
         for j, i in enumerate(idx):
             qi = q[i]
@@ -188,7 +195,7 @@ def plot(bag, png, run=None, frames=14):
                 foot = model.foot_position(qi, leg)
                 ax4.plot([hip[0], foot[0]], [hip[1], foot[1]], color=c, lw=2, alpha=shade)
                 xs += [foot[0]]
-            top = hip + l_t * np.array([math.sin(qi[4]), math.cos(qi[4])])
+            top = model.stick_figure(qi).torso_tip
             ax4.plot([hip[0], top[0]], [hip[1], top[1]], color="C2", lw=2.5, alpha=shade)
             ax4.plot(*hip, "o", color="k", ms=3, alpha=shade)
             ax4.text(top[0], 1.62 if j % 2 == 0 else 1.76, f"{t[i]:.2f} s", ha="center", fontsize=7)

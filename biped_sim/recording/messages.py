@@ -14,6 +14,8 @@ Topics (names relative to the node's namespace) and their types:
   located impact time; keys kind, time, foot, q, dq_minus, dq_plus, impulse, energy_loss, ...
 * ``diagnostics`` (``diagnostic_msgs/msg/DiagnosticArray``): other events and the run's status.
 * ``/clock`` (``rosgraph_msgs/msg/Clock``), ``hip_torque`` (``std_msgs/msg/Float64MultiArray``, in).
+* ``markers`` (``visualization_msgs/msg/MarkerArray``): the robot drawn, built by
+  :mod:`biped_sim.recording.markers`.
 
 Times are integer nanoseconds of simulation time: :func:`to_ns` rounds as the node's ``stamp`` does.
 """
@@ -33,6 +35,8 @@ TOPIC_TYPES = {
     "diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
     "clock": "rosgraph_msgs/msg/Clock",
     "hip_torque": "std_msgs/msg/Float64MultiArray",
+    "markers": "visualization_msgs/msg/MarkerArray",
+    "push": "geometry_msgs/msg/Vector3Stamped",
 }
 
 
@@ -97,6 +101,12 @@ def event_status(event, prefix="biped_sim"):
         st.name = f"{prefix}/impact"
         st.message = (f"{event.kind}: foot {event.leg} touched down at t={event.time:.9f} s"
                       + ("; " + "; ".join(event.warnings) if event.warnings else ""))
+    elif event.kind == "push":
+        st.level = DiagnosticStatus.WARN if event.warnings else DiagnosticStatus.OK
+        st.name = f"{prefix}/push"
+        st.message = (f"push: {_floats(event.push)} N s on the hip at t={event.time:.9f} s"
+                      + ("; the stance foot lifted off" if event.stance_leg_before and not event.stance_leg_after
+                         else "") + ("; " + "; ".join(event.warnings) if event.warnings else ""))
     elif event.kind in ("error", "zeno") or event.message and event.kind not in ("liftoff", "scuff"):
         st.level = DiagnosticStatus.ERROR
         st.name = f"{prefix}/{event.kind}"
@@ -111,6 +121,8 @@ def event_status(event, prefix="biped_sim"):
           ("q", _floats(event.q)), ("dq_minus", _floats(event.dq_minus)), ("dq_plus", _floats(event.dq_plus)),
           ("impulse", _floats(event.impulse) if event.impulse is not None else "[]"),
           ("energy_loss", repr(float(event.energy_loss))), ("warnings", "; ".join(event.warnings))]
+    if event.push is not None:
+        kv.append(("push", _floats(event.push)))
     st.values = [KeyValue(key=k, value=v) for k, v in kv]
     return st
 

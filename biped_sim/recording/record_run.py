@@ -6,7 +6,9 @@ controller is called at the start of each period and its torques are held, as
 the node would publish is written with the node's message functions (:mod:`biped_sim.recording.messages`):
 ``/hip_torque`` (the command, at the start of its period), ``/impact`` (at the located impact
 time), ``/diagnostics`` (other events), then ``/joint_states``, ``/ground_reaction`` (in stance)
-and ``/clock`` at the end of the period. The state at t = 0 is written first.
+and ``/clock`` at the end of the period. The state at t = 0 is written first. ``/markers`` (with
+"markers" in ``outputs``) at ``marker_rate`` of simulated time (a headless run has no wall clock to
+follow), and at the end.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import signal
 from biped_sim.config.parameters import engine_arguments
 from biped_sim.recording import messages as M
 from biped_sim.recording.cdr import float64_multi_array_data
+from biped_sim.recording.markers import MarkerStream
 
 
 def topics_for(params) -> dict:
@@ -52,8 +55,10 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
     u = [0.0, 0.0]
 
     topics_state = ("/joint_states" if js else None, "/ground_reaction" if grf else None, "/clock" if clock else None)
+    markers = (MarkerStream(sim.model, params["slope"], params["marker_rate"])
+               if recorder is not None and "/markers" in topics else None)
 
-    def publish_state():
+    def publish_state(last=False):
         # the recorder packs the messages' content from the values in one call (write_state)
         t = sim.t
         if build_messages:
@@ -67,6 +72,10 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
             recorder.write_state(M.to_ns(t), topics_state, M.foot_frame(sim.stance_leg), M.JOINT_NAMES, sim.q.tolist(),
                                  sim.dq.tolist(), [0.0, 0.0, float(u[0]), float(u[1]), 0.0],
                                  sim.ground_force if sim.stance_leg else None)
+        if markers is not None:
+            msg = markers.poll(sim.t, sim, force=last)
+            if msg is not None:
+                rec("/markers", msg, M.to_ns(t))
 
     stop = []
     old = signal.getsignal(signal.SIGTERM)
@@ -90,7 +99,7 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
                         rec("/impact", M.impact_msg(ev), M.to_ns(ev.time))
                 else:
                     rec("/diagnostics", M.impact_msg(ev), M.to_ns(ev.time))
-            publish_state()
+            publish_state(last=sim.status != "running" or sim.t >= duration)
             if progress is not None:
                 progress(sim)
     finally:

@@ -7,7 +7,10 @@ the node does: one ``advance_period`` per control period (the engine's one zero-
 held (the node's checks: two finite values within ``torque_limit``, else rejected or clipped per
 ``torque_limit_action``). Each recorded ``joint_states`` message is compared with the engine's
 state at its stamp, and each recorded impact with the engine's; a lockstep run of the same
-version and settings is reproduced exactly (difference 0.0).
+version and settings is reproduced exactly (difference 0.0). The pushes of the run (``push`` events
+on ``diagnostics``) are applied again at their times, through ``HybridSimulator.push``. A bag
+ends at a ``~/reset`` of the node; the run goes on from t = 0 in the next bag, which resim
+re-simulates from the scene's initial state as any other (docs/recording.md "Resets").
 """
 from __future__ import annotations
 
@@ -38,6 +41,7 @@ def resim(bag, progress=None) -> dict:
     t_js = bagio.find_topic(topics, "joint_states")
     t_cmd = bagio.find_topic(topics, "hip_torque")
     t_imp = bagio.find_topic(topics, "impact")
+    t_diag = bagio.find_topic(topics, "diagnostics")
     if t_js is None:
         raise ValueError(f"{bag} has no joint_states topic to compare with")
     sim = HybridSimulator(**engine_arguments(params), keep_samples=False)
@@ -50,8 +54,8 @@ def resim(bag, progress=None) -> dict:
             sim.advance_period(period, u=state["u"], t_final=duration)
 
     rep = dict(bag=str(bag), params=params, commands=0, states=0, max_dq=0.0, max_q=0.0, first=None,
-               impacts_recorded=[], status=None, message="", t_end=0.0, t_last_state=-math.inf)
-    for topic, typ, t_ns, data in bagio.messages(bag, topics=[t for t in (t_js, t_cmd, t_imp) if t]):
+               pushes=0, impacts_recorded=[], status=None, message="", t_end=0.0, t_last_state=-math.inf)
+    for topic, typ, t_ns, data in bagio.messages(bag, topics=[t for t in (t_js, t_cmd, t_imp, t_diag) if t]):
         msg = bagio.decode(typ, data)
         if topic == t_cmd:
             advance_to(t_ns)
@@ -59,6 +63,12 @@ def resim(bag, progress=None) -> dict:
             if lockstep and M.answered_ns(msg) not in (None, t_ns):
                 continue        # the node ignored it: it answers another state than the newest (stale)
             state["u"] = _checked_command(list(msg.data), params, state["u"])
+        elif topic == t_diag:
+            for e in M.event_values(msg):
+                if e.get("kind") in ("push", "error") and isinstance(e.get("push"), list):
+                    advance_to(e["t_ns"])
+                    sim.push(e["push"])
+                    rep["pushes"] += 1
         elif topic == t_imp:
             rep["impacts_recorded"].extend(e["time"] for e in M.event_values(msg) if "time" in e)
         else:
@@ -97,7 +107,8 @@ def format_report(rep) -> str:
         f"bag               {rep['bag']}",
         f"settings          scene {p['scene']}, time_mode {p['time_mode']}, control_period {p['control_period']:g} s, "
         f"method {method_label(p)}, rtol {p['rtol']:g}, atol {p['atol']:g}, base {p['base']}",
-        f"replayed          {rep['commands']} torque commands, compared {rep['states']} joint_states "
+        f"replayed          {rep['commands']} torque commands, {rep['pushes']} pushes, compared {rep['states']} "
+        "joint_states "
         f"(to t = {rep['t_end']:.6g} s)",
         f"largest difference  |q| {rep['max_q']:.3g}, |dq| {rep['max_dq']:.3g}",
         f"impacts           recorded {len(rep['impacts_recorded'])}, re-simulated {len(rep['impacts_resimulated'])}, "

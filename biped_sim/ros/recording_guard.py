@@ -54,7 +54,11 @@ class GuardedRecorder:
         return self.recorder.path
 
     def add_topic(self, topic, type_name, qos=None):
-        self.recorder.add_topic(topic, type_name, qos=qos)
+        if self.failure is None:
+            try:
+                self.recorder.add_topic(topic, type_name, qos=qos)
+            except OSError as exc:
+                self._failed(exc)
 
     def _failed(self, exc):
         with self._lock:
@@ -78,14 +82,17 @@ class GuardedRecorder:
             except OSError as exc:
                 self._failed(exc)
 
-    def close(self, logger, t: float) -> bool:
+    def close(self, logger=None, t: float = 0.0) -> bool:
         """Close the bag (the writer ends it); False if that failed. A failure not reported before (the
-        last data could not be written) is logged with :func:`failure_message`."""
+        last data could not be written) is logged with :func:`failure_message` (raised without a
+        ``logger``, as :meth:`BagRecorder.close` raises it)."""
         try:
             self.recorder.close()
         except OSError as exc:
             if self.failure is None:
                 self.failure = exc
+                if logger is None:
+                    raise
                 logger.error(failure_message(self.path, exc, t))
             return False
         return self.failure is None

@@ -81,10 +81,12 @@ class SilenceWatch:
         self.next_warning = warn_after
         self.warnings = 0
 
-    def commanded(self, t: float, now: float | None = None):
-        """A command advanced the run from simulated time ``t``."""
+    def commanded(self, t: float | None, now: float | None = None):
+        """A command advanced the run from simulated time ``t`` (None: the node waited for another
+        reason, a pause: the time since the last command starts again, its ``t`` is kept)."""
         self.last_wall = time.monotonic() if now is None else now
-        self.last_t = t
+        if t is not None:
+            self.last_t = t
         self.next_warning = self.warn_after
 
     def check(self, t: float, now: float | None = None) -> tuple:
@@ -138,6 +140,10 @@ class RunWatch:
         for line in self.graph.check():
             log.warning(line)
         if self.silence is None or node.finished or node.stopped or node.fault:
+            return
+        control = getattr(node, "control", None)
+        if control is not None and control.paused:     # ~/pause holds the run: the controller is not silent
+            self.silence.commanded(None)
             return
         warning, end = self.silence.check(node.sim.t)
         if warning:

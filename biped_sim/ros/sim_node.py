@@ -25,13 +25,16 @@ from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
+from visualization_msgs.msg import MarkerArray
 
 from biped_sim.config import parameters as P
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, WHY_PYTHON
 from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.recording.markers import MarkerStream
 from biped_sim.recording.messages import (
     IMPACT_KINDS,
     JOINT_NAMES,
@@ -48,6 +51,7 @@ from biped_sim.recording.messages import (
 from biped_sim.ros import params_files, run_watch, startup
 from biped_sim.ros.parameters import declare_from_table, usage_text, value_less_override_message
 from biped_sim.ros.recording_guard import GuardedRecorder, failure_message
+from biped_sim.ros.sim_control import SimControl
 from biped_sim.ros.startup import StartupError
 from biped_sim.ros.time_modes import run_fast, run_lockstep, run_realtime, spinning_in_background
 
@@ -95,7 +99,11 @@ class SimNode(Node):
                            if "impact" in out and "impact" in prm["phases"] else None)
         self.pub_clock = self._publisher(Clock, "/clock") if "clock" in out else None
         self.pub_diag = self._publisher(DiagnosticArray, "diagnostics")
+        # the robot drawn, at marker_rate of wall time; a scene without "markers" computes nothing for it
+        self.pub_markers = self._publisher(MarkerArray, "markers") if "markers" in out else None
+        self.markers = MarkerStream(self.sim.model, prm["slope"], prm["marker_rate"]) if "markers" in out else None
         self.sub = self.create_subscription(Float64MultiArray, "hip_torque", self._on_command, COMMAND_QOS)
+        self.control = SimControl(self, COMMAND_QOS)    # ~/pause, ~/step, ~/reset and the push topic
         self._js_msg = self._grf_msg = None
         self._clock_msg = Clock()
         self.recorder = self.bag_path = None
@@ -117,11 +125,11 @@ class SimNode(Node):
     def publishers_by_output(self) -> dict:
         """{output name (a key of TOPIC_TYPES): publisher} of the topics this run publishes."""
         pubs = dict(joint_states=self.pub_js, ground_reaction=self.pub_grf, impact=self.pub_impact,
-                    clock=self.pub_clock, diagnostics=self.pub_diag)
+                    clock=self.pub_clock, diagnostics=self.pub_diag, markers=self.pub_markers)
         return {k: v for k, v in pubs.items() if v is not None}
 
     # -- recording ------------------------------------------------------------------------------
-    def _open_recorder(self):
+    def _open_recorder(self, path=None):
         try:
             from biped_sim.recording.recorder import BagRecorder  # optional: needs mcap
         except ModuleNotFoundError as exc:
@@ -131,7 +139,7 @@ class SimNode(Node):
                                       "this run is not recorded")
             return
         when = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-        self.bag_path = os.path.join(self.params["bag_dir"], f"{self.params['scene']}-{when}")
+        self.bag_path = path or os.path.join(self.params["bag_dir"], f"{self.params['scene']}-{when}")
         try:
             self.recorder = GuardedRecorder(BagRecorder(self.bag_path, parameters=dict(self.params)),
                                             self._recording_failed)
@@ -178,6 +186,8 @@ class SimNode(Node):
 
     def _lockstep(self, t):
         """One control period per command, then its state."""
+        if self.control.hold_in_lockstep():    # paused: this command steps once on resume
+            return
         if self.finished or self.stopped:
             self.counts["ignored"] += 1
             self.get_logger().warning(
@@ -234,7 +244,11 @@ class SimNode(Node):
 
     # -- stepping and publishing ----------------------------------------------------------------
     def step(self):
-        """Advance one control period with the held torques; publish its events."""
+        """Advance one control period with the held torques (after the pushes received since the
+        last one); publish its events."""
+        for impulse in self.control.take_pushes():
+            for ev in self.sim.push(impulse):
+                self._publish_event(ev)
         events = self.sim.advance_period(self.period, u=self.u, t_final=self.duration)
         for ev in events:
             self._publish_event(ev)
@@ -329,6 +343,10 @@ class SimNode(Node):
                                 for p in (self.pub_js, self.pub_grf, self.pub_clock)),
                 frame, JOINT_NAMES, q, dq, effort,
                 sim.ground_force if sim.stance_leg and self.pub_grf is not None else None)
+        if self.markers is not None:   # the last state of a run is always drawn
+            msg = self.markers.poll(time.monotonic(), sim, force=self.finished or self.stopped)
+            if msg is not None:   # serialised once for the topic and the bag (1.2 ms a MarkerArray)
+                self._publish(self.pub_markers, serialize_message(msg), t)
 
     # -- time modes ---------------------------------------------------------------------------
     def run(self, should_stop, executor):
@@ -337,12 +355,17 @@ class SimNode(Node):
         self._cpu_run0 = time.process_time()
         self.publish_state()
         if self.mode == "lockstep":     # the command callback steps and publishes
-            run_lockstep(self, should_stop, executor)
-            self._end_run(should_stop, lambda: executor.spin_once(timeout_sec=0.1))
-            return
+            while True:
+                run_lockstep(self, should_stop, executor)
+                self._end_run(should_stop, lambda: executor.spin_once(timeout_sec=0.1))
+                if should_stop() or self.finished or self.stopped:
+                    return              # else a ~/reset restarted a stopped run
         with spinning_in_background(executor):
-            (run_fast if self.mode == "fast" else run_realtime)(self, should_stop)
-            self._end_run(should_stop, lambda: time.sleep(0.05))
+            while True:
+                (run_fast if self.mode == "fast" else run_realtime)(self, should_stop)
+                self._end_run(should_stop, lambda: self.control.between_periods(should_stop) or time.sleep(0.05))
+                if should_stop() or self.finished or self.stopped:
+                    return
 
     def _end_run(self, should_stop, wait):
         self._cpu_end = time.process_time()
@@ -376,11 +399,12 @@ class SimNode(Node):
 
 
 def usage() -> str:
-    topics = {t: TOPIC_TYPES[t] for t in ("joint_states", "ground_reaction", "impact", "diagnostics", "clock")}
+    topics = {t: TOPIC_TYPES[t] for t in ("joint_states", "ground_reaction", "impact", "diagnostics", "clock",
+                                          "markers")}
     topics["/clock"] = topics.pop("clock")
     return usage_text("sim_node", "biped_sim", "Simulate the planar three-link biped; hip torques in, the state "
                       "out, the run recorded to a bag (record, bag_dir). Stop it with Ctrl-C or SIGTERM.",
-                      P.PARAMETERS, {"hip_torque": TOPIC_TYPES["hip_torque"]}, topics)
+                      P.PARAMETERS, {"hip_torque": TOPIC_TYPES["hip_torque"], "push": TOPIC_TYPES["push"]}, topics)
 
 
 def main(argv=None):

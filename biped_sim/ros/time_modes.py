@@ -29,6 +29,10 @@ class PublishSchedule:
         self.period = 1.0 / publish_rate
         self.next = self.period
 
+    def restart(self, t: float):
+        """Publish from the first multiple of the period after ``t`` (after a pause, a step or a reset)."""
+        self.next = (math.floor(t / self.period + 1e-9) + 1) * self.period
+
     def due(self, t: float) -> bool:
         """True if the state at ``t`` is to be published (and the next one scheduled)."""
         if t < self.next - 1e-12:
@@ -70,6 +74,10 @@ class RealtimePacer:
             pass
         return warning
 
+    def restart(self, t: float):
+        """Simulated time ``t`` is due now (after a pause, a step or a reset: time stood still or went back)."""
+        self.start = time.monotonic() - t / self.rate
+
     def published(self):
         if len(self.publication_times) < MAX_PUBLICATION_TIMES:
             self.publication_times.append(time.monotonic())
@@ -106,6 +114,9 @@ def run_lockstep(node, should_stop, executor):
 def run_fast(node, should_stop):
     schedule = PublishSchedule(node.params["publish_rate"])
     while not (node.stopped or node.finished or should_stop()):
+        if node.control.between_periods(should_stop):      # paused, stepped or reset: go on from here
+            schedule.restart(node.sim.t)
+            continue
         node.check_timeout()
         node.step()
         if schedule.due(node.sim.t) or node.finished or node.stopped:
@@ -115,17 +126,22 @@ def run_fast(node, should_stop):
 def run_realtime(node, should_stop):
     schedule = PublishSchedule(node.params["publish_rate"])
     pacer = RealtimePacer(node.params["rate_factor"], node.period, schedule.period)
-    k0 = node.sim.control_periods
+    periods = 0
     while not (node.stopped or node.finished or should_stop()):
+        if node.control.between_periods(should_stop):      # paused, stepped or reset: the clock
+            pacer.restart(node.sim.t)                        # starts again from the simulated time
+            schedule.restart(node.sim.t)
+            continue
         node.check_timeout()
         node.step()                      # compute ahead: the state at the end of this period
+        periods += 1
         late = pacer.wait_until(node.sim.t)
         if late:
             node.get_logger().warning(late)
         if schedule.due(node.sim.t) or node.finished or node.stopped:
             pacer.published()
             node.publish_state()
-    report = pacer.report(node.sim.t, node.sim.control_periods - k0)
+    report = pacer.report(node.sim.t, periods)
     if report:
         node.get_logger().info(report)
 

@@ -18,10 +18,12 @@ ROOT = Path(__file__).resolve().parents[2]
 # alone; mcap-ros2-support's key installs it)
 ROSDEP_KEY = {"numpy": "python3-numpy", "scipy": "python3-scipy", "PyYAML": "python3-yaml",
               "mcap": "mcap-ros2-support", "matplotlib": "python3-matplotlib", "zstandard": "python3-zstandard",
-              "lz4": "python3-lz4"}
+              "lz4": "python3-lz4", "pillow": "python3-pil"}
 # optional extras that rosdep has no key for: declared in setup.py's extras_require only (a ROS user
 # installs them with pip when wanted); package.xml cannot say "optional"
-NO_ROSDEP_KEY = {"ray"}   # biped_sim[ray]: the Ray backend of biped_sim.sweep
+NO_ROSDEP_KEY = {"ray", "imageio-ffmpeg"}   # biped_sim[ray]: the Ray backend of biped_sim.sweep; [video]: MP4
+# optional extras that need not be installed here: {module: distribution}, checked against extras_require
+OPTIONAL_MAY_BE_ABSENT = {"imageio_ffmpeg": "imageio-ffmpeg"}   # biped-sim animate -o x.mp4
 
 
 def test_ruff_is_clean():
@@ -62,7 +64,10 @@ def test_every_import_of_the_package_is_declared():
     problems = []
     for module in sorted(imported_top_level_modules(ROOT / "biped_sim")):
         dists = by_module.get(module)
-        if not dists:
+        if not dists and module in OPTIONAL_MAY_BE_ABSENT:
+            if OPTIONAL_MAY_BE_ABSENT[module] not in pip:
+                problems.append(f"{module}: {OPTIONAL_MAY_BE_ABSENT[module]} missing from setup.py extras_require")
+        elif not dists:
             problems.append(f"{module}: no installed distribution provides it (cannot check its declaration)")
         elif any(d.startswith("ros-") for d in dists):
             if module not in declared_ros:

@@ -1,0 +1,230 @@
+"""A run as a moving picture: the stick figure, the ground force arrow, a time stamp (``biped-sim animate``).
+
+Owns the frames (drawn with Pillow's ImageDraw: 1.6 ms a frame here against 97 ms for the same figure in
+matplotlib, see docs/cli.md) and the files (GIF through Pillow, MP4 through imageio-ffmpeg
+when it is installed). A run comes from a bag (:func:`track_from_bag`) or from a headless
+``simulate`` (:func:`track_from_result`); the points are ``BipedModel.stick_figure`` and the arrow
+scale, colours and impact flash those of the markers (:mod:`biped_sim.recording.markers`).
+"""
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+
+import numpy as np
+
+from biped_sim.recording import markers as MK
+
+WIDTH, HEIGHT = 560, 320          # pixels (multiples of 16: an MP4 encoder takes them as they are)
+PIXELS_PER_METRE = 130.0
+MP4_MISSING = "writing MP4 needs imageio-ffmpeg: pip install imageio-ffmpeg (or write a .gif)"
+
+
+@dataclass
+class Track:
+    """A run's states over time: t (N), q (N, 5), stance leg (N), ground force (N, 2); impacts
+    (time, (x, y) of the landing foot); the model and the ground slope."""
+    t: np.ndarray
+    q: np.ndarray
+    leg: np.ndarray
+    force: np.ndarray
+    impacts: list
+    model: object
+    slope: float = 0.0
+
+
+def track_from_result(result, model, slope=0.0) -> Track:
+    """The Track of a ``SimulationResult`` (``simulate`` or ``Scene.simulate``)."""
+    impacts = [(e.time, tuple(model.foot_position(e.q, e.leg))) for e in result.impacts]
+    return Track(result.t, result.q, result.stance_leg, result.grf, impacts, model, slope)
+
+
+def track_from_bag(bag) -> Track:
+    """The Track of a biped_sim bag (joint_states, ground_reaction, impact); ValueError in one line
+    for a path that is not such a bag."""
+    from biped_sim.recording import inspect_bag
+    try:
+        run = inspect_bag.load_run(bag)
+    except ValueError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - mcap's reader raises many kinds for a file that is not a bag
+        raise ValueError(f"cannot read {bag} as an MCAP bag: {type(exc).__name__}: {exc}") from None
+    if not len(run["t"]):
+        raise ValueError(f"{bag} has no joint_states messages: not a biped_sim run (or an empty one); "
+                         f"topics: {sorted(run['counts']) or 'none'}")
+    params = run["params"] or {}
+    model = inspect_bag.run_model(params)
+    # the ground force has its own messages (in stance only), stamped like the state they belong to
+    by_ns = dict(zip(np.round(run["grf_t"] * 1e9).astype(np.int64).tolist(), run["grf"].tolist()))
+    force = np.array([by_ns.get(k, (0.0, 0.0)) for k in np.round(run["t"] * 1e9).astype(np.int64).tolist()])
+    impacts = []
+    for e in run["impacts"]:
+        q, foot = e.get("q"), e.get("foot")
+        if isinstance(q, list) and len(q) == 5 and foot in (1, 2):
+            impacts.append((float(e["time"]), tuple(model.foot_position(np.array(q), foot))))
+    return Track(run["t"], run["q"], run["leg"], force.reshape(-1, 2), impacts, model,
+                 float(params.get("slope", 0.0) or 0.0))
+
+
+def frame_times(track: Track, fps: float, speed: float = 1.0, start: float | None = None,
+                duration: float | None = None) -> np.ndarray:
+    """The simulated times of the frames: one every ``speed / fps`` s from ``start`` (default: the
+    first state) over ``duration`` (default: to the last state)."""
+    t0 = track.t[0] if start is None else max(float(start), track.t[0])
+    t1 = track.t[-1] if duration is None else min(t0 + float(duration), track.t[-1])
+    if t0 > track.t[-1]:
+        raise ValueError(f"--start {start} is after the run's end (t = {track.t[-1]:.6g} s)")
+    n = max(1, int(math.floor((t1 - t0) * fps / speed + 1e-9)) + 1)
+    return t0 + np.arange(n) * (speed / fps)
+
+
+_PALETTE = {"background": (255, 255, 255), "ground": (77, 77, 77), "tick": (190, 190, 190), "text": (0, 0, 0)}
+
+
+def _rgb(colour):
+    return tuple(int(round(255 * c)) for c in colour[:3])
+
+
+class FrameDrawer:
+    """Draws one state on a WIDTH x HEIGHT palette image; the view follows the hip."""
+
+    def __init__(self, track: Track, width=WIDTH, height=HEIGHT, scale=PIXELS_PER_METRE):
+        from PIL import ImageFont
+        self.track, self.w, self.h, self.s = track, width, height, scale
+        colours = [_PALETTE["background"], _PALETTE["ground"], _PALETTE["tick"], _PALETTE["text"]] + [
+            _rgb(c) for c in (MK.LEG_COLOURS[1], MK.LEG_COLOURS[2], MK.TORSO_COLOUR, MK.HIP_COLOUR,
+                              MK.STANCE_FOOT_COLOUR, MK.SWING_FOOT_COLOUR, MK.FORCE_COLOUR, MK.FLASH_COLOUR)]
+        self.index = {rgb: i for i, rgb in enumerate(colours)}
+        self.palette = [v for rgb in colours for v in rgb] + [0] * (768 - 3 * len(colours))
+        self.font = ImageFont.load_default(size=15)
+        self.small = ImageFont.load_default(size=11)
+
+    def _c(self, colour):
+        return self.index[_rgb(colour) if len(colour) == 4 else colour]
+
+    def draw(self, t, q, leg, force, flash_at=None):
+        from PIL import Image, ImageDraw
+        img = Image.new("P", (self.w, self.h), 0)
+        img.putpalette(self.palette)
+        d = ImageDraw.Draw(img)
+        fig = self.track.model.stick_figure(q)
+        slope = self.track.slope
+        cx, cy = fig.hip[0], MK.ground_y(fig.hip[0], slope) + 0.75   # view centre (m)
+
+        def px(p):
+            return (self.w / 2 + (p[0] - cx) * self.s, self.h / 2 - (p[1] - cy) * self.s)
+        half = self.w / 2 / self.s + 0.5
+        x0, x1 = cx - half, cx + half
+        for k in range(math.floor(x0 / 0.5), math.ceil(x1 / 0.5) + 1):   # a tick every 0.5 m: the motion
+            x = k * 0.5
+            a, b = px((x, MK.ground_y(x, slope))), px((x, MK.ground_y(x, slope) - 0.06))
+            d.line([a, b], fill=self.index[_PALETTE["tick"]], width=2)
+        d.line([px((x0, MK.ground_y(x0, slope))), px((x1, MK.ground_y(x1, slope)))],
+               fill=self.index[_PALETTE["ground"]], width=2)
+        if flash_at is not None:
+            self._dot(d, px(flash_at), 14, MK.FLASH_COLOUR)
+        d.line([px(fig.hip), px(fig.torso_tip)], fill=self._c(MK.TORSO_COLOUR), width=6)
+        for k, foot in ((1, fig.foot_1), (2, fig.foot_2)):
+            d.line([px(fig.hip), px(foot)], fill=self._c(MK.LEG_COLOURS[k]), width=5)
+        for k, foot in ((1, fig.foot_1), (2, fig.foot_2)):
+            self._dot(d, px(foot), 6 if k == leg else 4, MK.STANCE_FOOT_COLOUR if k == leg else MK.SWING_FOOT_COLOUR)
+        self._dot(d, px(fig.hip), 6, MK.HIP_COLOUR)
+        if leg in (1, 2) and (force[0] or force[1]):
+            foot = fig.foot_1 if leg == 1 else fig.foot_2
+            self._arrow(d, px(foot), px(MK.force_arrow_end(foot, force)), self._c(MK.FORCE_COLOUR))
+        text = self.index[_PALETTE["text"]]
+        d.text((10, 8), f"t = {t:6.3f} s", fill=text, font=self.font)
+        d.text((10, self.h - 20), f"ground force arrow: {MK.NEWTONS_PER_METRE:g} N per m", fill=text,
+               font=self.small)
+        return img
+
+    def _dot(self, d, p, r, colour):
+        d.ellipse([p[0] - r, p[1] - r, p[0] + r, p[1] + r], fill=self._c(colour))
+
+    @staticmethod
+    def _arrow(d, a, b, fill):
+        d.line([a, b], fill=fill, width=3)
+        ang = math.atan2(b[1] - a[1], b[0] - a[0])
+        head = [(b[0] - 10 * math.cos(ang + s), b[1] - 10 * math.sin(ang + s)) for s in (0.45, -0.45)]
+        d.polygon([b, *head], fill=fill)
+
+
+def frames(track: Track, times, progress=None):
+    """Yield the Pillow image of each frame time (the last state at or before it)."""
+    drawer = FrameDrawer(track)
+    idx = np.clip(np.searchsorted(track.t, times, side="right") - 1, 0, len(track.t) - 1)
+    impact_t = np.array([i[0] for i in track.impacts])
+    for n, (tk, i) in enumerate(zip(times, idx)):
+        flash = None
+        if len(impact_t):
+            j = int(np.searchsorted(impact_t, tk, side="right")) - 1
+            if j >= 0 and tk - impact_t[j] <= MK.FLASH_DURATION:
+                flash = track.impacts[j][1]
+        yield drawer.draw(tk, track.q[i], int(track.leg[i]), track.force[i], flash)
+        if progress is not None:
+            progress(n + 1, len(times))
+
+
+def check_output(path) -> str:
+    """"gif" or "mp4" for an output path; ValueError for another suffix or MP4 without imageio-ffmpeg."""
+    suffix = str(path).rsplit(".", 1)[-1].lower() if "." in str(path) else ""
+    if suffix not in ("gif", "mp4"):
+        raise ValueError(f"the output must end in .gif or .mp4, got {path}")
+    if suffix == "mp4":
+        try:
+            import imageio_ffmpeg  # noqa: F401
+        except ImportError:
+            raise MissingEncoder(MP4_MISSING) from None
+    return suffix
+
+
+class MissingEncoder(ValueError):
+    """MP4 asked for, imageio-ffmpeg not installed."""
+
+
+def gif_fps(fps: float) -> float:
+    """The frame rate a GIF can keep: its delays are whole hundredths of a second (at least 2: browsers
+    slow down shorter ones), so 30 fps becomes 33.3 fps, and the speed stays exact."""
+    return 100.0 / max(2, round(100.0 / fps))
+
+
+def write(track: Track, path, fps=20.0, speed=1.0, start=None, duration=None, progress=None):
+    """Write the animation to ``path`` (.gif or .mp4); returns (number of frames, frame rate used)."""
+    kind = check_output(path)
+    if kind == "gif":
+        fps = gif_fps(fps)
+    times = frame_times(track, fps, speed, start, duration)
+    images = frames(track, times, progress)
+    if kind == "gif":
+        first = next(images)
+        first.save(path, save_all=True, append_images=list(images), duration=round(1000 / fps), loop=0)
+        return len(times), fps
+    import imageio_ffmpeg
+    writer = imageio_ffmpeg.write_frames(str(path), (WIDTH, HEIGHT), fps=fps, quality=7)
+    writer.send(None)
+    try:
+        for img in images:
+            writer.send(img.convert("RGB").tobytes())
+    finally:
+        writer.close()
+    return len(times), fps
+
+
+class ProgressBar:
+    """``[####....] 45 %  90/200 frames`` on stderr, redrawn in place at most every 2 %."""
+
+    def __init__(self, label="animate", stream=None, width=30):
+        self.label, self.stream, self.width, self.shown = label, stream or sys.stderr, width, -1
+
+    def __call__(self, done, total):
+        pct = int(100 * done / max(total, 1))
+        if pct < self.shown + 2 and done < total:
+            return
+        self.shown = pct
+        fill = int(self.width * done / max(total, 1))
+        self.stream.write(f"\r[{self.label}] [{'#' * fill}{'.' * (self.width - fill)}] {pct:3d} %  "
+                          f"{done}/{total} frames")
+        if done >= total:
+            self.stream.write("\n")
+        self.stream.flush()

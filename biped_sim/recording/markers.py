@@ -1,0 +1,154 @@
+"""The robot drawn as ``visualization_msgs/msg/MarkerArray`` (the ``markers`` topic), for RViz and Foxglove.
+
+Owns the marker message (built here, so that the node, ``simulate --record`` and a bag tool make the
+same one) and what the animation shares with it: the arrow scale of the ground force, the colours,
+the impact flash. The points come from the engine's one geometry, ``BipedModel.stick_figure``.
+
+Axes: ``frame_id`` ``world``; the model's sagittal plane (x forward, y up) is drawn as the x-z plane
+(x forward, z up, y = 0), as RViz and Foxglove expect a vertical z. Every marker is in namespace
+``biped_sim`` with a fixed id (below); a part that is absent (the force arrow in flight, the flash
+between impacts) is sent with action DELETE, so each array holds the same nine ids.
+"""
+from __future__ import annotations
+
+import math
+
+from biped_sim.engine.results import IMPACT_KINDS
+
+#: ground force arrow: this many newtons per metre of arrow (the weight of the default robot,
+#: 196 N, is a 0.49 m arrow)
+NEWTONS_PER_METRE = 400.0
+#: the impact flash lasts this long (s of the stream's clock: wall time in the node, simulated time
+#: in a headless recording and in the animation)
+FLASH_DURATION = 0.25
+#: half the length of the drawn ground line, centred under the hip (m)
+GROUND_HALF_LENGTH = 3.0
+FRAME_ID = "world"
+NAMESPACE = "biped_sim"
+
+# marker ids
+LEG_1, LEG_2, TORSO, HIP, FOOT_1, FOOT_2, FORCE, GROUND, FLASH = range(1, 10)
+
+# colours (r, g, b, a): leg 1 blue, leg 2 orange, torso green as in `biped-sim inspect`; the stance
+# foot red, a swing foot grey
+LEG_COLOURS = {1: (0.12, 0.47, 0.71, 1.0), 2: (1.0, 0.50, 0.05, 1.0)}
+TORSO_COLOUR = (0.17, 0.63, 0.17, 1.0)
+HIP_COLOUR = (0.1, 0.1, 0.1, 1.0)
+STANCE_FOOT_COLOUR = (0.84, 0.15, 0.16, 1.0)
+SWING_FOOT_COLOUR = (0.5, 0.5, 0.5, 1.0)
+FORCE_COLOUR = (0.58, 0.40, 0.74, 1.0)
+GROUND_COLOUR = (0.3, 0.3, 0.3, 1.0)
+FLASH_COLOUR = (1.0, 0.85, 0.0, 0.7)
+
+
+def ground_y(x: float, slope: float) -> float:
+    """The ground line's y at x: height above the ground is y + tan(slope) x (engine/guards.py)."""
+    return -math.tan(slope) * x
+
+
+def force_arrow_end(foot, force):
+    """The arrow's tip: the foot plus the force times 1 / NEWTONS_PER_METRE (x, y in the plane)."""
+    return (foot[0] + force[0] / NEWTONS_PER_METRE, foot[1] + force[1] / NEWTONS_PER_METRE)
+
+
+def _point(xy):
+    from geometry_msgs.msg import Point
+    return Point(x=float(xy[0]), y=0.0, z=float(xy[1]))
+
+
+def _marker(header, mid, kind, colour, scale, points=(), position=None):
+    from std_msgs.msg import ColorRGBA
+    from visualization_msgs.msg import Marker
+    m = Marker(header=header, ns=NAMESPACE, id=mid, type=kind, action=Marker.ADD)
+    m.pose.orientation.w = 1.0
+    if position is not None:
+        p = _point(position)
+        m.pose.position.x, m.pose.position.z = p.x, p.z
+    m.scale.x, m.scale.y, m.scale.z = scale
+    m.color = ColorRGBA(r=colour[0], g=colour[1], b=colour[2], a=colour[3])
+    m.points = [_point(p) for p in points]
+    return m
+
+
+def _deleted(header, mid, kind):
+    from visualization_msgs.msg import Marker
+    return Marker(header=header, ns=NAMESPACE, id=mid, type=kind, action=Marker.DELETE)
+
+
+def marker_array(t, figure, stance_leg, force, slope=0.0, flash_at=None):
+    """The MarkerArray of one state at simulated time ``t`` (the header stamp).
+
+    ``figure``: ``BipedModel.stick_figure(q)``; ``stance_leg`` 1, 2 or 0 (flight); ``force`` the
+    ground's force on the stance foot [Fx, Fy] (N; ignored in flight); ``slope`` the ground's angle
+    (rad); ``flash_at``: the (x, y) of a touchdown to flash, or None.
+    """
+    from builtin_interfaces.msg import Duration
+    from std_msgs.msg import Header
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    from biped_sim.recording.messages import stamp
+    header = Header(stamp=stamp(t), frame_id=FRAME_ID)
+    hip, feet = figure.hip, {1: figure.foot_1, 2: figure.foot_2}
+    out = [_marker(header, LEG_1, Marker.LINE_STRIP, LEG_COLOURS[1], (0.04, 0, 0), (hip, feet[1])),
+           _marker(header, LEG_2, Marker.LINE_STRIP, LEG_COLOURS[2], (0.04, 0, 0), (hip, feet[2])),
+           _marker(header, TORSO, Marker.LINE_STRIP, TORSO_COLOUR, (0.05, 0, 0), (hip, figure.torso_tip)),
+           _marker(header, HIP, Marker.SPHERE, HIP_COLOUR, (0.09, 0.09, 0.09), position=hip)]
+    for leg, mid in ((1, FOOT_1), (2, FOOT_2)):
+        stance = leg == stance_leg
+        d = 0.08 if stance else 0.06
+        out.append(_marker(header, mid, Marker.SPHERE, STANCE_FOOT_COLOUR if stance else SWING_FOOT_COLOUR,
+                           (d, d, d), position=feet[leg]))
+    if stance_leg in (1, 2):
+        foot = feet[stance_leg]
+        out.append(_marker(header, FORCE, Marker.ARROW, FORCE_COLOUR, (0.02, 0.05, 0.06),
+                           (foot, force_arrow_end(foot, force))))
+    else:
+        out.append(_deleted(header, FORCE, Marker.ARROW))
+    x0, x1 = hip[0] - GROUND_HALF_LENGTH, hip[0] + GROUND_HALF_LENGTH
+    out.append(_marker(header, GROUND, Marker.LINE_STRIP, GROUND_COLOUR, (0.02, 0, 0),
+                       ((x0, ground_y(x0, slope)), (x1, ground_y(x1, slope)))))
+    if flash_at is not None:
+        m = _marker(header, FLASH, Marker.SPHERE, FLASH_COLOUR, (0.25, 0.25, 0.25), position=flash_at)
+        m.lifetime = Duration(sec=0, nanosec=int(FLASH_DURATION * 1e9))
+        out.append(m)
+    else:
+        out.append(_deleted(header, FLASH, Marker.SPHERE))
+    return MarkerArray(markers=out)
+
+
+class MarkerStream:
+    """When to send the next MarkerArray and what it shows, for a simulator advancing period by period.
+
+    ``poll(now, sim)`` returns the array of the simulator's current state once ``1 / rate`` has
+    passed on the caller's clock ``now`` (the node: wall time; a headless recording: simulated time),
+    else None; nothing is computed in between but the look for new touchdowns, each of which
+    flashes for FLASH_DURATION on that clock (at least one array).
+    """
+
+    def __init__(self, model, slope: float, rate: float):
+        self.model, self.slope, self.interval = model, float(slope), 1.0 / float(rate)
+        self.next_due = -math.inf
+        self.n_events = 0
+        self.flash_at, self.flash_until = None, -math.inf
+
+    def poll(self, now: float, sim, force: bool = False):
+        """The MarkerArray of ``sim``'s state (``t``, ``q``, ``stance_leg``, ``ground_force``,
+        ``events``) if one is due at ``now`` (or ``force``), else None."""
+        events = sim.events
+        if len(events) > self.n_events:
+            touchdowns = [e for e in events[self.n_events:] if e.kind in IMPACT_KINDS]
+            self.n_events = len(events)
+            if touchdowns:
+                last = touchdowns[-1]
+                self.flash_at = tuple(self.model.foot_position(last.q, last.leg))
+                self.flash_until = now + FLASH_DURATION
+                self.next_due = min(self.next_due, now)     # show it now
+        if now < self.next_due and not force:
+            return None
+        self.next_due = now + self.interval
+        flash = self.flash_at if now <= self.flash_until else None
+        if flash is None:
+            self.flash_at = None
+        leg = sim.stance_leg
+        return marker_array(sim.t, self.model.stick_figure(sim.q), leg, sim.ground_force if leg else (0.0, 0.0),
+                            self.slope, flash)

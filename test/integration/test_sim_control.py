@@ -1,0 +1,241 @@
+"""Simulation control over real DDS (issue 16): ``~/pause``, ``~/step``, ``~/reset`` and the ``push``
+topic of ``sim_node``, with the walk scene and its controller as separate processes; the bags it
+leaves read back with ``rosbags`` and re-simulated."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from ros_helpers import Client, ros_domain, start_node
+
+rclpy = pytest.importorskip("rclpy")
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import Vector3Stamped  # noqa: E402
+from rosbags.rosbag2 import Reader  # noqa: E402
+from rosbags.typesys import Stores, get_typestore  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_msgs.msg import Float64MultiArray  # noqa: E402
+from std_srvs.srv import SetBool, Trigger  # noqa: E402
+
+from biped_sim.engine.dynamics import push_response  # noqa: E402
+from biped_sim.engine.model import BipedModel  # noqa: E402
+from biped_sim.recording.resim import resim  # noqa: E402
+
+WALK = Path(__file__).resolve().parents[2] / "msg_configs" / "walk.yaml"
+SCENE = yaml.safe_load(WALK.read_text())["biped_sim"]["ros__parameters"]
+PERIOD_NS = round(SCENE["control_period"] * 1e9)
+PUSH = (-6.0, -4.0)            # backwards and down: the ground keeps the stance foot
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+
+
+def ns(stamp):
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def events(arrays, name):
+    return [(ns(a.header.stamp), {kv.key: kv.value for kv in s.values}, s.message)
+            for a in arrays for s in a.status if s.name == name]
+
+
+class Control:
+    """Service clients of the node's ~/pause, ~/step, ~/reset."""
+
+    def __init__(self, client, proc):
+        self.c, self.proc = client, proc
+        self.pause_cli = client.node.create_client(SetBool, "/biped_sim/pause")
+        self.step_cli = client.node.create_client(Trigger, "/biped_sim/step")
+        self.reset_cli = client.node.create_client(Trigger, "/biped_sim/reset")
+        for cli in (self.pause_cli, self.step_cli, self.reset_cli):
+            client.spin_until(cli.service_is_ready, what=f"the service {cli.srv_name}", proc=proc)
+
+    def call(self, cli, request):
+        future = cli.call_async(request)
+        self.c.spin_until(future.done, timeout=30, what=f"the answer of {cli.srv_name}", proc=self.proc)
+        return future.result()
+
+    def pause(self, on):
+        return self.call(self.pause_cli, SetBool.Request(data=on))
+
+    def step(self):
+        return self.call(self.step_cli, Trigger.Request())
+
+    def reset(self):
+        return self.call(self.reset_cli, Trigger.Request())
+
+
+def stepped_to(answer):
+    """The time (ns) a ~/step answer says it stepped to."""
+    return round(float(answer.message.split(" to t=")[1].split(" s")[0]) * 1e9)
+
+
+def bag_messages(bag):
+    out = {}
+    with Reader(bag) as reader:
+        for conn, t_ns, raw in reader.messages():
+            out.setdefault(conn.topic, []).append((t_ns, TYPESTORE.deserialize_cdr(raw, conn.msgtype)))
+    return out
+
+
+def test_pause_step_push_reset_resume_with_the_walk_controller(tmp_path):
+    # realtime at a fifth of the wall clock: the controller, a process on a shared machine, keeps up
+    params = dict(time_mode="realtime", rate_factor=0.2, duration=60.0, bag_dir=str(tmp_path))
+    scene_file = ["--ros-args", "--params-file", str(WALK)]
+    with ros_domain() as dom, start_node(params, dom, extra_args=scene_file) as proc, \
+            start_node(None, dom, "walk_controller", extra_args=scene_file) as ctrl, Client(dom) as c:
+        js = c.collect("/joint_states", JointState)
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        clock = c.collect("/clock", Clock)
+        push_pub = c.publisher("/push", Vector3Stamped)
+        srv = Control(c, proc)
+        c.wait_subscribed("/joint_states", proc=proc)
+        c.spin_until(lambda: js and ns(js[-1].header.stamp) > 0.05e9, timeout=60, what="the walk under way",
+                     proc=proc)
+        assert ctrl.alive
+
+        # pause; one step: exactly one control period, its state and /clock published
+        answer = srv.pause(True)
+        assert answer.success and "paused at t=" in answer.message
+        assert not srv.pause(True).message.find("already paused")
+        answer = srv.step()
+        assert answer.success, answer.message
+        t1 = stepped_to(answer)
+        c.spin_until(lambda: ns(js[-1].header.stamp) == t1 and ns(clock[-1].clock) == t1, timeout=10,
+                     what="the stepped state", proc=proc)
+        stamps = [ns(m.header.stamp) for m in js]
+        assert stamps[-1] - stamps[-2] == PERIOD_NS
+        t_before = stamps[-1]
+        answer = srv.step()
+        assert stepped_to(answer) - t_before == PERIOD_NS
+        c.spin_until(lambda: ns(js[-1].header.stamp) == t_before + PERIOD_NS, timeout=10, what="the second step",
+                     proc=proc)
+
+        # a bad push is refused (z != 0), the run goes on; a good one applies at the next step
+        c.wait_matched(push_pub, proc=proc)
+        push_pub.publish(Vector3Stamped(vector=rclpy_vector(1.0, 0.0, 0.5)))
+        push_pub.publish(Vector3Stamped(vector=rclpy_vector(*PUSH, 0.0)))
+        for _ in range(20):            # the push and the ~/step travel separately: step until it applied
+            answer = srv.step()
+            assert answer.success, answer.message
+            c.spin_until(lambda: ns(js[-1].header.stamp) == stepped_to(answer), timeout=10, what="a step", proc=proc)
+            if events(diag, "biped_sim/push"):
+                break
+        (t_push, ev, _msg), = events(diag, "biped_sim/push")
+        assert ast.literal_eval(ev["push"]) == list(PUSH)
+        before = next(m for m in js if ns(m.header.stamp) == t_push)       # the state the push met
+        after = next(m for m in js if ns(m.header.stamp) == t_push + PERIOD_NS)
+        q, dq = np.array(before.position), np.array(before.velocity)
+        assert ast.literal_eval(ev["dq_minus"]) == dq.tolist()
+        leg = int(before.header.frame_id.split("_")[1])
+        dq_plus, ground = push_response(BipedModel(), q, dq, PUSH, leg)
+        assert ast.literal_eval(ev["dq_plus"]) == dq_plus.tolist()
+        assert ast.literal_eval(ev["impulse"]) == ground.tolist() and ev["stance_leg_after"] == str(leg)
+        jump = dq_plus[0] - dq[0]
+        assert jump < -0.1                                             # pushed back
+        assert abs((after.velocity[0] - before.velocity[0]) - jump) < 0.2 * abs(jump)   # + one period's dynamics
+        assert "push refused" in proc.output() and "vector.z must be 0" in proc.output()
+
+        # reset: time goes back to 0, the scene's initial state; still paused
+        answer = srv.reset()
+        assert answer.success and "reset to t = 0" in answer.message, answer.message
+        c.spin_until(lambda: ns(js[-1].header.stamp) == 0 and ns(clock[-1].clock) == 0, timeout=10,
+                     what="the state at t = 0 after the reset", proc=proc)
+        assert list(js[-1].position) == SCENE["initial_q"] and list(js[-1].velocity) == SCENE["initial_dq"]
+        assert [e[1]["resets"] for e in events(diag, "biped_sim/reset")] == ["1", "1"]
+        n = len(js)
+        assert srv.step().success
+        c.spin_until(lambda: len(js) > n, timeout=10, what="a step after the reset", proc=proc)
+        assert ns(js[-1].header.stamp) == PERIOD_NS
+
+        # resume: the walk goes on from the start
+        answer = srv.pause(False)
+        assert answer.success and "running at t=" in answer.message
+        c.spin_until(lambda: ns(js[-1].header.stamp) > 0.05e9, timeout=60, what="the walk resumed", proc=proc)
+        refused = srv.step()
+        assert not refused.success and "running" in refused.message
+        assert proc.stop() == 0
+
+    first, second = sorted(p for p in tmp_path.iterdir() if p.is_dir())
+    assert second.name == first.name + "-reset1"
+    a, b = bag_messages(first), bag_messages(second)
+    diag_a = [s for _t, m in a["/diagnostics"] for s in m.status]
+    assert [s.name for s in diag_a].count("biped_sim/push") == 1
+    marker = [s for s in diag_a if s.name == "biped_sim/reset"]
+    assert len(marker) == 1 and {kv.key: kv.value for kv in marker[0].values}["next_bag"] == str(second)
+    assert any(abs(m.vector.x - PUSH[0]) < 1e-12 for _t, m in a["/push"])        # the push topic, recorded
+    assert b["/joint_states"][0][0] == 0 and list(b["/joint_states"][0][1].position) == SCENE["initial_q"]
+    restart = [s for _t, m in b["/diagnostics"] for s in m.status if s.name == "biped_sim/reset"]
+    assert len(restart) == 1 and {kv.key: kv.value for kv in restart[0].values}["previous_bag"] == str(first)
+
+
+def rclpy_vector(x, y, z):
+    from geometry_msgs.msg import Vector3
+    return Vector3(x=float(x), y=float(y), z=float(z))
+
+
+def test_lockstep_pause_holds_commands_step_is_refused_and_resim_replays_the_push(tmp_path):
+    params = dict(time_mode="lockstep", control_period=0.002, duration=0.5, bag_dir=str(tmp_path),
+                  initial_q=SCENE["initial_q"], initial_dq=SCENE["initial_dq"], phases=["stance", "impact"])
+    with ros_domain() as dom, start_node(params, dom) as proc, Client(dom) as c:
+        js = c.collect("/joint_states", JointState)
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        cmd = c.publisher("/hip_torque", Float64MultiArray)
+        push_pub = c.publisher("/push", Vector3Stamped)
+        srv = Control(c, proc)
+        c.wait_matched(cmd, proc=proc)
+        c.wait_matched(push_pub, proc=proc)
+        c.spin_until(lambda: js, what="the state at t = 0", proc=proc)
+
+        def send(u):
+            n = len(js)
+            cmd.publish(Float64MultiArray(data=list(u)))
+            c.spin_until(lambda: len(js) > n, timeout=10, what="the next state", proc=proc)
+
+        for _ in range(5):
+            send([2.0, -2.0])
+        refused = srv.step()
+        assert not refused.success and "lockstep" in refused.message
+        assert srv.pause(True).success
+        n = len(js)
+        cmd.publish(Float64MultiArray(data=[1.0, -1.0]))             # held while paused
+        push_pub.publish(Vector3Stamped(vector=rclpy_vector(-3.0, -2.0, 0.0)))
+        answer = srv.pause(False)                                     # the held command steps once
+        assert answer.success
+        c.spin_until(lambda: len(js) == n + 1, timeout=10, what="the held command's period", proc=proc)
+        assert ns(js[-1].header.stamp) == 6 * 2_000_000
+        while not events(diag, "biped_sim/push"):
+            send([1.0, -1.0])
+        for _ in range(5):
+            send([1.0, -1.0])
+        assert proc.stop() == 0
+    bag, = [p for p in tmp_path.iterdir() if p.is_dir()]
+    report = resim(bag)
+    assert report["pushes"] == 1 and report["identical"], report
+
+
+def test_fast_reset_restarts_a_run_the_engine_stopped():
+    # the walk's start without its controller falls: the engine stops, the node stays up; ~/reset
+    # starts the run again from t = 0, and it falls again the same way
+    params = dict(time_mode="fast", record=False, initial_q=SCENE["initial_q"], initial_dq=SCENE["initial_dq"],
+                  phases=["stance", "impact"], publish_rate=100.0)
+    with ros_domain() as dom, start_node(params, dom) as proc, Client(dom) as c:
+        js = c.collect("/joint_states", JointState)
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        srv = Control(c, proc)
+        runs = lambda: [v for _t, v, _m in events(diag, "biped_sim/run")]  # noqa: E731
+        c.spin_until(lambda: runs(), timeout=60, what="the engine's stop", proc=proc)
+        first = runs()[0]
+        assert first["status"] == "stopped"
+        refused = srv.step()
+        assert not refused.success
+        answer = srv.reset()
+        assert answer.success, answer.message
+        c.spin_until(lambda: len(runs()) == 2, timeout=60, what="the second stop", proc=proc)
+        second = runs()[1]
+        assert second["status"] == "stopped" and second["time"] == first["time"]
+        assert any(ns(m.header.stamp) == 0 for m in js[1:])       # time went back to 0
+        assert proc.stop() == 0

@@ -1,0 +1,120 @@
+"""``biped-sim animate --scene``: a GIF written and read back with Pillow; bad input in one line."""
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from biped_sim.cli import main as biped_sim
+from biped_sim.recording import animation as A, markers as MK
+
+
+def gif_frames(path):
+    with Image.open(path) as im:
+        out = []
+        for k in range(im.n_frames):
+            im.seek(k)
+            out.append(np.asarray(im.convert("RGB")))
+        return out, im.info.get("duration")
+
+
+def colour_pixels(frame, colour, tol=8):
+    rgb = np.array([round(255 * c) for c in colour[:3]])
+    return int(np.sum(np.all(np.abs(frame.astype(int) - rgb) <= tol, axis=-1)))
+
+
+def test_animate_a_scene_writes_a_gif_of_the_moving_robot(tmp_path, capsys):
+    out = tmp_path / "walk.gif"
+    assert biped_sim(["animate", "--scene", "walk", "--duration", "1", "--fps", "10", "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "11/11 frames" in err and "100 %" in err           # the progress bar
+    frames, ms = gif_frames(out)
+    assert len(frames) == 11 and ms == 100                      # 1 s at 10 fps, real time: t = 0, 0.1, ... 1 s
+    assert frames[0].shape == (A.HEIGHT, A.WIDTH, 3)
+    for f in frames:                                            # the torso, the stance foot, the force arrow
+        for colour in (MK.TORSO_COLOUR, MK.STANCE_FOOT_COLOUR, MK.FORCE_COLOUR):
+            assert colour_pixels(f, colour) > 10, colour
+    for colour in (MK.LEG_COLOURS[1], MK.LEG_COLOURS[2]):      # each leg (one hides the other as they cross)
+        assert sum(colour_pixels(f, colour) > 100 for f in frames) >= 9, colour
+    assert all(not np.array_equal(a, b) for a, b in zip(frames, frames[1:]))   # the robot moves
+    # the walk's first touchdown (t = 0.4716 s) flashes in the frame at 0.5 s
+    assert colour_pixels(frames[5], MK.FLASH_COLOUR) > 20 and colour_pixels(frames[3], MK.FLASH_COLOUR) == 0
+
+
+def test_speed_and_start_choose_the_frames(tmp_path):
+    out = tmp_path / "fast.gif"
+    assert biped_sim(["animate", "--scene", "walk", "--start", "0.5", "--duration", "1", "--speed", "2", "--fps",
+                      "10", "-q", "-o", str(out)]) == 0
+    frames, _ = gif_frames(out)
+    assert len(frames) == 6                                     # 1 s of simulated time at 2x: 0.5 s at 10 fps
+
+
+def test_a_gif_keeps_the_speed_with_delays_in_hundredths():
+    assert A.gif_fps(20) == 20 and A.gif_fps(30) == pytest.approx(100 / 3) and A.gif_fps(200) == 50
+
+
+def test_frame_times_follow_speed_and_fps():
+    track = A.Track(np.linspace(0, 3, 3001), np.zeros((3001, 5)), np.ones(3001, int), np.zeros((3001, 2)), [],
+                    None)
+    assert A.frame_times(track, 20).tolist() == pytest.approx(np.arange(61) * 0.05)
+    assert len(A.frame_times(track, 30, speed=0.5)) == 181
+    with pytest.raises(ValueError, match="after the run's end"):
+        A.frame_times(track, 20, start=4)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("imageio_ffmpeg") is not None, reason="imageio-ffmpeg is installed")
+def test_mp4_without_imageio_ffmpeg_says_what_to_install(tmp_path, capsys):
+    assert biped_sim(["animate", "--scene", "walk", "-o", str(tmp_path / "w.mp4")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["biped-sim animate: writing MP4 needs imageio-ffmpeg: pip install imageio-ffmpeg (or write a .gif)"]
+    assert not (tmp_path / "w.mp4").exists()
+
+
+@pytest.mark.skipif(importlib.util.find_spec("imageio_ffmpeg") is None, reason="imageio-ffmpeg is not installed")
+def test_mp4_through_imageio_ffmpeg(tmp_path):
+    import imageio_ffmpeg
+    out = tmp_path / "w.mp4"
+    assert biped_sim(["animate", "--scene", "walk", "--duration", "1", "--fps", "10", "-q", "-o", str(out)]) == 0
+    reader = imageio_ffmpeg.read_frames(str(out))
+    meta = next(reader)
+    assert meta["size"] == (A.WIDTH, A.HEIGHT) and meta["fps"] == 10
+    assert sum(1 for _ in reader) == 11
+
+
+def _not_a_biped_bag(path):
+    from mcap.writer import Writer
+    path.mkdir()
+    with open(path / "other_0.mcap", "wb") as f:
+        w = Writer(f)
+        w.start(profile="ros2", library="test")
+        sid = w.register_schema("std_msgs/msg/String", "ros2msg", b"string data")
+        cid = w.register_channel("/chatter", "cdr", sid)
+        w.add_message(cid, log_time=1, publish_time=1, data=b"\x00\x01\x00\x00\x03\x00\x00\x00hi\x00")
+        w.finish()
+    return path
+
+
+@pytest.mark.parametrize("case, argv, says", [
+    ("missing", lambda p: [str(p / "nope")], "no bag at"),
+    ("empty folder", lambda p: [str(p / "empty")], "holds no .mcap file"),
+    ("not biped_sim", lambda p: [str(_not_a_biped_bag(p / "other"))], "no joint_states messages"),
+    ("garbage", lambda p: [str(p / "bad" / "x.mcap")], "cannot read"),
+    ("two sources", lambda p: [str(p), "--scene", "walk"], "give a BAG or --scene NAME"),
+    ("no source", lambda p: [], "give a BAG or --scene NAME"),
+    ("suffix", lambda p: ["--scene", "walk", "-o", str(p / "w.png")], "must end in .gif or .mp4"),
+    ("speed", lambda p: ["--scene", "walk", "--speed", "0"], "--speed must be a positive number"),
+    ("scene", lambda p: ["--scene", "nowhere"], "unknown scene 'nowhere'"),
+])
+def test_bad_input_is_one_line_and_exit_code_2(tmp_path, capsys, case, argv, says):
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / "x.mcap").write_bytes(b"this is not an mcap file")
+    args = ["animate", *argv(tmp_path)]
+    if "-o" not in args:
+        args += ["-o", str(tmp_path / "out.gif")]
+    assert biped_sim(args) == 2, case
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("biped-sim animate: error: ") and says in err[0], (case, err)
+    assert not (tmp_path / "out.gif").exists()
