@@ -170,17 +170,17 @@ def test_a_restarted_controller_goes_on_from_the_newest_state(tmp_path):
 # -- item 6: two controllers, two simulations ---------------------------------------------------------
 def test_a_second_controller_is_named_at_once_and_cannot_change_the_run():
     duration = 1.5
-    with ros_domain() as dom, Client(dom) as c:
-        with start_node({"duration": duration, "record": False}, dom,
-                        extra_args=["--ros-args", "--params-file", WALK]) as sim:
-            js = c.collect("/joint_states", JointState)
-            diag = c.collect("/diagnostics", DiagnosticArray)
-            c.wait_subscribed("/joint_states", proc=sim)
-            ctl = ["--ros-args", "--params-file", WALK]
-            with start_node(None, dom, "walk_controller", ctl), start_node(None, dom, "walk_controller", ctl):
-                assert sim.wait(90) == 0, sim.output()
-                status = run_status(c, diag, sim)
-                c.spin_until(lambda: t_of(js[-1]) >= duration, 10, "the last state")
+    ctl = ["--ros-args", "--params-file", WALK]
+    with ros_domain() as dom, Client(dom) as c, start_node(None, dom, "walk_controller", ctl), \
+            start_node(None, dom, "walk_controller", ctl):
+        # both controllers up before the node: each answers the run from its first state
+        c.spin_until(lambda: c.node.count_publishers("/hip_torque") == 2, 60, "two hip_torque publishers")
+        js = c.collect("/joint_states", JointState)
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        with start_node({"duration": duration, "record": False}, dom, extra_args=ctl) as sim:
+            assert sim.wait(90) == 0, sim.output()
+            status = run_status(c, diag, sim)
+            c.spin_until(lambda: js and t_of(js[-1]) >= duration, 10, "the last state")
     log = sim.output()
     assert "2 nodes publish /hip_torque: /walk_controller, /walk_controller" in log, log
     warned = next(ln for ln in log.splitlines() if "nodes publish /hip_torque" in ln)
