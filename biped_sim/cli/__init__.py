@@ -9,6 +9,8 @@ import argparse
 import importlib
 import sys
 
+from biped_sim.config.command_errors import run_command
+
 COMMANDS = ("simulate", "accuracy", "stability", "gait", "sweep", "basin", "resim", "inspect", "recover", "replay",
             "animate")
 
@@ -26,18 +28,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    """``biped-sim ARGS``: the exit code; an error ends it with one line (config.command_errors)."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    program = f"biped-sim {argv[0]}" if argv[:1] and argv[0] in COMMANDS else "biped-sim"
+    return run_command(program, _dispatch, argv)
+
+
+def _dispatch(argv) -> int:
     if argv[:1] == ["replay"]:
         # its own parser (a ROS tool's arguments, --ros-args included): argparse would take a
         # leading '--help' for biped-sim's rather than hand it on
         from biped_sim.cli.replay import run_argv
         return run_argv(argv[1:])
     args = build_parser().parse_args(argv)
-    try:
-        return int(args.func(args) or 0)
-    except ValueError as exc:  # bad input: one clear line, no traceback
-        print(f"biped-sim {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    return args.func(args)
 
 
 if __name__ == "__main__":

@@ -29,10 +29,10 @@ def register(sub):
 def run(args):
     if args.repeats is not None and args.repeats < 1:
         raise ValueError(f"--repeats must be >= 1, got {args.repeats}")
+    os.makedirs(args.out, exist_ok=True)     # before the minutes of work: a bad --out fails at once
     t0 = time.perf_counter()
     rows, refs = wp.run_benchmark(quick=args.quick, repeats=args.repeats, progress=not args.no_progress,
                                   cases_filter=args.case)
-    os.makedirs(args.out, exist_ok=True)
     md = wp.markdown(rows, refs)
     front = wp.front(rows)
     md += "\n### On the front (no other run both faster and more accurate over the run)\n\n"

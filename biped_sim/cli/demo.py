@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 from biped_sim.cli import main as cli_main
+from biped_sim.config.command_errors import CommandError, run_command
 from biped_sim.config.scenes import load_scene
 
 BIN = Path(sys.executable).parent
@@ -28,10 +29,18 @@ BIN = Path(sys.executable).parent
 def _domain():
     try:
         import domain_coordinator
-        with domain_coordinator.domain_id() as dom:
-            yield int(dom)
     except ImportError:
         yield random.randint(100, 200)
+        return
+    reserved = domain_coordinator.domain_id()
+    dom = reserved.__enter__()
+    try:
+        yield int(dom)
+    finally:
+        # released without the exception: domain_id's generator takes an OSError thrown into it for a
+        # taken port and tries the next domain, which hid every OSError of the run ("generator didn't
+        # stop after throw()")
+        reserved.__exit__(None, None, None)
 
 
 def _start(argv, env, log):
@@ -80,8 +89,12 @@ def run_nodes(scene, duration, bag_dir: Path, timeout: float):
             finally:
                 code_sim = _stop(sim)
                 _stop(ctl)
+        if code_sim == 2:       # sim_node refused to start (its bag folder, say): the fallback would too
+            raise CommandError(f"sim_node refused to start: {_last_error(logs / 'sim_node.log')} (log: "
+                               f"{logs / 'sim_node.log'})")
         if code_sim != 0:
-            raise RuntimeError(f"sim_node exited with code {code_sim}:\n" + (logs / "sim_node.log").read_text()[-2000:])
+            raise RuntimeError(f"sim_node exited with code {code_sim}: {_last_error(logs / 'sim_node.log')} "
+                               f"(log: {logs / 'sim_node.log'})")
         print(f"the nodes ran {duration:g} s of simulated time in {wall:.1f} s of wall time "
               "(processes started and discovered each other included)")
         ctl_lines = (logs / "walk_controller.log").read_text().strip().splitlines()
@@ -89,8 +102,16 @@ def run_nodes(scene, duration, bag_dir: Path, timeout: float):
             print(ctl_lines[-1])
     new = sorted({p for p in bag_dir.iterdir() if p.is_dir()} - before - {logs})
     if not new:
-        raise RuntimeError("sim_node did not write a bag:\n" + (logs / "sim_node.log").read_text()[-2000:])
+        raise RuntimeError(f"sim_node did not write a bag: {_last_error(logs / 'sim_node.log')} (log: "
+                           f"{logs / 'sim_node.log'})")
     return new[-1]
+
+
+def _last_error(log: Path) -> str:
+    """The last error line of a node's log (the node's own one-line refusal), or its last line."""
+    lines = [ln.strip() for ln in log.read_text(errors="replace").splitlines() if ln.strip()]
+    errors = [ln for ln in lines if "error" in ln.lower()]
+    return (errors or lines or ["(empty log)"])[-1]
 
 
 def main(argv=None):
@@ -107,7 +128,9 @@ def main(argv=None):
     if not args.headless:
         try:
             bag = run_nodes(scene, args.duration, Path(args.bag_dir), args.timeout)
-        except (ImportError, OSError, RuntimeError) as exc:
+        except (ImportError, RuntimeError) as exc:
+            # an OSError (a bag folder that cannot be written) is not caught: the headless run would meet
+            # it too; it ends the demo with its one line (command_errors)
             print(f"the ROS run did not work here ({exc}); falling back to the headless run", flush=True)
     if bag is None:
         try:
@@ -126,4 +149,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_command("make demo", main))

@@ -25,6 +25,35 @@ def _floats(n):
     return parse
 
 
+#: the engine options: flag -> (the scene parameter it sets, argparse keywords). The defaults (in the
+#: help) apply without --scene; with --scene only the options given replace the scene's values.
+OPTIONS = {
+    "--method": ("method", dict(choices=METHODS, help="integrator [default: dop853]")),
+    "--rtol": ("rtol", dict(type=float, help="relative tolerance (adaptive methods) [default: 1e-9]")),
+    "--atol": ("atol", dict(type=float, help="absolute tolerance (adaptive methods) [default: 1e-9]")),
+    "--step": ("step", dict(type=float, help=f"step size (s) of {', '.join(FIXED_STEP_METHODS)} [default: 1e-3]")),
+    "--control-period": ("control_period", dict(
+        type=float, help="hold the torque over this period (s), as the node does [default: continuous feedback]")),
+    "--mu": ("mu", dict(type=float, help="friction coefficient [default: enough friction]")),
+    "--base": ("base", dict(choices=("floating", "fixed"), help="stance method [default: floating]")),
+}
+DEFAULTS = dict(method="dop853", rtol=1e-9, atol=1e-9, step=1e-3, base="floating", stance_leg=1, controller="walk")
+
+
+def scene_overrides(args) -> dict:
+    """The scene parameters that the options given with ``--scene`` replace (load_scene's overrides)."""
+    if args.controller is not None:
+        raise ValueError("--controller applies without --scene only: a scene's controller comes from its file "
+                         "(a scene without a walk_controller section runs with u = 0)")
+    out = {name: getattr(args, name) for name, _kw in OPTIONS.values() if getattr(args, name) is not None}
+    for option, name in (("q0", "initial_q"), ("dq0", "initial_dq"), ("stance_leg", "initial_stance_leg")):
+        if getattr(args, option) is not None:
+            out[name] = getattr(args, option)
+    if args.duration is not None:
+        out["duration"] = float(args.duration)
+    return out
+
+
 def register(sub):
     p = sub.add_parser(
         "simulate", help="run the hybrid simulation headless and print its figures",
@@ -32,27 +61,24 @@ def register(sub):
                     "real-time factor, steps, right-hand-side evaluations, events, constraint drift "
                     "and energy-balance residual. Without --q0/--dq0 it starts on the reference "
                     "walking gait.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scene", metavar="NAME|PATH",
                    help="run a scene (msg_configs/NAME.yaml or a YAML path): its initial state, phases, options "
-                        "and controller, torques held over its control_period as the node does; --duration "
-                        "overrides its duration, --continuous feeds back continuously; other options are ignored")
+                        "and controller, torques held over its control_period as the node does; --duration, the "
+                        "engine options (--method, --rtol, --atol, --step, --mu, --base, --control-period) and "
+                        "--q0/--dq0/--stance-leg given with it replace the scene's; --continuous feeds back "
+                        "continuously")
     p.add_argument("--continuous", action="store_true",
                    help="with --scene: continuous feedback instead of held torques")
     p.add_argument("--duration", type=float, default=None, help="simulated time (s) [default: 10, or the scene's]")
     p.add_argument("--q0", type=_floats(5), help="initial q = 'x y q1 q2 q3' (m, rad), physical coordinates")
     p.add_argument("--dq0", type=_floats(5), help="initial dq (m/s, rad/s)")
-    p.add_argument("--stance-leg", type=int, choices=(0, 1, 2), default=1, help="initial stance leg (0: flight)")
-    p.add_argument("--controller", choices=("walk", "none"), default="walk",
-                   help="'walk': the reference walking controller; 'none': u = 0 (passive)")
-    p.add_argument("--method", choices=METHODS, default="dop853", help="integrator")
-    p.add_argument("--rtol", type=float, default=1e-9, help="relative tolerance (adaptive methods)")
-    p.add_argument("--atol", type=float, default=1e-9, help="absolute tolerance (adaptive methods)")
-    p.add_argument("--step", type=float, default=1e-3, help=f"step size (s) of {', '.join(FIXED_STEP_METHODS)}")
-    p.add_argument("--control-period", type=float, default=None,
-                   help="hold the torque over this period (s), as the node does; default: continuous feedback")
-    p.add_argument("--mu", type=float, default=None, help="friction coefficient (default: enough friction)")
-    p.add_argument("--base", choices=("floating", "fixed"), default="floating", help="stance method")
+    p.add_argument("--stance-leg", type=int, choices=(0, 1, 2), help="initial stance leg (0: flight) [default: 1]")
+    p.add_argument("--controller", choices=("walk", "none"),
+                   help="'walk': the reference walking controller; 'none': u = 0 (passive) [default: walk; a "
+                        "scene's controller comes from its file]")
+    for flag, (name, kw) in OPTIONS.items():
+        p.add_argument(flag, dest=name, **kw)
     p.add_argument("--events", action="store_true", help="list every event")
     p.add_argument("--record", nargs="?", const="", default=None, metavar="DIR",
                    help="record the run to a rosbag2/MCAP bag DIR/<scene>-<UTC time>/ (DIR default: bags), run in "
@@ -62,17 +88,23 @@ def register(sub):
 
 
 def run(args):
+    if args.scene:
+        args.scene_overrides = scene_overrides(args)
+    else:
+        for name, value in DEFAULTS.items():
+            if getattr(args, name) is None:
+                setattr(args, name, value)
     if args.record is not None:
         from biped_sim.recording.record_run import simulate_recorded
         return _report(simulate_recorded(args), args)
     if args.scene:
         from biped_sim.config.scenes import load_scene
-        scene = load_scene(args.scene)
-        overrides = {} if args.duration is None else {"t_final": args.duration}
+        scene = load_scene(args.scene, overrides=args.scene_overrides)
+        given = ", ".join(f"{k} {v}" for k, v in args.scene_overrides.items())
         print(f"scene {scene.name} ({scene.path}): phases {sorted(scene.phases)}, base {scene.params['base']}, "
-              f"controller {'walk' if scene.controller_params else 'none (u = 0)'}")
-        result = scene.simulate(hold=not args.continuous, **overrides)
-        return _report(result, args)
+              f"controller {'walk' if scene.controller_params else 'none (u = 0)'}"
+              + (f"; given on the command line: {given}" if given else ""))
+        return _report(scene.simulate(hold=not args.continuous), args)
     if args.duration is None:
         args.duration = 10.0
     model = BipedModel()
@@ -97,6 +129,8 @@ def _report(result, args):
         for e in result.events:
             extra = f" impulse={np.round(e.impulse, 6).tolist()}" if e.impulse is not None else ""
             print(f"  {e.time:14.9f} s  {e.kind:16s} leg {e.leg}{extra} {'; '.join(e.warnings)} {e.message}")
+    if result.status == "interrupted":       # a run cut short by a signal: the shell's code for it
+        return 128 + int(result.stats.get("interrupted_by", 15))
     return 0 if result.status == "completed" else 1
 
 

@@ -125,10 +125,12 @@ def locate_crossing(guard_at, ta, tb, event_tol) -> float:
 
 
 # -- the ground as a constraint on states ----------------------------------------------------------
-def check_initial_contact(feet, stance_leg, tol):
+def check_initial_contact(feet, stance_leg, tol, ground_tol):
     """A ValueError unless the initial state agrees with its mode: in stance, the stance foot on the
-    ground and at rest and the swing foot not below it; in flight, both feet not below it; and no free
-    foot on the ground moving into it (that is an impact still to apply, not a state to start from)."""
+    ground within ``tol`` and at rest, and the swing foot not below it; in flight, both feet not below
+    it; and no free foot on the ground moving into it (that is an impact still to apply, not a state to
+    start from). "Not below" is the invariant's own bound, ``ground_tol``: a start the run's check of
+    every sample would reject is refused here, before it can end "completed" with its first sample wrong."""
     if stance_leg:
         f = feet[stance_leg - 1]
         if abs(f.height) > tol:
@@ -140,13 +142,14 @@ def check_initial_contact(feet, stance_leg, tol):
                              f"({f.dx:.6g}, {f.dheight:.6g}) m/s; it must be at rest (J dq = 0; "
                              "biped_sim.stance_state gives a consistent dq)")
         swing = feet[2 - stance_leg]
-        if swing.height < -tol:
+        if swing.height < -ground_tol:
             raise ValueError(f"initial state: the swing foot (leg {3 - stance_leg}) is {-swing.height:.6g} m "
-                             "below the ground")
+                             f"below the ground (ground_tol {ground_tol:g} m); raise the hip or the foot")
     else:
         for leg in (1, 2):
-            if feet[leg - 1].height < -tol:
-                raise ValueError(f"initial state in flight: foot {leg} is below the ground")
+            if feet[leg - 1].height < -ground_tol:
+                raise ValueError(f"initial state in flight: foot {leg} is {-feet[leg - 1].height:.6g} m below the "
+                                 f"ground (ground_tol {ground_tol:g} m); raise the hip")
     for leg in (1, 2):
         f = feet[leg - 1]
         if leg != stance_leg and f.height <= 0.0 and f.dheight < -tol:

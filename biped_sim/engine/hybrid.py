@@ -71,7 +71,7 @@ class HybridSimulator:
         self.p = model.p
         self.ground = G.Ground.of(self.opt.slope)
         feet = self.feet(q0.tolist(), dq0.tolist())
-        G.check_initial_contact(feet, stance_leg, self.opt.contact_tol)
+        G.check_initial_contact(feet, stance_leg, self.opt.contact_tol, self.opt.ground_tol)
         self.t = self.t0 = float(t0)
         self.stance_leg = stance_leg
         self.q, self.dq = q0.copy(), dq0.copy()

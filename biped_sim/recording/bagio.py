@@ -4,24 +4,75 @@ Owns the read side used by ``replay``, ``resim``, ``inspect`` and ``recover`` (t
 independent readers, ``rosbags`` and ``mcap_ros2``). Messages come in log-time order (ties in file
 order) as ``(topic, type, log_time_ns, cdr_bytes)``; :func:`decode` turns the bytes into the
 rclpy message. A bag whose writer was killed (no summary) is read up to its last whole chunk.
+
+Also owns what a tool checks before it reads: that the file is MCAP at all (:func:`mcap_path`),
+whether it is complete or cut short (:func:`cut_short`), and whether a bag writer holds it right
+now (:func:`being_written`: the writer process holds an advisory ``flock`` on the file while it
+writes; the kernel releases it when the writer ends, also when it is killed).
 """
 from __future__ import annotations
 
+import fcntl
 import json
 from pathlib import Path
 
+MAGIC = b"\x89MCAP0\r\n"     # the first and the last 8 bytes of an MCAP file (the MCAP specification)
+
 
 def mcap_path(bag) -> Path:
-    """The .mcap of a bag directory (or the file itself)."""
+    """The .mcap of a bag directory (or the file itself); ValueError if there is none or it is not MCAP."""
     p = Path(bag)
-    if p.is_file():
-        return p
-    if not p.is_dir():
-        raise ValueError(f"no bag at {p}: give a bag directory (with metadata.yaml and a .mcap) or a .mcap file")
-    files = sorted(p.glob("*.mcap"))
-    if not files:
-        raise ValueError(f"{p} holds no .mcap file")
-    return files[0]
+    if not p.is_file():
+        if not p.is_dir():
+            raise ValueError(f"no bag at {p}: give a bag directory (with metadata.yaml and a .mcap) or a .mcap file")
+        files = sorted(p.glob("*.mcap"))
+        if not files:
+            raise ValueError(f"{p} holds no .mcap file: give a bag directory or a .mcap file")
+        p = files[0]
+    with open(p, "rb") as f:
+        head = f.read(len(MAGIC))
+    if head != MAGIC:
+        what = "it is empty" if not head else (
+            f"it is {len(head)} bytes long" if len(head) < len(MAGIC) else "it does not start with the MCAP magic")
+        raise ValueError(f"{p} is not an MCAP file ({what}): give a bag recorded by biped_sim (sim_node, "
+                         "biped-sim simulate --record) or by 'ros2 bag record -s mcap'")
+    return p
+
+
+def cut_short(bag) -> str:
+    """Why the MCAP of ``bag`` is incomplete ('' if it is whole): a writer killed before it wrote the
+    summary and the closing magic (SIGKILL of the writer, power loss), or one writing it right now."""
+    from mcap.reader import make_reader
+    p = mcap_path(bag)
+    size = p.stat().st_size
+    with open(p, "rb") as f:
+        if size >= 2 * len(MAGIC):
+            f.seek(size - len(MAGIC))
+            if f.read(len(MAGIC)) == MAGIC:
+                f.seek(0)
+                try:
+                    make_reader(f).get_summary()
+                    return ""
+                except Exception:  # noqa: BLE001 - a damaged summary: read it as cut short
+                    pass
+    return f"cut short at {size} bytes (no summary: its writer did not finish it)"
+
+
+def being_written(bag) -> bool:
+    """Whether a bag writer process holds the MCAP of ``bag`` right now (its advisory lock)."""
+    with open(mcap_path(bag), "rb") as f:
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        fcntl.flock(f.fileno(), fcntl.LOCK_UN)
+    return False
+
+
+def lock_for_writing(f) -> None:
+    """Hold an exclusive advisory lock on the open file ``f`` until it is closed (the bag writer:
+    ``recover`` refuses a file in use). The kernel releases it when the process ends, even by SIGKILL."""
+    fcntl.flock(f.fileno(), fcntl.LOCK_EX)
 
 
 def read_metadata(bag) -> dict:
@@ -55,6 +106,9 @@ def run_parameters(bag) -> dict:
     """The run's checked parameters (the ``biped_sim`` metadata record), or ValueError."""
     meta = read_metadata(bag).get("biped_sim")
     if not meta or "parameters" not in meta:
+        cut = cut_short(bag)
+        if cut and not any(True for _ in messages(bag)):
+            raise ValueError(f"{bag} is {cut} and holds no complete record after its header: nothing to read")
         raise ValueError(f"{bag} has no biped_sim parameters record: it was not recorded by biped_sim")
     return json.loads(meta["parameters"])
 

@@ -43,7 +43,7 @@ def load_run(bag) -> dict:
         else:
             cmds.append((t_ns, list(msg.data)))
     run = dict(topics=topics, counts=counts, first=first, last=last, impacts=impacts, events=events,
-               commands=cmds)
+               commands=cmds, cut=bagio.cut_short(bag), being_written=bagio.being_written(bag))
     run["t"] = np.array([j[0] for j in js]) / 1e9
     run["q"] = np.array([j[1] for j in js]).reshape(-1, 5)
     run["dq"] = np.array([j[2] for j in js]).reshape(-1, 5)
@@ -71,12 +71,18 @@ def summary(bag, run=None) -> str:
     t0 = min(run["first"].values(), default=0)
     t1 = max(run["last"].values(), default=0)
     p = run["params"] or {}
-    lines = [f"bag         {bag}",
-             f"run         scene {p.get('scene', '?')}, time_mode {p.get('time_mode', '?')}, control_period "
-             f"{p.get('control_period', float('nan')):g} s, method {method_label(p)}"
-             if p else "run         (no biped_sim parameters record)",
-             f"duration    {(t1 - t0) / 1e9:.6g} s of simulated time (t = {t0 / 1e9:.6g} .. {t1 / 1e9:.6g} s)",
-             "topics"]
+    lines = [f"bag         {bag}"]
+    if run.get("being_written"):
+        lines.append(f"file        BEING RECORDED right now ({run['cut']}): this is the run so far")
+    elif run.get("cut"):
+        where = run["cut"].removeprefix("cut short")      # " at N bytes (why)", in capitals to be seen
+        lines.append(f"file        CUT SHORT{where}: this is the run up to its last complete chunk, not the whole "
+                     f"run; run 'biped-sim recover {bag}' to repair the file")
+    lines += [f"run         scene {p.get('scene', '?')}, time_mode {p.get('time_mode', '?')}, control_period "
+              f"{p.get('control_period', float('nan')):g} s, method {method_label(p)}"
+              if p else "run         NOT RECORDED BY biped_sim (no biped_sim parameters record): its topics only",
+              f"duration    {(t1 - t0) / 1e9:.6g} s of simulated time (t = {t0 / 1e9:.6g} .. {t1 / 1e9:.6g} s)",
+              "topics"]
     for topic in sorted(run["counts"]):
         n = run["counts"][topic]
         span = (run["last"][topic] - run["first"][topic]) / 1e9

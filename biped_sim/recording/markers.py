@@ -127,6 +127,10 @@ class MarkerStream:
 
     def __init__(self, model, slope: float, rate: float):
         self.model, self.slope, self.interval = model, float(slope), 1.0 / float(rate)
+        self.restart()
+
+    def restart(self):
+        """A new run (the node's ~/reset): its first state is drawn at once, its events counted from 0."""
         self.next_due = -math.inf
         self.n_events = 0
         self.flash_at, self.flash_until = None, -math.inf

@@ -12,6 +12,7 @@ follow), and at the end.
 """
 from __future__ import annotations
 
+import dataclasses
 import signal
 
 from biped_sim.config.parameters import engine_arguments
@@ -34,13 +35,14 @@ def topics_for(params) -> dict:
 
 
 
-def run_recorded(params, controller, recorder, progress=None, build_messages=False):
+def run_recorded(params, controller, recorder, progress=None, build_messages=False, stop=None):
     """Run ``params`` (checked, see parameters.validate) in lockstep; record to ``recorder``.
 
     ``controller(t, q, dq, stance_leg) -> u`` or None (u = 0). ``recorder`` is a BagRecorder or None
     (then nothing is written). ``build_messages``: also build the state messages every period, as
     the node does to publish them (the recording benchmark's loop; a headless run needs none).
-    SIGTERM ends the run early; the caller closes the recorder. Returns the HybridSimulator at the end.
+    SIGTERM and SIGINT end the run early (the signal's number is appended to ``stop``, a list the
+    caller may pass to tell); the caller closes the recorder. Returns the HybridSimulator at the end.
     """
     from biped_sim.engine.hybrid import HybridSimulator
     sim = HybridSimulator(**engine_arguments(params), keep_samples=False)
@@ -77,12 +79,13 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
             if msg is not None:
                 rec("/markers", msg, M.to_ns(t))
 
-    stop = []
-    old = signal.getsignal(signal.SIGTERM)
+    stop = [] if stop is None else stop
+    old = {}
     try:
-        signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            old[signum] = signal.signal(signum, lambda signum, _frame: stop.append(signum))
     except ValueError:  # not the main thread
-        old = None
+        pass
     try:
         publish_state()
         while sim.status == "running" and sim.t < duration and not stop:
@@ -103,8 +106,8 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
             if progress is not None:
                 progress(sim)
     finally:
-        if old is not None:
-            signal.signal(signal.SIGTERM, old)
+        for signum, handler in old.items():
+            signal.signal(signum, handler)
     return sim
 
 
@@ -113,10 +116,8 @@ def params_from_args(args):
     from biped_sim.config import parameters as P
     if args.scene:
         from biped_sim.config.scenes import load_scene
-        scene = load_scene(args.scene)
+        scene = load_scene(args.scene, overrides=getattr(args, "scene_overrides", None))
         params = dict(scene.params)
-        if args.duration is not None:
-            params["duration"] = float(args.duration)
         params["time_mode"] = "lockstep"
         return P.validate(params), scene.controller()
     from biped_sim.control.walking import WalkingController
@@ -148,10 +149,18 @@ def simulate_recorded(args):
     params["bag_dir"] = str(folder)
     rec = BagRecorder(path, parameters=params)
     print(f"recording to {path}", flush=True)
+    stop = []
     try:
-        sim = run_recorded(params, controller, rec)
+        sim = run_recorded(params, controller, rec, stop=stop)
     finally:
         rec.close()
     print(f"recorded {sum(rec.message_counts.values())} messages: "
           + ", ".join(f"{k} {v}" for k, v in rec.message_counts.items()))
-    return sim.result()
+    result = sim.result()
+    if stop and sim.status == "running" and sim.t < params["duration"]:
+        # a run cut short by a signal is not "completed": say so (the bag is closed and readable)
+        name = signal.Signals(stop[0]).name
+        result = dataclasses.replace(
+            result, status="interrupted", stats=dict(result.stats, interrupted_by=int(stop[0])),
+            message=f"{name} at t = {sim.t:.6g} s of {params['duration']:g} s; the bag {path} is closed and readable")
+    return result

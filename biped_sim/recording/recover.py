@@ -10,15 +10,29 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from biped_sim.config.command_errors import CommandError
+from biped_sim.recording import bagio
 from biped_sim.recording.bagformat import PROFILE
+
+
+def kept_name(src: Path) -> Path:
+    """A free name for the original of ``src``: ``<name>.truncated``, else ``<name>.truncated.1``, ... ."""
+    kept = src.with_name(src.name + ".truncated")
+    n = 0
+    while kept.exists():
+        n += 1
+        kept = src.with_name(f"{src.name}.truncated.{n}")
+    return kept
 
 
 def recover(bag_dir, compression="zstd") -> dict:
     """Rewrite a bag's MCAP cut short (SIGKILL, power loss) into a clean one; regenerate metadata.yaml.
 
     Reads records in file order until the first incomplete one: every chunk written before the
-    kill is kept (CRC-checked). The original file is kept as ``<name>.mcap.truncated``. Returns
-    dict(path, kept, messages, topics={topic: count}, end=why the original ended, "" if whole).
+    kill is kept (CRC-checked). The original file is kept under a free name (:func:`kept_name`),
+    never over an earlier one. Returns dict(path, kept, messages, topics={topic: count}, end=why
+    the original ended). Refuses, changing nothing: a file that is not MCAP or has no complete
+    message (ValueError), a file a bag writer holds right now, and a complete bag (CommandError).
     """
     import yaml
     from mcap.records import Channel, Chunk, Message, Metadata, Schema
@@ -27,10 +41,16 @@ def recover(bag_dir, compression="zstd") -> dict:
     from biped_sim.recording.mcapfile import McapFileWriter
     from biped_sim.recording.writer import finish_bag
     bag_dir = Path(bag_dir)
-    files = sorted(bag_dir.glob("*.mcap"))
-    if not files:
-        raise ValueError(f"no .mcap file in {bag_dir}")
-    src = files[0]
+    if bag_dir.is_file():       # the bag's .mcap: its folder is the bag (metadata.yaml is written there)
+        if bag_dir.suffix != ".mcap":
+            raise ValueError(f"{bag_dir} is not a bag's .mcap file: give the bag directory")
+        bag_dir = bag_dir.parent
+    src = bagio.mcap_path(bag_dir)          # ValueError: no bag, or not MCAP
+    if bagio.being_written(src):
+        raise CommandError(f"{src} is being recorded right now (a bag writer holds it): wait until the "
+                           "recording ends; nothing was changed")
+    if not bagio.cut_short(src):
+        raise CommandError(f"nothing to recover: {src} is complete (it has its summary); nothing was changed")
     schemas, channels, metadata, messages = {}, {}, [], []
     problem = ""
 
@@ -56,23 +76,37 @@ def recover(bag_dir, compression="zstd") -> dict:
                     take(rec)
         except Exception as exc:  # noqa: BLE001 - the truncated tail
             problem = f"{type(exc).__name__}: {exc}" if str(exc) else f"{type(exc).__name__} (cut at {f.tell()} bytes)"
-    kept = src.with_name(src.name + ".truncated")
-    os.replace(src, kept)
-    with open(src, "wb") as out:
-        w = McapFileWriter(out, PROFILE, "biped_sim recover (mcap python records)", compression=compression)
-        for m in metadata:
-            w.add_metadata(m.name, m.metadata)
-        schema_of = {s.id: w.add_schema(s.name, s.encoding, s.data) for s in schemas.values()}
-        topics, channel_of = {}, {}
-        for c in channels.values():
-            channel_of[c.id] = w.add_channel(c.topic, c.message_encoding, schema_of.get(c.schema_id, 0), c.metadata)
-            topics[channel_of[c.id]] = dict(
-                name=c.topic, type=schemas[c.schema_id].name if c.schema_id in schemas else "",
-                qos=yaml.safe_load(c.metadata.get("offered_qos_profiles", "")) or [],
-                hash=c.metadata.get("topic_type_hash", ""))
-        for m in messages:
-            if m.channel_id in channel_of:
-                w.add_message(channel_of[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence)
-        info = finish_bag(w, out, bag_dir, src.name, topics)
+    if not messages:
+        raise CommandError(f"nothing to recover: {src} holds no complete message ({bagio.cut_short(src)}); "
+                           "nothing was changed")
+    # the clean file is written beside the original first, then the original is kept under a free
+    # name and the clean one takes its place: at every moment both are on disk
+    tmp = src.with_name(src.name + ".recovering")
+    try:
+        with open(tmp, "wb") as out:
+            w = McapFileWriter(out, PROFILE, "biped_sim recover (mcap python records)", compression=compression)
+            for m in metadata:
+                w.add_metadata(m.name, m.metadata)
+            schema_of = {s.id: w.add_schema(s.name, s.encoding, s.data) for s in schemas.values()}
+            topics, channel_of = {}, {}
+            for c in channels.values():
+                channel_of[c.id] = w.add_channel(c.topic, c.message_encoding, schema_of.get(c.schema_id, 0), c.metadata)
+                topics[channel_of[c.id]] = dict(
+                    name=c.topic, type=schemas[c.schema_id].name if c.schema_id in schemas else "",
+                    qos=yaml.safe_load(c.metadata.get("offered_qos_profiles", "")) or [],
+                    hash=c.metadata.get("topic_type_hash", ""))
+            for m in messages:
+                if m.channel_id in channel_of:
+                    w.add_message(channel_of[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence)
+            info = finish_bag(w, out, bag_dir, src.name, topics)
+    except BaseException:
+        tmp.unlink(missing_ok=True)      # the original is untouched
+        raise
+    kept = kept_name(src)
+    try:
+        os.link(src, kept)           # the original under its kept name, and still in place
+    except OSError:                  # a file system without hard links: move it (kept is a free name)
+        os.replace(src, kept)
+    os.replace(tmp, src)
     return dict(path=str(src), kept=str(kept), messages=len(messages), end=problem,
                 topics={t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]})

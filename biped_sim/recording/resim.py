@@ -54,7 +54,8 @@ def resim(bag, progress=None) -> dict:
             sim.advance_period(period, u=state["u"], t_final=duration)
 
     rep = dict(bag=str(bag), params=params, commands=0, states=0, max_dq=0.0, max_q=0.0, first=None,
-               pushes=0, impacts_recorded=[], status=None, message="", t_end=0.0, t_last_state=-math.inf)
+               pushes=0, impacts_recorded=[], status=None, message="", t_end=0.0, t_last_state=-math.inf,
+               cut=bagio.cut_short(bag))
     for topic, typ, t_ns, data in bagio.messages(bag, topics=[t for t in (t_js, t_cmd, t_imp, t_diag) if t]):
         msg = bagio.decode(typ, data)
         if topic == t_cmd:
@@ -104,7 +105,8 @@ def resim(bag, progress=None) -> dict:
 def format_report(rep) -> str:
     p = rep["params"]
     lines = [
-        f"bag               {rep['bag']}",
+        f"bag               {rep['bag']}" + (f" ({rep['cut']}: compared up to its last complete chunk; "
+                                                 "'biped-sim recover' repairs the file)" if rep.get("cut") else ""),
         f"settings          scene {p['scene']}, time_mode {p['time_mode']}, control_period {p['control_period']:g} s, "
         f"method {method_label(p)}, rtol {p['rtol']:g}, atol {p['atol']:g}, base {p['base']}",
         f"replayed          {rep['commands']} torque commands, {rep['pushes']} pushes, compared {rep['states']} "

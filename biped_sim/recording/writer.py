@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 
 from biped_sim.recording.bagformat import PROFILE, bag_metadata, channel_metadata, rosbag2_record, write_metadata_yaml
+from biped_sim.recording.bagio import lock_for_writing
 
 FRAME = struct.Struct("<cI")          # kind, payload length
 MESSAGE = struct.Struct("<HqI")       # channel (the recorder's topic id), time ns, sequence
@@ -154,6 +155,7 @@ def main(argv=None) -> int:
             pass
     path = Path(path)
     with open(path / mcap_name, "wb") as f:
+        lock_for_writing(f)      # held until the bag is finished: recover refuses a file being written
         return write_frames(sys.stdin.buffer, f, path, mcap_name, compression, int(chunk_size),
                             float(flush_interval), report, file_writer)
 

@@ -2,11 +2,13 @@
 
 The console scripts enter through :func:`entry_point`, so that a machine without rclpy (or one of
 the message packages) gets one line saying what to install instead of an ImportError traceback, and
-a closed pipe on stdout (``biped_echo | head``) ends the command quietly.
+any other exception becomes one line and an exit code (:mod:`biped_sim.config.command_errors`: a
+closed pipe on stdout, ``biped_echo | head``, ends the command quietly).
 """
 import importlib
-import os
 import sys
+
+from biped_sim.config.command_errors import run_command
 
 
 def entry_point(command, module):
@@ -19,13 +21,7 @@ def entry_point(command, module):
                   "rclpy and message packages (make venv does, from PyPI) or source a ROS 2 Jazzy install",
                   file=sys.stderr)
             return 2
-        try:
-            return target.main()
-        except BrokenPipeError:
-            # the reader of our output has gone (``biped_echo | head``): what it wanted was printed.
-            # Python's recipe: point stdout at /dev/null, so that the flush at exit does not fail again
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-            return 1
+        return run_command(command, target.main)
     return main
 
 

@@ -94,25 +94,33 @@ def main(argv=None):
         argv, ros_args = argv[:i], argv[i:]
     args = build_parser().parse_args(argv)
     if not args.rate > 0:
-        print("replay: error: --rate must be > 0", file=sys.stderr)
+        print("biped-sim replay: error: --rate must be > 0", file=sys.stderr)
         return 2
     try:
         channels = bagio.channels(args.bag)
     except (ValueError, OSError) as exc:
-        print(f"replay: error: {exc}", file=sys.stderr)
+        print(f"biped-sim replay: error: {exc}", file=sys.stderr)
         return 2
+    cut = bagio.cut_short(args.bag)
+    if cut and not channels:
+        print(f"biped-sim replay: error: {args.bag} is {cut} and holds no complete message: nothing to play",
+              file=sys.stderr)
+        return 1
+    if cut:
+        print(f"biped-sim replay: {args.bag} is {cut}: playing it up to its last complete chunk "
+              f"('biped-sim recover {args.bag}' repairs the file)", file=sys.stderr)
     if args.list:
         for t, typ in channels.items():
             print(f"{t:28s} {typ}")
         return 0
     unknown = [t for t in (args.topics or []) + args.exclude if t not in channels]
     if unknown:
-        print(f"replay: error: topic(s) {unknown} not in the bag; it has {sorted(channels)}", file=sys.stderr)
+        print(f"biped-sim replay: error: topic(s) {unknown} not in the bag; it has {sorted(channels)}", file=sys.stderr)
         return 2
     topics = [t for t in (args.topics or list(channels)) if t not in args.exclude]
     if args.clock is not None:
         if not args.clock > 0:
-            print("replay: error: --clock HZ must be > 0", file=sys.stderr)
+            print("biped-sim replay: error: --clock HZ must be > 0", file=sys.stderr)
             return 2
         topics = [t for t in topics if t != "/clock"]   # the player's clock replaces the recorded one
 
@@ -140,7 +148,7 @@ def main(argv=None):
         while not stop and time.monotonic() < deadline and any(p.get_subscription_count() == 0 for p in waiting):
             time.sleep(0.02)
     if not msgs and clock_pub is None:
-        print("replay: nothing to play", file=sys.stderr)
+        print("biped-sim replay: nothing to play", file=sys.stderr)
         node.destroy_node()
         rclpy.shutdown()
         return 0

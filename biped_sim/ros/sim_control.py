@@ -212,6 +212,8 @@ class SimControl:
                 node.get_logger().error(f"~/reset: {exc}; the run after the reset is NOT recorded")
                 new_bag = None
         node.sim = HybridSimulator(**P.engine_arguments(node.params), keep_samples=False)
+        if node.markers is not None:      # the new run's events count from 0; its first state drawn at once
+            node.markers.restart()
         node.u = [0.0, 0.0]
         node.finished = node.stopped = node.timed_out = False
         node.last_command_wall = None

@@ -26,7 +26,7 @@ def compile_expr(text):
     names = {k: getattr(math, k) for k in dir(math) if not k.startswith("_")}
     names.update(abs=abs, min=min, max=max)
     try:
-        code = compile(text, "<expr>", "eval")
+        code = compile(text.strip(), "<expr>", "eval")
     except SyntaxError as exc:
         raise ValueError(f"cannot parse expression {text!r}: {exc.msg}") from None
     for name in code.co_names:
@@ -34,9 +34,27 @@ def compile_expr(text):
             raise ValueError(f"unknown name {name!r} in expression {text!r} (use t and math functions)")
 
     def f(t):
-        return float(eval(code, {"__builtins__": {}}, dict(names, t=t)))  # noqa: S307 - names restricted above
+        try:
+            return float(eval(code, {"__builtins__": {}}, dict(names, t=t)))  # noqa: S307 - names restricted above
+        except (ArithmeticError, ValueError, TypeError) as exc:   # 1/t at t = 0, log(t - 1), ...
+            raise ValueError(f"expression {text.strip()!r} failed at t = {t:g} s: {exc}; write one that is defined "
+                             "at every t of the run (t starts at 0)") from None
     f(0.0)
     return f
+
+
+def negative_numbers_as_values(argv):
+    """``argv`` with every single-dash word but ``-h`` (``-1e8``, ``-3*cos(t)``, ``-t``; the options of
+    torque_pub are all ``--long``) marked as a value: argparse takes a word that starts with '-' for
+    an option unless it is a plain ``-5`` or ``-0.5``, so ``torque_pub 1e8 -1e8`` was refused. The
+    mark is a leading space, which float() and the expressions ignore. Words after ``--`` are left alone."""
+    out = []
+    for i, word in enumerate(argv):
+        if word == "--":
+            return out + list(argv[i:])
+        is_value = word.startswith("-") and not word.startswith("--") and word != "-h" and len(word) > 1
+        out.append(" " + word if is_value else word)
+    return out
 
 
 def build_parser():
@@ -55,11 +73,15 @@ def build_parser():
     p.add_argument("--topic", default="hip_torque", help="command topic")
     p.add_argument("--states", default="joint_states", help="state topic (--lockstep)")
     p.add_argument("--wait", type=float, default=10.0, help="s to wait for the node to subscribe")
+    p.add_argument("--state-timeout", type=float, default=10.0,
+                   help="with --lockstep: stop when no new joint_states message came for this many s (wall "
+                        "clock) after the first; the end of the node's run (its 'biped_sim/run' status on "
+                        "diagnostics) stops it at once")
     return p
 
 
 def main(argv=None):
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(negative_numbers_as_values(sys.argv[1:] if argv is None else argv))
     try:
         if args.expr:
             if args.torques:
@@ -95,6 +117,7 @@ def main(argv=None):
     pub = node.create_publisher(Float64MultiArray, args.topic, qos)
     topic = pub.topic_name
     sent = 0
+    stopped_waiting = run_over = False
 
     def send(t, answers_ns=None):
         nonlocal sent
@@ -112,17 +135,37 @@ def main(argv=None):
                 return 1
             rclpy.spin_once(node, timeout_sec=0.05)
         if args.lockstep:
+            from diagnostic_msgs.msg import DiagnosticArray
             from rclpy.qos import DurabilityPolicy
+            state_qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                                   durability=DurabilityPolicy.TRANSIENT_LOCAL)
+            last = dict(wall=None, t=None, ended=None)
 
             def on_state(msg):
+                last["wall"], last["t"] = time.monotonic(), msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
                 if args.steps and sent >= args.steps:
                     return
-                send(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, stamp_ns(msg.header.stamp))
-            node.create_subscription(JointState, args.states, on_state,
-                                     QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                                                durability=DurabilityPolicy.TRANSIENT_LOCAL))
+                send(last["t"], stamp_ns(msg.header.stamp))
+
+            def on_diagnostics(msg):
+                # the node's final status: the run is over, no state will come to answer
+                for st in msg.status:
+                    if st.name.endswith("/run") and st.message != "running":
+                        last["ended"] = f"{st.name}: {st.message}"
+            node.create_subscription(JointState, args.states, on_state, state_qos)
+            node.create_subscription(DiagnosticArray, "diagnostics", on_diagnostics, state_qos)
             while not stop and (not args.steps or sent < args.steps):
                 rclpy.spin_once(node, timeout_sec=0.1)
+                if last["ended"]:
+                    print(f"torque_pub: the node's run has ended ({last['ended']}); stopping", file=sys.stderr)
+                    run_over = True
+                    break
+                if last["wall"] is not None and time.monotonic() - last["wall"] > args.state_timeout:
+                    print(f"torque_pub: error: no new {args.states} message for {args.state_timeout:g} s (the "
+                          f"last at t = {last['t']:.6g} s): the node's run has stopped or the node is gone; "
+                          "stopping", file=sys.stderr)
+                    stopped_waiting = run_over = True
+                    break
         elif args.rate:
             t0 = time.monotonic()
             k = 0
@@ -134,8 +177,9 @@ def main(argv=None):
         else:
             u = send(0.0)
             print(f"published {u} on {topic}")
-        from rclpy.duration import Duration
-        pub.wait_for_all_acked(Duration(seconds=2.0))
+        if not run_over:      # (a node whose run is over acknowledges nothing more)
+            from rclpy.duration import Duration
+            pub.wait_for_all_acked(Duration(seconds=2.0))
     except (KeyboardInterrupt, ExternalShutdownException):  # a stop that came another way
         pass
     finally:
@@ -143,7 +187,7 @@ def main(argv=None):
         rclpy.try_shutdown()
     if args.rate or args.lockstep:
         print(f"published {sent} commands on {topic}")
-    return 0
+    return 1 if stopped_waiting else 0
 
 
 if __name__ == "__main__":

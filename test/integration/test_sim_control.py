@@ -21,9 +21,11 @@ from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
+from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from biped_sim.engine.dynamics import push_response  # noqa: E402
 from biped_sim.engine.model import BipedModel  # noqa: E402
+from biped_sim.recording import markers as MK  # noqa: E402
 from biped_sim.recording.resim import resim  # noqa: E402
 
 WALK = Path(__file__).resolve().parents[2] / "msg_configs" / "walk.yaml"
@@ -90,6 +92,7 @@ def test_pause_step_push_reset_resume_with_the_walk_controller(tmp_path):
         js = c.collect("/joint_states", JointState)
         diag = c.collect("/diagnostics", DiagnosticArray)
         clock = c.collect("/clock", Clock)
+        arrays = c.collect("/markers", MarkerArray)
         push_pub = c.publisher("/push", Vector3Stamped)
         srv = Control(c, proc)
         c.wait_subscribed("/joint_states", proc=proc)
@@ -145,6 +148,10 @@ def test_pause_step_push_reset_resume_with_the_walk_controller(tmp_path):
         c.spin_until(lambda: ns(js[-1].header.stamp) == 0 and ns(clock[-1].clock) == 0, timeout=10,
                      what="the state at t = 0 after the reset", proc=proc)
         assert list(js[-1].position) == SCENE["initial_q"] and list(js[-1].velocity) == SCENE["initial_dq"]
+        # the markers jump back with it: the robot drawn at the initial state, stamped t = 0
+        c.spin_until(lambda: arrays and ns(arrays[-1].markers[0].header.stamp) == 0, timeout=10,
+                     what="the markers of the state at t = 0", proc=proc)
+        assert_markers_draw(arrays[-1], js[-1])
         assert [e[1]["resets"] for e in events(diag, "biped_sim/reset")] == ["1", "1"]
         n = len(js)
         assert srv.step().success
@@ -157,6 +164,11 @@ def test_pause_step_push_reset_resume_with_the_walk_controller(tmp_path):
         c.spin_until(lambda: ns(js[-1].header.stamp) > 0.05e9, timeout=60, what="the walk resumed", proc=proc)
         refused = srv.step()
         assert not refused.success and "running" in refused.message
+        c.spin_until(lambda: ns(arrays[-1].markers[0].header.stamp) > 0.05e9, timeout=30,
+                     what="markers of the resumed walk", proc=proc)
+        drawn = {ns(m.header.stamp): m for m in js}
+        a = arrays[-1]
+        assert_markers_draw(a, drawn[ns(a.markers[0].header.stamp)])
         assert proc.stop() == 0
 
     first, second = sorted(p for p in tmp_path.iterdir() if p.is_dir())
@@ -170,6 +182,20 @@ def test_pause_step_push_reset_resume_with_the_walk_controller(tmp_path):
     assert b["/joint_states"][0][0] == 0 and list(b["/joint_states"][0][1].position) == SCENE["initial_q"]
     restart = [s for _t, m in b["/diagnostics"] for s in m.status if s.name == "biped_sim/reset"]
     assert len(restart) == 1 and {kv.key: kv.value for kv in restart[0].values}["previous_bag"] == str(first)
+
+
+def assert_markers_draw(array, state):
+    """The MarkerArray draws the robot of the joint state with the same stamp (the model's plane (x, y)
+    as x-z): the hip sphere, each leg's line from the hip to its foot, the torso's tip."""
+    by_id = {m.id: m for m in array.markers}
+    assert all(m.header.frame_id == "world" for m in array.markers)
+    assert ns(by_id[MK.HIP].header.stamp) == ns(state.header.stamp)
+    fig = BipedModel().stick_figure(np.array(state.position))
+    hip = by_id[MK.HIP].pose.position
+    np.testing.assert_allclose([hip.x, hip.y, hip.z], [fig.hip[0], 0.0, fig.hip[1]], atol=1e-9)
+    for mid, end in ((MK.LEG_1, fig.foot_1), (MK.LEG_2, fig.foot_2), (MK.TORSO, fig.torso_tip)):
+        p = by_id[mid].points[-1]
+        np.testing.assert_allclose([p.x, p.z], end, atol=1e-9)
 
 
 def rclpy_vector(x, y, z):

@@ -100,7 +100,7 @@ def _not_a_biped_bag(path):
     ("missing", lambda p: [str(p / "nope")], "no bag at"),
     ("empty folder", lambda p: [str(p / "empty")], "holds no .mcap file"),
     ("not biped_sim", lambda p: [str(_not_a_biped_bag(p / "other"))], "no joint_states messages"),
-    ("garbage", lambda p: [str(p / "bad" / "x.mcap")], "cannot read"),
+    ("garbage", lambda p: [str(p / "bad" / "x.mcap")], "is not an MCAP file"),
     ("two sources", lambda p: [str(p), "--scene", "walk"], "give a BAG or --scene NAME"),
     ("no source", lambda p: [], "give a BAG or --scene NAME"),
     ("suffix", lambda p: ["--scene", "walk", "-o", str(p / "w.png")], "must end in .gif or .mp4"),

@@ -125,6 +125,25 @@ def test_the_stream_sends_at_its_rate_and_flashes_each_touchdown():
     assert {leg for _q, leg in states} == {1, 2}
 
 
+def test_after_a_restart_the_new_runs_first_state_and_first_touchdown_are_drawn_at_once():
+    """The node's ~/reset starts a new simulator: its events count from 0 again."""
+    scene = load_scene("walk")
+    ctrl = scene.controller()
+    stream = MK.MarkerStream(MODEL, 0.0, 1.0)          # 1 Hz: only events and restarts send in between
+    for _ in range(2):
+        sim = HybridSimulator(**scene.engine_arguments(), keep_samples=False)
+        stream.restart()
+        assert stream.poll(0.0, sim) is not None                        # the new run's first state
+        flashes = []
+        while sim.t < 1.0:
+            sim.advance_period(0.001, u=sim.command(ctrl))
+            arr = stream.poll(0.01 + sim.t, sim)
+            if arr is not None and by_id(arr)[MK.FLASH].action == Marker.ADD:
+                flashes.append(sim.t)
+        first = next(e for e in sim.events if e.kind == "touchdown")
+        assert flashes and flashes[0] - first.time < 0.0011               # the first touchdown flashes
+
+
 def test_markers_is_an_output_and_walk_has_it_a_scene_without_it_builds_no_stream():
     assert "markers" in P.OUTPUTS and "markers" not in P.BY_NAME["outputs"].default
     assert P.BY_NAME["marker_rate"].default == 30.0
