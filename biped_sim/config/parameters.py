@@ -121,6 +121,11 @@ PARAMETERS = [
           choices=("reject", "clip")),
     Param("command_timeout", float, 0.5, "no command for this long (wall s): zero torque and a warning; "
           "0 disables (never in lockstep)", 0.0, 3600.0),
+    Param("lockstep_warn_after", float, 5.0, "lockstep: no command for this long (wall s): a warning with the "
+          "last command's simulated time and age, repeated after 2, 4, ... times as long (at most every 60 s); "
+          "the node keeps waiting; 0 = no warning", 0.0, 3600.0),
+    Param("lockstep_timeout", float, 0.0, "lockstep: no command for this long (wall s) ends the run (status "
+          "stopped on diagnostics, exit code 1); 0 = wait for the controller forever", 0.0, 1e7),
     Param("record", bool, True, "record the run to an MCAP bag"),
     Param("bag_dir", str, "bags", "folder for bags; each run records to <bag_dir>/<scene>-<UTC time>/"),
 ] + [

@@ -166,5 +166,9 @@ def rosbag2_record(info: dict) -> dict:
 def write_metadata_yaml(bag_dir: Path, info: dict):
     """``metadata.yaml`` of a bag, written to a temporary file and renamed (never half written)."""
     tmp = Path(bag_dir) / "metadata.yaml.tmp"
-    tmp.write_text(to_yaml({"rosbag2_bagfile_information": info}))
+    try:
+        tmp.write_text(to_yaml({"rosbag2_bagfile_information": info}))
+    except OSError:
+        tmp.unlink(missing_ok=True)     # a full disk: leave no half file in the bag (recover writes it)
+        raise
     os.replace(tmp, Path(bag_dir) / "metadata.yaml")

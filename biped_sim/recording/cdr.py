@@ -92,9 +92,25 @@ _f64_cache = {}
 
 
 def float64_multi_array(m):
-    if m.layout.dim:
-        return None
-    return float64_multi_array_data(m.data, m.layout.data_offset)
+    dims = m.layout.dim
+    if not dims:
+        return float64_multi_array_data(m.data, m.layout.data_offset)
+    # a labelled layout (a lockstep command's "answers" tag): dims, then data_offset, data
+    buf = bytearray(struct.pack("<I", len(dims)))
+    off = 4
+    for d in dims:
+        off = _string(buf, off, d.label)
+        p = _pad(off, 4)
+        buf += b"\x00" * p + struct.pack("<II", d.size, d.stride)
+        off += p + 8
+    data = m.data
+    n = len(data)
+    p = _pad(off, 4)
+    buf += b"\x00" * p + struct.pack("<II", m.layout.data_offset, n)
+    off += p + 8
+    if n:
+        buf += b"\x00" * _pad(off, 8) + struct.pack(f"<{n}d", *data)
+    return ENCAPSULATION_HEADER + bytes(buf)
 
 
 def float64_multi_array_data(data, data_offset=0):

@@ -150,9 +150,24 @@ def clock_msg(t):
     return Clock(clock=stamp(t))
 
 
-def torque_msg(u):
-    from std_msgs.msg import Float64MultiArray
-    return Float64MultiArray(data=[float(u[0]), float(u[1])])
+#: the label of a command's ``layout.dim[0]`` that says which state it answers: "answers 1.234000000"
+#: (the state's stamp, seconds and nanoseconds), so that a lockstep node can tell a stale command
+ANSWERS = "answers "
+
+
+def answers_label(t_ns: int) -> str:
+    """The tag of a command that answers the state stamped ``t_ns``: ``answers <sec>.<nanosec>``."""
+    sec, nsec = divmod(int(t_ns), 1_000_000_000)
+    return f"{ANSWERS}{sec}.{nsec:09d}"
+
+
+def torque_msg(u, answers_ns: int | None = None):
+    """A ``hip_torque`` command ``[u1, u2]``; tagged with the state it answers if ``answers_ns`` is given."""
+    from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+    msg = Float64MultiArray(data=[float(u[0]), float(u[1])])
+    if answers_ns is not None:
+        msg.layout.dim = [MultiArrayDimension(label=answers_label(answers_ns), size=2, stride=2)]
+    return msg
 
 
 # -- messages -> plain values (any decoded form) ---------------------------------------------------
@@ -200,6 +215,19 @@ def event_values(m):
 
 def clock_ns(m) -> int:
     return stamp_ns(m.clock)
+
+
+def answered_ns(m) -> int | None:
+    """The stamp (ns) of the state a command answers (its ``answers`` tag), or None if untagged."""
+    dims = m.layout.dim
+    label = dims[0].label if len(dims) else ""
+    if not label.startswith(ANSWERS):
+        return None
+    sec, _, nsec = label[len(ANSWERS):].partition(".")
+    try:
+        return int(sec) * 1_000_000_000 + int(nsec.ljust(9, "0")[:9])
+    except ValueError:
+        return None
 
 
 def torque_values(m):

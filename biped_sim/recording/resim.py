@@ -47,6 +47,7 @@ def resim(bag, progress=None) -> dict:
     sim = HybridSimulator(**engine_arguments(params), keep_samples=False)
     period, duration = params["control_period"], params["duration"]
     state = dict(u=[0.0, 0.0])
+    lockstep = params["time_mode"] == "lockstep"
 
     def advance_to(t_ns):
         while M.to_ns(sim.t) < t_ns and sim.status == "running":
@@ -60,6 +61,8 @@ def resim(bag, progress=None) -> dict:
         if topic == t_cmd:
             advance_to(t_ns)
             rep["commands"] += 1
+            if lockstep and M.answered_ns(msg) not in (None, t_ns):
+                continue        # the node ignored it: it answers another state than the newest (stale)
             state["u"] = _checked_command(list(msg.data), params, state["u"])
         elif topic == t_diag:
             for e in M.event_values(msg):

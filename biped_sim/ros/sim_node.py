@@ -39,6 +39,7 @@ from biped_sim.recording.messages import (
     IMPACT_KINDS,
     JOINT_NAMES,
     TOPIC_TYPES,
+    answered_ns,
     diagnostic_array,
     event_status,
     foot_frame,
@@ -47,8 +48,9 @@ from biped_sim.recording.messages import (
     to_ns,
     wrench_message,
 )
-from biped_sim.ros import startup
+from biped_sim.ros import params_files, run_watch, startup
 from biped_sim.ros.parameters import declare_from_table, usage_text, value_less_override_message
+from biped_sim.ros.recording_guard import GuardedRecorder, failure_message
 from biped_sim.ros.sim_control import SimControl
 from biped_sim.ros.startup import StartupError
 from biped_sim.ros.time_modes import run_fast, run_lockstep, run_realtime, spinning_in_background
@@ -64,11 +66,12 @@ COMMAND_QOS = QoSProfile(depth=QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE
 class SimNode(Node):
     """The node; ``run(should_stop, executor)`` drives it in the chosen time mode."""
 
-    def __init__(self, context=None):
+    def __init__(self, context=None, argv=None):
         try:
             super().__init__("biped_sim", context=context, automatically_declare_parameters_from_overrides=True)
         except ValueError as exc:
             raise StartupError(value_less_override_message(exc) or exc) from None
+        params_files.check_applies(self, sys.argv if argv is None else argv)
         self.params = prm = declare_from_table(self, P.PARAMETERS)
         try:
             # the node publishes as it goes: the engine keeps only the last sample
@@ -84,7 +87,8 @@ class SimNode(Node):
         self.u = [0.0, 0.0]
         self.finished = False           # duration reached
         self.stopped = False            # the engine stopped (error): stay up for inspection
-        self.counts = dict(received=0, rejected=0, clipped=0, timeouts=0, ignored=0)
+        self.counts = dict(received=0, rejected=0, clipped=0, timeouts=0, ignored=0, stale=0)
+        self.fault = None               # (status, message): the run ended by a fault (recording, lockstep_timeout)
         self.last_command_wall = None
         self.timed_out = False
 
@@ -105,6 +109,7 @@ class SimNode(Node):
         self.recorder = self.bag_path = None
         if prm["record"]:
             self._open_recorder()
+        self.watch = run_watch.RunWatch(self)     # other nodes on our topics, a silent lockstep controller
         self.get_logger().info(
             f"biped_sim: time_mode={self.mode}, control_period={self.period:g} s, duration={self.duration:g} s, "
             f"outputs={sorted(out)}, phases={sorted(prm['phases'])}, base={prm['base']}, "
@@ -136,7 +141,8 @@ class SimNode(Node):
         when = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
         self.bag_path = path or os.path.join(self.params["bag_dir"], f"{self.params['scene']}-{when}")
         try:
-            self.recorder = BagRecorder(self.bag_path, parameters=dict(self.params))
+            self.recorder = GuardedRecorder(BagRecorder(self.bag_path, parameters=dict(self.params)),
+                                            self._recording_failed)
         except (OSError, ValueError) as exc:
             raise StartupError(f"cannot record to '{self.bag_path}': {exc} (set bag_dir to a writable "
                                "folder, or record:=false)") from None
@@ -149,13 +155,16 @@ class SimNode(Node):
         if self.recorder is not None:
             self.recorder.write(pub.topic_name, msg, to_ns(t))
 
-    def close(self):
-        if self.recorder is not None:
-            try:
-                self.recorder.close()
-            except Exception as exc:  # report, but finish the shutdown
-                self.get_logger().error(f"closing the bag {self.bag_path} failed: {exc}")
-            self.recorder = None
+    def _recording_failed(self, exc):
+        """The bag cannot be written (disk full, writer gone): say so, end the run (see run_watch)."""
+        message = failure_message(self.bag_path, exc, self.sim.t)
+        self.get_logger().error(message)
+        self.fault = self.fault or ("failed", message)
+
+    def close(self) -> bool:
+        """Close the bag; False if that failed (said in the log)."""
+        recorder, self.recorder = self.recorder, None
+        return recorder is None or recorder.close(self.get_logger(), self.sim.t)
 
     # -- commands -----------------------------------------------------------------------------
     def _on_command(self, msg):
@@ -163,6 +172,8 @@ class SimNode(Node):
         self.counts["received"] += 1
         if self.recorder is not None:
             self.recorder.write(self.sub.topic_name, msg, to_ns(t))
+        if self.mode == "lockstep" and self._stale(msg, t):
+            return
         u = self._check_command(list(msg.data), t)
         if u is not None:
             self.u = u
@@ -183,8 +194,19 @@ class SimNode(Node):
                 f"lockstep: command ignored, the run has {'ended' if self.finished else 'stopped'} at "
                 f"t={t:.6f} s ({self.counts['ignored']} ignored)", throttle_duration_sec=1.0)
             return
+        self.watch.commanded(t)
         self.step()
         self.publish_state()
+
+    def _stale(self, msg, t) -> bool:
+        """A command tagged as the answer to a state other than the newest: ignored (counted, warned)."""
+        why = run_watch.stale_command(answered_ns(msg), to_ns(t))
+        if why is None or self.finished or self.stopped:
+            return False
+        self.counts["stale"] += 1
+        self.get_logger().warning(f"lockstep: hip_torque ignored at t={t:.6f} s: {why} ({self.counts['stale']} "
+                                  "stale so far)", throttle_duration_sec=1.0)
+        return True
 
     def _check_command(self, data, t):
         """The torques to use, or None (rejected: counted, throttled warning, last command held)."""
@@ -259,14 +281,18 @@ class SimNode(Node):
         """A DiagnosticStatus 'biped_sim/run' with the run's status and counters."""
         sim = self.sim
         st = DiagnosticStatus(name="biped_sim/run")
-        if sim.status == "running":
+        status, message = self.fault or (sim.status, sim.message)
+        if self.fault:
+            st.level = DiagnosticStatus.ERROR
+            st.message = f"{status}: {message}"
+        elif sim.status == "running":
             st.level = DiagnosticStatus.OK
             st.message = "completed" if self.finished else "running"
         else:
             st.level = DiagnosticStatus.ERROR
             st.message = f"{sim.status}: {sim.message}"
-        values = dict(status=sim.status if sim.status != "running" else st.message, time=repr(float(sim.t)),
-                      message=sim.message, control_periods=str(sim.control_periods), events=str(len(sim.events)),
+        values = dict(status=status if status != "running" else st.message, time=repr(float(sim.t)),
+                      message=message, control_periods=str(sim.control_periods), events=str(len(sim.events)),
                       impacts=str(sim.stats["impacts"]), engine_wall_time=repr(float(sim.stats["wall_time"])))
         values.update({f"commands_{k}": str(v) for k, v in self.counts.items()})
         st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
@@ -392,7 +418,7 @@ def main(argv=None):
     node = None
     try:
         try:
-            node = SimNode()
+            node = SimNode(argv=argv)
         except StartupError as exc:
             return startup.refuse("sim_node", exc)
         executor = SingleThreadedExecutor()
@@ -401,18 +427,21 @@ def main(argv=None):
         # cyclic collector, whose full passes over it were the long pauses of a 1 kHz loop
         gc.collect()
         gc.freeze()
-        node.run(lambda: bool(stop), executor)
-        if stop:
+        node.run(lambda: bool(stop) or node.fault is not None, executor)
+        if node.fault:          # said when it happened; the final status says it again
+            node.publish_run_status()
+        elif stop:
             node.get_logger().info(f"{startup.signal_name(stop[0])}: shutting down at t={node.sim.t:.6f} s")
             node.publish_run_status()
         node.log_figures()
         node.flush()
     finally:
+        closed = True
         if node is not None:
-            node.close()
+            closed = node.close()
             node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return 1 if node.fault or not closed else 0
 
 
 if __name__ == "__main__":

@@ -105,6 +105,7 @@ def main(argv=None):
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray
 
+    from biped_sim.recording.messages import stamp_ns, torque_msg
     from biped_sim.ros import startup
     # SIGINT and SIGTERM set a flag the loops read (rclpy's own handlers shut the context down under
     # a running wait, and spin_once then raises RCLError: a traceback for a plain stop)
@@ -118,10 +119,11 @@ def main(argv=None):
     sent = 0
     stopped_waiting = run_over = False
 
-    def send(t):
+    def send(t, answers_ns=None):
         nonlocal sent
         u = torques(t)
-        pub.publish(Float64MultiArray(data=u))
+        # --lockstep: tagged with the state it answers, so that the node can tell a stale command
+        pub.publish(torque_msg(u, answers_ns) if answers_ns is not None else Float64MultiArray(data=u))
         sent += 1
         return u
     try:
@@ -143,7 +145,7 @@ def main(argv=None):
                 last["wall"], last["t"] = time.monotonic(), msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
                 if args.steps and sent >= args.steps:
                     return
-                send(last["t"])
+                send(last["t"], stamp_ns(msg.header.stamp))
 
             def on_diagnostics(msg):
                 # the node's final status: the run is over, no state will come to answer

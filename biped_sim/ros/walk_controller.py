@@ -6,7 +6,11 @@ angle and the swing leg, enforced by input-output linearisation). Subscribes ``j
 matched by name), publishes ``hip_torque`` (``std_msgs/Float64MultiArray``: [hip of leg 1, hip of
 leg 2], N m): one command per joint-state message, answered exactly once and in order, so that in the
 sim node's ``lockstep`` mode each command advances one control period (a message seen twice -- same
-stamp and state -- is not answered again).
+stamp and state -- is not answered again). Each command is tagged with the stamp of the state it
+answers (``layout.dim[0].label`` = ``answers <sec>.<nanosec>``, :func:`biped_sim.recording.messages.torque_msg`),
+so that a lockstep node ignores an answer to an old state; of the states received before the
+command publisher matched (a controller started late gets the node's whole transient-local
+history) only the newest is answered.
 
 Parameters: :data:`biped_sim.config.scenes.CONTROLLER_PARAMETERS` (the scene file's ``walk_controller``
 section; ``--ros-args --params-file msg_configs/walk.yaml``) plus ``stance_source``:
@@ -42,8 +46,8 @@ from std_msgs.msg import Float64MultiArray
 
 from biped_sim.config.parameters import Param
 from biped_sim.config.scenes import CONTROLLER_PARAMETERS, make_controller
-from biped_sim.recording.messages import JOINT_NAMES, TOPIC_TYPES
-from biped_sim.ros import startup
+from biped_sim.recording.messages import JOINT_NAMES, TOPIC_TYPES, stamp_ns, torque_msg
+from biped_sim.ros import params_files, startup
 from biped_sim.ros.parameters import declare_from_table, usage_text, value_less_override_message
 from biped_sim.ros.startup import StartupError
 
@@ -81,17 +85,19 @@ def stance_from_frame(frame_id: str):
 class WalkControllerNode(Node):
     """One hip_torque command per joint_states message, from the reference walking controller."""
 
-    def __init__(self, context=None):
+    def __init__(self, context=None, argv=None):
         try:
             super().__init__("walk_controller", context=context,
                              automatically_declare_parameters_from_overrides=True)
         except ValueError as exc:
             raise StartupError(value_less_override_message(exc) or exc) from None
+        params_files.check_applies(self, sys.argv if argv is None else argv)
         self.values = v = declare_from_table(self, PARAMETERS)
         self.ctrl = make_controller(v)
         self.source = v["stance_source"]
         self.answered = 0
         self.duplicates = 0
+        self.older = 0              # states left unanswered: a newer one was waiting too
         self.failures = 0
         self._last = None
         self._pending = []          # states received before the hip_torque subscriber matched
@@ -109,9 +115,13 @@ class WalkControllerNode(Node):
 
     def _flush_pending(self):
         if self._pending and self._matched():
-            pending, self._pending = self._pending, []
-            for msg in pending:
-                self._answer(msg)
+            # answer the newest only (the last to arrive: a publisher's history comes in order, and
+            # after a reset of the node its time goes back): the older ones (the node's history, for
+            # a controller started after the node) are states a lockstep node has gone past
+            newest = self._pending[-1]
+            self.older += len(self._pending) - 1
+            self._pending = []
+            self._answer(newest)
 
     def _on_state(self, msg):
         if self._pending or not self._matched():
@@ -144,7 +154,7 @@ class WalkControllerNode(Node):
             self.get_logger().error(f"control law failed at t={t:.6f} s ({exc}): sending zero torque",
                                     throttle_duration_sec=1.0)
             u = [0.0, 0.0]
-        self.pub.publish(Float64MultiArray(data=[float(u[0]), float(u[1])]))
+        self.pub.publish(torque_msg(u, answers_ns=stamp_ns(msg.header.stamp)))
         self.answered += 1
 
     def stance_leg(self, frame_id, q, dq) -> int:
@@ -177,7 +187,7 @@ def main(argv=None):
     node = None
     try:
         try:
-            node = WalkControllerNode()
+            node = WalkControllerNode(argv=argv)
         except StartupError as exc:
             return startup.refuse("walk_controller", exc)
         executor = SingleThreadedExecutor()
@@ -185,7 +195,8 @@ def main(argv=None):
         while not stop:
             executor.spin_once(timeout_sec=0.1)
         node.get_logger().info(f"{startup.signal_name(stop[0])}: shutting down after {node.answered} commands "
-                               f"({node.duplicates} duplicate states skipped, {node.failures} failures)")
+                               f"({node.duplicates} duplicate states skipped, {node.older} older states left for "
+                               f"a newer one, {node.failures} failures)")
     finally:
         if node is not None:
             node.destroy_node()

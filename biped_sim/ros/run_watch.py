@@ -1,0 +1,153 @@
+"""What ``sim_node`` watches on the wall clock besides its run: the ROS graph and a silent controller.
+
+Owns :class:`RunWatch`, a timer of the node that runs two checks every :data:`WATCH_PERIOD` s of
+wall time (a steady clock, whatever the simulated time does), each a plain class that returns the
+lines to log, and :func:`stale_command`, the lockstep rule for a command tagged with the state it answers:
+
+* :class:`GraphWatch`: another node on the node's topics -- a second publisher of ``hip_torque``
+  (two controllers: in lockstep each command advances the run one period) or another publisher of
+  ``joint_states`` (a second simulation on this domain: its controller answers both). Said once per
+  new set of publishers, naming them (``get_publishers_info_by_topic``): such runs used to end
+  later with a wrong physical diagnosis and no word about the cause.
+* :class:`SilenceWatch`: in lockstep, no command for ``lockstep_warn_after`` s: a warning with the
+  last command's simulated time and wall age, repeated after 2, 4, ... times as long (at most
+  every :data:`MAX_REPEAT` s); the node keeps waiting (lockstep is deterministic) unless
+  ``lockstep_timeout`` says to end the run.
+"""
+from __future__ import annotations
+
+import time
+
+from rclpy.clock import Clock, ClockType
+
+#: wall seconds between two checks (the graph query costs about 0.1 ms)
+WATCH_PERIOD = 0.5
+#: the longest interval (wall s) between two warnings about a silent controller
+MAX_REPEAT = 60.0
+
+
+def endpoint_name(info) -> str:
+    """The fully qualified node name of a ``TopicEndpointInfo``."""
+    ns = info.node_namespace.rstrip("/")
+    return f"{ns}/{info.node_name}"
+
+
+class GraphWatch:
+    """Other publishers on the command and the state topic; each new set is said once."""
+
+    def __init__(self, node, command_topic: str, state_topic: str | None):
+        self.node = node
+        self.own = node.get_fully_qualified_name()
+        self.command_topic, self.state_topic = command_topic, state_topic
+        self.said = {command_topic: (), state_topic: ()}
+
+    def others(self, topic: str, own_publishers: int) -> list:
+        """Names of the publishers of ``topic`` other than this node's ``own_publishers``."""
+        names = sorted(endpoint_name(i) for i in self.node.get_publishers_info_by_topic(topic))
+        for _ in range(own_publishers):
+            if self.own in names:
+                names.remove(self.own)
+        return names
+
+    def check(self) -> list:
+        """The warnings about a set of publishers not said before."""
+        lines = []
+        commanders = self.others(self.command_topic, 0)
+        if len(commanders) > 1 and tuple(commanders) != self.said[self.command_topic]:
+            lines.append(
+                f"{len(commanders)} nodes publish {self.command_topic}: {', '.join(commanders)}. Two controllers "
+                "drive one run: in lockstep a command tagged with the state it answers is taken once (a second "
+                "answer is stale and ignored), an untagged one advances the run every time; stop all but one")
+        self.said[self.command_topic] = tuple(commanders) if len(commanders) > 1 else ()
+        if self.state_topic is not None:
+            sims = self.others(self.state_topic, 1)
+            if sims and tuple(sims) != self.said[self.state_topic]:
+                same = " (the same name as this node)" if self.own in sims else ""
+                lines.append(
+                    f"another node also publishes {self.state_topic}: {', '.join(sims)}{same}. Two simulations "
+                    "on one ROS domain mix their states and their controllers' commands: give each its own "
+                    "ROS_DOMAIN_ID (or namespace, -r __ns:=/name), or stop one")
+            self.said[self.state_topic] = tuple(sims)
+        return lines
+
+
+class SilenceWatch:
+    """Lockstep: how long since the last command, and what to say (or do) about it."""
+
+    def __init__(self, warn_after: float, timeout: float, now: float | None = None):
+        self.warn_after, self.timeout = warn_after, timeout
+        self.last_wall = time.monotonic() if now is None else now
+        self.last_t = None              # simulated time of the state the last command answered
+        self.next_warning = warn_after
+        self.warnings = 0
+
+    def commanded(self, t: float | None, now: float | None = None):
+        """A command advanced the run from simulated time ``t`` (None: the node waited for another
+        reason, a pause: the time since the last command starts again, its ``t`` is kept)."""
+        self.last_wall = time.monotonic() if now is None else now
+        if t is not None:
+            self.last_t = t
+        self.next_warning = self.warn_after
+
+    def check(self, t: float, now: float | None = None) -> tuple:
+        """(warning or None, end-of-run message or None) at simulated time ``t``."""
+        silent = (time.monotonic() if now is None else now) - self.last_wall
+        last = ("no command since the start" if self.last_t is None else
+                f"the last command answered the state at t={self.last_t:.6f} s")
+        if self.timeout and silent >= self.timeout:
+            return None, (f"lockstep: no hip_torque command for {silent:.1f} s (wall) at t={t:.6f} s, more than "
+                          f"lockstep_timeout={self.timeout:g} s ({last}): the run ends")
+        if self.warn_after and silent >= self.next_warning:
+            self.warnings += 1
+            self.next_warning = min(2 * self.next_warning, self.next_warning + MAX_REPEAT)
+            return (f"lockstep: waiting for a hip_torque command at t={t:.6f} s: {last}, {silent:.1f} s ago (wall). "
+                    "Is the controller running, on this ROS_DOMAIN_ID? The run advances one control period per "
+                    "command and keeps waiting" + (f" (lockstep_timeout={self.timeout:g} s)" if self.timeout else
+                                                   " (set lockstep_timeout to end it)")), None
+        return None, None
+
+
+def stale_command(answers_ns: int | None, newest_ns: int) -> str | None:
+    """Why a lockstep command tagged as the answer to the state ``answers_ns`` is not taken when the
+    newest state is ``newest_ns``, or None (untagged, or the answer to the newest state)."""
+    if answers_ns is None or answers_ns == newest_ns:
+        return None
+    where = (f"the state at t={answers_ns * 1e-9:.6f} s, an older one: a restarted or a second controller "
+             "answers states the run has gone past" if answers_ns < newest_ns else
+             f"the state at t={answers_ns * 1e-9:.6f} s, which this node has not published: another "
+             "simulation on this ROS domain?")
+    return f"it answers {where}"
+
+
+class RunWatch:
+    """The node's watch timer: logs what :class:`GraphWatch` finds; in lockstep, what
+    :class:`SilenceWatch` finds, and ends the run (``node.fault``) after ``lockstep_timeout``."""
+
+    def __init__(self, node):
+        self.node = node
+        self.graph = GraphWatch(node, node.sub.topic_name, node.pub_js.topic_name if node.pub_js else None)
+        self.silence = (SilenceWatch(node.params["lockstep_warn_after"], node.params["lockstep_timeout"])
+                        if node.mode == "lockstep" else None)
+        node.create_timer(WATCH_PERIOD, self.check, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def commanded(self, t: float):
+        if self.silence is not None:
+            self.silence.commanded(t)
+
+    def check(self):
+        node = self.node
+        log = node.get_logger()
+        for line in self.graph.check():
+            log.warning(line)
+        if self.silence is None or node.finished or node.stopped or node.fault:
+            return
+        control = getattr(node, "control", None)
+        if control is not None and control.paused:     # ~/pause holds the run: the controller is not silent
+            self.silence.commanded(None)
+            return
+        warning, end = self.silence.check(node.sim.t)
+        if warning:
+            log.warning(warning)
+        if end:
+            log.error(end)
+            node.fault = ("stopped", end)

@@ -1,0 +1,384 @@
+"""Faults around ``sim_node`` during a run (issue 18, items 1, 3, 5, 6, 8), real processes over DDS:
+a full disk and a killed bag writer, a parameters file that applies to no node, a restarted or a
+second controller, two simulations on one domain, a silent lockstep controller."""
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+from ros_helpers import BIN, Client, NodeProcess, ros_domain, ros_env, start_node  # noqa: E402
+
+pytest.importorskip("rclpy")
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from rosbags.rosbag2 import Reader  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension  # noqa: E402
+
+from biped_sim.config.scenes import load_scene  # noqa: E402
+from biped_sim.recording import messages as M  # noqa: E402
+from biped_sim.recording.resim import format_report, resim  # noqa: E402
+
+WALK = str(load_scene("walk").path)
+
+
+def t_of(msg) -> float:
+    return M.stamp_ns(msg.header.stamp) * 1e-9
+
+
+def run_status(client, diag, proc, timeout=15.0) -> dict:
+    """The values of the last ``biped_sim/run`` status received on diagnostics."""
+    def found():
+        return [s for a in diag for s in a.status if s.name == "biped_sim/run"]
+    client.spin_until(lambda: found(), timeout, "the run's final status")
+    st = found()[-1]
+    level = st.level[0] if isinstance(st.level, (bytes, bytearray)) else int(st.level)
+    return dict({kv.key: kv.value for kv in st.values}, level=level, text=st.message)
+
+
+def bag_joint_state_times(bag) -> list:
+    """The stamps (s) of the bag's joint_states, read by rosbags (an independent reader)."""
+    with Reader(bag) as reader:
+        conns = [c for c in reader.connections if c.topic == "/joint_states"]
+        return [t * 1e-9 for _c, t, _raw in reader.messages(connections=conns)]
+
+
+def bag_message_count(bag) -> int:
+    with Reader(bag) as reader:
+        return sum(1 for _ in reader.messages())
+
+
+def recover(bag):
+    done = subprocess.run([str(BIN / "biped-sim"), "recover", str(bag)], capture_output=True, text=True, timeout=60,
+                          stdin=subprocess.DEVNULL)
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stdout + done.stderr
+    return done.stdout
+
+
+def wait_for(predicate, timeout, what, procs=()):
+    end = time.monotonic() + timeout
+    while not predicate():
+        for p in procs:
+            assert p.alive, f"{p.argv[0]} exited ({p.proc.returncode}) waiting for {what}:\n{p.output()}"
+        assert time.monotonic() < end, f"timed out waiting for {what}\n" + "\n".join(p.output() for p in procs)
+        time.sleep(0.1)
+
+
+def one_line(log: str, text: str) -> str:
+    """The one line of ``log`` with ``text`` (and no traceback anywhere)."""
+    assert "Traceback" not in log, log
+    lines = [ln for ln in log.splitlines() if text in ln]
+    assert len(lines) == 1, log
+    return lines[0]
+
+
+# -- item 5: a restarted controller, a stale command ------------------------------------------------
+def test_lockstep_ignores_a_command_that_answers_another_state_than_the_newest(tmp_path):
+    params = dict(time_mode="lockstep", scene="stale", record=True, bag_dir=str(tmp_path))
+    with ros_domain() as dom, start_node(params, dom) as proc, Client(dom) as c:
+        js = c.collect("/joint_states", JointState)
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        pub = c.publisher("/hip_torque", Float64MultiArray)
+        c.wait_matched(pub, proc=proc)
+        c.spin_until(lambda: js, what="the state at t = 0", proc=proc)
+
+        def send(u, answers, states):
+            """A command tagged as docs/node.md says: layout.dim[0].label = "answers <sec>.<nanosec>"."""
+            msg = Float64MultiArray(data=u)
+            if answers is not None:
+                sec, nsec = divmod(answers, 1_000_000_000)
+                msg.layout.dim = [MultiArrayDimension(label=f"answers {sec}.{nsec:09d}", size=2, stride=2)]
+            pub.publish(msg)
+            if states:
+                c.spin_until(lambda: len(js) >= states, 10, f"state {states}", proc)
+        newest = lambda: M.stamp_ns(js[-1].header.stamp)  # noqa: E731
+        send([1.0, -1.0], newest(), 2)
+        send([1.0, -1.0], newest(), 3)
+        send([50.0, 50.0], M.stamp_ns(js[1].header.stamp), 0)     # answers t = 1 ms: the run is at 2 ms
+        send([2.0, -2.0], None, 4)                                 # untagged: taken, as before
+        send([50.0, 50.0], newest() + 1_000_000_000, 0)           # a state 1 s ahead: never published
+        send([3.0, -3.0], newest(), 5)
+        assert proc.stop() == 0
+        status = run_status(c, diag, proc)
+    assert [round(t_of(m), 9) for m in js] == [0.0, 0.001, 0.002, 0.003, 0.004]
+    assert [list(m.effort)[2:4] for m in js[1:]] == [[1.0, -1.0], [1.0, -1.0], [2.0, -2.0], [3.0, -3.0]]
+    assert status["commands_stale"] == "2" and status["commands_received"] == "6", status
+    log = proc.output()
+    assert "lockstep: hip_torque ignored at t=0.002000 s: it answers the state at t=0.001000 s, an older one" in log
+    # the bag holds all six commands as received; resim ignores the stale ones as the node did
+    bag = next(p for p in tmp_path.iterdir() if p.is_dir())
+    rep = resim(bag)
+    assert rep["identical"] and rep["commands"] == 6 and rep["states"] == 5, format_report(rep)
+
+
+def test_a_tagged_command_is_recorded_as_rclpy_and_rosbags_read_it():
+    """The recorder's fast CDR of a labelled layout (the tag) decodes to the message it encodes."""
+    from rclpy.serialization import deserialize_message
+    from rosbags.typesys import Stores, get_typestore
+    from std_msgs.msg import MultiArrayLayout
+
+    from biped_sim.recording.cdr import serializer
+    encode = serializer("std_msgs/msg/Float64MultiArray")
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    dims = [MultiArrayDimension(label="abc", size=1, stride=3), MultiArrayDimension(label="", size=2, stride=5)]
+    for msg in (M.torque_msg([1.5, -2.5], 1_234_567_891), M.torque_msg([0.0, 0.0], 0),
+                Float64MultiArray(data=[1.5], layout=MultiArrayLayout(dim=dims, data_offset=3)),
+                Float64MultiArray(data=[], layout=MultiArrayLayout(dim=dims[:1]))):
+        data = encode(msg)
+        assert deserialize_message(data, Float64MultiArray) == msg
+        other = typestore.deserialize_cdr(data, "std_msgs/msg/Float64MultiArray")
+        assert [(d.label, d.size, d.stride) for d in other.layout.dim] == [(d.label, d.size, d.stride)
+                                                                           for d in msg.layout.dim]
+        assert list(other.data) == list(msg.data) and M.answered_ns(other) == M.answered_ns(msg)
+    assert M.answered_ns(M.torque_msg([1.0, 2.0], 1_234_567_891)) == 1_234_567_891
+
+
+def test_a_restarted_controller_goes_on_from_the_newest_state(tmp_path):
+    """The walk in lockstep; its controller stopped at t >= 0.3 s and another started: the second
+    gets the node's last 100 states (transient local) and must answer only the newest."""
+    duration = 0.8
+    with ros_domain() as dom, Client(dom) as c:
+        sim = start_node({"duration": duration, "bag_dir": str(tmp_path)}, dom,
+                         extra_args=["--ros-args", "--params-file", WALK])
+        with sim:
+            js = c.collect("/joint_states", JointState)
+            c.wait_subscribed("/joint_states", proc=sim)
+            with start_node(None, dom, "walk_controller", ["--ros-args", "--params-file", WALK]) as first:
+                c.spin_until(lambda: js and t_of(js[-1]) >= 0.3, 60, "t = 0.3 s", sim)
+                assert first.stop() == 0
+            stopped_at = t_of(js[-1])
+            with start_node(None, dom, "walk_controller", ["--ros-args", "--params-file", WALK]) as second:
+                c.spin_until(lambda: t_of(js[-1]) >= duration, 60, f"t = {duration} s", sim)
+                assert sim.wait(30) == 0, sim.output()
+                assert second.stop() == 0
+            log = second.output()
+    assert 0.3 <= stopped_at < duration
+    assert "older states left for a newer one" in log, log
+    ref = load_scene("walk").simulate(hold=True, t_final=duration)          # one controller, headless
+    assert list(js[-1].position) == ref.q[-1].tolist() and list(js[-1].velocity) == ref.dq[-1].tolist()
+    bag = next(p for p in tmp_path.iterdir() if p.is_dir())
+    rep = resim(bag)
+    assert rep["identical"], format_report(rep)
+
+
+# -- item 6: two controllers, two simulations ---------------------------------------------------------
+def test_a_second_controller_is_named_at_once_and_cannot_change_the_run():
+    duration = 1.5
+    ctl = ["--ros-args", "--params-file", WALK]
+    with ros_domain() as dom, Client(dom) as c, start_node(None, dom, "walk_controller", ctl), \
+            start_node(None, dom, "walk_controller", ctl):
+        # both controllers up before the node: each answers the run from its first state
+        c.spin_until(lambda: c.node.count_publishers("/hip_torque") == 2, 60, "two hip_torque publishers")
+        js = c.collect("/joint_states", JointState)
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        with start_node({"duration": duration, "record": False}, dom, extra_args=ctl) as sim:
+            assert sim.wait(90) == 0, sim.output()
+            status = run_status(c, diag, sim)
+            c.spin_until(lambda: js and t_of(js[-1]) >= duration, 10, "the last state")
+    log = sim.output()
+    assert "2 nodes publish /hip_torque: /walk_controller, /walk_controller" in log, log
+    warned = next(ln for ln in log.splitlines() if "nodes publish /hip_torque" in ln)
+    assert "stop all but one" in warned
+    # each state answered twice: the first answer advances the run, the second is stale and ignored
+    assert int(status["commands_stale"]) > 0 and status["status"] == "completed", status
+    ref = load_scene("walk").simulate(hold=True, t_final=duration)
+    assert list(js[-1].position) == ref.q[-1].tolist() and list(js[-1].velocity) == ref.dq[-1].tolist()
+
+
+def test_two_simulations_on_one_domain_name_each_other():
+    params = {"time_mode": "lockstep", "record": False}
+    with ros_domain() as dom, start_node(params, dom) as a, \
+            start_node(params, dom, extra_args=["--ros-args", "-r", "__node:=other_sim"]) as b:
+        said = {a: "another node also publishes /joint_states: /other_sim.",
+                b: "another node also publishes /joint_states: /biped_sim."}
+        wait_for(lambda: all(text in p.output() for p, text in said.items()), 60, "both warnings", [a, b])
+        assert a.stop() == 0 and b.stop() == 0
+    for p in (a, b):
+        line = one_line(p.output(), "another node also publishes")
+        assert "ROS_DOMAIN_ID" in line and "[WARN]" in line
+
+
+# -- item 8: a silent lockstep controller --------------------------------------------------------------
+def test_a_silent_lockstep_controller_is_reported_then_the_run_ends_on_lockstep_timeout(tmp_path):
+    params = dict(time_mode="lockstep", scene="silent", bag_dir=str(tmp_path), lockstep_warn_after=0.5,
+                  lockstep_timeout=6.0)
+    with ros_domain() as dom, Client(dom) as c:
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        # the controller first (it waits for the node), so that its five commands come before the timeout
+        with NodeProcess([str(BIN / "torque_pub"), "1", "-1", "--lockstep", "--steps", "5", "--wait", "60"],
+                         dom) as pub, start_node(params, dom) as sim:
+            assert pub.wait(60) == 0, pub.output() + sim.output()
+            assert sim.wait(30) == 1, sim.output()
+            status = run_status(c, diag, sim)
+    log = sim.output()
+    waiting = [ln for ln in log.splitlines() if "lockstep: waiting for a hip_torque command" in ln]
+    after = [ln for ln in waiting if "at t=0.005000 s: the last command answered the state at t=0.004000 s" in ln]
+    assert len(after) >= 2 and all("[WARN]" in ln and "s ago (wall)" in ln for ln in after), log
+    assert "(lockstep_timeout=6 s)" in after[0]
+    end = one_line(log, "more than lockstep_timeout=6 s")
+    assert "[ERROR]" in end and "the run ends" in end
+    assert status["status"] == "stopped" and status["level"] == 2 and "lockstep_timeout" in status["message"]
+    assert status["commands_received"] == "5" and status["control_periods"] == "5", (status, log)
+    bag = next(p for p in tmp_path.iterdir() if p.is_dir())
+    assert (bag / "metadata.yaml").exists()          # closed: the stop is clean
+    assert bag_joint_state_times(bag)[-1] == pytest.approx(0.005)
+
+
+# -- item 3: a parameters file that applies to no node -------------------------------------------------
+PARAMS_FILES = {  # name: (file text, extra ROS arguments); NODE stands for the program's node name
+    "typo": ("NODEx:\n  ros__parameters:\n    scene: typo\n", []),
+    "renamed": ("NODE:\n  ros__parameters:\n    scene: renamed\n", ["-r", "__node:=other"]),
+    "namespaced": ("NODE:\n  ros__parameters:\n    scene: ns\n", ["-r", "__ns:=/robot"]),
+    "empty": ("", []),
+    "scalar": ("42\n", []),
+    "nested": ("robot:\n  NODE:\n    ros__parameters:\n      scene: nested\n", []),
+}
+NODE_NAMES = {"sim_node": "biped_sim", "walk_controller": "walk_controller"}
+
+
+@pytest.mark.parametrize("program,case", [("sim_node", case) for case in sorted(PARAMS_FILES)]
+                         + [("walk_controller", "typo"), ("walk_controller", "renamed")])
+def test_a_parameters_file_that_applies_to_no_node_is_refused(program, case, tmp_path):
+    """(rcl itself refuses a section without ros__parameters, or a name with a partial wildcard)"""
+    node = NODE_NAMES[program]
+    text, extra = PARAMS_FILES[case]
+    path = tmp_path / "params.yaml"
+    path.write_text(text.replace("NODE", node))
+    with ros_domain() as dom:
+        try:
+            done = subprocess.run([str(BIN / program), "--ros-args", "--params-file", str(path), *extra],
+                                  env=ros_env(dom), cwd=tmp_path, capture_output=True, text=True, timeout=20,
+                                  stdin=subprocess.DEVNULL)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"{program} started with {case} {path} (ran until killed)")
+    assert done.returncode == 2, done.stdout + done.stderr
+    lines = [ln for ln in done.stderr.splitlines() if ln.startswith(f"{program}: error:")]
+    assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
+    fqn = {"renamed": "/other", "namespaced": f"/robot/{node}"}.get(case, f"/{node}")
+    assert f"the parameters file {path} gives node {fqn} nothing" in lines[0], lines[0]
+    assert f"'{fqn}:'" in lines[0] and "'/**:'" in lines[0] and "-r __node:=NAME" in lines[0]
+    found = {"typo": f"sections ['{node}x']", "renamed": f"sections ['{node}']", "namespaced": f"sections ['{node}']",
+             "empty": "it is empty", "scalar": "only 42", "nested": f"sections ['robot/{node}']"}[case]
+    assert found in lines[0], lines[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["params.yaml"]        # nothing recorded
+
+
+# -- item 1: the disk fills up, the bag writer dies ------------------------------------------------------
+def writer_process(pid: int):
+    """The pid of the bag writer process, a child of ``pid`` (or of a child of it)."""
+    todo = [pid]
+    while todo:
+        p = todo.pop()
+        for task in Path(f"/proc/{p}/task").iterdir():
+            for child in (task / "children").read_text().split():
+                if b"biped_sim.recording.writer" in Path(f"/proc/{child}/cmdline").read_bytes():
+                    return int(child)
+                todo.append(int(child))
+    return None
+
+
+def bag_messages_on_disk(mcap: Path) -> int:
+    """Messages in the complete chunks of an MCAP file being written."""
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader, breakup_chunk
+    n = 0
+    try:
+        with open(mcap, "rb") as f:
+            for rec in StreamReader(f, emit_chunks=True).records:
+                if isinstance(rec, Chunk):
+                    n += sum(1 for r in breakup_chunk(rec) if type(r).__name__ == "Message")
+    except Exception:  # noqa: BLE001 - the part still being written
+        pass
+    return n
+
+
+def check_failed_run(proc, status, why: str) -> str:
+    """The node ended the run on the recording fault: exit code 1, one error line, the final status."""
+    log = proc.output()
+    line = one_line(log, "failed: ")
+    assert "[ERROR]" in line and why in line and "MB free on its file system" in line, line
+    assert "The run stops here" in line and "biped-sim recover" in line
+    assert status["status"] == "failed" and status["level"] == 2 and why in status["message"], status
+    return line
+
+
+def test_a_killed_bag_writer_ends_the_run_cleanly_and_the_bag_is_recoverable(tmp_path):
+    params = dict(scene="writer", time_mode="realtime", bag_dir=str(tmp_path), command_timeout=0.0)
+    with ros_domain() as dom, start_node(params, dom) as sim, Client(dom) as c:
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        c.wait_subscribed("/diagnostics", proc=sim)
+        mcap = lambda: next(tmp_path.glob("writer-*/*.mcap"), Path("-"))  # noqa: E731
+        wait_for(lambda: bag_messages_on_disk(mcap()) > 300, 60, "chunks on disk", [sim])
+        writer = writer_process(sim.proc.pid)
+        assert writer is not None, "no bag writer process"
+        os.kill(writer, signal.SIGKILL)
+        on_disk = bag_messages_on_disk(mcap())
+        assert sim.wait(30) == 1, sim.output()
+        status = run_status(c, diag, sim)
+    check_failed_run(sim, status, "the bag writer process is gone")
+    bag = next(tmp_path.glob("writer-*"))
+    assert not (bag / "metadata.yaml").exists()       # the writer died before the end
+    assert "recovered" in recover(bag)
+    times = bag_joint_state_times(bag)
+    assert bag_message_count(bag) >= on_disk and times == sorted(times) and times[-1] <= float(status["time"])
+
+
+def namespaces_work() -> str | None:
+    """Why a private mount namespace (for a small tmpfs, without root) is not available, or None."""
+    try:
+        done = subprocess.run(["unshare", "-rm", "sh", "-c", "mount -t tmpfs -o size=1m tmpfs /mnt"],
+                              capture_output=True, text=True, timeout=20)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return f"unshare cannot run: {exc}"
+    return None if done.returncode == 0 else f"unshare -rm cannot mount a tmpfs here: {done.stderr.strip()}"
+
+
+@pytest.mark.parametrize("mode", ["realtime", "lockstep"])
+def test_a_full_disk_mid_run_ends_the_run_cleanly_and_keeps_the_bag(mode, tmp_path):
+    """The bag folder on an 80 MB tmpfs of the node's own mount namespace (``unshare -rm``); once the
+    run records, the test fills the tmpfs (through /proc/<pid>/root). After the node, the wrapper
+    frees the space and copies the bag out (the tmpfs ends with the namespace)."""
+    why = namespaces_work()
+    if why:
+        warnings.warn(f"full-disk case skipped: {why}", stacklevel=1)
+        pytest.skip(why)
+    disk, saved = tmp_path / "disk", tmp_path / "saved"
+    disk.mkdir()
+    saved.mkdir()
+    args = (["--ros-args", "--params-file", WALK, "-p", "duration:=0.0"] if mode == "lockstep" else
+            ["--ros-args", "-p", "scene:=full", "-p", "command_timeout:=0.0"])
+    script = (f"mount -t tmpfs -o size=80m tmpfs {disk} || exit 97\n"
+              f"{BIN / 'sim_node'} {' '.join(args)} -p bag_dir:={disk}\n"
+              f"rc=$?\nrm -f {disk}/filler\ncp -a {disk}/. {saved}/\nexit $rc\n")
+    with ros_domain() as dom, Client(dom) as c, contextlib.ExitStack() as stack:
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        sim = stack.enter_context(NodeProcess(["unshare", "-rm", "sh", "-c", script], dom))
+        if mode == "lockstep":
+            stack.enter_context(start_node(None, dom, "walk_controller", ["--ros-args", "--params-file", WALK]))
+        c.wait_subscribed("/diagnostics", proc=sim)
+        inside = Path(f"/proc/{sim.proc.pid}/root{disk}")
+        mcap = lambda: next(inside.glob("*/*.mcap"), Path("-"))  # noqa: E731
+        wait_for(lambda: bag_messages_on_disk(mcap()) > 300, 60, "chunks on disk", [sim])
+        on_disk = bag_messages_on_disk(mcap())
+        with open(inside / "filler", "wb", buffering=0) as filler:       # fill the disk
+            block = bytes(1 << 20)
+            try:
+                while True:
+                    filler.write(block)
+            except OSError as exc:
+                assert exc.errno == 28, exc
+        assert sim.wait(60) == 1, sim.output()
+        status = run_status(c, diag, sim)
+    line = check_failed_run(sim, status, "No space left on device")
+    assert f"recording to {disk}/" in line
+    bag = next(saved.iterdir())
+    assert sorted(p.name for p in bag.iterdir()) == [f"{bag.name}_0.mcap"]   # no metadata.yaml (nor a half one)
+    recover(bag)
+    times = bag_joint_state_times(bag)      # everything on disk before the disk filled up, in order
+    assert bag_message_count(bag) >= on_disk and times == sorted(times) and times[-1] <= float(status["time"])
