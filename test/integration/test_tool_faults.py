@@ -220,6 +220,7 @@ def bad_inputs(tmp_path):
         "inspect": ([tmp_path / "no_such_bag"], "no bag at"),
         "recover": ([empty_bag], "not an MCAP file"),
         "replay": ([garbage], "not an MCAP file"),
+        "animate": ([garbage, "-o", tmp_path / "x.gif"], "not an MCAP file"),
     }
 
 
