@@ -10,6 +10,7 @@ computation). docs/sweeps.md shows the API and ``biped-sim sweep``.
 """
 from __future__ import annotations
 
+import contextlib
 import inspect
 import itertools
 import math
@@ -17,6 +18,7 @@ import multiprocessing
 import os
 import pickle
 import signal
+import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -186,8 +188,9 @@ def _run_processes(tasks, workers, _address):
     in_flight = {}
     try:
         while True:
-            for index, task in itertools.islice(pending, workers * IN_FLIGHT_PER_WORKER - len(in_flight)):
-                in_flight[pool.submit(run_one, *task)] = index
+            with _sigint_blocked():   # the processes a submit starts must not take a Ctrl-C meant for us
+                for index, task in itertools.islice(pending, workers * IN_FLIGHT_PER_WORKER - len(in_flight)):
+                    in_flight[pool.submit(run_one, *task)] = index
             if not in_flight:
                 return
             finished, _ = wait(in_flight, return_when=FIRST_COMPLETED)
@@ -232,6 +235,28 @@ def _start_method():
 
 def _ignore_sigint():
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+@contextlib.contextmanager
+def _sigint_blocked():
+    """A Ctrl-C held back while a submit may start the fork server or a worker. Blocked in this thread,
+    so that they (which inherit the mask) cannot take it while they import the engine, before a
+    worker's initializer ignores it: each printed a KeyboardInterrupt traceback. And deferred in
+    Python, because the kernel may hand it to another thread of ours, and the interpreter would then
+    raise it in the middle of a submit: a worker started but not yet known to the pool, left alive to
+    fail once we are gone. The Ctrl-C held back is raised when the block ends."""
+    deferred = []
+    in_main = threading.current_thread() is threading.main_thread()
+    old_handler = signal.signal(signal.SIGINT, lambda *_: deferred.append(True)) if in_main else None
+    old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
+        if in_main:
+            signal.signal(signal.SIGINT, old_handler)
+    if deferred:
+        raise KeyboardInterrupt
 
 
 def _stop_pool(pool):

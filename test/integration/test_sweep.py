@@ -200,6 +200,40 @@ def test_ctrl_c_stops_the_sweep_and_writes_the_runs_done(tmp_path):
     assert [int(t["index"]) for t in table] == sorted(int(t["index"]) for t in table)
 
 
+def _children(pid):
+    out = []
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            out += [int(c) for c in (task / "children").read_text().split()]
+        except OSError:
+            pass
+    return out
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs /proc to see the pool's processes")
+@pytest.mark.parametrize("moment", ["fork server starts", "first worker starts"])
+def test_ctrl_c_while_the_pool_starts_is_quiet(tmp_path, moment):
+    """Ctrl-C the moment the fork server (which imports the engine) or the first worker appears: no
+    process prints a traceback (each did: a KeyboardInterrupt inside the fork server's import, or a
+    worker not yet known to the pool, left alive to fail once its parent had gone)."""
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    p = subprocess.Popen([CLI, "sweep", "walk", "--set", "kp=50:500:8", "--duration", "1", "--workers", "2",
+                          "-o", str(tmp_path / "s.csv")], stderr=subprocess.PIPE, text=True, env=env,
+                         start_new_session=True)
+    end = time.monotonic() + 60
+    while True:
+        assert time.monotonic() < end and p.poll() is None, "the pool never started"
+        servers = _children(p.pid)
+        if servers and (moment == "fork server starts" or any(_children(s) for s in servers)):
+            break
+        time.sleep(0.001)
+    os.killpg(p.pid, signal.SIGINT)        # Ctrl-C reaches the terminal's whole process group
+    _, err = p.communicate(timeout=60)
+    time.sleep(1.0)                        # a worker left behind would print after its parent is gone
+    assert p.returncode == 130, err
+    assert "Traceback" not in err and "Error" not in err, err
+
+
 def test_interrupted_sweep_keeps_its_rows():
     stop = SweepInterrupted([{"index": 0}], 4)
     assert isinstance(stop, KeyboardInterrupt) and stop.rows == [{"index": 0}] and stop.total == 4
