@@ -8,6 +8,8 @@ Owns process and graph plumbing only (no assertions about the simulator):
   parameters, output to a log file; :class:`NodeProcess` stops it with a signal and returns the code.
 * :class:`Client` -- an rclpy node in the test process, in its own context on that domain: publishers,
   subscriptions that collect messages, and polling of the graph (never fixed sleeps).
+* :func:`bag_messages`, :func:`complete_messages` -- a bag read back by the independent readers
+  (rosbags; mcap's stream reader for a file still being written).
 
 Typical use::
 
@@ -221,3 +223,31 @@ class Client:
             return set(publishers) <= set(pubs) and set(subscribers) <= set(subs)
         self.spin_until(ready, timeout, f"topics {sorted(publishers)} / {sorted(subscribers)} of node {name}", proc)
         return self.node_topics(name, namespace)
+
+
+def bag_messages(bag) -> dict:
+    """{topic: [(t_ns, decoded message)]} of a bag, read and decoded by rosbags."""
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+    store = get_typestore(Stores.ROS2_JAZZY)
+    out = {}
+    with Reader(bag) as reader:
+        for conn, t_ns, raw in reader.messages():
+            out.setdefault(conn.topic, []).append((t_ns, store.deserialize_cdr(raw, conn.msgtype)))
+    return out
+
+
+def complete_messages(paths) -> int:
+    """Messages in the complete chunks of MCAP files being written (mcap's stream reader)."""
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader, breakup_chunk
+    n = 0
+    for path in paths:
+        try:
+            with open(path, "rb") as f:
+                for rec in StreamReader(f, emit_chunks=True).records:
+                    if isinstance(rec, Chunk):
+                        n += sum(1 for r in breakup_chunk(rec) if type(r).__name__ == "Message")
+        except Exception:  # noqa: BLE001 - the part still being written
+            pass
+    return n

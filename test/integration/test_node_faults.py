@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from ros_helpers import BIN, Client, NodeProcess, ros_domain, ros_env, start_node  # noqa: E402
+from ros_helpers import BIN, Client, NodeProcess, complete_messages, ros_domain, ros_env, start_node  # noqa: E402
 
 pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
@@ -283,19 +283,6 @@ def writer_process(pid: int):
     return None
 
 
-def bag_messages_on_disk(mcap: Path) -> int:
-    """Messages in the complete chunks of an MCAP file being written."""
-    from mcap.records import Chunk
-    from mcap.stream_reader import StreamReader, breakup_chunk
-    n = 0
-    try:
-        with open(mcap, "rb") as f:
-            for rec in StreamReader(f, emit_chunks=True).records:
-                if isinstance(rec, Chunk):
-                    n += sum(1 for r in breakup_chunk(rec) if type(r).__name__ == "Message")
-    except Exception:  # noqa: BLE001 - the part still being written
-        pass
-    return n
 
 
 def check_failed_run(proc, status, why: str) -> str:
@@ -314,11 +301,11 @@ def test_a_killed_bag_writer_ends_the_run_cleanly_and_the_bag_is_recoverable(tmp
         diag = c.collect("/diagnostics", DiagnosticArray)
         c.wait_subscribed("/diagnostics", proc=sim)
         mcap = lambda: next(tmp_path.glob("writer-*/*.mcap"), Path("-"))  # noqa: E731
-        wait_for(lambda: bag_messages_on_disk(mcap()) > 300, 60, "chunks on disk", [sim])
+        wait_for(lambda: complete_messages([mcap()]) > 300, 60, "chunks on disk", [sim])
         writer = writer_process(sim.proc.pid)
         assert writer is not None, "no bag writer process"
         os.kill(writer, signal.SIGKILL)
-        on_disk = bag_messages_on_disk(mcap())
+        on_disk = complete_messages([mcap()])
         assert sim.wait(30) == 1, sim.output()
         status = run_status(c, diag, sim)
     check_failed_run(sim, status, "the bag writer process is gone")
@@ -364,8 +351,8 @@ def test_a_full_disk_mid_run_ends_the_run_cleanly_and_keeps_the_bag(mode, tmp_pa
         c.wait_subscribed("/diagnostics", proc=sim)
         inside = Path(f"/proc/{sim.proc.pid}/root{disk}")
         mcap = lambda: next(inside.glob("*/*.mcap"), Path("-"))  # noqa: E731
-        wait_for(lambda: bag_messages_on_disk(mcap()) > 300, 60, "chunks on disk", [sim])
-        on_disk = bag_messages_on_disk(mcap())
+        wait_for(lambda: complete_messages([mcap()]) > 300, 60, "chunks on disk", [sim])
+        on_disk = complete_messages([mcap()])
         with open(inside / "filler", "wb", buffering=0) as filler:       # fill the disk
             block = bytes(1 << 20)
             try:

@@ -14,12 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ros_helpers import BIN, Client, ros_domain, ros_env, start_node
+from ros_helpers import BIN, Client, bag_messages, complete_messages, ros_domain, ros_env, start_node
 
 pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from rosbags.rosbag2 import Reader  # noqa: E402
-from rosbags.typesys import Stores, get_typestore  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
@@ -31,36 +29,13 @@ from biped_sim.recording.record_run import run_recorded  # noqa: E402
 from biped_sim.recording.recorder import BagRecorder  # noqa: E402
 from biped_sim.recording.resim import format_report, resim  # noqa: E402
 
-TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
-
 
 def ns(stamp):
     return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
-def bag_messages(bag):
-    """{topic: [(t_ns, decoded)]} read by rosbags."""
-    out = {}
-    with Reader(bag) as reader:
-        for conn, t_ns, raw in reader.messages():
-            out.setdefault(conn.topic, []).append((t_ns, TYPESTORE.deserialize_cdr(raw, conn.msgtype)))
-    return out
 
 
-def complete_messages(paths):
-    """Messages in the complete chunks of an MCAP file being written (mcap's stream reader)."""
-    from mcap.records import Chunk
-    from mcap.stream_reader import StreamReader, breakup_chunk
-    n = 0
-    for path in paths:
-        try:
-            with open(path, "rb") as f:
-                for rec in StreamReader(f, emit_chunks=True).records:
-                    if isinstance(rec, Chunk):
-                        n += sum(1 for r in breakup_chunk(rec) if type(r).__name__ == "Message")
-        except Exception:  # noqa: BLE001 - the part still being written
-            pass
-    return n
 
 
 def test_replay_delivers_every_message_in_order(tmp_path):

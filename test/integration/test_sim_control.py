@@ -10,13 +10,11 @@ import numpy as np
 import pytest
 import yaml
 
-from ros_helpers import Client, ros_domain, start_node
+from ros_helpers import Client, bag_messages, ros_domain, start_node
 
 rclpy = pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import Vector3Stamped  # noqa: E402
-from rosbags.rosbag2 import Reader  # noqa: E402
-from rosbags.typesys import Stores, get_typestore  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
@@ -32,7 +30,6 @@ WALK = Path(__file__).resolve().parents[2] / "msg_configs" / "walk.yaml"
 SCENE = yaml.safe_load(WALK.read_text())["biped_sim"]["ros__parameters"]
 PERIOD_NS = round(SCENE["control_period"] * 1e9)
 PUSH = (-6.0, -4.0)            # backwards and down: the ground keeps the stance foot
-TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
 
 def ns(stamp):
@@ -75,12 +72,6 @@ def stepped_to(answer):
     return round(float(answer.message.split(" to t=")[1].split(" s")[0]) * 1e9)
 
 
-def bag_messages(bag):
-    out = {}
-    with Reader(bag) as reader:
-        for conn, t_ns, raw in reader.messages():
-            out.setdefault(conn.topic, []).append((t_ns, TYPESTORE.deserialize_cdr(raw, conn.msgtype)))
-    return out
 
 
 def test_pause_step_push_reset_resume_with_the_walk_controller(tmp_path):
