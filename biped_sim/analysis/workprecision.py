@@ -42,7 +42,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from biped_sim.control.walking import WalkingController
 from biped_sim.engine.dynamics import stance_floating_fast
@@ -207,6 +206,7 @@ class Reference:
 def solve_ivp_fall(model, case, tol):
     """The passive fall with plain solve_ivp(DOP853): own right-hand side, no projection, and the
     engine's stance guard (liftoff: normal force reaches zero) as a terminal event."""
+    from scipy.integrate import solve_ivp  # here: every biped-sim command imports this module
     def rhs(t, y):
         q, dq = y[:5].tolist(), y[5:].tolist()
         return np.array(dq + list(stance_floating_fast(model, q, dq, (0.0, 0.0), 1)[0]))

@@ -23,7 +23,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import brentq
 
 from biped_sim.engine.compiled import gen
 
@@ -121,6 +120,7 @@ def locate_crossing(guard_at, ta, tb, event_tol) -> float:
         return tb
     if ga <= 0:
         return ta
+    from scipy.optimize import brentq  # here: its import (~0.4 s) is paid by runs that locate an event
     return brentq(guard_at, ta, tb, xtol=event_tol, rtol=4 * np.finfo(float).eps, maxiter=200)
 
 

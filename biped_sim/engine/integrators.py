@@ -23,22 +23,25 @@ Methods (``make_stepper(name, ...)``):
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
-from scipy.integrate import (
-    BDF,
-    DOP853 as _SCIPY_DOP853,  # its public coefficient tables only
-    DOP853 as _ScipyDOP853,
-    RK45,
-    Radau,
-)
 
 from biped_sim.engine.compiled import rk as _rk
 
 FIXED_STEP_METHODS = ("rk4", "semi_implicit_euler")
 ADAPTIVE_METHODS = ("dop853", "dopri5", "radau", "bdf", "scipy_dop853", "scipy_rk45")
 METHODS = ADAPTIVE_METHODS + FIXED_STEP_METHODS
+
+
+@functools.cache
+def _scipy_integrate():
+    """scipy.integrate, imported at the first stepper that needs its tables or solvers: the import costs
+    about 1.5 s here (it pulls in scipy.special, optimize, sparse), which every command and node start
+    paid before it could even check its arguments."""
+    import scipy.integrate
+    return scipy.integrate
 
 
 class StepFailure(RuntimeError):
@@ -171,10 +174,17 @@ class DOP853Stepper(_ListRungeKutta):
     7th-order dense output are computed only when ``dense_output()`` is asked for, which the
     hybrid engine does only in steps where a guard may have crossed."""
     STEPS, GENERIC_STEP, ERROR_ORDER = _rk.DOP853_STEPS, staticmethod(_rk.dop853_step), 7
-    N_STAGES = _SCIPY_DOP853.n_stages                       # 12
-    A_EXTRA, C_EXTRA, D = _SCIPY_DOP853.A_EXTRA, _SCIPY_DOP853.C_EXTRA, _SCIPY_DOP853.D
-    N_STAGES_EXTENDED = A_EXTRA.shape[1]                    # 16: three more stages for the dense output
-    INTERPOLATOR_POWER = D.shape[0] + 3                     # 7
+    N_STAGES = None         # scipy DOP853's public tables, read by the first stepper (see _scipy_integrate)
+
+    def __init__(self, *args, **kwargs):
+        cls = DOP853Stepper
+        if cls.N_STAGES is None:
+            ref = _scipy_integrate().DOP853
+            cls.A_EXTRA, cls.C_EXTRA, cls.D = ref.A_EXTRA, ref.C_EXTRA, ref.D
+            cls.N_STAGES_EXTENDED = ref.A_EXTRA.shape[1]       # 16: three more stages for the dense output
+            cls.INTERPOLATOR_POWER = ref.D.shape[0] + 3         # 7
+            cls.N_STAGES = ref.n_stages                         # 12
+        super().__init__(*args, **kwargs)
 
     def dense_at(self, t):
         return self.dense_output().at(t)
@@ -205,8 +215,15 @@ class DOPRI5Stepper(_ListRungeKutta):
     reused as the next step's first), with its free 4th-order dense output. For steps capped by a
     short control period (the node's 1 ms) it reaches the tolerance with about half the
     evaluations of DOP853, whose order pays off only on long steps."""
-    STEPS, GENERIC_STEP, ERROR_ORDER, N_STAGES = _rk.DOPRI5_STEPS, staticmethod(_rk.dopri5_step), 4, RK45.n_stages
-    P = RK45.P
+    STEPS, GENERIC_STEP, ERROR_ORDER = _rk.DOPRI5_STEPS, staticmethod(_rk.dopri5_step), 4
+    N_STAGES = None         # scipy RK45's public tables, read by the first stepper (see _scipy_integrate)
+
+    def __init__(self, *args, **kwargs):
+        cls = DOPRI5Stepper
+        if cls.N_STAGES is None:
+            ref = _scipy_integrate().RK45
+            cls.P, cls.N_STAGES = ref.P, ref.n_stages
+        super().__init__(*args, **kwargs)
 
     def dense_output(self):
         if self._dense is None:
@@ -354,10 +371,10 @@ class SemiImplicitEulerStepper(_FixedStepper):
 class ScipyStepper(_Stepper):
     """A scipy ``OdeSolver`` (Radau, BDF, DOP853, RK45) behind the same interface."""
     last_eval_at_end = False
-    CLASSES = {"radau": Radau, "bdf": BDF, "scipy_dop853": _ScipyDOP853, "scipy_rk45": RK45}
+    CLASSES = {"radau": "Radau", "bdf": "BDF", "scipy_dop853": "DOP853", "scipy_rk45": "RK45"}
 
     def __init__(self, method, fun, t0, y0, t_bound, rtol, atol, h0=None, max_step=np.inf):
-        self.cls = self.CLASSES[method]
+        self.cls = getattr(_scipy_integrate(), self.CLASSES[method])
         self.rtol, self.atol, self.max_step, self.h0 = rtol, atol, max_step, h0
         self._nfev_done = 0
         self._njev_done = 0

@@ -86,3 +86,17 @@ def test_a_ros_command_without_rclpy_says_what_to_install_in_one_line():
     assert out.returncode == 2, out
     assert out.stderr.startswith("sim_node: error: cannot import the ROS 2 Python packages"), out.stderr
     assert "Traceback" not in out.stderr and len(out.stderr.strip().splitlines()) == 1
+
+
+def test_a_command_that_integrates_nothing_does_not_import_scipy_integrate():
+    """scipy.integrate costs ~1.5 s to import: every biped-sim command and node start paid it before
+    checking its arguments (2.7 s to refuse a bad bag). It is imported by the first stepper only."""
+    code = ("import sys\nfrom biped_sim.cli import main\n"
+            "code = main(['resim', '/etc/passwd'])\n"
+            "import biped_sim.engine.hybrid, biped_sim.ros.sim_node\n"
+            "print(code, sorted(m for m in ('scipy.integrate', 'scipy.optimize') if m in sys.modules))\n"
+            "import biped_sim as bs\nbs.load_scene('walk').simulate(t_final=0.6)\n"
+            "print('scipy.integrate' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines() == ["2 []", "True"], out.stdout + out.stderr
