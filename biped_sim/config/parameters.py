@@ -126,6 +126,8 @@ PARAMETERS = [
           "the node keeps waiting; 0 = no warning", 0.0, 3600.0),
     Param("lockstep_timeout", float, 0.0, "lockstep: no command for this long (wall s) ends the run (status "
           "stopped on diagnostics, exit code 1); 0 = wait for the controller forever", 0.0, 1e7),
+    Param("start_paused", bool, False, "start paused (as Gazebo's -u): the state at t = 0 is published, nothing "
+          "advances until ~/pause false (or ~/step); lets a controller connect before the run moves"),
     Param("record", bool, True, "record the run to an MCAP bag"),
     Param("bag_dir", str, "bags", "folder for bags; each run records to <bag_dir>/<scene>-<UTC time>/"),
 ] + [

@@ -44,7 +44,7 @@ class SimControl:
         self.qos = qos
         self.lockstep = node.mode == "lockstep"
         self.cond = threading.Condition()
-        self.paused = False
+        self.paused = bool(node.params["start_paused"])
         self.pushes = []                  # impulses to apply at the start of the next control period
         self.requests = deque()           # step and reset requests for the loop thread
         self.lockstep_command_held = False   # lockstep: a command came while paused

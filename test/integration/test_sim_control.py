@@ -76,7 +76,9 @@ def stepped_to(answer):
 
 def test_pause_step_push_reset_resume_with_the_walk_controller(tmp_path):
     # realtime at a fifth of the wall clock: the controller, a process on a shared machine, keeps up
-    params = dict(time_mode="realtime", rate_factor=0.2, duration=60.0, bag_dir=str(tmp_path))
+    # and it starts paused: the walk falls if it runs (zero torque) while the controller is still
+    # being discovered (1-3 s of wall time here; it fell at t = 0.35 s in a fresh-clone run)
+    params = dict(time_mode="realtime", rate_factor=0.2, duration=60.0, bag_dir=str(tmp_path), start_paused=True)
     scene_file = ["--ros-args", "--params-file", str(WALK)]
     with ros_domain() as dom, start_node(params, dom, extra_args=scene_file) as proc, \
             start_node(None, dom, "walk_controller", extra_args=scene_file) as ctrl, Client(dom) as c:
@@ -87,6 +89,13 @@ def test_pause_step_push_reset_resume_with_the_walk_controller(tmp_path):
         push_pub = c.publisher("/push", Vector3Stamped)
         srv = Control(c, proc)
         c.wait_subscribed("/joint_states", proc=proc)
+        # the controller in the graph: it answers the state at t = 0 (it gets it from the node's history)
+        c.spin_until(lambda: c.node.count_publishers("/hip_torque") >= 1
+                     and c.node.count_subscribers("/joint_states") >= 2, timeout=60, what="the controller", proc=proc)
+        c.spin_until(lambda: js, timeout=30, what="the state at t = 0", proc=proc)
+        assert all(ns(m.header.stamp) == 0 for m in js)               # paused: nothing advanced
+        answer = srv.pause(False)
+        assert answer.success and answer.message.startswith("running at t=0.000000 s"), answer.message
         c.spin_until(lambda: js and ns(js[-1].header.stamp) > 0.05e9, timeout=60, what="the walk under way",
                      proc=proc)
         assert ctrl.alive
