@@ -125,6 +125,12 @@ def locate_crossing(guard_at, ta, tb, event_tol) -> float:
 
 
 # -- the ground as a constraint on states ----------------------------------------------------------
+def prepare_event_location():
+    """Import the root finder now (``locate_crossing`` imports it where it is used, ~0.4 s): a
+    realtime run must not stall at its first event for it."""
+    import scipy.optimize  # noqa: F401
+
+
 def check_initial_contact(feet, stance_leg, opt):
     """A ValueError unless the initial state agrees with its mode: in stance, the stance foot on the
     ground within ``contact_tol`` and at rest, and the swing foot not below it; in flight, both feet

@@ -30,7 +30,7 @@ import numpy as np
 from biped_sim.engine import guards as G
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, gen
 from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
-from biped_sim.engine.integrators import StepFailure, make_stepper
+from biped_sim.engine.integrators import StepFailure, make_stepper, prepare as prepare_stepper
 from biped_sim.engine.invariants import ImpactHistory, check_impact, check_sample
 from biped_sim.engine.locator import EventLocator
 from biped_sim.engine.model import BipedModel, as_state_vector
@@ -66,6 +66,8 @@ class HybridSimulator:
         self.opt.check()
         stance_leg = check_run_arguments(self.opt, method, rtol, atol, mu, stance_leg)
         self.method, self.rtol, self.atol, self.mu = method, rtol, atol, mu
+        prepare_stepper(method)          # the imports a run needs, paid here and not inside its first step
+        G.prepare_event_location()
         q0 = as_state_vector(q0, "q0")
         dq0 = as_state_vector(dq0, "dq0")
         self.p = model.p

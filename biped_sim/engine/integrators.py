@@ -44,6 +44,13 @@ def _scipy_integrate():
     return scipy.integrate
 
 
+def prepare(method: str):
+    """Import what a stepper of ``method`` needs now, not inside the first step: a simulator built
+    before a realtime run must not stall its first control period for the import."""
+    if method in ADAPTIVE_METHODS:
+        _scipy_integrate()
+
+
 class StepFailure(RuntimeError):
     """The integrator cannot continue (step size underflow, non-finite state, solver failure)."""
 
