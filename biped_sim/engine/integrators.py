@@ -91,13 +91,16 @@ class _ListRungeKutta(_Stepper):
 
     The state and the right-hand side are Python lists: one step is a generated, unrolled function
     of ``_rk_steps.py`` (see tools/generate_rk.py for why). Subclasses give the step functions,
-    the error estimator's order and the dense output.
+    the error estimator's order, the dense output and ``_read_tables`` (the pair's tables from
+    scipy.integrate, read by the first stepper: see ``_scipy_integrate``).
     """
     takes_lists = True
     STEPS, GENERIC_STEP, ERROR_ORDER, N_STAGES = {}, None, None, None
     SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
 
     def __init__(self, fun, t0, y0, t_bound, rtol=1e-9, atol=1e-9, h0=None, max_step=np.inf):
+        if self.N_STAGES is None:       # the pair's scipy tables, read by its first stepper
+            self._read_tables(_scipy_integrate())
         self.rtol, self.atol, self.max_step = rtol, atol, max_step
         self.h_abs = h0
         self.error_exponent = -1.0 / (self.ERROR_ORDER + 1)
@@ -181,17 +184,14 @@ class DOP853Stepper(_ListRungeKutta):
     7th-order dense output are computed only when ``dense_output()`` is asked for, which the
     hybrid engine does only in steps where a guard may have crossed."""
     STEPS, GENERIC_STEP, ERROR_ORDER = _rk.DOP853_STEPS, staticmethod(_rk.dop853_step), 7
-    N_STAGES = None         # scipy DOP853's public tables, read by the first stepper (see _scipy_integrate)
 
-    def __init__(self, *args, **kwargs):
-        cls = DOP853Stepper
-        if cls.N_STAGES is None:
-            ref = _scipy_integrate().DOP853
-            cls.A_EXTRA, cls.C_EXTRA, cls.D = ref.A_EXTRA, ref.C_EXTRA, ref.D
-            cls.N_STAGES_EXTENDED = ref.A_EXTRA.shape[1]       # 16: three more stages for the dense output
-            cls.INTERPOLATOR_POWER = ref.D.shape[0] + 3         # 7
-            cls.N_STAGES = ref.n_stages                         # 12
-        super().__init__(*args, **kwargs)
+    @classmethod
+    def _read_tables(cls, scipy_integrate):
+        ref = scipy_integrate.DOP853            # its public coefficient tables only
+        cls.A_EXTRA, cls.C_EXTRA, cls.D = ref.A_EXTRA, ref.C_EXTRA, ref.D
+        cls.N_STAGES_EXTENDED = ref.A_EXTRA.shape[1]       # 16: three more stages for the dense output
+        cls.INTERPOLATOR_POWER = ref.D.shape[0] + 3         # 7
+        cls.N_STAGES = ref.n_stages                         # 12
 
     def dense_at(self, t):
         return self.dense_output().at(t)
@@ -223,14 +223,10 @@ class DOPRI5Stepper(_ListRungeKutta):
     short control period (the node's 1 ms) it reaches the tolerance with about half the
     evaluations of DOP853, whose order pays off only on long steps."""
     STEPS, GENERIC_STEP, ERROR_ORDER = _rk.DOPRI5_STEPS, staticmethod(_rk.dopri5_step), 4
-    N_STAGES = None         # scipy RK45's public tables, read by the first stepper (see _scipy_integrate)
 
-    def __init__(self, *args, **kwargs):
-        cls = DOPRI5Stepper
-        if cls.N_STAGES is None:
-            ref = _scipy_integrate().RK45
-            cls.P, cls.N_STAGES = ref.P, ref.n_stages
-        super().__init__(*args, **kwargs)
+    @classmethod
+    def _read_tables(cls, scipy_integrate):
+        cls.P, cls.N_STAGES = scipy_integrate.RK45.P, scipy_integrate.RK45.n_stages
 
     def dense_output(self):
         if self._dense is None:
