@@ -63,6 +63,11 @@ def test_the_engine_imports_only_the_standard_library_numpy_and_scipy():
     assert not wrong, "the engine imports outside numpy, scipy and the standard library:\n" + "\n".join(wrong)
 
 
+def run_python(code, timeout):
+    """``code`` run by a fresh interpreter (imports as a user's process makes them)."""
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout)
+
+
 def test_a_whole_scene_runs_with_rclpy_and_mcap_absent():
     code = ("import sys\n"
             "for name in ('rclpy', 'mcap', 'mcap_ros2', 'rosbags', 'sensor_msgs', 'std_msgs'):\n"
@@ -72,7 +77,7 @@ def test_a_whole_scene_runs_with_rclpy_and_mcap_absent():
             "print(r.status, len(r.impacts))\n"
             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'mcap', 'rosidl_runtime_py')"
             " and sys.modules[m] is not None))\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    out = run_python(code, timeout=120)
     assert out.returncode == 0, out.stderr
     status, impacts = out.stdout.splitlines()[0].split()
     assert status == "completed" and int(impacts) >= 2, out.stdout
@@ -82,7 +87,7 @@ def test_a_whole_scene_runs_with_rclpy_and_mcap_absent():
 def test_a_ros_command_without_rclpy_says_what_to_install_in_one_line():
     code = ("import sys\nsys.modules['rclpy'] = None\n"
             "from biped_sim.ros import sim_node\nsys.exit(sim_node())\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    out = run_python(code, timeout=60)
     assert out.returncode == 2, out
     assert out.stderr.startswith("sim_node: error: cannot import the ROS 2 Python packages"), out.stderr
     assert "Traceback" not in out.stderr and len(out.stderr.strip().splitlines()) == 1
@@ -100,6 +105,6 @@ def test_a_command_that_integrates_nothing_does_not_import_scipy_integrate():
             "import biped_sim as bs\nscene = bs.load_scene('walk')\n"
             "bs.HybridSimulator(**scene.engine_arguments())\n"
             "print(all(m in sys.modules for m in ('scipy.integrate', 'scipy.optimize')))\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    out = run_python(code, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.splitlines() == ["2 []", "True"], out.stdout + out.stderr
