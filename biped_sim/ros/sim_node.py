@@ -281,16 +281,13 @@ class SimNode(Node):
         """A DiagnosticStatus 'biped_sim/run' with the run's status and counters."""
         sim = self.sim
         st = DiagnosticStatus(name="biped_sim/run")
-        status, message = self.fault or (sim.status, sim.message)
-        if self.fault:
-            st.level = DiagnosticStatus.ERROR
-            st.message = f"{status}: {message}"
-        elif sim.status == "running":
+        status, message = self.fault or (sim.status, sim.message)   # a fault is never "running"
+        if status == "running":
             st.level = DiagnosticStatus.OK
             st.message = "completed" if self.finished else "running"
         else:
             st.level = DiagnosticStatus.ERROR
-            st.message = f"{sim.status}: {sim.message}"
+            st.message = f"{status}: {message}"
         values = dict(status=status if status != "running" else st.message, time=repr(float(sim.t)),
                       message=message, control_periods=str(sim.control_periods), events=str(len(sim.events)),
                       impacts=str(sim.stats["impacts"]), engine_wall_time=repr(float(sim.stats["wall_time"])))
