@@ -37,9 +37,9 @@ METHODS = ADAPTIVE_METHODS + FIXED_STEP_METHODS
 
 @functools.cache
 def _scipy_integrate():
-    """scipy.integrate, imported at the first stepper that needs its tables or solvers: the import costs
-    about 1.5 s here (it pulls in scipy.special, optimize, sparse), which every command and node start
-    paid before it could even check its arguments."""
+    """scipy.integrate, imported at the first stepper that needs its solvers (or the tables of a state
+    size without generated steps): the import costs about 1.5 s here (it pulls in scipy.special,
+    optimize, sparse); dop853 and dopri5 on the engine's states do without it."""
     import scipy.integrate
     return scipy.integrate
 
@@ -47,7 +47,7 @@ def _scipy_integrate():
 def prepare(method: str):
     """Import what a stepper of ``method`` needs now, not inside the first step: a simulator built
     before a realtime run must not stall its first control period for the import."""
-    if method in ADAPTIVE_METHODS:
+    if method in ScipyStepper.CLASSES:
         _scipy_integrate()
 
 
@@ -91,16 +91,13 @@ class _ListRungeKutta(_Stepper):
 
     The state and the right-hand side are Python lists: one step is a generated, unrolled function
     of ``_rk_steps.py`` (see tools/generate_rk.py for why). Subclasses give the step functions,
-    the error estimator's order, the dense output and ``_read_tables`` (the pair's tables from
-    scipy.integrate, read by the first stepper: see ``_scipy_integrate``).
+    the error estimator's order and the dense output (generated too, ``*_dense_<n>``).
     """
     takes_lists = True
     STEPS, GENERIC_STEP, ERROR_ORDER, N_STAGES = {}, None, None, None
     SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
 
     def __init__(self, fun, t0, y0, t_bound, rtol=1e-9, atol=1e-9, h0=None, max_step=np.inf):
-        if self.N_STAGES is None:       # the pair's scipy tables, read by its first stepper
-            self._read_tables(_scipy_integrate())
         self.rtol, self.atol, self.max_step = rtol, atol, max_step
         self.h_abs = h0
         self.error_exponent = -1.0 / (self.ERROR_ORDER + 1)
@@ -184,37 +181,42 @@ class DOP853Stepper(_ListRungeKutta):
     7th-order dense output are computed only when ``dense_output()`` is asked for, which the
     hybrid engine does only in steps where a guard may have crossed."""
     STEPS, GENERIC_STEP, ERROR_ORDER = _rk.DOP853_STEPS, staticmethod(_rk.dop853_step), 7
-
-    @classmethod
-    def _read_tables(cls, scipy_integrate):
-        ref = scipy_integrate.DOP853            # its public coefficient tables only
-        cls.A_EXTRA, cls.C_EXTRA, cls.D = ref.A_EXTRA, ref.C_EXTRA, ref.D
-        cls.N_STAGES_EXTENDED = ref.A_EXTRA.shape[1]       # 16: three more stages for the dense output
-        cls.INTERPOLATOR_POWER = ref.D.shape[0] + 3         # 7
-        cls.N_STAGES = ref.n_stages                         # 12
+    N_STAGES = _rk.N_STAGES["dop853"]
 
     def dense_at(self, t):
         return self.dense_output().at(t)
 
     def dense_output(self):
         if self._dense is None:
-            h, t0 = self.h, self.t_old
-            y0 = np.array(self.y_old)
-            K = np.empty((self.N_STAGES_EXTENDED, y0.size))
-            K[:self.N_STAGES + 1] = self._stages
-            K[:self.N_STAGES + 1] *= h
-            for s, (a, c) in enumerate(zip(self.A_EXTRA, self.C_EXTRA), start=self.N_STAGES + 1):
-                K[s] = self.fun(t0 + c * h, (y0 + np.dot(a[:s], K[:s])).tolist())
-                K[s] *= h
+            dense = _rk.DOP853_DENSE.get(len(self.y))
+            if dense is None:
+                rows = self._dense_rows_any_size()
+            else:       # generated and unrolled: the same operations as the compiled loop's
+                rows = dense(self.fun, self.t_old, self.h, self.y_old, self.y,
+                             *[self._stages[j] for j in _rk.DOP853_DENSE_STAGES])
             self.nfev += 3
-            F = np.empty((self.INTERPOLATOR_POWER, y0.size))
-            dy = np.array(self.y) - y0
-            F[0] = dy
-            F[1] = K[0] - dy
-            F[2] = 2 * dy - (K[12] + K[0])
-            F[3:] = self.D @ K
-            self._dense = _DOP853Interpolant(t0, self.t, y0, F[::-1].copy())
+            self._dense = _DOP853Interpolant(self.t_old, self.t, rows)
         return self._dense
+
+    def _dense_rows_any_size(self):
+        """The rows of the dense output for a state size without a generated one (scipy's tables)."""
+        ref = _scipy_integrate().DOP853
+        h, t0 = self.h, self.t_old
+        y0 = np.array(self.y_old)
+        n_stages_extended = ref.A_EXTRA.shape[1]
+        K = np.empty((n_stages_extended, y0.size))
+        K[:self.N_STAGES + 1] = self._stages
+        K[:self.N_STAGES + 1] *= h
+        for s, (a, c) in enumerate(zip(ref.A_EXTRA, ref.C_EXTRA), start=self.N_STAGES + 1):
+            K[s] = self.fun(t0 + c * h, (y0 + np.dot(a[:s], K[:s])).tolist())
+            K[s] *= h
+        F = np.empty((ref.D.shape[0] + 3, y0.size))
+        dy = np.array(self.y) - y0
+        F[0] = dy
+        F[1] = K[0] - dy
+        F[2] = 2 * dy - (K[12] + K[0])
+        F[3:] = ref.D @ K
+        return list(zip(y0.tolist(), *F[::-1].tolist()))
 
 
 class DOPRI5Stepper(_ListRungeKutta):
@@ -223,34 +225,45 @@ class DOPRI5Stepper(_ListRungeKutta):
     short control period (the node's 1 ms) it reaches the tolerance with about half the
     evaluations of DOP853, whose order pays off only on long steps."""
     STEPS, GENERIC_STEP, ERROR_ORDER = _rk.DOPRI5_STEPS, staticmethod(_rk.dopri5_step), 4
+    N_STAGES = _rk.N_STAGES["dopri5"]
 
-    @classmethod
-    def _read_tables(cls, scipy_integrate):
-        cls.P, cls.N_STAGES = scipy_integrate.RK45.P, scipy_integrate.RK45.n_stages
+    def dense_at(self, t):
+        return self.dense_output().at(t)
 
     def dense_output(self):
         if self._dense is None:
-            Q = (np.array(self._stages).T @ self.P)
-            self._dense = _PolynomialInterpolant(self.t_old, self.t, np.array(self.y_old), Q)
+            dense = _rk.DOPRI5_DENSE.get(len(self.y))
+            if dense is None:    # scipy's Q = K^T P for a size without a generated one
+                Q = np.array(self._stages).T @ _scipy_integrate().RK45.P
+                rows = list(zip(self.y_old, *Q.T.tolist()))
+            else:
+                rows = dense(self.y_old, *self._stages)
+            self._dense = _DOPRI5Interpolant(self.t_old, self.t, rows)
         return self._dense
 
 
-class _PolynomialInterpolant:
-    """y_old + h Q [x, x^2, ..., x^k], x = (t - t_old) / h (scipy's RkDenseOutput)."""
+class _DOPRI5Interpolant:
+    """DOPRI5's 4th-order dense output: per entry y + h (((q4 x + q3) x + q2) x + q1) x, x = (t' - t_old) / h
+    (scipy's RkDenseOutput, evaluated by Horner's rule, as the compiled loop does)."""
 
-    def __init__(self, t_old, t, y_old, Q):
-        self.t_old, self.t, self.y_old, self.Q = t_old, t, y_old, Q
+    def __init__(self, t_old, t, rows):
+        self.t_old, self.t, self.rows = t_old, t, rows
         self.h = t - t_old
 
     def __call__(self, t):
-        x = (t - self.t_old) / self.h
-        return self.y_old + self.h * (self.Q @ np.cumprod(np.full(self.Q.shape[1], x)))
+        return np.array(self.at(t))
+
+    def at(self, t):
+        h = self.h
+        x = (t - self.t_old) / h
+        return [y + h * ((((q4 * x + q3) * x + q2) * x + q1) * x) for y, q1, q2, q3, q4 in self.rows]
 
     def poly_coefficients(self, cols):
         """Power-basis coefficients in x of the entries ``cols``: one row a power (0 to 7)."""
         C = np.zeros((8, len(cols)))
-        C[0] = self.y_old[cols]
-        C[1:1 + self.Q.shape[1]] = self.h * self.Q[cols].T
+        R = np.array([self.rows[c] for c in cols]).T
+        C[0] = R[0]
+        C[1:5] = self.h * R[1:]
         return C
 
 
@@ -269,29 +282,27 @@ def _nested_to_power_basis():
 
 
 class _DOP853Interpolant:
-    """DOP853's 7th-order dense output (scipy's Dop853DenseOutput): a nested product in x and 1 - x."""
+    """DOP853's 7th-order dense output (scipy's Dop853DenseOutput): a nested product in x and 1 - x,
+    from ``rows``, per entry (y_old, f0, ..., f6)."""
     TO_POWER_BASIS = _nested_to_power_basis()
+
+    def __init__(self, t_old, t, rows):
+        self.t_old, self.t, self.rows = t_old, t, rows
+        self.h = t - t_old
 
     def poly_coefficients(self, cols):
         """Power-basis coefficients in x of the entries ``cols``: one row a power (0 to 7)."""
-        return self.TO_POWER_BASIS @ np.vstack([self.y_old[cols], self.F[:, cols]])
-
-    def __init__(self, t_old, t, y_old, F_reversed):
-        self.t_old, self.t, self.y_old, self.F = t_old, t, y_old, F_reversed
-        self.h = t - t_old
-        self._rows = None
+        return self.TO_POWER_BASIS @ np.array([self.rows[c] for c in cols]).T
 
     def __call__(self, t):
         return np.array(self.at(t))
 
     def at(self, t):
         """The same as a list, in plain floats: for 11 entries several times cheaper than numpy."""
-        if self._rows is None:
-            self._rows = list(zip(self.y_old.tolist(), *self.F.tolist()))
         x = (t - self.t_old) / self.h
         u = 1.0 - x
         return [((((((f0 * x + f1) * u + f2) * x + f3) * u + f4) * x + f5) * u + f6) * x + y0
-                for y0, f0, f1, f2, f3, f4, f5, f6 in self._rows]
+                for y0, f0, f1, f2, f3, f4, f5, f6 in self.rows]
 
 
 class _HermiteInterpolant:

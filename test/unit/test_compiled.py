@@ -20,6 +20,7 @@ from biped_sim.engine.model import BipedModel
 ROOT = Path(__file__).resolve().parents[2]
 CLOSED_FORMS = [n for n, f in vars(_generated).items() if inspect.isfunction(f) and not n.endswith("_constants")]
 STEPS = [n for n, f in vars(_rk_steps).items() if inspect.isfunction(f) and re.fullmatch(r"\w+_step_\d+", n)]
+DENSE = [n for n, f in vars(_rk_steps).items() if inspect.isfunction(f) and re.fullmatch(r"\w+_dense_\d+", n)]
 
 
 def twin():
@@ -96,6 +97,27 @@ def test_every_unrolled_step_returns_the_python_bits(name):
             y_new, k_last, err, stages = getattr(module, name)(fun, t, ys, k0, h, tol, tol)
             assert stages[0] is k0 and stages[-1] is k_last   # the right-hand side's own results
             outs.append((_bits(y_new), _bits(k_last), _bits(err), _bits(stages), seen))
+        assert outs[0] == outs[1]
+
+
+@pytest.mark.parametrize("name", DENSE)
+def test_every_dense_output_returns_the_python_bits(name):
+    n = int(name.rsplit("_", 1)[1])
+    rng = random.Random(name)
+    method = name.split("_")[0]
+    for _ in range(100):
+        ys = [rng.uniform(-3, 3) for _ in range(n)]
+        t, h = rng.uniform(0, 10), 10 ** rng.uniform(-5, -0.5)
+        outs = []
+        for module in (_rk_steps, twin()):
+            fun, seen = _oscillators(n)
+            k0 = fun(t, ys)
+            y_new, _, _, stages = getattr(module, f"{method}_step_{n}")(fun, t, ys, k0, h, 1e-9, 1e-9)
+            if method == "dop853":
+                rows = getattr(module, name)(fun, t, h, ys, y_new, *[stages[j] for j in _rk_steps.DOP853_DENSE_STAGES])
+            else:
+                rows = getattr(module, name)(ys, *stages)
+            outs.append((_bits(rows), seen))
         assert outs[0] == outs[1]
 
 

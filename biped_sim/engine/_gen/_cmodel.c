@@ -2206,6 +2206,1124 @@ done:
 }
 
 static PyObject *
+dop853_dense_7(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    PyObject *result = NULL;
+    int failed = 0;
+    PyObject *k13 = NULL;
+    PyObject *k14 = NULL;
+    PyObject *k15 = NULL;
+    if (nargs != 14) {
+        PyErr_SetString(PyExc_TypeError, "dop853_dense_7() takes 14 arguments (fun, t, h, ys, y_new, k0, k5, k6, k7, k8, k9, k10, k11, k12)");
+        return NULL;
+    }
+    PyObject *fun = args[0];
+    const double t = PyFloat_AsDouble(args[1]);
+    if (t == -1.0 && PyErr_Occurred()) return NULL;
+    const double h = PyFloat_AsDouble(args[2]);
+    if (h == -1.0 && PyErr_Occurred()) return NULL;
+    PyObject *ys = args[3];
+    PyObject *y_new = args[4];
+    PyObject *k0 = args[5];
+    PyObject *k5 = args[6];
+    PyObject *k6 = args[7];
+    PyObject *k7 = args[8];
+    PyObject *k8 = args[9];
+    PyObject *k9 = args[10];
+    PyObject *k10 = args[11];
+    PyObject *k11 = args[12];
+    PyObject *k12 = args[13];
+    double ys_[7];
+    if (unpack(ys, ys_, 7, "dop853_dense_7", "ys") < 0) goto done;
+    double y_0 = ys_[0];
+    double y_1 = ys_[1];
+    double y_2 = ys_[2];
+    double y_3 = ys_[3];
+    double y_4 = ys_[4];
+    double y_5 = ys_[5];
+    double y_6 = ys_[6];
+    double y_new_[7];
+    if (unpack(y_new, y_new_, 7, "dop853_dense_7", "y_new") < 0) goto done;
+    double y1_0 = y_new_[0];
+    double y1_1 = y_new_[1];
+    double y1_2 = y_new_[2];
+    double y1_3 = y_new_[3];
+    double y1_4 = y_new_[4];
+    double y1_5 = y_new_[5];
+    double y1_6 = y_new_[6];
+    double k0_[7];
+    if (unpack(k0, k0_, 7, "dop853_dense_7", "k0") < 0) goto done;
+    double k0_0 = k0_[0];
+    double k0_1 = k0_[1];
+    double k0_2 = k0_[2];
+    double k0_3 = k0_[3];
+    double k0_4 = k0_[4];
+    double k0_5 = k0_[5];
+    double k0_6 = k0_[6];
+    double K0_0 = (h * k0_0);
+    double K0_1 = (h * k0_1);
+    double K0_2 = (h * k0_2);
+    double K0_3 = (h * k0_3);
+    double K0_4 = (h * k0_4);
+    double K0_5 = (h * k0_5);
+    double K0_6 = (h * k0_6);
+    double k5_[7];
+    if (unpack(k5, k5_, 7, "dop853_dense_7", "k5") < 0) goto done;
+    double k5_0 = k5_[0];
+    double k5_1 = k5_[1];
+    double k5_2 = k5_[2];
+    double k5_3 = k5_[3];
+    double k5_4 = k5_[4];
+    double k5_5 = k5_[5];
+    double k5_6 = k5_[6];
+    double K5_0 = (h * k5_0);
+    double K5_1 = (h * k5_1);
+    double K5_2 = (h * k5_2);
+    double K5_3 = (h * k5_3);
+    double K5_4 = (h * k5_4);
+    double K5_5 = (h * k5_5);
+    double K5_6 = (h * k5_6);
+    double k6_[7];
+    if (unpack(k6, k6_, 7, "dop853_dense_7", "k6") < 0) goto done;
+    double k6_0 = k6_[0];
+    double k6_1 = k6_[1];
+    double k6_2 = k6_[2];
+    double k6_3 = k6_[3];
+    double k6_4 = k6_[4];
+    double k6_5 = k6_[5];
+    double k6_6 = k6_[6];
+    double K6_0 = (h * k6_0);
+    double K6_1 = (h * k6_1);
+    double K6_2 = (h * k6_2);
+    double K6_3 = (h * k6_3);
+    double K6_4 = (h * k6_4);
+    double K6_5 = (h * k6_5);
+    double K6_6 = (h * k6_6);
+    double k7_[7];
+    if (unpack(k7, k7_, 7, "dop853_dense_7", "k7") < 0) goto done;
+    double k7_0 = k7_[0];
+    double k7_1 = k7_[1];
+    double k7_2 = k7_[2];
+    double k7_3 = k7_[3];
+    double k7_4 = k7_[4];
+    double k7_5 = k7_[5];
+    double k7_6 = k7_[6];
+    double K7_0 = (h * k7_0);
+    double K7_1 = (h * k7_1);
+    double K7_2 = (h * k7_2);
+    double K7_3 = (h * k7_3);
+    double K7_4 = (h * k7_4);
+    double K7_5 = (h * k7_5);
+    double K7_6 = (h * k7_6);
+    double k8_[7];
+    if (unpack(k8, k8_, 7, "dop853_dense_7", "k8") < 0) goto done;
+    double k8_0 = k8_[0];
+    double k8_1 = k8_[1];
+    double k8_2 = k8_[2];
+    double k8_3 = k8_[3];
+    double k8_4 = k8_[4];
+    double k8_5 = k8_[5];
+    double k8_6 = k8_[6];
+    double K8_0 = (h * k8_0);
+    double K8_1 = (h * k8_1);
+    double K8_2 = (h * k8_2);
+    double K8_3 = (h * k8_3);
+    double K8_4 = (h * k8_4);
+    double K8_5 = (h * k8_5);
+    double K8_6 = (h * k8_6);
+    double k9_[7];
+    if (unpack(k9, k9_, 7, "dop853_dense_7", "k9") < 0) goto done;
+    double k9_0 = k9_[0];
+    double k9_1 = k9_[1];
+    double k9_2 = k9_[2];
+    double k9_3 = k9_[3];
+    double k9_4 = k9_[4];
+    double k9_5 = k9_[5];
+    double k9_6 = k9_[6];
+    double K9_0 = (h * k9_0);
+    double K9_1 = (h * k9_1);
+    double K9_2 = (h * k9_2);
+    double K9_3 = (h * k9_3);
+    double K9_4 = (h * k9_4);
+    double K9_5 = (h * k9_5);
+    double K9_6 = (h * k9_6);
+    double k10_[7];
+    if (unpack(k10, k10_, 7, "dop853_dense_7", "k10") < 0) goto done;
+    double k10_0 = k10_[0];
+    double k10_1 = k10_[1];
+    double k10_2 = k10_[2];
+    double k10_3 = k10_[3];
+    double k10_4 = k10_[4];
+    double k10_5 = k10_[5];
+    double k10_6 = k10_[6];
+    double K10_0 = (h * k10_0);
+    double K10_1 = (h * k10_1);
+    double K10_2 = (h * k10_2);
+    double K10_3 = (h * k10_3);
+    double K10_4 = (h * k10_4);
+    double K10_5 = (h * k10_5);
+    double K10_6 = (h * k10_6);
+    double k11_[7];
+    if (unpack(k11, k11_, 7, "dop853_dense_7", "k11") < 0) goto done;
+    double k11_0 = k11_[0];
+    double k11_1 = k11_[1];
+    double k11_2 = k11_[2];
+    double k11_3 = k11_[3];
+    double k11_4 = k11_[4];
+    double k11_5 = k11_[5];
+    double k11_6 = k11_[6];
+    double K11_0 = (h * k11_0);
+    double K11_1 = (h * k11_1);
+    double K11_2 = (h * k11_2);
+    double K11_3 = (h * k11_3);
+    double K11_4 = (h * k11_4);
+    double K11_5 = (h * k11_5);
+    double K11_6 = (h * k11_6);
+    double k12_[7];
+    if (unpack(k12, k12_, 7, "dop853_dense_7", "k12") < 0) goto done;
+    double k12_0 = k12_[0];
+    double k12_1 = k12_[1];
+    double k12_2 = k12_[2];
+    double k12_3 = k12_[3];
+    double k12_4 = k12_[4];
+    double k12_5 = k12_[5];
+    double k12_6 = k12_[6];
+    double K12_0 = (h * k12_0);
+    double K12_1 = (h * k12_1);
+    double K12_2 = (h * k12_2);
+    double K12_3 = (h * k12_3);
+    double K12_4 = (h * k12_4);
+    double K12_5 = (h * k12_5);
+    double K12_6 = (h * k12_6);
+    k13 = call_with_new_list(fun, (t + (0.1 * h)), (const double[]){(y_0 + ((((((((0.056167502283047954 * K0_0) + (0.25350021021662483 * K6_0)) + ((-0.2462390374708025) * K7_0)) + ((-0.12419142326381637) * K8_0)) + (0.15329179827876568 * K9_0)) + (0.00820105229563469 * K10_0)) + (0.007567897660545699 * K11_0)) + ((-0.008298) * K12_0))), (y_1 + ((((((((0.056167502283047954 * K0_1) + (0.25350021021662483 * K6_1)) + ((-0.2462390374708025) * K7_1)) + ((-0.12419142326381637) * K8_1)) + (0.15329179827876568 * K9_1)) + (0.00820105229563469 * K10_1)) + (0.007567897660545699 * K11_1)) + ((-0.008298) * K12_1))), (y_2 + ((((((((0.056167502283047954 * K0_2) + (0.25350021021662483 * K6_2)) + ((-0.2462390374708025) * K7_2)) + ((-0.12419142326381637) * K8_2)) + (0.15329179827876568 * K9_2)) + (0.00820105229563469 * K10_2)) + (0.007567897660545699 * K11_2)) + ((-0.008298) * K12_2))), (y_3 + ((((((((0.056167502283047954 * K0_3) + (0.25350021021662483 * K6_3)) + ((-0.2462390374708025) * K7_3)) + ((-0.12419142326381637) * K8_3)) + (0.15329179827876568 * K9_3)) + (0.00820105229563469 * K10_3)) + (0.007567897660545699 * K11_3)) + ((-0.008298) * K12_3))), (y_4 + ((((((((0.056167502283047954 * K0_4) + (0.25350021021662483 * K6_4)) + ((-0.2462390374708025) * K7_4)) + ((-0.12419142326381637) * K8_4)) + (0.15329179827876568 * K9_4)) + (0.00820105229563469 * K10_4)) + (0.007567897660545699 * K11_4)) + ((-0.008298) * K12_4))), (y_5 + ((((((((0.056167502283047954 * K0_5) + (0.25350021021662483 * K6_5)) + ((-0.2462390374708025) * K7_5)) + ((-0.12419142326381637) * K8_5)) + (0.15329179827876568 * K9_5)) + (0.00820105229563469 * K10_5)) + (0.007567897660545699 * K11_5)) + ((-0.008298) * K12_5))), (y_6 + ((((((((0.056167502283047954 * K0_6) + (0.25350021021662483 * K6_6)) + ((-0.2462390374708025) * K7_6)) + ((-0.12419142326381637) * K8_6)) + (0.15329179827876568 * K9_6)) + (0.00820105229563469 * K10_6)) + (0.007567897660545699 * K11_6)) + ((-0.008298) * K12_6)))}, 7);
+    if (k13 == NULL) goto done;
+    double k13_[7];
+    if (unpack(k13, k13_, 7, "dop853_dense_7", "k13") < 0) goto done;
+    double k13_0 = k13_[0];
+    double k13_1 = k13_[1];
+    double k13_2 = k13_[2];
+    double k13_3 = k13_[3];
+    double k13_4 = k13_[4];
+    double k13_5 = k13_[5];
+    double k13_6 = k13_[6];
+    double K13_0 = (h * k13_0);
+    double K13_1 = (h * k13_1);
+    double K13_2 = (h * k13_2);
+    double K13_3 = (h * k13_3);
+    double K13_4 = (h * k13_4);
+    double K13_5 = (h * k13_5);
+    double K13_6 = (h * k13_6);
+    k14 = call_with_new_list(fun, (t + (0.2 * h)), (const double[]){(y_0 + ((((((((0.03183464816350214 * K0_0) + (0.028300909672366776 * K5_0)) + (0.053541988307438566 * K6_0)) + ((-0.05492374857139099) * K7_0)) + ((-0.00010834732869724932) * K10_0)) + (0.0003825710908356584 * K11_0)) + ((-0.00034046500868740456) * K12_0)) + (0.1413124436746325 * K13_0))), (y_1 + ((((((((0.03183464816350214 * K0_1) + (0.028300909672366776 * K5_1)) + (0.053541988307438566 * K6_1)) + ((-0.05492374857139099) * K7_1)) + ((-0.00010834732869724932) * K10_1)) + (0.0003825710908356584 * K11_1)) + ((-0.00034046500868740456) * K12_1)) + (0.1413124436746325 * K13_1))), (y_2 + ((((((((0.03183464816350214 * K0_2) + (0.028300909672366776 * K5_2)) + (0.053541988307438566 * K6_2)) + ((-0.05492374857139099) * K7_2)) + ((-0.00010834732869724932) * K10_2)) + (0.0003825710908356584 * K11_2)) + ((-0.00034046500868740456) * K12_2)) + (0.1413124436746325 * K13_2))), (y_3 + ((((((((0.03183464816350214 * K0_3) + (0.028300909672366776 * K5_3)) + (0.053541988307438566 * K6_3)) + ((-0.05492374857139099) * K7_3)) + ((-0.00010834732869724932) * K10_3)) + (0.0003825710908356584 * K11_3)) + ((-0.00034046500868740456) * K12_3)) + (0.1413124436746325 * K13_3))), (y_4 + ((((((((0.03183464816350214 * K0_4) + (0.028300909672366776 * K5_4)) + (0.053541988307438566 * K6_4)) + ((-0.05492374857139099) * K7_4)) + ((-0.00010834732869724932) * K10_4)) + (0.0003825710908356584 * K11_4)) + ((-0.00034046500868740456) * K12_4)) + (0.1413124436746325 * K13_4))), (y_5 + ((((((((0.03183464816350214 * K0_5) + (0.028300909672366776 * K5_5)) + (0.053541988307438566 * K6_5)) + ((-0.05492374857139099) * K7_5)) + ((-0.00010834732869724932) * K10_5)) + (0.0003825710908356584 * K11_5)) + ((-0.00034046500868740456) * K12_5)) + (0.1413124436746325 * K13_5))), (y_6 + ((((((((0.03183464816350214 * K0_6) + (0.028300909672366776 * K5_6)) + (0.053541988307438566 * K6_6)) + ((-0.05492374857139099) * K7_6)) + ((-0.00010834732869724932) * K10_6)) + (0.0003825710908356584 * K11_6)) + ((-0.00034046500868740456) * K12_6)) + (0.1413124436746325 * K13_6)))}, 7);
+    if (k14 == NULL) goto done;
+    double k14_[7];
+    if (unpack(k14, k14_, 7, "dop853_dense_7", "k14") < 0) goto done;
+    double k14_0 = k14_[0];
+    double k14_1 = k14_[1];
+    double k14_2 = k14_[2];
+    double k14_3 = k14_[3];
+    double k14_4 = k14_[4];
+    double k14_5 = k14_[5];
+    double k14_6 = k14_[6];
+    double K14_0 = (h * k14_0);
+    double K14_1 = (h * k14_1);
+    double K14_2 = (h * k14_2);
+    double K14_3 = (h * k14_3);
+    double K14_4 = (h * k14_4);
+    double K14_5 = (h * k14_5);
+    double K14_6 = (h * k14_6);
+    k15 = call_with_new_list(fun, (t + (0.7777777777777778 * h)), (const double[]){(y_0 + (((((((((-0.42889630158379194) * K0_0) + ((-4.697621415361164) * K5_0)) + (7.683421196062599 * K6_0)) + (4.06898981839711 * K7_0)) + (0.3567271874552811 * K8_0)) + ((-0.0013990241651590145) * K12_0)) + (2.9475147891527724 * K13_0)) + ((-9.15095847217987) * K14_0))), (y_1 + (((((((((-0.42889630158379194) * K0_1) + ((-4.697621415361164) * K5_1)) + (7.683421196062599 * K6_1)) + (4.06898981839711 * K7_1)) + (0.3567271874552811 * K8_1)) + ((-0.0013990241651590145) * K12_1)) + (2.9475147891527724 * K13_1)) + ((-9.15095847217987) * K14_1))), (y_2 + (((((((((-0.42889630158379194) * K0_2) + ((-4.697621415361164) * K5_2)) + (7.683421196062599 * K6_2)) + (4.06898981839711 * K7_2)) + (0.3567271874552811 * K8_2)) + ((-0.0013990241651590145) * K12_2)) + (2.9475147891527724 * K13_2)) + ((-9.15095847217987) * K14_2))), (y_3 + (((((((((-0.42889630158379194) * K0_3) + ((-4.697621415361164) * K5_3)) + (7.683421196062599 * K6_3)) + (4.06898981839711 * K7_3)) + (0.3567271874552811 * K8_3)) + ((-0.0013990241651590145) * K12_3)) + (2.9475147891527724 * K13_3)) + ((-9.15095847217987) * K14_3))), (y_4 + (((((((((-0.42889630158379194) * K0_4) + ((-4.697621415361164) * K5_4)) + (7.683421196062599 * K6_4)) + (4.06898981839711 * K7_4)) + (0.3567271874552811 * K8_4)) + ((-0.0013990241651590145) * K12_4)) + (2.9475147891527724 * K13_4)) + ((-9.15095847217987) * K14_4))), (y_5 + (((((((((-0.42889630158379194) * K0_5) + ((-4.697621415361164) * K5_5)) + (7.683421196062599 * K6_5)) + (4.06898981839711 * K7_5)) + (0.3567271874552811 * K8_5)) + ((-0.0013990241651590145) * K12_5)) + (2.9475147891527724 * K13_5)) + ((-9.15095847217987) * K14_5))), (y_6 + (((((((((-0.42889630158379194) * K0_6) + ((-4.697621415361164) * K5_6)) + (7.683421196062599 * K6_6)) + (4.06898981839711 * K7_6)) + (0.3567271874552811 * K8_6)) + ((-0.0013990241651590145) * K12_6)) + (2.9475147891527724 * K13_6)) + ((-9.15095847217987) * K14_6)))}, 7);
+    if (k15 == NULL) goto done;
+    double k15_[7];
+    if (unpack(k15, k15_, 7, "dop853_dense_7", "k15") < 0) goto done;
+    double k15_0 = k15_[0];
+    double k15_1 = k15_[1];
+    double k15_2 = k15_[2];
+    double k15_3 = k15_[3];
+    double k15_4 = k15_[4];
+    double k15_5 = k15_[5];
+    double k15_6 = k15_[6];
+    double K15_0 = (h * k15_0);
+    double K15_1 = (h * k15_1);
+    double K15_2 = (h * k15_2);
+    double K15_3 = (h * k15_3);
+    double K15_4 = (h * k15_4);
+    double K15_5 = (h * k15_5);
+    double K15_6 = (h * k15_6);
+    double dy_0 = (y1_0 - y_0);
+    double dy_1 = (y1_1 - y_1);
+    double dy_2 = (y1_2 - y_2);
+    double dy_3 = (y1_3 - y_3);
+    double dy_4 = (y1_4 - y_4);
+    double dy_5 = (y1_5 - y_5);
+    double dy_6 = (y1_6 - y_6);
+    PyObject *py_r0 = PyList_New(7);
+    if (py_r0 == NULL) goto done;
+    PyObject *py_r1 = PyTuple_New(8);
+    if (py_r1 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 0, py_r1);
+    PyObject *py_r2 = PyFloat_FromDouble(y_0);
+    if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 0, py_r2);
+    PyObject *py_r3 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_0) + ((-154.18974869023643) * K5_0)) + ((-231.5293791760455) * K6_0)) + (357.6391179106141 * K7_0)) + (93.40532418362432 * K8_0)) + ((-37.45832313645163) * K9_0)) + (104.0996495089623 * K10_0)) + (29.8402934266605 * K11_0)) + ((-43.53345659001114) * K12_0)) + (96.32455395918828 * K13_0)) + ((-39.17726167561544) * K14_0)) + ((-149.72683625798564) * K15_0)));
+    if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 1, py_r3);
+    PyObject *py_r4 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_0) + ((-387.0373087493518) * K5_0)) + ((-189.17813819516758) * K6_0)) + (527.8081592054236 * K7_0)) + ((-11.57390253995963) * K8_0)) + (6.8812326946963 * K9_0)) + ((-1.0006050966910838) * K10_0)) + (0.7777137798053443 * K11_0)) + ((-2.778205752353508) * K12_0)) + ((-60.19669523126412) * K13_0)) + (84.32040550667716 * K14_0)) + (11.99229113618279 * K15_0)));
+    if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 2, py_r4);
+    PyObject *py_r5 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_0) + (242.28349177525817 * K5_0)) + (165.20045171727028 * K6_0)) + ((-374.5467547226902) * K7_0)) + ((-22.113666853125306) * K8_0)) + (7.733432668472264 * K9_0)) + ((-30.674084731089398) * K10_0)) + ((-9.332130526430229) * K11_0)) + (15.697238121770845 * K12_0)) + ((-31.139403219565178) * K13_0)) + ((-9.35292435884448) * K14_0)) + (35.81684148639408 * K15_0)));
+    if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 3, py_r5);
+    PyObject *py_r6 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_0) + (0.5667149535193777 * K5_0)) + ((-3.0689499459498917) * K6_0)) + (2.38466765651207 * K7_0)) + (2.117034582445028 * K8_0)) + ((-0.871391583777973) * K9_0)) + (2.2404374302607883 * K10_0)) + (0.6315787787694688 * K11_0)) + ((-0.08899033645133331) * K12_0)) + (18.148505520854727 * K13_0)) + ((-9.194632392478356) * K14_0)) + ((-4.436036387594894) * K15_0)));
+    if (py_r6 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 4, py_r6);
+    PyObject *py_r7 = PyFloat_FromDouble(((2.0 * dy_0) - (K12_0 + K0_0)));
+    if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 5, py_r7);
+    PyObject *py_r8 = PyFloat_FromDouble((K0_0 - dy_0));
+    if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 6, py_r8);
+    PyObject *py_r9 = PyFloat_FromDouble(dy_0);
+    if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 7, py_r9);
+    PyObject *py_r10 = PyTuple_New(8);
+    if (py_r10 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 1, py_r10);
+    PyObject *py_r11 = PyFloat_FromDouble(y_1);
+    if (py_r11 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 0, py_r11);
+    PyObject *py_r12 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_1) + ((-154.18974869023643) * K5_1)) + ((-231.5293791760455) * K6_1)) + (357.6391179106141 * K7_1)) + (93.40532418362432 * K8_1)) + ((-37.45832313645163) * K9_1)) + (104.0996495089623 * K10_1)) + (29.8402934266605 * K11_1)) + ((-43.53345659001114) * K12_1)) + (96.32455395918828 * K13_1)) + ((-39.17726167561544) * K14_1)) + ((-149.72683625798564) * K15_1)));
+    if (py_r12 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 1, py_r12);
+    PyObject *py_r13 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_1) + ((-387.0373087493518) * K5_1)) + ((-189.17813819516758) * K6_1)) + (527.8081592054236 * K7_1)) + ((-11.57390253995963) * K8_1)) + (6.8812326946963 * K9_1)) + ((-1.0006050966910838) * K10_1)) + (0.7777137798053443 * K11_1)) + ((-2.778205752353508) * K12_1)) + ((-60.19669523126412) * K13_1)) + (84.32040550667716 * K14_1)) + (11.99229113618279 * K15_1)));
+    if (py_r13 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 2, py_r13);
+    PyObject *py_r14 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_1) + (242.28349177525817 * K5_1)) + (165.20045171727028 * K6_1)) + ((-374.5467547226902) * K7_1)) + ((-22.113666853125306) * K8_1)) + (7.733432668472264 * K9_1)) + ((-30.674084731089398) * K10_1)) + ((-9.332130526430229) * K11_1)) + (15.697238121770845 * K12_1)) + ((-31.139403219565178) * K13_1)) + ((-9.35292435884448) * K14_1)) + (35.81684148639408 * K15_1)));
+    if (py_r14 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 3, py_r14);
+    PyObject *py_r15 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_1) + (0.5667149535193777 * K5_1)) + ((-3.0689499459498917) * K6_1)) + (2.38466765651207 * K7_1)) + (2.117034582445028 * K8_1)) + ((-0.871391583777973) * K9_1)) + (2.2404374302607883 * K10_1)) + (0.6315787787694688 * K11_1)) + ((-0.08899033645133331) * K12_1)) + (18.148505520854727 * K13_1)) + ((-9.194632392478356) * K14_1)) + ((-4.436036387594894) * K15_1)));
+    if (py_r15 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 4, py_r15);
+    PyObject *py_r16 = PyFloat_FromDouble(((2.0 * dy_1) - (K12_1 + K0_1)));
+    if (py_r16 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 5, py_r16);
+    PyObject *py_r17 = PyFloat_FromDouble((K0_1 - dy_1));
+    if (py_r17 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 6, py_r17);
+    PyObject *py_r18 = PyFloat_FromDouble(dy_1);
+    if (py_r18 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 7, py_r18);
+    PyObject *py_r19 = PyTuple_New(8);
+    if (py_r19 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 2, py_r19);
+    PyObject *py_r20 = PyFloat_FromDouble(y_2);
+    if (py_r20 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 0, py_r20);
+    PyObject *py_r21 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_2) + ((-154.18974869023643) * K5_2)) + ((-231.5293791760455) * K6_2)) + (357.6391179106141 * K7_2)) + (93.40532418362432 * K8_2)) + ((-37.45832313645163) * K9_2)) + (104.0996495089623 * K10_2)) + (29.8402934266605 * K11_2)) + ((-43.53345659001114) * K12_2)) + (96.32455395918828 * K13_2)) + ((-39.17726167561544) * K14_2)) + ((-149.72683625798564) * K15_2)));
+    if (py_r21 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 1, py_r21);
+    PyObject *py_r22 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_2) + ((-387.0373087493518) * K5_2)) + ((-189.17813819516758) * K6_2)) + (527.8081592054236 * K7_2)) + ((-11.57390253995963) * K8_2)) + (6.8812326946963 * K9_2)) + ((-1.0006050966910838) * K10_2)) + (0.7777137798053443 * K11_2)) + ((-2.778205752353508) * K12_2)) + ((-60.19669523126412) * K13_2)) + (84.32040550667716 * K14_2)) + (11.99229113618279 * K15_2)));
+    if (py_r22 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 2, py_r22);
+    PyObject *py_r23 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_2) + (242.28349177525817 * K5_2)) + (165.20045171727028 * K6_2)) + ((-374.5467547226902) * K7_2)) + ((-22.113666853125306) * K8_2)) + (7.733432668472264 * K9_2)) + ((-30.674084731089398) * K10_2)) + ((-9.332130526430229) * K11_2)) + (15.697238121770845 * K12_2)) + ((-31.139403219565178) * K13_2)) + ((-9.35292435884448) * K14_2)) + (35.81684148639408 * K15_2)));
+    if (py_r23 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 3, py_r23);
+    PyObject *py_r24 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_2) + (0.5667149535193777 * K5_2)) + ((-3.0689499459498917) * K6_2)) + (2.38466765651207 * K7_2)) + (2.117034582445028 * K8_2)) + ((-0.871391583777973) * K9_2)) + (2.2404374302607883 * K10_2)) + (0.6315787787694688 * K11_2)) + ((-0.08899033645133331) * K12_2)) + (18.148505520854727 * K13_2)) + ((-9.194632392478356) * K14_2)) + ((-4.436036387594894) * K15_2)));
+    if (py_r24 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 4, py_r24);
+    PyObject *py_r25 = PyFloat_FromDouble(((2.0 * dy_2) - (K12_2 + K0_2)));
+    if (py_r25 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 5, py_r25);
+    PyObject *py_r26 = PyFloat_FromDouble((K0_2 - dy_2));
+    if (py_r26 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 6, py_r26);
+    PyObject *py_r27 = PyFloat_FromDouble(dy_2);
+    if (py_r27 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 7, py_r27);
+    PyObject *py_r28 = PyTuple_New(8);
+    if (py_r28 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 3, py_r28);
+    PyObject *py_r29 = PyFloat_FromDouble(y_3);
+    if (py_r29 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 0, py_r29);
+    PyObject *py_r30 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_3) + ((-154.18974869023643) * K5_3)) + ((-231.5293791760455) * K6_3)) + (357.6391179106141 * K7_3)) + (93.40532418362432 * K8_3)) + ((-37.45832313645163) * K9_3)) + (104.0996495089623 * K10_3)) + (29.8402934266605 * K11_3)) + ((-43.53345659001114) * K12_3)) + (96.32455395918828 * K13_3)) + ((-39.17726167561544) * K14_3)) + ((-149.72683625798564) * K15_3)));
+    if (py_r30 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 1, py_r30);
+    PyObject *py_r31 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_3) + ((-387.0373087493518) * K5_3)) + ((-189.17813819516758) * K6_3)) + (527.8081592054236 * K7_3)) + ((-11.57390253995963) * K8_3)) + (6.8812326946963 * K9_3)) + ((-1.0006050966910838) * K10_3)) + (0.7777137798053443 * K11_3)) + ((-2.778205752353508) * K12_3)) + ((-60.19669523126412) * K13_3)) + (84.32040550667716 * K14_3)) + (11.99229113618279 * K15_3)));
+    if (py_r31 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 2, py_r31);
+    PyObject *py_r32 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_3) + (242.28349177525817 * K5_3)) + (165.20045171727028 * K6_3)) + ((-374.5467547226902) * K7_3)) + ((-22.113666853125306) * K8_3)) + (7.733432668472264 * K9_3)) + ((-30.674084731089398) * K10_3)) + ((-9.332130526430229) * K11_3)) + (15.697238121770845 * K12_3)) + ((-31.139403219565178) * K13_3)) + ((-9.35292435884448) * K14_3)) + (35.81684148639408 * K15_3)));
+    if (py_r32 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 3, py_r32);
+    PyObject *py_r33 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_3) + (0.5667149535193777 * K5_3)) + ((-3.0689499459498917) * K6_3)) + (2.38466765651207 * K7_3)) + (2.117034582445028 * K8_3)) + ((-0.871391583777973) * K9_3)) + (2.2404374302607883 * K10_3)) + (0.6315787787694688 * K11_3)) + ((-0.08899033645133331) * K12_3)) + (18.148505520854727 * K13_3)) + ((-9.194632392478356) * K14_3)) + ((-4.436036387594894) * K15_3)));
+    if (py_r33 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 4, py_r33);
+    PyObject *py_r34 = PyFloat_FromDouble(((2.0 * dy_3) - (K12_3 + K0_3)));
+    if (py_r34 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 5, py_r34);
+    PyObject *py_r35 = PyFloat_FromDouble((K0_3 - dy_3));
+    if (py_r35 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 6, py_r35);
+    PyObject *py_r36 = PyFloat_FromDouble(dy_3);
+    if (py_r36 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 7, py_r36);
+    PyObject *py_r37 = PyTuple_New(8);
+    if (py_r37 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 4, py_r37);
+    PyObject *py_r38 = PyFloat_FromDouble(y_4);
+    if (py_r38 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 0, py_r38);
+    PyObject *py_r39 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_4) + ((-154.18974869023643) * K5_4)) + ((-231.5293791760455) * K6_4)) + (357.6391179106141 * K7_4)) + (93.40532418362432 * K8_4)) + ((-37.45832313645163) * K9_4)) + (104.0996495089623 * K10_4)) + (29.8402934266605 * K11_4)) + ((-43.53345659001114) * K12_4)) + (96.32455395918828 * K13_4)) + ((-39.17726167561544) * K14_4)) + ((-149.72683625798564) * K15_4)));
+    if (py_r39 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 1, py_r39);
+    PyObject *py_r40 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_4) + ((-387.0373087493518) * K5_4)) + ((-189.17813819516758) * K6_4)) + (527.8081592054236 * K7_4)) + ((-11.57390253995963) * K8_4)) + (6.8812326946963 * K9_4)) + ((-1.0006050966910838) * K10_4)) + (0.7777137798053443 * K11_4)) + ((-2.778205752353508) * K12_4)) + ((-60.19669523126412) * K13_4)) + (84.32040550667716 * K14_4)) + (11.99229113618279 * K15_4)));
+    if (py_r40 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 2, py_r40);
+    PyObject *py_r41 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_4) + (242.28349177525817 * K5_4)) + (165.20045171727028 * K6_4)) + ((-374.5467547226902) * K7_4)) + ((-22.113666853125306) * K8_4)) + (7.733432668472264 * K9_4)) + ((-30.674084731089398) * K10_4)) + ((-9.332130526430229) * K11_4)) + (15.697238121770845 * K12_4)) + ((-31.139403219565178) * K13_4)) + ((-9.35292435884448) * K14_4)) + (35.81684148639408 * K15_4)));
+    if (py_r41 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 3, py_r41);
+    PyObject *py_r42 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_4) + (0.5667149535193777 * K5_4)) + ((-3.0689499459498917) * K6_4)) + (2.38466765651207 * K7_4)) + (2.117034582445028 * K8_4)) + ((-0.871391583777973) * K9_4)) + (2.2404374302607883 * K10_4)) + (0.6315787787694688 * K11_4)) + ((-0.08899033645133331) * K12_4)) + (18.148505520854727 * K13_4)) + ((-9.194632392478356) * K14_4)) + ((-4.436036387594894) * K15_4)));
+    if (py_r42 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 4, py_r42);
+    PyObject *py_r43 = PyFloat_FromDouble(((2.0 * dy_4) - (K12_4 + K0_4)));
+    if (py_r43 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 5, py_r43);
+    PyObject *py_r44 = PyFloat_FromDouble((K0_4 - dy_4));
+    if (py_r44 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 6, py_r44);
+    PyObject *py_r45 = PyFloat_FromDouble(dy_4);
+    if (py_r45 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 7, py_r45);
+    PyObject *py_r46 = PyTuple_New(8);
+    if (py_r46 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 5, py_r46);
+    PyObject *py_r47 = PyFloat_FromDouble(y_5);
+    if (py_r47 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 0, py_r47);
+    PyObject *py_r48 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_5) + ((-154.18974869023643) * K5_5)) + ((-231.5293791760455) * K6_5)) + (357.6391179106141 * K7_5)) + (93.40532418362432 * K8_5)) + ((-37.45832313645163) * K9_5)) + (104.0996495089623 * K10_5)) + (29.8402934266605 * K11_5)) + ((-43.53345659001114) * K12_5)) + (96.32455395918828 * K13_5)) + ((-39.17726167561544) * K14_5)) + ((-149.72683625798564) * K15_5)));
+    if (py_r48 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 1, py_r48);
+    PyObject *py_r49 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_5) + ((-387.0373087493518) * K5_5)) + ((-189.17813819516758) * K6_5)) + (527.8081592054236 * K7_5)) + ((-11.57390253995963) * K8_5)) + (6.8812326946963 * K9_5)) + ((-1.0006050966910838) * K10_5)) + (0.7777137798053443 * K11_5)) + ((-2.778205752353508) * K12_5)) + ((-60.19669523126412) * K13_5)) + (84.32040550667716 * K14_5)) + (11.99229113618279 * K15_5)));
+    if (py_r49 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 2, py_r49);
+    PyObject *py_r50 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_5) + (242.28349177525817 * K5_5)) + (165.20045171727028 * K6_5)) + ((-374.5467547226902) * K7_5)) + ((-22.113666853125306) * K8_5)) + (7.733432668472264 * K9_5)) + ((-30.674084731089398) * K10_5)) + ((-9.332130526430229) * K11_5)) + (15.697238121770845 * K12_5)) + ((-31.139403219565178) * K13_5)) + ((-9.35292435884448) * K14_5)) + (35.81684148639408 * K15_5)));
+    if (py_r50 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 3, py_r50);
+    PyObject *py_r51 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_5) + (0.5667149535193777 * K5_5)) + ((-3.0689499459498917) * K6_5)) + (2.38466765651207 * K7_5)) + (2.117034582445028 * K8_5)) + ((-0.871391583777973) * K9_5)) + (2.2404374302607883 * K10_5)) + (0.6315787787694688 * K11_5)) + ((-0.08899033645133331) * K12_5)) + (18.148505520854727 * K13_5)) + ((-9.194632392478356) * K14_5)) + ((-4.436036387594894) * K15_5)));
+    if (py_r51 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 4, py_r51);
+    PyObject *py_r52 = PyFloat_FromDouble(((2.0 * dy_5) - (K12_5 + K0_5)));
+    if (py_r52 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 5, py_r52);
+    PyObject *py_r53 = PyFloat_FromDouble((K0_5 - dy_5));
+    if (py_r53 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 6, py_r53);
+    PyObject *py_r54 = PyFloat_FromDouble(dy_5);
+    if (py_r54 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 7, py_r54);
+    PyObject *py_r55 = PyTuple_New(8);
+    if (py_r55 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 6, py_r55);
+    PyObject *py_r56 = PyFloat_FromDouble(y_6);
+    if (py_r56 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 0, py_r56);
+    PyObject *py_r57 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_6) + ((-154.18974869023643) * K5_6)) + ((-231.5293791760455) * K6_6)) + (357.6391179106141 * K7_6)) + (93.40532418362432 * K8_6)) + ((-37.45832313645163) * K9_6)) + (104.0996495089623 * K10_6)) + (29.8402934266605 * K11_6)) + ((-43.53345659001114) * K12_6)) + (96.32455395918828 * K13_6)) + ((-39.17726167561544) * K14_6)) + ((-149.72683625798564) * K15_6)));
+    if (py_r57 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 1, py_r57);
+    PyObject *py_r58 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_6) + ((-387.0373087493518) * K5_6)) + ((-189.17813819516758) * K6_6)) + (527.8081592054236 * K7_6)) + ((-11.57390253995963) * K8_6)) + (6.8812326946963 * K9_6)) + ((-1.0006050966910838) * K10_6)) + (0.7777137798053443 * K11_6)) + ((-2.778205752353508) * K12_6)) + ((-60.19669523126412) * K13_6)) + (84.32040550667716 * K14_6)) + (11.99229113618279 * K15_6)));
+    if (py_r58 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 2, py_r58);
+    PyObject *py_r59 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_6) + (242.28349177525817 * K5_6)) + (165.20045171727028 * K6_6)) + ((-374.5467547226902) * K7_6)) + ((-22.113666853125306) * K8_6)) + (7.733432668472264 * K9_6)) + ((-30.674084731089398) * K10_6)) + ((-9.332130526430229) * K11_6)) + (15.697238121770845 * K12_6)) + ((-31.139403219565178) * K13_6)) + ((-9.35292435884448) * K14_6)) + (35.81684148639408 * K15_6)));
+    if (py_r59 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 3, py_r59);
+    PyObject *py_r60 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_6) + (0.5667149535193777 * K5_6)) + ((-3.0689499459498917) * K6_6)) + (2.38466765651207 * K7_6)) + (2.117034582445028 * K8_6)) + ((-0.871391583777973) * K9_6)) + (2.2404374302607883 * K10_6)) + (0.6315787787694688 * K11_6)) + ((-0.08899033645133331) * K12_6)) + (18.148505520854727 * K13_6)) + ((-9.194632392478356) * K14_6)) + ((-4.436036387594894) * K15_6)));
+    if (py_r60 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 4, py_r60);
+    PyObject *py_r61 = PyFloat_FromDouble(((2.0 * dy_6) - (K12_6 + K0_6)));
+    if (py_r61 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 5, py_r61);
+    PyObject *py_r62 = PyFloat_FromDouble((K0_6 - dy_6));
+    if (py_r62 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 6, py_r62);
+    PyObject *py_r63 = PyFloat_FromDouble(dy_6);
+    if (py_r63 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 7, py_r63);
+    result = py_r0;
+done:
+    Py_XDECREF(k13);
+    Py_XDECREF(k14);
+    Py_XDECREF(k15);
+    (void)failed;
+    return result;
+}
+
+static PyObject *
+dop853_dense_11(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    PyObject *result = NULL;
+    int failed = 0;
+    PyObject *k13 = NULL;
+    PyObject *k14 = NULL;
+    PyObject *k15 = NULL;
+    if (nargs != 14) {
+        PyErr_SetString(PyExc_TypeError, "dop853_dense_11() takes 14 arguments (fun, t, h, ys, y_new, k0, k5, k6, k7, k8, k9, k10, k11, k12)");
+        return NULL;
+    }
+    PyObject *fun = args[0];
+    const double t = PyFloat_AsDouble(args[1]);
+    if (t == -1.0 && PyErr_Occurred()) return NULL;
+    const double h = PyFloat_AsDouble(args[2]);
+    if (h == -1.0 && PyErr_Occurred()) return NULL;
+    PyObject *ys = args[3];
+    PyObject *y_new = args[4];
+    PyObject *k0 = args[5];
+    PyObject *k5 = args[6];
+    PyObject *k6 = args[7];
+    PyObject *k7 = args[8];
+    PyObject *k8 = args[9];
+    PyObject *k9 = args[10];
+    PyObject *k10 = args[11];
+    PyObject *k11 = args[12];
+    PyObject *k12 = args[13];
+    double ys_[11];
+    if (unpack(ys, ys_, 11, "dop853_dense_11", "ys") < 0) goto done;
+    double y_0 = ys_[0];
+    double y_1 = ys_[1];
+    double y_2 = ys_[2];
+    double y_3 = ys_[3];
+    double y_4 = ys_[4];
+    double y_5 = ys_[5];
+    double y_6 = ys_[6];
+    double y_7 = ys_[7];
+    double y_8 = ys_[8];
+    double y_9 = ys_[9];
+    double y_10 = ys_[10];
+    double y_new_[11];
+    if (unpack(y_new, y_new_, 11, "dop853_dense_11", "y_new") < 0) goto done;
+    double y1_0 = y_new_[0];
+    double y1_1 = y_new_[1];
+    double y1_2 = y_new_[2];
+    double y1_3 = y_new_[3];
+    double y1_4 = y_new_[4];
+    double y1_5 = y_new_[5];
+    double y1_6 = y_new_[6];
+    double y1_7 = y_new_[7];
+    double y1_8 = y_new_[8];
+    double y1_9 = y_new_[9];
+    double y1_10 = y_new_[10];
+    double k0_[11];
+    if (unpack(k0, k0_, 11, "dop853_dense_11", "k0") < 0) goto done;
+    double k0_0 = k0_[0];
+    double k0_1 = k0_[1];
+    double k0_2 = k0_[2];
+    double k0_3 = k0_[3];
+    double k0_4 = k0_[4];
+    double k0_5 = k0_[5];
+    double k0_6 = k0_[6];
+    double k0_7 = k0_[7];
+    double k0_8 = k0_[8];
+    double k0_9 = k0_[9];
+    double k0_10 = k0_[10];
+    double K0_0 = (h * k0_0);
+    double K0_1 = (h * k0_1);
+    double K0_2 = (h * k0_2);
+    double K0_3 = (h * k0_3);
+    double K0_4 = (h * k0_4);
+    double K0_5 = (h * k0_5);
+    double K0_6 = (h * k0_6);
+    double K0_7 = (h * k0_7);
+    double K0_8 = (h * k0_8);
+    double K0_9 = (h * k0_9);
+    double K0_10 = (h * k0_10);
+    double k5_[11];
+    if (unpack(k5, k5_, 11, "dop853_dense_11", "k5") < 0) goto done;
+    double k5_0 = k5_[0];
+    double k5_1 = k5_[1];
+    double k5_2 = k5_[2];
+    double k5_3 = k5_[3];
+    double k5_4 = k5_[4];
+    double k5_5 = k5_[5];
+    double k5_6 = k5_[6];
+    double k5_7 = k5_[7];
+    double k5_8 = k5_[8];
+    double k5_9 = k5_[9];
+    double k5_10 = k5_[10];
+    double K5_0 = (h * k5_0);
+    double K5_1 = (h * k5_1);
+    double K5_2 = (h * k5_2);
+    double K5_3 = (h * k5_3);
+    double K5_4 = (h * k5_4);
+    double K5_5 = (h * k5_5);
+    double K5_6 = (h * k5_6);
+    double K5_7 = (h * k5_7);
+    double K5_8 = (h * k5_8);
+    double K5_9 = (h * k5_9);
+    double K5_10 = (h * k5_10);
+    double k6_[11];
+    if (unpack(k6, k6_, 11, "dop853_dense_11", "k6") < 0) goto done;
+    double k6_0 = k6_[0];
+    double k6_1 = k6_[1];
+    double k6_2 = k6_[2];
+    double k6_3 = k6_[3];
+    double k6_4 = k6_[4];
+    double k6_5 = k6_[5];
+    double k6_6 = k6_[6];
+    double k6_7 = k6_[7];
+    double k6_8 = k6_[8];
+    double k6_9 = k6_[9];
+    double k6_10 = k6_[10];
+    double K6_0 = (h * k6_0);
+    double K6_1 = (h * k6_1);
+    double K6_2 = (h * k6_2);
+    double K6_3 = (h * k6_3);
+    double K6_4 = (h * k6_4);
+    double K6_5 = (h * k6_5);
+    double K6_6 = (h * k6_6);
+    double K6_7 = (h * k6_7);
+    double K6_8 = (h * k6_8);
+    double K6_9 = (h * k6_9);
+    double K6_10 = (h * k6_10);
+    double k7_[11];
+    if (unpack(k7, k7_, 11, "dop853_dense_11", "k7") < 0) goto done;
+    double k7_0 = k7_[0];
+    double k7_1 = k7_[1];
+    double k7_2 = k7_[2];
+    double k7_3 = k7_[3];
+    double k7_4 = k7_[4];
+    double k7_5 = k7_[5];
+    double k7_6 = k7_[6];
+    double k7_7 = k7_[7];
+    double k7_8 = k7_[8];
+    double k7_9 = k7_[9];
+    double k7_10 = k7_[10];
+    double K7_0 = (h * k7_0);
+    double K7_1 = (h * k7_1);
+    double K7_2 = (h * k7_2);
+    double K7_3 = (h * k7_3);
+    double K7_4 = (h * k7_4);
+    double K7_5 = (h * k7_5);
+    double K7_6 = (h * k7_6);
+    double K7_7 = (h * k7_7);
+    double K7_8 = (h * k7_8);
+    double K7_9 = (h * k7_9);
+    double K7_10 = (h * k7_10);
+    double k8_[11];
+    if (unpack(k8, k8_, 11, "dop853_dense_11", "k8") < 0) goto done;
+    double k8_0 = k8_[0];
+    double k8_1 = k8_[1];
+    double k8_2 = k8_[2];
+    double k8_3 = k8_[3];
+    double k8_4 = k8_[4];
+    double k8_5 = k8_[5];
+    double k8_6 = k8_[6];
+    double k8_7 = k8_[7];
+    double k8_8 = k8_[8];
+    double k8_9 = k8_[9];
+    double k8_10 = k8_[10];
+    double K8_0 = (h * k8_0);
+    double K8_1 = (h * k8_1);
+    double K8_2 = (h * k8_2);
+    double K8_3 = (h * k8_3);
+    double K8_4 = (h * k8_4);
+    double K8_5 = (h * k8_5);
+    double K8_6 = (h * k8_6);
+    double K8_7 = (h * k8_7);
+    double K8_8 = (h * k8_8);
+    double K8_9 = (h * k8_9);
+    double K8_10 = (h * k8_10);
+    double k9_[11];
+    if (unpack(k9, k9_, 11, "dop853_dense_11", "k9") < 0) goto done;
+    double k9_0 = k9_[0];
+    double k9_1 = k9_[1];
+    double k9_2 = k9_[2];
+    double k9_3 = k9_[3];
+    double k9_4 = k9_[4];
+    double k9_5 = k9_[5];
+    double k9_6 = k9_[6];
+    double k9_7 = k9_[7];
+    double k9_8 = k9_[8];
+    double k9_9 = k9_[9];
+    double k9_10 = k9_[10];
+    double K9_0 = (h * k9_0);
+    double K9_1 = (h * k9_1);
+    double K9_2 = (h * k9_2);
+    double K9_3 = (h * k9_3);
+    double K9_4 = (h * k9_4);
+    double K9_5 = (h * k9_5);
+    double K9_6 = (h * k9_6);
+    double K9_7 = (h * k9_7);
+    double K9_8 = (h * k9_8);
+    double K9_9 = (h * k9_9);
+    double K9_10 = (h * k9_10);
+    double k10_[11];
+    if (unpack(k10, k10_, 11, "dop853_dense_11", "k10") < 0) goto done;
+    double k10_0 = k10_[0];
+    double k10_1 = k10_[1];
+    double k10_2 = k10_[2];
+    double k10_3 = k10_[3];
+    double k10_4 = k10_[4];
+    double k10_5 = k10_[5];
+    double k10_6 = k10_[6];
+    double k10_7 = k10_[7];
+    double k10_8 = k10_[8];
+    double k10_9 = k10_[9];
+    double k10_10 = k10_[10];
+    double K10_0 = (h * k10_0);
+    double K10_1 = (h * k10_1);
+    double K10_2 = (h * k10_2);
+    double K10_3 = (h * k10_3);
+    double K10_4 = (h * k10_4);
+    double K10_5 = (h * k10_5);
+    double K10_6 = (h * k10_6);
+    double K10_7 = (h * k10_7);
+    double K10_8 = (h * k10_8);
+    double K10_9 = (h * k10_9);
+    double K10_10 = (h * k10_10);
+    double k11_[11];
+    if (unpack(k11, k11_, 11, "dop853_dense_11", "k11") < 0) goto done;
+    double k11_0 = k11_[0];
+    double k11_1 = k11_[1];
+    double k11_2 = k11_[2];
+    double k11_3 = k11_[3];
+    double k11_4 = k11_[4];
+    double k11_5 = k11_[5];
+    double k11_6 = k11_[6];
+    double k11_7 = k11_[7];
+    double k11_8 = k11_[8];
+    double k11_9 = k11_[9];
+    double k11_10 = k11_[10];
+    double K11_0 = (h * k11_0);
+    double K11_1 = (h * k11_1);
+    double K11_2 = (h * k11_2);
+    double K11_3 = (h * k11_3);
+    double K11_4 = (h * k11_4);
+    double K11_5 = (h * k11_5);
+    double K11_6 = (h * k11_6);
+    double K11_7 = (h * k11_7);
+    double K11_8 = (h * k11_8);
+    double K11_9 = (h * k11_9);
+    double K11_10 = (h * k11_10);
+    double k12_[11];
+    if (unpack(k12, k12_, 11, "dop853_dense_11", "k12") < 0) goto done;
+    double k12_0 = k12_[0];
+    double k12_1 = k12_[1];
+    double k12_2 = k12_[2];
+    double k12_3 = k12_[3];
+    double k12_4 = k12_[4];
+    double k12_5 = k12_[5];
+    double k12_6 = k12_[6];
+    double k12_7 = k12_[7];
+    double k12_8 = k12_[8];
+    double k12_9 = k12_[9];
+    double k12_10 = k12_[10];
+    double K12_0 = (h * k12_0);
+    double K12_1 = (h * k12_1);
+    double K12_2 = (h * k12_2);
+    double K12_3 = (h * k12_3);
+    double K12_4 = (h * k12_4);
+    double K12_5 = (h * k12_5);
+    double K12_6 = (h * k12_6);
+    double K12_7 = (h * k12_7);
+    double K12_8 = (h * k12_8);
+    double K12_9 = (h * k12_9);
+    double K12_10 = (h * k12_10);
+    k13 = call_with_new_list(fun, (t + (0.1 * h)), (const double[]){(y_0 + ((((((((0.056167502283047954 * K0_0) + (0.25350021021662483 * K6_0)) + ((-0.2462390374708025) * K7_0)) + ((-0.12419142326381637) * K8_0)) + (0.15329179827876568 * K9_0)) + (0.00820105229563469 * K10_0)) + (0.007567897660545699 * K11_0)) + ((-0.008298) * K12_0))), (y_1 + ((((((((0.056167502283047954 * K0_1) + (0.25350021021662483 * K6_1)) + ((-0.2462390374708025) * K7_1)) + ((-0.12419142326381637) * K8_1)) + (0.15329179827876568 * K9_1)) + (0.00820105229563469 * K10_1)) + (0.007567897660545699 * K11_1)) + ((-0.008298) * K12_1))), (y_2 + ((((((((0.056167502283047954 * K0_2) + (0.25350021021662483 * K6_2)) + ((-0.2462390374708025) * K7_2)) + ((-0.12419142326381637) * K8_2)) + (0.15329179827876568 * K9_2)) + (0.00820105229563469 * K10_2)) + (0.007567897660545699 * K11_2)) + ((-0.008298) * K12_2))), (y_3 + ((((((((0.056167502283047954 * K0_3) + (0.25350021021662483 * K6_3)) + ((-0.2462390374708025) * K7_3)) + ((-0.12419142326381637) * K8_3)) + (0.15329179827876568 * K9_3)) + (0.00820105229563469 * K10_3)) + (0.007567897660545699 * K11_3)) + ((-0.008298) * K12_3))), (y_4 + ((((((((0.056167502283047954 * K0_4) + (0.25350021021662483 * K6_4)) + ((-0.2462390374708025) * K7_4)) + ((-0.12419142326381637) * K8_4)) + (0.15329179827876568 * K9_4)) + (0.00820105229563469 * K10_4)) + (0.007567897660545699 * K11_4)) + ((-0.008298) * K12_4))), (y_5 + ((((((((0.056167502283047954 * K0_5) + (0.25350021021662483 * K6_5)) + ((-0.2462390374708025) * K7_5)) + ((-0.12419142326381637) * K8_5)) + (0.15329179827876568 * K9_5)) + (0.00820105229563469 * K10_5)) + (0.007567897660545699 * K11_5)) + ((-0.008298) * K12_5))), (y_6 + ((((((((0.056167502283047954 * K0_6) + (0.25350021021662483 * K6_6)) + ((-0.2462390374708025) * K7_6)) + ((-0.12419142326381637) * K8_6)) + (0.15329179827876568 * K9_6)) + (0.00820105229563469 * K10_6)) + (0.007567897660545699 * K11_6)) + ((-0.008298) * K12_6))), (y_7 + ((((((((0.056167502283047954 * K0_7) + (0.25350021021662483 * K6_7)) + ((-0.2462390374708025) * K7_7)) + ((-0.12419142326381637) * K8_7)) + (0.15329179827876568 * K9_7)) + (0.00820105229563469 * K10_7)) + (0.007567897660545699 * K11_7)) + ((-0.008298) * K12_7))), (y_8 + ((((((((0.056167502283047954 * K0_8) + (0.25350021021662483 * K6_8)) + ((-0.2462390374708025) * K7_8)) + ((-0.12419142326381637) * K8_8)) + (0.15329179827876568 * K9_8)) + (0.00820105229563469 * K10_8)) + (0.007567897660545699 * K11_8)) + ((-0.008298) * K12_8))), (y_9 + ((((((((0.056167502283047954 * K0_9) + (0.25350021021662483 * K6_9)) + ((-0.2462390374708025) * K7_9)) + ((-0.12419142326381637) * K8_9)) + (0.15329179827876568 * K9_9)) + (0.00820105229563469 * K10_9)) + (0.007567897660545699 * K11_9)) + ((-0.008298) * K12_9))), (y_10 + ((((((((0.056167502283047954 * K0_10) + (0.25350021021662483 * K6_10)) + ((-0.2462390374708025) * K7_10)) + ((-0.12419142326381637) * K8_10)) + (0.15329179827876568 * K9_10)) + (0.00820105229563469 * K10_10)) + (0.007567897660545699 * K11_10)) + ((-0.008298) * K12_10)))}, 11);
+    if (k13 == NULL) goto done;
+    double k13_[11];
+    if (unpack(k13, k13_, 11, "dop853_dense_11", "k13") < 0) goto done;
+    double k13_0 = k13_[0];
+    double k13_1 = k13_[1];
+    double k13_2 = k13_[2];
+    double k13_3 = k13_[3];
+    double k13_4 = k13_[4];
+    double k13_5 = k13_[5];
+    double k13_6 = k13_[6];
+    double k13_7 = k13_[7];
+    double k13_8 = k13_[8];
+    double k13_9 = k13_[9];
+    double k13_10 = k13_[10];
+    double K13_0 = (h * k13_0);
+    double K13_1 = (h * k13_1);
+    double K13_2 = (h * k13_2);
+    double K13_3 = (h * k13_3);
+    double K13_4 = (h * k13_4);
+    double K13_5 = (h * k13_5);
+    double K13_6 = (h * k13_6);
+    double K13_7 = (h * k13_7);
+    double K13_8 = (h * k13_8);
+    double K13_9 = (h * k13_9);
+    double K13_10 = (h * k13_10);
+    k14 = call_with_new_list(fun, (t + (0.2 * h)), (const double[]){(y_0 + ((((((((0.03183464816350214 * K0_0) + (0.028300909672366776 * K5_0)) + (0.053541988307438566 * K6_0)) + ((-0.05492374857139099) * K7_0)) + ((-0.00010834732869724932) * K10_0)) + (0.0003825710908356584 * K11_0)) + ((-0.00034046500868740456) * K12_0)) + (0.1413124436746325 * K13_0))), (y_1 + ((((((((0.03183464816350214 * K0_1) + (0.028300909672366776 * K5_1)) + (0.053541988307438566 * K6_1)) + ((-0.05492374857139099) * K7_1)) + ((-0.00010834732869724932) * K10_1)) + (0.0003825710908356584 * K11_1)) + ((-0.00034046500868740456) * K12_1)) + (0.1413124436746325 * K13_1))), (y_2 + ((((((((0.03183464816350214 * K0_2) + (0.028300909672366776 * K5_2)) + (0.053541988307438566 * K6_2)) + ((-0.05492374857139099) * K7_2)) + ((-0.00010834732869724932) * K10_2)) + (0.0003825710908356584 * K11_2)) + ((-0.00034046500868740456) * K12_2)) + (0.1413124436746325 * K13_2))), (y_3 + ((((((((0.03183464816350214 * K0_3) + (0.028300909672366776 * K5_3)) + (0.053541988307438566 * K6_3)) + ((-0.05492374857139099) * K7_3)) + ((-0.00010834732869724932) * K10_3)) + (0.0003825710908356584 * K11_3)) + ((-0.00034046500868740456) * K12_3)) + (0.1413124436746325 * K13_3))), (y_4 + ((((((((0.03183464816350214 * K0_4) + (0.028300909672366776 * K5_4)) + (0.053541988307438566 * K6_4)) + ((-0.05492374857139099) * K7_4)) + ((-0.00010834732869724932) * K10_4)) + (0.0003825710908356584 * K11_4)) + ((-0.00034046500868740456) * K12_4)) + (0.1413124436746325 * K13_4))), (y_5 + ((((((((0.03183464816350214 * K0_5) + (0.028300909672366776 * K5_5)) + (0.053541988307438566 * K6_5)) + ((-0.05492374857139099) * K7_5)) + ((-0.00010834732869724932) * K10_5)) + (0.0003825710908356584 * K11_5)) + ((-0.00034046500868740456) * K12_5)) + (0.1413124436746325 * K13_5))), (y_6 + ((((((((0.03183464816350214 * K0_6) + (0.028300909672366776 * K5_6)) + (0.053541988307438566 * K6_6)) + ((-0.05492374857139099) * K7_6)) + ((-0.00010834732869724932) * K10_6)) + (0.0003825710908356584 * K11_6)) + ((-0.00034046500868740456) * K12_6)) + (0.1413124436746325 * K13_6))), (y_7 + ((((((((0.03183464816350214 * K0_7) + (0.028300909672366776 * K5_7)) + (0.053541988307438566 * K6_7)) + ((-0.05492374857139099) * K7_7)) + ((-0.00010834732869724932) * K10_7)) + (0.0003825710908356584 * K11_7)) + ((-0.00034046500868740456) * K12_7)) + (0.1413124436746325 * K13_7))), (y_8 + ((((((((0.03183464816350214 * K0_8) + (0.028300909672366776 * K5_8)) + (0.053541988307438566 * K6_8)) + ((-0.05492374857139099) * K7_8)) + ((-0.00010834732869724932) * K10_8)) + (0.0003825710908356584 * K11_8)) + ((-0.00034046500868740456) * K12_8)) + (0.1413124436746325 * K13_8))), (y_9 + ((((((((0.03183464816350214 * K0_9) + (0.028300909672366776 * K5_9)) + (0.053541988307438566 * K6_9)) + ((-0.05492374857139099) * K7_9)) + ((-0.00010834732869724932) * K10_9)) + (0.0003825710908356584 * K11_9)) + ((-0.00034046500868740456) * K12_9)) + (0.1413124436746325 * K13_9))), (y_10 + ((((((((0.03183464816350214 * K0_10) + (0.028300909672366776 * K5_10)) + (0.053541988307438566 * K6_10)) + ((-0.05492374857139099) * K7_10)) + ((-0.00010834732869724932) * K10_10)) + (0.0003825710908356584 * K11_10)) + ((-0.00034046500868740456) * K12_10)) + (0.1413124436746325 * K13_10)))}, 11);
+    if (k14 == NULL) goto done;
+    double k14_[11];
+    if (unpack(k14, k14_, 11, "dop853_dense_11", "k14") < 0) goto done;
+    double k14_0 = k14_[0];
+    double k14_1 = k14_[1];
+    double k14_2 = k14_[2];
+    double k14_3 = k14_[3];
+    double k14_4 = k14_[4];
+    double k14_5 = k14_[5];
+    double k14_6 = k14_[6];
+    double k14_7 = k14_[7];
+    double k14_8 = k14_[8];
+    double k14_9 = k14_[9];
+    double k14_10 = k14_[10];
+    double K14_0 = (h * k14_0);
+    double K14_1 = (h * k14_1);
+    double K14_2 = (h * k14_2);
+    double K14_3 = (h * k14_3);
+    double K14_4 = (h * k14_4);
+    double K14_5 = (h * k14_5);
+    double K14_6 = (h * k14_6);
+    double K14_7 = (h * k14_7);
+    double K14_8 = (h * k14_8);
+    double K14_9 = (h * k14_9);
+    double K14_10 = (h * k14_10);
+    k15 = call_with_new_list(fun, (t + (0.7777777777777778 * h)), (const double[]){(y_0 + (((((((((-0.42889630158379194) * K0_0) + ((-4.697621415361164) * K5_0)) + (7.683421196062599 * K6_0)) + (4.06898981839711 * K7_0)) + (0.3567271874552811 * K8_0)) + ((-0.0013990241651590145) * K12_0)) + (2.9475147891527724 * K13_0)) + ((-9.15095847217987) * K14_0))), (y_1 + (((((((((-0.42889630158379194) * K0_1) + ((-4.697621415361164) * K5_1)) + (7.683421196062599 * K6_1)) + (4.06898981839711 * K7_1)) + (0.3567271874552811 * K8_1)) + ((-0.0013990241651590145) * K12_1)) + (2.9475147891527724 * K13_1)) + ((-9.15095847217987) * K14_1))), (y_2 + (((((((((-0.42889630158379194) * K0_2) + ((-4.697621415361164) * K5_2)) + (7.683421196062599 * K6_2)) + (4.06898981839711 * K7_2)) + (0.3567271874552811 * K8_2)) + ((-0.0013990241651590145) * K12_2)) + (2.9475147891527724 * K13_2)) + ((-9.15095847217987) * K14_2))), (y_3 + (((((((((-0.42889630158379194) * K0_3) + ((-4.697621415361164) * K5_3)) + (7.683421196062599 * K6_3)) + (4.06898981839711 * K7_3)) + (0.3567271874552811 * K8_3)) + ((-0.0013990241651590145) * K12_3)) + (2.9475147891527724 * K13_3)) + ((-9.15095847217987) * K14_3))), (y_4 + (((((((((-0.42889630158379194) * K0_4) + ((-4.697621415361164) * K5_4)) + (7.683421196062599 * K6_4)) + (4.06898981839711 * K7_4)) + (0.3567271874552811 * K8_4)) + ((-0.0013990241651590145) * K12_4)) + (2.9475147891527724 * K13_4)) + ((-9.15095847217987) * K14_4))), (y_5 + (((((((((-0.42889630158379194) * K0_5) + ((-4.697621415361164) * K5_5)) + (7.683421196062599 * K6_5)) + (4.06898981839711 * K7_5)) + (0.3567271874552811 * K8_5)) + ((-0.0013990241651590145) * K12_5)) + (2.9475147891527724 * K13_5)) + ((-9.15095847217987) * K14_5))), (y_6 + (((((((((-0.42889630158379194) * K0_6) + ((-4.697621415361164) * K5_6)) + (7.683421196062599 * K6_6)) + (4.06898981839711 * K7_6)) + (0.3567271874552811 * K8_6)) + ((-0.0013990241651590145) * K12_6)) + (2.9475147891527724 * K13_6)) + ((-9.15095847217987) * K14_6))), (y_7 + (((((((((-0.42889630158379194) * K0_7) + ((-4.697621415361164) * K5_7)) + (7.683421196062599 * K6_7)) + (4.06898981839711 * K7_7)) + (0.3567271874552811 * K8_7)) + ((-0.0013990241651590145) * K12_7)) + (2.9475147891527724 * K13_7)) + ((-9.15095847217987) * K14_7))), (y_8 + (((((((((-0.42889630158379194) * K0_8) + ((-4.697621415361164) * K5_8)) + (7.683421196062599 * K6_8)) + (4.06898981839711 * K7_8)) + (0.3567271874552811 * K8_8)) + ((-0.0013990241651590145) * K12_8)) + (2.9475147891527724 * K13_8)) + ((-9.15095847217987) * K14_8))), (y_9 + (((((((((-0.42889630158379194) * K0_9) + ((-4.697621415361164) * K5_9)) + (7.683421196062599 * K6_9)) + (4.06898981839711 * K7_9)) + (0.3567271874552811 * K8_9)) + ((-0.0013990241651590145) * K12_9)) + (2.9475147891527724 * K13_9)) + ((-9.15095847217987) * K14_9))), (y_10 + (((((((((-0.42889630158379194) * K0_10) + ((-4.697621415361164) * K5_10)) + (7.683421196062599 * K6_10)) + (4.06898981839711 * K7_10)) + (0.3567271874552811 * K8_10)) + ((-0.0013990241651590145) * K12_10)) + (2.9475147891527724 * K13_10)) + ((-9.15095847217987) * K14_10)))}, 11);
+    if (k15 == NULL) goto done;
+    double k15_[11];
+    if (unpack(k15, k15_, 11, "dop853_dense_11", "k15") < 0) goto done;
+    double k15_0 = k15_[0];
+    double k15_1 = k15_[1];
+    double k15_2 = k15_[2];
+    double k15_3 = k15_[3];
+    double k15_4 = k15_[4];
+    double k15_5 = k15_[5];
+    double k15_6 = k15_[6];
+    double k15_7 = k15_[7];
+    double k15_8 = k15_[8];
+    double k15_9 = k15_[9];
+    double k15_10 = k15_[10];
+    double K15_0 = (h * k15_0);
+    double K15_1 = (h * k15_1);
+    double K15_2 = (h * k15_2);
+    double K15_3 = (h * k15_3);
+    double K15_4 = (h * k15_4);
+    double K15_5 = (h * k15_5);
+    double K15_6 = (h * k15_6);
+    double K15_7 = (h * k15_7);
+    double K15_8 = (h * k15_8);
+    double K15_9 = (h * k15_9);
+    double K15_10 = (h * k15_10);
+    double dy_0 = (y1_0 - y_0);
+    double dy_1 = (y1_1 - y_1);
+    double dy_2 = (y1_2 - y_2);
+    double dy_3 = (y1_3 - y_3);
+    double dy_4 = (y1_4 - y_4);
+    double dy_5 = (y1_5 - y_5);
+    double dy_6 = (y1_6 - y_6);
+    double dy_7 = (y1_7 - y_7);
+    double dy_8 = (y1_8 - y_8);
+    double dy_9 = (y1_9 - y_9);
+    double dy_10 = (y1_10 - y_10);
+    PyObject *py_r0 = PyList_New(11);
+    if (py_r0 == NULL) goto done;
+    PyObject *py_r1 = PyTuple_New(8);
+    if (py_r1 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 0, py_r1);
+    PyObject *py_r2 = PyFloat_FromDouble(y_0);
+    if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 0, py_r2);
+    PyObject *py_r3 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_0) + ((-154.18974869023643) * K5_0)) + ((-231.5293791760455) * K6_0)) + (357.6391179106141 * K7_0)) + (93.40532418362432 * K8_0)) + ((-37.45832313645163) * K9_0)) + (104.0996495089623 * K10_0)) + (29.8402934266605 * K11_0)) + ((-43.53345659001114) * K12_0)) + (96.32455395918828 * K13_0)) + ((-39.17726167561544) * K14_0)) + ((-149.72683625798564) * K15_0)));
+    if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 1, py_r3);
+    PyObject *py_r4 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_0) + ((-387.0373087493518) * K5_0)) + ((-189.17813819516758) * K6_0)) + (527.8081592054236 * K7_0)) + ((-11.57390253995963) * K8_0)) + (6.8812326946963 * K9_0)) + ((-1.0006050966910838) * K10_0)) + (0.7777137798053443 * K11_0)) + ((-2.778205752353508) * K12_0)) + ((-60.19669523126412) * K13_0)) + (84.32040550667716 * K14_0)) + (11.99229113618279 * K15_0)));
+    if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 2, py_r4);
+    PyObject *py_r5 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_0) + (242.28349177525817 * K5_0)) + (165.20045171727028 * K6_0)) + ((-374.5467547226902) * K7_0)) + ((-22.113666853125306) * K8_0)) + (7.733432668472264 * K9_0)) + ((-30.674084731089398) * K10_0)) + ((-9.332130526430229) * K11_0)) + (15.697238121770845 * K12_0)) + ((-31.139403219565178) * K13_0)) + ((-9.35292435884448) * K14_0)) + (35.81684148639408 * K15_0)));
+    if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 3, py_r5);
+    PyObject *py_r6 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_0) + (0.5667149535193777 * K5_0)) + ((-3.0689499459498917) * K6_0)) + (2.38466765651207 * K7_0)) + (2.117034582445028 * K8_0)) + ((-0.871391583777973) * K9_0)) + (2.2404374302607883 * K10_0)) + (0.6315787787694688 * K11_0)) + ((-0.08899033645133331) * K12_0)) + (18.148505520854727 * K13_0)) + ((-9.194632392478356) * K14_0)) + ((-4.436036387594894) * K15_0)));
+    if (py_r6 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 4, py_r6);
+    PyObject *py_r7 = PyFloat_FromDouble(((2.0 * dy_0) - (K12_0 + K0_0)));
+    if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 5, py_r7);
+    PyObject *py_r8 = PyFloat_FromDouble((K0_0 - dy_0));
+    if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 6, py_r8);
+    PyObject *py_r9 = PyFloat_FromDouble(dy_0);
+    if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 7, py_r9);
+    PyObject *py_r10 = PyTuple_New(8);
+    if (py_r10 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 1, py_r10);
+    PyObject *py_r11 = PyFloat_FromDouble(y_1);
+    if (py_r11 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 0, py_r11);
+    PyObject *py_r12 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_1) + ((-154.18974869023643) * K5_1)) + ((-231.5293791760455) * K6_1)) + (357.6391179106141 * K7_1)) + (93.40532418362432 * K8_1)) + ((-37.45832313645163) * K9_1)) + (104.0996495089623 * K10_1)) + (29.8402934266605 * K11_1)) + ((-43.53345659001114) * K12_1)) + (96.32455395918828 * K13_1)) + ((-39.17726167561544) * K14_1)) + ((-149.72683625798564) * K15_1)));
+    if (py_r12 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 1, py_r12);
+    PyObject *py_r13 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_1) + ((-387.0373087493518) * K5_1)) + ((-189.17813819516758) * K6_1)) + (527.8081592054236 * K7_1)) + ((-11.57390253995963) * K8_1)) + (6.8812326946963 * K9_1)) + ((-1.0006050966910838) * K10_1)) + (0.7777137798053443 * K11_1)) + ((-2.778205752353508) * K12_1)) + ((-60.19669523126412) * K13_1)) + (84.32040550667716 * K14_1)) + (11.99229113618279 * K15_1)));
+    if (py_r13 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 2, py_r13);
+    PyObject *py_r14 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_1) + (242.28349177525817 * K5_1)) + (165.20045171727028 * K6_1)) + ((-374.5467547226902) * K7_1)) + ((-22.113666853125306) * K8_1)) + (7.733432668472264 * K9_1)) + ((-30.674084731089398) * K10_1)) + ((-9.332130526430229) * K11_1)) + (15.697238121770845 * K12_1)) + ((-31.139403219565178) * K13_1)) + ((-9.35292435884448) * K14_1)) + (35.81684148639408 * K15_1)));
+    if (py_r14 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 3, py_r14);
+    PyObject *py_r15 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_1) + (0.5667149535193777 * K5_1)) + ((-3.0689499459498917) * K6_1)) + (2.38466765651207 * K7_1)) + (2.117034582445028 * K8_1)) + ((-0.871391583777973) * K9_1)) + (2.2404374302607883 * K10_1)) + (0.6315787787694688 * K11_1)) + ((-0.08899033645133331) * K12_1)) + (18.148505520854727 * K13_1)) + ((-9.194632392478356) * K14_1)) + ((-4.436036387594894) * K15_1)));
+    if (py_r15 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 4, py_r15);
+    PyObject *py_r16 = PyFloat_FromDouble(((2.0 * dy_1) - (K12_1 + K0_1)));
+    if (py_r16 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 5, py_r16);
+    PyObject *py_r17 = PyFloat_FromDouble((K0_1 - dy_1));
+    if (py_r17 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 6, py_r17);
+    PyObject *py_r18 = PyFloat_FromDouble(dy_1);
+    if (py_r18 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r10, 7, py_r18);
+    PyObject *py_r19 = PyTuple_New(8);
+    if (py_r19 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 2, py_r19);
+    PyObject *py_r20 = PyFloat_FromDouble(y_2);
+    if (py_r20 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 0, py_r20);
+    PyObject *py_r21 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_2) + ((-154.18974869023643) * K5_2)) + ((-231.5293791760455) * K6_2)) + (357.6391179106141 * K7_2)) + (93.40532418362432 * K8_2)) + ((-37.45832313645163) * K9_2)) + (104.0996495089623 * K10_2)) + (29.8402934266605 * K11_2)) + ((-43.53345659001114) * K12_2)) + (96.32455395918828 * K13_2)) + ((-39.17726167561544) * K14_2)) + ((-149.72683625798564) * K15_2)));
+    if (py_r21 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 1, py_r21);
+    PyObject *py_r22 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_2) + ((-387.0373087493518) * K5_2)) + ((-189.17813819516758) * K6_2)) + (527.8081592054236 * K7_2)) + ((-11.57390253995963) * K8_2)) + (6.8812326946963 * K9_2)) + ((-1.0006050966910838) * K10_2)) + (0.7777137798053443 * K11_2)) + ((-2.778205752353508) * K12_2)) + ((-60.19669523126412) * K13_2)) + (84.32040550667716 * K14_2)) + (11.99229113618279 * K15_2)));
+    if (py_r22 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 2, py_r22);
+    PyObject *py_r23 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_2) + (242.28349177525817 * K5_2)) + (165.20045171727028 * K6_2)) + ((-374.5467547226902) * K7_2)) + ((-22.113666853125306) * K8_2)) + (7.733432668472264 * K9_2)) + ((-30.674084731089398) * K10_2)) + ((-9.332130526430229) * K11_2)) + (15.697238121770845 * K12_2)) + ((-31.139403219565178) * K13_2)) + ((-9.35292435884448) * K14_2)) + (35.81684148639408 * K15_2)));
+    if (py_r23 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 3, py_r23);
+    PyObject *py_r24 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_2) + (0.5667149535193777 * K5_2)) + ((-3.0689499459498917) * K6_2)) + (2.38466765651207 * K7_2)) + (2.117034582445028 * K8_2)) + ((-0.871391583777973) * K9_2)) + (2.2404374302607883 * K10_2)) + (0.6315787787694688 * K11_2)) + ((-0.08899033645133331) * K12_2)) + (18.148505520854727 * K13_2)) + ((-9.194632392478356) * K14_2)) + ((-4.436036387594894) * K15_2)));
+    if (py_r24 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 4, py_r24);
+    PyObject *py_r25 = PyFloat_FromDouble(((2.0 * dy_2) - (K12_2 + K0_2)));
+    if (py_r25 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 5, py_r25);
+    PyObject *py_r26 = PyFloat_FromDouble((K0_2 - dy_2));
+    if (py_r26 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 6, py_r26);
+    PyObject *py_r27 = PyFloat_FromDouble(dy_2);
+    if (py_r27 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 7, py_r27);
+    PyObject *py_r28 = PyTuple_New(8);
+    if (py_r28 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 3, py_r28);
+    PyObject *py_r29 = PyFloat_FromDouble(y_3);
+    if (py_r29 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 0, py_r29);
+    PyObject *py_r30 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_3) + ((-154.18974869023643) * K5_3)) + ((-231.5293791760455) * K6_3)) + (357.6391179106141 * K7_3)) + (93.40532418362432 * K8_3)) + ((-37.45832313645163) * K9_3)) + (104.0996495089623 * K10_3)) + (29.8402934266605 * K11_3)) + ((-43.53345659001114) * K12_3)) + (96.32455395918828 * K13_3)) + ((-39.17726167561544) * K14_3)) + ((-149.72683625798564) * K15_3)));
+    if (py_r30 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 1, py_r30);
+    PyObject *py_r31 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_3) + ((-387.0373087493518) * K5_3)) + ((-189.17813819516758) * K6_3)) + (527.8081592054236 * K7_3)) + ((-11.57390253995963) * K8_3)) + (6.8812326946963 * K9_3)) + ((-1.0006050966910838) * K10_3)) + (0.7777137798053443 * K11_3)) + ((-2.778205752353508) * K12_3)) + ((-60.19669523126412) * K13_3)) + (84.32040550667716 * K14_3)) + (11.99229113618279 * K15_3)));
+    if (py_r31 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 2, py_r31);
+    PyObject *py_r32 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_3) + (242.28349177525817 * K5_3)) + (165.20045171727028 * K6_3)) + ((-374.5467547226902) * K7_3)) + ((-22.113666853125306) * K8_3)) + (7.733432668472264 * K9_3)) + ((-30.674084731089398) * K10_3)) + ((-9.332130526430229) * K11_3)) + (15.697238121770845 * K12_3)) + ((-31.139403219565178) * K13_3)) + ((-9.35292435884448) * K14_3)) + (35.81684148639408 * K15_3)));
+    if (py_r32 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 3, py_r32);
+    PyObject *py_r33 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_3) + (0.5667149535193777 * K5_3)) + ((-3.0689499459498917) * K6_3)) + (2.38466765651207 * K7_3)) + (2.117034582445028 * K8_3)) + ((-0.871391583777973) * K9_3)) + (2.2404374302607883 * K10_3)) + (0.6315787787694688 * K11_3)) + ((-0.08899033645133331) * K12_3)) + (18.148505520854727 * K13_3)) + ((-9.194632392478356) * K14_3)) + ((-4.436036387594894) * K15_3)));
+    if (py_r33 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 4, py_r33);
+    PyObject *py_r34 = PyFloat_FromDouble(((2.0 * dy_3) - (K12_3 + K0_3)));
+    if (py_r34 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 5, py_r34);
+    PyObject *py_r35 = PyFloat_FromDouble((K0_3 - dy_3));
+    if (py_r35 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 6, py_r35);
+    PyObject *py_r36 = PyFloat_FromDouble(dy_3);
+    if (py_r36 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r28, 7, py_r36);
+    PyObject *py_r37 = PyTuple_New(8);
+    if (py_r37 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 4, py_r37);
+    PyObject *py_r38 = PyFloat_FromDouble(y_4);
+    if (py_r38 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 0, py_r38);
+    PyObject *py_r39 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_4) + ((-154.18974869023643) * K5_4)) + ((-231.5293791760455) * K6_4)) + (357.6391179106141 * K7_4)) + (93.40532418362432 * K8_4)) + ((-37.45832313645163) * K9_4)) + (104.0996495089623 * K10_4)) + (29.8402934266605 * K11_4)) + ((-43.53345659001114) * K12_4)) + (96.32455395918828 * K13_4)) + ((-39.17726167561544) * K14_4)) + ((-149.72683625798564) * K15_4)));
+    if (py_r39 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 1, py_r39);
+    PyObject *py_r40 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_4) + ((-387.0373087493518) * K5_4)) + ((-189.17813819516758) * K6_4)) + (527.8081592054236 * K7_4)) + ((-11.57390253995963) * K8_4)) + (6.8812326946963 * K9_4)) + ((-1.0006050966910838) * K10_4)) + (0.7777137798053443 * K11_4)) + ((-2.778205752353508) * K12_4)) + ((-60.19669523126412) * K13_4)) + (84.32040550667716 * K14_4)) + (11.99229113618279 * K15_4)));
+    if (py_r40 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 2, py_r40);
+    PyObject *py_r41 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_4) + (242.28349177525817 * K5_4)) + (165.20045171727028 * K6_4)) + ((-374.5467547226902) * K7_4)) + ((-22.113666853125306) * K8_4)) + (7.733432668472264 * K9_4)) + ((-30.674084731089398) * K10_4)) + ((-9.332130526430229) * K11_4)) + (15.697238121770845 * K12_4)) + ((-31.139403219565178) * K13_4)) + ((-9.35292435884448) * K14_4)) + (35.81684148639408 * K15_4)));
+    if (py_r41 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 3, py_r41);
+    PyObject *py_r42 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_4) + (0.5667149535193777 * K5_4)) + ((-3.0689499459498917) * K6_4)) + (2.38466765651207 * K7_4)) + (2.117034582445028 * K8_4)) + ((-0.871391583777973) * K9_4)) + (2.2404374302607883 * K10_4)) + (0.6315787787694688 * K11_4)) + ((-0.08899033645133331) * K12_4)) + (18.148505520854727 * K13_4)) + ((-9.194632392478356) * K14_4)) + ((-4.436036387594894) * K15_4)));
+    if (py_r42 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 4, py_r42);
+    PyObject *py_r43 = PyFloat_FromDouble(((2.0 * dy_4) - (K12_4 + K0_4)));
+    if (py_r43 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 5, py_r43);
+    PyObject *py_r44 = PyFloat_FromDouble((K0_4 - dy_4));
+    if (py_r44 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 6, py_r44);
+    PyObject *py_r45 = PyFloat_FromDouble(dy_4);
+    if (py_r45 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 7, py_r45);
+    PyObject *py_r46 = PyTuple_New(8);
+    if (py_r46 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 5, py_r46);
+    PyObject *py_r47 = PyFloat_FromDouble(y_5);
+    if (py_r47 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 0, py_r47);
+    PyObject *py_r48 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_5) + ((-154.18974869023643) * K5_5)) + ((-231.5293791760455) * K6_5)) + (357.6391179106141 * K7_5)) + (93.40532418362432 * K8_5)) + ((-37.45832313645163) * K9_5)) + (104.0996495089623 * K10_5)) + (29.8402934266605 * K11_5)) + ((-43.53345659001114) * K12_5)) + (96.32455395918828 * K13_5)) + ((-39.17726167561544) * K14_5)) + ((-149.72683625798564) * K15_5)));
+    if (py_r48 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 1, py_r48);
+    PyObject *py_r49 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_5) + ((-387.0373087493518) * K5_5)) + ((-189.17813819516758) * K6_5)) + (527.8081592054236 * K7_5)) + ((-11.57390253995963) * K8_5)) + (6.8812326946963 * K9_5)) + ((-1.0006050966910838) * K10_5)) + (0.7777137798053443 * K11_5)) + ((-2.778205752353508) * K12_5)) + ((-60.19669523126412) * K13_5)) + (84.32040550667716 * K14_5)) + (11.99229113618279 * K15_5)));
+    if (py_r49 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 2, py_r49);
+    PyObject *py_r50 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_5) + (242.28349177525817 * K5_5)) + (165.20045171727028 * K6_5)) + ((-374.5467547226902) * K7_5)) + ((-22.113666853125306) * K8_5)) + (7.733432668472264 * K9_5)) + ((-30.674084731089398) * K10_5)) + ((-9.332130526430229) * K11_5)) + (15.697238121770845 * K12_5)) + ((-31.139403219565178) * K13_5)) + ((-9.35292435884448) * K14_5)) + (35.81684148639408 * K15_5)));
+    if (py_r50 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 3, py_r50);
+    PyObject *py_r51 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_5) + (0.5667149535193777 * K5_5)) + ((-3.0689499459498917) * K6_5)) + (2.38466765651207 * K7_5)) + (2.117034582445028 * K8_5)) + ((-0.871391583777973) * K9_5)) + (2.2404374302607883 * K10_5)) + (0.6315787787694688 * K11_5)) + ((-0.08899033645133331) * K12_5)) + (18.148505520854727 * K13_5)) + ((-9.194632392478356) * K14_5)) + ((-4.436036387594894) * K15_5)));
+    if (py_r51 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 4, py_r51);
+    PyObject *py_r52 = PyFloat_FromDouble(((2.0 * dy_5) - (K12_5 + K0_5)));
+    if (py_r52 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 5, py_r52);
+    PyObject *py_r53 = PyFloat_FromDouble((K0_5 - dy_5));
+    if (py_r53 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 6, py_r53);
+    PyObject *py_r54 = PyFloat_FromDouble(dy_5);
+    if (py_r54 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r46, 7, py_r54);
+    PyObject *py_r55 = PyTuple_New(8);
+    if (py_r55 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 6, py_r55);
+    PyObject *py_r56 = PyFloat_FromDouble(y_6);
+    if (py_r56 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 0, py_r56);
+    PyObject *py_r57 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_6) + ((-154.18974869023643) * K5_6)) + ((-231.5293791760455) * K6_6)) + (357.6391179106141 * K7_6)) + (93.40532418362432 * K8_6)) + ((-37.45832313645163) * K9_6)) + (104.0996495089623 * K10_6)) + (29.8402934266605 * K11_6)) + ((-43.53345659001114) * K12_6)) + (96.32455395918828 * K13_6)) + ((-39.17726167561544) * K14_6)) + ((-149.72683625798564) * K15_6)));
+    if (py_r57 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 1, py_r57);
+    PyObject *py_r58 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_6) + ((-387.0373087493518) * K5_6)) + ((-189.17813819516758) * K6_6)) + (527.8081592054236 * K7_6)) + ((-11.57390253995963) * K8_6)) + (6.8812326946963 * K9_6)) + ((-1.0006050966910838) * K10_6)) + (0.7777137798053443 * K11_6)) + ((-2.778205752353508) * K12_6)) + ((-60.19669523126412) * K13_6)) + (84.32040550667716 * K14_6)) + (11.99229113618279 * K15_6)));
+    if (py_r58 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 2, py_r58);
+    PyObject *py_r59 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_6) + (242.28349177525817 * K5_6)) + (165.20045171727028 * K6_6)) + ((-374.5467547226902) * K7_6)) + ((-22.113666853125306) * K8_6)) + (7.733432668472264 * K9_6)) + ((-30.674084731089398) * K10_6)) + ((-9.332130526430229) * K11_6)) + (15.697238121770845 * K12_6)) + ((-31.139403219565178) * K13_6)) + ((-9.35292435884448) * K14_6)) + (35.81684148639408 * K15_6)));
+    if (py_r59 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 3, py_r59);
+    PyObject *py_r60 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_6) + (0.5667149535193777 * K5_6)) + ((-3.0689499459498917) * K6_6)) + (2.38466765651207 * K7_6)) + (2.117034582445028 * K8_6)) + ((-0.871391583777973) * K9_6)) + (2.2404374302607883 * K10_6)) + (0.6315787787694688 * K11_6)) + ((-0.08899033645133331) * K12_6)) + (18.148505520854727 * K13_6)) + ((-9.194632392478356) * K14_6)) + ((-4.436036387594894) * K15_6)));
+    if (py_r60 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 4, py_r60);
+    PyObject *py_r61 = PyFloat_FromDouble(((2.0 * dy_6) - (K12_6 + K0_6)));
+    if (py_r61 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 5, py_r61);
+    PyObject *py_r62 = PyFloat_FromDouble((K0_6 - dy_6));
+    if (py_r62 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 6, py_r62);
+    PyObject *py_r63 = PyFloat_FromDouble(dy_6);
+    if (py_r63 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 7, py_r63);
+    PyObject *py_r64 = PyTuple_New(8);
+    if (py_r64 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 7, py_r64);
+    PyObject *py_r65 = PyFloat_FromDouble(y_7);
+    if (py_r65 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r64, 0, py_r65);
+    PyObject *py_r66 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_7) + ((-154.18974869023643) * K5_7)) + ((-231.5293791760455) * K6_7)) + (357.6391179106141 * K7_7)) + (93.40532418362432 * K8_7)) + ((-37.45832313645163) * K9_7)) + (104.0996495089623 * K10_7)) + (29.8402934266605 * K11_7)) + ((-43.53345659001114) * K12_7)) + (96.32455395918828 * K13_7)) + ((-39.17726167561544) * K14_7)) + ((-149.72683625798564) * K15_7)));
+    if (py_r66 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r64, 1, py_r66);
+    PyObject *py_r67 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_7) + ((-387.0373087493518) * K5_7)) + ((-189.17813819516758) * K6_7)) + (527.8081592054236 * K7_7)) + ((-11.57390253995963) * K8_7)) + (6.8812326946963 * K9_7)) + ((-1.0006050966910838) * K10_7)) + (0.7777137798053443 * K11_7)) + ((-2.778205752353508) * K12_7)) + ((-60.19669523126412) * K13_7)) + (84.32040550667716 * K14_7)) + (11.99229113618279 * K15_7)));
+    if (py_r67 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r64, 2, py_r67);
+    PyObject *py_r68 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_7) + (242.28349177525817 * K5_7)) + (165.20045171727028 * K6_7)) + ((-374.5467547226902) * K7_7)) + ((-22.113666853125306) * K8_7)) + (7.733432668472264 * K9_7)) + ((-30.674084731089398) * K10_7)) + ((-9.332130526430229) * K11_7)) + (15.697238121770845 * K12_7)) + ((-31.139403219565178) * K13_7)) + ((-9.35292435884448) * K14_7)) + (35.81684148639408 * K15_7)));
+    if (py_r68 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r64, 3, py_r68);
+    PyObject *py_r69 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_7) + (0.5667149535193777 * K5_7)) + ((-3.0689499459498917) * K6_7)) + (2.38466765651207 * K7_7)) + (2.117034582445028 * K8_7)) + ((-0.871391583777973) * K9_7)) + (2.2404374302607883 * K10_7)) + (0.6315787787694688 * K11_7)) + ((-0.08899033645133331) * K12_7)) + (18.148505520854727 * K13_7)) + ((-9.194632392478356) * K14_7)) + ((-4.436036387594894) * K15_7)));
+    if (py_r69 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r64, 4, py_r69);
+    PyObject *py_r70 = PyFloat_FromDouble(((2.0 * dy_7) - (K12_7 + K0_7)));
+    if (py_r70 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r64, 5, py_r70);
+    PyObject *py_r71 = PyFloat_FromDouble((K0_7 - dy_7));
+    if (py_r71 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r64, 6, py_r71);
+    PyObject *py_r72 = PyFloat_FromDouble(dy_7);
+    if (py_r72 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r64, 7, py_r72);
+    PyObject *py_r73 = PyTuple_New(8);
+    if (py_r73 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 8, py_r73);
+    PyObject *py_r74 = PyFloat_FromDouble(y_8);
+    if (py_r74 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r73, 0, py_r74);
+    PyObject *py_r75 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_8) + ((-154.18974869023643) * K5_8)) + ((-231.5293791760455) * K6_8)) + (357.6391179106141 * K7_8)) + (93.40532418362432 * K8_8)) + ((-37.45832313645163) * K9_8)) + (104.0996495089623 * K10_8)) + (29.8402934266605 * K11_8)) + ((-43.53345659001114) * K12_8)) + (96.32455395918828 * K13_8)) + ((-39.17726167561544) * K14_8)) + ((-149.72683625798564) * K15_8)));
+    if (py_r75 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r73, 1, py_r75);
+    PyObject *py_r76 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_8) + ((-387.0373087493518) * K5_8)) + ((-189.17813819516758) * K6_8)) + (527.8081592054236 * K7_8)) + ((-11.57390253995963) * K8_8)) + (6.8812326946963 * K9_8)) + ((-1.0006050966910838) * K10_8)) + (0.7777137798053443 * K11_8)) + ((-2.778205752353508) * K12_8)) + ((-60.19669523126412) * K13_8)) + (84.32040550667716 * K14_8)) + (11.99229113618279 * K15_8)));
+    if (py_r76 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r73, 2, py_r76);
+    PyObject *py_r77 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_8) + (242.28349177525817 * K5_8)) + (165.20045171727028 * K6_8)) + ((-374.5467547226902) * K7_8)) + ((-22.113666853125306) * K8_8)) + (7.733432668472264 * K9_8)) + ((-30.674084731089398) * K10_8)) + ((-9.332130526430229) * K11_8)) + (15.697238121770845 * K12_8)) + ((-31.139403219565178) * K13_8)) + ((-9.35292435884448) * K14_8)) + (35.81684148639408 * K15_8)));
+    if (py_r77 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r73, 3, py_r77);
+    PyObject *py_r78 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_8) + (0.5667149535193777 * K5_8)) + ((-3.0689499459498917) * K6_8)) + (2.38466765651207 * K7_8)) + (2.117034582445028 * K8_8)) + ((-0.871391583777973) * K9_8)) + (2.2404374302607883 * K10_8)) + (0.6315787787694688 * K11_8)) + ((-0.08899033645133331) * K12_8)) + (18.148505520854727 * K13_8)) + ((-9.194632392478356) * K14_8)) + ((-4.436036387594894) * K15_8)));
+    if (py_r78 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r73, 4, py_r78);
+    PyObject *py_r79 = PyFloat_FromDouble(((2.0 * dy_8) - (K12_8 + K0_8)));
+    if (py_r79 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r73, 5, py_r79);
+    PyObject *py_r80 = PyFloat_FromDouble((K0_8 - dy_8));
+    if (py_r80 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r73, 6, py_r80);
+    PyObject *py_r81 = PyFloat_FromDouble(dy_8);
+    if (py_r81 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r73, 7, py_r81);
+    PyObject *py_r82 = PyTuple_New(8);
+    if (py_r82 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 9, py_r82);
+    PyObject *py_r83 = PyFloat_FromDouble(y_9);
+    if (py_r83 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r82, 0, py_r83);
+    PyObject *py_r84 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_9) + ((-154.18974869023643) * K5_9)) + ((-231.5293791760455) * K6_9)) + (357.6391179106141 * K7_9)) + (93.40532418362432 * K8_9)) + ((-37.45832313645163) * K9_9)) + (104.0996495089623 * K10_9)) + (29.8402934266605 * K11_9)) + ((-43.53345659001114) * K12_9)) + (96.32455395918828 * K13_9)) + ((-39.17726167561544) * K14_9)) + ((-149.72683625798564) * K15_9)));
+    if (py_r84 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r82, 1, py_r84);
+    PyObject *py_r85 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_9) + ((-387.0373087493518) * K5_9)) + ((-189.17813819516758) * K6_9)) + (527.8081592054236 * K7_9)) + ((-11.57390253995963) * K8_9)) + (6.8812326946963 * K9_9)) + ((-1.0006050966910838) * K10_9)) + (0.7777137798053443 * K11_9)) + ((-2.778205752353508) * K12_9)) + ((-60.19669523126412) * K13_9)) + (84.32040550667716 * K14_9)) + (11.99229113618279 * K15_9)));
+    if (py_r85 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r82, 2, py_r85);
+    PyObject *py_r86 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_9) + (242.28349177525817 * K5_9)) + (165.20045171727028 * K6_9)) + ((-374.5467547226902) * K7_9)) + ((-22.113666853125306) * K8_9)) + (7.733432668472264 * K9_9)) + ((-30.674084731089398) * K10_9)) + ((-9.332130526430229) * K11_9)) + (15.697238121770845 * K12_9)) + ((-31.139403219565178) * K13_9)) + ((-9.35292435884448) * K14_9)) + (35.81684148639408 * K15_9)));
+    if (py_r86 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r82, 3, py_r86);
+    PyObject *py_r87 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_9) + (0.5667149535193777 * K5_9)) + ((-3.0689499459498917) * K6_9)) + (2.38466765651207 * K7_9)) + (2.117034582445028 * K8_9)) + ((-0.871391583777973) * K9_9)) + (2.2404374302607883 * K10_9)) + (0.6315787787694688 * K11_9)) + ((-0.08899033645133331) * K12_9)) + (18.148505520854727 * K13_9)) + ((-9.194632392478356) * K14_9)) + ((-4.436036387594894) * K15_9)));
+    if (py_r87 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r82, 4, py_r87);
+    PyObject *py_r88 = PyFloat_FromDouble(((2.0 * dy_9) - (K12_9 + K0_9)));
+    if (py_r88 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r82, 5, py_r88);
+    PyObject *py_r89 = PyFloat_FromDouble((K0_9 - dy_9));
+    if (py_r89 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r82, 6, py_r89);
+    PyObject *py_r90 = PyFloat_FromDouble(dy_9);
+    if (py_r90 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r82, 7, py_r90);
+    PyObject *py_r91 = PyTuple_New(8);
+    if (py_r91 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 10, py_r91);
+    PyObject *py_r92 = PyFloat_FromDouble(y_10);
+    if (py_r92 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r91, 0, py_r92);
+    PyObject *py_r93 = PyFloat_FromDouble((((((((((((((-25.69393346270375) * K0_10) + ((-154.18974869023643) * K5_10)) + ((-231.5293791760455) * K6_10)) + (357.6391179106141 * K7_10)) + (93.40532418362432 * K8_10)) + ((-37.45832313645163) * K9_10)) + (104.0996495089623 * K10_10)) + (29.8402934266605 * K11_10)) + ((-43.53345659001114) * K12_10)) + (96.32455395918828 * K13_10)) + ((-39.17726167561544) * K14_10)) + ((-149.72683625798564) * K15_10)));
+    if (py_r93 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r91, 1, py_r93);
+    PyObject *py_r94 = PyFloat_FromDouble(((((((((((((19.985053242002433 * K0_10) + ((-387.0373087493518) * K5_10)) + ((-189.17813819516758) * K6_10)) + (527.8081592054236 * K7_10)) + ((-11.57390253995963) * K8_10)) + (6.8812326946963 * K9_10)) + ((-1.0006050966910838) * K10_10)) + (0.7777137798053443 * K11_10)) + ((-2.778205752353508) * K12_10)) + ((-60.19669523126412) * K13_10)) + (84.32040550667716 * K14_10)) + (11.99229113618279 * K15_10)));
+    if (py_r94 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r91, 2, py_r94);
+    PyObject *py_r95 = PyFloat_FromDouble(((((((((((((10.427508642579134 * K0_10) + (242.28349177525817 * K5_10)) + (165.20045171727028 * K6_10)) + ((-374.5467547226902) * K7_10)) + ((-22.113666853125306) * K8_10)) + (7.733432668472264 * K9_10)) + ((-30.674084731089398) * K10_10)) + ((-9.332130526430229) * K11_10)) + (15.697238121770845 * K12_10)) + ((-31.139403219565178) * K13_10)) + ((-9.35292435884448) * K14_10)) + (35.81684148639408 * K15_10)));
+    if (py_r95 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r91, 3, py_r95);
+    PyObject *py_r96 = PyFloat_FromDouble((((((((((((((-8.428938276109013) * K0_10) + (0.5667149535193777 * K5_10)) + ((-3.0689499459498917) * K6_10)) + (2.38466765651207 * K7_10)) + (2.117034582445028 * K8_10)) + ((-0.871391583777973) * K9_10)) + (2.2404374302607883 * K10_10)) + (0.6315787787694688 * K11_10)) + ((-0.08899033645133331) * K12_10)) + (18.148505520854727 * K13_10)) + ((-9.194632392478356) * K14_10)) + ((-4.436036387594894) * K15_10)));
+    if (py_r96 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r91, 4, py_r96);
+    PyObject *py_r97 = PyFloat_FromDouble(((2.0 * dy_10) - (K12_10 + K0_10)));
+    if (py_r97 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r91, 5, py_r97);
+    PyObject *py_r98 = PyFloat_FromDouble((K0_10 - dy_10));
+    if (py_r98 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r91, 6, py_r98);
+    PyObject *py_r99 = PyFloat_FromDouble(dy_10);
+    if (py_r99 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r91, 7, py_r99);
+    result = py_r0;
+done:
+    Py_XDECREF(k13);
+    Py_XDECREF(k14);
+    Py_XDECREF(k15);
+    (void)failed;
+    return result;
+}
+
+static PyObject *
 dopri5_step_7(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     PyObject *result = NULL;
@@ -2671,6 +3789,538 @@ done:
     return result;
 }
 
+static PyObject *
+dopri5_dense_7(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    PyObject *result = NULL;
+    int failed = 0;
+    if (nargs != 8) {
+        PyErr_SetString(PyExc_TypeError, "dopri5_dense_7() takes 8 arguments (ys, k0, k1, k2, k3, k4, k5, k6)");
+        return NULL;
+    }
+    PyObject *ys = args[0];
+    PyObject *k0 = args[1];
+    PyObject *k1 = args[2];
+    PyObject *k2 = args[3];
+    PyObject *k3 = args[4];
+    PyObject *k4 = args[5];
+    PyObject *k5 = args[6];
+    PyObject *k6 = args[7];
+    double ys_[7];
+    if (unpack(ys, ys_, 7, "dopri5_dense_7", "ys") < 0) goto done;
+    double y_0 = ys_[0];
+    double y_1 = ys_[1];
+    double y_2 = ys_[2];
+    double y_3 = ys_[3];
+    double y_4 = ys_[4];
+    double y_5 = ys_[5];
+    double y_6 = ys_[6];
+    double k0_[7];
+    if (unpack(k0, k0_, 7, "dopri5_dense_7", "k0") < 0) goto done;
+    double k0_0 = k0_[0];
+    double k0_1 = k0_[1];
+    double k0_2 = k0_[2];
+    double k0_3 = k0_[3];
+    double k0_4 = k0_[4];
+    double k0_5 = k0_[5];
+    double k0_6 = k0_[6];
+    double k1_[7];
+    if (unpack(k1, k1_, 7, "dopri5_dense_7", "k1") < 0) goto done;
+    double k2_[7];
+    if (unpack(k2, k2_, 7, "dopri5_dense_7", "k2") < 0) goto done;
+    double k2_0 = k2_[0];
+    double k2_1 = k2_[1];
+    double k2_2 = k2_[2];
+    double k2_3 = k2_[3];
+    double k2_4 = k2_[4];
+    double k2_5 = k2_[5];
+    double k2_6 = k2_[6];
+    double k3_[7];
+    if (unpack(k3, k3_, 7, "dopri5_dense_7", "k3") < 0) goto done;
+    double k3_0 = k3_[0];
+    double k3_1 = k3_[1];
+    double k3_2 = k3_[2];
+    double k3_3 = k3_[3];
+    double k3_4 = k3_[4];
+    double k3_5 = k3_[5];
+    double k3_6 = k3_[6];
+    double k4_[7];
+    if (unpack(k4, k4_, 7, "dopri5_dense_7", "k4") < 0) goto done;
+    double k4_0 = k4_[0];
+    double k4_1 = k4_[1];
+    double k4_2 = k4_[2];
+    double k4_3 = k4_[3];
+    double k4_4 = k4_[4];
+    double k4_5 = k4_[5];
+    double k4_6 = k4_[6];
+    double k5_[7];
+    if (unpack(k5, k5_, 7, "dopri5_dense_7", "k5") < 0) goto done;
+    double k5_0 = k5_[0];
+    double k5_1 = k5_[1];
+    double k5_2 = k5_[2];
+    double k5_3 = k5_[3];
+    double k5_4 = k5_[4];
+    double k5_5 = k5_[5];
+    double k5_6 = k5_[6];
+    double k6_[7];
+    if (unpack(k6, k6_, 7, "dopri5_dense_7", "k6") < 0) goto done;
+    double k6_0 = k6_[0];
+    double k6_1 = k6_[1];
+    double k6_2 = k6_[2];
+    double k6_3 = k6_[3];
+    double k6_4 = k6_[4];
+    double k6_5 = k6_[5];
+    double k6_6 = k6_[6];
+    PyObject *py_r0 = PyList_New(7);
+    if (py_r0 == NULL) goto done;
+    PyObject *py_r1 = PyTuple_New(5);
+    if (py_r1 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 0, py_r1);
+    PyObject *py_r2 = PyFloat_FromDouble(y_0);
+    if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 0, py_r2);
+    PyObject *py_r3 = PyFloat_FromDouble((1.0 * k0_0));
+    if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 1, py_r3);
+    PyObject *py_r4 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_0) + (4.023133379230305 * k2_0)) + ((-3.7324019615885042) * k3_0)) + (2.5548038301849423 * k4_0)) + ((-1.3744241142186024) * k5_0)) + (1.3824689317781436 * k6_0)));
+    if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 2, py_r4);
+    PyObject *py_r5 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_0) + ((-6.249321565289) * k2_0)) + (10.068970589843675 * k3_0)) + ((-6.399112377351017) * k4_0)) + (3.272657752246729 * k5_0)) + ((-3.764937863556287) * k6_0)));
+    if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 3, py_r5);
+    PyObject *py_r6 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_0) + (2.675424484351598 * k2_0)) + ((-5.685526961588504) * k3_0)) + (3.5219323679207912 * k4_0)) + ((-1.7672812570757455) * k5_0)) + (2.382468931778144 * k6_0)));
+    if (py_r6 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 4, py_r6);
+    PyObject *py_r7 = PyTuple_New(5);
+    if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 1, py_r7);
+    PyObject *py_r8 = PyFloat_FromDouble(y_1);
+    if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r7, 0, py_r8);
+    PyObject *py_r9 = PyFloat_FromDouble((1.0 * k0_1));
+    if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r7, 1, py_r9);
+    PyObject *py_r10 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_1) + (4.023133379230305 * k2_1)) + ((-3.7324019615885042) * k3_1)) + (2.5548038301849423 * k4_1)) + ((-1.3744241142186024) * k5_1)) + (1.3824689317781436 * k6_1)));
+    if (py_r10 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r7, 2, py_r10);
+    PyObject *py_r11 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_1) + ((-6.249321565289) * k2_1)) + (10.068970589843675 * k3_1)) + ((-6.399112377351017) * k4_1)) + (3.272657752246729 * k5_1)) + ((-3.764937863556287) * k6_1)));
+    if (py_r11 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r7, 3, py_r11);
+    PyObject *py_r12 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_1) + (2.675424484351598 * k2_1)) + ((-5.685526961588504) * k3_1)) + (3.5219323679207912 * k4_1)) + ((-1.7672812570757455) * k5_1)) + (2.382468931778144 * k6_1)));
+    if (py_r12 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r7, 4, py_r12);
+    PyObject *py_r13 = PyTuple_New(5);
+    if (py_r13 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 2, py_r13);
+    PyObject *py_r14 = PyFloat_FromDouble(y_2);
+    if (py_r14 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r13, 0, py_r14);
+    PyObject *py_r15 = PyFloat_FromDouble((1.0 * k0_2));
+    if (py_r15 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r13, 1, py_r15);
+    PyObject *py_r16 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_2) + (4.023133379230305 * k2_2)) + ((-3.7324019615885042) * k3_2)) + (2.5548038301849423 * k4_2)) + ((-1.3744241142186024) * k5_2)) + (1.3824689317781436 * k6_2)));
+    if (py_r16 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r13, 2, py_r16);
+    PyObject *py_r17 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_2) + ((-6.249321565289) * k2_2)) + (10.068970589843675 * k3_2)) + ((-6.399112377351017) * k4_2)) + (3.272657752246729 * k5_2)) + ((-3.764937863556287) * k6_2)));
+    if (py_r17 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r13, 3, py_r17);
+    PyObject *py_r18 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_2) + (2.675424484351598 * k2_2)) + ((-5.685526961588504) * k3_2)) + (3.5219323679207912 * k4_2)) + ((-1.7672812570757455) * k5_2)) + (2.382468931778144 * k6_2)));
+    if (py_r18 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r13, 4, py_r18);
+    PyObject *py_r19 = PyTuple_New(5);
+    if (py_r19 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 3, py_r19);
+    PyObject *py_r20 = PyFloat_FromDouble(y_3);
+    if (py_r20 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 0, py_r20);
+    PyObject *py_r21 = PyFloat_FromDouble((1.0 * k0_3));
+    if (py_r21 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 1, py_r21);
+    PyObject *py_r22 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_3) + (4.023133379230305 * k2_3)) + ((-3.7324019615885042) * k3_3)) + (2.5548038301849423 * k4_3)) + ((-1.3744241142186024) * k5_3)) + (1.3824689317781436 * k6_3)));
+    if (py_r22 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 2, py_r22);
+    PyObject *py_r23 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_3) + ((-6.249321565289) * k2_3)) + (10.068970589843675 * k3_3)) + ((-6.399112377351017) * k4_3)) + (3.272657752246729 * k5_3)) + ((-3.764937863556287) * k6_3)));
+    if (py_r23 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 3, py_r23);
+    PyObject *py_r24 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_3) + (2.675424484351598 * k2_3)) + ((-5.685526961588504) * k3_3)) + (3.5219323679207912 * k4_3)) + ((-1.7672812570757455) * k5_3)) + (2.382468931778144 * k6_3)));
+    if (py_r24 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 4, py_r24);
+    PyObject *py_r25 = PyTuple_New(5);
+    if (py_r25 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 4, py_r25);
+    PyObject *py_r26 = PyFloat_FromDouble(y_4);
+    if (py_r26 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r25, 0, py_r26);
+    PyObject *py_r27 = PyFloat_FromDouble((1.0 * k0_4));
+    if (py_r27 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r25, 1, py_r27);
+    PyObject *py_r28 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_4) + (4.023133379230305 * k2_4)) + ((-3.7324019615885042) * k3_4)) + (2.5548038301849423 * k4_4)) + ((-1.3744241142186024) * k5_4)) + (1.3824689317781436 * k6_4)));
+    if (py_r28 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r25, 2, py_r28);
+    PyObject *py_r29 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_4) + ((-6.249321565289) * k2_4)) + (10.068970589843675 * k3_4)) + ((-6.399112377351017) * k4_4)) + (3.272657752246729 * k5_4)) + ((-3.764937863556287) * k6_4)));
+    if (py_r29 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r25, 3, py_r29);
+    PyObject *py_r30 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_4) + (2.675424484351598 * k2_4)) + ((-5.685526961588504) * k3_4)) + (3.5219323679207912 * k4_4)) + ((-1.7672812570757455) * k5_4)) + (2.382468931778144 * k6_4)));
+    if (py_r30 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r25, 4, py_r30);
+    PyObject *py_r31 = PyTuple_New(5);
+    if (py_r31 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 5, py_r31);
+    PyObject *py_r32 = PyFloat_FromDouble(y_5);
+    if (py_r32 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r31, 0, py_r32);
+    PyObject *py_r33 = PyFloat_FromDouble((1.0 * k0_5));
+    if (py_r33 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r31, 1, py_r33);
+    PyObject *py_r34 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_5) + (4.023133379230305 * k2_5)) + ((-3.7324019615885042) * k3_5)) + (2.5548038301849423 * k4_5)) + ((-1.3744241142186024) * k5_5)) + (1.3824689317781436 * k6_5)));
+    if (py_r34 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r31, 2, py_r34);
+    PyObject *py_r35 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_5) + ((-6.249321565289) * k2_5)) + (10.068970589843675 * k3_5)) + ((-6.399112377351017) * k4_5)) + (3.272657752246729 * k5_5)) + ((-3.764937863556287) * k6_5)));
+    if (py_r35 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r31, 3, py_r35);
+    PyObject *py_r36 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_5) + (2.675424484351598 * k2_5)) + ((-5.685526961588504) * k3_5)) + (3.5219323679207912 * k4_5)) + ((-1.7672812570757455) * k5_5)) + (2.382468931778144 * k6_5)));
+    if (py_r36 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r31, 4, py_r36);
+    PyObject *py_r37 = PyTuple_New(5);
+    if (py_r37 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 6, py_r37);
+    PyObject *py_r38 = PyFloat_FromDouble(y_6);
+    if (py_r38 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 0, py_r38);
+    PyObject *py_r39 = PyFloat_FromDouble((1.0 * k0_6));
+    if (py_r39 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 1, py_r39);
+    PyObject *py_r40 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_6) + (4.023133379230305 * k2_6)) + ((-3.7324019615885042) * k3_6)) + (2.5548038301849423 * k4_6)) + ((-1.3744241142186024) * k5_6)) + (1.3824689317781436 * k6_6)));
+    if (py_r40 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 2, py_r40);
+    PyObject *py_r41 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_6) + ((-6.249321565289) * k2_6)) + (10.068970589843675 * k3_6)) + ((-6.399112377351017) * k4_6)) + (3.272657752246729 * k5_6)) + ((-3.764937863556287) * k6_6)));
+    if (py_r41 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 3, py_r41);
+    PyObject *py_r42 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_6) + (2.675424484351598 * k2_6)) + ((-5.685526961588504) * k3_6)) + (3.5219323679207912 * k4_6)) + ((-1.7672812570757455) * k5_6)) + (2.382468931778144 * k6_6)));
+    if (py_r42 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 4, py_r42);
+    result = py_r0;
+done:
+    (void)failed;
+    return result;
+}
+
+static PyObject *
+dopri5_dense_11(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    PyObject *result = NULL;
+    int failed = 0;
+    if (nargs != 8) {
+        PyErr_SetString(PyExc_TypeError, "dopri5_dense_11() takes 8 arguments (ys, k0, k1, k2, k3, k4, k5, k6)");
+        return NULL;
+    }
+    PyObject *ys = args[0];
+    PyObject *k0 = args[1];
+    PyObject *k1 = args[2];
+    PyObject *k2 = args[3];
+    PyObject *k3 = args[4];
+    PyObject *k4 = args[5];
+    PyObject *k5 = args[6];
+    PyObject *k6 = args[7];
+    double ys_[11];
+    if (unpack(ys, ys_, 11, "dopri5_dense_11", "ys") < 0) goto done;
+    double y_0 = ys_[0];
+    double y_1 = ys_[1];
+    double y_2 = ys_[2];
+    double y_3 = ys_[3];
+    double y_4 = ys_[4];
+    double y_5 = ys_[5];
+    double y_6 = ys_[6];
+    double y_7 = ys_[7];
+    double y_8 = ys_[8];
+    double y_9 = ys_[9];
+    double y_10 = ys_[10];
+    double k0_[11];
+    if (unpack(k0, k0_, 11, "dopri5_dense_11", "k0") < 0) goto done;
+    double k0_0 = k0_[0];
+    double k0_1 = k0_[1];
+    double k0_2 = k0_[2];
+    double k0_3 = k0_[3];
+    double k0_4 = k0_[4];
+    double k0_5 = k0_[5];
+    double k0_6 = k0_[6];
+    double k0_7 = k0_[7];
+    double k0_8 = k0_[8];
+    double k0_9 = k0_[9];
+    double k0_10 = k0_[10];
+    double k1_[11];
+    if (unpack(k1, k1_, 11, "dopri5_dense_11", "k1") < 0) goto done;
+    double k2_[11];
+    if (unpack(k2, k2_, 11, "dopri5_dense_11", "k2") < 0) goto done;
+    double k2_0 = k2_[0];
+    double k2_1 = k2_[1];
+    double k2_2 = k2_[2];
+    double k2_3 = k2_[3];
+    double k2_4 = k2_[4];
+    double k2_5 = k2_[5];
+    double k2_6 = k2_[6];
+    double k2_7 = k2_[7];
+    double k2_8 = k2_[8];
+    double k2_9 = k2_[9];
+    double k2_10 = k2_[10];
+    double k3_[11];
+    if (unpack(k3, k3_, 11, "dopri5_dense_11", "k3") < 0) goto done;
+    double k3_0 = k3_[0];
+    double k3_1 = k3_[1];
+    double k3_2 = k3_[2];
+    double k3_3 = k3_[3];
+    double k3_4 = k3_[4];
+    double k3_5 = k3_[5];
+    double k3_6 = k3_[6];
+    double k3_7 = k3_[7];
+    double k3_8 = k3_[8];
+    double k3_9 = k3_[9];
+    double k3_10 = k3_[10];
+    double k4_[11];
+    if (unpack(k4, k4_, 11, "dopri5_dense_11", "k4") < 0) goto done;
+    double k4_0 = k4_[0];
+    double k4_1 = k4_[1];
+    double k4_2 = k4_[2];
+    double k4_3 = k4_[3];
+    double k4_4 = k4_[4];
+    double k4_5 = k4_[5];
+    double k4_6 = k4_[6];
+    double k4_7 = k4_[7];
+    double k4_8 = k4_[8];
+    double k4_9 = k4_[9];
+    double k4_10 = k4_[10];
+    double k5_[11];
+    if (unpack(k5, k5_, 11, "dopri5_dense_11", "k5") < 0) goto done;
+    double k5_0 = k5_[0];
+    double k5_1 = k5_[1];
+    double k5_2 = k5_[2];
+    double k5_3 = k5_[3];
+    double k5_4 = k5_[4];
+    double k5_5 = k5_[5];
+    double k5_6 = k5_[6];
+    double k5_7 = k5_[7];
+    double k5_8 = k5_[8];
+    double k5_9 = k5_[9];
+    double k5_10 = k5_[10];
+    double k6_[11];
+    if (unpack(k6, k6_, 11, "dopri5_dense_11", "k6") < 0) goto done;
+    double k6_0 = k6_[0];
+    double k6_1 = k6_[1];
+    double k6_2 = k6_[2];
+    double k6_3 = k6_[3];
+    double k6_4 = k6_[4];
+    double k6_5 = k6_[5];
+    double k6_6 = k6_[6];
+    double k6_7 = k6_[7];
+    double k6_8 = k6_[8];
+    double k6_9 = k6_[9];
+    double k6_10 = k6_[10];
+    PyObject *py_r0 = PyList_New(11);
+    if (py_r0 == NULL) goto done;
+    PyObject *py_r1 = PyTuple_New(5);
+    if (py_r1 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 0, py_r1);
+    PyObject *py_r2 = PyFloat_FromDouble(y_0);
+    if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 0, py_r2);
+    PyObject *py_r3 = PyFloat_FromDouble((1.0 * k0_0));
+    if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 1, py_r3);
+    PyObject *py_r4 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_0) + (4.023133379230305 * k2_0)) + ((-3.7324019615885042) * k3_0)) + (2.5548038301849423 * k4_0)) + ((-1.3744241142186024) * k5_0)) + (1.3824689317781436 * k6_0)));
+    if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 2, py_r4);
+    PyObject *py_r5 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_0) + ((-6.249321565289) * k2_0)) + (10.068970589843675 * k3_0)) + ((-6.399112377351017) * k4_0)) + (3.272657752246729 * k5_0)) + ((-3.764937863556287) * k6_0)));
+    if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 3, py_r5);
+    PyObject *py_r6 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_0) + (2.675424484351598 * k2_0)) + ((-5.685526961588504) * k3_0)) + (3.5219323679207912 * k4_0)) + ((-1.7672812570757455) * k5_0)) + (2.382468931778144 * k6_0)));
+    if (py_r6 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r1, 4, py_r6);
+    PyObject *py_r7 = PyTuple_New(5);
+    if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 1, py_r7);
+    PyObject *py_r8 = PyFloat_FromDouble(y_1);
+    if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r7, 0, py_r8);
+    PyObject *py_r9 = PyFloat_FromDouble((1.0 * k0_1));
+    if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r7, 1, py_r9);
+    PyObject *py_r10 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_1) + (4.023133379230305 * k2_1)) + ((-3.7324019615885042) * k3_1)) + (2.5548038301849423 * k4_1)) + ((-1.3744241142186024) * k5_1)) + (1.3824689317781436 * k6_1)));
+    if (py_r10 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r7, 2, py_r10);
+    PyObject *py_r11 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_1) + ((-6.249321565289) * k2_1)) + (10.068970589843675 * k3_1)) + ((-6.399112377351017) * k4_1)) + (3.272657752246729 * k5_1)) + ((-3.764937863556287) * k6_1)));
+    if (py_r11 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r7, 3, py_r11);
+    PyObject *py_r12 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_1) + (2.675424484351598 * k2_1)) + ((-5.685526961588504) * k3_1)) + (3.5219323679207912 * k4_1)) + ((-1.7672812570757455) * k5_1)) + (2.382468931778144 * k6_1)));
+    if (py_r12 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r7, 4, py_r12);
+    PyObject *py_r13 = PyTuple_New(5);
+    if (py_r13 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 2, py_r13);
+    PyObject *py_r14 = PyFloat_FromDouble(y_2);
+    if (py_r14 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r13, 0, py_r14);
+    PyObject *py_r15 = PyFloat_FromDouble((1.0 * k0_2));
+    if (py_r15 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r13, 1, py_r15);
+    PyObject *py_r16 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_2) + (4.023133379230305 * k2_2)) + ((-3.7324019615885042) * k3_2)) + (2.5548038301849423 * k4_2)) + ((-1.3744241142186024) * k5_2)) + (1.3824689317781436 * k6_2)));
+    if (py_r16 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r13, 2, py_r16);
+    PyObject *py_r17 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_2) + ((-6.249321565289) * k2_2)) + (10.068970589843675 * k3_2)) + ((-6.399112377351017) * k4_2)) + (3.272657752246729 * k5_2)) + ((-3.764937863556287) * k6_2)));
+    if (py_r17 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r13, 3, py_r17);
+    PyObject *py_r18 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_2) + (2.675424484351598 * k2_2)) + ((-5.685526961588504) * k3_2)) + (3.5219323679207912 * k4_2)) + ((-1.7672812570757455) * k5_2)) + (2.382468931778144 * k6_2)));
+    if (py_r18 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r13, 4, py_r18);
+    PyObject *py_r19 = PyTuple_New(5);
+    if (py_r19 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 3, py_r19);
+    PyObject *py_r20 = PyFloat_FromDouble(y_3);
+    if (py_r20 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 0, py_r20);
+    PyObject *py_r21 = PyFloat_FromDouble((1.0 * k0_3));
+    if (py_r21 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 1, py_r21);
+    PyObject *py_r22 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_3) + (4.023133379230305 * k2_3)) + ((-3.7324019615885042) * k3_3)) + (2.5548038301849423 * k4_3)) + ((-1.3744241142186024) * k5_3)) + (1.3824689317781436 * k6_3)));
+    if (py_r22 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 2, py_r22);
+    PyObject *py_r23 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_3) + ((-6.249321565289) * k2_3)) + (10.068970589843675 * k3_3)) + ((-6.399112377351017) * k4_3)) + (3.272657752246729 * k5_3)) + ((-3.764937863556287) * k6_3)));
+    if (py_r23 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 3, py_r23);
+    PyObject *py_r24 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_3) + (2.675424484351598 * k2_3)) + ((-5.685526961588504) * k3_3)) + (3.5219323679207912 * k4_3)) + ((-1.7672812570757455) * k5_3)) + (2.382468931778144 * k6_3)));
+    if (py_r24 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r19, 4, py_r24);
+    PyObject *py_r25 = PyTuple_New(5);
+    if (py_r25 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 4, py_r25);
+    PyObject *py_r26 = PyFloat_FromDouble(y_4);
+    if (py_r26 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r25, 0, py_r26);
+    PyObject *py_r27 = PyFloat_FromDouble((1.0 * k0_4));
+    if (py_r27 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r25, 1, py_r27);
+    PyObject *py_r28 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_4) + (4.023133379230305 * k2_4)) + ((-3.7324019615885042) * k3_4)) + (2.5548038301849423 * k4_4)) + ((-1.3744241142186024) * k5_4)) + (1.3824689317781436 * k6_4)));
+    if (py_r28 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r25, 2, py_r28);
+    PyObject *py_r29 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_4) + ((-6.249321565289) * k2_4)) + (10.068970589843675 * k3_4)) + ((-6.399112377351017) * k4_4)) + (3.272657752246729 * k5_4)) + ((-3.764937863556287) * k6_4)));
+    if (py_r29 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r25, 3, py_r29);
+    PyObject *py_r30 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_4) + (2.675424484351598 * k2_4)) + ((-5.685526961588504) * k3_4)) + (3.5219323679207912 * k4_4)) + ((-1.7672812570757455) * k5_4)) + (2.382468931778144 * k6_4)));
+    if (py_r30 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r25, 4, py_r30);
+    PyObject *py_r31 = PyTuple_New(5);
+    if (py_r31 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 5, py_r31);
+    PyObject *py_r32 = PyFloat_FromDouble(y_5);
+    if (py_r32 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r31, 0, py_r32);
+    PyObject *py_r33 = PyFloat_FromDouble((1.0 * k0_5));
+    if (py_r33 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r31, 1, py_r33);
+    PyObject *py_r34 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_5) + (4.023133379230305 * k2_5)) + ((-3.7324019615885042) * k3_5)) + (2.5548038301849423 * k4_5)) + ((-1.3744241142186024) * k5_5)) + (1.3824689317781436 * k6_5)));
+    if (py_r34 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r31, 2, py_r34);
+    PyObject *py_r35 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_5) + ((-6.249321565289) * k2_5)) + (10.068970589843675 * k3_5)) + ((-6.399112377351017) * k4_5)) + (3.272657752246729 * k5_5)) + ((-3.764937863556287) * k6_5)));
+    if (py_r35 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r31, 3, py_r35);
+    PyObject *py_r36 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_5) + (2.675424484351598 * k2_5)) + ((-5.685526961588504) * k3_5)) + (3.5219323679207912 * k4_5)) + ((-1.7672812570757455) * k5_5)) + (2.382468931778144 * k6_5)));
+    if (py_r36 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r31, 4, py_r36);
+    PyObject *py_r37 = PyTuple_New(5);
+    if (py_r37 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 6, py_r37);
+    PyObject *py_r38 = PyFloat_FromDouble(y_6);
+    if (py_r38 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 0, py_r38);
+    PyObject *py_r39 = PyFloat_FromDouble((1.0 * k0_6));
+    if (py_r39 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 1, py_r39);
+    PyObject *py_r40 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_6) + (4.023133379230305 * k2_6)) + ((-3.7324019615885042) * k3_6)) + (2.5548038301849423 * k4_6)) + ((-1.3744241142186024) * k5_6)) + (1.3824689317781436 * k6_6)));
+    if (py_r40 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 2, py_r40);
+    PyObject *py_r41 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_6) + ((-6.249321565289) * k2_6)) + (10.068970589843675 * k3_6)) + ((-6.399112377351017) * k4_6)) + (3.272657752246729 * k5_6)) + ((-3.764937863556287) * k6_6)));
+    if (py_r41 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 3, py_r41);
+    PyObject *py_r42 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_6) + (2.675424484351598 * k2_6)) + ((-5.685526961588504) * k3_6)) + (3.5219323679207912 * k4_6)) + ((-1.7672812570757455) * k5_6)) + (2.382468931778144 * k6_6)));
+    if (py_r42 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r37, 4, py_r42);
+    PyObject *py_r43 = PyTuple_New(5);
+    if (py_r43 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 7, py_r43);
+    PyObject *py_r44 = PyFloat_FromDouble(y_7);
+    if (py_r44 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r43, 0, py_r44);
+    PyObject *py_r45 = PyFloat_FromDouble((1.0 * k0_7));
+    if (py_r45 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r43, 1, py_r45);
+    PyObject *py_r46 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_7) + (4.023133379230305 * k2_7)) + ((-3.7324019615885042) * k3_7)) + (2.5548038301849423 * k4_7)) + ((-1.3744241142186024) * k5_7)) + (1.3824689317781436 * k6_7)));
+    if (py_r46 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r43, 2, py_r46);
+    PyObject *py_r47 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_7) + ((-6.249321565289) * k2_7)) + (10.068970589843675 * k3_7)) + ((-6.399112377351017) * k4_7)) + (3.272657752246729 * k5_7)) + ((-3.764937863556287) * k6_7)));
+    if (py_r47 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r43, 3, py_r47);
+    PyObject *py_r48 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_7) + (2.675424484351598 * k2_7)) + ((-5.685526961588504) * k3_7)) + (3.5219323679207912 * k4_7)) + ((-1.7672812570757455) * k5_7)) + (2.382468931778144 * k6_7)));
+    if (py_r48 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r43, 4, py_r48);
+    PyObject *py_r49 = PyTuple_New(5);
+    if (py_r49 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 8, py_r49);
+    PyObject *py_r50 = PyFloat_FromDouble(y_8);
+    if (py_r50 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r49, 0, py_r50);
+    PyObject *py_r51 = PyFloat_FromDouble((1.0 * k0_8));
+    if (py_r51 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r49, 1, py_r51);
+    PyObject *py_r52 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_8) + (4.023133379230305 * k2_8)) + ((-3.7324019615885042) * k3_8)) + (2.5548038301849423 * k4_8)) + ((-1.3744241142186024) * k5_8)) + (1.3824689317781436 * k6_8)));
+    if (py_r52 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r49, 2, py_r52);
+    PyObject *py_r53 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_8) + ((-6.249321565289) * k2_8)) + (10.068970589843675 * k3_8)) + ((-6.399112377351017) * k4_8)) + (3.272657752246729 * k5_8)) + ((-3.764937863556287) * k6_8)));
+    if (py_r53 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r49, 3, py_r53);
+    PyObject *py_r54 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_8) + (2.675424484351598 * k2_8)) + ((-5.685526961588504) * k3_8)) + (3.5219323679207912 * k4_8)) + ((-1.7672812570757455) * k5_8)) + (2.382468931778144 * k6_8)));
+    if (py_r54 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r49, 4, py_r54);
+    PyObject *py_r55 = PyTuple_New(5);
+    if (py_r55 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 9, py_r55);
+    PyObject *py_r56 = PyFloat_FromDouble(y_9);
+    if (py_r56 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 0, py_r56);
+    PyObject *py_r57 = PyFloat_FromDouble((1.0 * k0_9));
+    if (py_r57 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 1, py_r57);
+    PyObject *py_r58 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_9) + (4.023133379230305 * k2_9)) + ((-3.7324019615885042) * k3_9)) + (2.5548038301849423 * k4_9)) + ((-1.3744241142186024) * k5_9)) + (1.3824689317781436 * k6_9)));
+    if (py_r58 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 2, py_r58);
+    PyObject *py_r59 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_9) + ((-6.249321565289) * k2_9)) + (10.068970589843675 * k3_9)) + ((-6.399112377351017) * k4_9)) + (3.272657752246729 * k5_9)) + ((-3.764937863556287) * k6_9)));
+    if (py_r59 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 3, py_r59);
+    PyObject *py_r60 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_9) + (2.675424484351598 * k2_9)) + ((-5.685526961588504) * k3_9)) + (3.5219323679207912 * k4_9)) + ((-1.7672812570757455) * k5_9)) + (2.382468931778144 * k6_9)));
+    if (py_r60 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r55, 4, py_r60);
+    PyObject *py_r61 = PyTuple_New(5);
+    if (py_r61 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r0, 10, py_r61);
+    PyObject *py_r62 = PyFloat_FromDouble(y_10);
+    if (py_r62 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r61, 0, py_r62);
+    PyObject *py_r63 = PyFloat_FromDouble((1.0 * k0_10));
+    if (py_r63 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r61, 1, py_r63);
+    PyObject *py_r64 = PyFloat_FromDouble((((((((-2.8535800653862835) * k0_10) + (4.023133379230305 * k2_10)) + ((-3.7324019615885042) * k3_10)) + (2.5548038301849423 * k4_10)) + ((-1.3744241142186024) * k5_10)) + (1.3824689317781436 * k6_10)));
+    if (py_r64 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r61, 2, py_r64);
+    PyObject *py_r65 = PyFloat_FromDouble(((((((3.0717434641059005 * k0_10) + ((-6.249321565289) * k2_10)) + (10.068970589843675 * k3_10)) + ((-6.399112377351017) * k4_10)) + (3.272657752246729 * k5_10)) + ((-3.764937863556287) * k6_10)));
+    if (py_r65 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r61, 3, py_r65);
+    PyObject *py_r66 = PyFloat_FromDouble((((((((-1.1270175653862835) * k0_10) + (2.675424484351598 * k2_10)) + ((-5.685526961588504) * k3_10)) + (3.5219323679207912 * k4_10)) + ((-1.7672812570757455) * k5_10)) + (2.382468931778144 * k6_10)));
+    if (py_r66 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r61, 4, py_r66);
+    result = py_r0;
+done:
+    (void)failed;
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"mass_matrix", (PyCFunction)(void (*)(void))mass_matrix, METH_FASTCALL, "D(q), 5x5 row-major (25 values)."},
     {"coriolis_matrix", (PyCFunction)(void (*)(void))coriolis_matrix, METH_FASTCALL, "C(q, dq) from the Christoffel symbols of D, row-major."},
@@ -2691,8 +4341,12 @@ static PyMethodDef methods[] = {
     {"fixed_base_kinematics_1", (PyCFunction)(void (*)(void))fixed_base_kinematics_1, METH_FASTCALL, "Fixed-base chain pinned at the foot of leg 1: J_com (6), Jdot_com dq_s (2), hip minus foot (2), hip velocity (2)."},
     {"dop853_step_7", (PyCFunction)(void (*)(void))dop853_step_7, METH_FASTCALL, "``dop853_step`` for states of exactly 7 entries, unrolled."},
     {"dop853_step_11", (PyCFunction)(void (*)(void))dop853_step_11, METH_FASTCALL, "``dop853_step`` for states of exactly 11 entries, unrolled."},
+    {"dop853_dense_7", (PyCFunction)(void (*)(void))dop853_dense_7, METH_FASTCALL, "DOP853's dense output over the step (t, t + h) of 7 entries: per entry (y, f0, ..., f6)\nof ((((((f0 x + f1) u + f2) x + f3) u + f4) x + f5) u + f6) x + y, x = (t' - t) / h, u = 1 - x."},
+    {"dop853_dense_11", (PyCFunction)(void (*)(void))dop853_dense_11, METH_FASTCALL, "DOP853's dense output over the step (t, t + h) of 11 entries: per entry (y, f0, ..., f6)\nof ((((((f0 x + f1) u + f2) x + f3) u + f4) x + f5) u + f6) x + y, x = (t' - t) / h, u = 1 - x."},
     {"dopri5_step_7", (PyCFunction)(void (*)(void))dopri5_step_7, METH_FASTCALL, "``dopri5_step`` for states of exactly 7 entries, unrolled."},
     {"dopri5_step_11", (PyCFunction)(void (*)(void))dopri5_step_11, METH_FASTCALL, "``dopri5_step`` for states of exactly 11 entries, unrolled."},
+    {"dopri5_dense_7", (PyCFunction)(void (*)(void))dopri5_dense_7, METH_FASTCALL, "DOPRI5's dense output over a step of 7 entries: per entry (y, q1, q2, q3, q4) of\ny + h (((q4 x + q3) x + q2) x + q1) x, x = (t' - t) / h (scipy's Q = K^T P)."},
+    {"dopri5_dense_11", (PyCFunction)(void (*)(void))dopri5_dense_11, METH_FASTCALL, "DOPRI5's dense output over a step of 11 entries: per entry (y, q1, q2, q3, q4) of\ny + h (((q4 x + q3) x + q2) x + q1) x, x = (t' - t) / h (scipy's Q = K^T P)."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -2707,7 +4361,7 @@ PyInit__cmodel(void)
 {
     PyObject *m = PyModule_Create(&module);
     if (m == NULL) return NULL;
-    if (PyModule_AddStringConstant(m, "SOURCE_SHA256", "65074b67f8931089e2ca0a41000b866b2d493cf514e387df9fd9135ddd43e9b3") < 0) {
+    if (PyModule_AddStringConstant(m, "SOURCE_SHA256", "7b524ba1d0b970583a2050fade6ac078bf99b2a327216e395af64f7a39468621") < 0) {
         Py_DECREF(m);
         return NULL;
     }
