@@ -17,7 +17,11 @@ setup(
     # the compiled twin of the generated code (biped_sim/engine/compiled.py): optional, so that a machine
     # without a C compiler still installs and runs the same code in Python, several times slower;
     # no floating-point contraction, so that its results are the Python code's bits
+    # and the compiled hybrid loop (biped_sim/engine/compiled_loop.py) on the same generated code's kernels
     ext_modules=[Extension("biped_sim.engine._gen._cmodel", ["biped_sim/engine/_gen/_cmodel.c"],
+                           extra_compile_args=["-O2", "-ffp-contract=off"], optional=True),
+                 Extension("biped_sim.engine._core", ["biped_sim/engine/_core.c"],
+                           depends=["biped_sim/engine/_gen/_kernels.h"],
                            extra_compile_args=["-O2", "-ffp-contract=off"], optional=True)],
     # every third-party import of the installed package; ROS packages (rclpy, the message packages,
     # ament_index_python) come from a ROS installation and are declared in package.xml instead

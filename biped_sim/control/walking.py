@@ -50,6 +50,14 @@ class WalkingController:
         self._a2 = value ** 2
         self._ddb = -2.0 / self._a2
 
+    def _law_parameters(self):
+        return (self.torso_pitch, self._a2, self._ddb, self.clearance, self.lag, self.kp, self.kd, self.torque_limit)
+
+    def compiled_law(self):
+        """("walking", parameters): the engine's compiled loop runs this law in C with the same torques
+        (biped_sim/engine/_core.c); None for a subclass that changes the law."""
+        return ("walking", self._law_parameters()) if type(self).__call__ is WalkingController.__call__ else None
+
     def swing_target(self, phi_s):
         """f(phi_s) and its first two derivatives."""
         a2 = self._a2
@@ -116,6 +124,11 @@ class PDWalkingController(WalkingController):
     :class:`WalkingController`, so a run's cost is the integrator's; it converges to a periodic
     gait too (step period 0.551 s with the defaults), more slowly.
     """
+
+    def compiled_law(self):
+        """("pd_walking", parameters), as :meth:`WalkingController.compiled_law`."""
+        return (("pd_walking", self._law_parameters()) if type(self).__call__ is PDWalkingController.__call__
+                else None)
 
     def __call__(self, t, q, dq, stance_leg):
         """(u1, u2), a tuple: this runs at every right-hand-side evaluation, so only y and dy of

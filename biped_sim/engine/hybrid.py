@@ -27,14 +27,20 @@ import time
 
 import numpy as np
 
-from biped_sim.engine import guards as G
+from biped_sim.engine import compiled_loop, guards as G
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, gen
 from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
 from biped_sim.engine.integrators import StepFailure, make_stepper, prepare as prepare_stepper
 from biped_sim.engine.invariants import ImpactHistory, check_impact, check_sample
 from biped_sim.engine.locator import EventLocator
 from biped_sim.engine.model import BipedModel, as_state_vector
-from biped_sim.engine.modes import bind_controller, mode_functions, project_onto_pin, two_finite_floats
+from biped_sim.engine.modes import (
+    bind_controller,
+    floating_to_phys,
+    mode_functions,
+    project_onto_pin,
+    two_finite_floats,
+)
 from biped_sim.engine.options import Options, check_run_arguments
 from biped_sim.engine.pushes import apply_push
 from biped_sim.engine.resets import double_touchdown_reset, liftoff_reset, slip_event, touchdown_reset
@@ -91,6 +97,7 @@ class HybridSimulator:
         self._controller = None
         self._h = None
         self._stepper = None
+        self._compiled = None               # the compiled loop's stepper, built at its first mode
         self._last_F, self._last_u = [0.0, 0.0], [0.0, 0.0]   # the last right-hand-side evaluation's
         self._initial_sample_pending = True    # the t0 sample, redone under the first advance's torque
         self.impacts = ImpactHistory(self.opt.zeno_count, self.opt.zeno_interval)
@@ -200,6 +207,8 @@ class HybridSimulator:
         ``advance`` calls (so at the start of the next control period), as a velocity jump with
         the stance foot held (:mod:`biped_sim.engine.pushes`). Returns its events. A bad impulse
         (not two finite numbers, above ``PUSH_IMPULSE_LIMIT``) raises ValueError."""
+        if self._compiled is not None:
+            self._compiled.locator_stale = True
         return apply_push(self, impulse)
 
     def command(self, controller):
@@ -215,6 +224,13 @@ class HybridSimulator:
         if self._stepper is not None:
             self._nfev_base += self._stepper.nfev
             self._rejected_base += self._stepper.nrejected
+        law = compiled_loop.covers(self, self._controller)
+        if law is not None:     # the same mode, stepped by the compiled loop (compiled_loop.py)
+            if self._compiled is None:
+                self._compiled = compiled_loop.CompiledStepper(self)
+            self._compiled.start(self, t_bound, law)
+            self._stepper, self._to_phys = self._compiled, floating_to_phys
+            return
         rhs, to_phys, from_phys = mode_functions(
             self.model, self.stance_leg, self.opt.base, self.pin, self._u,
             bind_controller(self._controller, self.stance_leg), self._keep_evaluation)
@@ -242,7 +258,15 @@ class HybridSimulator:
         self._new_stepper(t_end)
         st = self._stepper
         while self.t < t_end and self.status == "running":
-            st.step()
+            if st is self._compiled:    # its quiet steps in C; a step it hands back is handled below
+                outcome = st.run(self, t_end)
+                if outcome == compiled_loop.DONE:
+                    break
+                if outcome == compiled_loop.PYTHON_STEPS:
+                    st.step()
+                st.locator_stale = True
+            else:
+                st.step()
             self.stats["steps"] += 1
             self._h = getattr(st, "h_abs", None) or getattr(st, "h", None)
             q, dq, w = self._to_phys(st.y)
@@ -321,6 +345,8 @@ class HybridSimulator:
     def _reset(self, guard, legs, t, q, dq):
         """Apply the reset of the guard that fired, take the new mode from its event."""
         self._samples.keep_last()       # the sample at the event, before its reset
+        if self._compiled is not None:
+            self._compiled.locator_stale = True
         qa, dqa = np.array(q), np.array(dq)
         old = self.stance_leg
         if guard.kind == "touchdown":

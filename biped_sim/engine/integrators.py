@@ -55,6 +55,15 @@ class StepFailure(RuntimeError):
     """The integrator cannot continue (step size underflow, non-finite state, solver failure)."""
 
 
+def step_size_message(h_abs, t):
+    return (f"step size {h_abs:.3g} s fell below the smallest step at t={t:.9g} s "
+            "(the dynamics are too stiff or singular for an explicit method)")
+
+
+def non_finite_message(t):
+    return f"the state became non-finite at t={t:.9g} s"
+
+
 class _Stepper:
     #: True when the last right-hand-side evaluation of ``step()`` is at the new (t, y)
     last_eval_at_end = True
@@ -145,8 +154,7 @@ class _ListRungeKutta(_Stepper):
         rejected = False
         while True:
             if h_abs < min_step:
-                raise StepFailure(f"step size {h_abs:.3g} s fell below the smallest step at t={t:.9g} s "
-                                  "(the dynamics are too stiff or singular for an explicit method)")
+                raise StepFailure(step_size_message(h_abs, t))
             h = h_abs
             if h >= remaining:
                 h = remaining
@@ -155,7 +163,7 @@ class _ListRungeKutta(_Stepper):
             self.nfev += self.N_STAGES
             if err < 1.0:
                 if not math.isfinite(sum(y_new)):
-                    raise StepFailure(f"the state became non-finite at t={t + h:.9g} s")
+                    raise StepFailure(non_finite_message(t + h))
                 factor = (self.MAX_FACTOR if err == 0.0
                           else min(self.MAX_FACTOR, self.SAFETY * err ** self.error_exponent))
                 if rejected:

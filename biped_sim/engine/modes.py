@@ -60,18 +60,23 @@ def bind_controller(controller, stance_leg):
     return call
 
 
+def floating_to_phys(y):
+    """(q, dq, work) of the floating base's integrated state y = q + dq + [work]."""
+    yl = y if type(y) is list else y.tolist()
+    return yl[0:5], yl[5:10], yl[10]
+
+
+def floating_from_phys(q, dq, w):   # lists
+    return q + dq + [w]
+
+
 def mode_functions(model, stance_leg, base, pin, u_hold, control, sink):
     """(rhs, to_physical, from_physical) of a mode. ``control(t, q, dq) -> u`` (lists) or None to hold
     ``u_hold``; ``sink(F, u)`` receives each evaluation's force (or None) and torque."""
     if stance_leg and base == "fixed":
         return _fixed_base_functions(model, stance_leg, pin, u_hold, control, sink)
 
-    def to_phys(y):
-        yl = y if type(y) is list else y.tolist()
-        return yl[0:5], yl[5:10], yl[10]
-
-    def from_phys(q, dq, w):   # lists
-        return q + dq + [w]
+    to_phys, from_phys = floating_to_phys, floating_from_phys
 
     if stance_leg:   # the generated closed form itself, one per stance leg
         k_stance = model.k_stance

@@ -110,12 +110,16 @@ class Samples:
         elif self.provisional:
             self.n -= 1
         elif self.n == len(self._data):
-            self._data = np.concatenate([self._data, np.empty_like(self._data)])
+            self.grow()
         self._data[self.n] = [t, *q, *dq, leg, F[0], F[1], u[0], u[1], residual]
         self.n += 1
         self.appended += 1
         # the first sample (the initial state) is always kept
         self.provisional = self.appended > 1 and (not self.every or (self.appended - 1) % self.every != 0)
+
+    def grow(self):
+        """Twice the room (the compiled loop writes into ``_data`` directly and asks for this when full)."""
+        self._data = np.concatenate([self._data, np.empty_like(self._data)])
 
     def keep_last(self):
         """Keep the newest sample (an event's) whatever ``keep`` thins out."""

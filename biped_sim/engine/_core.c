@@ -1,0 +1,906 @@
+/* The compiled hybrid loop: floating-base stance, stepped by dop853 or dopri5, under a held torque
+ * or a reference controller compiled here (biped_sim/engine/compiled_loop.py drives it).
+ *
+ * It runs the quiet steps of biped_sim/engine/hybrid.py's loop, those in which nothing happens:
+ * the step with its error control, the guards of the locator (touchdown of the armed swing foot
+ * with the dip search of grazing.py, liftoff, slip), the arming of the feet, the projection onto
+ * the pin, the sample with its energy balance, and the invariants of invariants.py. A step in
+ * which anything would happen (a guard crossing or a dip, a foot pushed into the ground, a
+ * violated invariant, a diverging speed) is not accepted here: it is handed back to Python as it
+ * was taken ("pending"), and hybrid.py's own code locates, resets, reports or fails it. So events,
+ * scuffs and messages have one implementation, the Python one, and this file only has to decide
+ * "nothing happens in this step" exactly as the Python code would.
+ *
+ * Every formula comes from the generated kernels (_gen/_kernels.h: the closed forms, the unrolled
+ * steps and their dense output), which perform the Python code's operations in the same order; the
+ * few lines written here (the step control, the guard values, the projection, the dip bound, the
+ * two controllers) follow their Python lines operation for operation (named beside each), so that
+ * a run gives the same bits on both paths (test/unit/test_compiled_loop.py).
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <string.h>
+
+#include "_gen/_kernels.h"
+
+#define N 11                 /* the floating base's integrated state: q (5), dq (5), motor work */
+#define MAX_STAGES 13        /* dop853's k0..k12 */
+#define KMAX 32              /* room for any closed form's constants */
+
+enum { DOP853 = 0, DOPRI5 = 1 };
+enum { HELD = 0, PD_WALKING = 1, WALKING = 2 };
+enum { DONE = 0, PENDING = 1, GROW = 2, FAILED = 3, PYTHON_STEPS = 4 };
+enum { FAIL_NONE = 0, FAIL_STEP_SIZE = 1, FAIL_NON_FINITE = 2 };
+
+typedef struct { double x, height, dx, dheight; } Foot;
+
+typedef struct {
+    PyObject_HEAD
+    /* model: the constants of the closed forms (BipedModel.k) */
+    double k_stance[KMAX], k_feet[KMAX], k_pos[KMAX], k_energy[KMAX], k_terms[KMAX], l_leg;
+    /* options */
+    double rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu;
+    double sin_s, cos_s, tan_s;
+    int has_mu, stop_on_slip, project, check_invariants, impact_phase;
+    double to_power_basis[64];
+    /* mode and torque */
+    int method, leg, controller;
+    double pin[2], u_hold[2], ctrl[8];
+    /* stepper (integrators._ListRungeKutta's fields) */
+    double t, t_bound, h_abs, t_old, h;
+    double y[N], f[N], y_old[N], stages[MAX_STAGES][N];
+    long nfev, nrejected, naccepted;
+    int dense_ready;
+    double dense[N * 8];
+    double last_F[2], last_u[2];
+    /* failure of the last step */
+    int fail_kind;
+    double fail_value, fail_t;
+    /* locator: armed feet; the feet and force at the last step's end (EventLocator._feet_end/_force_end) */
+    int armed[2];
+    int cache_ok;
+    double cache_t, cache_feet[8], cache_F[2];
+    /* the step handed back: its start's feet and force, and its end's torque and force */
+    double start_feet[8], start_F[2], end_u[2], end_F[2];
+} Loop;
+
+/* -- controllers (biped_sim/control/walking.py) ------------------------------------------------- */
+/* ctrl: torso_pitch, a2 (step_angle ** 2), ddb (-2 / a2), clearance, lag, kp, kd, torque_limit */
+
+static void
+swing_target(const double *c, double phi_s, double *f, double *df, double *ddf)
+{   /* WalkingController.swing_target */
+    double a2 = c[1], ddb = c[2], cl = c[3], l = c[4];
+    double b = 1.0 - phi_s * phi_s / a2;
+    double db = -2.0 * phi_s / a2;
+    *f = -phi_s * (1.0 + cl * b) + l * b;
+    *df = -(1.0 + cl * b) - phi_s * cl * db + l * db;
+    *ddf = -2.0 * cl * db - phi_s * cl * ddb + l * ddb;
+}
+
+static double
+clip(double v, double lim)
+{   /* min(lim, max(-lim, v)), as Python's min and max compare (a NaN becomes -lim) */
+    v = v > -lim ? v : -lim;
+    return v < lim ? v : lim;
+}
+
+static void
+pd_walking(const Loop *L, const double *q, const double *dq, double *u)
+{   /* PDWalkingController.__call__ in stance */
+    const double *c = L->ctrl;
+    int s = L->leg == 1 ? 2 : 3, w = L->leg == 1 ? 3 : 2;
+    double q3 = q[4], dq3 = dq[4], f, df, ddf;
+    swing_target(c, q[s] + q3 - M_PI, &f, &df, &ddf);
+    double y2 = q[w] + q3 - M_PI - f;
+    double dy2 = dq[w] + dq3 - df * (dq[s] + dq3);
+    double kp = c[5], kd = c[6], lim = c[7];
+    double u_swing = -kp * y2 - kd * dy2;
+    u_swing = u_swing > -lim ? u_swing : -lim;
+    u_swing = u_swing < lim ? u_swing : lim;
+    double u_stance = 2.0 * (kp * (q3 - c[0]) + kd * dq3) - u_swing;
+    u_stance = u_stance > -lim ? u_stance : -lim;
+    u_stance = u_stance < lim ? u_stance : lim;
+    u[0] = L->leg == 1 ? u_stance : u_swing;
+    u[1] = L->leg == 1 ? u_swing : u_stance;
+}
+
+static void
+joint_affine(const Loop *L, const double *q, const double *dq, int leg, double *a, double Bu[3][2])
+{   /* dynamics.stance_joint_affine_fast (leg 2 through the relabeling R, as there) */
+    if (leg == 2) {
+        double qs[5] = {q[0], q[1], q[3], q[2], q[4]}, dqs[5] = {dq[0], dq[1], dq[3], dq[2], dq[4]};
+        double a1[3], B1[3][2];
+        joint_affine(L, qs, dqs, 1, a1, B1);
+        a[0] = a1[1]; a[1] = a1[0]; a[2] = a1[2];
+        Bu[0][0] = B1[1][1]; Bu[0][1] = B1[1][0];
+        Bu[1][0] = B1[0][1]; Bu[1][1] = B1[0][0];
+        Bu[2][0] = B1[2][1]; Bu[2][1] = B1[2][0];
+        return;
+    }
+    double out[26];
+    const double zero[2] = {0.0, 0.0};
+    k_stance_terms_1(q, dq, zero, L->k_terms, out);
+    double M00 = out[0], M01 = out[1], M02 = out[2], M11 = out[3], M12 = out[4], M22 = out[5];
+    double b0 = out[6], b1 = out[7], b2 = out[8];
+    /* _inverse_sym3 */
+    double A11 = M11 * M22 - M12 * M12, A12 = M02 * M12 - M01 * M22, A13 = M01 * M12 - M02 * M11;
+    double inv_det = 1.0 / (M00 * A11 + M01 * A12 + M02 * A13);
+    double i00 = A11 * inv_det, i01 = A12 * inv_det, i02 = A13 * inv_det;
+    double i11 = (M00 * M22 - M02 * M02) * inv_det, i12 = (M01 * M02 - M00 * M12) * inv_det;
+    double i22 = (M00 * M11 - M01 * M01) * inv_det;
+    a[0] = i00 * b0 + i01 * b1 + i02 * b2;
+    a[1] = i01 * b0 + i11 * b1 + i12 * b2;
+    a[2] = i02 * b0 + i12 * b1 + i22 * b2;
+    Bu[0][0] = i00; Bu[0][1] = i01;
+    Bu[1][0] = i01; Bu[1][1] = i11;
+    Bu[2][0] = i02; Bu[2][1] = i12;
+}
+
+static void
+walking(const Loop *L, const double *q, const double *dq, double *u)
+{   /* WalkingController.__call__ in stance: outputs(), then the computed torque */
+    const double *c = L->ctrl;
+    int s = L->leg == 1 ? 2 : 3, w = L->leg == 1 ? 3 : 2;
+    double phi_s = q[s] + q[4] - M_PI, dphi_s = dq[s] + dq[4], f, df, ddf;
+    swing_target(c, phi_s, &f, &df, &ddf);
+    double y0 = q[4] - c[0], y1 = q[w] + q[4] - M_PI - f;
+    double H2[3] = {0.0, 0.0, 1.0 - df};
+    H2[s - 2] = -df;
+    H2[w - 2] = 1.0;
+    double dy0 = dq[4], dy1 = H2[0] * dq[2] + H2[1] * dq[3] + H2[2] * dq[4];
+    double bias1 = -ddf * dphi_s * dphi_s;
+    double a[3], Bu[3][2];
+    joint_affine(L, q, dq, L->leg, a, Bu);
+    double kp = c[5], kd = c[6], lim = c[7];
+    double r0 = -kp * y0 - kd * dy0 - a[2] - 0.0;
+    double r1 = -kp * y1 - kd * dy1 - (H2[0] * a[0] + H2[1] * a[1] + H2[2] * a[2]) - bias1;
+    double m00 = Bu[2][0], m01 = Bu[2][1];
+    double m10 = H2[0] * Bu[0][0] + H2[1] * Bu[1][0] + H2[2] * Bu[2][0];
+    double m11 = H2[0] * Bu[0][1] + H2[1] * Bu[1][1] + H2[2] * Bu[2][1];
+    double det = m00 * m11 - m01 * m10;
+    u[0] = clip((m11 * r0 - m01 * r1) / det, lim);
+    u[1] = clip((m00 * r1 - m10 * r0) / det, lim);
+}
+
+static void
+torque(const Loop *L, const double *q, const double *dq, double *u)
+{
+    if (L->controller == PD_WALKING) pd_walking(L, q, dq, u);
+    else if (L->controller == WALKING) walking(L, q, dq, u);
+    else { u[0] = L->u_hold[0]; u[1] = L->u_hold[1]; }
+}
+
+/* -- the mode's right-hand side and the stance force (modes.mode_functions, HybridSimulator._force_at) -- */
+
+static void
+stance(Loop *L, const double *q, const double *dq, const double *u, double *out7)
+{
+    if (L->leg == 1) k_stance_floating_1(q, dq, u, L->k_stance, out7);
+    else k_stance_floating_2(q, dq, u, L->k_stance, out7);
+}
+
+static int
+rhs(void *ctx, double t, const double *y, double *dy)
+{
+    Loop *L = ctx;
+    double u[2], out[7];
+    (void)t;
+    torque(L, y, y + 5, u);
+    stance(L, y, y + 5, u, out);
+    L->last_F[0] = out[5]; L->last_F[1] = out[6];
+    L->last_u[0] = u[0]; L->last_u[1] = u[1];
+    for (int i = 0; i < 5; i++) dy[i] = y[5 + i];
+    for (int i = 0; i < 5; i++) dy[5 + i] = out[i];
+    dy[10] = u[0] * y[7] + u[1] * y[8];
+    return 0;
+}
+
+static void
+force_at(Loop *L, const double *q, const double *dq, double *F)
+{
+    double u[2], out[7];
+    torque(L, q, dq, u);
+    stance(L, q, dq, u, out);
+    F[0] = out[5]; F[1] = out[6];
+}
+
+/* guards.foot_states: per foot x, height across the slope, and their rates */
+static void
+feet(const Loop *L, const double *q, const double *dq, double *ft)
+{
+    double p[8], t = L->tan_s;
+    k_foot_kinematics(q, dq, L->k_feet, p);
+    ft[0] = p[0]; ft[1] = p[1] + t * p[0]; ft[2] = p[4]; ft[3] = p[5] + t * p[4];
+    ft[4] = p[2]; ft[5] = p[3] + t * p[2]; ft[6] = p[6]; ft[7] = p[7] + t * p[6];
+}
+
+static double
+normal(const Loop *L, const double *F)
+{
+    return F[0] * L->sin_s + F[1] * L->cos_s;
+}
+
+static double
+slip_margin(const Loop *L, const double *F)
+{
+    double n = F[0] * L->sin_s + F[1] * L->cos_s, tg = F[0] * L->cos_s - F[1] * L->sin_s;
+    return L->mu * n - fabs(tg);
+}
+
+/* -- the stepper (integrators._ListRungeKutta.step) ------------------------------------------- */
+
+static double
+ulp(double x)
+{   /* math.ulp */
+    x = fabs(x);
+    if (isinf(x)) return x;
+    double x2 = nextafter(x, INFINITY);
+    if (isinf(x2)) return x - nextafter(x, -INFINITY);
+    return x2 - x;
+}
+
+static int
+n_stages(const Loop *L)
+{
+    return L->method == DOP853 ? 12 : 6;
+}
+
+/* One accepted step, or a failure (fail_kind set, the state unchanged). 0: a step, 1: none (at t_bound). */
+static int
+step(Loop *L)
+{
+    double t = L->t, remaining = L->t_bound - t;
+    if (remaining <= 0) return 1;
+    double min_step = 10 * ulp(t) + 1e-300;
+    double h_abs = L->max_step < L->h_abs ? L->max_step : L->h_abs;
+    double exponent = L->method == DOP853 ? -1.0 / 8 : -1.0 / 5;
+    int rejected = 0, ns = n_stages(L);
+    double out[N + N + 1 + MAX_STAGES * N], h, err;
+    for (;;) {
+        if (h_abs < min_step) {
+            L->fail_kind = FAIL_STEP_SIZE; L->fail_value = h_abs; L->fail_t = t;
+            return -1;
+        }
+        h = h_abs;
+        if (h >= remaining) {
+            h = remaining;
+            h_abs = remaining;
+        }
+        if (L->method == DOP853) k_dop853_step_11(rhs, L, t, L->y, L->f, h, L->rtol, L->atol, out);
+        else k_dopri5_step_11(rhs, L, t, L->y, L->f, h, L->rtol, L->atol, out);
+        L->nfev += ns;
+        err = out[2 * N];
+        if (err < 1.0) {
+            double s = 0.0;
+            for (int i = 0; i < N; i++) s += out[i];
+            if (!isfinite(s)) {
+                L->fail_kind = FAIL_NON_FINITE; L->fail_value = t + h; L->fail_t = t;
+                return -1;
+            }
+            double factor;
+            if (err == 0.0) factor = 10.0;
+            else {
+                factor = 0.9 * pow(err, exponent);
+                factor = factor < 10.0 ? factor : 10.0;
+            }
+            if (rejected) factor = factor < 1.0 ? factor : 1.0;
+            L->h_abs = h_abs * factor;
+            break;
+        }
+        if (!isfinite(err)) h_abs *= 0.2;
+        else {
+            double v = 0.9 * pow(err, exponent);
+            h_abs *= v > 0.2 ? v : 0.2;
+        }
+        rejected = 1;
+        L->nrejected++;
+    }
+    L->naccepted++;
+    L->t_old = t;
+    memcpy(L->y_old, L->y, sizeof L->y);
+    L->h = h;
+    L->t = h < remaining ? t + h : L->t_bound;
+    memcpy(L->y, out, sizeof L->y);
+    memcpy(L->f, out + N, sizeof L->f);
+    memcpy(L->stages, out + 2 * N + 1, sizeof(double) * (ns + 1) * N);
+    L->dense_ready = 0;
+    return 0;
+}
+
+/* The dense output's rows (generated: rk_steps.dop853_dense_11 / dopri5_dense_11) */
+static void
+dense(Loop *L)
+{
+    if (L->dense_ready) return;
+    double (*k)[N] = L->stages;
+    if (L->method == DOP853) {
+        k_dop853_dense_11(rhs, L, L->t_old, L->h, L->y_old, L->y, k[0], k[5], k[6], k[7], k[8], k[9], k[10],
+                          k[11], k[12], L->dense);
+        L->nfev += 3;
+    } else {
+        k_dopri5_dense_11(L->y_old, k[0], k[1], k[2], k[3], k[4], k[5], k[6], L->dense);
+    }
+    L->dense_ready = 1;
+}
+
+/* entry i of the dense output at time tt (integrators._DOP853Interpolant.at, _DOPRI5Interpolant.at) */
+static double
+dense_at(const Loop *L, int i, double tt)
+{
+    double hi = L->t - L->t_old, x = (tt - L->t_old) / hi;
+    if (L->method == DOP853) {
+        const double *r = L->dense + 8 * i;
+        double u = 1.0 - x;
+        return ((((((r[1] * x + r[2]) * u + r[3]) * x + r[4]) * u + r[5]) * x + r[6]) * u + r[7]) * x + r[0];
+    }
+    const double *r = L->dense + 5 * i;
+    return r[0] + hi * ((((r[4] * x + r[3]) * x + r[2]) * x + r[1]) * x);
+}
+
+/* guards.foot_height on the dense output */
+static double
+height_at(const Loop *L, int leg, double tt)
+{
+    double q[5], p[4];
+    for (int i = 0; i < 5; i++) q[i] = dense_at(L, i, tt);
+    k_foot_positions(q, L->k_pos, p);
+    return p[2 * leg - 1] + L->tan_s * p[2 * leg - 2];
+}
+
+/* grazing.dip_bracket on the floating base: 1 if a dip deeper than graze_tol may be inside the step
+ * (the Python code then searches it itself), 0 if there is none. */
+static int
+may_dip(Loop *L, int leg, double h0, double h1)
+{
+    dense(L);
+    int cols[4] = {1 + leg, 4, 0, 1};
+    double C[8][4];
+    for (int c = 0; c < 4; c++) {
+        if (L->method == DOP853) {
+            const double *r = L->dense + 8 * cols[c];
+            for (int p = 0; p < 8; p++) {
+                double s = 0.0;
+                for (int j = 0; j < 8; j++) s += L->to_power_basis[8 * p + j] * r[j];
+                C[p][c] = s;
+            }
+        } else {
+            const double *r = L->dense + 5 * cols[c];
+            double hi = L->t - L->t_old;
+            C[0][c] = r[0];
+            for (int p = 1; p < 5; p++) C[p][c] = hi * r[p];
+            for (int p = 5; p < 8; p++) C[p][c] = 0.0;
+        }
+    }
+    double A[8][3];
+    for (int p = 0; p < 8; p++) {
+        A[p][0] = fabs(C[p][0] + C[p][1]);
+        A[p][1] = fabs(C[p][2]);
+        A[p][2] = fabs(C[p][3]);
+    }
+    double ta = fabs(L->tan_s), lt = L->l_leg * (1 + ta), slack = 1.0 + 1e-6;
+    double t_old = L->t_old, h_step = L->t - L->t_old;
+    struct { double a, b, ha, hb; int depth; } stack[2 * 31 + 2];
+    int top = 0;
+    stack[top].a = 0.0; stack[top].b = 1.0; stack[top].ha = h0; stack[top].hb = h1; stack[top].depth = 0;
+    top++;
+    while (top) {
+        top--;
+        double a = stack[top].a, b = stack[top].b, ha = stack[top].ha, hb = stack[top].hb;
+        int depth = stack[top].depth;
+        double d1[3] = {0, 0, 0}, d2[3] = {0, 0, 0};
+        for (int k = 0; k < 8; k++) {
+            double w1 = k * pow(b, k - 1 > 0 ? k - 1 : 0), w2 = k * (k - 1) * pow(b, k - 2 > 0 ? k - 2 : 0);
+            for (int c = 0; c < 3; c++) {
+                d1[c] += w1 * A[k][c];
+                d2[c] += w2 * A[k][c];
+            }
+        }
+        double bound = (lt * (d2[0] + d1[0] * d1[0]) + d2[2] + ta * d2[1]) * slack;
+        double drop = bound * (b - a) * (b - a) / 8;
+        double lo = ha < hb ? ha : hb;
+        if (lo - drop > 0 || drop <= L->graze_tol || depth >= 30) continue;
+        double mid = 0.5 * (a + b);
+        double hm = height_at(L, leg, t_old + mid * h_step);
+        if (hm <= 0) return 1;
+        stack[top].a = mid; stack[top].b = b; stack[top].ha = hm; stack[top].hb = hb; stack[top].depth = depth + 1;
+        top++;
+        stack[top].a = a; stack[top].b = mid; stack[top].ha = ha; stack[top].hb = hm; stack[top].depth = depth + 1;
+        top++;
+    }
+    return 0;
+}
+
+/* -- the quiet steps ----------------------------------------------------------------------------- */
+
+/* The body of HybridSimulator._integrate for the step just taken, when nothing happens in it:
+ * 1 and the step accepted (sample written to row, state projected), or 0 (pending: nothing changed
+ * but the cache of the step's start). */
+static int
+quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost, double *drift_out,
+           double *rate_out, double *residual_out)
+{
+    double q[5], dq[5], w = L->y[10], ft1[8], ft0[8], F0[2], F1[2];
+    memcpy(q, L->y, sizeof q);
+    memcpy(dq, L->y + 5, sizeof dq);
+    double top = 0.0;
+    for (int i = 0; i < 5; i++) top = fabs(dq[i]) > top ? fabs(dq[i]) : top;
+    if (!(top <= L->max_speed)) return 0;
+    feet(L, q, dq, ft1);
+    /* the torque and force of the step's last evaluation, at its end (FSAL) */
+    L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
+    F1[0] = L->end_F[0] = L->last_F[0];
+    F1[1] = L->end_F[1] = L->last_F[1];
+    if (L->cache_ok && L->cache_t == L->t_old) {
+        memcpy(ft0, L->cache_feet, sizeof ft0);
+        F0[0] = L->cache_F[0]; F0[1] = L->cache_F[1];
+    } else {
+        feet(L, L->y_old, L->y_old + 5, ft0);
+        force_at(L, L->y_old, L->y_old + 5, F0);
+    }
+    memcpy(L->start_feet, ft0, sizeof ft0);
+    L->start_F[0] = F0[0]; L->start_F[1] = F0[1];
+    int sw = 3 - L->leg, st = L->leg;
+    /* EventLocator.locate: the guards of stance, in active_guards' order */
+    if (L->impact_phase && L->armed[sw - 1]) {
+        double g1 = ft1[4 * (sw - 1) + 1], g0 = ft0[4 * (sw - 1) + 1];
+        if (g0 > 0 && g1 <= 0) return 0;
+        if (g0 > 0 && g1 > 0 && may_dip(L, sw, g0, g1)) return 0;
+    }
+    {
+        double g1 = normal(L, F1), g0 = normal(L, F0);
+        if (g0 > 0 && g1 <= 0) return 0;
+    }
+    if (L->has_mu) {
+        double g1 = slip_margin(L, F1), g0 = slip_margin(L, F0);
+        if (g0 > 0 && g1 <= 0) return 0;
+    }
+    /* a resting free foot pushed into the ground (_resting_feet_pushed_in) */
+    if (L->impact_phase && !L->armed[sw - 1] && ft1[4 * (sw - 1) + 1] < -L->ground_tol) return 0;
+    /* modes.project_onto_pin */
+    const double *fs = ft1 + 4 * (st - 1);
+    double fy = fs[1] - L->tan_s * fs[0];
+    double drift = hypot(fs[0] - L->pin[0], fy - L->pin[1]), rate = hypot(fs[2], fs[3]);
+    if (L->project) {
+        q[0] += L->pin[0] - fs[0];
+        q[1] += L->pin[1] - fy;
+        dq[0] -= fs[2];
+        dq[1] -= fs[3] - L->tan_s * fs[2];
+    }
+    /* invariants.check_sample (a violation: pending, and the Python code reports it) */
+    if (L->check_invariants) {
+        double s = 0.0, sd = 0.0;
+        for (int i = 0; i < 5; i++) s += q[i];
+        for (int i = 0; i < 5; i++) sd += dq[i];
+        if (!isfinite(s + sd)) return 0;
+        if (ft1[4 * (sw - 1) + 1] < -L->ground_tol) return 0;
+        double n = normal(L, F1);
+        if (n < -L->force_tol) return 0;
+        if (L->has_mu && L->stop_on_slip && slip_margin(L, F1) < -L->force_tol) return 0;
+    }
+    /* accepted: the locator's state, the sample, the projected state */
+    L->cache_ok = 1;
+    L->cache_t = L->t;
+    memcpy(L->cache_feet, ft1, sizeof ft1);
+    L->cache_F[0] = F1[0]; L->cache_F[1] = F1[1];
+    for (int leg = 1; leg <= 2; leg++)
+        if (!L->armed[leg - 1] && leg != st && ft1[4 * (leg - 1) + 1] > L->arm_height) L->armed[leg - 1] = 1;
+    double TV[2];
+    k_energy(q, dq, L->k_energy, TV);
+    double residual = TV[0] + TV[1] - E0 - w - push_work + energy_lost;
+    row[0] = L->t;
+    for (int i = 0; i < 5; i++) row[1 + i] = q[i];
+    for (int i = 0; i < 5; i++) row[6 + i] = dq[i];
+    row[11] = st;
+    row[12] = F1[0]; row[13] = F1[1];
+    row[14] = L->end_u[0]; row[15] = L->end_u[1];
+    row[16] = residual;
+    if (L->project) {
+        memcpy(L->y, q, sizeof q);
+        memcpy(L->y + 5, dq, sizeof dq);
+    }
+    *drift_out = drift;
+    *rate_out = rate;
+    *residual_out = residual;
+    return 1;
+}
+
+/* -- Python interface ------------------------------------------------------------------------------ */
+
+static int
+doubles(PyObject *seq, double *out, Py_ssize_t lo, Py_ssize_t hi, const char *what, Py_ssize_t *n_out)
+{
+    PyObject *fast = PySequence_Fast(seq, what);
+    if (fast == NULL) return -1;
+    Py_ssize_t n = PySequence_Fast_GET_SIZE(fast);
+    if (n < lo || n > hi) {
+        PyErr_Format(PyExc_ValueError, "%s: %zd values, expected %zd to %zd", what, n, lo, hi);
+        Py_DECREF(fast);
+        return -1;
+    }
+    PyObject **items = PySequence_Fast_ITEMS(fast);
+    for (Py_ssize_t i = 0; i < n; i++) {
+        out[i] = PyFloat_AsDouble(items[i]);
+        if (out[i] == -1.0 && PyErr_Occurred()) {
+            Py_DECREF(fast);
+            return -1;
+        }
+    }
+    Py_DECREF(fast);
+    if (n_out) *n_out = n;
+    return 0;
+}
+
+static PyObject *
+list_of(const double *v, Py_ssize_t n)
+{
+    PyObject *lst = PyList_New(n);
+    if (lst == NULL) return NULL;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        PyObject *x = PyFloat_FromDouble(v[i]);
+        if (x == NULL) {
+            Py_DECREF(lst);
+            return NULL;
+        }
+        PyList_SET_ITEM(lst, i, x);
+    }
+    return lst;
+}
+
+/* set_model(k_stance, k_feet, k_pos, k_energy, k_terms, l_leg) */
+static PyObject *
+Loop_set_model(Loop *L, PyObject *args)
+{
+    PyObject *a, *b, *c, *d, *e;
+    if (!PyArg_ParseTuple(args, "OOOOOd", &a, &b, &c, &d, &e, &L->l_leg)) return NULL;
+    if (doubles(a, L->k_stance, 22, 22, "k_stance", NULL) || doubles(b, L->k_feet, 9, 9, "k_feet", NULL)
+        || doubles(c, L->k_pos, 9, 9, "k_pos", NULL) || doubles(d, L->k_energy, 9, 9, "k_energy", NULL)
+        || doubles(e, L->k_terms, 22, 22, "k_terms", NULL))
+        return NULL;
+    Py_RETURN_NONE;
+}
+
+/* set_options(rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu or None,
+ *             stop_on_slip, project, check_invariants, impact_phase, slope, to_power_basis (64)) */
+static PyObject *
+Loop_set_options(Loop *L, PyObject *args)
+{
+    PyObject *mu, *tpb;
+    double slope;
+    if (!PyArg_ParseTuple(args, "ddddddddOppppdO", &L->rtol, &L->atol, &L->max_step, &L->max_speed, &L->ground_tol,
+                          &L->force_tol, &L->graze_tol, &L->arm_height, &mu, &L->stop_on_slip, &L->project,
+                          &L->check_invariants, &L->impact_phase, &slope, &tpb))
+        return NULL;
+    L->has_mu = mu != Py_None;
+    L->mu = L->has_mu ? PyFloat_AsDouble(mu) : 0.0;
+    if (L->mu == -1.0 && PyErr_Occurred()) return NULL;
+    L->sin_s = sin(slope);
+    L->cos_s = cos(slope);
+    L->tan_s = tan(slope);
+    if (doubles(tpb, L->to_power_basis, 64, 64, "to_power_basis", NULL)) return NULL;
+    Py_RETURN_NONE;
+}
+
+/* set_mode(method, stance_leg, pin_x, pin_y) */
+static PyObject *
+Loop_set_mode(Loop *L, PyObject *args)
+{
+    const char *method;
+    int leg;
+    if (!PyArg_ParseTuple(args, "sidd", &method, &leg, &L->pin[0], &L->pin[1])) return NULL;
+    if (strcmp(method, "dop853") == 0) L->method = DOP853;
+    else if (strcmp(method, "dopri5") == 0) L->method = DOPRI5;
+    else {
+        PyErr_Format(PyExc_ValueError, "the compiled loop steps dop853 or dopri5, not %s", method);
+        return NULL;
+    }
+    if (leg != 1 && leg != 2) {
+        PyErr_SetString(PyExc_ValueError, "the compiled loop integrates stance on leg 1 or 2");
+        return NULL;
+    }
+    L->leg = leg;
+    Py_RETURN_NONE;
+}
+
+/* set_torque(kind, u1, u2, ctrl (8)): kind 0 held (u1, u2), 1 PDWalkingController, 2 WalkingController */
+static PyObject *
+Loop_set_torque(Loop *L, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "set_torque(kind, u1, u2, ctrl)");
+        return NULL;
+    }
+    long kind = PyLong_AsLong(args[0]);
+    double u0 = PyFloat_AsDouble(args[1]), u1 = PyFloat_AsDouble(args[2]);
+    if (PyErr_Occurred()) return NULL;
+    if (kind != HELD && doubles(args[3], L->ctrl, 8, 8, "ctrl", NULL)) return NULL;
+    L->controller = (int)kind;
+    L->u_hold[0] = u0;
+    L->u_hold[1] = u1;
+    Py_RETURN_NONE;
+}
+
+/* restart(t, y, t_bound, h_abs or None): as _ListRungeKutta.restart, f = rhs(t, y) (the torque may have
+ * changed); an h_abs of None keeps the current one */
+static PyObject *
+Loop_restart(Loop *L, PyObject *args)
+{
+    PyObject *y, *h;
+    double t, t_bound;
+    if (!PyArg_ParseTuple(args, "dOdO", &t, &y, &t_bound, &h)) return NULL;
+    if (doubles(y, L->y, N, N, "y", NULL)) return NULL;
+    if (h != Py_None) {
+        L->h_abs = PyFloat_AsDouble(h);
+        if (L->h_abs == -1.0 && PyErr_Occurred()) return NULL;
+    }
+    L->t = L->t_old = t;
+    memcpy(L->y_old, L->y, sizeof L->y);
+    L->t_bound = t_bound;
+    rhs(L, t, L->y, L->f);
+    L->nfev += 1;
+    L->dense_ready = 0;
+    Py_RETURN_NONE;
+}
+
+static PyObject *
+Loop_set_h_abs(Loop *L, PyObject *arg)
+{
+    L->h_abs = PyFloat_AsDouble(arg);
+    if (L->h_abs == -1.0 && PyErr_Occurred()) return NULL;
+    L->h_abs = L->max_step < L->h_abs ? L->max_step : L->h_abs;
+    Py_RETURN_NONE;
+}
+
+/* rhs(t, y) -> dy, for the initial step size */
+static PyObject *
+Loop_rhs(Loop *L, PyObject *args)
+{
+    PyObject *y;
+    double t, yy[N], dy[N];
+    if (!PyArg_ParseTuple(args, "dO", &t, &y) || doubles(y, yy, N, N, "y", NULL)) return NULL;
+    rhs(L, t, yy, dy);
+    return list_of(dy, N);
+}
+
+static PyObject *
+failure(Loop *L)
+{
+    return Py_BuildValue("(idd)", L->fail_kind, L->fail_value, L->fail_t);
+}
+
+/* step() -> None, or (kind, value, t) of a failure */
+static PyObject *
+Loop_step(Loop *L, PyObject *unused)
+{
+    (void)unused;
+    if (step(L) < 0) return failure(L);
+    /* the torque and force of the step's last evaluation, at its end (FSAL), as handed() gives them */
+    L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
+    L->end_F[0] = L->last_F[0]; L->end_F[1] = L->last_F[1];
+    Py_RETURN_NONE;
+}
+
+/* run(t_end, E0, push_work, energy_lost, data, n, appended, provisional, every, keep_last_only)
+ * -> (outcome, n, appended, provisional, steps, max drift, max drift rate, max |residual|, failure, t, work,
+ *     h_abs, armed 1, armed 2, nfev, nrejected)
+ * Quiet steps until t_end: DONE, PENDING (a step taken, for Python to handle), GROW (the sample
+ * buffer is full), FAILED (the step failed: failure = (kind, value, t)). */
+static PyObject *
+Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 10) {
+        PyErr_SetString(PyExc_TypeError, "run() takes 10 arguments");
+        return NULL;
+    }
+    double t_end = PyFloat_AsDouble(args[0]), E0 = PyFloat_AsDouble(args[1]);
+    double push_work = PyFloat_AsDouble(args[2]), energy_lost = PyFloat_AsDouble(args[3]);
+    long n = PyLong_AsLong(args[5]), appended = PyLong_AsLong(args[6]);
+    int provisional = PyObject_IsTrue(args[7]);
+    long every = PyLong_AsLong(args[8]);
+    int last_only = PyObject_IsTrue(args[9]);
+    if (PyErr_Occurred()) return NULL;
+    Py_buffer buf;
+    if (PyObject_GetBuffer(args[4], &buf, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0) return NULL;
+    double *data = buf.buf;
+    long cap = (long)(buf.len / (Py_ssize_t)(17 * sizeof(double)));
+    int outcome = DONE;
+    long steps = 0;
+    double max_drift = 0.0, max_rate = 0.0, max_residual = 0.0;
+    while (L->t < t_end) {
+        if (!last_only && !provisional && n == cap) {
+            outcome = GROW;
+            break;
+        }
+        if (step(L) < 0) {
+            outcome = FAILED;
+            break;
+        }
+        long at = last_only ? 0 : provisional ? n - 1 : n;
+        double drift, rate, residual;
+        if (!quiet_step(L, data + 17 * at, E0, push_work, energy_lost, &drift, &rate, &residual)) {
+            outcome = PENDING;
+            break;
+        }
+        n = at + 1;
+        appended += 1;
+        provisional = appended > 1 && (!every || (appended - 1) % every != 0);
+        steps += 1;
+        max_drift = drift > max_drift ? drift : max_drift;
+        max_rate = rate > max_rate ? rate : max_rate;
+        residual = fabs(residual);
+        max_residual = residual > max_residual ? residual : max_residual;
+    }
+    PyBuffer_Release(&buf);
+    return Py_BuildValue("(illildddNdddiill)", outcome, n, appended, provisional, steps, max_drift, max_rate,
+                         max_residual, outcome == FAILED ? failure(L) : Py_NewRef(Py_None), L->t, L->y[10], L->h_abs,
+                         L->armed[0], L->armed[1], L->nfev, L->nrejected);
+}
+
+/* replace_y(y): continue from y (the projected state of a step Python accepted) */
+static PyObject *
+Loop_replace_y(Loop *L, PyObject *y)
+{
+    if (doubles(y, L->y, N, N, "y", NULL)) return NULL;
+    Py_RETURN_NONE;
+}
+
+/* set_locator(armed1, armed2, cache_t or None, feet (8) or None, F (2) or None) */
+static PyObject *
+Loop_set_locator(Loop *L, PyObject *args)
+{
+    int a1, a2;
+    PyObject *ct, *ft, *F;
+    if (!PyArg_ParseTuple(args, "ppOOO", &a1, &a2, &ct, &ft, &F)) return NULL;
+    L->armed[0] = a1;
+    L->armed[1] = a2;
+    L->cache_ok = ct != Py_None && ft != Py_None && F != Py_None;
+    if (L->cache_ok) {
+        L->cache_t = PyFloat_AsDouble(ct);
+        if ((L->cache_t == -1.0 && PyErr_Occurred()) || doubles(ft, L->cache_feet, 8, 8, "feet", NULL)
+            || doubles(F, L->cache_F, 2, 2, "F", NULL))
+            return NULL;
+    }
+    Py_RETURN_NONE;
+}
+
+static PyObject *
+Loop_dense_rows(Loop *L, PyObject *unused)
+{
+    (void)unused;
+    dense(L);
+    int width = L->method == DOP853 ? 8 : 5;
+    PyObject *rows = PyList_New(N);
+    if (rows == NULL) return NULL;
+    for (int i = 0; i < N; i++) {
+        PyObject *r = PyTuple_New(width);
+        if (r == NULL) {
+            Py_DECREF(rows);
+            return NULL;
+        }
+        PyList_SET_ITEM(rows, i, r);
+        for (int j = 0; j < width; j++) {
+            PyObject *x = PyFloat_FromDouble(L->dense[width * i + j]);
+            if (x == NULL) {
+                Py_DECREF(rows);
+                return NULL;
+            }
+            PyTuple_SET_ITEM(r, j, x);
+        }
+    }
+    return rows;
+}
+
+static PyObject *
+Loop_stages(Loop *L, PyObject *unused)
+{
+    (void)unused;
+    int ns = n_stages(L) + 1;
+    PyObject *out = PyTuple_New(ns);
+    if (out == NULL) return NULL;
+    for (int j = 0; j < ns; j++) {
+        PyObject *k = list_of(L->stages[j], N);
+        if (k == NULL) {
+            Py_DECREF(out);
+            return NULL;
+        }
+        PyTuple_SET_ITEM(out, j, k);
+    }
+    return out;
+}
+
+/* state() -> (t, t_old, h, h_abs, y, y_old, f, nfev, nrejected, naccepted) */
+static PyObject *
+Loop_state(Loop *L, PyObject *unused)
+{
+    (void)unused;
+    return Py_BuildValue("(ddddNNNlll)", L->t, L->t_old, L->h, L->h_abs, list_of(L->y, N), list_of(L->y_old, N),
+                         list_of(L->f, N), L->nfev, L->nrejected, L->naccepted);
+}
+
+/* handed() -> (start feet (8), start F (2), end u (2), end F (2), armed (2)) of the step handed back */
+static PyObject *
+Loop_handed(Loop *L, PyObject *unused)
+{
+    (void)unused;
+    return Py_BuildValue("(NNNN(ii))", list_of(L->start_feet, 8), list_of(L->start_F, 2), list_of(L->end_u, 2),
+                         list_of(L->end_F, 2), L->armed[0], L->armed[1]);
+}
+
+static PyObject *
+Loop_armed(Loop *L, PyObject *unused)
+{
+    (void)unused;
+    return Py_BuildValue("(ii)", L->armed[0], L->armed[1]);
+}
+
+static PyObject *
+Loop_counters(Loop *L, PyObject *args)
+{
+    if (!PyArg_ParseTuple(args, "lll", &L->nfev, &L->nrejected, &L->naccepted)) return NULL;
+    Py_RETURN_NONE;
+}
+
+static PyObject *
+Loop_torque(Loop *L, PyObject *args)
+{   /* the compiled controller's torque at (q, dq), to compare with the Python one */
+    PyObject *q, *dq;
+    double qq[5], dd[5], u[2];
+    if (!PyArg_ParseTuple(args, "OO", &q, &dq) || doubles(q, qq, 5, 5, "q", NULL) || doubles(dq, dd, 5, 5, "dq", NULL))
+        return NULL;
+    torque(L, qq, dd, u);
+    return Py_BuildValue("(dd)", u[0], u[1]);
+}
+
+static PyMethodDef Loop_methods[] = {
+    {"set_model", (PyCFunction)Loop_set_model, METH_VARARGS, NULL},
+    {"set_options", (PyCFunction)Loop_set_options, METH_VARARGS, NULL},
+    {"set_mode", (PyCFunction)Loop_set_mode, METH_VARARGS, NULL},
+    {"set_torque", (PyCFunction)(void (*)(void))Loop_set_torque, METH_FASTCALL, NULL},
+    {"restart", (PyCFunction)Loop_restart, METH_VARARGS, NULL},
+    {"set_h_abs", (PyCFunction)Loop_set_h_abs, METH_O, NULL},
+    {"rhs", (PyCFunction)Loop_rhs, METH_VARARGS, NULL},
+    {"step", (PyCFunction)Loop_step, METH_NOARGS, NULL},
+    {"run", (PyCFunction)(void (*)(void))Loop_run, METH_FASTCALL, NULL},
+    {"replace_y", (PyCFunction)Loop_replace_y, METH_O, NULL},
+    {"set_locator", (PyCFunction)Loop_set_locator, METH_VARARGS, NULL},
+    {"dense_rows", (PyCFunction)Loop_dense_rows, METH_NOARGS, NULL},
+    {"stages", (PyCFunction)Loop_stages, METH_NOARGS, NULL},
+    {"state", (PyCFunction)Loop_state, METH_NOARGS, NULL},
+    {"handed", (PyCFunction)Loop_handed, METH_NOARGS, NULL},
+    {"armed", (PyCFunction)Loop_armed, METH_NOARGS, NULL},
+    {"set_counters", (PyCFunction)Loop_counters, METH_VARARGS, NULL},
+    {"torque", (PyCFunction)Loop_torque, METH_VARARGS, NULL},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject LoopType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "biped_sim.engine._core.Loop",
+    .tp_basicsize = sizeof(Loop),
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_new = PyType_GenericNew,
+    .tp_methods = Loop_methods,
+    .tp_doc = "The compiled hybrid loop's state (see biped_sim/engine/compiled_loop.py).",
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_core",
+    "The compiled hybrid loop (biped_sim/engine/_core.c; driven by biped_sim/engine/compiled_loop.py).",
+    -1, NULL, NULL, NULL, NULL, NULL,
+};
+
+PyMODINIT_FUNC
+PyInit__core(void)
+{
+    if (PyType_Ready(&LoopType) < 0) return NULL;
+    PyObject *m = PyModule_Create(&module);
+    if (m == NULL) return NULL;
+    Py_INCREF(&LoopType);
+    if (PyModule_AddObject(m, "Loop", (PyObject *)&LoopType) < 0
+        || PyModule_AddStringConstant(m, "KERNELS_SHA256", BIPED_SIM_KERNELS_SHA256) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}

@@ -1,0 +1,207 @@
+"""The compiled hybrid loop (``_core.c``) as the hybrid simulator steps with it.
+
+Owns one choice and one hand-over. The choice: a mode runs on the compiled loop when it is
+floating-base stance, stepped by dop853 or dopri5, under a held torque or a reference controller
+that the loop compiles (``controller.compiled_law()``: :class:`~biped_sim.control.walking.WalkingController`
+and ``PDWalkingController``), with no ``on_step`` observer, and the extension was built from the
+current generated kernels; else, and always with ``BIPED_SIM_PURE_PYTHON=1``, the Python loop of
+``hybrid.py`` runs, the readable reference. Both give the same run (test/unit/test_compiled_loop.py).
+
+The hand-over: :class:`CompiledStepper` is the mode's stepper (the interface of
+``integrators._ListRungeKutta``). ``run`` lets the C loop take and accept the quiet steps, writing
+their samples straight into the run's ``Samples`` array; a step in which anything may happen comes
+back taken and not accepted ("pending"), with the locator's view of its start, and
+``hybrid.HybridSimulator._integrate`` handles it with the Python code, as any step.
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from biped_sim.engine import integrators
+from biped_sim.engine.compiled import _compiled_twin
+from biped_sim.engine.guards import FootState
+
+DONE, PENDING, GROW, FAILED, PYTHON_STEPS = range(5)
+TORQUE_KINDS = {"held": 0, "pd_walking": 1, "walking": 2}
+
+
+def _compiled_core():
+    """(the _core module or None, why not)."""
+    twin, why = _compiled_twin()
+    if twin is None:
+        return None, why
+    try:
+        from biped_sim.engine import _core
+    except ImportError:
+        return None, ("the compiled loop biped_sim/engine/_core was not built: install gcc and the Python headers, "
+                      "then make venv")
+    if _core.KERNELS_SHA256 != twin.SOURCE_SHA256:
+        return None, "the compiled loop is older than the generated code; rebuild it: make venv"
+    return _core, ""
+
+
+_core, WHY_NOT = _compiled_core()
+#: True when the compiled loop runs the modes it covers (``WHY_NOT`` says why it does not)
+AVAILABLE = _core is not None
+#: False makes every mode run in the Python loop (with the compiled twin of the generated code): the
+#: benchmarks compare the two loops this way
+enabled = True
+
+
+def torque_law(controller):
+    """("held", ()) for no controller, (kind, parameters) for a controller the loop compiles, else None."""
+    if controller is None:
+        return "held", ()
+    law = getattr(controller, "compiled_law", None)
+    return law() if callable(law) else None
+
+
+def covers(sim, controller):
+    """The torque law when the compiled loop can run the simulator's current mode, else None."""
+    if (_core is None or not enabled or not sim.stance_leg or sim.opt.base != "floating"
+            or sim.method not in ("dop853", "dopri5") or sim.on_step is not None
+            or os.environ.get("BIPED_SIM_PURE_PYTHON", "") not in ("", "0")):
+        return None
+    return torque_law(controller)
+
+
+def _step_failure(fail):
+    kind, value, t = fail
+    if kind == 1:
+        return integrators.StepFailure(integrators.step_size_message(value, t))
+    return integrators.StepFailure(integrators.non_finite_message(value))
+
+
+class CompiledStepper(integrators._ListRungeKutta):
+    """The stepper of a mode the compiled loop runs: its state lives in the C ``Loop``; the fields the
+    Python code reads (``t``, ``y``, ``t_old``, ``y_old``, ``h``, ``h_abs``, the counters) are copied
+    out only when a step is handed back (``_sync``)."""
+
+    def __init__(self, sim):
+        self.sim = sim
+        self.loop = _core.Loop()
+        m, opt = sim.model, sim.opt
+        self.loop.set_model(m.k_stance, m.k["foot_kinematics"], m.k["foot_positions"], m.k["energy"],
+                            m.k["stance_terms_1"], m.parameters.l_leg)
+        self.loop.set_options(sim.rtol, sim.atol, float(opt.max_step), opt.max_speed, opt.ground_tol, opt.force_tol,
+                              opt.graze_tol, opt.arm_height, sim.mu, opt.stop_on_slip, opt.project_constraints,
+                              opt.check_invariants, "impact" in opt.phases, opt.slope,
+                              integrators._DOP853Interpolant.TO_POWER_BASIS.ravel().tolist())
+        self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
+        self.method = sim.method
+        self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
+        self.fun = self.loop.rhs
+        self.nfev = self.nrejected = self.naccepted = 0
+        self.locator_stale = True      # the Python locator has armed feet or a cache the loop lacks
+
+    def start(self, sim, t_bound, law):
+        """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
+        torque law, f at the start, the carried-over step size (or the initial one)."""
+        loop = self.loop
+        loop.set_mode(self.method, sim.stance_leg, sim.pin[0], sim.pin[1])
+        kind, params = law
+        loop.set_torque(TORQUE_KINDS[kind], sim._u[0], sim._u[1], params)
+        loop.set_counters(0, 0, 0)
+        self.t_bound = t_bound
+        loop.restart(sim.t, sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound, sim._h)
+        if sim._h is None:
+            self._sync()
+            self.h_abs = None
+            h0 = self._initial_step()
+            loop.set_counters(self.nfev, 0, 0)
+        else:
+            h0 = sim._h
+        loop.set_h_abs(h0)
+        self._sync()
+
+    def _sync(self):
+        (self.t, self.t_old, self.h, self.h_abs, self.y, self.y_old, self.f, self.nfev, self.nrejected,
+         self.naccepted) = self.loop.state()
+        self._dense = None
+
+    def _push_locator(self, locator):
+        (t_feet, ft), (t_force, F) = locator._feet_end, locator._force_end
+        same = t_feet is not None and t_feet == t_force
+        self.loop.set_locator(locator.armed[0], locator.armed[1], t_feet if same else None,
+                              [v for foot in ft for v in foot] if same else None, F if same else None)
+        self.locator_stale = False
+
+    def step(self):
+        """One step taken in C and handled by the Python code (the simulator's view of its end's
+        evaluation set, as the right-hand side's sink does)."""
+        fail = self.loop.step()
+        self._sync()
+        if fail is not None:
+            raise _step_failure(fail)
+        _, _, self.sim._last_u, self.sim._last_F, _ = self.loop.handed()
+
+    def run(self, sim, t_end):
+        """The quiet steps to ``t_end`` in C. DONE (at t_end: the simulator's state is the last sample's),
+        PENDING (a step taken, not accepted: the Python code handles it), or PYTHON_STEPS (the locator is
+        following a scuff or holds a latched guard, which only the Python code does: step in Python)."""
+        loc = sim.locator
+        if loc.active_scuffs or loc.latched:
+            return PYTHON_STEPS
+        if self.locator_stale:
+            self._push_locator(loc)
+        s = sim._samples
+        while True:
+            (outcome, s.n, s.appended, s.provisional, steps, drift, rate, residual, fail, t, w, h_abs, a1, a2,
+             self.nfev, self.nrejected) = self.loop.run(t_end, sim.E0, sim.push_work, sim.energy_lost, s._data, s.n,
+                                                        s.appended, s.provisional, s.every, s.keep is False)
+            st = sim.stats
+            st["steps"] += steps
+            if drift > st["max_constraint_drift_position"]:
+                st["max_constraint_drift_position"] = drift
+            if rate > st["max_constraint_drift_velocity"]:
+                st["max_constraint_drift_velocity"] = rate
+            if residual > st["max_energy_balance_residual"]:
+                st["max_energy_balance_residual"] = residual
+            if outcome != GROW:
+                break
+            s.grow()
+        loc.armed = [bool(a1), bool(a2)]
+        if steps:
+            row = s._data[s.n - 1]
+            sim.t, sim.work, sim._h = t, w, h_abs
+            sim.q, sim.dq = row[1:6].copy(), row[6:11].copy()
+        if outcome == FAILED:
+            raise _step_failure(fail)
+        if outcome == PENDING:
+            self._sync()
+            start_feet, start_F, sim._last_u, sim._last_F, _ = self.loop.handed()
+            loc._feet_end = (self.t_old, (FootState(*start_feet[:4]), FootState(*start_feet[4:])))
+            loc._force_end = (self.t_old, start_F)
+            self.locator_stale = True
+        return outcome
+
+    def replace_y(self, y):
+        self.loop.replace_y(y)
+        self.y = list(y)
+
+    def dense_output(self):
+        if self._dense is None:
+            rows = self.loop.dense_rows()
+            self.nfev = self.loop.state()[7]
+            cls = integrators._DOP853Interpolant if self.method == "dop853" else integrators._DOPRI5Interpolant
+            self._dense = cls(self.t_old, self.t, rows)
+        return self._dense
+
+    def dense_at(self, t):
+        return self.dense_output().at(t)
+
+
+def compiled_torque(controller, stance_leg, q, dq, model):
+    """The compiled law's torque at (q, dq) (lists) in stance on ``stance_leg``, for comparing it with
+    the controller's own (tests); None when the loop does not compile this controller."""
+    law = torque_law(controller)
+    if _core is None or law is None:
+        return None
+    loop = _core.Loop()
+    loop.set_model(model.k_stance, model.k["foot_kinematics"], model.k["foot_positions"], model.k["energy"],
+                   model.k["stance_terms_1"], model.parameters.l_leg)
+    loop.set_mode("dop853", stance_leg, 0.0, 0.0)
+    loop.set_torque(TORQUE_KINDS[law[0]], 0.0, 0.0, law[1])
+    return np.array(loop.torque(q, dq))
