@@ -40,7 +40,7 @@ typedef struct {
     /* model: the constants of the closed forms (BipedModel.k) */
     double k_stance[KMAX], k_feet[KMAX], k_pos[KMAX], k_energy[KMAX], k_terms[KMAX], l_leg;
     /* options */
-    double rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu;
+    double rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu, front_tol, scuff_depth;
     double sin_s, cos_s, tan_s;
     int has_mu, stop_on_slip, project, check_invariants, impact_phase;
     double to_power_basis[64];
@@ -59,6 +59,13 @@ typedef struct {
     double fail_value, fail_t;
     /* locator: armed feet; the feet and force at the last step's end (EventLocator._feet_end/_force_end) */
     int armed[2];
+    int scuff_leg;           /* the foot in a scuff (EventLocator.active_scuffs), or 0 */
+    double scuff[3];         /* its [t_start, deepest, t_deepest] */
+    double deepest_scuff;    /* EventLocator.deepest_scuff */
+    int locator_changed;     /* armed or the scuff changed in the last run (the Python locator must read them) */
+    /* the run's statistics since the last stats() (HybridSimulator.stats) */
+    long steps;
+    double max_drift, max_rate, max_residual;
     int cache_ok;
     double cache_t, cache_feet[8], cache_F[2];
     /* the step handed back: its start's feet and force, and its end's torque and force */
@@ -414,6 +421,34 @@ may_dip(Loop *L, int leg, double h0, double h1)
 
 /* -- the quiet steps ----------------------------------------------------------------------------- */
 
+/* EventLocator._track_scuffs over a step in which nothing else happens (t_end = the step's end), on
+ * copies: 1 and the scuff followed (scuff, deepest updated), 0 when the Python code must see this step
+ * (the scuff ends in it, or leaves the model: the Python code reports both) */
+static int
+track_scuff(Loop *L, double *scuff, double *deepest)
+{
+    int leg = L->scuff_leg, st = L->leg;
+    double t_end = L->t, t0 = L->t_old > scuff[0] ? L->t_old : scuff[0];
+    double step_t = (t_end - t0) / 8, ft[8] = {0};
+    dense(L);
+    for (int i = 0; i <= 8; i++) {
+        double tt = i < 8 ? i * step_t + t0 : t_end;     /* numpy.linspace(t0, t_end, 9) */
+        double qd[10];
+        for (int j = 0; j < 10; j++) qd[j] = dense_at(L, j, tt);
+        feet(L, qd, qd + 5, ft);
+        double depth = -ft[4 * (leg - 1) + 1];
+        if (depth > scuff[1]) {
+            scuff[1] = depth;
+            scuff[2] = tt;
+        }
+        if (depth > 0 && ft[4 * (leg - 1)] > ft[4 * (st - 1)] + L->front_tol) return 0;
+    }
+    *deepest = *deepest > scuff[1] ? *deepest : scuff[1];
+    if (scuff[1] > L->scuff_depth) return 0;
+    if (ft[4 * (leg - 1) + 1] > 0.0) return 0;
+    return 1;
+}
+
 /* The body of HybridSimulator._integrate for the step just taken, when nothing happens in it:
  * 1 and the step accepted (sample written to row, state projected), or 0 (pending: nothing changed
  * but the cache of the step's start). */
@@ -457,7 +492,10 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         if (g0 > 0 && g1 <= 0) return 0;
     }
     /* a resting free foot pushed into the ground (_resting_feet_pushed_in) */
-    if (L->impact_phase && !L->armed[sw - 1] && ft1[4 * (sw - 1) + 1] < -L->ground_tol) return 0;
+    int scuffing = L->scuff_leg == sw;
+    if (L->impact_phase && !L->armed[sw - 1] && !scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) return 0;
+    double scuff[3] = {L->scuff[0], L->scuff[1], L->scuff[2]}, deepest = L->deepest_scuff;
+    if (scuffing && !track_scuff(L, scuff, &deepest)) return 0;
     /* modes.project_onto_pin */
     const double *fs = ft1 + 4 * (st - 1);
     double fy = fs[1] - L->tan_s * fs[0];
@@ -474,18 +512,24 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         for (int i = 0; i < 5; i++) s += q[i];
         for (int i = 0; i < 5; i++) sd += dq[i];
         if (!isfinite(s + sd)) return 0;
-        if (ft1[4 * (sw - 1) + 1] < -L->ground_tol) return 0;
+        if (!scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) return 0;
         double n = normal(L, F1);
         if (n < -L->force_tol) return 0;
         if (L->has_mu && L->stop_on_slip && slip_margin(L, F1) < -L->force_tol) return 0;
     }
     /* accepted: the locator's state, the sample, the projected state */
+    memcpy(L->scuff, scuff, sizeof scuff);
+    L->deepest_scuff = deepest;
     L->cache_ok = 1;
     L->cache_t = L->t;
     memcpy(L->cache_feet, ft1, sizeof ft1);
     L->cache_F[0] = F1[0]; L->cache_F[1] = F1[1];
     for (int leg = 1; leg <= 2; leg++)
-        if (!L->armed[leg - 1] && leg != st && ft1[4 * (leg - 1) + 1] > L->arm_height) L->armed[leg - 1] = 1;
+        if (!L->armed[leg - 1] && leg != st && ft1[4 * (leg - 1) + 1] > L->arm_height) {
+            L->armed[leg - 1] = 1;
+            L->locator_changed = 1;
+        }
+    L->locator_changed |= scuffing;
     double TV[2];
     k_energy(q, dq, L->k_energy, TV);
     double residual = TV[0] + TV[1] - E0 - w - push_work + energy_lost;
@@ -562,15 +606,17 @@ Loop_set_model(Loop *L, PyObject *args)
 }
 
 /* set_options(rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu or None,
- *             stop_on_slip, project, check_invariants, impact_phase, slope, to_power_basis (64)) */
+ *             stop_on_slip, project, check_invariants, impact_phase, slope, to_power_basis (64), front_tol,
+ *             scuff_depth) */
 static PyObject *
 Loop_set_options(Loop *L, PyObject *args)
 {
     PyObject *mu, *tpb;
     double slope;
-    if (!PyArg_ParseTuple(args, "ddddddddOppppdO", &L->rtol, &L->atol, &L->max_step, &L->max_speed, &L->ground_tol,
-                          &L->force_tol, &L->graze_tol, &L->arm_height, &mu, &L->stop_on_slip, &L->project,
-                          &L->check_invariants, &L->impact_phase, &slope, &tpb))
+    if (!PyArg_ParseTuple(args, "ddddddddOppppdOdd", &L->rtol, &L->atol, &L->max_step, &L->max_speed,
+                          &L->ground_tol, &L->force_tol, &L->graze_tol, &L->arm_height, &mu, &L->stop_on_slip,
+                          &L->project, &L->check_invariants, &L->impact_phase, &slope, &tpb, &L->front_tol,
+                          &L->scuff_depth))
         return NULL;
     L->has_mu = mu != Py_None;
     L->mu = L->has_mu ? PyFloat_AsDouble(mu) : 0.0;
@@ -621,28 +667,6 @@ Loop_set_torque(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     Py_RETURN_NONE;
 }
 
-/* restart(t, y, t_bound, h_abs or None): as _ListRungeKutta.restart, f = rhs(t, y) (the torque may have
- * changed); an h_abs of None keeps the current one */
-static PyObject *
-Loop_restart(Loop *L, PyObject *args)
-{
-    PyObject *y, *h;
-    double t, t_bound;
-    if (!PyArg_ParseTuple(args, "dOdO", &t, &y, &t_bound, &h)) return NULL;
-    if (doubles(y, L->y, N, N, "y", NULL)) return NULL;
-    if (h != Py_None) {
-        L->h_abs = PyFloat_AsDouble(h);
-        if (L->h_abs == -1.0 && PyErr_Occurred()) return NULL;
-    }
-    L->t = L->t_old = t;
-    memcpy(L->y_old, L->y, sizeof L->y);
-    L->t_bound = t_bound;
-    rhs(L, t, L->y, L->f);
-    L->nfev += 1;
-    L->dense_ready = 0;
-    Py_RETURN_NONE;
-}
-
 static PyObject *
 Loop_set_h_abs(Loop *L, PyObject *arg)
 {
@@ -682,8 +706,7 @@ Loop_step(Loop *L, PyObject *unused)
 }
 
 /* run(t_end, E0, push_work, energy_lost, data, n, appended, provisional, every, keep_last_only)
- * -> (outcome, n, appended, provisional, steps, max drift, max drift rate, max |residual|, failure, t, work,
- *     h_abs, armed 1, armed 2, nfev, nrejected)
+ * -> (outcome, n, appended, provisional, t, work, h_abs, locator_changed, failure)
  * Quiet steps until t_end: DONE, PENDING (a step taken, for Python to handle), GROW (the sample
  * buffer is full), FAILED (the step failed: failure = (kind, value, t)). */
 static PyObject *
@@ -705,8 +728,7 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     double *data = buf.buf;
     long cap = (long)(buf.len / (Py_ssize_t)(17 * sizeof(double)));
     int outcome = DONE;
-    long steps = 0;
-    double max_drift = 0.0, max_rate = 0.0, max_residual = 0.0;
+    L->locator_changed = 0;
     while (L->t < t_end) {
         if (!last_only && !provisional && n == cap) {
             outcome = GROW;
@@ -725,16 +747,86 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         n = at + 1;
         appended += 1;
         provisional = appended > 1 && (!every || (appended - 1) % every != 0);
-        steps += 1;
-        max_drift = drift > max_drift ? drift : max_drift;
-        max_rate = rate > max_rate ? rate : max_rate;
+        L->steps += 1;
+        L->max_drift = drift > L->max_drift ? drift : L->max_drift;
+        L->max_rate = rate > L->max_rate ? rate : L->max_rate;
         residual = fabs(residual);
-        max_residual = residual > max_residual ? residual : max_residual;
+        L->max_residual = residual > L->max_residual ? residual : L->max_residual;
     }
     PyBuffer_Release(&buf);
-    return Py_BuildValue("(illildddNdddiill)", outcome, n, appended, provisional, steps, max_drift, max_rate,
-                         max_residual, outcome == FAILED ? failure(L) : Py_NewRef(Py_None), L->t, L->y[10], L->h_abs,
-                         L->armed[0], L->armed[1], L->nfev, L->nrejected);
+    return Py_BuildValue("(illidddiN)", outcome, n, appended, provisional, L->t, L->y[10], L->h_abs,
+                         L->locator_changed, outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
+}
+
+/* stats() -> (steps, max drift, max drift rate, max |residual|) since the last call; then zero */
+static PyObject *
+Loop_stats(Loop *L, PyObject *unused)
+{
+    (void)unused;
+    PyObject *r = Py_BuildValue("(lddd)", L->steps, L->max_drift, L->max_rate, L->max_residual);
+    L->steps = 0;
+    L->max_drift = L->max_rate = L->max_residual = 0.0;
+    return r;
+}
+
+/* locator() -> (armed 1, armed 2, (scuff t_start, deepest, t_deepest), deepest of all scuffs, nfev, nrejected) */
+static PyObject *
+Loop_locator(Loop *L, PyObject *unused)
+{
+    (void)unused;
+    return Py_BuildValue("(ii(ddd)dll)", L->armed[0], L->armed[1], L->scuff[0], L->scuff[1], L->scuff[2],
+                         L->deepest_scuff, L->nfev, L->nrejected);
+}
+
+static PyObject *
+Loop_counts(Loop *L, PyObject *unused)
+{
+    (void)unused;
+    return Py_BuildValue("(ll)", L->nfev, L->nrejected);
+}
+
+/* begin(method, stance_leg, pin_x, pin_y, torque kind, u1, u2, ctrl or None, t, y, t_bound, h_abs or None,
+ *       reset_counters): a mode's start, as make_stepper builds a stepper (integrators._ListRungeKutta
+ *       restart: f = rhs(t, y), the carried-over step size capped by max_step) */
+static PyObject *
+Loop_begin(Loop *L, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 13) {
+        PyErr_SetString(PyExc_TypeError, "begin() takes 13 arguments");
+        return NULL;
+    }
+    long method = PyLong_AsLong(args[0]), leg = PyLong_AsLong(args[1]), kind = PyLong_AsLong(args[4]);
+    double pin0 = PyFloat_AsDouble(args[2]), pin1 = PyFloat_AsDouble(args[3]);
+    double u0 = PyFloat_AsDouble(args[5]), u1 = PyFloat_AsDouble(args[6]);
+    double t = PyFloat_AsDouble(args[8]), t_bound = PyFloat_AsDouble(args[10]);
+    int reset = PyObject_IsTrue(args[12]);
+    if (PyErr_Occurred()) return NULL;
+    if ((method != DOP853 && method != DOPRI5) || (leg != 1 && leg != 2) || kind < HELD || kind > WALKING) {
+        PyErr_SetString(PyExc_ValueError, "begin(): the loop steps dop853 (0) or dopri5 (1) in stance on leg 1 or 2");
+        return NULL;
+    }
+    if (kind != HELD && doubles(args[7], L->ctrl, 8, 8, "ctrl", NULL)) return NULL;
+    if (doubles(args[9], L->y, N, N, "y", NULL)) return NULL;
+    if (args[11] != Py_None) {
+        double h = PyFloat_AsDouble(args[11]);
+        if (h == -1.0 && PyErr_Occurred()) return NULL;
+        L->h_abs = L->max_step < h ? L->max_step : h;
+    }
+    L->method = (int)method;
+    L->leg = (int)leg;
+    L->pin[0] = pin0;
+    L->pin[1] = pin1;
+    L->controller = (int)kind;
+    L->u_hold[0] = u0;
+    L->u_hold[1] = u1;
+    if (reset) L->nfev = L->nrejected = L->naccepted = 0;
+    L->t = L->t_old = t;
+    memcpy(L->y_old, L->y, sizeof L->y);
+    L->t_bound = t_bound;
+    rhs(L, t, L->y, L->f);
+    L->nfev += 1;
+    L->dense_ready = 0;
+    Py_RETURN_NONE;
 }
 
 /* replace_y(y): continue from y (the projected state of a step Python accepted) */
@@ -745,13 +837,14 @@ Loop_replace_y(Loop *L, PyObject *y)
     Py_RETURN_NONE;
 }
 
-/* set_locator(armed1, armed2, cache_t or None, feet (8) or None, F (2) or None) */
+/* set_locator(armed1, armed2, cache_t or None, feet (8) or None, F (2) or None, scuff_leg, scuff (3), deepest) */
 static PyObject *
 Loop_set_locator(Loop *L, PyObject *args)
 {
     int a1, a2;
-    PyObject *ct, *ft, *F;
-    if (!PyArg_ParseTuple(args, "ppOOO", &a1, &a2, &ct, &ft, &F)) return NULL;
+    PyObject *ct, *ft, *F, *sc;
+    if (!PyArg_ParseTuple(args, "ppOOOiOd", &a1, &a2, &ct, &ft, &F, &L->scuff_leg, &sc, &L->deepest_scuff)) return NULL;
+    if (doubles(sc, L->scuff, 3, 3, "scuff", NULL)) return NULL;
     L->armed[0] = a1;
     L->armed[1] = a2;
     L->cache_ok = ct != Py_None && ft != Py_None && F != Py_None;
@@ -789,6 +882,17 @@ Loop_dense_rows(Loop *L, PyObject *unused)
         }
     }
     return rows;
+}
+
+/* dense_at(t) -> the dense output of the last step at t (a list), as integrators' interpolants give it */
+static PyObject *
+Loop_dense_at(Loop *L, PyObject *arg)
+{
+    double tt = PyFloat_AsDouble(arg), v[N];
+    if (tt == -1.0 && PyErr_Occurred()) return NULL;
+    dense(L);
+    for (int i = 0; i < N; i++) v[i] = dense_at(L, i, tt);
+    return list_of(v, N);
 }
 
 static PyObject *
@@ -857,15 +961,19 @@ static PyMethodDef Loop_methods[] = {
     {"set_options", (PyCFunction)Loop_set_options, METH_VARARGS, NULL},
     {"set_mode", (PyCFunction)Loop_set_mode, METH_VARARGS, NULL},
     {"set_torque", (PyCFunction)(void (*)(void))Loop_set_torque, METH_FASTCALL, NULL},
-    {"restart", (PyCFunction)Loop_restart, METH_VARARGS, NULL},
     {"set_h_abs", (PyCFunction)Loop_set_h_abs, METH_O, NULL},
     {"rhs", (PyCFunction)Loop_rhs, METH_VARARGS, NULL},
     {"step", (PyCFunction)Loop_step, METH_NOARGS, NULL},
     {"run", (PyCFunction)(void (*)(void))Loop_run, METH_FASTCALL, NULL},
+    {"begin", (PyCFunction)(void (*)(void))Loop_begin, METH_FASTCALL, NULL},
+    {"stats", (PyCFunction)Loop_stats, METH_NOARGS, NULL},
+    {"locator", (PyCFunction)Loop_locator, METH_NOARGS, NULL},
+    {"counts", (PyCFunction)Loop_counts, METH_NOARGS, NULL},
     {"replace_y", (PyCFunction)Loop_replace_y, METH_O, NULL},
     {"set_locator", (PyCFunction)Loop_set_locator, METH_VARARGS, NULL},
     {"dense_rows", (PyCFunction)Loop_dense_rows, METH_NOARGS, NULL},
     {"stages", (PyCFunction)Loop_stages, METH_NOARGS, NULL},
+    {"dense_at", (PyCFunction)Loop_dense_at, METH_O, NULL},
     {"state", (PyCFunction)Loop_state, METH_NOARGS, NULL},
     {"handed", (PyCFunction)Loop_handed, METH_NOARGS, NULL},
     {"armed", (PyCFunction)Loop_armed, METH_NOARGS, NULL},

@@ -15,8 +15,6 @@ back taken and not accepted ("pending"), with the locator's view of its start, a
 """
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from biped_sim.engine import integrators
@@ -48,12 +46,13 @@ AVAILABLE = _core is not None
 #: False makes every mode run in the Python loop (with the compiled twin of the generated code): the
 #: benchmarks compare the two loops this way
 enabled = True
+METHOD_CODES = {"dop853": 0, "dopri5": 1}
 
 
 def torque_law(controller):
-    """("held", ()) for no controller, (kind, parameters) for a controller the loop compiles, else None."""
+    """("held", None) for no controller, (kind, parameters) for a controller the loop compiles, else None."""
     if controller is None:
-        return "held", ()
+        return "held", None
     law = getattr(controller, "compiled_law", None)
     return law() if callable(law) else None
 
@@ -61,8 +60,7 @@ def torque_law(controller):
 def covers(sim, controller):
     """The torque law when the compiled loop can run the simulator's current mode, else None."""
     if (_core is None or not enabled or not sim.stance_leg or sim.opt.base != "floating"
-            or sim.method not in ("dop853", "dopri5") or sim.on_step is not None
-            or os.environ.get("BIPED_SIM_PURE_PYTHON", "") not in ("", "0")):
+            or sim.method not in METHOD_CODES or sim.on_step is not None):
         return None
     return torque_law(controller)
 
@@ -76,8 +74,9 @@ def _step_failure(fail):
 
 class CompiledStepper(integrators._ListRungeKutta):
     """The stepper of a mode the compiled loop runs: its state lives in the C ``Loop``; the fields the
-    Python code reads (``t``, ``y``, ``t_old``, ``y_old``, ``h``, ``h_abs``, the counters) are copied
-    out only when a step is handed back (``_sync``)."""
+    Python code reads (``t``, ``y``, ``t_old``, ``y_old``, ``h``, ``h_abs``) are copied out only when a
+    step is handed back (``_sync``). The locator's armed feet and scuff live in C while it runs, and
+    are exchanged when either side changed them (``locator_stale``, ``locator_changed``)."""
 
     def __init__(self, sim):
         self.sim = sim
@@ -88,45 +87,67 @@ class CompiledStepper(integrators._ListRungeKutta):
         self.loop.set_options(sim.rtol, sim.atol, float(opt.max_step), opt.max_speed, opt.ground_tol, opt.force_tol,
                               opt.graze_tol, opt.arm_height, sim.mu, opt.stop_on_slip, opt.project_constraints,
                               opt.check_invariants, "impact" in opt.phases, opt.slope,
-                              integrators._DOP853Interpolant.TO_POWER_BASIS.ravel().tolist())
+                              integrators._DOP853Interpolant.TO_POWER_BASIS.ravel().tolist(), opt.front_tol,
+                              opt.scuff_depth)
         self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
-        self.method = sim.method
+        self.method, self.method_code = sim.method, METHOD_CODES[sim.method]
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
-        self.fun = self.loop.rhs
-        self.nfev = self.nrejected = self.naccepted = 0
-        self.locator_stale = True      # the Python locator has armed feet or a cache the loop lacks
+        self.locator_stale = True      # the Python locator changed what the loop holds of it
 
-    def start(self, sim, t_bound, law):
+    @property
+    def nfev(self):
+        return self.loop.counts()[0]
+
+    @property
+    def nrejected(self):
+        return self.loop.counts()[1]
+
+    def start(self, sim, t_bound, law, reset_counters):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
         torque law, f at the start, the carried-over step size (or the initial one)."""
-        loop = self.loop
-        loop.set_mode(self.method, sim.stance_leg, sim.pin[0], sim.pin[1])
         kind, params = law
-        loop.set_torque(TORQUE_KINDS[kind], sim._u[0], sim._u[1], params)
-        loop.set_counters(0, 0, 0)
+        self.loop.begin(self.method_code, sim.stance_leg, sim.pin[0], sim.pin[1], TORQUE_KINDS[kind], sim._u[0],
+                        sim._u[1], params, sim.t, sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound, sim._h,
+                        reset_counters)
         self.t_bound = t_bound
-        loop.restart(sim.t, sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound, sim._h)
         if sim._h is None:
             self._sync()
-            self.h_abs = None
-            h0 = self._initial_step()
-            loop.set_counters(self.nfev, 0, 0)
-        else:
-            h0 = sim._h
-        loop.set_h_abs(h0)
-        self._sync()
+            h0 = integrators.initial_step(self.loop.rhs, self.t, self.y, self.f, t_bound, self.rtol, self.atol,
+                                          self.ERROR_ORDER)
+            nfev, nrejected = self.loop.counts()
+            self.loop.set_counters(nfev + 1, nrejected, 0)
+            self.loop.set_h_abs(h0)
 
     def _sync(self):
-        (self.t, self.t_old, self.h, self.h_abs, self.y, self.y_old, self.f, self.nfev, self.nrejected,
-         self.naccepted) = self.loop.state()
+        self.t, self.t_old, self.h, self.h_abs, self.y, self.y_old, self.f, _, _, _ = self.loop.state()
         self._dense = None
 
     def _push_locator(self, locator):
         (t_feet, ft), (t_force, F) = locator._feet_end, locator._force_end
         same = t_feet is not None and t_feet == t_force
+        (leg, scuff), = locator.active_scuffs.items() or ((0, [0.0, 0.0, 0.0]),)
         self.loop.set_locator(locator.armed[0], locator.armed[1], t_feet if same else None,
-                              [v for foot in ft for v in foot] if same else None, F if same else None)
+                              [v for foot in ft for v in foot] if same else None, F if same else None, leg, scuff,
+                              locator.deepest_scuff)
         self.locator_stale = False
+
+    def pull_locator(self, locator):
+        """The armed feet and the scuff as the loop left them, into the Python locator."""
+        a1, a2, scuff, deepest, _, _ = self.loop.locator()
+        locator.armed = [bool(a1), bool(a2)]
+        if locator.active_scuffs:
+            (leg,) = locator.active_scuffs
+            locator.active_scuffs[leg] = list(scuff)
+            locator.deepest_scuff = deepest
+
+    def merge_stats(self, stats):
+        """Add the loop's statistics since the last merge into the simulator's."""
+        steps, drift, rate, residual = self.loop.stats()
+        stats["steps"] += steps
+        for key, v in (("max_constraint_drift_position", drift), ("max_constraint_drift_velocity", rate),
+                       ("max_energy_balance_residual", residual)):
+            if v > stats[key]:
+                stats[key] = v
 
     def step(self):
         """One step taken in C and handled by the Python code (the simulator's view of its end's
@@ -139,31 +160,24 @@ class CompiledStepper(integrators._ListRungeKutta):
 
     def run(self, sim, t_end):
         """The quiet steps to ``t_end`` in C. DONE (at t_end: the simulator's state is the last sample's),
-        PENDING (a step taken, not accepted: the Python code handles it), or PYTHON_STEPS (the locator is
-        following a scuff or holds a latched guard, which only the Python code does: step in Python)."""
+        PENDING (a step taken, not accepted: the Python code handles it), or PYTHON_STEPS (the locator
+        holds a latched guard or two scuffs, which only the Python code follows: step in Python)."""
         loc = sim.locator
-        if loc.active_scuffs or loc.latched:
+        if loc.latched or len(loc.active_scuffs) > 1:
             return PYTHON_STEPS
         if self.locator_stale:
             self._push_locator(loc)
         s = sim._samples
         while True:
-            (outcome, s.n, s.appended, s.provisional, steps, drift, rate, residual, fail, t, w, h_abs, a1, a2,
-             self.nfev, self.nrejected) = self.loop.run(t_end, sim.E0, sim.push_work, sim.energy_lost, s._data, s.n,
-                                                        s.appended, s.provisional, s.every, s.keep is False)
-            st = sim.stats
-            st["steps"] += steps
-            if drift > st["max_constraint_drift_position"]:
-                st["max_constraint_drift_position"] = drift
-            if rate > st["max_constraint_drift_velocity"]:
-                st["max_constraint_drift_velocity"] = rate
-            if residual > st["max_energy_balance_residual"]:
-                st["max_energy_balance_residual"] = residual
+            outcome, s.n, s.appended, s.provisional, t, w, h_abs, changed, fail = self.loop.run(
+                t_end, sim.E0, sim.push_work, sim.energy_lost, s._data, s.n, s.appended, s.provisional, s.every,
+                s.keep is False)
             if outcome != GROW:
                 break
             s.grow()
-        loc.armed = [bool(a1), bool(a2)]
-        if steps:
+        if changed:
+            self.pull_locator(loc)
+        if t != sim.t:
             row = s._data[s.n - 1]
             sim.t, sim.work, sim._h = t, w, h_abs
             sim.q, sim.dq = row[1:6].copy(), row[6:11].copy()
@@ -184,13 +198,13 @@ class CompiledStepper(integrators._ListRungeKutta):
     def dense_output(self):
         if self._dense is None:
             rows = self.loop.dense_rows()
-            self.nfev = self.loop.state()[7]
             cls = integrators._DOP853Interpolant if self.method == "dop853" else integrators._DOPRI5Interpolant
             self._dense = cls(self.t_old, self.t, rows)
         return self._dense
 
     def dense_at(self, t):
-        return self.dense_output().at(t)
+        """The dense output at t, from C (the interpolant's own arithmetic: the same bits)."""
+        return self.loop.dense_at(t)
 
 
 def compiled_torque(controller, stance_leg, q, dq, model):
@@ -203,5 +217,5 @@ def compiled_torque(controller, stance_leg, q, dq, model):
     loop.set_model(model.k_stance, model.k["foot_kinematics"], model.k["foot_positions"], model.k["energy"],
                    model.k["stance_terms_1"], model.parameters.l_leg)
     loop.set_mode("dop853", stance_leg, 0.0, 0.0)
-    loop.set_torque(TORQUE_KINDS[law[0]], 0.0, 0.0, law[1])
+    loop.set_torque(TORQUE_KINDS[law[0]], 0.0, 0.0, law[1] or ())
     return np.array(loop.torque(q, dq))

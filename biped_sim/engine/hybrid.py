@@ -221,14 +221,17 @@ class HybridSimulator:
             return None
 
     def _new_stepper(self, t_bound):
+        law = compiled_loop.covers(self, self._controller)
+        if law is not None and self._stepper is not None and self._stepper is self._compiled:
+            self._compiled.start(self, t_bound, law, False)   # the same C stepper: its counters go on
+            return
         if self._stepper is not None:
             self._nfev_base += self._stepper.nfev
             self._rejected_base += self._stepper.nrejected
-        law = compiled_loop.covers(self, self._controller)
-        if law is not None:     # the same mode, stepped by the compiled loop (compiled_loop.py)
+        if law is not None:     # the mode stepped by the compiled loop (compiled_loop.py)
             if self._compiled is None:
                 self._compiled = compiled_loop.CompiledStepper(self)
-            self._compiled.start(self, t_bound, law)
+            self._compiled.start(self, t_bound, law, True)
             self._stepper, self._to_phys = self._compiled, floating_to_phys
             return
         rhs, to_phys, from_phys = mode_functions(
@@ -265,6 +268,7 @@ class HybridSimulator:
                 if outcome == compiled_loop.PYTHON_STEPS:
                     st.step()
                 st.locator_stale = True
+                st.pull_locator(self.locator)
             else:
                 st.step()
             self.stats["steps"] += 1
@@ -435,6 +439,8 @@ class HybridSimulator:
         return self._samples.last_force()
 
     def result(self) -> SimulationResult:
+        if self._compiled is not None:
+            self._compiled.merge_stats(self.stats)
         s = self._samples
         stats = dict(self.stats)
         stats["scuffs_ignored"] = self.locator.scuffs

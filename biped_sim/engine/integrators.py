@@ -64,6 +64,24 @@ def non_finite_message(t):
     return f"the state became non-finite at t={t:.9g} s"
 
 
+def initial_step(fun, t, y, f, t_bound, rtol, atol, error_order):
+    """The first step size (one more evaluation of ``fun``): Hairer, Norsett & Wanner, Solving ODEs I,
+    II.4, as scipy's select_initial_step."""
+    y, f = np.array(y), np.array(f)
+    scale = atol + np.abs(y) * rtol
+    d0 = np.sqrt(np.mean((y / scale) ** 2))
+    d1 = np.sqrt(np.mean((f / scale) ** 2))
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    h0 = min(h0, abs(t_bound - t)) or 1e-6
+    f1 = np.array(fun(t + h0, (y + h0 * f).tolist()))
+    d2 = np.sqrt(np.mean(((f1 - f) / scale) ** 2)) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / (error_order + 1))
+    return min(100 * h0, h1)
+
+
 class _Stepper:
     #: True when the last right-hand-side evaluation of ``step()`` is at the new (t, y)
     last_eval_at_end = True
@@ -128,21 +146,8 @@ class _ListRungeKutta(_Stepper):
         self._dense = None
 
     def _initial_step(self):
-        # Hairer, Norsett & Wanner, Solving ODEs I, II.4 (as in scipy's select_initial_step)
-        y, f = np.array(self.y), np.array(self.f)
-        scale = self.atol + np.abs(y) * self.rtol
-        d0 = np.sqrt(np.mean((y / scale) ** 2))
-        d1 = np.sqrt(np.mean((f / scale) ** 2))
-        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
-        h0 = min(h0, abs(self.t_bound - self.t)) or 1e-6
-        f1 = np.array(self.fun(self.t + h0, (y + h0 * f).tolist()))
         self.nfev += 1
-        d2 = np.sqrt(np.mean(((f1 - f) / scale) ** 2)) / h0
-        if d1 <= 1e-15 and d2 <= 1e-15:
-            h1 = max(1e-6, h0 * 1e-3)
-        else:
-            h1 = (0.01 / max(d1, d2)) ** (1.0 / (self.ERROR_ORDER + 1))
-        return min(100 * h0, h1)
+        return initial_step(self.fun, self.t, self.y, self.f, self.t_bound, self.rtol, self.atol, self.ERROR_ORDER)
 
     def step(self):
         t, y, f = self.t, self.y, self.f
