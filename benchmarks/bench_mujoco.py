@@ -128,9 +128,12 @@ def model_check(model: BipedModel, mj, states=20, seed=0):
 
 def walk_mujoco(mj, controller, q0, dq0, t_final, control_period=1e-3):
     """The walk in MuJoCo: ``controller(t, q, dq, stance_leg)`` once per control period, held over
-    its mj_steps. The stance leg is the foot that last landed in front (the engine's rule; a swing
-    foot collides only LANDING_AHEAD in front of the stance foot, and from the moment it is lifted
-    behind it until then not at all). Returns (touchdowns, lowest hip height, final q)."""
+    its mj_steps; returns (touchdowns, lowest hip height, final q).
+
+    The stance leg given to the controller is the foot that last landed in front of the other, as
+    the engine's touchdown_rule="front" has it: a swing foot leaves collision once it has lifted
+    off behind the stance foot, and comes back LANDING_AHEAD in front of it. The feet's positions
+    (``geom_xpos``) are those of the last step's start, where MuJoCo found that step's contacts."""
     data = mujoco.MjData(mj)
     mj.geom_contype[:] = 1
     set_state(mj, data, q0, dq0)
@@ -205,7 +208,7 @@ def bench_walk(repeats=5, t_final=10.0, timesteps=(1e-3, 1e-4)):
     return rtf, outcome
 
 
-def exact_touchdown(model, scene, which=-1):
+def exact_touchdown(scene, which=-1):
     """A touchdown Event of the engine's walk scene (rtol = atol = 1e-12, the last one by default)."""
     r = scene.simulate(rtol=1e-12, atol=1e-12, method="dop853")
     return [e for e in r.events if e.kind == "touchdown"][which]
@@ -243,7 +246,7 @@ def relative_errors(v, ref):
 def bench_post_impact(model, timesteps=(1e-3, 1e-4), report_at=(0.002, 0.005, 0.01, 0.02, 0.05, 0.1),
                       settled_below=0.05):
     """The table of the module docstring's item 3: one row per (timestep, solref)."""
-    event = exact_touchdown(model, load_scene("walk"))
+    event = exact_touchdown(load_scene("walk"))
     landing_speed = float(np.linalg.norm(model.foot_velocity(event.q, event.dq_minus, event.leg)))
     mj = mujoco_model(model)
     print(f"\n== velocity after a touchdown (the last of the walk scene, t = {event.time:.4f} s, foot {event.leg} "
