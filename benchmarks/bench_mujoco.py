@@ -258,7 +258,7 @@ def bench_post_impact(model, timesteps=(1e-3, 1e-4), report_at=(0.002, 0.005, 0.
     print(f"  relative velocity errors, max-norm/2-norm: 'settled' is the first step where the new stance foot's speed "
           f"is below {settled_below:.0%} of its landing speed,\n  dq_plus the exact impact map's velocity, "
           "exact(t) the exact run on from dq_plus (stance on the new foot); rebound: the foot's greatest height "
-          "after its first contact (m)")
+          "after its first contact")
     times = "".join(f"{f'vs exact({t * 1e3:g} ms)':>17s}" for t in report_at)
     print(f"  {'timestep':>8s} {'solref':>12s} {'settled':>8s} {'vs dq_plus':>12s} {'vs exact':>12s}{times}  rebound")
     out = {}
