@@ -200,12 +200,27 @@ def bench_walk(repeats=5, t_final=10.0, timesteps=(1e-3, 1e-4)):
         else:
             print(f"  {name:52s} {statistics.median(walls[name]):7.3f} {rtf[name]:7.1f}  {n:10d}  {low:10.3f}  "
                   f"{q_end[0]:7.3f} {status}")
+    print(f"  mj_step alone at 1 ms: {mj_step_us(model, q0, dq0):.1f} us per call; the controller alone: "
+          f"{statistics.median(walls[list(runs)[-1]]) / round(t_final / period) * 1e6:.1f} us per call")
     mj_name = next(n for n in runs if n.startswith("MuJoCo"))
     for name in runs:
         if name.startswith("biped_sim"):
             print(f"  RTF ratio {name.split(',')[1].strip()} / MuJoCo 1 ms: {rtf[name] / rtf[mj_name]:.2f} "
                   f"(issue 15 goal >= 5)")
     return rtf, outcome
+
+
+def mj_step_us(model, q0, dq0, steps=100, repeats=7):
+    """mj_step's own cost, median per call: ``steps`` steps from (q0, dq0) with u = 0, each repeat anew."""
+    mj = mujoco_model(model)
+    data = mujoco.MjData(mj)
+    walls = []
+    for _ in range(repeats):
+        set_state(mj, data, q0, dq0)
+        t0 = time.perf_counter()
+        mujoco.mj_step(mj, data, steps)
+        walls.append(time.perf_counter() - t0)
+    return statistics.median(walls) / steps * 1e6
 
 
 def exact_touchdown(scene, which=-1):
