@@ -27,7 +27,9 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest -q test
 
+# mujoco: for benchmarks/bench_mujoco.py only (MuJoCo side by side), installed here and nowhere else.
 bench: $(STAMP)
+	@$(PY) -c "import mujoco" 2>/dev/null || $(VENV)/bin/uv pip install -q --python $(PY) mujoco==4.0.0
 	$(PY) -m benchmarks.bench
 
 # Regenerate biped_sim/engine/_gen/closed_forms.py from the energies (needs sympy, installed here only),

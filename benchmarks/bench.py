@@ -1,4 +1,4 @@
-"""``make bench``: speed figures of the engine (issue 2), then the node, recorder and scene benchmarks.
+"""``make bench``: speed figures of the engine (issue 2), then the node, recorder, scene, sweep and MuJoCo benchmarks.
 
 Owns measurement only (no assertions: these machines are shared and noisy). Every figure is a
 median over repeats measured in this one process, and comparisons are made side by side.
@@ -214,7 +214,8 @@ def bench_control_periods(model, periods=(0.001, 0.005, 0.01, 0.02), t_final=2.0
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench", description=__doc__.split("\n")[0])
-    parser.add_argument("--only", choices=("engine", "node", "record", "scenes", "sweep"), help="run one group only")
+    parser.add_argument("--only", choices=("engine", "node", "record", "scenes", "sweep", "mujoco"),
+                        help="run one group only")
     parser.add_argument("--repeats", type=int, default=7, help="timed repeats of each walk (alternating)")
     args = parser.parse_args(argv)
     model = BipedModel()
@@ -226,7 +227,7 @@ def main(argv=None):
         bench_control_periods(model)
         sys.stdout.flush()
     for group, module in (("node", "bench_node"), ("record", "bench_record"), ("scenes", "bench_scenes"),
-                          ("sweep", "bench_sweep")):
+                          ("sweep", "bench_sweep"), ("mujoco", "bench_mujoco")):
         if args.only in (None, group):
             try:
                 mod = importlib.import_module(f"benchmarks.{module}")
