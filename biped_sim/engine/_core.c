@@ -706,7 +706,8 @@ Loop_step(Loop *L, PyObject *unused)
 }
 
 /* run(t_end, E0, push_work, energy_lost, data, n, appended, provisional, every, keep_last_only)
- * -> (outcome, n, appended, provisional, t, work, h_abs, locator_changed, failure)
+ * -> (outcome, n, appended, provisional, accepted steps, and the last one's t, work and h_abs, locator_changed,
+ *     failure)
  * Quiet steps until t_end: DONE, PENDING (a step taken, for Python to handle), GROW (the sample
  * buffer is full), FAILED (the step failed: failure = (kind, value, t)). */
 static PyObject *
@@ -728,6 +729,8 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     double *data = buf.buf;
     long cap = (long)(buf.len / (Py_ssize_t)(17 * sizeof(double)));
     int outcome = DONE;
+    double t_accepted = L->t_old, w_accepted = 0.0, h_accepted = L->h_abs;   /* the last accepted step's */
+    long accepted = 0;
     L->locator_changed = 0;
     while (L->t < t_end) {
         if (!last_only && !provisional && n == cap) {
@@ -745,6 +748,10 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
             break;
         }
         n = at + 1;
+        t_accepted = L->t;
+        w_accepted = L->y[10];
+        h_accepted = L->h_abs;
+        accepted++;
         appended += 1;
         provisional = appended > 1 && (!every || (appended - 1) % every != 0);
         L->steps += 1;
@@ -754,8 +761,8 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         L->max_residual = residual > L->max_residual ? residual : L->max_residual;
     }
     PyBuffer_Release(&buf);
-    return Py_BuildValue("(illidddiN)", outcome, n, appended, provisional, L->t, L->y[10], L->h_abs,
-                         L->locator_changed, outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
+    return Py_BuildValue("(illildddiN)", outcome, n, appended, provisional, accepted, t_accepted, w_accepted,
+                         h_accepted, L->locator_changed, outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
 }
 
 /* stats() -> (steps, max drift, max drift rate, max |residual|) since the last call; then zero */

@@ -169,7 +169,7 @@ class CompiledStepper(integrators._ListRungeKutta):
             self._push_locator(loc)
         s = sim._samples
         while True:
-            outcome, s.n, s.appended, s.provisional, t, w, h_abs, changed, fail = self.loop.run(
+            outcome, s.n, s.appended, s.provisional, accepted, t, w, h_abs, changed, fail = self.loop.run(
                 t_end, sim.E0, sim.push_work, sim.energy_lost, s._data, s.n, s.appended, s.provisional, s.every,
                 s.keep is False)
             if outcome != GROW:
@@ -177,7 +177,7 @@ class CompiledStepper(integrators._ListRungeKutta):
             s.grow()
         if changed:
             self.pull_locator(loc)
-        if t != sim.t:
+        if accepted:
             row = s._data[s.n - 1]
             sim.t, sim.work, sim._h = t, w, h_abs
             sim.q, sim.dq = row[1:6].copy(), row[6:11].copy()

@@ -1,0 +1,195 @@
+"""The compiled hybrid loop (biped_sim/engine/_core.c, driven by compiled_loop.py) gives the runs of the
+Python loop of hybrid.py: the same status, events, event times within 1e-12 s and states within
+1e-10, on every scene and on the edges (slips, pushes, scuffs, thinning, no projection, the other
+touchdown rule), and its compiled walking laws give the Python laws' torques bit for bit.
+``BIPED_SIM_PURE_PYTHON=1`` runs everything in Python."""
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+import biped_sim as bs
+from biped_sim.control.walking import PDWalkingController, WalkingController
+from biped_sim.engine import compiled_loop
+from biped_sim.engine.model import BipedModel
+
+ROOT = Path(__file__).resolve().parents[2]
+MODEL = BipedModel()
+
+pytestmark = pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=f"no compiled loop: {compiled_loop.WHY_NOT}")
+
+
+def both_loops(run):
+    """run() on the compiled loop and on the Python loop; (compiled, python) results and the count of
+    control periods the compiled loop took (it must have taken some)."""
+    out = []
+    for enabled in (True, False):
+        compiled_loop.enabled = enabled
+        try:
+            out.append(run())
+        finally:
+            compiled_loop.enabled = True
+    return out
+
+
+def assert_same_run(a, b, what=""):
+    assert (a.status, a.message) == (b.status, b.message), what
+    assert [(e.kind, e.leg) for e in a.events] == [(e.kind, e.leg) for e in b.events], what
+    np.testing.assert_allclose([e.time for e in a.events], [e.time for e in b.events], rtol=0, atol=1e-12,
+                               err_msg=what)
+    assert len(a.t) == len(b.t), what
+    np.testing.assert_allclose(a.t, b.t, rtol=0, atol=1e-12, err_msg=what)
+    np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-10, err_msg=what)
+    np.testing.assert_allclose(a.dq, b.dq, rtol=0, atol=1e-10, err_msg=what)
+    np.testing.assert_allclose(a.u, b.u, rtol=1e-9, atol=1e-9, err_msg=what)
+    np.testing.assert_allclose(a.grf, b.grf, rtol=1e-9, atol=1e-9, err_msg=what)
+    np.testing.assert_array_equal(a.stance_leg, b.stance_leg, err_msg=what)
+    for key in ("impacts", "events", "scuffs_ignored"):
+        assert a.stats[key] == b.stats[key], (what, key)
+
+
+SCENES = ["walk", "slope", "passive", "drop", "stance_fixed"]
+
+
+@pytest.mark.parametrize("hold", [True, False])
+@pytest.mark.parametrize("method", ["dopri5", "dop853"])
+@pytest.mark.parametrize("name", SCENES)
+def test_every_scene_runs_the_same_on_both_loops(name, method, hold):
+    scene = bs.load_scene(name)
+    a, b = both_loops(lambda: scene.simulate(hold=hold, t_final=min(scene.duration, 2.5), method=method))
+    assert_same_run(a, b, f"{name} {method} hold={hold}")
+
+
+def _walk(controller_cls=PDWalkingController, t_final=2.0, **kw):
+    ctrl = controller_cls(MODEL)
+    q0, dq0 = ctrl.initial_state()
+    return lambda: bs.simulate(MODEL, q0, dq0, t_final, controller=ctrl, **kw)
+
+
+EDGES = {
+    "walking law, continuous": dict(controller_cls=WalkingController),
+    "walking law held 1 ms, dopri5": dict(controller_cls=WalkingController, control_period=1e-3, method="dopri5"),
+    "held 5 ms dop853": dict(control_period=5e-3),
+    "friction that holds": dict(mu=0.8),
+    "friction that slips": dict(mu=0.05),
+    "slip, foot kept pinned": dict(mu=0.05, stop_on_slip=False),
+    "pushes": dict(control_period=1e-3, method="dopri5", pushes=[(0.3, [2.0, 0.0]), (0.9, [-1.5, 1.0])]),
+    "a push that lifts the foot": dict(control_period=1e-3, pushes=[(0.3, [0.0, 60.0])],
+                                       phases={"stance", "impact", "flight"}),
+    "every 7th sample": dict(keep_samples=7),
+    "events only": dict(keep_samples="events"),
+    "the last sample only": dict(keep_samples=False),
+    "no projection": dict(project_constraints=False),
+    "touchdown rule any": dict(touchdown_rule="any"),
+    "no invariant checks": dict(check_invariants=False),
+    "loose tolerance": dict(rtol=1e-5, atol=1e-5),
+    "max_step": dict(max_step=2e-3),
+    "shallow scuffs": dict(scuff_depth=1e-5),
+    "max_speed reached": dict(max_speed=1.0),
+    "an event limit": dict(max_events=3),
+}
+
+
+@pytest.mark.parametrize("case", list(EDGES))
+def test_the_edges_run_the_same_on_both_loops(case):
+    a, b = both_loops(_walk(**EDGES[case]))
+    assert_same_run(a, b, case)
+
+
+def test_the_walk_is_bit_for_bit_the_python_walk():
+    a, b = both_loops(_walk(controller_cls=WalkingController, t_final=3.0))
+    assert a.status == "completed" and len(a.impacts) >= 4
+    for name in ("t", "q", "dq", "u", "grf", "energy_balance"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert [e.time for e in a.events] == [e.time for e in b.events]
+
+
+def test_the_loop_steps_in_c():
+    """Not a vacuous comparison: the compiled loop took the walk's quiet steps (its own statistics)."""
+    ctrl = PDWalkingController(MODEL)
+    q0, dq0 = ctrl.initial_state()
+    sim = bs.HybridSimulator(MODEL, q0, dq0, method="dopri5")
+    for _ in range(200):
+        sim.advance_period(1e-3, controller=ctrl)
+    assert isinstance(sim._stepper, compiled_loop.CompiledStepper)
+    steps, *_ = sim._compiled.loop.stats()
+    assert steps >= 150
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.floats(-0.05, 0.05), st.floats(-0.3, 0.3), st.floats(0.7, 1.3), st.floats(50.0, 400.0),
+       st.sampled_from([None, 1e-3, 4e-3]), st.sampled_from(["dop853", "dopri5"]))
+def test_perturbed_walks_run_the_same_on_both_loops(dq_torso, dspeed, speed, kp, period, method):
+    ctrl = PDWalkingController(MODEL, kp=kp)
+    q0, dq0 = ctrl.initial_state(speed=speed)
+    q0, dq0 = bs.stance_state(MODEL, q0[2:], dq0[2:] + [0.0, dspeed, dq_torso])
+    a, b = both_loops(lambda: bs.simulate(MODEL, q0, dq0, 1.2, controller=ctrl, control_period=period,
+                                          method=method))
+    assert_same_run(a, b, f"{dq_torso} {dspeed} {speed} {kp} {period} {method}")
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.floats(-30.0, 30.0), st.floats(-30.0, 30.0), st.floats(0.5, 1.5))
+def test_held_torques_run_the_same_on_both_loops(u1, u2, speed):
+    q0, dq0 = WalkingController(MODEL).initial_state(speed=speed)
+
+    def run():
+        sim = bs.HybridSimulator(MODEL, q0, dq0)
+        for k in range(60):
+            sim.advance((k + 1) * 0.01, u=[u1 * math.cos(k), u2])
+        return sim.result()
+    a, b = both_loops(run)
+    assert_same_run(a, b, f"{u1} {u2} {speed}")
+
+
+@pytest.mark.parametrize("cls", [WalkingController, PDWalkingController])
+def test_the_compiled_laws_give_the_python_torques_bit_for_bit(cls):
+    rng = np.random.default_rng(3)
+    for params in ({}, dict(torso_pitch=0.05, step_angle=0.3, clearance=0.2, lag=0.01, kp=80.0, kd=9.0,
+                            torque_limit=20.0)):
+        ctrl = cls(MODEL, **params)
+        for _ in range(300):
+            q = (rng.uniform(-1, 1, 5) + [0, 0.9, math.pi, math.pi, 0]).tolist()
+            dq = rng.uniform(-4, 4, 5).tolist()
+            for leg in (1, 2):
+                expected = np.asarray(ctrl(0.0, q, dq, leg), dtype=float)
+                got = compiled_loop.compiled_torque(ctrl, leg, q, dq, MODEL)
+                assert got.tobytes() == expected.tobytes(), (q, dq, leg, got, expected)
+
+
+def test_a_changed_law_is_not_compiled():
+    class Mine(PDWalkingController):
+        def __call__(self, t, q, dq, stance_leg):
+            return [0.0, 0.0]
+    assert compiled_loop.torque_law(Mine(MODEL)) is None
+    assert compiled_loop.torque_law(lambda t, q, dq, leg: (0.0, 0.0)) is None
+    assert compiled_loop.torque_law(PDWalkingController(MODEL))[0] == "pd_walking"
+
+
+WALK = """
+import json
+import biped_sim as bs
+from biped_sim.engine import compiled_loop
+r = bs.load_scene("walk").simulate(hold=True, t_final=1.0)
+print(json.dumps({"available": compiled_loop.AVAILABLE, "why": compiled_loop.WHY_NOT,
+                  "t": r.t.tolist(), "q": r.q.ravel().tolist(), "events": [e.time for e in r.events]}))
+"""
+
+
+def test_pure_python_switch_runs_the_python_loop_with_the_same_run():
+    runs = {}
+    for forced in ("1", ""):
+        out = subprocess.run([sys.executable, "-c", WALK], capture_output=True, text=True, cwd=ROOT,
+                             env=dict(os.environ, BIPED_SIM_PURE_PYTHON=forced), timeout=300)
+        assert out.returncode == 0, out.stderr
+        runs[forced] = json.loads(out.stdout)
+    assert (runs["1"]["available"], runs["1"]["why"]) == (False, "BIPED_SIM_PURE_PYTHON is set")
+    assert runs[""]["available"] is True
+    a, b = runs[""], runs["1"]
+    assert a["events"] == b["events"] and a["t"] == b["t"] and a["q"] == b["q"]
