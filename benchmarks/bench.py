@@ -212,6 +212,89 @@ def bench_control_periods(model, periods=(0.001, 0.005, 0.01, 0.02), t_final=2.0
     return out
 
 
+PYTHON_RHS_TIMING = """
+import statistics, timeit
+from biped_sim.control.walking import PDWalkingController
+from biped_sim.engine.compiled import IMPLEMENTATION
+from biped_sim.engine.model import BipedModel
+from biped_sim.engine.modes import mode_functions
+model = BipedModel()
+q0, dq0 = PDWalkingController(model).initial_state()
+rhs, _, _ = mode_functions(model, 1, "floating", [0.0, 0.0], [1.0, -2.0], None, lambda F, u: None)
+y = q0.tolist() + dq0.tolist() + [0.0]
+assert IMPLEMENTATION == "Python"
+print(statistics.median(timeit.repeat(lambda: rhs(0.0, y), number=20000, repeat=7)) / 20000 * 1e6)
+"""
+
+
+def python_rhs_us():
+    """One right-hand-side call of the model in pure Python (the Python loop's rhs on the closed form's
+    Python code, BIPED_SIM_PURE_PYTHON=1), in us: the unit of the held-torque figure."""
+    import os
+    import subprocess
+    out = subprocess.run([sys.executable, "-c", PYTHON_RHS_TIMING], capture_output=True, text=True, check=True,
+                         env=dict(os.environ, BIPED_SIM_PURE_PYTHON="1"))
+    return float(out.stdout)
+
+
+def bench_compiled_loop(model, repeats=5):
+    """The compiled hybrid loop (biped_sim/engine/_core.c) against the Python loop of hybrid.py, same
+    process, in alternation: a held-torque period at 1 ms (engine time only: the PD law's commands
+    recorded once and replayed), the 10 s walk under continuous feedback, and bytes a sample."""
+    import tracemalloc
+
+    from biped_sim.engine import compiled_loop
+    print("\n== the compiled hybrid loop against the Python loop (same runs, bit for bit; "
+          f"compiled loop: {'on' if compiled_loop.AVAILABLE else 'off: ' + compiled_loop.WHY_NOT}) ==")
+    ctrl = PDWalkingController(model)
+    q0, dq0 = ctrl.initial_state()
+    rec = HybridSimulator(model, q0, dq0, method="dopri5")
+    commands = []
+    for _ in range(2000):
+        commands.append(rec.command(ctrl))
+        rec.advance_period(1e-3, u=commands[-1])
+
+    def held():
+        sim = HybridSimulator(model, q0, dq0, method="dopri5")
+        t0 = time.perf_counter()
+        for u in commands:
+            sim.advance_period(1e-3, u=u)
+        return (time.perf_counter() - t0) / len(commands) * 1e6
+
+    def walk():
+        t0 = time.perf_counter()
+        r = simulate(model, q0, dq0, 10.0, controller=ctrl)
+        return time.perf_counter() - t0, r
+
+    def controller_us():
+        return _median_us(lambda: rec.command(ctrl), 2000)
+
+    times = {True: ([], []), False: ([], [])}
+    for _ in range(repeats):
+        for enabled in (True, False):
+            compiled_loop.enabled = enabled
+            times[enabled][0].append(held())
+            times[enabled][1].append(walk()[0])
+    compiled_loop.enabled = True
+    unit = python_rhs_us()
+    (c_held, c_walk), (p_held, p_walk) = ([statistics.median(v) for v in times[e]] for e in (True, False))
+    print(f"  one right-hand-side call in pure Python (the unit below): {unit:.2f} us; "
+          f"the PD law's call through the engine: {controller_us():.2f} us")
+    print(f"  held torque, 1 ms periods (dopri5, 2 s walk, engine only): compiled {c_held:.2f} us a period = "
+          f"{c_held / unit:.2f} rhs calls (real-time factor {1e3 / c_held:.0f}); Python loop {p_held:.1f} us "
+          f"= {p_held / unit:.1f}; x{p_held / c_held:.1f}")
+    print(f"  10 s walk, continuous feedback (dop853, 1e-9): compiled {c_walk * 1e3:.1f} ms (real-time factor "
+          f"{10 / c_walk:.0f}); Python loop {p_walk * 1e3:.1f} ms; x{p_walk / c_walk:.1f}")
+    tracemalloc.start()
+    _, r = walk()
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    print(f"  memory: {len(r.t)} samples of the 10 s walk, {r.q.itemsize * 17} bytes a sample in the result "
+          f"(t, q, dq, stance leg, F, u, energy balance); peak traced {peak / len(r.t):.0f} bytes a sample "
+          "while running")
+    return dict(held_us=c_held, held_units=c_held / unit, python_held_us=p_held, walk_s=c_walk, python_walk_s=p_walk)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench", description=__doc__.split("\n")[0])
     parser.add_argument("--only", choices=("engine", "node", "record", "scenes", "sweep", "mujoco"),
@@ -225,6 +308,7 @@ def main(argv=None):
         bench_stance(model)
         bench_walk(model, repeats=args.repeats)
         bench_control_periods(model)
+        bench_compiled_loop(model)
         sys.stdout.flush()
     for group, module in (("node", "bench_node"), ("record", "bench_record"), ("scenes", "bench_scenes"),
                           ("sweep", "bench_sweep"), ("mujoco", "bench_mujoco")):

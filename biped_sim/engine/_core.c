@@ -30,7 +30,7 @@
 
 enum { DOP853 = 0, DOPRI5 = 1 };
 enum { HELD = 0, PD_WALKING = 1, WALKING = 2 };
-enum { DONE = 0, PENDING = 1, GROW = 2, FAILED = 3, PYTHON_STEPS = 4 };
+enum { DONE = 0, PENDING = 1, GROW = 2, FAILED = 3, PYTHON_STEPS = 4, SCUFF_ENDED = 5 };
 enum { FAIL_NONE = 0, FAIL_STEP_SIZE = 1, FAIL_NON_FINITE = 2 };
 
 typedef struct { double x, height, dx, dheight; } Foot;
@@ -41,6 +41,8 @@ typedef struct {
     double k_stance[KMAX], k_feet[KMAX], k_pos[KMAX], k_energy[KMAX], k_terms[KMAX], l_leg;
     /* options */
     double rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu, front_tol, scuff_depth;
+    double event_tol;
+    int front_rule;          /* touchdown_rule "front": a touchdown behind the stance foot is a scuff */
     double sin_s, cos_s, tan_s;
     int has_mu, stop_on_slip, project, check_invariants, impact_phase;
     double to_power_basis[64];
@@ -62,6 +64,12 @@ typedef struct {
     int scuff_leg;           /* the foot in a scuff (EventLocator.active_scuffs), or 0 */
     double scuff[3];         /* its [t_start, deepest, t_deepest] */
     double deepest_scuff;    /* EventLocator.deepest_scuff */
+    long scuffs;             /* EventLocator.scuffs */
+    /* the scuff that ended in the last accepted step: leg, [t_start, deepest, t_deepest], t_up, q and dq at
+     * t_deepest (NaN outside the step), for the Python code's Event */
+    int ended_leg;
+    double ended[4], ended_qdq[10];
+    int why;                 /* which check handed the last step back (a debugging aid: the return in quiet_step) */
     int locator_changed;     /* armed or the scuff changed in the last run (the Python locator must read them) */
     /* the run's statistics since the last stats() (HybridSimulator.stats) */
     long steps;
@@ -359,7 +367,7 @@ height_at(const Loop *L, int leg, double tt)
 /* grazing.dip_bracket on the floating base: 1 if a dip deeper than graze_tol may be inside the step
  * (the Python code then searches it itself), 0 if there is none. */
 static int
-may_dip(Loop *L, int leg, double h0, double h1)
+may_dip(Loop *L, int leg, double h0, double h1, double *bracket)
 {
     dense(L);
     int cols[4] = {1 + leg, 4, 0, 1};
@@ -398,7 +406,9 @@ may_dip(Loop *L, int leg, double h0, double h1)
         int depth = stack[top].depth;
         double d1[3] = {0, 0, 0}, d2[3] = {0, 0, 0};
         for (int k = 0; k < 8; k++) {
-            double w1 = k * pow(b, k - 1 > 0 ? k - 1 : 0), w2 = k * (k - 1) * pow(b, k - 2 > 0 ? k - 2 : 0);
+            /* grazing._derivative_weights (on [0, 1] the powers of b are 1: _WEIGHTS_ON_0_1) */
+            double w1 = b == 1.0 ? k : k * pow(b, k - 1 > 0 ? k - 1 : 0);
+            double w2 = b == 1.0 ? k * (k - 1) : k * (k - 1) * pow(b, k - 2 > 0 ? k - 2 : 0);
             for (int c = 0; c < 3; c++) {
                 d1[c] += w1 * A[k][c];
                 d2[c] += w2 * A[k][c];
@@ -410,7 +420,11 @@ may_dip(Loop *L, int leg, double h0, double h1)
         if (lo - drop > 0 || drop <= L->graze_tol || depth >= 30) continue;
         double mid = 0.5 * (a + b);
         double hm = height_at(L, leg, t_old + mid * h_step);
-        if (hm <= 0) return 1;
+        if (hm <= 0) {
+            bracket[0] = t_old + a * h_step;
+            bracket[1] = t_old + mid * h_step;
+            return 1;
+        }
         stack[top].a = mid; stack[top].b = b; stack[top].ha = hm; stack[top].hb = hb; stack[top].depth = depth + 1;
         top++;
         stack[top].a = a; stack[top].b = mid; stack[top].ha = ha; stack[top].hb = hm; stack[top].depth = depth + 1;
@@ -419,15 +433,71 @@ may_dip(Loop *L, int leg, double h0, double h1)
     return 0;
 }
 
+/* guards.locate_crossing of foot leg's height on the dense output: scipy's brentq (scipy/optimize/Zeros/
+ * brentq.c, the same iterates; xtol = event_tol, rtol = 4 eps, 200 iterations). 0 and the root, or -1
+ * where brentq would raise (no convergence, a NaN): the Python code then raises it. */
+static int
+locate_crossing(Loop *L, int leg, double ta, double tb, double *root)
+{
+    dense(L);
+    double ga = height_at(L, leg, ta), gb = height_at(L, leg, tb);
+    if (gb == 0.0) { *root = tb; return 0; }
+    if (ga <= 0) { *root = ta; return 0; }
+    double xtol = L->event_tol, rtol = 4 * 2.220446049250313e-16;
+    double xpre = ta, xcur = tb, xblk = 0., fpre, fcur, fblk = 0., spre = 0., scur = 0., sbis, delta, stry, dpre, dblk;
+    fpre = height_at(L, leg, xpre);
+    fcur = height_at(L, leg, xcur);
+    if (isnan(fpre) || isnan(fcur)) return -1;
+    if (fpre == 0) { *root = xpre; return 0; }
+    if (fcur == 0) { *root = xcur; return 0; }
+    if (signbit(fpre) == signbit(fcur)) return -1;
+    for (int i = 0; i < 200; i++) {
+        if (fpre != 0 && fcur != 0 && (signbit(fpre) != signbit(fcur))) {
+            xblk = xpre;
+            fblk = fpre;
+            spre = scur = xcur - xpre;
+        }
+        if (fabs(fblk) < fabs(fcur)) {
+            xpre = xcur; xcur = xblk; xblk = xpre;
+            fpre = fcur; fcur = fblk; fblk = fpre;
+        }
+        delta = (xtol + rtol * fabs(xcur)) / 2;
+        sbis = (xblk - xcur) / 2;
+        if (fcur == 0 || fabs(sbis) < delta) { *root = xcur; return 0; }
+        if (fabs(spre) > delta && fabs(fcur) < fabs(fpre)) {
+            if (xpre == xblk) stry = -fcur * (xcur - xpre) / (fcur - fpre);      /* interpolate */
+            else {                                                                /* extrapolate */
+                dpre = (fpre - fcur) / (xpre - xcur);
+                dblk = (fblk - fcur) / (xblk - xcur);
+                stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre));
+            }
+            double lim = 3 * fabs(sbis) - delta;
+            if (2 * fabs(stry) < (fabs(spre) < lim ? fabs(spre) : lim)) { spre = scur; scur = stry; }
+            else { spre = sbis; scur = sbis; }
+        } else {
+            spre = sbis;
+            scur = sbis;
+        }
+        xpre = xcur;
+        fpre = fcur;
+        if (fabs(scur) > delta) xcur += scur;
+        else xcur += (sbis > 0 ? delta : -delta);
+        fcur = height_at(L, leg, xcur);
+        if (isnan(fcur)) return -1;
+    }
+    return -1;
+}
+
 /* -- the quiet steps ----------------------------------------------------------------------------- */
 
-/* EventLocator._track_scuffs over a step in which nothing else happens (t_end = the step's end), on
- * copies: 1 and the scuff followed (scuff, deepest updated), 0 when the Python code must see this step
- * (the scuff ends in it, or leaves the model: the Python code reports both) */
+/* EventLocator._track_scuffs of the swing foot over a step in which nothing else happens (t_end = the
+ * step's end), on copies: 0 and the scuff followed (scuff, deepest updated), 1 when it ended in the
+ * step (the foot above the ground at its end), -1 when the Python code must see this step (the scuff
+ * leaves the model: the Python code reports it) */
 static int
-track_scuff(Loop *L, double *scuff, double *deepest)
+track_scuff(Loop *L, int leg, double *scuff, double *deepest)
 {
-    int leg = L->scuff_leg, st = L->leg;
+    int st = L->leg;
     double t_end = L->t, t0 = L->t_old > scuff[0] ? L->t_old : scuff[0];
     double step_t = (t_end - t0) / 8, ft[8] = {0};
     dense(L);
@@ -441,17 +511,17 @@ track_scuff(Loop *L, double *scuff, double *deepest)
             scuff[1] = depth;
             scuff[2] = tt;
         }
-        if (depth > 0 && ft[4 * (leg - 1)] > ft[4 * (st - 1)] + L->front_tol) return 0;
+        if (depth > 0 && ft[4 * (leg - 1)] > ft[4 * (st - 1)] + L->front_tol) return -1;
     }
     *deepest = *deepest > scuff[1] ? *deepest : scuff[1];
-    if (scuff[1] > L->scuff_depth) return 0;
-    if (ft[4 * (leg - 1) + 1] > 0.0) return 0;
-    return 1;
+    if (scuff[1] > L->scuff_depth) return -1;
+    return ft[4 * (leg - 1) + 1] > 0.0;
 }
 
-/* The body of HybridSimulator._integrate for the step just taken, when nothing happens in it:
- * 1 and the step accepted (sample written to row, state projected), or 0 (pending: nothing changed
- * but the cache of the step's start). */
+/* The body of HybridSimulator._integrate for the step just taken, when nothing happens in it but a
+ * scuff (its start, its end): 1 and the step accepted (sample written to row, state projected), 2 the
+ * same and a scuff ended in it (its Event is the Python code's to make: ended_*), or 0 (pending:
+ * nothing changed but the cache of the step's start). */
 static int
 quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost, double *drift_out,
            double *rate_out, double *residual_out)
@@ -461,7 +531,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     memcpy(dq, L->y + 5, sizeof dq);
     double top = 0.0;
     for (int i = 0; i < 5; i++) top = fabs(dq[i]) > top ? fabs(dq[i]) : top;
-    if (!(top <= L->max_speed)) return 0;
+    if (!(top <= L->max_speed)) { L->why = 1; return 0; }
     feet(L, q, dq, ft1);
     /* the torque and force of the step's last evaluation, at its end (FSAL) */
     L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
@@ -477,25 +547,41 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     memcpy(L->start_feet, ft0, sizeof ft0);
     L->start_F[0] = F0[0]; L->start_F[1] = F0[1];
     int sw = 3 - L->leg, st = L->leg;
+    int scuffing = L->scuff_leg == sw;
+    double scuff[3] = {L->scuff[0], L->scuff[1], L->scuff[2]}, deepest = L->deepest_scuff;
+    long scuffs = L->scuffs;
     /* EventLocator.locate: the guards of stance, in active_guards' order */
     if (L->impact_phase && L->armed[sw - 1]) {
-        double g1 = ft1[4 * (sw - 1) + 1], g0 = ft0[4 * (sw - 1) + 1];
-        if (g0 > 0 && g1 <= 0) return 0;
-        if (g0 > 0 && g1 > 0 && may_dip(L, sw, g0, g1)) return 0;
+        double g1 = ft1[4 * (sw - 1) + 1], g0 = ft0[4 * (sw - 1) + 1], bracket[2] = {L->t_old, L->t}, t_root;
+        int crossing = g0 > 0 && g1 <= 0;
+        if (crossing || (g0 > 0 && g1 > 0 && may_dip(L, sw, g0, g1, bracket))) {
+            if (locate_crossing(L, sw, bracket[0], bracket[1], &t_root) < 0 || !L->front_rule) { L->why = 2; return 0; }
+            /* _is_scuff: at or behind the stance foot, a scuff; in front, a touchdown (the Python code's) */
+            double qd[10], fr[8];
+            for (int j = 0; j < 10; j++) qd[j] = dense_at(L, j, t_root);
+            feet(L, qd, qd + 5, fr);
+            if (fr[4 * (sw - 1)] > fr[4 * (st - 1)] + L->front_tol) { L->why = 3; return 0; }
+            scuffs++;
+            scuffing = 1;
+            scuff[0] = scuff[2] = t_root;
+            scuff[1] = 0.0;
+        }
     }
     {
         double g1 = normal(L, F1), g0 = normal(L, F0);
-        if (g0 > 0 && g1 <= 0) return 0;
+        if (g0 > 0 && g1 <= 0) { L->why = 4; return 0; }
     }
     if (L->has_mu) {
         double g1 = slip_margin(L, F1), g0 = slip_margin(L, F0);
-        if (g0 > 0 && g1 <= 0) return 0;
+        if (g0 > 0 && g1 <= 0) { L->why = 5; return 0; }
     }
     /* a resting free foot pushed into the ground (_resting_feet_pushed_in) */
-    int scuffing = L->scuff_leg == sw;
-    if (L->impact_phase && !L->armed[sw - 1] && !scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) return 0;
-    double scuff[3] = {L->scuff[0], L->scuff[1], L->scuff[2]}, deepest = L->deepest_scuff;
-    if (scuffing && !track_scuff(L, scuff, &deepest)) return 0;
+    if (L->impact_phase && !L->armed[sw - 1] && !scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) { L->why = 6; return 0; }
+    int ended = 0;
+    if (scuffing) {
+        ended = track_scuff(L, sw, scuff, &deepest);
+        if (ended < 0) { L->why = 7; return 0; }
+    }
     /* modes.project_onto_pin */
     const double *fs = ft1 + 4 * (st - 1);
     double fy = fs[1] - L->tan_s * fs[0];
@@ -511,15 +597,24 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         double s = 0.0, sd = 0.0;
         for (int i = 0; i < 5; i++) s += q[i];
         for (int i = 0; i < 5; i++) sd += dq[i];
-        if (!isfinite(s + sd)) return 0;
-        if (!scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) return 0;
+        if (!isfinite(s + sd)) { L->why = 8; return 0; }
+        if (!scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) { L->why = 9; return 0; }
         double n = normal(L, F1);
-        if (n < -L->force_tol) return 0;
-        if (L->has_mu && L->stop_on_slip && slip_margin(L, F1) < -L->force_tol) return 0;
+        if (n < -L->force_tol) { L->why = 10; return 0; }
+        if (L->has_mu && L->stop_on_slip && slip_margin(L, F1) < -L->force_tol) { L->why = 11; return 0; }
     }
     /* accepted: the locator's state, the sample, the projected state */
     memcpy(L->scuff, scuff, sizeof scuff);
     L->deepest_scuff = deepest;
+    L->scuffs = scuffs;
+    L->scuff_leg = scuffing && !ended ? sw : 0;
+    if (ended) {     /* EventLocator._scuff_event's data */
+        L->ended_leg = sw;
+        memcpy(L->ended, scuff, sizeof scuff);
+        L->ended[3] = L->t;
+        for (int j = 0; j < 10; j++)
+            L->ended_qdq[j] = L->t_old <= scuff[2] && scuff[2] <= L->t ? dense_at(L, j, scuff[2]) : NAN;
+    }
     L->cache_ok = 1;
     L->cache_t = L->t;
     memcpy(L->cache_feet, ft1, sizeof ft1);
@@ -547,7 +642,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     *drift_out = drift;
     *rate_out = rate;
     *residual_out = residual;
-    return 1;
+    return ended ? 2 : 1;
 }
 
 /* -- Python interface ------------------------------------------------------------------------------ */
@@ -607,16 +702,16 @@ Loop_set_model(Loop *L, PyObject *args)
 
 /* set_options(rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu or None,
  *             stop_on_slip, project, check_invariants, impact_phase, slope, to_power_basis (64), front_tol,
- *             scuff_depth) */
+ *             scuff_depth, event_tol, touchdown_rule == "front") */
 static PyObject *
 Loop_set_options(Loop *L, PyObject *args)
 {
     PyObject *mu, *tpb;
     double slope;
-    if (!PyArg_ParseTuple(args, "ddddddddOppppdOdd", &L->rtol, &L->atol, &L->max_step, &L->max_speed,
+    if (!PyArg_ParseTuple(args, "ddddddddOppppdOdddp", &L->rtol, &L->atol, &L->max_step, &L->max_speed,
                           &L->ground_tol, &L->force_tol, &L->graze_tol, &L->arm_height, &mu, &L->stop_on_slip,
                           &L->project, &L->check_invariants, &L->impact_phase, &slope, &tpb, &L->front_tol,
-                          &L->scuff_depth))
+                          &L->scuff_depth, &L->event_tol, &L->front_rule))
         return NULL;
     L->has_mu = mu != Py_None;
     L->mu = L->has_mu ? PyFloat_AsDouble(mu) : 0.0;
@@ -711,12 +806,8 @@ Loop_step(Loop *L, PyObject *unused)
  * Quiet steps until t_end: DONE, PENDING (a step taken, for Python to handle), GROW (the sample
  * buffer is full), FAILED (the step failed: failure = (kind, value, t)). */
 static PyObject *
-Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
+run_quiet(Loop *L, PyObject *const *args)
 {
-    if (nargs != 10) {
-        PyErr_SetString(PyExc_TypeError, "run() takes 10 arguments");
-        return NULL;
-    }
     double t_end = PyFloat_AsDouble(args[0]), E0 = PyFloat_AsDouble(args[1]);
     double push_work = PyFloat_AsDouble(args[2]), energy_lost = PyFloat_AsDouble(args[3]);
     long n = PyLong_AsLong(args[5]), appended = PyLong_AsLong(args[6]);
@@ -733,7 +824,7 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     long accepted = 0;
     L->locator_changed = 0;
     while (L->t < t_end) {
-        if (!last_only && !provisional && n == cap) {
+        if (!last_only && n == cap) {
             outcome = GROW;
             break;
         }
@@ -741,12 +832,19 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
             outcome = FAILED;
             break;
         }
-        long at = last_only ? 0 : provisional ? n - 1 : n;
-        double drift, rate, residual;
-        if (!quiet_step(L, data + 17 * at, E0, push_work, energy_lost, &drift, &rate, &residual)) {
+        double drift, rate, residual, row[17];
+        int accepted_how = quiet_step(L, row, E0, push_work, energy_lost, &drift, &rate, &residual);
+        if (!accepted_how) {
             outcome = PENDING;
             break;
         }
+        if (accepted_how == 2) {
+            /* the scuff's Event comes before this step's sample (HybridSimulator._push_event: keep_last) */
+            provisional = 0;
+            outcome = SCUFF_ENDED;
+        }
+        long at = last_only ? 0 : provisional ? n - 1 : n;
+        memcpy(data + 17 * at, row, sizeof row);
         n = at + 1;
         t_accepted = L->t;
         w_accepted = L->y[10];
@@ -759,10 +857,50 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         L->max_rate = rate > L->max_rate ? rate : L->max_rate;
         residual = fabs(residual);
         L->max_residual = residual > L->max_residual ? residual : L->max_residual;
+        if (outcome == SCUFF_ENDED) break;
     }
     PyBuffer_Release(&buf);
     return Py_BuildValue("(illildddiN)", outcome, n, appended, provisional, accepted, t_accepted, w_accepted,
                          h_accepted, L->locator_changed, outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
+}
+
+static PyObject *
+Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 10) {
+        PyErr_SetString(PyExc_TypeError, "run() takes 10 arguments");
+        return NULL;
+    }
+    return run_quiet(L, args);
+}
+
+/* held(u1, u2, h_abs or None, <the 10 arguments of run>): a control period under a held torque from where the
+ * last run left the state (the same mode): the start of begin() (f = rhs(t, y) under the new torque,
+ * the carried-over step size), then run() to its end, in one call (the node's period) */
+static PyObject *
+Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 13) {
+        PyErr_SetString(PyExc_TypeError, "held() takes 13 arguments");
+        return NULL;
+    }
+    double u0 = PyFloat_AsDouble(args[0]), u1 = PyFloat_AsDouble(args[1]), t_bound = PyFloat_AsDouble(args[3]);
+    if (PyErr_Occurred()) return NULL;
+    if (args[2] != Py_None) {
+        double h = PyFloat_AsDouble(args[2]);
+        if (h == -1.0 && PyErr_Occurred()) return NULL;
+        L->h_abs = L->max_step < h ? L->max_step : h;
+    }
+    L->controller = HELD;
+    L->u_hold[0] = u0;
+    L->u_hold[1] = u1;
+    L->t_old = L->t;
+    memcpy(L->y_old, L->y, sizeof L->y);
+    L->t_bound = t_bound;
+    rhs(L, L->t, L->y, L->f);
+    L->nfev += 1;
+    L->dense_ready = 0;
+    return run_quiet(L, args + 3);
 }
 
 /* stats() -> (steps, max drift, max drift rate, max |residual|) since the last call; then zero */
@@ -776,13 +914,23 @@ Loop_stats(Loop *L, PyObject *unused)
     return r;
 }
 
-/* locator() -> (armed 1, armed 2, (scuff t_start, deepest, t_deepest), deepest of all scuffs, nfev, nrejected) */
+/* locator() -> (armed 1, armed 2, scuff leg (0: none), [t_start, deepest, t_deepest], deepest of all scuffs,
+ * scuffs so far) */
 static PyObject *
 Loop_locator(Loop *L, PyObject *unused)
 {
     (void)unused;
-    return Py_BuildValue("(ii(ddd)dll)", L->armed[0], L->armed[1], L->scuff[0], L->scuff[1], L->scuff[2],
-                         L->deepest_scuff, L->nfev, L->nrejected);
+    return Py_BuildValue("(iii[ddd]dl)", L->armed[0], L->armed[1], L->scuff_leg, L->scuff[0], L->scuff[1], L->scuff[2],
+                         L->deepest_scuff, L->scuffs);
+}
+
+/* ended_scuff() -> (leg, [t_start, deepest, t_deepest], t_up, q (5), dq (5)) of the scuff that ended last */
+static PyObject *
+Loop_ended_scuff(Loop *L, PyObject *unused)
+{
+    (void)unused;
+    return Py_BuildValue("(i[ddd]dNN)", L->ended_leg, L->ended[0], L->ended[1], L->ended[2], L->ended[3],
+                         list_of(L->ended_qdq, 5), list_of(L->ended_qdq + 5, 5));
 }
 
 static PyObject *
@@ -844,13 +992,16 @@ Loop_replace_y(Loop *L, PyObject *y)
     Py_RETURN_NONE;
 }
 
-/* set_locator(armed1, armed2, cache_t or None, feet (8) or None, F (2) or None, scuff_leg, scuff (3), deepest) */
+/* set_locator(armed1, armed2, cache_t or None, feet (8) or None, F (2) or None, scuff_leg, scuff (3), deepest,
+ *             scuffs) */
 static PyObject *
 Loop_set_locator(Loop *L, PyObject *args)
 {
     int a1, a2;
     PyObject *ct, *ft, *F, *sc;
-    if (!PyArg_ParseTuple(args, "ppOOOiOd", &a1, &a2, &ct, &ft, &F, &L->scuff_leg, &sc, &L->deepest_scuff)) return NULL;
+    if (!PyArg_ParseTuple(args, "ppOOOiOdl", &a1, &a2, &ct, &ft, &F, &L->scuff_leg, &sc, &L->deepest_scuff,
+                          &L->scuffs))
+        return NULL;
     if (doubles(sc, L->scuff, 3, 3, "scuff", NULL)) return NULL;
     L->armed[0] = a1;
     L->armed[1] = a2;
@@ -934,8 +1085,8 @@ static PyObject *
 Loop_handed(Loop *L, PyObject *unused)
 {
     (void)unused;
-    return Py_BuildValue("(NNNN(ii))", list_of(L->start_feet, 8), list_of(L->start_F, 2), list_of(L->end_u, 2),
-                         list_of(L->end_F, 2), L->armed[0], L->armed[1]);
+    return Py_BuildValue("(NNNN(ii)i)", list_of(L->start_feet, 8), list_of(L->start_F, 2), list_of(L->end_u, 2),
+                         list_of(L->end_F, 2), L->armed[0], L->armed[1], L->why);
 }
 
 static PyObject *
@@ -973,9 +1124,11 @@ static PyMethodDef Loop_methods[] = {
     {"step", (PyCFunction)Loop_step, METH_NOARGS, NULL},
     {"run", (PyCFunction)(void (*)(void))Loop_run, METH_FASTCALL, NULL},
     {"begin", (PyCFunction)(void (*)(void))Loop_begin, METH_FASTCALL, NULL},
+    {"held", (PyCFunction)(void (*)(void))Loop_held, METH_FASTCALL, NULL},
     {"stats", (PyCFunction)Loop_stats, METH_NOARGS, NULL},
     {"locator", (PyCFunction)Loop_locator, METH_NOARGS, NULL},
     {"counts", (PyCFunction)Loop_counts, METH_NOARGS, NULL},
+    {"ended_scuff", (PyCFunction)Loop_ended_scuff, METH_NOARGS, NULL},
     {"replace_y", (PyCFunction)Loop_replace_y, METH_O, NULL},
     {"set_locator", (PyCFunction)Loop_set_locator, METH_VARARGS, NULL},
     {"dense_rows", (PyCFunction)Loop_dense_rows, METH_NOARGS, NULL},

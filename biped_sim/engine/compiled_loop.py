@@ -20,8 +20,9 @@ import numpy as np
 from biped_sim.engine import integrators
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.guards import FootState
+from biped_sim.engine.locator import scuff_event
 
-DONE, PENDING, GROW, FAILED, PYTHON_STEPS = range(5)
+DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED = range(6)
 TORQUE_KINDS = {"held": 0, "pd_walking": 1, "walking": 2}
 
 
@@ -88,11 +89,12 @@ class CompiledStepper(integrators._ListRungeKutta):
                               opt.graze_tol, opt.arm_height, sim.mu, opt.stop_on_slip, opt.project_constraints,
                               opt.check_invariants, "impact" in opt.phases, opt.slope,
                               integrators._DOP853Interpolant.TO_POWER_BASIS.ravel().tolist(), opt.front_tol,
-                              opt.scuff_depth)
+                              opt.scuff_depth, opt.event_tol, opt.touchdown_rule == "front")
         self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
         self.method, self.method_code = sim.method, METHOD_CODES[sim.method]
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
         self.locator_stale = True      # the Python locator changed what the loop holds of it
+        self.state_stale = True        # the simulator's state is not the loop's (an event, a push, a handed step)
 
     @property
     def nfev(self):
@@ -110,6 +112,7 @@ class CompiledStepper(integrators._ListRungeKutta):
                         sim._u[1], params, sim.t, sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound, sim._h,
                         reset_counters)
         self.t_bound = t_bound
+        self.state_stale = False
         if sim._h is None:
             self._sync()
             h0 = integrators.initial_step(self.loop.rhs, self.t, self.y, self.f, t_bound, self.rtol, self.atol,
@@ -128,17 +131,14 @@ class CompiledStepper(integrators._ListRungeKutta):
         (leg, scuff), = locator.active_scuffs.items() or ((0, [0.0, 0.0, 0.0]),)
         self.loop.set_locator(locator.armed[0], locator.armed[1], t_feet if same else None,
                               [v for foot in ft for v in foot] if same else None, F if same else None, leg, scuff,
-                              locator.deepest_scuff)
+                              locator.deepest_scuff, locator.scuffs)
         self.locator_stale = False
 
     def pull_locator(self, locator):
         """The armed feet and the scuff as the loop left them, into the Python locator."""
-        a1, a2, scuff, deepest, _, _ = self.loop.locator()
+        a1, a2, leg, scuff, locator.deepest_scuff, locator.scuffs = self.loop.locator()
         locator.armed = [bool(a1), bool(a2)]
-        if locator.active_scuffs:
-            (leg,) = locator.active_scuffs
-            locator.active_scuffs[leg] = list(scuff)
-            locator.deepest_scuff = deepest
+        locator.active_scuffs = {leg: scuff} if leg else {}
 
     def merge_stats(self, stats):
         """Add the loop's statistics since the last merge into the simulator's."""
@@ -156,7 +156,7 @@ class CompiledStepper(integrators._ListRungeKutta):
         self._sync()
         if fail is not None:
             raise _step_failure(fail)
-        _, _, self.sim._last_u, self.sim._last_F, _ = self.loop.handed()
+        _, _, self.sim._last_u, self.sim._last_F, _, _ = self.loop.handed()
 
     def run(self, sim, t_end):
         """The quiet steps to ``t_end`` in C. DONE (at t_end: the simulator's state is the last sample's),
@@ -175,6 +175,25 @@ class CompiledStepper(integrators._ListRungeKutta):
             if outcome != GROW:
                 break
             s.grow()
+        return self._after_run(sim, t_end, outcome, accepted, t, w, h_abs, changed, fail)
+
+    def held_period(self, sim, t_end):
+        """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
+        in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""
+        if self.state_stale or self.locator_stale or sim.locator.latched or len(sim.locator.active_scuffs) > 1:
+            return None
+        s = sim._samples
+        if s.keep is not False and s.n == len(s._data):
+            s.grow()
+        outcome, s.n, s.appended, s.provisional, accepted, t, w, h_abs, changed, fail = self.loop.held(
+            sim._u[0], sim._u[1], sim._h, t_end, sim.E0, sim.push_work, sim.energy_lost, s._data, s.n, s.appended,
+            s.provisional, s.every, s.keep is False)
+        if outcome == GROW:
+            return self.run(sim, t_end)
+        return self._after_run(sim, t_end, outcome, accepted, t, w, h_abs, changed, fail)
+
+    def _after_run(self, sim, t_end, outcome, accepted, t, w, h_abs, changed, fail):
+        s, loc = sim._samples, sim.locator
         if changed:
             self.pull_locator(loc)
         if accepted:
@@ -183,9 +202,14 @@ class CompiledStepper(integrators._ListRungeKutta):
             sim.q, sim.dq = row[1:6].copy(), row[6:11].copy()
         if outcome == FAILED:
             raise _step_failure(fail)
+        if outcome == SCUFF_ENDED:     # accepted in C; its report is made here, and the run goes on
+            leg, scuff, t_up, q, dq = self.loop.ended_scuff()
+            sim._add_event(scuff_event(leg, sim.stance_leg, scuff, t_up, q, dq, sim.opt.scuff_depth))
+            return self.run(sim, t_end)
         if outcome == PENDING:
+            self.state_stale = True
             self._sync()
-            start_feet, start_F, sim._last_u, sim._last_F, _ = self.loop.handed()
+            start_feet, start_F, sim._last_u, sim._last_F, _, _ = self.loop.handed()
             loc._feet_end = (self.t_old, (FootState(*start_feet[:4]), FootState(*start_feet[4:])))
             loc._force_end = (self.t_old, start_F)
             self.locator_stale = True

@@ -102,7 +102,7 @@ class HybridSimulator:
         self._initial_sample_pending = True    # the t0 sample, redone under the first advance's torque
         self.impacts = ImpactHistory(self.opt.zeno_count, self.opt.zeno_interval)
         self._mode_event_times: list[float] = []   # the events that changed the mode (not the scuffs)
-        self.stats = dict(steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
+        self._stats = dict(steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
                           max_constraint_drift_position=0.0, max_constraint_drift_velocity=0.0,
                           max_energy_balance_residual=0.0, pushes=0, scuffs_ignored=0, deepest_scuff=0.0, wall_time=0.0)
         self._nfev_base = 0
@@ -154,7 +154,8 @@ class HybridSimulator:
     # -- main loop ----------------------------------------------------------------------------
     def advance(self, t_end, u=None, controller=None):
         """Integrate to ``t_end`` (or until the run stops); returns the events of this interval."""
-        if not (isinstance(t_end, numbers.Real) and not isinstance(t_end, bool) and math.isfinite(t_end)):
+        if not (type(t_end) is float or isinstance(t_end, numbers.Real) and not isinstance(t_end, bool)) \
+                or not math.isfinite(t_end):
             raise ValueError(f"t_end must be a finite number of seconds, got {t_end!r}")
         if self.status != "running":
             return []
@@ -177,9 +178,7 @@ class HybridSimulator:
                 ValueError) as exc:
             self._fail(f"{type(exc).__name__}: {exc}" if isinstance(exc, np.linalg.LinAlgError) else str(exc))
         finally:
-            self.stats["wall_time"] += time.perf_counter() - wall0
-            if self._stepper is not None:
-                self.stats["rhs_evaluations"] = self._nfev_base + self._stepper.nfev
+            self._stats["wall_time"] += time.perf_counter() - wall0
         return self.events[n_events:]
 
     def advance_period(self, period, u=None, controller=None, t_final=0.0):
@@ -208,7 +207,7 @@ class HybridSimulator:
         the stance foot held (:mod:`biped_sim.engine.pushes`). Returns its events. A bad impulse
         (not two finite numbers, above ``PUSH_IMPULSE_LIMIT``) raises ValueError."""
         if self._compiled is not None:
-            self._compiled.locator_stale = True
+            self._compiled.locator_stale = self._compiled.state_stale = True
         return apply_push(self, impulse)
 
     def command(self, controller):
@@ -258,20 +257,26 @@ class HybridSimulator:
         self._record(self.q, self.dq, self.stance_leg, F, u, (q, dq))
 
     def _integrate(self, t_end):
-        self._new_stepper(t_end)
-        st = self._stepper
+        st, outcome = self._stepper, None
+        if self._controller is None and st is not None and st is self._compiled:
+            outcome = st.held_period(self, t_end)    # the node's period: one C call while nothing happens
+        if outcome is None:
+            self._new_stepper(t_end)
+            st = self._stepper
         while self.t < t_end and self.status == "running":
             if st is self._compiled:    # its quiet steps in C; a step it hands back is handled below
-                outcome = st.run(self, t_end)
+                if outcome is None:
+                    outcome = st.run(self, t_end)
                 if outcome == compiled_loop.DONE:
                     break
                 if outcome == compiled_loop.PYTHON_STEPS:
                     st.step()
-                st.locator_stale = True
+                outcome = None
+                st.locator_stale = st.state_stale = True
                 st.pull_locator(self.locator)
             else:
                 st.step()
-            self.stats["steps"] += 1
+            self._stats["steps"] += 1
             self._h = getattr(st, "h_abs", None) or getattr(st, "h", None)
             q, dq, w = self._to_phys(st.y)
             if max(map(abs, dq)) > self.opt.max_speed:
@@ -304,7 +309,6 @@ class HybridSimulator:
                 break
             self._new_stepper(t_end)
             st = self._stepper
-        self.stats["rejected_steps"] = self._rejected_base + st.nrejected
 
     @property
     def last_impact(self):
@@ -317,7 +321,7 @@ class HybridSimulator:
             return q, dq
         q, dq, drift, rate = project_onto_pin(q, dq, feet[self.stance_leg - 1], self.pin, self.ground.tan,
                                               self.opt.project_constraints)
-        s = self.stats
+        s = self._stats
         s["max_constraint_drift_position"] = max(s["max_constraint_drift_position"], drift)
         s["max_constraint_drift_velocity"] = max(s["max_constraint_drift_velocity"], rate)
         return q, dq
@@ -342,7 +346,7 @@ class HybridSimulator:
         there, and the energy balance."""
         T, V = gen.energy(*(lists or (q.tolist(), dq.tolist())), self.model.k["energy"])
         residual = T + V - self.E0 - self.work - self.push_work + self.energy_lost
-        self.stats["max_energy_balance_residual"] = max(self.stats["max_energy_balance_residual"], abs(residual))
+        self._stats["max_energy_balance_residual"] = max(self._stats["max_energy_balance_residual"], abs(residual))
         self._samples.append(self.t, q, dq, leg, F, u, residual)
 
     # -- resets -------------------------------------------------------------------------------
@@ -350,7 +354,7 @@ class HybridSimulator:
         """Apply the reset of the guard that fired, take the new mode from its event."""
         self._samples.keep_last()       # the sample at the event, before its reset
         if self._compiled is not None:
-            self._compiled.locator_stale = True
+            self._compiled.locator_stale = self._compiled.state_stale = True
         qa, dqa = np.array(q), np.array(dq)
         old = self.stance_leg
         if guard.kind == "touchdown":
@@ -363,7 +367,7 @@ class HybridSimulator:
             self.dq = ev.dq_plus
             u = self._torque_at(t, list(q), ev.dq_plus.tolist())
             self._record(self.q, self.dq, self.stance_leg, self._force_at(t, list(q), ev.dq_plus.tolist(), u), u)
-            self.stats["impacts"] += 1
+            self._stats["impacts"] += 1
             self._push_event(ev)
             zeno = self.impacts.record(t)
             if zeno is None and self.status == "running" and self.opt.check_invariants:
@@ -410,8 +414,11 @@ class HybridSimulator:
 
     def _push_event(self, ev):
         self._samples.keep_last()       # the sample after the event's reset
+        self._add_event(ev)
+
+    def _add_event(self, ev):
         self.events.append(ev)
-        self.stats["events"] = len(self.events)
+        self._stats["events"] = len(self.events)
         if ev.kind == "scuff":      # a report, not a change of mode: max_events counts the changes
             return
         self._mode_event_times.append(ev.time)
@@ -429,7 +436,7 @@ class HybridSimulator:
         msg = f"integration stopped at t={self.t:.9g} s: {message}"
         self.events.append(Event(self.t, "error", self.stance_leg, self.q.copy(), self.dq.copy(), self.dq.copy(),
                                  message=msg))
-        self.stats["events"] = len(self.events)
+        self._stats["events"] = len(self.events)
         self._stop(status, msg)
 
     # -- results ------------------------------------------------------------------------------
@@ -438,9 +445,18 @@ class HybridSimulator:
         """Ground force on the stance foot at the last accepted sample, [Fx, Fy] (N); zeros in flight."""
         return self._samples.last_force()
 
-    def result(self) -> SimulationResult:
+    @property
+    def stats(self) -> dict:
+        """The run's statistics so far (the compiled loop's and the stepper's counters brought in when read)."""
+        s = self._stats
         if self._compiled is not None:
-            self._compiled.merge_stats(self.stats)
+            self._compiled.merge_stats(s)
+        if self._stepper is not None:
+            s["rhs_evaluations"] = self._nfev_base + self._stepper.nfev
+            s["rejected_steps"] = self._rejected_base + self._stepper.nrejected
+        return s
+
+    def result(self) -> SimulationResult:
         s = self._samples
         stats = dict(self.stats)
         stats["scuffs_ignored"] = self.locator.scuffs

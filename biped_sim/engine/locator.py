@@ -196,14 +196,9 @@ class EventLocator:
                 self.scuff_events.append(self._scuff_event(st, to_phys, leg, stance_leg, scuff, t_end))
 
     def _scuff_event(self, st, to_phys, leg, stance_leg, scuff, t_up):
-        t_start, depth, t_deep = scuff
+        t_deep = scuff[2]
         q, dq, _ = to_phys(st.dense_at(t_deep)) if st.t_old <= t_deep <= st.t else (None, None, None)
-        q = np.array(q) if q is not None else np.full(5, np.nan)
-        dq = np.array(dq) if dq is not None else np.full(5, np.nan)
-        return Event(t_start, "scuff", leg, q, dq, dq.copy(), None, stance_leg, stance_leg,
-                     message=f"foot {leg} scuffed the ground behind the stance foot from t={t_start:.9g} s to "
-                             f"t={t_up:.9g} s, {depth:.3g} m deep at t={t_deep:.9g} s (the assumption of "
-                             f"touchdown_rule='front'; bounded by scuff_depth={self.opt.scuff_depth:g} m)")
+        return scuff_event(leg, stance_leg, scuff, t_up, q, dq, self.opt.scuff_depth)
 
     def _feet_at(self, st, to_phys, t):
         q, dq, _ = to_phys(st.dense_at(t))
@@ -213,3 +208,15 @@ class EventLocator:
         for leg in (1, 2):
             if not self.armed[leg - 1] and leg != stance_leg and feet[leg - 1].height > self.opt.arm_height:
                 self.armed[leg - 1] = True
+
+
+def scuff_event(leg, stance_leg, scuff, t_up, q, dq, scuff_depth) -> Event:
+    """The Event of a scuff of foot ``leg`` that ended at ``t_up`` (``scuff``: [t_start, deepest,
+    t_deepest]; q, dq: the state at t_deepest, or None when it is not inside the last step)."""
+    t_start, depth, t_deep = scuff
+    q = np.array(q) if q is not None else np.full(5, np.nan)
+    dq = np.array(dq) if dq is not None else np.full(5, np.nan)
+    return Event(t_start, "scuff", leg, q, dq, dq.copy(), None, stance_leg, stance_leg,
+                 message=f"foot {leg} scuffed the ground behind the stance foot from t={t_start:.9g} s to "
+                         f"t={t_up:.9g} s, {depth:.3g} m deep at t={t_deep:.9g} s (the assumption of "
+                         f"touchdown_rule='front'; bounded by scuff_depth={scuff_depth:g} m)")
