@@ -187,7 +187,16 @@ def impact_map(model: BipedModel, q, dq_minus, impact_leg=2):
     """
     q = as_state_vector(q, "q")
     dq_minus = as_state_vector(dq_minus, "dq_minus")
-    return constrained_impulse_response(model.mass_matrix(q), _impact_jacobian(model, q, impact_leg), dq_minus)
+    return impact_map_fast(model, q, dq_minus, impact_leg)
+
+
+def impact_map_fast(model, q, dq_minus, impact_leg):
+    """``impact_map`` for checked arrays (the engine's resets: D and J straight from the closed forms)."""
+    ql = q.tolist()
+    D = np.array(gen.mass_matrix(ql, model.k["mass_matrix"])).reshape(5, 5)
+    legs = (1, 2) if impact_leg in ((1, 2), "both", 0) else (check_leg(impact_leg),)
+    J = np.array([v for leg in legs for v in getattr(gen, f"foot_jacobian_{leg}")(ql, model.k[f"foot_jacobian_{leg}"])])
+    return constrained_impulse_response(D, J.reshape(2 * len(legs), 5), dq_minus)
 
 
 def constrained_impulse_response(D, J, dq, generalized_impulse=None):

@@ -183,7 +183,11 @@ class BipedModel:
     def energy(self, q, dq) -> float:
         """Total mechanical energy T + V (J), with V = 0 at hip height 0 (y_centre measured from 0)."""
         q, dq = as_state_vector(q, "q"), as_state_vector(dq, "dq")
-        T, V = gen.energy(q.tolist(), dq.tolist(), self.k["energy"])
+        return self.energy_fast(q.tolist(), dq.tolist())
+
+    def energy_fast(self, q, dq) -> float:
+        """``energy`` for lists of checked numbers (the engine's resets)."""
+        T, V = gen.energy(q, dq, self.k["energy"])
         return T + V
 
     def com_position(self, q) -> np.ndarray:

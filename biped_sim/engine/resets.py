@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from biped_sim.engine.dynamics import IMPACT_CONDITION_LIMIT, impact_condition, impact_map, push_response
+from biped_sim.engine.dynamics import IMPACT_CONDITION_LIMIT, impact_condition, impact_map_fast, push_response
 from biped_sim.engine.guards import foot_states, normal_tangent
 from biped_sim.engine.model import as_state_vector
 from biped_sim.engine.results import Event
@@ -30,14 +30,15 @@ PUSH_IMPULSE_LIMIT = 100.0
 def touchdown_reset(model, t, q, dq, legs, stance_leg, ground, mu=None) -> Event:
     """The impact of foot ``legs[0]`` (or of both feet, ``legs == [1, 2]``) at the state (q, dq) (arrays)."""
     impact_leg = legs[0] if len(legs) == 1 else (1, 2)
-    dq_plus, impulse = impact_map(model, q, dq, impact_leg)
+    dq_plus, impulse = impact_map_fast(model, q, dq, impact_leg)
     if len(legs) == 1:
         new, kind = legs[0], "touchdown"
     else:
         n1 = normal_tangent(impulse[0:2], ground)[0]
         n2 = normal_tangent(impulse[2:4], ground)[0]
         new, kind = (1 if n1 >= n2 else 2), "double_touchdown"
-    loss = model.energy(q, dq) - model.energy(q, dq_plus)
+    ql = q.tolist()
+    loss = model.energy_fast(ql, dq.tolist()) - model.energy_fast(ql, dq_plus.tolist())
     warnings = impact_warnings(model, q, dq_plus, impulse, legs, stance_leg, ground, mu)
     return Event(t, kind, new, q, dq, dq_plus, impulse, stance_leg, new, loss, warnings)
 
