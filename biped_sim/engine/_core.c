@@ -29,9 +29,9 @@
 #define KMAX 32              /* room for any closed form's constants */
 
 enum { DOP853 = 0, DOPRI5 = 1 };
-enum { HELD = 0, PD_WALKING = 1, WALKING = 2 };
-enum { DONE = 0, PENDING = 1, GROW = 2, FAILED = 3, PYTHON_STEPS = 4, SCUFF_ENDED = 5 };
-enum { FAIL_NONE = 0, FAIL_STEP_SIZE = 1, FAIL_NON_FINITE = 2 };
+enum { HELD = 0, PD_WALKING = 1, WALKING = 2, CALLBACK = 3 };
+enum { DONE = 0, PENDING = 1, GROW = 2, FAILED = 3, PYTHON_STEPS = 4, SCUFF_ENDED = 5, RAISED = 6 };
+enum { FAIL_NONE = 0, FAIL_STEP_SIZE = 1, FAIL_NON_FINITE = 2, FAIL_CALLBACK = 3 };
 
 typedef struct { double x, height, dx, dheight; } Foot;
 
@@ -49,6 +49,11 @@ typedef struct {
     /* mode and torque */
     int method, leg, controller;
     double pin[2], u_hold[2], ctrl[8];
+    /* a Python controller, called back as f(t, q, dq) -> [u1, u2] (modes.bind_controller's checked call);
+     * its first exception is kept and the computation it spoiled is thrown away (callback_failed) */
+    PyObject *callback;
+    int callback_failed;
+    PyObject *exc_type, *exc_value, *exc_tb;
     /* stepper (integrators._ListRungeKutta's fields) */
     double t, t_bound, h_abs, t_old, h;
     double y[N], f[N], y_old[N], stages[MAX_STAGES][N];
@@ -179,12 +184,49 @@ walking(const Loop *L, const double *q, const double *dq, double *u)
     u[1] = clip((m00 * r1 - m10 * r0) / det, lim);
 }
 
+static PyObject *list_of(const double *v, Py_ssize_t n);
+
 static void
-torque(const Loop *L, const double *q, const double *dq, double *u)
+call_back(Loop *L, double t, const double *q, const double *dq, double *u)
+{
+    u[0] = u[1] = 0.0;
+    if (L->callback_failed) return;
+    PyObject *args[3] = {PyFloat_FromDouble(t), list_of(q, 5), list_of(dq, 5)}, *r = NULL;
+    if (args[0] && args[1] && args[2]) r = PyObject_Vectorcall(L->callback, args, 3, NULL);
+    for (int i = 0; i < 3; i++) Py_XDECREF(args[i]);
+    if (r != NULL) {     /* the checked call returns a list of two finite floats */
+        if (PyList_CheckExact(r) && PyList_GET_SIZE(r) == 2) {
+            u[0] = PyFloat_AsDouble(PyList_GET_ITEM(r, 0));
+            u[1] = PyFloat_AsDouble(PyList_GET_ITEM(r, 1));
+        } else {
+            PyErr_SetString(PyExc_TypeError, "the controller call must return a list of two floats");
+        }
+        Py_DECREF(r);
+    }
+    if (PyErr_Occurred()) {
+        L->callback_failed = 1;
+        PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
+        u[0] = u[1] = 0.0;
+    }
+}
+
+static void
+torque(Loop *L, double t, const double *q, const double *dq, double *u)
 {
     if (L->controller == PD_WALKING) pd_walking(L, q, dq, u);
     else if (L->controller == WALKING) walking(L, q, dq, u);
+    else if (L->controller == CALLBACK) call_back(L, t, q, dq, u);
     else { u[0] = L->u_hold[0]; u[1] = L->u_hold[1]; }
+}
+
+/* the kept exception of the callback, raised (NULL), after the spoiled computation was thrown away */
+static PyObject *
+raise_callback_error(Loop *L)
+{
+    L->callback_failed = 0;
+    PyErr_Restore(L->exc_type, L->exc_value, L->exc_tb);
+    L->exc_type = L->exc_value = L->exc_tb = NULL;
+    return NULL;
 }
 
 /* -- the mode's right-hand side and the stance force (modes.mode_functions, HybridSimulator._force_at) -- */
@@ -201,8 +243,7 @@ rhs(void *ctx, double t, const double *y, double *dy)
 {
     Loop *L = ctx;
     double u[2], out[7];
-    (void)t;
-    torque(L, y, y + 5, u);
+    torque(L, t, y, y + 5, u);
     stance(L, y, y + 5, u, out);
     L->last_F[0] = out[5]; L->last_F[1] = out[6];
     L->last_u[0] = u[0]; L->last_u[1] = u[1];
@@ -213,10 +254,10 @@ rhs(void *ctx, double t, const double *y, double *dy)
 }
 
 static void
-force_at(Loop *L, const double *q, const double *dq, double *F)
+force_at(Loop *L, double t, const double *q, const double *dq, double *F)
 {
     double u[2], out[7];
-    torque(L, q, dq, u);
+    torque(L, t, q, dq, u);
     stance(L, q, dq, u, out);
     F[0] = out[5]; F[1] = out[6];
 }
@@ -286,6 +327,10 @@ step(Loop *L)
         if (L->method == DOP853) k_dop853_step_11(rhs, L, t, L->y, L->f, h, L->rtol, L->atol, out);
         else k_dopri5_step_11(rhs, L, t, L->y, L->f, h, L->rtol, L->atol, out);
         L->nfev += ns;
+        if (L->callback_failed) {
+            L->fail_kind = FAIL_CALLBACK;
+            return -1;
+        }
         err = out[2 * N];
         if (err < 1.0) {
             double s = 0.0;
@@ -542,7 +587,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         F0[0] = L->cache_F[0]; F0[1] = L->cache_F[1];
     } else {
         feet(L, L->y_old, L->y_old + 5, ft0);
-        force_at(L, L->y_old, L->y_old + 5, F0);
+        force_at(L, L->t_old, L->y_old, L->y_old + 5, F0);
     }
     memcpy(L->start_feet, ft0, sizeof ft0);
     L->start_F[0] = F0[0]; L->start_F[1] = F0[1];
@@ -603,6 +648,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         if (n < -L->force_tol) { L->why = 10; return 0; }
         if (L->has_mu && L->stop_on_slip && slip_margin(L, F1) < -L->force_tol) { L->why = 11; return 0; }
     }
+    if (L->callback_failed) { L->why = 12; return 0; }
     /* accepted: the locator's state, the sample, the projected state */
     memcpy(L->scuff, scuff, sizeof scuff);
     L->deepest_scuff = deepest;
@@ -779,6 +825,7 @@ Loop_rhs(Loop *L, PyObject *args)
     double t, yy[N], dy[N];
     if (!PyArg_ParseTuple(args, "dO", &t, &y) || doubles(y, yy, N, N, "y", NULL)) return NULL;
     rhs(L, t, yy, dy);
+    if (L->callback_failed) return raise_callback_error(L);
     return list_of(dy, N);
 }
 
@@ -793,7 +840,7 @@ static PyObject *
 Loop_step(Loop *L, PyObject *unused)
 {
     (void)unused;
-    if (step(L) < 0) return failure(L);
+    if (step(L) < 0) return L->callback_failed ? raise_callback_error(L) : failure(L);
     /* the torque and force of the step's last evaluation, at its end (FSAL), as handed() gives them */
     L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
     L->end_F[0] = L->last_F[0]; L->end_F[1] = L->last_F[1];
@@ -860,6 +907,7 @@ run_quiet(Loop *L, PyObject *const *args)
         if (outcome == SCUFF_ENDED) break;
     }
     PyBuffer_Release(&buf);
+    if (L->callback_failed) outcome = RAISED;     /* the caller takes the accepted steps, then raise_error() */
     return Py_BuildValue("(illildddiN)", outcome, n, appended, provisional, accepted, t_accepted, w_accepted,
                          h_accepted, L->locator_changed, outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
 }
@@ -900,6 +948,7 @@ Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     rhs(L, L->t, L->y, L->f);
     L->nfev += 1;
     L->dense_ready = 0;
+    if (L->callback_failed) return raise_callback_error(L);
     return run_quiet(L, args + 3);
 }
 
@@ -933,6 +982,15 @@ Loop_ended_scuff(Loop *L, PyObject *unused)
                          list_of(L->ended_qdq, 5), list_of(L->ended_qdq + 5, 5));
 }
 
+/* raise_error(): raise the Python controller's exception that ended the last run (outcome RAISED) */
+static PyObject *
+Loop_raise_error(Loop *L, PyObject *unused)
+{
+    (void)unused;
+    if (!L->callback_failed) Py_RETURN_NONE;
+    return raise_callback_error(L);
+}
+
 static PyObject *
 Loop_counts(Loop *L, PyObject *unused)
 {
@@ -956,11 +1014,20 @@ Loop_begin(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     double t = PyFloat_AsDouble(args[8]), t_bound = PyFloat_AsDouble(args[10]);
     int reset = PyObject_IsTrue(args[12]);
     if (PyErr_Occurred()) return NULL;
-    if ((method != DOP853 && method != DOPRI5) || (leg != 1 && leg != 2) || kind < HELD || kind > WALKING) {
+    if ((method != DOP853 && method != DOPRI5) || (leg != 1 && leg != 2) || kind < HELD || kind > CALLBACK) {
         PyErr_SetString(PyExc_ValueError, "begin(): the loop steps dop853 (0) or dopri5 (1) in stance on leg 1 or 2");
         return NULL;
     }
-    if (kind != HELD && doubles(args[7], L->ctrl, 8, 8, "ctrl", NULL)) return NULL;
+    if (kind == CALLBACK) {
+        if (!PyCallable_Check(args[7])) {
+            PyErr_SetString(PyExc_TypeError, "begin(): a callback controller must be callable");
+            return NULL;
+        }
+        Py_INCREF(args[7]);
+        Py_XSETREF(L->callback, args[7]);
+    } else if (kind != HELD && doubles(args[7], L->ctrl, 8, 8, "ctrl", NULL)) {
+        return NULL;
+    }
     if (doubles(args[9], L->y, N, N, "y", NULL)) return NULL;
     if (args[11] != Py_None) {
         double h = PyFloat_AsDouble(args[11]);
@@ -981,6 +1048,7 @@ Loop_begin(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     rhs(L, t, L->y, L->f);
     L->nfev += 1;
     L->dense_ready = 0;
+    if (L->callback_failed) return raise_callback_error(L);
     Py_RETURN_NONE;
 }
 
@@ -1020,6 +1088,7 @@ Loop_dense_rows(Loop *L, PyObject *unused)
 {
     (void)unused;
     dense(L);
+    if (L->callback_failed) return raise_callback_error(L);
     int width = L->method == DOP853 ? 8 : 5;
     PyObject *rows = PyList_New(N);
     if (rows == NULL) return NULL;
@@ -1049,6 +1118,7 @@ Loop_dense_at(Loop *L, PyObject *arg)
     double tt = PyFloat_AsDouble(arg), v[N];
     if (tt == -1.0 && PyErr_Occurred()) return NULL;
     dense(L);
+    if (L->callback_failed) return raise_callback_error(L);
     for (int i = 0; i < N; i++) v[i] = dense_at(L, i, tt);
     return list_of(v, N);
 }
@@ -1110,7 +1180,8 @@ Loop_torque(Loop *L, PyObject *args)
     double qq[5], dd[5], u[2];
     if (!PyArg_ParseTuple(args, "OO", &q, &dq) || doubles(q, qq, 5, 5, "q", NULL) || doubles(dq, dd, 5, 5, "dq", NULL))
         return NULL;
-    torque(L, qq, dd, u);
+    torque(L, 0.0, qq, dd, u);
+    if (L->callback_failed) return raise_callback_error(L);
     return Py_BuildValue("(dd)", u[0], u[1]);
 }
 
@@ -1128,6 +1199,7 @@ static PyMethodDef Loop_methods[] = {
     {"stats", (PyCFunction)Loop_stats, METH_NOARGS, NULL},
     {"locator", (PyCFunction)Loop_locator, METH_NOARGS, NULL},
     {"counts", (PyCFunction)Loop_counts, METH_NOARGS, NULL},
+    {"raise_error", (PyCFunction)Loop_raise_error, METH_NOARGS, NULL},
     {"ended_scuff", (PyCFunction)Loop_ended_scuff, METH_NOARGS, NULL},
     {"replace_y", (PyCFunction)Loop_replace_y, METH_O, NULL},
     {"set_locator", (PyCFunction)Loop_set_locator, METH_VARARGS, NULL},
@@ -1142,8 +1214,19 @@ static PyMethodDef Loop_methods[] = {
     {NULL, NULL, 0, NULL},
 };
 
+static void
+Loop_dealloc(Loop *L)
+{
+    Py_XDECREF(L->callback);
+    Py_XDECREF(L->exc_type);
+    Py_XDECREF(L->exc_value);
+    Py_XDECREF(L->exc_tb);
+    Py_TYPE(L)->tp_free((PyObject *)L);
+}
+
 static PyTypeObject LoopType = {
     PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_dealloc = (destructor)Loop_dealloc,
     .tp_name = "biped_sim.engine._core.Loop",
     .tp_basicsize = sizeof(Loop),
     .tp_flags = Py_TPFLAGS_DEFAULT,

@@ -21,9 +21,10 @@ from biped_sim.engine import integrators
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.guards import FootState
 from biped_sim.engine.locator import scuff_event
+from biped_sim.engine.modes import bind_controller
 
-DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED = range(6)
-TORQUE_KINDS = {"held": 0, "pd_walking": 1, "walking": 2}
+DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED = range(7)
+TORQUE_KINDS = {"held": 0, "pd_walking": 1, "walking": 2, "callback": 3}
 
 
 def _compiled_core():
@@ -58,12 +59,19 @@ def torque_law(controller):
     return law() if callable(law) else None
 
 
+def _torque_in_mode(controller, stance_leg):
+    """The loop's torque law in a mode: compiled, or the controller called back from C through the same
+    checked call as the Python loop's (``modes.bind_controller``)."""
+    law = torque_law(controller)
+    return law if law is not None else ("callback", bind_controller(controller, stance_leg))
+
+
 def covers(sim, controller):
     """The torque law when the compiled loop can run the simulator's current mode, else None."""
     if (_core is None or not enabled or not sim.stance_leg or sim.opt.base != "floating"
             or sim.method not in METHOD_CODES or sim.on_step is not None):
         return None
-    return torque_law(controller)
+    return _torque_in_mode(controller, sim.stance_leg)
 
 
 def _step_failure(fail):
@@ -200,6 +208,8 @@ class CompiledStepper(integrators._ListRungeKutta):
             row = s._data[s.n - 1]
             sim.t, sim.work, sim._h = t, w, h_abs
             sim.q, sim.dq = row[1:6].copy(), row[6:11].copy()
+        if outcome == RAISED:     # the Python controller raised: after the steps accepted before it
+            self.loop.raise_error()
         if outcome == FAILED:
             raise _step_failure(fail)
         if outcome == SCUFF_ENDED:     # accepted in C; its report is made here, and the run goes on

@@ -122,6 +122,52 @@ def test_the_loop_steps_in_c():
     assert steps >= 150
 
 
+class UsersController:
+    """A user's own controller, in Python (numpy arrays in, a tuple out): the loop calls it back."""
+
+    def __init__(self, fail_at=None, bad_at=None):
+        self.pd = PDWalkingController(MODEL)
+        self.fail_at, self.bad_at, self.calls = fail_at, bad_at, 0
+
+    def __call__(self, t, q, dq, stance_leg):
+        self.calls += 1
+        if self.fail_at is not None and t > self.fail_at:
+            raise RuntimeError("my controller broke")
+        if self.bad_at is not None and t > self.bad_at:
+            return (float("nan"), 0.0)
+        u = self.pd(t, q.tolist(), dq.tolist(), stance_leg)
+        return (0.9 * u[0], 0.9 * u[1])
+
+
+@pytest.mark.parametrize("case", ["continuous", "held 1 ms", "raises", "returns NaN", "a plain function"])
+def test_a_users_python_controller_is_called_back_with_the_same_run(case):
+    kw = dict(fail_at=0.7) if case == "raises" else dict(bad_at=0.6) if case == "returns NaN" else {}
+    period = 1e-3 if case == "held 1 ms" else None
+
+    def run():
+        ctrl = UsersController(**kw)
+        if case == "a plain function":
+            pd = PDWalkingController(MODEL)
+            ctrl = lambda t, q, dq, leg: pd(t, q, dq, leg)   # noqa: E731
+        q0, dq0 = PDWalkingController(MODEL).initial_state()
+        return bs.simulate(MODEL, q0, dq0, 1.5, controller=ctrl, control_period=period)
+    a, b = both_loops(run)
+    assert_same_run(a, b, case)
+    if case in ("raises", "returns NaN"):
+        assert a.status == "failed" and "controller" in a.message, a.message
+    else:
+        assert a.status == "completed" and len(a.impacts) >= 2
+
+
+def test_a_python_controller_runs_inside_the_compiled_loop():
+    ctrl = UsersController()
+    q0, dq0 = ctrl.pd.initial_state()
+    sim = bs.HybridSimulator(MODEL, q0, dq0)
+    sim.advance(0.3, controller=ctrl)
+    assert isinstance(sim._stepper, compiled_loop.CompiledStepper)
+    assert sim._compiled.loop.stats()[0] > 10 and ctrl.calls > 100
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.floats(-0.05, 0.05), st.floats(-0.3, 0.3), st.floats(0.7, 1.3), st.floats(50.0, 400.0),
        st.sampled_from([None, 1e-3, 4e-3]), st.sampled_from(["dop853", "dopri5"]))
