@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from biped_sim.control.walking import WalkingController
+from biped_sim.engine import compiled_loop
 from biped_sim.engine.compiled import WHY_PYTHON
 from biped_sim.engine.integrators import FIXED_STEP_METHODS, METHODS
 from biped_sim.engine.model import BipedModel
@@ -143,6 +144,8 @@ def print_summary(result):
         ("status", result.status + (f" ({result.message})" if result.message else "")),
         ("method", s["method"]),
         ("generated code", "C (the compiled twin)" if s["generated_code"] == "C" else f"Python ({WHY_PYTHON})"),
+        ("hybrid loop", f"C for {s['compiled_loop_steps']} of {s['steps']} steps (the compiled loop)"
+         if compiled_loop.AVAILABLE else f"Python ({compiled_loop.WHY_NOT})"),
         ("simulated time", f"{s['simulated_time']:.6g} s"),
         ("wall time", f"{s['wall_time']:.4g} s"),
         ("real-time factor", f"{s['real_time_factor']:.3g}" if math.isfinite(s["real_time_factor"]) else "inf"),

@@ -152,6 +152,7 @@ class CompiledStepper(integrators._ListRungeKutta):
         """Add the loop's statistics since the last merge into the simulator's."""
         steps, drift, rate, residual = self.loop.stats()
         stats["steps"] += steps
+        stats["compiled_loop_steps"] += steps
         for key, v in (("max_constraint_drift_position", drift), ("max_constraint_drift_velocity", rate),
                        ("max_energy_balance_residual", residual)):
             if v > stats[key]:

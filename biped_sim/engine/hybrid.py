@@ -102,7 +102,7 @@ class HybridSimulator:
         self._initial_sample_pending = True    # the t0 sample, redone under the first advance's torque
         self.impacts = ImpactHistory(self.opt.zeno_count, self.opt.zeno_interval)
         self._mode_event_times: list[float] = []   # the events that changed the mode (not the scuffs)
-        self._stats = dict(steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
+        self._stats = dict(steps=0, compiled_loop_steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
                           max_constraint_drift_position=0.0, max_constraint_drift_velocity=0.0,
                           max_energy_balance_residual=0.0, pushes=0, scuffs_ignored=0, deepest_scuff=0.0, wall_time=0.0)
         self._nfev_base = 0

@@ -32,6 +32,7 @@ from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
 from biped_sim.config import parameters as P
+from biped_sim.engine import compiled_loop
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, WHY_PYTHON
 from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.recording.markers import MarkerStream
@@ -115,6 +116,8 @@ class SimNode(Node):
             f"outputs={sorted(out)}, phases={sorted(prm['phases'])}, base={prm['base']}, "
             f"method={self.sim.method}" + (" (auto)" if prm["method"] == "auto" else "")
             + f", generated code in {GENERATED_CODE}" + (f" ({WHY_PYTHON})" if WHY_PYTHON else "")
+            + (", hybrid loop in C" if compiled_loop.AVAILABLE
+               else f", hybrid loop in Python ({compiled_loop.WHY_NOT})")
             + (f", recording to {self.bag_path}" if self.recorder else ""))
 
     def _publisher(self, msg_type, topic):
