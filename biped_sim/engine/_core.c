@@ -982,6 +982,24 @@ Loop_ended_scuff(Loop *L, PyObject *unused)
                          list_of(L->ended_qdq, 5), list_of(L->ended_qdq + 5, 5));
 }
 
+/* locate_crossing(leg, ta, tb) -> the time foot leg's height crosses zero on the last step's dense output
+ * (guards.locate_crossing, by the same brentq), or None where brentq would raise */
+static PyObject *
+Loop_locate_crossing(Loop *L, PyObject *args)
+{
+    int leg;
+    double ta, tb, root;
+    if (!PyArg_ParseTuple(args, "idd", &leg, &ta, &tb)) return NULL;
+    if (leg != 1 && leg != 2) {
+        PyErr_SetString(PyExc_ValueError, "locate_crossing(): leg 1 or 2");
+        return NULL;
+    }
+    int rc = locate_crossing(L, leg, ta, tb, &root);
+    if (L->callback_failed) return raise_callback_error(L);
+    if (rc < 0) Py_RETURN_NONE;
+    return PyFloat_FromDouble(root);
+}
+
 /* raise_error(): raise the Python controller's exception that ended the last run (outcome RAISED) */
 static PyObject *
 Loop_raise_error(Loop *L, PyObject *unused)
@@ -1200,6 +1218,7 @@ static PyMethodDef Loop_methods[] = {
     {"locator", (PyCFunction)Loop_locator, METH_NOARGS, NULL},
     {"counts", (PyCFunction)Loop_counts, METH_NOARGS, NULL},
     {"raise_error", (PyCFunction)Loop_raise_error, METH_NOARGS, NULL},
+    {"locate_crossing", (PyCFunction)Loop_locate_crossing, METH_VARARGS, NULL},
     {"ended_scuff", (PyCFunction)Loop_ended_scuff, METH_NOARGS, NULL},
     {"replace_y", (PyCFunction)Loop_replace_y, METH_O, NULL},
     {"set_locator", (PyCFunction)Loop_set_locator, METH_VARARGS, NULL},

@@ -237,6 +237,11 @@ class CompiledStepper(integrators._ListRungeKutta):
             self._dense = cls(self.t_old, self.t, rows)
         return self._dense
 
+    def height_crossing(self, leg, ta, tb):
+        """Where foot ``leg``'s height crosses zero in [ta, tb] on the last step (``guards.locate_crossing``'s
+        brentq, run in C on the same dense output: the same root), or None to find it in Python."""
+        return self.loop.locate_crossing(leg, ta, tb)
+
     def dense_at(self, t):
         """The dense output at t, from C (the interpolant's own arithmetic: the same bits)."""
         return self.loop.dense_at(t)

@@ -113,7 +113,7 @@ class EventLocator:
                                       self.model.parameters.l_leg, self.ground.tan, g0, g1, self.opt.graze_tol)
             if bracket is None:
                 continue
-            t_root = G.locate_crossing(guard_at, *bracket, self.opt.event_tol)
+            t_root = self._crossing(st, guard, guard_at, bracket)
             if not self._is_scuff(st, to_phys, guard, stance_leg, t_root):
                 roots.append((t_root, guard))
         for leg in self._resting_feet_pushed_in(feet1, stance_leg):
@@ -121,7 +121,7 @@ class EventLocator:
             # and that the dynamics push into it: a touchdown from where it rests, not a crossing
             guard = G.Guard("touchdown", leg)
             guard_at = self._on_dense_output(st, to_phys, guard, force_at)
-            t_root = G.locate_crossing(guard_at, st.t_old, st.t, self.opt.event_tol)
+            t_root = self._crossing(st, guard, guard_at, (st.t_old, st.t))
             if not self._is_scuff(st, to_phys, guard, stance_leg, t_root):
                 roots.append((t_root, guard))
         t_end = min(roots)[0] if roots else st.t
@@ -142,6 +142,13 @@ class EventLocator:
                 if fo.dheight < 0 and fo.height <= -fo.dheight * self.opt.simultaneous_tol:
                     legs.append(other)
         return (t_first, guard, sorted(set(legs))), F1
+
+    def _crossing(self, st, guard, guard_at, bracket):
+        """The guard's crossing in the bracket (``guards.locate_crossing``); a touchdown's by the compiled
+        loop's stepper where it has one (the same algorithm on the same values)."""
+        crossing = getattr(st, "height_crossing", None) if guard.kind == "touchdown" else None
+        t_root = crossing(guard.leg, *bracket) if crossing is not None else None
+        return t_root if t_root is not None else G.locate_crossing(guard_at, *bracket, self.opt.event_tol)
 
     def _on_dense_output(self, st, to_phys, guard, force_at):
         """The guard as a function of time along the last step's dense output (for root finding)."""
