@@ -30,7 +30,7 @@
 
 enum { DOP853 = 0, DOPRI5 = 1 };
 enum { HELD = 0, PD_WALKING = 1, WALKING = 2, CALLBACK = 3 };
-enum { DONE = 0, PENDING = 1, GROW = 2, FAILED = 3, PYTHON_STEPS = 4, SCUFF_ENDED = 5, RAISED = 6 };
+enum { DONE = 0, PENDING = 1, GROW = 2, FAILED = 3, PYTHON_STEPS = 4, SCUFF_ENDED = 5, RAISED = 6, TOUCHDOWN = 7 };
 enum { FAIL_NONE = 0, FAIL_STEP_SIZE = 1, FAIL_NON_FINITE = 2, FAIL_CALLBACK = 3 };
 
 typedef struct { double x, height, dx, dheight; } Foot;
@@ -41,8 +41,20 @@ typedef struct {
     double k_stance[KMAX], k_feet[KMAX], k_pos[KMAX], k_energy[KMAX], k_terms[KMAX], l_leg;
     /* options */
     double rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu, front_tol, scuff_depth;
-    double event_tol;
-    int front_rule;          /* touchdown_rule "front": a touchdown behind the stance foot is a scuff */
+    double event_tol, zeno_interval, impulse_tol, contact_tol;
+    long max_events;
+    int front_rule, compute_grf;
+    /* the impact map, the Python code's own (dynamics.impact_map_fast), called back: f(q, dq_minus, leg) ->
+     * (dq_plus, impulse) as lists */
+    PyObject *impact_fn;
+    /* the history the Python code checks an impact against: the last impact's time, the mode events so
+     * far and the times of the last 49 (HybridSimulator._mode_event_times), in a ring */
+    double last_impact, ring[49];
+    long n_impacts, mode_events;
+    /* the touchdown applied in the last run, for the Python code's Event: t, old leg, new leg, q, dq-,
+     * dq+, impulse, energy loss, energy lost so far */
+    double td[1 + 5 + 5 + 5 + 2 + 2];
+    int td_old, td_new;          /* touchdown_rule "front": a touchdown behind the stance foot is a scuff */
     double sin_s, cos_s, tan_s;
     int has_mu, stop_on_slip, project, check_invariants, impact_phase;
     double to_power_basis[64];
@@ -185,6 +197,7 @@ walking(const Loop *L, const double *q, const double *dq, double *u)
 }
 
 static PyObject *list_of(const double *v, Py_ssize_t n);
+static int doubles(PyObject *seq, double *out, Py_ssize_t lo, Py_ssize_t hi, const char *what, Py_ssize_t *n_out);
 
 static void
 call_back(Loop *L, double t, const double *q, const double *dq, double *u)
@@ -563,6 +576,106 @@ track_scuff(Loop *L, int leg, double *scuff, double *deepest)
     return ft[4 * (leg - 1) + 1] > 0.0;
 }
 
+/* HybridSimulator._integrate's event branch for a touchdown in front at t_ev, then _reset's: the event's
+ * sample (_accept), the impact map (the Python code's, called back), relabeling, the sample after it,
+ * the next mode's start. Whatever the Python code would report or act on (a warning of the impact, an
+ * invariant of check_impact, a possible Zeno stop, max_events, an event loop, a new stance that the
+ * ground pulls or that slips at once, a Python controller) hands the step back instead: 0. Else 3,
+ * two samples in rows (34 values), residual_out the larger |residual|, the record in td. */
+static int
+touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, double energy_lost, double *residual_out)
+{
+    int old = L->leg, nw = 3 - L->leg;
+    if (L->controller == CALLBACK || L->impact_fn == NULL) { L->why = 13; return 0; }
+    if (L->n_impacts > 0 && t_ev - L->last_impact < L->zeno_interval) { L->why = 14; return 0; }
+    if (L->mode_events + 1 >= L->max_events) { L->why = 15; return 0; }
+    if (L->mode_events >= 49 && t_ev - L->ring[L->mode_events % 49] < 1e-9) { L->why = 16; return 0; }
+    double y[N], ue[2], Fe[2] = {0.0, 0.0}, out[7], TVm[2], TVp[2], dqp[5], imp[2];
+    for (int j = 0; j < N; j++) y[j] = dense_at(L, j, t_ev);
+    double *q = y, *dqm = y + 5, w = y[10];
+    torque(L, t_ev, q, dqm, ue);
+    if (L->compute_grf) {
+        stance(L, q, dqm, ue, out);
+        Fe[0] = out[5]; Fe[1] = out[6];
+    }
+    if (L->callback_failed) { L->why = 12; return 0; }
+    PyObject *ql = list_of(q, 5), *dql = list_of(dqm, 5), *r = NULL;
+    if (ql && dql) r = PyObject_CallFunction(L->impact_fn, "OOi", ql, dql, nw);
+    Py_XDECREF(ql);
+    Py_XDECREF(dql);
+    int ok = r != NULL && PyTuple_Check(r) && PyTuple_GET_SIZE(r) == 2
+             && !doubles(PyTuple_GET_ITEM(r, 0), dqp, 5, 5, "dq_plus", NULL)
+             && !doubles(PyTuple_GET_ITEM(r, 1), imp, 2, 2, "impulse", NULL);
+    Py_XDECREF(r);
+    if (!ok) {          /* the Python code will meet the same failure and report it */
+        PyErr_Clear();
+        L->why = 17;
+        return 0;
+    }
+    k_energy(q, dqm, L->k_energy, TVm);
+    k_energy(q, dqp, L->k_energy, TVp);
+    double loss = (TVm[0] + TVm[1]) - (TVp[0] + TVp[1]);
+    /* resets.impact_warnings and invariants.check_impact */
+    double fa[8];
+    feet(L, q, dqp, fa);
+    double n_imp = imp[0] * L->sin_s + imp[1] * L->cos_s, tg_imp = imp[0] * L->cos_s - imp[1] * L->sin_s;
+    if (fa[4 * (old - 1) + 3] < 0) { L->why = 18; return 0; }
+    if (n_imp < 0 || (L->has_mu && fabs(tg_imp) > L->mu * n_imp)) { L->why = 19; return 0; }
+    if (L->check_invariants && fa[4 * (old - 1) + 3] < L->contact_tol) { L->why = 20; return 0; }
+    /* the new stance (_check_stance_start): the ground must push, inside the friction cone */
+    double up[2], Fp[2];
+    L->leg = nw;
+    torque(L, t_ev, q, dqp, up);
+    stance(L, q, dqp, up, out);
+    L->leg = old;
+    Fp[0] = out[5]; Fp[1] = out[6];
+    if (normal(L, Fp) < 0.0 || (L->has_mu && slip_margin(L, Fp) < 0.0)) { L->why = 21; return 0; }
+    /* applied */
+    double lost = energy_lost + loss;
+    double res_e = TVm[0] + TVm[1] - E0 - w - push_work + energy_lost;
+    double res_p = TVp[0] + TVp[1] - E0 - w - push_work + lost;
+    rows[0] = t_ev;
+    for (int i = 0; i < 5; i++) { rows[1 + i] = q[i]; rows[6 + i] = dqm[i]; }
+    rows[11] = old;
+    rows[12] = Fe[0]; rows[13] = Fe[1]; rows[14] = ue[0]; rows[15] = ue[1]; rows[16] = res_e;
+    rows[17] = t_ev;
+    for (int i = 0; i < 5; i++) { rows[18 + i] = q[i]; rows[23 + i] = dqp[i]; }
+    rows[28] = nw;
+    rows[29] = Fp[0]; rows[30] = Fp[1]; rows[31] = up[0]; rows[32] = up[1]; rows[33] = res_p;
+    *residual_out = fabs(res_e) > fabs(res_p) ? res_e : res_p;
+    L->td[0] = t_ev;
+    memcpy(L->td + 1, q, 5 * sizeof(double));
+    memcpy(L->td + 6, dqm, 5 * sizeof(double));
+    memcpy(L->td + 11, dqp, 5 * sizeof(double));
+    memcpy(L->td + 16, imp, 2 * sizeof(double));
+    L->td[18] = loss;
+    L->td[19] = lost;
+    L->td_old = old;
+    L->td_new = nw;
+    double p[4];
+    k_foot_positions(q, L->k_pos, p);
+    L->pin[0] = p[2 * nw - 2];
+    L->pin[1] = p[2 * nw - 1];
+    L->leg = nw;
+    L->armed[0] = L->armed[1] = 0;
+    L->locator_changed = 1;
+    L->last_impact = t_ev;
+    L->n_impacts++;
+    L->ring[L->mode_events % 49] = t_ev;
+    L->mode_events++;
+    /* the next mode's start (begin): f at the state after the impact, the step size carried over */
+    memcpy(L->y, q, 5 * sizeof(double));
+    memcpy(L->y + 5, dqp, 5 * sizeof(double));
+    L->y[10] = w;
+    L->t = L->t_old = t_ev;
+    memcpy(L->y_old, L->y, sizeof L->y);
+    L->h_abs = L->max_step < L->h_abs ? L->max_step : L->h_abs;
+    rhs(L, t_ev, L->y, L->f);
+    L->nfev += 1;
+    L->dense_ready = 0;
+    return 3;
+}
+
 /* The body of HybridSimulator._integrate for the step just taken, when nothing happens in it but a
  * scuff (its start, its end): 1 and the step accepted (sample written to row, state projected), 2 the
  * same and a scuff ended in it (its Event is the Python code's to make: ended_*), or 0 (pending:
@@ -595,6 +708,8 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     int scuffing = L->scuff_leg == sw;
     double scuff[3] = {L->scuff[0], L->scuff[1], L->scuff[2]}, deepest = L->deepest_scuff;
     long scuffs = L->scuffs;
+    int touching = 0;
+    double t_touch = 0.0;
     /* EventLocator.locate: the guards of stance, in active_guards' order */
     if (L->impact_phase && L->armed[sw - 1]) {
         double g1 = ft1[4 * (sw - 1) + 1], g0 = ft0[4 * (sw - 1) + 1], bracket[2] = {L->t_old, L->t}, t_root;
@@ -605,11 +720,15 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
             double qd[10], fr[8];
             for (int j = 0; j < 10; j++) qd[j] = dense_at(L, j, t_root);
             feet(L, qd, qd + 5, fr);
-            if (fr[4 * (sw - 1)] > fr[4 * (st - 1)] + L->front_tol) { L->why = 3; return 0; }
-            scuffs++;
-            scuffing = 1;
-            scuff[0] = scuff[2] = t_root;
-            scuff[1] = 0.0;
+            if (fr[4 * (sw - 1)] > fr[4 * (st - 1)] + L->front_tol) {
+                touching = 1;         /* a touchdown: applied below if nothing else happens in the step */
+                t_touch = t_root;
+            } else {
+                scuffs++;
+                scuffing = 1;
+                scuff[0] = scuff[2] = t_root;
+                scuff[1] = 0.0;
+            }
         }
     }
     {
@@ -619,6 +738,15 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     if (L->has_mu) {
         double g1 = slip_margin(L, F1), g0 = slip_margin(L, F0);
         if (g0 > 0 && g1 <= 0) { L->why = 5; return 0; }
+    }
+    if (touching) {
+        if (scuffing) { L->why = 3; return 0; }
+        /* the locator's cache is of the step's end (EventLocator.locate sets it before it looks) */
+        L->cache_ok = 1;
+        L->cache_t = L->t;
+        memcpy(L->cache_feet, ft1, sizeof ft1);
+        L->cache_F[0] = F1[0]; L->cache_F[1] = F1[1];
+        return touchdown(L, t_touch, row, E0, push_work, energy_lost, residual_out);
     }
     /* a resting free foot pushed into the ground (_resting_feet_pushed_in) */
     if (L->impact_phase && !L->armed[sw - 1] && !scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) { L->why = 6; return 0; }
@@ -769,6 +897,44 @@ Loop_set_options(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
+/* set_events(impact_map, compute_grf, zeno_interval, impulse_tol, contact_tol, max_events) */
+static PyObject *
+Loop_set_events(Loop *L, PyObject *args)
+{
+    PyObject *fn;
+    if (!PyArg_ParseTuple(args, "Opdddl", &fn, &L->compute_grf, &L->zeno_interval, &L->impulse_tol, &L->contact_tol,
+                          &L->max_events))
+        return NULL;
+    Py_INCREF(fn);
+    Py_XSETREF(L->impact_fn, fn);
+    Py_RETURN_NONE;
+}
+
+/* set_history(last impact time or None, mode events so far, the times of the last 49 (a list)) */
+static PyObject *
+Loop_set_history(Loop *L, PyObject *args)
+{
+    PyObject *last, *times;
+    Py_ssize_t n;
+    double v[49];
+    if (!PyArg_ParseTuple(args, "OlO", &last, &L->mode_events, &times) || doubles(times, v, 0, 49, "times", &n))
+        return NULL;
+    L->n_impacts = last != Py_None;
+    L->last_impact = last != Py_None ? PyFloat_AsDouble(last) : 0.0;
+    if (PyErr_Occurred()) return NULL;
+    for (Py_ssize_t i = 0; i < n; i++) L->ring[(L->mode_events - n + i) % 49] = v[i];
+    Py_RETURN_NONE;
+}
+
+/* touchdown_record() -> (t, old leg, new leg, q, dq-, dq+, impulse, energy loss, energy lost so far, pin) */
+static PyObject *
+Loop_touchdown_record(Loop *L, PyObject *unused)
+{
+    (void)unused;
+    return Py_BuildValue("(diiNNNNdd(dd))", L->td[0], L->td_old, L->td_new, list_of(L->td + 1, 5), list_of(L->td + 6, 5),
+                         list_of(L->td + 11, 5), list_of(L->td + 16, 2), L->td[18], L->td[19], L->pin[0], L->pin[1]);
+}
+
 /* set_mode(method, stance_leg, pin_x, pin_y) */
 static PyObject *
 Loop_set_mode(Loop *L, PyObject *args)
@@ -871,7 +1037,7 @@ run_quiet(Loop *L, PyObject *const *args)
     long accepted = 0;
     L->locator_changed = 0;
     while (L->t < t_end) {
-        if (!last_only && n == cap) {
+        if (!last_only && n + 2 > cap) {
             outcome = GROW;
             break;
         }
@@ -879,10 +1045,29 @@ run_quiet(Loop *L, PyObject *const *args)
             outcome = FAILED;
             break;
         }
-        double drift, rate, residual, row[17];
+        double drift = 0.0, rate = 0.0, residual, row[34];
         int accepted_how = quiet_step(L, row, E0, push_work, energy_lost, &drift, &rate, &residual);
         if (!accepted_how) {
             outcome = PENDING;
+            break;
+        }
+        if (accepted_how == 3) {
+            /* the event's sample (kept: _reset's keep_last), then the one after the impact (kept) */
+            long at = last_only ? 0 : provisional ? n - 1 : n;
+            memcpy(data + 17 * at, row, 17 * sizeof(double));
+            n = at + 1;
+            at = last_only ? 0 : n;
+            memcpy(data + 17 * at, row + 17, 17 * sizeof(double));
+            n = at + 1;
+            appended += 2;
+            provisional = 0;
+            t_accepted = L->t;
+            w_accepted = L->y[10];
+            h_accepted = L->h_abs;
+            accepted++;
+            residual = fabs(residual);
+            L->max_residual = residual > L->max_residual ? residual : L->max_residual;
+            outcome = TOUCHDOWN;
             break;
         }
         if (accepted_how == 2) {
@@ -891,7 +1076,7 @@ run_quiet(Loop *L, PyObject *const *args)
             outcome = SCUFF_ENDED;
         }
         long at = last_only ? 0 : provisional ? n - 1 : n;
-        memcpy(data + 17 * at, row, sizeof row);
+        memcpy(data + 17 * at, row, 17 * sizeof(double));
         n = at + 1;
         t_accepted = L->t;
         w_accepted = L->y[10];
@@ -1217,6 +1402,9 @@ static PyMethodDef Loop_methods[] = {
     {"stats", (PyCFunction)Loop_stats, METH_NOARGS, NULL},
     {"locator", (PyCFunction)Loop_locator, METH_NOARGS, NULL},
     {"counts", (PyCFunction)Loop_counts, METH_NOARGS, NULL},
+    {"set_events", (PyCFunction)Loop_set_events, METH_VARARGS, NULL},
+    {"set_history", (PyCFunction)Loop_set_history, METH_VARARGS, NULL},
+    {"touchdown_record", (PyCFunction)Loop_touchdown_record, METH_NOARGS, NULL},
     {"raise_error", (PyCFunction)Loop_raise_error, METH_NOARGS, NULL},
     {"locate_crossing", (PyCFunction)Loop_locate_crossing, METH_VARARGS, NULL},
     {"ended_scuff", (PyCFunction)Loop_ended_scuff, METH_NOARGS, NULL},
@@ -1237,6 +1425,7 @@ static void
 Loop_dealloc(Loop *L)
 {
     Py_XDECREF(L->callback);
+    Py_XDECREF(L->impact_fn);
     Py_XDECREF(L->exc_type);
     Py_XDECREF(L->exc_value);
     Py_XDECREF(L->exc_tb);

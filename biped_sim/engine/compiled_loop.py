@@ -19,11 +19,13 @@ import numpy as np
 
 from biped_sim.engine import integrators
 from biped_sim.engine.compiled import _compiled_twin
+from biped_sim.engine.dynamics import impact_map_fast
 from biped_sim.engine.guards import FootState
 from biped_sim.engine.locator import scuff_event
 from biped_sim.engine.modes import bind_controller
+from biped_sim.engine.results import Event
 
-DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED = range(7)
+DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED, TOUCHDOWN = range(8)
 TORQUE_KINDS = {"held": 0, "pd_walking": 1, "walking": 2, "callback": 3}
 
 
@@ -98,6 +100,13 @@ class CompiledStepper(integrators._ListRungeKutta):
                               opt.check_invariants, "impact" in opt.phases, opt.slope,
                               integrators._DOP853Interpolant.TO_POWER_BASIS.ravel().tolist(), opt.front_tol,
                               opt.scuff_depth, opt.event_tol, opt.touchdown_rule == "front")
+        model = sim.model
+
+        def impact(q, dq_minus, leg):   # the Python code's impact map, for the loop to call back
+            dq_plus, impulse = impact_map_fast(model, np.array(q), np.array(dq_minus), leg)
+            return dq_plus.tolist(), impulse.tolist()
+        self.loop.set_events(impact, opt.compute_grf, opt.zeno_interval, opt.impulse_tol, opt.contact_tol,
+                             opt.max_events)
         self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
         self.method, self.method_code = sim.method, METHOD_CODES[sim.method]
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
@@ -140,6 +149,9 @@ class CompiledStepper(integrators._ListRungeKutta):
         self.loop.set_locator(locator.armed[0], locator.armed[1], t_feet if same else None,
                               [v for foot in ft for v in foot] if same else None, F if same else None, leg, scuff,
                               locator.deepest_scuff, locator.scuffs)
+        sim = self.sim
+        self.loop.set_history(sim.impacts.times[-1] if sim.impacts.times else None, len(sim._mode_event_times),
+                              sim._mode_event_times[-49:])
         self.locator_stale = False
 
     def pull_locator(self, locator):
@@ -213,6 +225,14 @@ class CompiledStepper(integrators._ListRungeKutta):
             self.loop.raise_error()
         if outcome == FAILED:
             raise _step_failure(fail)
+        if outcome == TOUCHDOWN:       # applied in C: its Event and the simulator's mode, and the run goes on
+            t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, sim.energy_lost, pin = self.loop.touchdown_record()
+            sim.stance_leg, sim.pin = new, list(pin)
+            sim._stats["impacts"] += 1
+            sim._add_event(Event(t_ev, "touchdown", new, np.array(q), np.array(dq_minus), np.array(dq_plus),
+                                 np.array(impulse), old, new, loss, []))
+            sim.impacts.record(t_ev)   # no Zeno stop: the loop hands back an impact that could make one
+            return self.run(sim, t_end)
         if outcome == SCUFF_ENDED:     # accepted in C; its report is made here, and the run goes on
             leg, scuff, t_up, q, dq = self.loop.ended_scuff()
             sim._add_event(scuff_event(leg, sim.stance_leg, scuff, t_up, q, dq, sim.opt.scuff_depth))
