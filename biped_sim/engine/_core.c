@@ -1376,6 +1376,29 @@ Loop_counters(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
+/* law_torque(kind, ctrl) -> (u1, u2): a compiled law's torque at the loop's current state and stance leg
+ * (the command of a control period); the law is not kept (a held period follows) */
+static PyObject *
+Loop_law_torque(Loop *L, PyObject *args)
+{
+    int kind;
+    PyObject *ctrl;
+    double u[2], keep[8];
+    if (!PyArg_ParseTuple(args, "iO", &kind, &ctrl)) return NULL;
+    if (kind != PD_WALKING && kind != WALKING) {
+        PyErr_SetString(PyExc_ValueError, "law_torque(): a compiled law (1 or 2)");
+        return NULL;
+    }
+    int was = L->controller;
+    memcpy(keep, L->ctrl, sizeof keep);
+    if (doubles(ctrl, L->ctrl, 8, 8, "ctrl", NULL)) return NULL;
+    L->controller = kind;
+    torque(L, L->t, L->y, L->y + 5, u);
+    L->controller = was;
+    memcpy(L->ctrl, keep, sizeof keep);
+    return Py_BuildValue("[dd]", u[0], u[1]);
+}
+
 static PyObject *
 Loop_torque(Loop *L, PyObject *args)
 {   /* the compiled controller's torque at (q, dq), to compare with the Python one */
@@ -1418,6 +1441,7 @@ static PyMethodDef Loop_methods[] = {
     {"armed", (PyCFunction)Loop_armed, METH_NOARGS, NULL},
     {"set_counters", (PyCFunction)Loop_counters, METH_VARARGS, NULL},
     {"torque", (PyCFunction)Loop_torque, METH_VARARGS, NULL},
+    {"law_torque", (PyCFunction)Loop_law_torque, METH_VARARGS, NULL},
     {NULL, NULL, 0, NULL},
 };
 

@@ -198,6 +198,16 @@ class CompiledStepper(integrators._ListRungeKutta):
             s.grow()
         return self._after_run(sim, t_end, outcome, accepted, t, w, h_abs, changed, fail)
 
+    def command(self, sim, controller):
+        """The control period's command of a compiled law at the simulator's state, computed in C (the
+        law's own torques bit for bit), or None where the Python controller must be called."""
+        if self.state_stale or sim._stepper is not self:
+            return None
+        law = torque_law(controller)
+        if law is None or law[0] == "held":
+            return None
+        return self.loop.law_torque(TORQUE_KINDS[law[0]], law[1])
+
     def held_period(self, sim, t_end):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""

@@ -196,7 +196,10 @@ class HybridSimulator:
             t_next = t_final          # the last period ends exactly at the run's end
         self.control_periods = k + 1
         if controller is not None:
-            u = self.command(controller)
+            # a reference law on the compiled loop: its torque computed in C, the same bits
+            u = self._compiled.command(self, controller) if self._compiled is not None else None
+            if u is None:
+                u = self.command(controller)
             if u is None:
                 return self.events[-1:]
         return self.advance(t_next, u=u)

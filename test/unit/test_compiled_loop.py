@@ -120,6 +120,9 @@ def test_the_loop_steps_in_c():
     assert isinstance(sim._stepper, compiled_loop.CompiledStepper)
     steps, *_ = sim._compiled.loop.stats()
     assert steps >= 150
+    # a control period's command of a reference law is computed in C, with the law's own torque
+    u = sim._compiled.command(sim, ctrl)
+    assert u is not None and np.array(u).tobytes() == np.array(sim.command(ctrl), dtype=float).tobytes()
 
 
 class UsersController:
