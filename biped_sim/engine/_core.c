@@ -1018,83 +1018,172 @@ Loop_step(Loop *L, PyObject *unused)
  *     failure)
  * Quiet steps until t_end: DONE, PENDING (a step taken, for Python to handle), GROW (the sample
  * buffer is full), FAILED (the step failed: failure = (kind, value, t)). */
+typedef struct {
+    double E0, push_work, energy_lost;
+    double *data;
+    long cap, n, appended, every, accepted;
+    int provisional, last_only;
+    double t_accepted, w_accepted, h_accepted;   /* the last accepted step's */
+} RunState;
+
+/* The quiet steps to t_end (the loop of HybridSimulator._integrate), writing samples as Samples.append
+ * does: DONE, PENDING, GROW, FAILED, SCUFF_ENDED or TOUCHDOWN (both accepted: the Python code reports
+ * them, then calls again) */
+static int
+quiet_until(Loop *L, double t_end, RunState *rs)
+{
+    int outcome = DONE;
+    while (L->t < t_end) {
+        if (!rs->last_only && rs->n + 2 > rs->cap) return GROW;
+        if (step(L) < 0) return FAILED;
+        double drift = 0.0, rate = 0.0, residual, row[34];
+        int accepted_how = quiet_step(L, row, rs->E0, rs->push_work, rs->energy_lost, &drift, &rate, &residual);
+        if (!accepted_how) return PENDING;
+        long at = rs->last_only ? 0 : rs->provisional ? rs->n - 1 : rs->n;
+        if (accepted_how == 3) {
+            /* the event's sample (kept: _reset's keep_last), then the one after the impact (kept) */
+            memcpy(rs->data + 17 * at, row, 17 * sizeof(double));
+            rs->n = at + 1;
+            at = rs->last_only ? 0 : rs->n;
+            memcpy(rs->data + 17 * at, row + 17, 17 * sizeof(double));
+            rs->n = at + 1;
+            rs->appended += 2;
+            rs->provisional = 0;
+            outcome = TOUCHDOWN;
+        } else {
+            if (accepted_how == 2) {
+                /* the scuff's Event comes before this step's sample (HybridSimulator._push_event: keep_last) */
+                rs->provisional = 0;
+                at = rs->last_only ? 0 : rs->n;
+                outcome = SCUFF_ENDED;
+            }
+            memcpy(rs->data + 17 * at, row, 17 * sizeof(double));
+            rs->n = at + 1;
+            rs->appended += 1;
+            rs->provisional = rs->appended > 1 && (!rs->every || (rs->appended - 1) % rs->every != 0);
+            L->max_drift = drift > L->max_drift ? drift : L->max_drift;
+            L->max_rate = rate > L->max_rate ? rate : L->max_rate;
+        }
+        rs->t_accepted = L->t;
+        rs->w_accepted = L->y[10];
+        rs->h_accepted = L->h_abs;
+        rs->accepted++;
+        L->steps += 1;
+        residual = fabs(residual);
+        L->max_residual = residual > L->max_residual ? residual : L->max_residual;
+        if (outcome != DONE) return outcome;
+    }
+    return DONE;
+}
+
+/* the run arguments (t_end, E0, push_work, energy_lost, data, n, appended, provisional, every, keep_last_only)
+ * from args[1:10] into rs; 0, or -1 with an exception */
+static int
+run_state(Loop *L, PyObject *const *args, RunState *rs, Py_buffer *buf)
+{
+    rs->E0 = PyFloat_AsDouble(args[1]);
+    rs->push_work = PyFloat_AsDouble(args[2]);
+    rs->energy_lost = PyFloat_AsDouble(args[3]);
+    rs->n = PyLong_AsLong(args[5]);
+    rs->appended = PyLong_AsLong(args[6]);
+    rs->provisional = PyObject_IsTrue(args[7]);
+    rs->every = PyLong_AsLong(args[8]);
+    rs->last_only = PyObject_IsTrue(args[9]);
+    if (PyErr_Occurred()) return -1;
+    if (PyObject_GetBuffer(args[4], buf, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0) return -1;
+    rs->data = buf->buf;
+    rs->cap = (long)(buf->len / (Py_ssize_t)(17 * sizeof(double)));
+    rs->accepted = 0;
+    rs->t_accepted = L->t_old;
+    rs->w_accepted = 0.0;
+    rs->h_accepted = L->h_abs;
+    L->locator_changed = 0;
+    return 0;
+}
+
+static PyObject *
+run_result(Loop *L, int outcome, RunState *rs, Py_buffer *buf)
+{
+    PyBuffer_Release(buf);
+    if (L->callback_failed) outcome = RAISED;     /* the caller takes the accepted steps, then raise_error() */
+    return Py_BuildValue("(illildddiN)", outcome, rs->n, rs->appended, rs->provisional, rs->accepted, rs->t_accepted,
+                         rs->w_accepted, rs->h_accepted, L->locator_changed,
+                         outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
+}
+
+/* run(t_end, E0, push_work, energy_lost, data, n, appended, provisional, every, keep_last_only)
+ * -> (outcome, n, appended, provisional, accepted steps, and the last one's t, work and h_abs, locator_changed,
+ *     failure) */
 static PyObject *
 run_quiet(Loop *L, PyObject *const *args)
 {
-    double t_end = PyFloat_AsDouble(args[0]), E0 = PyFloat_AsDouble(args[1]);
-    double push_work = PyFloat_AsDouble(args[2]), energy_lost = PyFloat_AsDouble(args[3]);
-    long n = PyLong_AsLong(args[5]), appended = PyLong_AsLong(args[6]);
-    int provisional = PyObject_IsTrue(args[7]);
-    long every = PyLong_AsLong(args[8]);
-    int last_only = PyObject_IsTrue(args[9]);
-    if (PyErr_Occurred()) return NULL;
+    RunState rs;
     Py_buffer buf;
-    if (PyObject_GetBuffer(args[4], &buf, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0) return NULL;
-    double *data = buf.buf;
-    long cap = (long)(buf.len / (Py_ssize_t)(17 * sizeof(double)));
-    int outcome = DONE;
-    double t_accepted = L->t_old, w_accepted = 0.0, h_accepted = L->h_abs;   /* the last accepted step's */
-    long accepted = 0;
-    L->locator_changed = 0;
-    while (L->t < t_end) {
-        if (!last_only && n + 2 > cap) {
-            outcome = GROW;
-            break;
-        }
-        if (step(L) < 0) {
-            outcome = FAILED;
-            break;
-        }
-        double drift = 0.0, rate = 0.0, residual, row[34];
-        int accepted_how = quiet_step(L, row, E0, push_work, energy_lost, &drift, &rate, &residual);
-        if (!accepted_how) {
-            outcome = PENDING;
-            break;
-        }
-        if (accepted_how == 3) {
-            /* the event's sample (kept: _reset's keep_last), then the one after the impact (kept) */
-            long at = last_only ? 0 : provisional ? n - 1 : n;
-            memcpy(data + 17 * at, row, 17 * sizeof(double));
-            n = at + 1;
-            at = last_only ? 0 : n;
-            memcpy(data + 17 * at, row + 17, 17 * sizeof(double));
-            n = at + 1;
-            appended += 2;
-            provisional = 0;
-            t_accepted = L->t;
-            w_accepted = L->y[10];
-            h_accepted = L->h_abs;
-            accepted++;
-            residual = fabs(residual);
-            L->max_residual = residual > L->max_residual ? residual : L->max_residual;
-            outcome = TOUCHDOWN;
-            break;
-        }
-        if (accepted_how == 2) {
-            /* the scuff's Event comes before this step's sample (HybridSimulator._push_event: keep_last) */
-            provisional = 0;
-            outcome = SCUFF_ENDED;
-        }
-        long at = last_only ? 0 : provisional ? n - 1 : n;
-        memcpy(data + 17 * at, row, 17 * sizeof(double));
-        n = at + 1;
-        t_accepted = L->t;
-        w_accepted = L->y[10];
-        h_accepted = L->h_abs;
-        accepted++;
-        appended += 1;
-        provisional = appended > 1 && (!every || (appended - 1) % every != 0);
-        L->steps += 1;
-        L->max_drift = drift > L->max_drift ? drift : L->max_drift;
-        L->max_rate = rate > L->max_rate ? rate : L->max_rate;
-        residual = fabs(residual);
-        L->max_residual = residual > L->max_residual ? residual : L->max_residual;
-        if (outcome == SCUFF_ENDED) break;
+    double t_end = PyFloat_AsDouble(args[0]);
+    if (PyErr_Occurred() || run_state(L, args, &rs, &buf) < 0) return NULL;
+    return run_result(L, quiet_until(L, t_end, &rs), &rs, &buf);
+}
+
+/* the start of a control period under a held torque (begin() in the same mode) */
+static void
+hold(Loop *L, double u0, double u1, double t_bound)
+{
+    L->controller = HELD;
+    L->u_hold[0] = u0;
+    L->u_hold[1] = u1;
+    L->t_old = L->t;
+    memcpy(L->y_old, L->y, sizeof L->y);
+    L->t_bound = t_bound;
+    rhs(L, L->t, L->y, L->f);
+    L->nfev += 1;
+    L->dense_ready = 0;
+}
+
+/* periods(kind, ctrl, period, control_periods, t_final, t_stop, <the 10 arguments of run>)
+ * -> (<run's result>, control_periods, t_next, u1, u2): control periods of a compiled law held (as
+ * HybridSimulator.advance_period computes them, the command at each period's start) until t_final, or
+ * the first period boundary at or after t_stop - 1e-9 period (a push due), or a run outcome the Python
+ * code must see (then mid-period: its end t_next and its torque come back) */
+static PyObject *
+Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 16) {
+        PyErr_SetString(PyExc_TypeError, "periods() takes 16 arguments");
+        return NULL;
     }
-    PyBuffer_Release(&buf);
-    if (L->callback_failed) outcome = RAISED;     /* the caller takes the accepted steps, then raise_error() */
-    return Py_BuildValue("(illildddiN)", outcome, n, appended, provisional, accepted, t_accepted, w_accepted,
-                         h_accepted, L->locator_changed, outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
+    int kind = (int)PyLong_AsLong(args[0]);
+    double period = PyFloat_AsDouble(args[2]), t_final = PyFloat_AsDouble(args[4]), t_stop = PyFloat_AsDouble(args[5]);
+    long k0 = PyLong_AsLong(args[3]);
+    if (PyErr_Occurred()) return NULL;
+    if (kind != PD_WALKING && kind != WALKING) {
+        PyErr_SetString(PyExc_ValueError, "periods(): a compiled law (1 or 2)");
+        return NULL;
+    }
+    double ctrl[8];
+    if (doubles(args[1], ctrl, 8, 8, "ctrl", NULL)) return NULL;
+    RunState rs;
+    Py_buffer buf;
+    if (run_state(L, args + 6, &rs, &buf) < 0) return NULL;
+    int outcome = DONE;
+    long k = k0;
+    double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, tol = 1e-9 * period;
+    while (L->t < t_final && t_stop > L->t + tol) {
+        k = k0;
+        while ((k + 1) * period <= L->t) k++;
+        t_next = (k + 1) * period;
+        if (t_final > 0 && t_next >= t_final - 1e-9 * period) t_next = t_final;
+        k0 = k + 1;
+        memcpy(L->ctrl, ctrl, sizeof ctrl);
+        L->controller = kind;
+        torque(L, L->t, L->y, L->y + 5, u);
+        L->h_abs = L->max_step < L->h_abs ? L->max_step : L->h_abs;     /* as begin() carries it over */
+        hold(L, u[0], u[1], t_next);
+        outcome = quiet_until(L, t_next, &rs);
+        if (outcome != DONE) break;
+    }
+    PyObject *r = run_result(L, outcome, &rs, &buf);
+    if (r == NULL) return NULL;
+    return Py_BuildValue("(Nld(dd))", r, k0, t_next, u[0], u[1]);
 }
 
 static PyObject *
@@ -1124,15 +1213,7 @@ Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         if (h == -1.0 && PyErr_Occurred()) return NULL;
         L->h_abs = L->max_step < h ? L->max_step : h;
     }
-    L->controller = HELD;
-    L->u_hold[0] = u0;
-    L->u_hold[1] = u1;
-    L->t_old = L->t;
-    memcpy(L->y_old, L->y, sizeof L->y);
-    L->t_bound = t_bound;
-    rhs(L, L->t, L->y, L->f);
-    L->nfev += 1;
-    L->dense_ready = 0;
+    hold(L, u0, u1, t_bound);
     if (L->callback_failed) return raise_callback_error(L);
     return run_quiet(L, args + 3);
 }
@@ -1422,6 +1503,7 @@ static PyMethodDef Loop_methods[] = {
     {"run", (PyCFunction)(void (*)(void))Loop_run, METH_FASTCALL, NULL},
     {"begin", (PyCFunction)(void (*)(void))Loop_begin, METH_FASTCALL, NULL},
     {"held", (PyCFunction)(void (*)(void))Loop_held, METH_FASTCALL, NULL},
+    {"periods", (PyCFunction)(void (*)(void))Loop_periods, METH_FASTCALL, NULL},
     {"stats", (PyCFunction)Loop_stats, METH_NOARGS, NULL},
     {"locator", (PyCFunction)Loop_locator, METH_NOARGS, NULL},
     {"counts", (PyCFunction)Loop_counts, METH_NOARGS, NULL},

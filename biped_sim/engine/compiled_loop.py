@@ -208,6 +208,33 @@ class CompiledStepper(integrators._ListRungeKutta):
             return None
         return self.loop.law_torque(TORQUE_KINDS[law[0]], law[1])
 
+    def can_run_periods(self, sim):
+        """Whether ``periods`` can run now: the simulator's state is the loop's, and the locator holds
+        nothing only the Python code follows."""
+        return not self.state_stale and not sim.locator.latched and len(sim.locator.active_scuffs) <= 1
+
+    def periods(self, sim, period, law, t_final, t_stop):
+        """Control periods of a compiled law, each command computed and held in C, as ``advance_period``
+        would run them, until ``t_final`` or a push due at ``t_stop``: (outcome, t_next), DONE when they
+        all ran, else the outcome of the step handed back in the period ending at ``t_next``
+        (``can_run_periods`` first)."""
+        if self.locator_stale:
+            self._push_locator(sim.locator)
+        s = sim._samples
+        if s.keep is not False and s.n + 2 > len(s._data):
+            s.grow()
+        kind, params = law
+        result, sim.control_periods, t_next, u = self.loop.periods(
+            TORQUE_KINDS[kind], params, period, sim.control_periods, t_final, t_stop, t_final, sim.E0,
+            sim.push_work, sim.energy_lost, s._data, s.n, s.appended, s.provisional, s.every, s.keep is False)
+        sim._u = list(u)
+        outcome, s.n, s.appended, s.provisional, accepted, t, w, h_abs, changed, fail = result
+        if outcome == GROW:
+            s.grow()
+            self._after_run(sim, t_next, DONE, accepted, t, w, h_abs, changed, fail)
+            return self.run(sim, t_next), t_next
+        return self._after_run(sim, t_next, outcome, accepted, t, w, h_abs, changed, fail), t_next
+
     def held_period(self, sim, t_end):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""

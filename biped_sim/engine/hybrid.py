@@ -152,8 +152,9 @@ class HybridSimulator:
         return stance_floating_fast(self.model, q, dq, u, self.stance_leg)[1]
 
     # -- main loop ----------------------------------------------------------------------------
-    def advance(self, t_end, u=None, controller=None):
-        """Integrate to ``t_end`` (or until the run stops); returns the events of this interval."""
+    def advance(self, t_end, u=None, controller=None, _periods=None):
+        """Integrate to ``t_end`` (or until the run stops); returns the events of this interval.
+        (``_periods``: ``advance_periods``' control periods run by the compiled loop.)"""
         if not (type(t_end) is float or isinstance(t_end, numbers.Real) and not isinstance(t_end, bool)) \
                 or not math.isfinite(t_end):
             raise ValueError(f"t_end must be a finite number of seconds, got {t_end!r}")
@@ -171,7 +172,10 @@ class HybridSimulator:
                 self._initial_sample_pending = False
                 self._redo_initial_sample()
                 self._check_stance_start(self.t)
-            self._integrate(float(t_end))
+            if _periods is None:
+                self._integrate(float(t_end))
+            else:
+                self._integrate_periods(*_periods)
         except SceneAssumptionError as exc:
             self._fail(str(exc), status="stopped")
         except (StepFailure, SimulationError, np.linalg.LinAlgError, FloatingPointError, OverflowError,
@@ -203,6 +207,25 @@ class HybridSimulator:
             if u is None:
                 return self.events[-1:]
         return self.advance(t_next, u=u)
+
+    def advance_periods(self, period, controller, t_final, t_stop=math.inf):
+        """``advance_period(period, controller=controller, t_final=t_final)`` repeated until ``t_final``, or
+        until a period starts at or after ``t_stop`` (within 1e-9 period: a push due then). The same run;
+        on the compiled loop a reference law's periods run in C, their commands computed there."""
+        tol = 1e-9 * period
+        while self.status == "running" and self.t < t_final and t_stop > self.t + tol:
+            st = self._compiled
+            law = compiled_loop.torque_law(controller) if st is not None and self._stepper is st else None
+            if (law is None or law[0] == "held" or self._initial_sample_pending
+                    or not st.can_run_periods(self)):
+                self.advance_period(period, controller=controller, t_final=t_final)
+            else:
+                self.advance(t_final, _periods=(period, law, t_final, t_stop))
+
+    def _integrate_periods(self, period, law, t_final, t_stop):
+        outcome, t_next = self._compiled.periods(self, period, law, t_final, t_stop)
+        if outcome != compiled_loop.DONE:     # the rest of the period in progress, as any
+            self._integrate(t_next, outcome)
 
     def push(self, impulse):
         """A push: the impulse (N s, [x forward, y up]) on the hip, applied now, between two
@@ -259,9 +282,10 @@ class HybridSimulator:
         self._samples.pop()
         self._record(self.q, self.dq, self.stance_leg, F, u, (q, dq))
 
-    def _integrate(self, t_end):
-        st, outcome = self._stepper, None
-        if self._controller is None and st is not None and st is self._compiled:
+    def _integrate(self, t_end, outcome=None):
+        """To t_end; ``outcome``: the compiled loop's, of a step it took and handed back (continue from it)."""
+        st = self._stepper
+        if outcome is None and self._controller is None and st is not None and st is self._compiled:
             outcome = st.held_period(self, t_end)    # the node's period: one C call while nothing happens
         if outcome is None:
             self._new_stepper(t_end)

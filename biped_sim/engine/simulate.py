@@ -62,7 +62,7 @@ def simulate(model, q0, dq0, t_final, controller=None, stance_leg=1, rtol=1e-9, 
         due = 0
         while sim.status == "running" and sim.t < t_final:
             due = _push_due(sim, pushes, due, 1e-9 * control_period)
-            sim.advance_period(control_period, controller=controller, t_final=t_final)
+            sim.advance_periods(control_period, controller, t_final, pushes[due][0] if due < len(pushes) else math.inf)
         _push_due(sim, pushes, due, 1e-9 * control_period)
     return sim.result()
 
