@@ -190,8 +190,9 @@ def bench_walk(repeats=5, t_final=10.0, timesteps=(1e-3, 1e-4)):
             outcome[name] = run()
             walls[name].append(time.perf_counter() - t0)
     rtf = {name: t_final / statistics.median(w) for name, w in walls.items()}
-    print(f"\n== walk scene, {t_final:g} s, WalkingController from Python every {period * 1e3:g} ms and held "
-          f"(median of {repeats}, alternating) ==")
+    print(f"\n== walk scene, {t_final:g} s, WalkingController every {period * 1e3:g} ms and held (median of {repeats}, "
+          "alternating; MuJoCo's loop calls it from Python, simulate's compiled loop computes the same law "
+          "in C, bit for bit) ==")
     print(f"  {'':52s} {'wall s':>7s} {'RTF':>7s}  touchdowns  lowest hip  final x")
     for name in runs:
         n, low, q_end, status = outcome[name]
