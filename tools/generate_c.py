@@ -142,45 +142,59 @@ class Function:
         self.owned.append(name)
 
     def statement(self, s):
-        name = self.fn.name
         if self._unpacks(s) is not None and s.value.id in self.objects:
-            src, targets = s.value.id, [e.id for e in s.targets[0].elts]
-            self.lines.append(f"    double {src}_[{len(targets)}];")
-            self.lines.append(f"    if (unpack({src}, {src}_, {len(targets)}, \"{name}\", \"{src}\") < 0) goto done;")
-            for j, t in enumerate(targets):
-                if t in self.used:
-                    self.declared.add(t)
-                    self.lines.append(f"    double {t} = {src}_[{j}];")
+            self.unpack(s.value.id, [e.id for e in s.targets[0].elts])
         elif self._calls(s) is not None:
             call, target = s.value, s.targets[0].id
             if s.value.func.id not in self.objects or len(call.args) != 2 or call.keywords:
                 self.fail(s, "only fun(t, y) calls of an argument are translated")
             t, y = call.args
-            if isinstance(y, ast.List):
-                items = ", ".join(self.expr(e) for e in y.elts)
-                self.lines.append(f"    {target} = call_with_new_list({call.func.id}, {self.expr(t)}, "
-                                  f"(const double[]){{{items}}}, {len(y.elts)});")
-            elif isinstance(y, ast.Name) and y.id in self.objects:
-                self.lines.append(f"    {target} = call_with({call.func.id}, {self.expr(t)}, {y.id});")
-            else:
+            if not (isinstance(y, ast.List) or isinstance(y, ast.Name) and y.id in self.objects):
                 self.fail(s)
-            self.own(target)
-            self.lines.append(f"    if ({target} == NULL) goto done;")
+            self.call(target, call.func.id, t, y)
         elif isinstance(s, ast.Assign) and isinstance(s.value, ast.List) and isinstance(s.targets[0], ast.Name):
-            target = s.targets[0].id
-            items = ", ".join(self.expr(e) for e in s.value.elts)
-            self.own(target)
-            self.lines.append(f"    {target} = new_list((const double[]){{{items}}}, {len(s.value.elts)});")
-            self.lines.append(f"    if ({target} == NULL) goto done;")
+            self.new_list(s.targets[0].id, s.value.elts)
         elif isinstance(s, ast.Assign) and all(isinstance(t, ast.Name) for t in s.targets):
             for t in reversed(s.targets):   # a = b = v assigns a, then b, the same value
                 self.assign_double(t.id, s.value)
         elif isinstance(s, ast.AugAssign) and isinstance(s.op, ast.Add) and isinstance(s.target, ast.Name):
             self.assign_double(s.target.id, ast.BinOp(ast.Name(s.target.id, ast.Load()), ast.Add(), s.value))
         elif isinstance(s, ast.Return):
-            self.lines.append(f"    result = {self.build(s.value, iter(range(10 ** 6)))};")
+            self.result(s.value)
         else:
             self.fail(s)
+
+    def bind(self, targets, array):
+        """``double t = array[j];`` for each used target (the values of a sequence, in order)."""
+        for j, t in enumerate(targets):
+            if t in self.used:
+                self.declared.add(t)
+                self.lines.append(f"    double {t} = {array}[{j}];")
+
+    def unpack(self, src, targets):
+        n = len(targets)
+        self.lines.append(f"    double {src}_[{n}];")
+        self.lines.append(f"    if (unpack({src}, {src}_, {n}, \"{self.fn.name}\", \"{src}\") < 0) goto done;")
+        self.bind(targets, f"{src}_")
+
+    def call(self, target, fun, t, y):
+        if isinstance(y, ast.List):
+            items = ", ".join(self.expr(e) for e in y.elts)
+            self.lines.append(f"    {target} = call_with_new_list({fun}, {self.expr(t)}, "
+                              f"(const double[]){{{items}}}, {len(y.elts)});")
+        else:
+            self.lines.append(f"    {target} = call_with({fun}, {self.expr(t)}, {y.id});")
+        self.own(target)
+        self.lines.append(f"    if ({target} == NULL) goto done;")
+
+    def new_list(self, target, elts):
+        items = ", ".join(self.expr(e) for e in elts)
+        self.own(target)
+        self.lines.append(f"    {target} = new_list((const double[]){{{items}}}, {len(elts)});")
+        self.lines.append(f"    if ({target} == NULL) goto done;")
+
+    def result(self, value):
+        self.lines.append(f"    result = {self.build(value, iter(range(10 ** 6)))};")
 
     def build(self, node, counter, parent=None) -> str:
         """C statements that build the result ``node``; returns the C name of the outermost object.
@@ -253,40 +267,29 @@ class Kernel(Function):
             return f"{node.value.id}[{node.slice.value}]"
         return super().expr(node)
 
-    def statement(self, s):
-        if self._unpacks(s) is not None and s.value.id in self.objects:
-            src, targets = s.value.id, [e.id for e in s.targets[0].elts]
-            self.sizes[src] = len(targets)
-            for j, t in enumerate(targets):
-                if t in self.used:
-                    self.declared.add(t)
-                    self.lines.append(f"    double {t} = {src}[{j}];")
-        elif self._calls(s) is not None:
-            call, target = s.value, s.targets[0].id
-            if s.value.func.id not in self.objects or len(call.args) != 2 or call.keywords:
-                self.fail(s, "only fun(t, y) calls of an argument are translated")
-            t, y = call.args
-            if isinstance(y, ast.List):
-                n, arg = len(y.elts), "(const double[]){" + ", ".join(self.expr(e) for e in y.elts) + "}"
-            elif isinstance(y, ast.Name) and y.id in self.sizes:
-                n, arg = self.sizes[y.id], y.id
-            else:
-                self.fail(s)
-            self.objects.add(target)
-            self.sizes[target] = n
-            self.lines.append(f"    double {target}[{n}];")
-            self.lines.append(f"    if ({call.func.id}(ctx, {self.expr(t)}, {arg}, {target}) < 0) return -1;")
-        elif isinstance(s, ast.Assign) and isinstance(s.value, ast.List) and isinstance(s.targets[0], ast.Name):
-            target = s.targets[0].id
-            self.objects.add(target)
-            self.sizes[target] = len(s.value.elts)
-            items = ", ".join(self.expr(e) for e in s.value.elts)
-            self.lines.append(f"    double {target}[{len(s.value.elts)}] = {{{items}}};")
-        elif isinstance(s, ast.Return):
-            self.flatten(s.value, [0])
-            self.lines.append("    return 0;")
+    def unpack(self, src, targets):
+        self.sizes[src] = len(targets)
+        self.bind(targets, src)
+
+    def call(self, target, fun, t, y):
+        if isinstance(y, ast.List):
+            n, arg = len(y.elts), "(const double[]){" + ", ".join(self.expr(e) for e in y.elts) + "}"
         else:
-            super().statement(s)
+            n, arg = self.sizes[y.id], y.id
+        self.objects.add(target)
+        self.sizes[target] = n
+        self.lines.append(f"    double {target}[{n}];")
+        self.lines.append(f"    if ({fun}(ctx, {self.expr(t)}, {arg}, {target}) < 0) return -1;")
+
+    def new_list(self, target, elts):
+        self.objects.add(target)
+        self.sizes[target] = len(elts)
+        items = ", ".join(self.expr(e) for e in elts)
+        self.lines.append(f"    double {target}[{len(elts)}] = {{{items}}};")
+
+    def result(self, value):
+        self.flatten(value, [0])
+        self.lines.append("    return 0;")
 
     def flatten(self, node, at):
         if isinstance(node, (ast.Tuple, ast.List)):

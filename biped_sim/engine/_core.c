@@ -1407,24 +1407,6 @@ Loop_dense_at(Loop *L, PyObject *arg)
     return list_of(v, N);
 }
 
-static PyObject *
-Loop_stages(Loop *L, PyObject *unused)
-{
-    (void)unused;
-    int ns = n_stages(L) + 1;
-    PyObject *out = PyTuple_New(ns);
-    if (out == NULL) return NULL;
-    for (int j = 0; j < ns; j++) {
-        PyObject *k = list_of(L->stages[j], N);
-        if (k == NULL) {
-            Py_DECREF(out);
-            return NULL;
-        }
-        PyTuple_SET_ITEM(out, j, k);
-    }
-    return out;
-}
-
 /* state() -> (t, t_old, h, h_abs, y, y_old, f, nfev, nrejected, naccepted) */
 static PyObject *
 Loop_state(Loop *L, PyObject *unused)
@@ -1516,7 +1498,6 @@ static PyMethodDef Loop_methods[] = {
     {"replace_y", (PyCFunction)Loop_replace_y, METH_O, NULL},
     {"set_locator", (PyCFunction)Loop_set_locator, METH_VARARGS, NULL},
     {"dense_rows", (PyCFunction)Loop_dense_rows, METH_NOARGS, NULL},
-    {"stages", (PyCFunction)Loop_stages, METH_NOARGS, NULL},
     {"dense_at", (PyCFunction)Loop_dense_at, METH_O, NULL},
     {"state", (PyCFunction)Loop_state, METH_NOARGS, NULL},
     {"handed", (PyCFunction)Loop_handed, METH_NOARGS, NULL},
