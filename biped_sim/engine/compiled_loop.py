@@ -241,7 +241,7 @@ class CompiledStepper(integrators._ListRungeKutta):
         if self.state_stale or self.locator_stale or sim.locator.latched or len(sim.locator.active_scuffs) > 1:
             return None
         s = sim._samples
-        if s.keep is not False and s.n == len(s._data):
+        if s.keep is not False and s.n + 2 > len(s._data):     # the loop's room: two samples (an impact's)
             s.grow()
         outcome, s.n, s.appended, s.provisional, accepted, t, w, h_abs, changed, fail = self.loop.held(
             sim._u[0], sim._u[1], sim._h, t_end, sim.E0, sim.push_work, sim.energy_lost, s._data, s.n, s.appended,
