@@ -1,21 +1,24 @@
-/* The compiled hybrid loop: floating-base stance, stepped by dop853 or dopri5, under a held torque
- * or a reference controller compiled here (biped_sim/engine/compiled_loop.py drives it).
+/* The compiled hybrid loop: floating-base stance, stepped by dop853 or dopri5, under a held torque,
+ * a reference walking law compiled here, or a Python controller called back (biped_sim/engine/
+ * compiled_loop.py drives it).
  *
- * It runs the quiet steps of biped_sim/engine/hybrid.py's loop, those in which nothing happens:
- * the step with its error control, the guards of the locator (touchdown of the armed swing foot
- * with the dip search of grazing.py, liftoff, slip), the arming of the feet, the projection onto
- * the pin, the sample with its energy balance, and the invariants of invariants.py. A step in
- * which anything would happen (a guard crossing or a dip, a foot pushed into the ground, a
- * violated invariant, a diverging speed) is not accepted here: it is handed back to Python as it
- * was taken ("pending"), and hybrid.py's own code locates, resets, reports or fails it. So events,
- * scuffs and messages have one implementation, the Python one, and this file only has to decide
- * "nothing happens in this step" exactly as the Python code would.
+ * It runs biped_sim/engine/hybrid.py's loop for the steps whose outcome it can decide exactly as the
+ * Python code would: the step with its error control, the guards of the locator (touchdown of the
+ * armed swing foot with the dip search of grazing.py, liftoff, slip), a crossing located by brentq,
+ * a scuff behind the stance foot started, followed and ended, the arming of the feet, the projection
+ * onto the pin, the sample with its energy balance, the invariants of invariants.py, and a
+ * touchdown in front with its impact map (the Python code's, called back), relabeling and the next
+ * mode's start. A step in which anything else would happen (a liftoff, a slip, a foot pushed into
+ * the ground, a violated invariant, a diverging speed, an impact with a warning, a possible Zeno
+ * stop, ...) is not accepted here: it is handed back to Python as it was taken ("pending"), and
+ * hybrid.py's own code locates, resets, reports or fails it. The Events and their messages are made
+ * by the Python code (from what this file measured, for a scuff or a touchdown it applied).
  *
  * Every formula comes from the generated kernels (_gen/_kernels.h: the closed forms, the unrolled
  * steps and their dense output), which perform the Python code's operations in the same order; the
- * few lines written here (the step control, the guard values, the projection, the dip bound, the
- * two controllers) follow their Python lines operation for operation (named beside each), so that
- * a run gives the same bits on both paths (test/unit/test_compiled_loop.py).
+ * few lines written here (the step control, the guard values, the projection, the dip bound, brentq,
+ * the two walking laws) follow their Python lines operation for operation (named beside each), so
+ * that a run gives the same bits on both paths (test/unit/test_compiled_loop.py).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>

@@ -1,15 +1,18 @@
 """The compiled hybrid loop (``_core.c``) as the hybrid simulator steps with it.
 
 Owns one choice and one hand-over. The choice: a mode runs on the compiled loop when it is
-floating-base stance, stepped by dop853 or dopri5, under a held torque or a reference controller
-that the loop compiles (``controller.compiled_law()``: :class:`~biped_sim.control.walking.WalkingController`
-and ``PDWalkingController``), with no ``on_step`` observer, and the extension was built from the
-current generated kernels; else, and always with ``BIPED_SIM_PURE_PYTHON=1``, the Python loop of
-``hybrid.py`` runs, the readable reference. Both give the same run (test/unit/test_compiled_loop.py).
+floating-base stance, stepped by dop853 or dopri5, with no ``on_step`` observer, and the extension
+was built from the current generated kernels; its torque is held, a reference law that the loop
+compiles (``controller.compiled_law()``: :class:`~biped_sim.control.walking.WalkingController` and
+``PDWalkingController``), or any other Python controller, called back. Else, and always with
+``BIPED_SIM_PURE_PYTHON=1``, the Python loop of ``hybrid.py`` runs, the readable reference. Both give
+the same run (test/unit/test_compiled_loop.py).
 
 The hand-over: :class:`CompiledStepper` is the mode's stepper (the interface of
-``integrators._ListRungeKutta``). ``run`` lets the C loop take and accept the quiet steps, writing
-their samples straight into the run's ``Samples`` array; a step in which anything may happen comes
+``integrators._ListRungeKutta``). ``run`` (and ``held_period``, ``periods``: a control period, many
+control periods) lets the C loop take and accept the steps it can decide, writing their samples
+straight into the run's ``Samples`` array; a scuff that ended and a touchdown it applied come back
+accepted, for the Python code to make their Events; a step in which anything else may happen comes
 back taken and not accepted ("pending"), with the locator's view of its start, and
 ``hybrid.HybridSimulator._integrate`` handles it with the Python code, as any step.
 """
