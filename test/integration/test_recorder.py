@@ -234,7 +234,7 @@ def test_unwritable_path_full_disk_and_used_directory_fail_at_start(tmp_path):
 
 # -- signals -------------------------------------------------------------------------------------------
 def start_recording(folder):
-    proc = subprocess.Popen([str(BIN / "biped-sim"), "simulate", "--scene", "walk", "--duration", "60",
+    proc = subprocess.Popen([str(BIN / "biped-sim"), "simulate", "--scene", "walk", "--duration", "3600",
                              "--record", str(folder)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     line = proc.stdout.readline()
     assert line.startswith("recording to "), line

@@ -258,10 +258,11 @@ def test_fast_reset_restarts_a_run_the_engine_stopped():
         assert first["status"] == "stopped"
         refused = srv.step()
         assert not refused.success
+        before = len(js)    # (the first run may have fallen before this client heard any of its states)
         answer = srv.reset()
         assert answer.success, answer.message
         c.spin_until(lambda: len(runs()) == 2, timeout=60, what="the second stop", proc=proc)
         second = runs()[1]
         assert second["status"] == "stopped" and second["time"] == first["time"]
-        assert any(ns(m.header.stamp) == 0 for m in js[1:])       # time went back to 0
+        assert any(ns(m.header.stamp) == 0 for m in js[before:])  # time went back to 0
         assert proc.stop() == 0
