@@ -91,6 +91,7 @@ class SimNode(Node):
         self.fault = None               # (status, message): the run ended by a fault (recording, lockstep_timeout)
         self.last_command_wall = None
         self.timed_out = False
+        self._wall_first_period = None  # wall clock at the first control period (figures: periods per wall s)
 
         out = set(prm["outputs"])
         self.pub_js = self._publisher(JointState, "joint_states") if "joint_states" in out else None
@@ -246,6 +247,8 @@ class SimNode(Node):
     def step(self):
         """Advance one control period with the held torques (after the pushes received since the
         last one); publish its events."""
+        if self._wall_first_period is None:
+            self._wall_first_period = time.monotonic()
         for impulse in self.control.take_pushes():
             for ev in self.sim.push(impulse):
                 self._publish_event(ev)
@@ -366,19 +369,25 @@ class SimNode(Node):
 
     def _end_run(self, should_stop, wait):
         self._cpu_end = time.process_time()
+        self._wall_end = time.monotonic()
         if self.finished:
             self.publish_run_status()
         while not should_stop() and self.stopped:
             wait()
 
     def log_figures(self):
-        """The run's cost: control periods, engine time and this process's CPU time per period."""
+        """The run's cost: control periods, engine time and this process's CPU time per period, and the
+        wall time from the first control period (in lockstep: the first command) to the end of the run
+        (``benchmarks/bench_node.py`` and ``bench_record.py`` read this line)."""
         n = self.sim.control_periods
         k = max(1, n)
         cpu = getattr(self, "_cpu_end", time.process_time()) - getattr(self, "_cpu_run0", 0.0)
+        wall = (getattr(self, "_wall_end", time.monotonic()) - self._wall_first_period
+                if self._wall_first_period is not None else 0.0)
         self.get_logger().info(
             f"{n} control periods to t={self.sim.t:.6f} s: engine {1e3 * self.sim.stats['wall_time'] / k:.3f} ms "
-            f"(wall) and process CPU {1e3 * cpu / k:.3f} ms per period; commands {self.counts}")
+            f"(wall) and process CPU {1e3 * cpu / k:.3f} ms per period; wall {wall:.4f} s from the first control "
+            f"period ({n / wall if wall > 0 else 0.0:.1f} periods/s); commands {self.counts}")
 
     def flush(self, timeout=5.0):
         """Wait (at most ``timeout`` s in all) until subscribers acknowledged what was published: a
