@@ -49,6 +49,7 @@ from biped_sim.recording.messages import (
     wrench_message,
 )
 from biped_sim.ros import params_files, run_watch, startup
+from biped_sim.ros.one_topic_spin import OneTopicSpin
 from biped_sim.ros.parameters import declare_from_table, usage_text, value_less_override_message
 from biped_sim.ros.recording_guard import GuardedRecorder, failure_message
 from biped_sim.ros.sim_control import SimControl
@@ -355,8 +356,9 @@ class SimNode(Node):
         self._cpu_run0 = time.process_time()
         self.publish_state()
         if self.mode == "lockstep":     # the command callback steps and publishes
+            spin = OneTopicSpin(executor, self, self.sub)     # hip_torque first: see one_topic_spin
             while True:
-                run_lockstep(self, should_stop, executor)
+                run_lockstep(self, should_stop, spin)
                 self._end_run(should_stop, lambda: executor.spin_once(timeout_sec=0.1))
                 if should_stop() or self.finished or self.stopped:
                     return              # else a ~/reset restarted a stopped run
