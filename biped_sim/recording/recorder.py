@@ -144,6 +144,11 @@ class BagRecorder:
         """Queue one message (an rclpy message object, or its CDR bytes) at simulation time t_ns (int)."""
         self._hand_over(self._message_frame(topic, msg, t_ns))
 
+    def write_messages(self, t_ns: int, messages):
+        """Queue messages of one time, each ``(topic, CDR bytes)``, in one hand-over (the node's state
+        messages of a period, serialised once for publishing and recording)."""
+        self._hand_over(b"".join([self._message_frame(topic, data, t_ns) for topic, data in messages]))
+
     def write_state(self, t_ns: int, topics, frame_id: str, names, position, velocity, effort, force=None):
         """The state messages of one control period, packed in one call: ``topics`` = (joint_states,
         ground_reaction, clock) topic names, None for those not written (ground_reaction also when

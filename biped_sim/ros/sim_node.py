@@ -34,6 +34,7 @@ from visualization_msgs.msg import MarkerArray
 from biped_sim.config import parameters as P
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, WHY_PYTHON
 from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.recording.cdr import StateSerializer
 from biped_sim.recording.markers import MarkerStream
 from biped_sim.recording.messages import (
     IMPACT_KINDS,
@@ -43,10 +44,7 @@ from biped_sim.recording.messages import (
     diagnostic_array,
     event_status,
     foot_frame,
-    joint_state_message,
-    stamp,
     to_ns,
-    wrench_message,
 )
 from biped_sim.ros import params_files, run_watch, startup
 from biped_sim.ros.one_topic_spin import OneTopicSpin
@@ -106,8 +104,8 @@ class SimNode(Node):
         self.markers = MarkerStream(self.sim.model, prm["slope"], prm["marker_rate"]) if "markers" in out else None
         self.sub = self.create_subscription(Float64MultiArray, "hip_torque", self._on_command, COMMAND_QOS)
         self.control = SimControl(self, COMMAND_QOS)    # ~/pause, ~/step, ~/reset and the push topic
-        self._js_msg = self._grf_msg = None
-        self._clock_msg = Clock()
+        self._state_cdr = StateSerializer(JOINT_NAMES)
+        self._topic_names = {pub: pub.topic_name for pub in (self.pub_js, self.pub_grf, self.pub_clock) if pub}
         self.recorder = self.bag_path = None
         if prm["record"]:
             self._open_recorder()
@@ -302,52 +300,30 @@ class SimNode(Node):
     def publish_state(self):
         """joint_states, ground_reaction (in stance) and /clock at the engine's current time.
 
-        The same content as ``joint_state_message``/``wrench_message``, but into messages made
-        once and refilled (building rosidl messages costs more than publishing them)."""
+        The content of ``joint_state_message``/``wrench_message``/``clock_msg``, serialised once
+        (:class:`~biped_sim.recording.cdr.StateSerializer`), published as bytes and handed to the
+        recorder as they are."""
         sim = self.sim
-        t = sim.t
-        st = stamp(t)
+        t_ns = to_ns(sim.t)
+        sec, nanosec = divmod(t_ns, 1_000_000_000)
         frame = foot_frame(sim.stance_leg)
+        cdr = self._state_cdr
         state = []
-        q, dq = sim.q.tolist(), sim.dq.tolist()
-        effort = [0.0, 0.0, float(self.u[0]), float(self.u[1]), 0.0]
         if self.pub_js is not None:
-            m = self._js_msg
-            if m is None:
-                m = self._js_msg = joint_state_message(t, sim.q, sim.dq, self.u, sim.stance_leg)
-            else:
-                m.header.stamp = st
-                m.header.frame_id = frame
-                m.position = q
-                m.velocity = dq
-                m.effort = effort
-            state.append((self.pub_js, m))
+            state.append((self.pub_js, cdr.joint_state(sec, nanosec, frame, sim.q.tolist(), sim.dq.tolist(),
+                                                       [0.0, 0.0, float(self.u[0]), float(self.u[1]), 0.0])))
         if self.pub_grf is not None and sim.stance_leg:
-            m = self._grf_msg
-            force = sim.ground_force
-            if m is None:
-                m = self._grf_msg = wrench_message(t, force, sim.stance_leg)
-            else:
-                m.header.stamp = st
-                m.header.frame_id = frame
-                m.wrench.force.x = float(force[0])
-                m.wrench.force.y = float(force[1])
-            state.append((self.pub_grf, m))
+            state.append((self.pub_grf, cdr.wrench_stamped(sec, nanosec, frame, sim.ground_force)))
         if self.pub_clock is not None:
-            self._clock_msg.clock = st
-            state.append((self.pub_clock, self._clock_msg))
-        for pub, m in state:
-            pub.publish(m)
-        if self.recorder is not None and state:   # the same messages, packed in one call
-            self.recorder.write_state(
-                to_ns(t), tuple(p.topic_name if p is not None else None
-                                for p in (self.pub_js, self.pub_grf, self.pub_clock)),
-                frame, JOINT_NAMES, q, dq, effort,
-                sim.ground_force if sim.stance_leg and self.pub_grf is not None else None)
+            state.append((self.pub_clock, cdr.clock(sec, nanosec)))
+        for pub, data in state:
+            pub.publish(data)
+        if self.recorder is not None and state:
+            self.recorder.write_messages(t_ns, [(self._topic_names[pub], data) for pub, data in state])
         if self.markers is not None:   # the last state of a run is always drawn
             msg = self.markers.poll(time.monotonic(), sim, force=self.finished or self.stopped)
             if msg is not None:   # serialised once for the topic and the bag (1.2 ms a MarkerArray)
-                self._publish(self.pub_markers, serialize_message(msg), t)
+                self._publish(self.pub_markers, serialize_message(msg), sim.t)
 
     # -- time modes ---------------------------------------------------------------------------
     def run(self, should_stop, executor):

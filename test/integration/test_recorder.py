@@ -348,6 +348,31 @@ def test_fast_cdr_decodes_like_the_message_it_encodes():
         assert plain(topic, decoded) == plain(topic, msg), (typ, msg)
 
 
+def test_the_state_serializer_gives_the_messages_the_node_published_before():
+    # sim_node publishes and records StateSerializer's bytes: they decode (rclpy) to the messages of
+    # joint_state_message, wrench_message and clock_msg, and equal the recorder's CDR of those messages
+    import numpy as np
+    from rclpy.serialization import deserialize_message
+
+    from biped_sim.recording import messages as M
+    from biped_sim.recording.cdr import StateSerializer, serializer
+    cdr = StateSerializer(M.JOINT_NAMES)
+    q, dq = np.array([0.1, 1.0000001, 3.3, 3.2, -0.15]), np.array([1.0, -2.0, 0.5, 0.0, 7.25])
+    force = np.array([-3.5, 196.2])
+    for t in (0.0, 1.234567891, 12.000000001):
+        sec, nanosec = divmod(M.to_ns(t), 1_000_000_000)
+        for leg in (0, 1, 2):
+            frame, u = M.foot_frame(leg), [1.5, -2.5]
+            cases = [(cdr.joint_state(sec, nanosec, frame, q.tolist(), dq.tolist(), [0.0, 0.0, u[0], u[1], 0.0]),
+                      M.joint_state_message(t, q, dq, u, leg), "sensor_msgs/msg/JointState"),
+                     (cdr.wrench_stamped(sec, nanosec, frame, force), M.wrench_message(t, force, leg),
+                      "geometry_msgs/msg/WrenchStamped"),
+                     (cdr.clock(sec, nanosec), M.clock_msg(t), "rosgraph_msgs/msg/Clock")]
+            for data, msg, typ in cases:
+                assert deserialize_message(data, type(msg)) == msg, (typ, t, leg)
+                assert data == serializer(typ)(msg), (typ, t, leg)
+
+
 @pytest.mark.parametrize("compression", ["lz4", "none"])
 def test_small_chunks_and_each_compression_give_a_bag_both_readers_index_alike(tmp_path, compression):
     # many chunks: the chunk and message indexes, the statistics and the summary offsets of our MCAP
