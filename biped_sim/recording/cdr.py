@@ -178,6 +178,22 @@ class StateSerializer:
         """rosgraph_msgs/Clock(clock=stamp)."""
         return _CLOCK.pack(ENCAPSULATION_HEADER, sec, nanosec)
 
+    def period(self, t_ns: int, frame_id: str, position, velocity, u, force, joint_states=True,
+               ground_reaction=True, clock=True) -> list:
+        """The state messages of one period as ``sim_node`` publishes them: [(output name, CDR bytes)] of
+        joint_states (effort B u = [0, 0, u1, u2, 0]), ground_reaction (unless ``force`` is None: in
+        flight) and clock, those asked for, stamped ``t_ns``."""
+        sec, nanosec = divmod(t_ns, 1_000_000_000)
+        out = []
+        if joint_states:
+            out.append(("joint_states", self.joint_state(sec, nanosec, frame_id, position, velocity,
+                                                         [0.0, 0.0, float(u[0]), float(u[1]), 0.0])))
+        if ground_reaction and force is not None:
+            out.append(("ground_reaction", self.wrench_stamped(sec, nanosec, frame_id, force)))
+        if clock:
+            out.append(("clock", self.clock(sec, nanosec)))
+        return out
+
 
 #: encoders that return None for shapes they do not handle (then rclpy serialises)
 MAY_DECLINE = {"std_msgs/msg/Float64MultiArray"}

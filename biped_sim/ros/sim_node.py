@@ -105,7 +105,10 @@ class SimNode(Node):
         self.sub = self.create_subscription(Float64MultiArray, "hip_torque", self._on_command, COMMAND_QOS)
         self.control = SimControl(self, COMMAND_QOS)    # ~/pause, ~/step, ~/reset and the push topic
         self._state_cdr = StateSerializer(JOINT_NAMES)
-        self._topic_names = {pub: pub.topic_name for pub in (self.pub_js, self.pub_grf, self.pub_clock) if pub}
+        self._state_pubs = {name: pub for name, pub in (("joint_states", self.pub_js),
+                                                        ("ground_reaction", self.pub_grf), ("clock", self.pub_clock))}
+        self._state_outputs = tuple(pub is not None for pub in self._state_pubs.values())
+        self._state_topics = {name: pub.topic_name for name, pub in self._state_pubs.items() if pub is not None}
         self.recorder = self.bag_path = None
         if prm["record"]:
             self._open_recorder()
@@ -305,21 +308,12 @@ class SimNode(Node):
         recorder as they are."""
         sim = self.sim
         t_ns = to_ns(sim.t)
-        sec, nanosec = divmod(t_ns, 1_000_000_000)
-        frame = foot_frame(sim.stance_leg)
-        cdr = self._state_cdr
-        state = []
-        if self.pub_js is not None:
-            state.append((self.pub_js, cdr.joint_state(sec, nanosec, frame, sim.q.tolist(), sim.dq.tolist(),
-                                                       [0.0, 0.0, float(self.u[0]), float(self.u[1]), 0.0])))
-        if self.pub_grf is not None and sim.stance_leg:
-            state.append((self.pub_grf, cdr.wrench_stamped(sec, nanosec, frame, sim.ground_force)))
-        if self.pub_clock is not None:
-            state.append((self.pub_clock, cdr.clock(sec, nanosec)))
-        for pub, data in state:
-            pub.publish(data)
+        state = self._state_cdr.period(t_ns, foot_frame(sim.stance_leg), sim.q.tolist(), sim.dq.tolist(), self.u,
+                                       sim.ground_force if sim.stance_leg else None, *self._state_outputs)
+        for name, data in state:
+            self._state_pubs[name].publish(data)
         if self.recorder is not None and state:
-            self.recorder.write_messages(t_ns, [(self._topic_names[pub], data) for pub, data in state])
+            self.recorder.write_messages(t_ns, [(self._state_topics[name], data) for name, data in state])
         if self.markers is not None:   # the last state of a run is always drawn
             msg = self.markers.poll(time.monotonic(), sim, force=self.finished or self.stopped)
             if msg is not None:   # serialised once for the topic and the bag (1.2 ms a MarkerArray)

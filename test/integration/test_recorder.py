@@ -51,7 +51,7 @@ class Tee:
         self.rec.add_topic(topic, type_name, *a, **k)
 
     def _keep(self, topic, msg, t_ns):
-        if isinstance(msg, bytes):   # pre-serialised (the headless run's commands): what goes on the wire
+        if isinstance(msg, bytes):   # pre-serialised (the commands, the state): what goes on the wire
             from rclpy.serialization import deserialize_message
 
             from biped_sim.recording.messages import message_class
@@ -63,26 +63,10 @@ class Tee:
         self._keep(topic, msg, t_ns)
         self.rec.write(topic, msg, t_ns)
 
-    def write_state(self, t_ns, topics, frame_id, names, position, velocity, effort, force=None):
-        # the messages write_state stands for, built the rclpy way
-        from builtin_interfaces.msg import Time
-        from geometry_msgs.msg import WrenchStamped
-        from rosgraph_msgs.msg import Clock
-        from sensor_msgs.msg import JointState
-        stamp = Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
-        js, grf, clk = topics
-        if js:
-            m = JointState(name=list(names), position=list(position), velocity=list(velocity), effort=list(effort))
-            m.header.stamp, m.header.frame_id = stamp, frame_id
-            self._keep(js, m, t_ns)
-        if grf and force is not None:
-            m = WrenchStamped()
-            m.header.stamp, m.header.frame_id = stamp, frame_id
-            m.wrench.force.x, m.wrench.force.y = float(force[0]), float(force[1])
-            self._keep(grf, m, t_ns)
-        if clk:
-            self._keep(clk, Clock(clock=stamp), t_ns)
-        self.rec.write_state(t_ns, topics, frame_id, names, position, velocity, effort, force)
+    def write_messages(self, t_ns, messages):
+        for topic, data in messages:
+            self._keep(topic, data, t_ns)
+        self.rec.write_messages(t_ns, messages)
 
 
 def walk_params(duration=1.0, **kw):
