@@ -426,3 +426,15 @@ def test_resim_of_a_bag_cut_between_an_impact_and_the_next_state_is_identical(tm
     rep = resim(tmp_path / "cut")
     assert rep["identical"], format_report(rep)
     assert rep["states"] == sum(1 for m in whole[:cut] if m[0] == "/joint_states")
+
+
+def test_the_packed_message_index_is_mcaps_record():
+    # McapFileWriter packs each chunk's MessageIndex records itself (the writer process's hot path)
+    from mcap.data_stream import RecordBuilder
+    from mcap.records import MessageIndex
+
+    from biped_sim.recording.mcapfile import _message_index_bytes
+    for records in ([], [(7, 0)], [(1_000_000_000 + i, 60 * i) for i in range(1000)]):
+        builder = RecordBuilder()
+        MessageIndex(channel_id=3, records=records).write(builder)
+        assert _message_index_bytes(3, records) == builder.end()
