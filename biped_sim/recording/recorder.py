@@ -100,6 +100,7 @@ class BagRecorder:
         self._buf = bytearray()
         self._lock = threading.Lock()
         self._wake = threading.Event()
+        self._ready = threading.Event()     # the writer process has started (wait_ready)
         self._error = None
         self._status = None
         self._closed = False
@@ -198,6 +199,12 @@ class BagRecorder:
             return dict(self._status["counts"])
         return {n: e[2] for n, e in self._topics.items()}
 
+    def wait_ready(self, timeout: float = 10.0) -> bool:
+        """Wait until the writer process has started (its imports and the open file: about 0.15 s of CPU
+        here), so that its start-up does not compete with the first periods of the run on a machine
+        with few cores; False if it did not say so within ``timeout`` s (``write`` works either way)."""
+        return self._ready.wait(timeout)
+
     @property
     def writer_pid(self) -> int:
         """The process id of the writer process (the recording benchmark measures its CPU time)."""
@@ -234,11 +241,19 @@ class BagRecorder:
                 return
 
     def _read_loop(self):
+        try:
+            self._read_statuses()
+        finally:
+            self._ready.set()         # a writer that ended (or died) before it said so: nobody waits on
+
+    def _read_statuses(self):
         for line in self._proc.stdout:
             try:
                 status = json.loads(line)
             except ValueError:
                 continue
+            if status.get("ready"):
+                self._ready.set()
             if status.get("error"):
                 self._error = self._error or status["error"]
             if status.get("done"):
