@@ -225,25 +225,26 @@ def _lockstep_run(sim_argv, controller_argv, dom):
 WALK_PARAMS = Path(__file__).resolve().parent.parent / "msg_configs" / "walk.yaml"
 
 
-def bench_lockstep(steps=2000, rounds=4):
+def bench_lockstep(steps=2000, rounds=6):
     """Issue 15's lockstep row, measured alternately ``rounds`` times each so that a change of the
     machine's load hits both alike: ``sim``, sim_node in lockstep on the walk scene
     (msg_configs/walk.yaml: its outputs, method auto, 1 ms control period; record:=false) driven by the
     walk_controller node, ``steps`` control periods; ``bare``, the same number of round trips between two
     bare rclpy processes with the same message types and QoS (a state out, a command back, no physics, no
-    control law: role_bare_sim and role_bare_controller). Both rates are periods per wall second from the
-    first command to the last state published, as the sim side reports them. Returns {"sim": [figures
-    per run], "bare": [...]} (figures: periods, wall, rate, cpu_ms; or error)."""
+    control law: role_bare_sim and role_bare_controller); bare first in every other pair. Both rates
+    are periods per wall second from the first command to the last state published, as the sim side
+    reports them. Returns {"sim": [figures per run], "bare": [...]} (figures: periods, wall, rate,
+    cpu_ms; or error)."""
     runs = {"bare": [], "sim": []}
     me = [sys.executable, "-m", "benchmarks.bench_node", "--role"]
-    for _ in range(rounds):
-        with _domain() as dom:
-            runs["bare"].append(_lockstep_run([*me, "bare_sim", "--steps", str(steps)], [*me, "bare_controller"], dom))
-        with _domain() as dom:
-            runs["sim"].append(_lockstep_run(
-                [str(BIN / "sim_node"), "--ros-args", "--params-file", str(WALK_PARAMS),
-                 *_params(dict(record=False, duration=steps * 0.001))[1:]],
-                [str(BIN / "walk_controller"), "--ros-args", "--params-file", str(WALK_PARAMS)], dom))
+    argv = {"bare": ([*me, "bare_sim", "--steps", str(steps)], [*me, "bare_controller"]),
+            "sim": ([str(BIN / "sim_node"), "--ros-args", "--params-file", str(WALK_PARAMS),
+                     *_params(dict(record=False, duration=steps * 0.001))[1:]],
+                    [str(BIN / "walk_controller"), "--ros-args", "--params-file", str(WALK_PARAMS)])}
+    for i in range(rounds):
+        for name in ("bare", "sim") if i % 2 == 0 else ("sim", "bare"):    # the order alternates
+            with _domain() as dom:
+                runs[name].append(_lockstep_run(*argv[name], dom))
     return runs
 
 
@@ -283,7 +284,7 @@ def main(argv=None):
     p = argparse.ArgumentParser(prog="python -m benchmarks.bench_node", description=__doc__.splitlines()[0])
     p.add_argument("--role", choices=("bare_sim", "bare_controller"), help=argparse.SUPPRESS)
     p.add_argument("--steps", type=int, default=2000, help="lockstep control steps per run")
-    p.add_argument("--rounds", type=int, default=5, help="lockstep runs of each (alternating)")
+    p.add_argument("--rounds", type=int, default=6, help="lockstep runs of each (alternating)")
     p.add_argument("--lockstep-only", action="store_true", help="only the lockstep ratio (issue 15's row)")
     p.add_argument("--seconds", type=float, default=5.0, help="wall seconds of the realtime measurement")
     args = p.parse_args(argv)
