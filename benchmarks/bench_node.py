@@ -3,16 +3,16 @@
 Owns the node's speed figures (issue 3):
   * realtime at a 1 kHz publish rate: achieved rate of joint_states at a subscriber in another process
     and the p50/p99 jitter of the arrival period;
-  * lockstep with a Python controller client in another process: control steps per second and the
-    round-trip latency, beside a bare rclpy round trip between two processes (an echo node that
-    answers at once, no physics) measured in the same run, and their ratio (target >= 70 %).
+  * lockstep (issue 15's row): sim_node on the walk scene driven by the walk_controller node, steps per
+    wall second, beside a bare rclpy round trip between two processes with the same message types and
+    QoS (no physics, no control law), alternating in the same run; the median of the back-to-back
+    pairs' ratios (target >= 0.8). ``--lockstep-only`` runs just that.
 Every process runs on a free ROS domain (domain_coordinator) with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST.
 """
 from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import os
 import signal
 import statistics
@@ -48,79 +48,65 @@ def _walking_start():
     return ctrl, [float(v) for v in q0], [float(v) for v in dq0]
 
 
-# -- roles run in their own processes -------------------------------------------------------------
-def role_echo():
-    """The bare round trip's far end: answers each hip_torque at once with a fixed JointState."""
+# -- the bare round trip's two processes -----------------------------------------------------------
+def role_bare_sim(steps):
+    """Where sim_node stands, without physics: publishes a JointState (the node's QoS, the walk's first
+    state, restamped), and answers each hip_torque with the next one; prints the same figures line as
+    sim_node (periods per wall s from the first command to the last state published)."""
     import rclpy
+    from rclpy.task import Future
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray
 
-    from biped_sim.recording.messages import joint_state_message
+    from biped_sim.recording.messages import joint_state_message, stamp
     _, q0, dq0 = _walking_start()
     rclpy.init()
-    node = rclpy.create_node("bare_echo")
+    node = rclpy.create_node("bare_sim")
     pub = node.create_publisher(JointState, "joint_states", _qos(True))
-    state = {"t": 0.0, "n": 0}
+    msg = joint_state_message(0.0, q0, dq0, [0.0, 0.0], 1)
+    done = Future()
+    state = {"n": 0}
 
-    def on_cmd(msg):
+    def on_command(_cmd):
         if state["n"] == 0:
-            state["cpu0"] = time.process_time()
+            state["wall0"], state["cpu0"] = time.monotonic(), time.process_time()
         state["n"] += 1
-        state["t"] += 0.001
-        pub.publish(joint_state_message(state["t"], q0, dq0, msg.data, 1))
-    node.create_subscription(Float64MultiArray, "hip_torque", on_cmd, _qos())
-    pub.publish(joint_state_message(0.0, q0, dq0, [0.0, 0.0], 1))
-    stop = []
-    signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
-    signal.signal(signal.SIGINT, lambda *_: stop.append(1))
-    while not stop:
-        rclpy.spin_once(node, timeout_sec=0.1)
-    if state["n"] > 1:
-        print(f"[INFO] [echo]: {state['n']} control periods to t=0: process CPU "
-              f"{1e3 * (time.process_time() - state['cpu0']) / (state['n'] - 1):.3f} ms per round trip", flush=True)
+        msg.header.stamp = stamp(state["n"] * 0.001)
+        pub.publish(msg)
+        if state["n"] == steps:
+            state["wall"], state["cpu"] = time.monotonic() - state["wall0"], time.process_time() - state["cpu0"]
+            done.set_result(True)
+    node.create_subscription(Float64MultiArray, "hip_torque", on_command, _qos())
+    pub.publish(msg)
+    rclpy.spin_until_future_complete(node, done)
+    n, wall = state["n"], state["wall"]
+    print(f"[INFO] [bare_sim]: {n} control periods: process CPU {1e3 * state['cpu'] / n:.3f} ms per period; "
+          f"wall {wall:.4f} s from the first control period ({n / wall:.1f} periods/s)", flush=True)
     node.destroy_node()
     rclpy.try_shutdown()
 
 
-def role_client(steps):
-    """A controller in the loop (the walking controller): prints JSON figures."""
+def role_bare_controller():
+    """Where walk_controller stands, without a control law: answers each JointState at once with the
+    same tagged Float64MultiArray (the controller's QoS), spun by ``rclpy.spin``."""
     import rclpy
+    from rclpy.executors import ExternalShutdownException
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray
-    ctrl, _, _ = _walking_start()
-    import numpy as np
+
+    from biped_sim.recording.messages import torque_msg
     rclpy.init()
-    node = rclpy.create_node("bench_client")
-    box = []
-    node.create_subscription(JointState, "joint_states", box.append, _qos(True))
+    node = rclpy.create_node("bare_controller")
     pub = node.create_publisher(Float64MultiArray, "hip_torque", _qos())
-    end = time.monotonic() + 30
-    while (pub.get_subscription_count() == 0 or not box) and time.monotonic() < end:
-        rclpy.spin_once(node, timeout_sec=0.05)
-    if not box:
-        print(json.dumps({"error": "no state from the node"}))
-        return
-    rtt, ctrl_time = [], []
-    t_start = time.perf_counter()
-    for _ in range(steps):
-        m = box[-1]
-        n = len(box)
-        c0 = time.perf_counter()
-        leg = int(m.header.frame_id[-1]) if m.header.frame_id.startswith("foot_") else 0
-        u = ctrl(0.0, np.array(m.position), np.array(m.velocity), leg)
-        t0 = time.perf_counter()
-        ctrl_time.append(t0 - c0)
-        pub.publish(Float64MultiArray(data=[float(u[0]), float(u[1])]))
-        while len(box) == n:
-            rclpy.spin_once(node, timeout_sec=1.0)
-            if time.perf_counter() - t0 > 5:
-                print(json.dumps({"error": f"no answer after {len(rtt)} steps"}))
-                return
-        rtt.append(time.perf_counter() - t0)
-    wall = time.perf_counter() - t_start
-    print(json.dumps(dict(steps=steps, wall=wall, rate=steps / wall, rtt_p50=_percentile(rtt, 50),
-                          rtt_p99=_percentile(rtt, 99), ctrl_mean=sum(ctrl_time) / len(ctrl_time))))
-    node.destroy_node()
+    command = torque_msg([0.0, 0.0], answers_ns=0)
+    end = time.monotonic() + 30     # as walk_controller: no answer before the command publisher matched
+    while pub.get_subscription_count() == 0 and time.monotonic() < end:
+        time.sleep(0.01)
+    node.create_subscription(JointState, "joint_states", lambda _state: pub.publish(command), _qos(True))
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
     rclpy.try_shutdown()
 
 
@@ -207,50 +193,59 @@ def bench_realtime(seconds=5.0, rate=1000.0):
                 lag_warnings=log.count("cannot keep up"))
 
 
-def _round_trip(far_argv, steps, dom):
-    far = subprocess.Popen(far_argv, env=_env(dom), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+def _figures(log):
+    """{periods, wall, rate, cpu_ms} from the figures line of sim_node or the bare sim ("... control
+    periods ...: ... process CPU X ms per period; wall W s from the first control period (R periods/s)")."""
+    import re
+    m = re.search(r"(\d+) control periods.*process CPU ([\d.]+) ms per period; wall ([\d.]+) s from the first "
+                  r"control period \(([\d.]+) periods/s\)", log)
+    if not m:
+        return None
+    return dict(periods=int(m.group(1)), cpu_ms=float(m.group(2)), wall=float(m.group(3)), rate=float(m.group(4)))
+
+
+def _lockstep_run(sim_argv, controller_argv, dom):
+    """One run of a sim (that ends by itself) and its controller (stopped after it): the sim's figures."""
+    sim = subprocess.Popen(sim_argv, env=_env(dom), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    ctl = subprocess.Popen(controller_argv, env=_env(dom), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
-        client = subprocess.run([sys.executable, "-m", "benchmarks.bench_node", "--role", "client", "--steps",
-                                 str(steps)], env=_env(dom), capture_output=True, text=True, timeout=300)
+        log, _ = sim.communicate(timeout=300)
+    except subprocess.TimeoutExpired:
+        _stop(sim)
+        log = sim.stdout.read()
     finally:
-        _stop(far)
-    log = far.stdout.read()
-    lines = [ln for ln in client.stdout.splitlines() if ln.startswith("{")]
-    if not lines:
-        return dict(error=f"client failed: {client.stdout[-2000:]} {client.stderr[-2000:]}", log=log)
-    out = json.loads(lines[-1])
-    out["log"] = log
-    out["node"] = next((ln.split("]: ", 1)[1] for ln in log.splitlines() if "control periods to" in ln), "")
-    return out
+        _stop(ctl)
+    ctl_log = ctl.stdout.read()
+    f = _figures(log)
+    if f is None or sim.returncode != 0:
+        return dict(error=f"run failed (exit code {sim.returncode}):\n{log[-3000:]}\n{ctl_log[-2000:]}")
+    return f
 
 
-def bench_lockstep(steps=2000, control_period=0.001, rounds=4):
-    """Bare and sim round trips, measured alternately (``rounds`` times each) so that a change of the
-    machine's load during the run affects both alike; returns the totals and the per-run rates."""
-    _, q0, dq0 = _walking_start()
+WALK_PARAMS = Path(__file__).resolve().parent.parent / "msg_configs" / "walk.yaml"
+
+
+def bench_lockstep(steps=2000, rounds=6):
+    """Issue 15's lockstep row, measured alternately ``rounds`` times each so that a change of the
+    machine's load hits both alike: ``sim``, sim_node in lockstep on the walk scene
+    (msg_configs/walk.yaml: its outputs, method auto, 1 ms control period; record:=false) driven by the
+    walk_controller node, ``steps`` control periods; ``bare``, the same number of round trips between two
+    bare rclpy processes with the same message types and QoS (a state out, a command back, no physics, no
+    control law: role_bare_sim and role_bare_controller); bare first in every other pair. Both rates
+    are periods per wall second from the first command to the last state published, as the sim side
+    reports them. Returns {"sim": [figures per run], "bare": [...]} (figures: periods, wall, rate,
+    cpu_ms; or error)."""
     runs = {"bare": [], "sim": []}
-    for _ in range(rounds):
-        with _domain() as dom:
-            runs["bare"].append(_round_trip([sys.executable, "-m", "benchmarks.bench_node", "--role", "echo"],
-                                            steps // rounds, dom))
-        with _domain() as dom:
-            runs["sim"].append(_round_trip(
-                [str(BIN / "sim_node"), *_params(dict(time_mode="lockstep", control_period=control_period,
-                                                      initial_q=q0, initial_dq=dq0, record=False))],
-                steps // rounds, dom))
-    out = []
-    for name in ("bare", "sim"):
-        rs = runs[name]
-        bad = [r for r in rs if "error" in r]
-        if bad:
-            out.append(bad[0])
-            continue
-        n, wall = sum(r["steps"] for r in rs), sum(r["wall"] for r in rs)
-        out.append(dict(steps=n, wall=wall, rate=n / wall, median_rate=statistics.median(r["rate"] for r in rs),
-                        rtt_p50=statistics.median(r["rtt_p50"] for r in rs),
-                        rtt_p99=max(r["rtt_p99"] for r in rs), ctrl_mean=sum(r["ctrl_mean"] for r in rs) / len(rs),
-                        parts=[round(r["rate"]) for r in rs], node=rs[-1]["node"]))
-    return tuple(out)
+    me = [sys.executable, "-m", "benchmarks.bench_node", "--role"]
+    argv = {"bare": ([*me, "bare_sim", "--steps", str(steps)], [*me, "bare_controller"]),
+            "sim": ([str(BIN / "sim_node"), "--ros-args", "--params-file", str(WALK_PARAMS),
+                     *_params(dict(record=False, duration=steps * 0.001))[1:]],
+                    [str(BIN / "walk_controller"), "--ros-args", "--params-file", str(WALK_PARAMS)])}
+    for i in range(rounds):
+        for name in ("bare", "sim") if i % 2 == 0 else ("sim", "bare"):    # the order alternates
+            with _domain() as dom:
+                runs[name].append(_lockstep_run(*argv[name], dom))
+    return runs
 
 
 def _engine_cost(control_period=0.001, steps=2000):
@@ -266,16 +261,40 @@ def _engine_cost(control_period=0.001, steps=2000):
     return 1e3 * sim.stats["wall_time"] / steps
 
 
+def print_lockstep(runs, steps):
+    for name, what in (("bare", "bare rclpy round trip (two processes, the same message types, no physics)"),
+                       ("sim", "lockstep sim_node (walk scene, record:=false) with the walk_controller node")):
+        bad = [r for r in runs[name] if "error" in r]
+        if bad:
+            print(f"{what}: {bad[0]['error']}")
+            return None
+        rates = [r["rate"] for r in runs[name]]
+        print(f"{what}: {statistics.median(rates):.0f} steps/s median of {len(rates)} runs of {steps} steps "
+              f"(runs: {[round(v) for v in rates]}); its sim side's CPU "
+              f"{statistics.median(r['cpu_ms'] for r in runs[name]):.3f} ms per step")
+    pairs = sorted(s["rate"] / b["rate"] for s, b in zip(runs["sim"], runs["bare"]))
+    ratio = statistics.median(pairs)
+    print(f"lockstep ratio (sim_node + walk_controller steps/s / bare round trips/s, median of {len(pairs)} "
+          f"back-to-back pairs): {ratio:.2f} (pairs {[round(v, 2) for v in pairs]}; target >= 0.8: "
+          f"{'met' if ratio >= 0.8 else 'not met'})")
+    return ratio
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(prog="python -m benchmarks.bench_node", description=__doc__.splitlines()[0])
-    p.add_argument("--role", choices=("echo", "client"), help=argparse.SUPPRESS)
-    p.add_argument("--steps", type=int, default=2000, help="lockstep control steps per round-trip measurement")
+    p.add_argument("--role", choices=("bare_sim", "bare_controller"), help=argparse.SUPPRESS)
+    p.add_argument("--steps", type=int, default=2000, help="lockstep control steps per run")
+    p.add_argument("--rounds", type=int, default=6, help="lockstep runs of each (alternating)")
+    p.add_argument("--lockstep-only", action="store_true", help="only the lockstep ratio (issue 15's row)")
     p.add_argument("--seconds", type=float, default=5.0, help="wall seconds of the realtime measurement")
     args = p.parse_args(argv)
-    if args.role == "echo":
-        return role_echo()
-    if args.role == "client":
-        return role_client(args.steps)
+    if args.role == "bare_sim":
+        return role_bare_sim(args.steps)
+    if args.role == "bare_controller":
+        return role_bare_controller()
+    if args.lockstep_only:
+        print_lockstep(bench_lockstep(args.steps, args.rounds), args.steps)
+        return 0
     print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
     print(f"engine alone (walking, DOP853 rtol=atol=1e-9): {_engine_cost():.3f} ms per 1 ms control period")
     rt = bench_realtime(args.seconds)
@@ -289,21 +308,7 @@ def main(argv=None):
               f"{rt['period_p50'] * 1e3:.3f} ms, p99 {rt['period_p99'] * 1e3:.3f} ms; jitter |period - 1 ms| p50 "
               f"{rt['jitter_p50'] * 1e6:.0f} us, p99 {rt['jitter_p99'] * 1e6:.0f} us; "
               f"'cannot keep up' warnings: {rt['lag_warnings']}")
-    bare, sim = bench_lockstep(args.steps)
-    for name, r in (("bare rclpy round trip (echo node, no physics)", bare),
-                    ("lockstep sim_node (walking, 1 ms control period)", sim)):
-        if "error" in r:
-            print(f"{name}: {r['error']}\n{r.get('log', '')[-3000:]}")
-        else:
-            print(f"{name}: {r['rate']:.0f} steps/s (runs: {r['parts']}), round trip p50 {r['rtt_p50'] * 1e3:.3f} ms, "
-                  f"p99 {r['rtt_p99'] * 1e3:.3f} ms ({r['steps']} steps; "
-                  f"controller {r['ctrl_mean'] * 1e3:.3f} ms/step)")
-            if r.get("node"):
-                print(f"    node: {r['node']}")
-    if "error" not in bare and "error" not in sim:
-        print(f"lockstep / bare round-trip rate: {100 * sim['rate'] / bare['rate']:.0f} % over all steps, "
-              f"{100 * sim['median_rate'] / bare['median_rate']:.0f} % median of the runs' rates, "
-              f"{100 * bare['rtt_p50'] / sim['rtt_p50']:.0f} % by the median round trips (target >= 70 %)")
+    print_lockstep(bench_lockstep(args.steps, args.rounds), args.steps)
     print(f"load average after: {os.getloadavg()[0]:.2f}")
     return 0
 

@@ -27,6 +27,7 @@ import argparse
 import os
 import resource
 import shutil
+import statistics
 import tempfile
 import time
 from pathlib import Path
@@ -128,23 +129,24 @@ def _proc_cpu(pid):
 
 def _write_cost(params, path, n=4000):
     """CPU us per control period of what recording adds in the simulating process, measured alone:
-    the hip_torque command's CDR and ``write``, and the state's ``write_state`` (pack + hand over,
-    as the node does), best of 3."""
+    the hip_torque command's CDR and ``write``, and the state's ``write_messages`` (the frames of the
+    three messages the node has serialised to publish them, handed over in one call), best of 3."""
     from biped_sim.recording import messages as M
-    from biped_sim.recording.cdr import float64_multi_array_data
+    from biped_sim.recording.cdr import StateSerializer, float64_multi_array_data
     from biped_sim.recording.record_run import topics_for
     from biped_sim.recording.recorder import BagRecorder
     q, dq = params["initial_q"], params["initial_dq"]
     rec = BagRecorder(path, parameters=params)
     for name, typ in topics_for(params).items():
         rec.add_topic(name, typ)
+    state = [("/" + name, data) for name, data in
+             StateSerializer(M.JOINT_NAMES).period(0, "foot_1", q, dq, [1.0, 2.0], [1.0, 200.0])]
     best = float("inf")
     for _ in range(3):
         c0 = time.thread_time()
         for k in range(n):
             rec.write("/hip_torque", float64_multi_array_data([1.0, -2.0]), k)
-            rec.write_state(k, ("/joint_states", "/ground_reaction", "/clock"), "foot_1", M.JOINT_NAMES, q, dq,
-                            [0.0, 0.0, 1.0, 2.0, 0.0], [1.0, 200.0])
+            rec.write_messages(k, state)
         best = min(best, (time.thread_time() - c0) / n * 1e6)
     rec.close()
     return best
@@ -323,12 +325,18 @@ def _rosbags_write(path, messages, types):
     return time.process_time() - c0
 
 
-def node_bench(duration=3.0, repeats=3):
-    """``sim_node`` in ``fast`` mode (1 kHz publish rate, u = 0 from the balanced default state), with and
-    without recording: the real-time factor from the node's own log times (start line to 'reached')."""
-    import re
+def node_bench(duration=6.0, pairs=10):
+    """Issue 15's recording row: ``sim_node`` in ``fast`` mode (1 kHz control and publish rate, u = 0 from
+    the balanced default state, the default outputs) run ``pairs`` times back to back without and with
+    recording (without first in every other pair, so that a drift of the machine's load does not
+    favour one). Returns {False: [real-time factors], True: [...]} (simulated s per wall s from the first
+    control period to the end of the run, the node's own figures line; the bag's writer process starts
+    inside the recorded run, as it does in every run) and {(False, "cpu"): [the node process's CPU ms
+    per period], (True, "cpu"): [...]}, or None without rclpy / domain_coordinator."""
     import subprocess
     import sys
+
+    from benchmarks.bench_node import _figures
     try:
         import domain_coordinator
     except ImportError:
@@ -336,29 +344,44 @@ def node_bench(duration=3.0, repeats=3):
     exe = Path(sys.executable).parent / "sim_node"
     if not exe.exists():
         return None
-    stamp = re.compile(r"\[(\d+\.\d+)\]")
-    out = {False: [], True: []}
+    out = {False: [], True: [], (False, "cpu"): [], (True, "cpu"): []}
     tmp = Path(tempfile.mkdtemp(prefix="bench-node-"))
     with domain_coordinator.domain_id() as dom:
         env = dict(os.environ, ROS_DOMAIN_ID=str(dom), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                    RCUTILS_COLORIZED_OUTPUT="0")
-        for _ in range(repeats):
-            for record in (False, True):
+        for i in range(pairs):
+            for record in ((False, True) if i % 2 == 0 else (True, False)):   # the order alternates
                 args = [str(exe), "--ros-args", "-p", "time_mode:=fast", "-p", f"duration:={duration!r}",
                         "-p", "control_period:=0.001", "-p", "publish_rate:=1000.0", "-p", "command_timeout:=0.0",
                         "-p", f"record:={'true' if record else 'false'}", "-p", f"bag_dir:={tmp}",
                         "-p", "scene:=bench"]
                 p = subprocess.run(args, env=env, capture_output=True, text=True, timeout=300)
-                lines = (p.stdout + p.stderr).splitlines()
-                t0 = next((float(stamp.search(x).group(1)) for x in lines
-                           if "time_mode=fast" in x and stamp.search(x)), None)
-                t1 = next((float(stamp.search(x).group(1)) for x in lines if "reached" in x and stamp.search(x)), None)
-                if t0 is None or t1 is None or p.returncode != 0:
+                f = _figures(p.stdout + p.stderr)
+                if f is None or p.returncode != 0:
                     shutil.rmtree(tmp, ignore_errors=True)
-                    raise RuntimeError(f"sim_node run failed (code {p.returncode}):\n" + "\n".join(lines[-20:]))
-                out[record].append(duration / (t1 - t0))
+                    raise RuntimeError(f"sim_node run failed (code {p.returncode}):\n" + (p.stdout + p.stderr)[-3000:])
+                out[record].append(f["periods"] * 0.001 / f["wall"])
+                out[record, "cpu"].append(f["cpu_ms"])
     shutil.rmtree(tmp, ignore_errors=True)
     return out
+
+
+def print_node_bench(nb, duration):
+    """The recording row: the median of the back-to-back pairs' costs 1 - RTF(recorded) / RTF(not)."""
+    costs = sorted(1.0 - on / off for off, on in zip(nb[False], nb[True]))
+    cost = costs[len(costs) // 2]
+    print(f"  sim_node, time_mode fast, {duration:g} s at 1 kHz publish rate (u = 0, balanced start), real-time "
+          f"factor without recording {sorted(round(v, 2) for v in nb[False])}, with "
+          f"{sorted(round(v, 2) for v in nb[True])}")
+    print(f"  recording overhead on a fast-mode node run (paired): {cost * 100:.1f} %, median of {len(costs)} "
+          f"back-to-back pairs (range {costs[0] * 100:.1f} to {costs[-1] * 100:.1f} %; target <= 10 %: "
+          f"{'met' if cost <= 0.10 else 'not met'})")
+    cpu = sorted(1.0 - off / on for off, on in zip(nb[False, "cpu"], nb[True, "cpu"]))
+    print(f"    the same pairs by the node process's CPU per period (the bag's writer process not counted): "
+          f"{statistics.median(nb[False, 'cpu']) * 1e3:.0f} us without recording, "
+          f"{statistics.median(nb[True, 'cpu']) * 1e3:.0f} us with: {cpu[len(cpu) // 2] * 100:.1f} % "
+          f"(range {cpu[0] * 100:.1f} to {cpu[-1] * 100:.1f} %)")
+    return cost
 
 
 def _print_file_writers(r, med, a):
@@ -366,7 +389,7 @@ def _print_file_writers(r, med, a):
     mw = {k: sorted(v)[len(v) // 2] for k, v in w.items() if isinstance(v, list)}
     ours = mw["ours"]
     rate = r["messages"] / (a.duration / med["record"])      # messages per wall s in the recorded runs
-    per_message = r["write_us"] / 4                           # 4 messages a period: write + write_state
+    per_message = r["write_us"] / 4                           # 4 messages a period: write + write_messages
     print(f"  bag file writer, on the {w['messages']} messages of a recorded run as the writer process receives "
           f"them (frames -> MCAP file -> end of bag); CPU, median of {len(w['ours'])} interleaved repeats: us per "
           f"message (a bag's minus the same bag's without messages), messages/s, ratio to ours, the share of a CPU "
@@ -388,11 +411,16 @@ def main(argv=None):
     p.add_argument("--duration", type=float, default=2.0, help="simulated seconds per run")
     p.add_argument("--period", type=float, default=0.001, help="control period = publish period (s)")
     p.add_argument("--repeats", type=int, default=9, help="interleaved repeats")
-    p.add_argument("--node", action="store_true",
-                   help="also time sim_node in fast mode with and without recording (3 runs each; slow, and "
-                        "its figures are dominated by rclpy's executor wait on a busy machine)")
-    p.add_argument("--node-duration", type=float, default=3.0, help="simulated seconds per sim_node run")
+    p.add_argument("--no-node", dest="node", action="store_false",
+                   help="leave out the sim_node runs with and without recording (issue 15's row)")
+    p.add_argument("--node-only", action="store_true", help="only the sim_node runs")
+    p.add_argument("--node-duration", type=float, default=6.0, help="simulated seconds per sim_node run")
+    p.add_argument("--node-pairs", type=int, default=10, help="back-to-back pairs of sim_node runs")
     a = p.parse_args(argv)
+    if a.node_only:
+        nb = node_bench(a.node_duration, a.node_pairs)
+        print_node_bench(nb, a.node_duration) if nb else print("  sim_node: not available")
+        return 0
     r = bench(a.duration, a.period, a.repeats)
     best = {k: max(v) for k, v in r.items() if isinstance(v, list) and v}
     med = {k: sorted(v)[len(v) // 2] for k, v in r.items() if isinstance(v, list) and v}
@@ -435,15 +463,11 @@ def main(argv=None):
               f"us/message  close() {med[key + '_close'] * 1e3:4.0f} ms")
     _print_file_writers(r, med, a)
     if a.node:
-        nb = node_bench(a.node_duration, a.repeats if a.repeats < 3 else 3)
+        nb = node_bench(a.node_duration, a.node_pairs)
         if nb is None:
             print("  sim_node: not available (no rclpy / domain_coordinator): node benchmark skipped")
         else:
-            off, on = max(nb[False]), max(nb[True])
-            print(f"  sim_node, time_mode fast, {a.node_duration:g} s at 1 kHz publish rate (u = 0, balanced start), "
-                  f"{len(nb[False])} runs each: real-time factor without recording "
-                  f"{sorted(round(v, 3) for v in nb[False])}, "
-                  f"with {sorted(round(v, 3) for v in nb[True])} -> cost of the best {(1 - on / off) * 100:.1f} %")
+            print_node_bench(nb, a.node_duration)
     print(f"  bag: {r['size'] / 1e6:.2f} MB for {a.duration:g} s ({r['size'] / r['messages']:.0f} B per message, "
           f"zstd chunks)")
     return 0

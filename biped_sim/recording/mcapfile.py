@@ -31,7 +31,6 @@ from mcap.records import (
     DataEnd,
     Footer,
     Header,
-    MessageIndex,
     Metadata,
     MetadataIndex,
     Schema,
@@ -42,6 +41,7 @@ from mcap.records import (
 MAGIC = b"\x89MCAP0\r\n"
 #: the Message record: opcode, record length, channel id, sequence, log time, publish time (then data)
 MESSAGE_RECORD = struct.Struct("<BQHIQQ")
+_MESSAGE_INDEX_HEAD = struct.Struct("<BQHI")   # opcode, record length, channel id, records' byte length
 _MESSAGE_FIELDS = MESSAGE_RECORD.size - 9      # the record length counts what follows opcode + length
 _FOOTER_START = struct.Struct("<BQQQ")         # the footer's bytes that its summary CRC covers
 
@@ -169,13 +169,13 @@ class McapFileWriter:
                                          message_end_time=end, uncompressed_crc=zlib.crc32(raw),
                                          uncompressed_size=len(raw)))
         index_start = self._out.tell()
-        index_offsets, indexes = {}, RecordBuilder()
+        index_offsets, indexes = {}, bytearray()
         for channel_id, records in self._message_index.items():
-            index_offsets[channel_id] = index_start + indexes.count
-            MessageIndex(channel_id=channel_id, records=records).write(indexes)
+            index_offsets[channel_id] = index_start + len(indexes)
+            indexes += _message_index_bytes(channel_id, records)
             self.message_counts[channel_id] = self.message_counts.get(channel_id, 0) + len(records)
-        index_length = indexes.count
-        self._out.write(indexes.end())
+        index_length = len(indexes)
+        self._out.write(indexes)
         self._chunk_indexes.append(ChunkIndex(
             message_start_time=start, message_end_time=end, chunk_start_offset=chunk_start, chunk_length=chunk_length,
             message_index_offsets=index_offsets, message_index_length=index_length, compression=self.compression,
@@ -191,6 +191,15 @@ class McapFileWriter:
             attachment_count=0, metadata_count=len(self._metadata_indexes), chunk_count=len(self._chunk_indexes),
             message_start_time=self.message_start_time or 0, message_end_time=self.message_end_time or 0,
             channel_message_counts={cid: n for cid, n in counts.items() if n})
+
+
+def _message_index_bytes(channel_id: int, records: list) -> bytes:
+    """The MessageIndex record of a channel in a chunk, packed at once: the bytes of mcap's
+    ``MessageIndex(channel_id, records).write`` (tested), which writes each (time, offset) pair with
+    two calls, about 1.5 us a message of the writer process."""
+    n = len(records)
+    return (_MESSAGE_INDEX_HEAD.pack(Opcode.MESSAGE_INDEX, 6 + 16 * n, channel_id, 16 * n)
+            + struct.pack(f"<{2 * n}Q", *[v for record in records for v in record]))
 
 
 def _record_bytes(record) -> bytes:

@@ -17,7 +17,7 @@ import signal
 
 from biped_sim.config.parameters import engine_arguments
 from biped_sim.recording import messages as M
-from biped_sim.recording.cdr import float64_multi_array_data
+from biped_sim.recording.cdr import StateSerializer, float64_multi_array_data
 from biped_sim.recording.markers import MarkerStream
 
 
@@ -39,8 +39,8 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
     """Run ``params`` (checked, see parameters.validate) in lockstep; record to ``recorder``.
 
     ``controller(t, q, dq, stance_leg) -> u`` or None (u = 0). ``recorder`` is a BagRecorder or None
-    (then nothing is written). ``build_messages``: also build the state messages every period, as
-    the node does to publish them (the recording benchmark's loop; a headless run needs none).
+    (then nothing is written). ``build_messages``: serialise the state messages every period also
+    without a recorder, as the node does to publish them (the recording benchmark's loop).
     SIGTERM and SIGINT end the run early (the signal's number is appended to ``stop``, a list the
     caller may pass to tell); the caller closes the recorder. Returns the HybridSimulator at the end.
     """
@@ -56,28 +56,22 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
     period, duration = params["control_period"], params["duration"]
     u = [0.0, 0.0]
 
-    topics_state = ("/joint_states" if js else None, "/ground_reaction" if grf else None, "/clock" if clock else None)
+    serializer = StateSerializer(M.JOINT_NAMES)
     markers = (MarkerStream(sim.model, params["slope"], params["marker_rate"])
                if recorder is not None and "/markers" in topics else None)
 
     def publish_state(last=False):
-        # the recorder packs the messages' content from the values in one call (write_state)
-        t = sim.t
-        if build_messages:
-            if js:
-                M.joint_state_message(t, sim.q, sim.dq, u, sim.stance_leg)
-            if grf and sim.stance_leg:
-                M.wrench_message(t, sim.ground_force, sim.stance_leg)
-            if clock:
-                M.clock_msg(t)
-        if recorder is not None:
-            recorder.write_state(M.to_ns(t), topics_state, M.foot_frame(sim.stance_leg), M.JOINT_NAMES, sim.q.tolist(),
-                                 sim.dq.tolist(), [0.0, 0.0, float(u[0]), float(u[1]), 0.0],
-                                 sim.ground_force if sim.stance_leg else None)
+        # the state messages of the period as the node publishes them: serialised once, recorded in one call
+        t_ns = M.to_ns(sim.t)
+        if build_messages or recorder is not None:
+            state = serializer.period(t_ns, M.foot_frame(sim.stance_leg), sim.q.tolist(), sim.dq.tolist(), u,
+                                      sim.ground_force if sim.stance_leg else None, js, grf, clock)
+            if recorder is not None and state:
+                recorder.write_messages(t_ns, [("/" + name, data) for name, data in state])
         if markers is not None:
             msg = markers.poll(sim.t, sim, force=last)
             if msg is not None:
-                rec("/markers", msg, M.to_ns(t))
+                rec("/markers", msg, t_ns)
 
     stop = [] if stop is None else stop
     old = {}

@@ -24,14 +24,12 @@ import errno
 import json
 import os
 import shutil
-import struct
 import sys
 import threading
 from datetime import datetime, timezone
 from pathlib import Path
 
 from biped_sim.recording.bagformat import message_definition, qos_dict, type_hash
-from biped_sim.recording.cdr import ENCAPSULATION_HEADER
 from biped_sim.recording.recover import recover
 from biped_sim.recording.writer import FRAME, MESSAGE, MESSAGE_FRAME
 
@@ -99,10 +97,10 @@ class BagRecorder:
              str(int(chunk_size)), repr(float(flush_interval)), *([file_writer] if file_writer else [])],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, start_new_session=True, bufsize=0)
         self._topics = {}          # name -> [id, type, seq, serialiser]
-        self._state_plans = {}     # write_state's packers, per set of topics and shape
         self._buf = bytearray()
         self._lock = threading.Lock()
         self._wake = threading.Event()
+        self._ready = threading.Event()     # the writer process has started (wait_ready)
         self._error = None
         self._status = None
         self._closed = False
@@ -144,55 +142,10 @@ class BagRecorder:
         """Queue one message (an rclpy message object, or its CDR bytes) at simulation time t_ns (int)."""
         self._hand_over(self._message_frame(topic, msg, t_ns))
 
-    def write_state(self, t_ns: int, topics, frame_id: str, names, position, velocity, effort, force=None):
-        """The state messages of one control period, packed in one call: ``topics`` = (joint_states,
-        ground_reaction, clock) topic names, None for those not written (ground_reaction also when
-        ``force`` is None). The bytes are those of the node's JointState(header
-        (stamp t_ns, frame_id), names, position, velocity, effort), WrenchStamped(force; zero
-        torque) and Clock, as three ``write`` calls would queue them; one pack instead of three
-        serialisations keeps recording near 10 us a period (bench_record)."""
-        js, grf, clk = topics
-        if force is None:
-            grf = None
-        key = (js, grf, clk, frame_id, len(position))
-        plan = self._state_plans.get(key)
-        if plan is None:
-            plan = self._state_plans[key] = self._state_plan(key, names)
-        pack, entries = plan
-        if self._error is not None or self._closed:
-            self._check()
-        sec, nsec = divmod(t_ns, 1_000_000_000)
-        values = []
-        for e, (kind, length, const) in entries:
-            e[2] += 1
-            values += (b"M", length, e[0], t_ns, e[2], ENCAPSULATION_HEADER, sec, nsec)
-            if kind == "js":
-                n = len(position)
-                values += (const, n, *position, n, *velocity, n, *effort)
-            elif kind == "grf":
-                values += (const, force[0], force[1], 0.0, 0.0, 0.0, 0.0)
-        self._hand_over(pack(*values))
-
-    def _state_plan(self, key, names):
-        from biped_sim.recording.cdr import CLOCK_FORMAT, joint_state_format, wrench_stamped_format
-        js, grf, clk, frame_id, n = key
-        fmt, entries = "<", []
-        for topic, kind in ((js, "js"), (grf, "grf"), (clk, "clock")):
-            if topic is None:
-                continue
-            entry = self._topics.get(topic)
-            if entry is None:
-                raise ValueError(f"unknown topic {topic!r}: call add_topic first (topics: {sorted(self._topics)})")
-            if kind == "js":
-                part, const = joint_state_format(frame_id, names, n)
-            elif kind == "grf":
-                part, const = wrench_stamped_format(frame_id)
-            else:
-                part, const = CLOCK_FORMAT, None
-            # the frame's length field counts the message header (MESSAGE) and the CDR payload
-            fmt += MESSAGE_FRAME.format.lstrip("<") + part
-            entries.append((entry, (kind, MESSAGE.size + struct.calcsize("<" + part), const)))
-        return struct.Struct(fmt).pack, entries
+    def write_messages(self, t_ns: int, messages):
+        """Queue messages of one time, each ``(topic, CDR bytes)``, in one hand-over (the node's state
+        messages of a period, serialised once for publishing and recording)."""
+        self._hand_over(b"".join([self._message_frame(topic, data, t_ns) for topic, data in messages]))
 
     def _message_frame(self, topic, msg, t_ns):
         # the simulation thread pays for this at every message: one test for all the checks
@@ -246,6 +199,12 @@ class BagRecorder:
             return dict(self._status["counts"])
         return {n: e[2] for n, e in self._topics.items()}
 
+    def wait_ready(self, timeout: float = 10.0) -> bool:
+        """Wait until the writer process has started (its imports and the open file: about 0.15 s of CPU
+        here), so that its start-up does not compete with the first periods of the run on a machine
+        with few cores; False if it did not say so within ``timeout`` s (``write`` works either way)."""
+        return self._ready.wait(timeout)
+
     @property
     def writer_pid(self) -> int:
         """The process id of the writer process (the recording benchmark measures its CPU time)."""
@@ -282,11 +241,19 @@ class BagRecorder:
                 return
 
     def _read_loop(self):
+        try:
+            self._read_statuses()
+        finally:
+            self._ready.set()         # a writer that ended (or died) before it said so: nobody waits on
+
+    def _read_statuses(self):
         for line in self._proc.stdout:
             try:
                 status = json.loads(line)
             except ValueError:
                 continue
+            if status.get("ready"):
+                self._ready.set()
             if status.get("error"):
                 self._error = self._error or status["error"]
             if status.get("done"):

@@ -11,8 +11,9 @@ without ``C`` (the recording process died, even by SIGKILL) closes the bag the s
 
 Started by ``BagRecorder`` as ``python -m biped_sim.recording.writer BAG_DIR MCAP_NAME COMPRESSION
 CHUNK_SIZE FLUSH_INTERVAL [MODULE:CLASS]`` (the last: another file writer, for the recording
-benchmark); writes status lines (JSON) on stdout: ``{"error": ...}`` at once when
-writing fails, ``{"done": true, "counts": {topic: n}, "error": ...}`` at the end.
+benchmark); writes status lines (JSON) on stdout: ``{"ready": true}`` once started (imports done, the
+file open), ``{"error": ...}`` at once when writing fails, ``{"done": true, "counts": {topic: n},
+"error": ...}`` at the end.
 """
 from __future__ import annotations
 
@@ -74,6 +75,7 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
     if file_writer is None:
         from biped_sim.recording.mcapfile import McapFileWriter as file_writer
     mcap = file_writer(f, PROFILE, LIBRARY, compression=compression, chunk_size=chunk_size)
+    report(ready=True)       # started: the recording process may begin its run (BagRecorder.wait_ready)
     topics, channels, schemas = {}, {}, {}
     error = None
     dirty = False

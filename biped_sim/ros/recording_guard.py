@@ -2,7 +2,7 @@
 
 Owns what happens between the node and its :class:`biped_sim.recording.recorder.BagRecorder` once
 the bag cannot be written any more: :class:`GuardedRecorder` has the recorder's interface (``add_topic``,
-``write``, ``write_state``, ``close``) and turns the first ``OSError`` of a write (the recorder
+``write``, ``write_messages``, ``wait_ready``, ``close``) and turns the first ``OSError`` of a write (the recorder
 raises the writer process's failure on the next write, see its docstring) into one call of the
 node's ``on_failure(exc)``; every later write is dropped. The node then ends the run cleanly (its
 final status, exit code 1) instead of a traceback from inside a callback, and the bag keeps what was
@@ -68,19 +68,21 @@ class GuardedRecorder:
         if first:
             self.on_failure(exc)
 
-    def write(self, topic, msg, t_ns):
+    def _guarded(self, write, *args):
         if self.failure is None:
             try:
-                self.recorder.write(topic, msg, t_ns)
+                write(*args)
             except OSError as exc:
                 self._failed(exc)
 
-    def write_state(self, *args, **kwargs):
-        if self.failure is None:
-            try:
-                self.recorder.write_state(*args, **kwargs)
-            except OSError as exc:
-                self._failed(exc)
+    def wait_ready(self, timeout=10.0) -> bool:
+        return self.recorder.wait_ready(timeout)
+
+    def write(self, topic, msg, t_ns):
+        self._guarded(self.recorder.write, topic, msg, t_ns)
+
+    def write_messages(self, t_ns, messages):
+        self._guarded(self.recorder.write_messages, t_ns, messages)
 
     def close(self, logger=None, t: float = 0.0) -> bool:
         """Close the bag (the writer ends it); False if that failed. A failure not reported before (the

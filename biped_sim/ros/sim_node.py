@@ -35,6 +35,7 @@ from biped_sim.config import parameters as P
 from biped_sim.engine import compiled_loop
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, WHY_PYTHON
 from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.recording.cdr import StateSerializer
 from biped_sim.recording.markers import MarkerStream
 from biped_sim.recording.messages import (
     IMPACT_KINDS,
@@ -44,12 +45,10 @@ from biped_sim.recording.messages import (
     diagnostic_array,
     event_status,
     foot_frame,
-    joint_state_message,
-    stamp,
     to_ns,
-    wrench_message,
 )
 from biped_sim.ros import params_files, run_watch, startup
+from biped_sim.ros.one_topic_spin import OneTopicSpin
 from biped_sim.ros.parameters import declare_from_table, usage_text, value_less_override_message
 from biped_sim.ros.recording_guard import GuardedRecorder, failure_message
 from biped_sim.ros.sim_control import SimControl
@@ -92,6 +91,7 @@ class SimNode(Node):
         self.fault = None               # (status, message): the run ended by a fault (recording, lockstep_timeout)
         self.last_command_wall = None
         self.timed_out = False
+        self._wall_first_period = None  # wall clock at the first control period (figures: periods per wall s)
 
         out = set(prm["outputs"])
         self.pub_js = self._publisher(JointState, "joint_states") if "joint_states" in out else None
@@ -105,8 +105,11 @@ class SimNode(Node):
         self.markers = MarkerStream(self.sim.model, prm["slope"], prm["marker_rate"]) if "markers" in out else None
         self.sub = self.create_subscription(Float64MultiArray, "hip_torque", self._on_command, COMMAND_QOS)
         self.control = SimControl(self, COMMAND_QOS)    # ~/pause, ~/step, ~/reset and the push topic
-        self._js_msg = self._grf_msg = None
-        self._clock_msg = Clock()
+        self._state_cdr = StateSerializer(JOINT_NAMES)
+        self._state_pubs = {name: pub for name, pub in (("joint_states", self.pub_js),
+                                                        ("ground_reaction", self.pub_grf), ("clock", self.pub_clock))}
+        self._state_outputs = tuple(pub is not None for pub in self._state_pubs.values())
+        self._state_topics = {name: pub.topic_name for name, pub in self._state_pubs.items() if pub is not None}
         self.recorder = self.bag_path = None
         if prm["record"]:
             self._open_recorder()
@@ -152,6 +155,9 @@ class SimNode(Node):
         for output, pub in self.publishers_by_output().items():
             self.recorder.add_topic(pub.topic_name, TOPIC_TYPES[output], qos=STATE_QOS)
         self.recorder.add_topic(self.sub.topic_name, TOPIC_TYPES["hip_torque"], qos=COMMAND_QOS)
+        # the writer process starts now rather than during the run's first periods (on 2 cores it took
+        # the CPU from them: about 0.15 s of imports)
+        self.recorder.wait_ready()
 
     def _publish(self, pub, msg, t):
         pub.publish(msg)
@@ -249,6 +255,8 @@ class SimNode(Node):
     def step(self):
         """Advance one control period with the held torques (after the pushes received since the
         last one); publish its events."""
+        if self._wall_first_period is None:
+            self._wall_first_period = time.monotonic()
         for impulse in self.control.take_pushes():
             for ev in self.sim.push(impulse):
                 self._publish_event(ev)
@@ -301,52 +309,21 @@ class SimNode(Node):
     def publish_state(self):
         """joint_states, ground_reaction (in stance) and /clock at the engine's current time.
 
-        The same content as ``joint_state_message``/``wrench_message``, but into messages made
-        once and refilled (building rosidl messages costs more than publishing them)."""
+        The content of ``joint_state_message``/``wrench_message``/``clock_msg``, serialised once
+        (:class:`~biped_sim.recording.cdr.StateSerializer`), published as bytes and handed to the
+        recorder as they are."""
         sim = self.sim
-        t = sim.t
-        st = stamp(t)
-        frame = foot_frame(sim.stance_leg)
-        state = []
-        q, dq = sim.q.tolist(), sim.dq.tolist()
-        effort = [0.0, 0.0, float(self.u[0]), float(self.u[1]), 0.0]
-        if self.pub_js is not None:
-            m = self._js_msg
-            if m is None:
-                m = self._js_msg = joint_state_message(t, sim.q, sim.dq, self.u, sim.stance_leg)
-            else:
-                m.header.stamp = st
-                m.header.frame_id = frame
-                m.position = q
-                m.velocity = dq
-                m.effort = effort
-            state.append((self.pub_js, m))
-        if self.pub_grf is not None and sim.stance_leg:
-            m = self._grf_msg
-            force = sim.ground_force
-            if m is None:
-                m = self._grf_msg = wrench_message(t, force, sim.stance_leg)
-            else:
-                m.header.stamp = st
-                m.header.frame_id = frame
-                m.wrench.force.x = float(force[0])
-                m.wrench.force.y = float(force[1])
-            state.append((self.pub_grf, m))
-        if self.pub_clock is not None:
-            self._clock_msg.clock = st
-            state.append((self.pub_clock, self._clock_msg))
-        for pub, m in state:
-            pub.publish(m)
-        if self.recorder is not None and state:   # the same messages, packed in one call
-            self.recorder.write_state(
-                to_ns(t), tuple(p.topic_name if p is not None else None
-                                for p in (self.pub_js, self.pub_grf, self.pub_clock)),
-                frame, JOINT_NAMES, q, dq, effort,
-                sim.ground_force if sim.stance_leg and self.pub_grf is not None else None)
+        t_ns = to_ns(sim.t)
+        state = self._state_cdr.period(t_ns, foot_frame(sim.stance_leg), sim.q.tolist(), sim.dq.tolist(), self.u,
+                                       sim.ground_force if sim.stance_leg else None, *self._state_outputs)
+        for name, data in state:
+            self._state_pubs[name].publish(data)
+        if self.recorder is not None and state:
+            self.recorder.write_messages(t_ns, [(self._state_topics[name], data) for name, data in state])
         if self.markers is not None:   # the last state of a run is always drawn
             msg = self.markers.poll(time.monotonic(), sim, force=self.finished or self.stopped)
             if msg is not None:   # serialised once for the topic and the bag (1.2 ms a MarkerArray)
-                self._publish(self.pub_markers, serialize_message(msg), t)
+                self._publish(self.pub_markers, serialize_message(msg), sim.t)
 
     # -- time modes ---------------------------------------------------------------------------
     def run(self, should_stop, executor):
@@ -355,8 +332,9 @@ class SimNode(Node):
         self._cpu_run0 = time.process_time()
         self.publish_state()
         if self.mode == "lockstep":     # the command callback steps and publishes
+            spin = OneTopicSpin(executor, self, self.sub)     # hip_torque first: see one_topic_spin
             while True:
-                run_lockstep(self, should_stop, executor)
+                run_lockstep(self, should_stop, spin)
                 self._end_run(should_stop, lambda: executor.spin_once(timeout_sec=0.1))
                 if should_stop() or self.finished or self.stopped:
                     return              # else a ~/reset restarted a stopped run
@@ -369,19 +347,25 @@ class SimNode(Node):
 
     def _end_run(self, should_stop, wait):
         self._cpu_end = time.process_time()
+        self._wall_end = time.monotonic()
         if self.finished:
             self.publish_run_status()
         while not should_stop() and self.stopped:
             wait()
 
     def log_figures(self):
-        """The run's cost: control periods, engine time and this process's CPU time per period."""
+        """The run's cost: control periods, engine time and this process's CPU time per period, and the
+        wall time from the first control period (in lockstep: the first command) to the end of the run
+        (``benchmarks/bench_node.py`` and ``bench_record.py`` read this line)."""
         n = self.sim.control_periods
         k = max(1, n)
         cpu = getattr(self, "_cpu_end", time.process_time()) - getattr(self, "_cpu_run0", 0.0)
+        wall = (getattr(self, "_wall_end", time.monotonic()) - self._wall_first_period
+                if self._wall_first_period is not None else 0.0)
         self.get_logger().info(
             f"{n} control periods to t={self.sim.t:.6f} s: engine {1e3 * self.sim.stats['wall_time'] / k:.3f} ms "
-            f"(wall) and process CPU {1e3 * cpu / k:.3f} ms per period; commands {self.counts}")
+            f"(wall) and process CPU {1e3 * cpu / k:.3f} ms per period; wall {wall:.4f} s from the first control "
+            f"period ({n / wall if wall > 0 else 0.0:.1f} periods/s); commands {self.counts}")
 
     def flush(self, timeout=5.0):
         """Wait (at most ``timeout`` s in all) until subscribers acknowledged what was published: a

@@ -105,10 +105,11 @@ class RealtimePacer:
                 f"{f['cpu'] * 1e3:.3f} ms per control period")
 
 
-def run_lockstep(node, should_stop, executor):
-    """Spin until the duration is reached: the command callback steps and publishes."""
+def run_lockstep(node, should_stop, spin):
+    """Spin until the duration is reached: the command callback steps and publishes. ``spin``: the
+    node's :class:`~biped_sim.ros.one_topic_spin.OneTopicSpin` on ``hip_torque``."""
     while not should_stop() and not node.finished:
-        executor.spin_once(timeout_sec=0.1)
+        spin.spin_once(0.1)
 
 
 def run_fast(node, should_stop):

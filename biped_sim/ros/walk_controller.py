@@ -48,6 +48,7 @@ from biped_sim.config.parameters import Param
 from biped_sim.config.scenes import CONTROLLER_PARAMETERS, make_controller
 from biped_sim.recording.messages import JOINT_NAMES, TOPIC_TYPES, stamp_ns, torque_msg
 from biped_sim.ros import params_files, startup
+from biped_sim.ros.one_topic_spin import OneTopicSpin
 from biped_sim.ros.parameters import declare_from_table, usage_text, value_less_override_message
 from biped_sim.ros.startup import StartupError
 
@@ -192,8 +193,9 @@ def main(argv=None):
             return startup.refuse("walk_controller", exc)
         executor = SingleThreadedExecutor()
         executor.add_node(node)
+        spin = OneTopicSpin(executor, node, node.sub)     # joint_states first: see one_topic_spin
         while not stop:
-            executor.spin_once(timeout_sec=0.1)
+            spin.spin_once(0.1)
         node.get_logger().info(f"{startup.signal_name(stop[0])}: shutting down after {node.answered} commands "
                                f"({node.duplicates} duplicate states skipped, {node.older} older states left for "
                                f"a newer one, {node.failures} failures)")

@@ -51,7 +51,7 @@ class Tee:
         self.rec.add_topic(topic, type_name, *a, **k)
 
     def _keep(self, topic, msg, t_ns):
-        if isinstance(msg, bytes):   # pre-serialised (the headless run's commands): what goes on the wire
+        if isinstance(msg, bytes):   # pre-serialised (the commands, the state): what goes on the wire
             from rclpy.serialization import deserialize_message
 
             from biped_sim.recording.messages import message_class
@@ -63,26 +63,10 @@ class Tee:
         self._keep(topic, msg, t_ns)
         self.rec.write(topic, msg, t_ns)
 
-    def write_state(self, t_ns, topics, frame_id, names, position, velocity, effort, force=None):
-        # the messages write_state stands for, built the rclpy way
-        from builtin_interfaces.msg import Time
-        from geometry_msgs.msg import WrenchStamped
-        from rosgraph_msgs.msg import Clock
-        from sensor_msgs.msg import JointState
-        stamp = Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
-        js, grf, clk = topics
-        if js:
-            m = JointState(name=list(names), position=list(position), velocity=list(velocity), effort=list(effort))
-            m.header.stamp, m.header.frame_id = stamp, frame_id
-            self._keep(js, m, t_ns)
-        if grf and force is not None:
-            m = WrenchStamped()
-            m.header.stamp, m.header.frame_id = stamp, frame_id
-            m.wrench.force.x, m.wrench.force.y = float(force[0]), float(force[1])
-            self._keep(grf, m, t_ns)
-        if clk:
-            self._keep(clk, Clock(clock=stamp), t_ns)
-        self.rec.write_state(t_ns, topics, frame_id, names, position, velocity, effort, force)
+    def write_messages(self, t_ns, messages):
+        for topic, data in messages:
+            self._keep(topic, data, t_ns)
+        self.rec.write_messages(t_ns, messages)
 
 
 def walk_params(duration=1.0, **kw):
@@ -348,6 +332,31 @@ def test_fast_cdr_decodes_like_the_message_it_encodes():
         assert plain(topic, decoded) == plain(topic, msg), (typ, msg)
 
 
+def test_the_state_serializer_gives_the_messages_the_node_published_before():
+    # sim_node publishes and records StateSerializer's bytes: they decode (rclpy) to the messages of
+    # joint_state_message, wrench_message and clock_msg, and equal the recorder's CDR of those messages
+    import numpy as np
+    from rclpy.serialization import deserialize_message
+
+    from biped_sim.recording import messages as M
+    from biped_sim.recording.cdr import StateSerializer, serializer
+    cdr = StateSerializer(M.JOINT_NAMES)
+    q, dq = np.array([0.1, 1.0000001, 3.3, 3.2, -0.15]), np.array([1.0, -2.0, 0.5, 0.0, 7.25])
+    force = np.array([-3.5, 196.2])
+    for t in (0.0, 1.234567891, 12.000000001):
+        sec, nanosec = divmod(M.to_ns(t), 1_000_000_000)
+        for leg in (0, 1, 2):
+            frame, u = M.foot_frame(leg), [1.5, -2.5]
+            cases = [(cdr.joint_state(sec, nanosec, frame, q.tolist(), dq.tolist(), [0.0, 0.0, u[0], u[1], 0.0]),
+                      M.joint_state_message(t, q, dq, u, leg), "sensor_msgs/msg/JointState"),
+                     (cdr.wrench_stamped(sec, nanosec, frame, force), M.wrench_message(t, force, leg),
+                      "geometry_msgs/msg/WrenchStamped"),
+                     (cdr.clock(sec, nanosec), M.clock_msg(t), "rosgraph_msgs/msg/Clock")]
+            for data, msg, typ in cases:
+                assert deserialize_message(data, type(msg)) == msg, (typ, t, leg)
+                assert data == serializer(typ)(msg), (typ, t, leg)
+
+
 @pytest.mark.parametrize("compression", ["lz4", "none"])
 def test_small_chunks_and_each_compression_give_a_bag_both_readers_index_alike(tmp_path, compression):
     # many chunks: the chunk and message indexes, the statistics and the summary offsets of our MCAP
@@ -417,3 +426,15 @@ def test_resim_of_a_bag_cut_between_an_impact_and_the_next_state_is_identical(tm
     rep = resim(tmp_path / "cut")
     assert rep["identical"], format_report(rep)
     assert rep["states"] == sum(1 for m in whole[:cut] if m[0] == "/joint_states")
+
+
+def test_the_packed_message_index_is_mcaps_record():
+    # McapFileWriter packs each chunk's MessageIndex records itself (the writer process's hot path)
+    from mcap.data_stream import RecordBuilder
+    from mcap.records import MessageIndex
+
+    from biped_sim.recording.mcapfile import _message_index_bytes
+    for records in ([], [(7, 0)], [(1_000_000_000 + i, 60 * i) for i in range(1000)]):
+        builder = RecordBuilder()
+        MessageIndex(channel_id=3, records=records).write(builder)
+        assert _message_index_bytes(3, records) == builder.end()
