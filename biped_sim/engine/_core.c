@@ -1380,20 +1380,12 @@ Loop_dense_rows(Loop *L, PyObject *unused)
     PyObject *rows = PyList_New(N);
     if (rows == NULL) return NULL;
     for (int i = 0; i < N; i++) {
-        PyObject *r = PyTuple_New(width);
+        PyObject *r = list_of(L->dense + width * i, width);
         if (r == NULL) {
             Py_DECREF(rows);
             return NULL;
         }
         PyList_SET_ITEM(rows, i, r);
-        for (int j = 0; j < width; j++) {
-            PyObject *x = PyFloat_FromDouble(L->dense[width * i + j]);
-            if (x == NULL) {
-                Py_DECREF(rows);
-                return NULL;
-            }
-            PyTuple_SET_ITEM(r, j, x);
-        }
     }
     return rows;
 }
