@@ -342,11 +342,11 @@ step(Loop *L)
         }
         if (L->method == DOP853) k_dop853_step_11(rhs, L, t, L->y, L->f, h, L->rtol, L->atol, out);
         else k_dopri5_step_11(rhs, L, t, L->y, L->f, h, L->rtol, L->atol, out);
-        L->nfev += ns;
-        if (L->callback_failed) {
+        if (L->callback_failed) {      /* (the Python step raises before it counts its evaluations) */
             L->fail_kind = FAIL_CALLBACK;
             return -1;
         }
+        L->nfev += ns;
         err = out[2 * N];
         if (err < 1.0) {
             double s = 0.0;

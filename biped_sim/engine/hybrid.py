@@ -299,8 +299,7 @@ class HybridSimulator:
                 if outcome == compiled_loop.PYTHON_STEPS:
                     st.step()
                 outcome = None
-                st.locator_stale = st.state_stale = True
-                st.pull_locator(self.locator)
+                st.locator_stale = st.state_stale = True     # the Python code handles this step
             else:
                 st.step()
             self._stats["steps"] += 1
