@@ -385,6 +385,37 @@ step(Loop *L)
     return 0;
 }
 
+/* A mode's start at time t from the current y (integrators._ListRungeKutta.restart): f = rhs(t, y)
+ * under the torque now set, the step's fields reset; t_bound the end of the interval */
+static void
+restart(Loop *L, double t, double t_bound)
+{
+    L->t = L->t_old = t;
+    memcpy(L->y_old, L->y, sizeof L->y);
+    L->t_bound = t_bound;
+    rhs(L, t, L->y, L->f);
+    L->nfev += 1;
+    L->dense_ready = 0;
+}
+
+/* The step size a new stepper starts with: the carried-over h, capped by max_step (restart's min) */
+static void
+carry_step(Loop *L, double h)
+{
+    L->h_abs = L->max_step < h ? L->max_step : h;
+}
+
+/* carry_step(h) for an argument h_abs or None (None: keep the current one); 0, or -1 with an exception */
+static int
+carry_step_arg(Loop *L, PyObject *h)
+{
+    if (h == Py_None) return 0;
+    double v = PyFloat_AsDouble(h);
+    if (v == -1.0 && PyErr_Occurred()) return -1;
+    carry_step(L, v);
+    return 0;
+}
+
 /* The dense output's rows (generated: rk_steps.dop853_dense_11 / dopri5_dense_11) */
 static void
 dense(Loop *L)
@@ -670,12 +701,8 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     memcpy(L->y, q, 5 * sizeof(double));
     memcpy(L->y + 5, dqp, 5 * sizeof(double));
     L->y[10] = w;
-    L->t = L->t_old = t_ev;
-    memcpy(L->y_old, L->y, sizeof L->y);
-    L->h_abs = L->max_step < L->h_abs ? L->max_step : L->h_abs;
-    rhs(L, t_ev, L->y, L->f);
-    L->nfev += 1;
-    L->dense_ready = 0;
+    carry_step(L, L->h_abs);
+    restart(L, t_ev, L->t_bound);
     return 3;
 }
 
@@ -938,51 +965,11 @@ Loop_touchdown_record(Loop *L, PyObject *unused)
                          list_of(L->td + 11, 5), list_of(L->td + 16, 2), L->td[18], L->td[19], L->pin[0], L->pin[1]);
 }
 
-/* set_mode(method, stance_leg, pin_x, pin_y) */
-static PyObject *
-Loop_set_mode(Loop *L, PyObject *args)
-{
-    const char *method;
-    int leg;
-    if (!PyArg_ParseTuple(args, "sidd", &method, &leg, &L->pin[0], &L->pin[1])) return NULL;
-    if (strcmp(method, "dop853") == 0) L->method = DOP853;
-    else if (strcmp(method, "dopri5") == 0) L->method = DOPRI5;
-    else {
-        PyErr_Format(PyExc_ValueError, "the compiled loop steps dop853 or dopri5, not %s", method);
-        return NULL;
-    }
-    if (leg != 1 && leg != 2) {
-        PyErr_SetString(PyExc_ValueError, "the compiled loop integrates stance on leg 1 or 2");
-        return NULL;
-    }
-    L->leg = leg;
-    Py_RETURN_NONE;
-}
-
-/* set_torque(kind, u1, u2, ctrl (8)): kind 0 held (u1, u2), 1 PDWalkingController, 2 WalkingController */
-static PyObject *
-Loop_set_torque(Loop *L, PyObject *const *args, Py_ssize_t nargs)
-{
-    if (nargs != 4) {
-        PyErr_SetString(PyExc_TypeError, "set_torque(kind, u1, u2, ctrl)");
-        return NULL;
-    }
-    long kind = PyLong_AsLong(args[0]);
-    double u0 = PyFloat_AsDouble(args[1]), u1 = PyFloat_AsDouble(args[2]);
-    if (PyErr_Occurred()) return NULL;
-    if (kind != HELD && doubles(args[3], L->ctrl, 8, 8, "ctrl", NULL)) return NULL;
-    L->controller = (int)kind;
-    L->u_hold[0] = u0;
-    L->u_hold[1] = u1;
-    Py_RETURN_NONE;
-}
 
 static PyObject *
 Loop_set_h_abs(Loop *L, PyObject *arg)
 {
-    L->h_abs = PyFloat_AsDouble(arg);
-    if (L->h_abs == -1.0 && PyErr_Occurred()) return NULL;
-    L->h_abs = L->max_step < L->h_abs ? L->max_step : L->h_abs;
+    if (carry_step_arg(L, arg) < 0) return NULL;
     Py_RETURN_NONE;
 }
 
@@ -1134,12 +1121,7 @@ hold(Loop *L, double u0, double u1, double t_bound)
     L->controller = HELD;
     L->u_hold[0] = u0;
     L->u_hold[1] = u1;
-    L->t_old = L->t;
-    memcpy(L->y_old, L->y, sizeof L->y);
-    L->t_bound = t_bound;
-    rhs(L, L->t, L->y, L->f);
-    L->nfev += 1;
-    L->dense_ready = 0;
+    restart(L, L->t, t_bound);
 }
 
 /* periods(kind, ctrl, period, control_periods, t_final, t_stop, <the 10 arguments of run>)
@@ -1179,7 +1161,7 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         memcpy(L->ctrl, ctrl, sizeof ctrl);
         L->controller = kind;
         torque(L, L->t, L->y, L->y + 5, u);
-        L->h_abs = L->max_step < L->h_abs ? L->max_step : L->h_abs;     /* as begin() carries it over */
+        carry_step(L, L->h_abs);     /* as begin() carries it over */
         hold(L, u[0], u[1], t_next);
         outcome = quiet_until(L, t_next, &rs);
         if (outcome != DONE) break;
@@ -1210,12 +1192,7 @@ Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         return NULL;
     }
     double u0 = PyFloat_AsDouble(args[0]), u1 = PyFloat_AsDouble(args[1]), t_bound = PyFloat_AsDouble(args[3]);
-    if (PyErr_Occurred()) return NULL;
-    if (args[2] != Py_None) {
-        double h = PyFloat_AsDouble(args[2]);
-        if (h == -1.0 && PyErr_Occurred()) return NULL;
-        L->h_abs = L->max_step < h ? L->max_step : h;
-    }
+    if (PyErr_Occurred() || carry_step_arg(L, args[2]) < 0) return NULL;
     hold(L, u0, u1, t_bound);
     if (L->callback_failed) return raise_callback_error(L);
     return run_quiet(L, args + 3);
@@ -1315,12 +1292,7 @@ Loop_begin(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     } else if (kind != HELD && doubles(args[7], L->ctrl, 8, 8, "ctrl", NULL)) {
         return NULL;
     }
-    if (doubles(args[9], L->y, N, N, "y", NULL)) return NULL;
-    if (args[11] != Py_None) {
-        double h = PyFloat_AsDouble(args[11]);
-        if (h == -1.0 && PyErr_Occurred()) return NULL;
-        L->h_abs = L->max_step < h ? L->max_step : h;
-    }
+    if (doubles(args[9], L->y, N, N, "y", NULL) || carry_step_arg(L, args[11]) < 0) return NULL;
     L->method = (int)method;
     L->leg = (int)leg;
     L->pin[0] = pin0;
@@ -1329,12 +1301,7 @@ Loop_begin(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     L->u_hold[0] = u0;
     L->u_hold[1] = u1;
     if (reset) L->nfev = L->nrejected = L->naccepted = 0;
-    L->t = L->t_old = t;
-    memcpy(L->y_old, L->y, sizeof L->y);
-    L->t_bound = t_bound;
-    rhs(L, t, L->y, L->f);
-    L->nfev += 1;
-    L->dense_ready = 0;
+    restart(L, t, t_bound);
     if (L->callback_failed) return raise_callback_error(L);
     Py_RETURN_NONE;
 }
@@ -1457,23 +1424,10 @@ Loop_law_torque(Loop *L, PyObject *args)
     return Py_BuildValue("[dd]", u[0], u[1]);
 }
 
-static PyObject *
-Loop_torque(Loop *L, PyObject *args)
-{   /* the compiled controller's torque at (q, dq), to compare with the Python one */
-    PyObject *q, *dq;
-    double qq[5], dd[5], u[2];
-    if (!PyArg_ParseTuple(args, "OO", &q, &dq) || doubles(q, qq, 5, 5, "q", NULL) || doubles(dq, dd, 5, 5, "dq", NULL))
-        return NULL;
-    torque(L, 0.0, qq, dd, u);
-    if (L->callback_failed) return raise_callback_error(L);
-    return Py_BuildValue("(dd)", u[0], u[1]);
-}
 
 static PyMethodDef Loop_methods[] = {
     {"set_model", (PyCFunction)Loop_set_model, METH_VARARGS, NULL},
     {"set_options", (PyCFunction)Loop_set_options, METH_VARARGS, NULL},
-    {"set_mode", (PyCFunction)Loop_set_mode, METH_VARARGS, NULL},
-    {"set_torque", (PyCFunction)(void (*)(void))Loop_set_torque, METH_FASTCALL, NULL},
     {"set_h_abs", (PyCFunction)Loop_set_h_abs, METH_O, NULL},
     {"rhs", (PyCFunction)Loop_rhs, METH_VARARGS, NULL},
     {"step", (PyCFunction)Loop_step, METH_NOARGS, NULL},
@@ -1498,7 +1452,6 @@ static PyMethodDef Loop_methods[] = {
     {"handed", (PyCFunction)Loop_handed, METH_NOARGS, NULL},
     {"armed", (PyCFunction)Loop_armed, METH_NOARGS, NULL},
     {"set_counters", (PyCFunction)Loop_counters, METH_VARARGS, NULL},
-    {"torque", (PyCFunction)Loop_torque, METH_VARARGS, NULL},
     {"law_torque", (PyCFunction)Loop_law_torque, METH_VARARGS, NULL},
     {NULL, NULL, 0, NULL},
 };

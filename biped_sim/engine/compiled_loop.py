@@ -79,6 +79,19 @@ def covers(sim, controller):
     return _torque_in_mode(controller, sim.stance_leg)
 
 
+def _new_loop(model):
+    """A C ``Loop`` with the model's closed-form constants."""
+    loop = _core.Loop()
+    loop.set_model(model.k_stance, model.k["foot_kinematics"], model.k["foot_positions"], model.k["energy"],
+                   model.k["stance_terms_1"], model.parameters.l_leg)
+    return loop
+
+
+def _python_only(locator):
+    """Whether the locator holds what only the Python code follows: a latched guard, or two scuffs."""
+    return bool(locator.latched) or len(locator.active_scuffs) > 1
+
+
 def _step_failure(fail):
     kind, value, t = fail
     if kind == 1:
@@ -94,10 +107,8 @@ class CompiledStepper(integrators._ListRungeKutta):
 
     def __init__(self, sim):
         self.sim = sim
-        self.loop = _core.Loop()
-        m, opt = sim.model, sim.opt
-        self.loop.set_model(m.k_stance, m.k["foot_kinematics"], m.k["foot_positions"], m.k["energy"],
-                            m.k["stance_terms_1"], m.parameters.l_leg)
+        self.loop = _new_loop(sim.model)
+        opt = sim.opt
         self.loop.set_options(sim.rtol, sim.atol, float(opt.max_step), opt.max_speed, opt.ground_tol, opt.force_tol,
                               opt.graze_tol, opt.arm_height, sim.mu, opt.stop_on_slip, opt.project_constraints,
                               opt.check_invariants, "impact" in opt.phases, opt.slope,
@@ -186,20 +197,32 @@ class CompiledStepper(integrators._ListRungeKutta):
         """The quiet steps to ``t_end`` in C. DONE (at t_end: the simulator's state is the last sample's),
         PENDING (a step taken, not accepted: the Python code handles it), or PYTHON_STEPS (the locator
         holds a latched guard or two scuffs, which only the Python code follows: step in Python)."""
-        loc = sim.locator
-        if loc.latched or len(loc.active_scuffs) > 1:
+        if _python_only(sim.locator):
             return PYTHON_STEPS
         if self.locator_stale:
-            self._push_locator(loc)
-        s = sim._samples
+            self._push_locator(sim.locator)
         while True:
-            outcome, s.n, s.appended, s.provisional, accepted, t, w, h_abs, changed, fail = self.loop.run(
-                t_end, sim.E0, sim.push_work, sim.energy_lost, s._data, s.n, s.appended, s.provisional, s.every,
-                s.keep is False)
-            if outcome != GROW:
-                break
+            result = self._take(sim, self.loop.run(*self._run_arguments(sim, t_end)))
+            if result[0] != GROW:
+                return self._after_run(sim, t_end, *result)
+            sim._samples.grow()
+
+    @staticmethod
+    def _run_arguments(sim, t_end):
+        """The arguments of the C loop's run: to t_end, the energy balance's terms, the sample array with
+        Samples' counters (its room for two samples made first: an impact's)."""
+        s = sim._samples
+        if s.keep is not False and s.n + 2 > len(s._data):
             s.grow()
-        return self._after_run(sim, t_end, outcome, accepted, t, w, h_abs, changed, fail)
+        return (t_end, sim.E0, sim.push_work, sim.energy_lost, s._data, s.n, s.appended, s.provisional, s.every,
+                s.keep is False)
+
+    @staticmethod
+    def _take(sim, result):
+        """Samples' counters from a run's result; (outcome, accepted, t, w, h_abs, changed, fail)."""
+        s = sim._samples
+        outcome, s.n, s.appended, s.provisional, accepted, t, w, h_abs, changed, fail = result
+        return outcome, accepted, t, w, h_abs, changed, fail
 
     def command(self, sim, controller):
         """The control period's command of a compiled law at the simulator's state, computed in C (the
@@ -214,7 +237,7 @@ class CompiledStepper(integrators._ListRungeKutta):
     def can_run_periods(self, sim):
         """Whether ``periods`` can run now: the simulator's state is the loop's, and the locator holds
         nothing only the Python code follows."""
-        return not self.state_stale and not sim.locator.latched and len(sim.locator.active_scuffs) <= 1
+        return not self.state_stale and not _python_only(sim.locator)
 
     def periods(self, sim, period, law, t_final, t_stop):
         """Control periods of a compiled law, each command computed and held in C, as ``advance_period``
@@ -223,35 +246,27 @@ class CompiledStepper(integrators._ListRungeKutta):
         (``can_run_periods`` first)."""
         if self.locator_stale:
             self._push_locator(sim.locator)
-        s = sim._samples
-        if s.keep is not False and s.n + 2 > len(s._data):
-            s.grow()
         kind, params = law
         result, sim.control_periods, t_next, u = self.loop.periods(
-            TORQUE_KINDS[kind], params, period, sim.control_periods, t_final, t_stop, t_final, sim.E0,
-            sim.push_work, sim.energy_lost, s._data, s.n, s.appended, s.provisional, s.every, s.keep is False)
+            TORQUE_KINDS[kind], params, period, sim.control_periods, t_final, t_stop,
+            *self._run_arguments(sim, t_final))
         sim._u = list(u)
-        outcome, s.n, s.appended, s.provisional, accepted, t, w, h_abs, changed, fail = result
-        if outcome == GROW:
-            s.grow()
-            self._after_run(sim, t_next, DONE, accepted, t, w, h_abs, changed, fail)
+        outcome, *rest = self._take(sim, result)
+        if outcome == GROW:      # the period in progress goes on in run(), which makes room
+            self._after_run(sim, t_next, DONE, *rest)
             return self.run(sim, t_next), t_next
-        return self._after_run(sim, t_next, outcome, accepted, t, w, h_abs, changed, fail), t_next
+        return self._after_run(sim, t_next, outcome, *rest), t_next
 
     def held_period(self, sim, t_end):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""
-        if self.state_stale or self.locator_stale or sim.locator.latched or len(sim.locator.active_scuffs) > 1:
+        if self.state_stale or self.locator_stale or _python_only(sim.locator):
             return None
-        s = sim._samples
-        if s.keep is not False and s.n + 2 > len(s._data):     # the loop's room: two samples (an impact's)
-            s.grow()
-        outcome, s.n, s.appended, s.provisional, accepted, t, w, h_abs, changed, fail = self.loop.held(
-            sim._u[0], sim._u[1], sim._h, t_end, sim.E0, sim.push_work, sim.energy_lost, s._data, s.n, s.appended,
-            s.provisional, s.every, s.keep is False)
+        outcome, *rest = self._take(sim, self.loop.held(sim._u[0], sim._u[1], sim._h,
+                                                        *self._run_arguments(sim, t_end)))
         if outcome == GROW:
             return self.run(sim, t_end)
-        return self._after_run(sim, t_end, outcome, accepted, t, w, h_abs, changed, fail)
+        return self._after_run(sim, t_end, outcome, *rest)
 
     def _after_run(self, sim, t_end, outcome, accepted, t, w, h_abs, changed, fail):
         s, loc = sim._samples, sim.locator
@@ -311,11 +326,9 @@ def compiled_torque(controller, stance_leg, q, dq, model):
     """The compiled law's torque at (q, dq) (lists) in stance on ``stance_leg``, for comparing it with
     the controller's own (tests); None when the loop does not compile this controller."""
     law = torque_law(controller)
-    if _core is None or law is None:
+    if _core is None or law is None or law[0] == "held":
         return None
-    loop = _core.Loop()
-    loop.set_model(model.k_stance, model.k["foot_kinematics"], model.k["foot_positions"], model.k["energy"],
-                   model.k["stance_terms_1"], model.parameters.l_leg)
-    loop.set_mode("dop853", stance_leg, 0.0, 0.0)
-    loop.set_torque(TORQUE_KINDS[law[0]], 0.0, 0.0, law[1] or ())
-    return np.array(loop.torque(q, dq))
+    loop = _new_loop(model)
+    loop.begin(METHOD_CODES["dop853"], stance_leg, 0.0, 0.0, TORQUE_KINDS["held"], 0.0, 0.0, None, 0.0,
+               list(q) + list(dq) + [0.0], 0.0, None, True)
+    return np.array(loop.law_torque(TORQUE_KINDS[law[0]], law[1]))
