@@ -145,6 +145,9 @@ class _ListRungeKutta(_Stepper):
         self._stages = None
         self._dense = None
 
+    def dense_at(self, t):
+        return self.dense_output().at(t)
+
     def _initial_step(self):
         self.nfev += 1
         return initial_step(self.fun, self.t, self.y, self.f, self.t_bound, self.rtol, self.atol, self.ERROR_ORDER)
@@ -196,9 +199,6 @@ class DOP853Stepper(_ListRungeKutta):
     STEPS, GENERIC_STEP, ERROR_ORDER = _rk.DOP853_STEPS, staticmethod(_rk.dop853_step), 7
     N_STAGES = _rk.N_STAGES["dop853"]
 
-    def dense_at(self, t):
-        return self.dense_output().at(t)
-
     def dense_output(self):
         if self._dense is None:
             dense = _rk.DOP853_DENSE.get(len(self.y))
@@ -240,9 +240,6 @@ class DOPRI5Stepper(_ListRungeKutta):
     STEPS, GENERIC_STEP, ERROR_ORDER = _rk.DOPRI5_STEPS, staticmethod(_rk.dopri5_step), 4
     N_STAGES = _rk.N_STAGES["dopri5"]
 
-    def dense_at(self, t):
-        return self.dense_output().at(t)
-
     def dense_output(self):
         if self._dense is None:
             dense = _rk.DOPRI5_DENSE.get(len(self.y))
@@ -255,9 +252,9 @@ class DOPRI5Stepper(_ListRungeKutta):
         return self._dense
 
 
-class _DOPRI5Interpolant:
-    """DOPRI5's 4th-order dense output: per entry y + h (((q4 x + q3) x + q2) x + q1) x, x = (t' - t_old) / h
-    (scipy's RkDenseOutput, evaluated by Horner's rule, as the compiled loop does)."""
+class _RowInterpolant:
+    """A step's dense output from ``rows``, one per entry of the state (the generated ``*_dense_<n>``'s);
+    ``at(t)`` the state at t as a list of plain floats (for 11 entries several times cheaper than numpy)."""
 
     def __init__(self, t_old, t, rows):
         self.t_old, self.t, self.rows = t_old, t, rows
@@ -265,6 +262,11 @@ class _DOPRI5Interpolant:
 
     def __call__(self, t):
         return np.array(self.at(t))
+
+
+class _DOPRI5Interpolant(_RowInterpolant):
+    """DOPRI5's 4th-order dense output: per entry y + h (((q4 x + q3) x + q2) x + q1) x, x = (t' - t_old) / h
+    (scipy's RkDenseOutput, evaluated by Horner's rule, as the compiled loop does)."""
 
     def at(self, t):
         h = self.h
@@ -294,24 +296,16 @@ def _nested_to_power_basis():
     return np.array(columns).T
 
 
-class _DOP853Interpolant:
+class _DOP853Interpolant(_RowInterpolant):
     """DOP853's 7th-order dense output (scipy's Dop853DenseOutput): a nested product in x and 1 - x,
     from ``rows``, per entry (y_old, f0, ..., f6)."""
     TO_POWER_BASIS = _nested_to_power_basis()
-
-    def __init__(self, t_old, t, rows):
-        self.t_old, self.t, self.rows = t_old, t, rows
-        self.h = t - t_old
 
     def poly_coefficients(self, cols):
         """Power-basis coefficients in x of the entries ``cols``: one row a power (0 to 7)."""
         return self.TO_POWER_BASIS @ np.array([self.rows[c] for c in cols]).T
 
-    def __call__(self, t):
-        return np.array(self.at(t))
-
     def at(self, t):
-        """The same as a list, in plain floats: for 11 entries several times cheaper than numpy."""
         x = (t - self.t_old) / self.h
         u = 1.0 - x
         return [((((((f0 * x + f1) * u + f2) * x + f3) * u + f4) * x + f5) * u + f6) * x + y0
