@@ -456,6 +456,15 @@ height_at(const Loop *L, int leg, double tt)
     return p[2 * leg - 1] + L->tan_s * p[2 * leg - 2];
 }
 
+/* EventLocator._feet_at: the feet on the dense output at tt */
+static void
+feet_at(const Loop *L, double tt, double *ft)
+{
+    double qd[10];
+    for (int j = 0; j < 10; j++) qd[j] = dense_at(L, j, tt);
+    feet(L, qd, qd + 5, ft);
+}
+
 /* grazing.dip_bracket on the floating base: 1 if a dip deeper than graze_tol may be inside the step
  * (the Python code then searches it itself), 0 if there is none. */
 static int
@@ -595,9 +604,7 @@ track_scuff(Loop *L, int leg, double *scuff, double *deepest)
     dense(L);
     for (int i = 0; i <= 8; i++) {
         double tt = i < 8 ? i * step_t + t0 : t_end;     /* numpy.linspace(t0, t_end, 9) */
-        double qd[10];
-        for (int j = 0; j < 10; j++) qd[j] = dense_at(L, j, tt);
-        feet(L, qd, qd + 5, ft);
+        feet_at(L, tt, ft);
         double depth = -ft[4 * (leg - 1) + 1];
         if (depth > scuff[1]) {
             scuff[1] = depth;
@@ -747,9 +754,8 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         if (crossing || (g0 > 0 && g1 > 0 && may_dip(L, sw, g0, g1, bracket))) {
             if (locate_crossing(L, sw, bracket[0], bracket[1], &t_root) < 0 || !L->front_rule) { L->why = 2; return 0; }
             /* _is_scuff: at or behind the stance foot, a scuff; in front, a touchdown (the Python code's) */
-            double qd[10], fr[8];
-            for (int j = 0; j < 10; j++) qd[j] = dense_at(L, j, t_root);
-            feet(L, qd, qd + 5, fr);
+            double fr[8];
+            feet_at(L, t_root, fr);
             if (fr[4 * (sw - 1)] > fr[4 * (st - 1)] + L->front_tol) {
                 touching = 1;         /* a touchdown: applied below if nothing else happens in the step */
                 t_touch = t_root;
