@@ -38,6 +38,13 @@ enum { FAIL_NONE = 0, FAIL_STEP_SIZE = 1, FAIL_NON_FINITE = 2, FAIL_CALLBACK = 3
 
 typedef struct { double x, height, dx, dheight; } Foot;
 
+/* A touchdown (kind TOUCHDOWN; a, b: the old and the new stance leg; v: t, q, dq-, dq+, impulse, energy loss,
+ * energy lost so far, the new pin) or an ended scuff (SCUFF_ENDED; a, b: the foot, the stance leg; v: t_start,
+ * deepest, t_deepest, t_up, q and dq at t_deepest, NaN outside the step). A run returns GROW when the room is
+ * full: a step makes at most one. */
+#define EVENT_ROOM 32
+typedef struct { int kind, a, b; double v[22]; } EventRecord;
+
 typedef struct {
     PyObject_HEAD
     /* model: the constants of the closed forms (BipedModel.k) */
@@ -54,10 +61,10 @@ typedef struct {
      * far and the times of the last 49 (HybridSimulator._mode_event_times), in a ring */
     double last_impact, ring[49];
     long n_impacts, mode_events;
-    /* the touchdown applied in the last run, for the Python code's Event: t, old leg, new leg, q, dq-,
-     * dq+, impulse, energy loss, energy lost so far */
-    double td[1 + 5 + 5 + 5 + 2 + 2];
-    int td_old, td_new;          /* touchdown_rule "front": a touchdown behind the stance foot is a scuff */
+    /* the touchdowns applied and the scuffs ended since the Python code last took them (take_events),
+     * in order: their Events are the Python code's to make */
+    EventRecord events[EVENT_ROOM];
+    int n_events;
     double sin_s, cos_s, tan_s;
     int has_mu, stop_on_slip, project, check_invariants, impact_phase;
     double to_power_basis[64];
@@ -85,10 +92,6 @@ typedef struct {
     double scuff[3];         /* its [t_start, deepest, t_deepest] */
     double deepest_scuff;    /* EventLocator.deepest_scuff */
     long scuffs;             /* EventLocator.scuffs */
-    /* the scuff that ended in the last accepted step: leg, [t_start, deepest, t_deepest], t_up, q and dq at
-     * t_deepest (NaN outside the step), for the Python code's Event */
-    int ended_leg;
-    double ended[4], ended_qdq[10];
     int why;                 /* which check handed the last step back (a debugging aid: the return in quiet_step) */
     int locator_changed;     /* armed or the scuff changed in the last run (the Python locator must read them) */
     /* the run's statistics since the last stats() (HybridSimulator.stats) */
@@ -684,19 +687,23 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     rows[28] = nw;
     rows[29] = Fp[0]; rows[30] = Fp[1]; rows[31] = up[0]; rows[32] = up[1]; rows[33] = res_p;
     *residual_out = fabs(res_e) > fabs(res_p) ? res_e : res_p;
-    L->td[0] = t_ev;
-    memcpy(L->td + 1, q, 5 * sizeof(double));
-    memcpy(L->td + 6, dqm, 5 * sizeof(double));
-    memcpy(L->td + 11, dqp, 5 * sizeof(double));
-    memcpy(L->td + 16, imp, 2 * sizeof(double));
-    L->td[18] = loss;
-    L->td[19] = lost;
-    L->td_old = old;
-    L->td_new = nw;
     double p[4];
     k_foot_positions(q, L->k_pos, p);
     L->pin[0] = p[2 * nw - 2];
     L->pin[1] = p[2 * nw - 1];
+    EventRecord *ev = L->events + L->n_events++;
+    ev->kind = TOUCHDOWN;
+    ev->a = old;
+    ev->b = nw;
+    ev->v[0] = t_ev;
+    memcpy(ev->v + 1, q, 5 * sizeof(double));
+    memcpy(ev->v + 6, dqm, 5 * sizeof(double));
+    memcpy(ev->v + 11, dqp, 5 * sizeof(double));
+    memcpy(ev->v + 16, imp, 2 * sizeof(double));
+    ev->v[18] = loss;
+    ev->v[19] = lost;
+    ev->v[20] = L->pin[0];
+    ev->v[21] = L->pin[1];
     L->leg = nw;
     L->armed[0] = L->armed[1] = 0;
     L->locator_changed = 1;
@@ -715,7 +722,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
 
 /* The body of HybridSimulator._integrate for the step just taken, when nothing happens in it but a
  * scuff (its start, its end): 1 and the step accepted (sample written to row, state projected), 2 the
- * same and a scuff ended in it (its Event is the Python code's to make: ended_*), or 0 (pending:
+ * same and a scuff ended in it (kept in L->events, its Event the Python code's to make), or 0 (pending:
  * nothing changed but the cache of the step's start). */
 static int
 quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost, double *drift_out,
@@ -819,11 +826,14 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     L->scuffs = scuffs;
     L->scuff_leg = scuffing && !ended ? sw : 0;
     if (ended) {     /* EventLocator._scuff_event's data */
-        L->ended_leg = sw;
-        memcpy(L->ended, scuff, sizeof scuff);
-        L->ended[3] = L->t;
+        EventRecord *ev = L->events + L->n_events++;
+        ev->kind = SCUFF_ENDED;
+        ev->a = sw;
+        ev->b = st;
+        memcpy(ev->v, scuff, sizeof scuff);
+        ev->v[3] = L->t;
         for (int j = 0; j < 10; j++)
-            L->ended_qdq[j] = L->t_old <= scuff[2] && scuff[2] <= L->t ? dense_at(L, j, scuff[2]) : NAN;
+            ev->v[4 + j] = L->t_old <= scuff[2] && scuff[2] <= L->t ? dense_at(L, j, scuff[2]) : NAN;
     }
     L->cache_ok = 1;
     L->cache_t = L->t;
@@ -962,13 +972,27 @@ Loop_set_history(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* touchdown_record() -> (t, old leg, new leg, q, dq-, dq+, impulse, energy loss, energy lost so far, pin) */
+/* take_events() -> the touchdowns and ended scuffs since the last call, in order, as tuples:
+ * (TOUCHDOWN, t, old leg, new leg, q, dq-, dq+, impulse, energy loss, energy lost so far, pin) or
+ * (SCUFF_ENDED, foot, stance leg, [t_start, deepest, t_deepest], t_up, q, dq) */
 static PyObject *
-Loop_touchdown_record(Loop *L, PyObject *unused)
+Loop_take_events(Loop *L, PyObject *unused)
 {
     (void)unused;
-    return Py_BuildValue("(diiNNNNdd(dd))", L->td[0], L->td_old, L->td_new, list_of(L->td + 1, 5), list_of(L->td + 6, 5),
-                         list_of(L->td + 11, 5), list_of(L->td + 16, 2), L->td[18], L->td[19], L->pin[0], L->pin[1]);
+    PyObject *out = PyList_New(L->n_events);
+    for (int i = 0; out != NULL && i < L->n_events; i++) {
+        const EventRecord *ev = L->events + i;
+        const double *v = ev->v;
+        PyObject *item = ev->kind == TOUCHDOWN
+            ? Py_BuildValue("(idiiNNNNdd(dd))", TOUCHDOWN, v[0], ev->a, ev->b, list_of(v + 1, 5), list_of(v + 6, 5),
+                            list_of(v + 11, 5), list_of(v + 16, 2), v[18], v[19], v[20], v[21])
+            : Py_BuildValue("(iii[ddd]dNN)", SCUFF_ENDED, ev->a, ev->b, v[0], v[1], v[2], v[3], list_of(v + 4, 5),
+                            list_of(v + 9, 5));
+        if (item == NULL) Py_CLEAR(out);
+        else PyList_SET_ITEM(out, i, item);
+    }
+    L->n_events = 0;
+    return out;
 }
 
 
@@ -1023,14 +1047,13 @@ typedef struct {
 } RunState;
 
 /* The quiet steps to t_end (the loop of HybridSimulator._integrate), writing samples as Samples.append
- * does: DONE, PENDING, GROW, FAILED, SCUFF_ENDED or TOUCHDOWN (both accepted: the Python code reports
- * them, then calls again) */
+ * does: DONE, PENDING, GROW (no room for a step's samples or its event: the Python code makes room and calls
+ * again) or FAILED. Touchdowns and ended scuffs are applied and kept in L->events, and the steps go on. */
 static int
 quiet_until(Loop *L, double t_end, RunState *rs)
 {
-    int outcome = DONE;
     while (L->t < t_end) {
-        if (!rs->last_only && rs->n + 2 > rs->cap) return GROW;
+        if ((!rs->last_only && rs->n + 2 > rs->cap) || L->n_events == EVENT_ROOM) return GROW;
         if (step(L) < 0) return FAILED;
         double drift = 0.0, rate = 0.0, residual, row[34];
         int accepted_how = quiet_step(L, row, rs->E0, rs->push_work, rs->energy_lost, &drift, &rate, &residual);
@@ -1045,13 +1068,12 @@ quiet_until(Loop *L, double t_end, RunState *rs)
             rs->n = at + 1;
             rs->appended += 2;
             rs->provisional = 0;
-            outcome = TOUCHDOWN;
+            rs->energy_lost = L->events[L->n_events - 1].v[19];
         } else {
             if (accepted_how == 2) {
                 /* the scuff's Event comes before this step's sample (HybridSimulator._push_event: keep_last) */
                 rs->provisional = 0;
                 at = rs->last_only ? 0 : rs->n;
-                outcome = SCUFF_ENDED;
             }
             memcpy(rs->data + 17 * at, row, 17 * sizeof(double));
             rs->n = at + 1;
@@ -1067,7 +1089,6 @@ quiet_until(Loop *L, double t_end, RunState *rs)
         L->steps += 1;
         residual = fabs(residual);
         L->max_residual = residual > L->max_residual ? residual : L->max_residual;
-        if (outcome != DONE) return outcome;
     }
     return DONE;
 }
@@ -1223,15 +1244,6 @@ Loop_locator(Loop *L, PyObject *unused)
     (void)unused;
     return Py_BuildValue("(iii[ddd]dl)", L->armed[0], L->armed[1], L->scuff_leg, L->scuff[0], L->scuff[1], L->scuff[2],
                          L->deepest_scuff, L->scuffs);
-}
-
-/* ended_scuff() -> (leg, [t_start, deepest, t_deepest], t_up, q (5), dq (5)) of the scuff that ended last */
-static PyObject *
-Loop_ended_scuff(Loop *L, PyObject *unused)
-{
-    (void)unused;
-    return Py_BuildValue("(i[ddd]dNN)", L->ended_leg, L->ended[0], L->ended[1], L->ended[2], L->ended[3],
-                         list_of(L->ended_qdq, 5), list_of(L->ended_qdq + 5, 5));
 }
 
 /* locate_crossing(leg, ta, tb) -> the time foot leg's height crosses zero on the last step's dense output
@@ -1446,10 +1458,9 @@ static PyMethodDef Loop_methods[] = {
     {"counts", (PyCFunction)Loop_counts, METH_NOARGS, NULL},
     {"set_events", (PyCFunction)Loop_set_events, METH_VARARGS, NULL},
     {"set_history", (PyCFunction)Loop_set_history, METH_VARARGS, NULL},
-    {"touchdown_record", (PyCFunction)Loop_touchdown_record, METH_NOARGS, NULL},
+    {"take_events", (PyCFunction)Loop_take_events, METH_NOARGS, NULL},
     {"raise_error", (PyCFunction)Loop_raise_error, METH_NOARGS, NULL},
     {"locate_crossing", (PyCFunction)Loop_locate_crossing, METH_VARARGS, NULL},
-    {"ended_scuff", (PyCFunction)Loop_ended_scuff, METH_NOARGS, NULL},
     {"replace_y", (PyCFunction)Loop_replace_y, METH_O, NULL},
     {"set_locator", (PyCFunction)Loop_set_locator, METH_VARARGS, NULL},
     {"dense_rows", (PyCFunction)Loop_dense_rows, METH_NOARGS, NULL},

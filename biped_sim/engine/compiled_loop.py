@@ -11,10 +11,11 @@ the same run (test/unit/test_compiled_loop.py).
 The hand-over: :class:`CompiledStepper` is the mode's stepper (the interface of
 ``integrators._ListRungeKutta``). ``run`` (and ``held_period``, ``periods``: a control period, many
 control periods) lets the C loop take and accept the steps it can decide, writing their samples
-straight into the run's ``Samples`` array; a scuff that ended and a touchdown it applied come back
-accepted, for the Python code to make their Events; a step in which anything else may happen comes
-back taken and not accepted ("pending"), with the locator's view of its start, and
-``hybrid.HybridSimulator._integrate`` handles it with the Python code, as any step.
+straight into the run's ``Samples`` array; the touchdowns it applied and the scuffs that ended are
+kept in the loop and taken when a run returns, for the Python code to make their Events; a step in
+which anything else may happen comes back taken and not accepted ("pending"), with the locator's
+view of its start, and ``hybrid.HybridSimulator._integrate`` handles it with the Python code, as any
+step.
 """
 from __future__ import annotations
 
@@ -29,6 +30,7 @@ from biped_sim.engine.modes import bind_controller
 from biped_sim.engine.results import Event
 
 DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED, TOUCHDOWN = range(8)
+# (SCUFF_ENDED and TOUCHDOWN: the kinds of take_events' records)
 TORQUE_KINDS = {"held": 0, "pd_walking": 1, "walking": 2, "callback": 3}
 
 
@@ -201,11 +203,10 @@ class CompiledStepper(integrators._ListRungeKutta):
             return PYTHON_STEPS
         if self.locator_stale:
             self._push_locator(sim.locator)
-        while True:
-            result = self._take(sim, self.loop.run(*self._run_arguments(sim, t_end)))
-            if result[0] != GROW:
-                return self._after_run(sim, t_end, *result)
-            sim._samples.grow()
+        while True:      # GROW: _run_arguments makes the room, _after_run takes the events
+            outcome = self._after_run(sim, t_end, *self._take(sim, self.loop.run(*self._run_arguments(sim, t_end))))
+            if outcome != GROW:
+                return outcome
 
     @staticmethod
     def _run_arguments(sim, t_end):
@@ -252,26 +253,35 @@ class CompiledStepper(integrators._ListRungeKutta):
             *self._run_arguments(sim, t_final))
         sim._u = list(u)
         outcome, *rest = self._take(sim, result)
+        outcome = self._after_run(sim, t_next, outcome, *rest)
         if outcome == GROW:      # the period in progress goes on in run(), which makes room
-            self._after_run(sim, t_next, DONE, *rest)
             return self.run(sim, t_next), t_next
-        return self._after_run(sim, t_next, outcome, *rest), t_next
+        return outcome, t_next
 
     def held_period(self, sim, t_end):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""
         if self.state_stale or self.locator_stale or _python_only(sim.locator):
             return None
-        outcome, *rest = self._take(sim, self.loop.held(sim._u[0], sim._u[1], sim._h,
-                                                        *self._run_arguments(sim, t_end)))
-        if outcome == GROW:
-            return self.run(sim, t_end)
-        return self._after_run(sim, t_end, outcome, *rest)
+        outcome = self._after_run(sim, t_end, *self._take(sim, self.loop.held(sim._u[0], sim._u[1], sim._h,
+                                                                             *self._run_arguments(sim, t_end))))
+        return self.run(sim, t_end) if outcome == GROW else outcome
 
     def _after_run(self, sim, t_end, outcome, accepted, t, w, h_abs, changed, fail):
         s, loc = sim._samples, sim.locator
         if changed:
             self.pull_locator(loc)
+        for record in self.loop.take_events():    # applied in C: their Events, in order
+            if record[0] == TOUCHDOWN:
+                _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, sim.energy_lost, pin = record
+                sim.stance_leg, sim.pin = new, list(pin)
+                sim._stats["impacts"] += 1
+                sim._add_event(Event(t_ev, "touchdown", new, np.array(q), np.array(dq_minus), np.array(dq_plus),
+                                     np.array(impulse), old, new, loss, []))
+                sim.impacts.record(t_ev)   # no Zeno stop: the loop hands back an impact that could make one
+            else:
+                _, leg, stance_leg, scuff, t_up, q, dq = record
+                sim._add_event(scuff_event(leg, stance_leg, scuff, t_up, q, dq, sim.opt.scuff_depth))
         if accepted:
             row = s._data[s.n - 1]
             sim.t, sim.work, sim._h = t, w, h_abs
@@ -280,18 +290,6 @@ class CompiledStepper(integrators._ListRungeKutta):
             self.loop.raise_error()
         if outcome == FAILED:
             raise _step_failure(fail)
-        if outcome == TOUCHDOWN:       # applied in C: its Event and the simulator's mode, and the run goes on
-            t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, sim.energy_lost, pin = self.loop.touchdown_record()
-            sim.stance_leg, sim.pin = new, list(pin)
-            sim._stats["impacts"] += 1
-            sim._add_event(Event(t_ev, "touchdown", new, np.array(q), np.array(dq_minus), np.array(dq_plus),
-                                 np.array(impulse), old, new, loss, []))
-            sim.impacts.record(t_ev)   # no Zeno stop: the loop hands back an impact that could make one
-            return self.run(sim, t_end)
-        if outcome == SCUFF_ENDED:     # accepted in C; its report is made here, and the run goes on
-            leg, scuff, t_up, q, dq = self.loop.ended_scuff()
-            sim._add_event(scuff_event(leg, sim.stance_leg, scuff, t_up, q, dq, sim.opt.scuff_depth))
-            return self.run(sim, t_end)
         if outcome == PENDING:
             self.state_stale = True
             self._sync()
