@@ -160,6 +160,9 @@ class HybridSimulator:
             raise ValueError(f"t_end must be a finite number of seconds, got {t_end!r}")
         if self.status != "running":
             return []
+        return self._advance(float(t_end), u, controller, _periods)
+
+    def _advance(self, t_end, u, controller, periods=None):
         if u is not None:   # (plain float checks: the node calls this every control period)
             self._u = two_finite_floats(u)
             if self._u is None:
@@ -172,10 +175,10 @@ class HybridSimulator:
                 self._initial_sample_pending = False
                 self._redo_initial_sample()
                 self._check_stance_start(self.t)
-            if _periods is None:
-                self._integrate(float(t_end))
+            if periods is None:
+                self._integrate(t_end)
             else:
-                self._integrate_periods(*_periods)
+                self._integrate_periods(*periods)
         except SceneAssumptionError as exc:
             self._fail(str(exc), status="stopped")
         except (StepFailure, SimulationError, np.linalg.LinAlgError, FloatingPointError, OverflowError,
@@ -206,7 +209,9 @@ class HybridSimulator:
                 u = self.command(controller)
             if u is None:
                 return self.events[-1:]
-        return self.advance(t_next, u=u)
+        if not math.isfinite(t_next):
+            raise ValueError(f"period must be a finite number of seconds, got {period!r}")
+        return self._advance(float(t_next), u, None)
 
     def advance_periods(self, period, controller, t_final, t_stop=math.inf):
         """``advance_period(period, controller=controller, t_final=t_final)`` repeated until ``t_final``, or
