@@ -13,6 +13,8 @@ Two stance solvers are emitted as straight-line scalar code:
   * fixed base: the stance foot is a pin, the chain has the three coordinates (q1, q2, q3),
     D_s, C_s dq_s and G_s come from the chain's own energies, and F is recovered from Newton's law
     for the whole body (F = m_total * (ddp_com + [0, g])).
+The impact of one foot, [D -J^T; J 0][dq+; L] = [D dq-; 0], is reduced as floating-base stance is
+(dq+ = P v with J P = 0, P^T D P v = P^T D dq-) and emitted the same way (``impact_map_1/2``).
 The parameters are arguments of the generated functions, so changing a mass needs no regeneration.
 """
 import pathlib
