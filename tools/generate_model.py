@@ -13,6 +13,8 @@ Two stance solvers are emitted as straight-line scalar code:
   * fixed base: the stance foot is a pin, the chain has the three coordinates (q1, q2, q3),
     D_s, C_s dq_s and G_s come from the chain's own energies, and F is recovered from Newton's law
     for the whole body (F = m_total * (ddp_com + [0, g])).
+The impact of one foot, [D -J^T; J 0][dq+; L] = [D dq-; 0], is reduced as floating-base stance is
+(dq+ = P v with J P = 0, P^T D P v = P^T D dq-) and emitted the same way (``impact_map_1/2``).
 The parameters are arguments of the generated functions, so changing a mass needs no regeneration.
 """
 import pathlib
@@ -95,6 +97,9 @@ e = sp.Matrix([gamma[0], gamma[1], 0, 0, 0])
 Mr = (P.T * D * P).applyfunc(sp.simplify)
 br = (P.T * (B * sp.Matrix(u) - h - D * e))
 Fexpr_rows = D[:2, :]                # F = D[:2,:] ddq + h[:2] (B has no rows for x, y)
+# the impact of leg 1 reduces the same way: dq+ = P v (J_1 dq+ = 0), Mr v = P^T D dq- (P^T J^T = 0
+# removes the impulse), then the impulse from the base rows, J^T = I there: L = D[:2,:] (dq+ - dq-)
+br_impact = (P.T * D * DQ).applyfunc(sp.simplify)
 
 # ---- fixed base (N = 3), stance foot of leg 1 pinned at (cx, cy) --------------------------------
 cx, cy = sp.symbols("cx cy", real=True)
@@ -137,22 +142,44 @@ def _symbols(names):
     return list(sp.symbols(" ".join(names)))
 
 
-STANCE_TERMS = _symbols("M00 M01 M02 M11 M12 M22 b0 b1 b2 A00 A01 A02 A10 A11 A12 g0 g1 m "
-                        "Dbr00 Dbr01 Dbr02 Dbr10 Dbr11 Dbr12 hb0 hb1".split())
+REDUCED_TERMS = _symbols("M00 M01 M02 M11 M12 M22 b0 b1 b2 A00 A01 A02 A10 A11 A12".split())
+BASE_ROW_TERMS = _symbols("m Dbr00 Dbr01 Dbr02 Dbr10 Dbr11 Dbr12".split())   # m_total, D_br
+g0, g1, hb0, hb1 = _symbols("g0 g1 hb0 hb1".split())
+STANCE_TERMS = REDUCED_TERMS + [g0, g1] + BASE_ROW_TERMS + [hb0, hb1]
+IMPACT_TERMS = REDUCED_TERMS + BASE_ROW_TERMS
+
+
+def base_rows(vb, vr):
+    """The base rows of D times a vector (vb, vr) split in base and joints: m_total vb + D_br vr (D_bb = m_total I2)."""
+    m, Dbr00, Dbr01, Dbr02, Dbr10, Dbr11, Dbr12 = BASE_ROW_TERMS
+    return [m * vb[0] + Dbr00 * vr[0] + Dbr01 * vr[1] + Dbr02 * vr[2],
+            m * vb[1] + Dbr10 * vr[0] + Dbr11 * vr[1] + Dbr12 * vr[2]]
+
+
+def reduced_solve(base_offset, swap):
+    """The reduced floating-base KKT solution (see the module doc): the joint part a = (a1, a2, a3) from
+    Mr a = b, then the base part from the constraint rows, a_base = base_offset - A a. Returns (steps,
+    a_base, a, the vector (a_base, a) in relabeled order (q1 <-> q2) if ``swap``, for leg 2)."""
+    M00, M01, M02, M11, M12, M22, b0, b1, b2, A00, A01, A02, A10, A11, A12 = REDUCED_TERMS
+    a1, a2, a3, ax, ay = sp.symbols("a1 a2 a3 ax ay")
+    steps = solve_sym3([M00, M01, M02, M11, M12, M22], [b0, b1, b2])
+    steps += [(ax, base_offset[0] - A00 * a1 - A01 * a2 - A02 * a3),
+              (ay, base_offset[1] - A10 * a1 - A11 * a2 - A12 * a3)]
+    return steps, [ax, ay], [a1, a2, a3], [ax, ay, a2, a1, a3] if swap else [ax, ay, a1, a2, a3]
 
 
 def stance_solve(swap=False):
-    """The reduced floating-base KKT solution (see the module doc): ddq_r from Mr ddq_r = br, then the
-    base from the constraint rows, then F from the base rows of D ddq + h = J^T F + B u (J^T = I).
-    ``swap``: the returned ddq in relabeled order (q1 <-> q2), for stance on leg 2."""
-    (M00, M01, M02, M11, M12, M22, b0, b1, b2, A00, A01, A02, A10, A11, A12, g0, g1, m,
-     Dbr00, Dbr01, Dbr02, Dbr10, Dbr11, Dbr12, hb0, hb1) = STANCE_TERMS
-    a1, a2, a3, ax, ay = sp.symbols("a1 a2 a3 ax ay")
-    steps = solve_sym3([M00, M01, M02, M11, M12, M22], [b0, b1, b2])
-    steps += [(ax, g0 - A00 * a1 - A01 * a2 - A02 * a3), (ay, g1 - A10 * a1 - A11 * a2 - A12 * a3)]
-    ret = ([ax, ay, a2, a1, a3] if swap else [ax, ay, a1, a2, a3], [m * ax + Dbr00 * a1 + Dbr01 * a2 + Dbr02 * a3 + hb0,
-                                  m * ay + Dbr10 * a1 + Dbr11 * a2 + Dbr12 * a3 + hb1])
-    return steps, ret
+    """Stance: a = ddq_r, the base from gamma, then F from the base rows of D ddq + h = J^T F + B u (J^T = I)."""
+    steps, ab, ar, ddq = reduced_solve((g0, g1), swap)
+    F = base_rows(ab, ar)
+    return steps, (ddq, [F[0] + hb0, F[1] + hb1])
+
+
+def impact_solve(swap=False):
+    """Impact: a = dq+_r, the base from J dq+ = 0, then the impulse of the ground on the foot from the base
+    rows of D (dq+ - dq-) = J^T L (J^T = I), on the differences: L = m_total (dq+_b - dq-_b) + D_br (dq+_r - dq-_r)."""
+    steps, (ax, ay), (a1, a2, a3), dq_plus = reduced_solve((0, 0), swap)
+    return steps, (dq_plus, base_rows([ax - dx, ay - dy], [a1 - dq1, a2 - dq2, a3 - dq3]))
 
 
 FIXED_TERMS = _symbols("D00 D01 D02 D11 D12 D22 r0 r1 r2".split())
@@ -238,6 +265,7 @@ def fn(name, unpack, outputs, doc, names=None, tail=None):
 NAMES = []
 STANCE_OUTPUTS = [Mr[0, 0], Mr[0, 1], Mr[0, 2], Mr[1, 1], Mr[1, 2], Mr[2, 2], br, A, gamma, m_total,
                   Fexpr_rows[:, 2:], h[:2, 0]]
+IMPACT_OUTPUTS = STANCE_OUTPUTS[:6] + [br_impact, A, m_total, Fexpr_rows[:, 2:]]
 UQ = "x, y, q1, q2, q3 = q"
 UDQ = "dx, dy, dq1, dq2, dq3 = dq"
 UU = "u1, u2 = u"
@@ -266,6 +294,14 @@ chunks = [
     fn("stance_floating_2", ["x, y, q2, q1, q3 = q", "dx, dy, dq2, dq1, dq3 = dq", "u2, u1 = u"], STANCE_OUTPUTS,
        "Floating-base KKT (leg 2 on the ground) solved: (ddq (5), F (2)) as lists.",
        names=STANCE_TERMS, tail=lambda: stance_solve(swap=True)),
+    # the impact of a foot, the same reduction (see impact_solve); leg 2 by relabeling as for stance. The
+    # impulse is in world axes, so it is not swapped
+    fn("impact_map_1", [UQ, "dx, dy, dq1, dq2, dq3 = dqm"], IMPACT_OUTPUTS,
+       "Rigid impact of foot 1 (KKT [D -J^T; J 0][dq+; L] = [D dq-; 0], reduced): (dq+ (5), impulse of the "
+       "ground on the foot (2), N s) as lists.", names=IMPACT_TERMS, tail=impact_solve),
+    fn("impact_map_2", ["x, y, q2, q1, q3 = q", "dx, dy, dq2, dq1, dq3 = dqm"], IMPACT_OUTPUTS,
+       "Rigid impact of foot 2 (impact_map_1 of the relabeled state): (dq+ (5), impulse (2)) as lists.",
+       names=IMPACT_TERMS, tail=lambda: impact_solve(swap=True)),
     # split in two so that the right-hand side evaluates only the accelerations; the force (from the
     # centre of mass) is needed only where a guard or an output asks for it
     fn("fixed_base_dynamics_1", ["q1, q2, q3 = qs", "dq1, dq2, dq3 = dqs", UU],

@@ -7,7 +7,7 @@
  * armed swing foot with the dip search of grazing.py, liftoff, slip), a crossing located by brentq,
  * a scuff behind the stance foot started, followed and ended, the arming of the feet, the projection
  * onto the pin, the sample with its energy balance, the invariants of invariants.py, and a
- * touchdown in front with its impact map (the Python code's, called back), relabeling and the next
+ * touchdown in front with its impact map (the generated closed form's kernel), relabeling and the next
  * mode's start. A step in which anything else would happen (a liftoff, a slip, a foot pushed into
  * the ground, a violated invariant, a diverging speed, an impact with a warning, a possible Zeno
  * stop, ...) is not accepted here: it is handed back to Python as it was taken ("pending"), and
@@ -48,15 +48,12 @@ typedef struct { int kind, a, b; double v[22]; } EventRecord;
 typedef struct {
     PyObject_HEAD
     /* model: the constants of the closed forms (BipedModel.k) */
-    double k_stance[KMAX], k_feet[KMAX], k_pos[KMAX], k_energy[KMAX], k_terms[KMAX], l_leg;
+    double k_stance[KMAX], k_feet[KMAX], k_pos[KMAX], k_energy[KMAX], k_terms[KMAX], k_impact[KMAX], l_leg;
     /* options */
     double rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu, front_tol, scuff_depth;
     double event_tol, zeno_interval, impulse_tol, contact_tol;
     long max_events;
     int front_rule, compute_grf;
-    /* the impact map, the Python code's own (dynamics.impact_map_fast), called back: f(q, dq_minus, leg) ->
-     * (dq_plus, impulse) as lists */
-    PyObject *impact_fn;
     /* the history the Python code checks an impact against: the last impact's time, the mode events so
      * far and the times of the last 49 (HybridSimulator._mode_event_times), in a ring */
     double last_impact, ring[49];
@@ -621,7 +618,8 @@ track_scuff(Loop *L, int leg, double *scuff, double *deepest)
 }
 
 /* HybridSimulator._integrate's event branch for a touchdown in front at t_ev, then _reset's: the event's
- * sample (_accept), the impact map (the Python code's, called back), relabeling, the sample after it,
+ * sample (_accept), the impact map (k_impact_map_1/2: dynamics.impact_map_fast's closed form), relabeling,
+ * the sample after it,
  * the next mode's start. Whatever the Python code would report or act on (a warning of the impact, an
  * invariant of check_impact, a possible Zeno stop, max_events, an event loop, a new stance that the
  * ground pulls or that slips at once, a Python controller) hands the step back instead: 0. Else 3,
@@ -630,7 +628,7 @@ static int
 touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, double energy_lost, double *residual_out)
 {
     int old = L->leg, nw = 3 - L->leg;
-    if (L->controller == CALLBACK || L->impact_fn == NULL) { L->why = 13; return 0; }
+    if (L->controller == CALLBACK) { L->why = 13; return 0; }
     if (L->n_impacts > 0 && t_ev - L->last_impact < L->zeno_interval) { L->why = 14; return 0; }
     if (L->mode_events + 1 >= L->max_events) { L->why = 15; return 0; }
     if (L->mode_events >= 49 && t_ev - L->ring[L->mode_events % 49] < 1e-9) { L->why = 16; return 0; }
@@ -643,19 +641,10 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
         Fe[0] = out[5]; Fe[1] = out[6];
     }
     if (L->callback_failed) { L->why = 12; return 0; }
-    PyObject *ql = list_of(q, 5), *dql = list_of(dqm, 5), *r = NULL;
-    if (ql && dql) r = PyObject_CallFunction(L->impact_fn, "OOi", ql, dql, nw);
-    Py_XDECREF(ql);
-    Py_XDECREF(dql);
-    int ok = r != NULL && PyTuple_Check(r) && PyTuple_GET_SIZE(r) == 2
-             && !doubles(PyTuple_GET_ITEM(r, 0), dqp, 5, 5, "dq_plus", NULL)
-             && !doubles(PyTuple_GET_ITEM(r, 1), imp, 2, 2, "impulse", NULL);
-    Py_XDECREF(r);
-    if (!ok) {          /* the Python code will meet the same failure and report it */
-        PyErr_Clear();
-        L->why = 17;
-        return 0;
-    }
+    if (nw == 1) k_impact_map_1(q, dqm, L->k_impact, out);
+    else k_impact_map_2(q, dqm, L->k_impact, out);
+    memcpy(dqp, out, 5 * sizeof(double));
+    memcpy(imp, out + 5, 2 * sizeof(double));
     k_energy(q, dqm, L->k_energy, TVm);
     k_energy(q, dqp, L->k_energy, TVp);
     double loss = (TVm[0] + TVm[1]) - (TVp[0] + TVp[1]);
@@ -907,15 +896,15 @@ list_of(const double *v, Py_ssize_t n)
     return lst;
 }
 
-/* set_model(k_stance, k_feet, k_pos, k_energy, k_terms, l_leg) */
+/* set_model(k_stance, k_feet, k_pos, k_energy, k_terms, k_impact, l_leg) */
 static PyObject *
 Loop_set_model(Loop *L, PyObject *args)
 {
-    PyObject *a, *b, *c, *d, *e;
-    if (!PyArg_ParseTuple(args, "OOOOOd", &a, &b, &c, &d, &e, &L->l_leg)) return NULL;
+    PyObject *a, *b, *c, *d, *e, *f;
+    if (!PyArg_ParseTuple(args, "OOOOOOd", &a, &b, &c, &d, &e, &f, &L->l_leg)) return NULL;
     if (doubles(a, L->k_stance, 22, 22, "k_stance", NULL) || doubles(b, L->k_feet, 9, 9, "k_feet", NULL)
         || doubles(c, L->k_pos, 9, 9, "k_pos", NULL) || doubles(d, L->k_energy, 9, 9, "k_energy", NULL)
-        || doubles(e, L->k_terms, 22, 22, "k_terms", NULL))
+        || doubles(e, L->k_terms, 22, 22, "k_terms", NULL) || doubles(f, L->k_impact, 26, 26, "k_impact", NULL))
         return NULL;
     Py_RETURN_NONE;
 }
@@ -943,16 +932,13 @@ Loop_set_options(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* set_events(impact_map, compute_grf, zeno_interval, impulse_tol, contact_tol, max_events) */
+/* set_events(compute_grf, zeno_interval, impulse_tol, contact_tol, max_events) */
 static PyObject *
 Loop_set_events(Loop *L, PyObject *args)
 {
-    PyObject *fn;
-    if (!PyArg_ParseTuple(args, "Opdddl", &fn, &L->compute_grf, &L->zeno_interval, &L->impulse_tol, &L->contact_tol,
+    if (!PyArg_ParseTuple(args, "pdddl", &L->compute_grf, &L->zeno_interval, &L->impulse_tol, &L->contact_tol,
                           &L->max_events))
         return NULL;
-    Py_INCREF(fn);
-    Py_XSETREF(L->impact_fn, fn);
     Py_RETURN_NONE;
 }
 
@@ -1477,7 +1463,6 @@ static void
 Loop_dealloc(Loop *L)
 {
     Py_XDECREF(L->callback);
-    Py_XDECREF(L->impact_fn);
     Py_XDECREF(L->exc_type);
     Py_XDECREF(L->exc_value);
     Py_XDECREF(L->exc_tb);

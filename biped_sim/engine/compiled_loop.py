@@ -23,7 +23,6 @@ import numpy as np
 
 from biped_sim.engine import integrators
 from biped_sim.engine.compiled import _compiled_twin
-from biped_sim.engine.dynamics import impact_map_fast
 from biped_sim.engine.guards import FootState
 from biped_sim.engine.locator import scuff_event
 from biped_sim.engine.modes import bind_controller
@@ -85,7 +84,7 @@ def _new_loop(model):
     """A C ``Loop`` with the model's closed-form constants."""
     loop = _core.Loop()
     loop.set_model(model.k_stance, model.k["foot_kinematics"], model.k["foot_positions"], model.k["energy"],
-                   model.k["stance_terms_1"], model.parameters.l_leg)
+                   model.k["stance_terms_1"], model.k["impact_map_1"], model.parameters.l_leg)
     return loop
 
 
@@ -116,12 +115,7 @@ class CompiledStepper(integrators._ListRungeKutta):
                               opt.check_invariants, "impact" in opt.phases, opt.slope,
                               integrators._DOP853Interpolant.TO_POWER_BASIS.ravel().tolist(), opt.front_tol,
                               opt.scuff_depth, opt.event_tol, opt.touchdown_rule == "front")
-        model = sim.model
-
-        def impact(q, dq_minus, leg):   # the Python code's impact map, for the loop to call back
-            dq_plus, impulse = impact_map_fast(model, np.array(q), np.array(dq_minus), leg)
-            return dq_plus.tolist(), impulse.tolist()
-        self.loop.set_events(impact, opt.compute_grf, opt.zeno_interval, opt.impulse_tol, opt.contact_tol,
+        self.loop.set_events(opt.compute_grf, opt.zeno_interval, opt.impulse_tol, opt.contact_tol,
                              opt.max_events)
         self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
         self.method, self.method_code = sim.method, METHOD_CODES[sim.method]

@@ -4,7 +4,8 @@ Owns the equations of the section "Phases" of docs/model.md:
   * stance, floating base: [D -J^T; J 0][ddq; F] = [-C dq - G + B u; -Jdot dq]   (``stance_dynamics``)
   * stance, fixed base: the foot is a pin, the chain has 3 coordinates, F recovered
                                                                   (``stance_dynamics(base="fixed")``)
-  * impact of a leg: [D -J_i^T; J_i 0][dq+; F_imp] = [D dq-; 0]                   (``impact_map``)
+  * impact of a leg: [D -J_i^T; J_i 0][dq+; F_imp] = [D dq-; 0]                   (``impact_map``;
+    one foot: the generated closed form ``impact_map_1/2``, both: ``constrained_impulse_response``)
   * a push P on the hip: the same system with D dq + J_hip^T P on the right     (``push_response``)
   * relabeling R (swap the legs, R R = I)                                            (``relabel``)
   * the notes' Delta = R o impact map (eq. 23-25)                                    (``delta``)
@@ -191,12 +192,18 @@ def impact_map(model: BipedModel, q, dq_minus, impact_leg=2):
 
 
 def impact_map_fast(model, q, dq_minus, impact_leg):
-    """``impact_map`` for checked arrays (the engine's resets: D and J straight from the closed forms)."""
+    """``impact_map`` for checked arrays (the engine's resets): one foot by its generated closed form (the
+    KKT system reduced on the null space of J, as stance's), both feet by the KKT solve with D and J
+    straight from the closed forms."""
     ql = q.tolist()
-    D = np.array(gen.mass_matrix(ql, model.k["mass_matrix"])).reshape(5, 5)
     legs = (1, 2) if impact_leg in ((1, 2), "both", 0) else (check_leg(impact_leg),)
-    J = np.array([v for leg in legs for v in getattr(gen, f"foot_jacobian_{leg}")(ql, model.k[f"foot_jacobian_{leg}"])])
-    return constrained_impulse_response(D, J.reshape(2 * len(legs), 5), dq_minus)
+    if len(legs) == 1:
+        impact = gen.impact_map_2 if legs[0] == 2 else gen.impact_map_1
+        dq_plus, impulse = impact(ql, dq_minus.tolist(), model.k["impact_map_1"])   # the same constants
+        return np.array(dq_plus), np.array(impulse)
+    D = np.array(gen.mass_matrix(ql, model.k["mass_matrix"])).reshape(5, 5)
+    J = gen.foot_jacobian_1(ql, model.k["foot_jacobian_1"]) + gen.foot_jacobian_2(ql, model.k["foot_jacobian_2"])
+    return constrained_impulse_response(D, np.array(J).reshape(4, 5), dq_minus)
 
 
 def constrained_impulse_response(D, J, dq, generalized_impulse=None):

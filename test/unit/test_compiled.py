@@ -50,8 +50,8 @@ def _arguments(name, rng, model):
     """Random arguments of one closed form: angles over several turns, rates to 20 rad/s."""
     params = list(inspect.signature(getattr(_generated, name)).parameters)
     n = 3 if name.startswith("fixed_base") else 5
-    sizes = {"q": n, "qs": n, "dq": n, "dqs": n, "u": 2}
-    scale = {"q": 8.0, "qs": 8.0, "dq": 20.0, "dqs": 20.0, "u": 300.0}
+    sizes = {"q": n, "qs": n, "dq": n, "dqm": n, "dqs": n, "u": 2}
+    scale = {"q": 8.0, "qs": 8.0, "dq": 20.0, "dqm": 20.0, "dqs": 20.0, "u": 300.0}
     return [[rng.uniform(-scale[p], scale[p]) for _ in range(sizes[p])] if p != "k" else model.k[name]
             for p in params]
 

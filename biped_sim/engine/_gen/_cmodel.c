@@ -1308,6 +1308,232 @@ done:
 }
 
 static PyObject *
+impact_map_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    PyObject *result = NULL;
+    int failed = 0;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "impact_map_1() takes 3 arguments (q, dqm, k)");
+        return NULL;
+    }
+    PyObject *q = args[0];
+    PyObject *dqm = args[1];
+    PyObject *k = args[2];
+    double q_[5];
+    if (unpack(q, q_, 5, "impact_map_1", "q") < 0) goto done;
+    double q1 = q_[2];
+    double q2 = q_[3];
+    double q3 = q_[4];
+    double dqm_[5];
+    if (unpack(dqm, dqm_, 5, "impact_map_1", "dqm") < 0) goto done;
+    double dx = dqm_[0];
+    double dy = dqm_[1];
+    double dq1 = dqm_[2];
+    double dq2 = dqm_[3];
+    double dq3 = dqm_[4];
+    double k_[26];
+    if (unpack(k, k_, 26, "impact_map_1", "k") < 0) goto done;
+    double I_leg = k_[5];
+    double l_leg = k_[6];
+    double t0 = k_[9];
+    double t1 = k_[10];
+    double t4 = k_[13];
+    double t5 = k_[14];
+    double t6 = k_[15];
+    double t7 = k_[16];
+    double t11 = k_[17];
+    double t15 = k_[18];
+    double t16 = k_[19];
+    double t17 = k_[20];
+    double t20 = k_[21];
+    double t21 = k_[22];
+    double t22 = k_[23];
+    double kc0 = k_[24];
+    double kc1 = k_[25];
+    double t8 = cos((q1 - q2));
+    double t9 = (t5 * t8);
+    double t10 = (-t9);
+    double t12 = ((l_leg * t11) * cos(q1));
+    double t13 = (-t12);
+    double t14 = (t1 + t10);
+    double t18 = (q1 + q3);
+    double t19 = sin(t18);
+    double t23 = cos(t18);
+    double t24 = (q2 + q3);
+    double t25 = (t4 * cos(t24));
+    double t26 = (t4 * sin(t24));
+    double t27 = (t23 * t4);
+    double t28 = (((t11 * cos(q3)) + t25) + t27);
+    double t29 = (t19 * t4);
+    double t30 = (((t11 * sin(q3)) + t26) + t29);
+    double t31 = (l_leg * t23);
+    double t32 = ((-l_leg) * t19);
+    double M02 = ((t13 + t14) + t7);
+    double M22 = ((kc1 - (2.0 * t12)) - (t6 * t8));
+    double b0 = (((((dq1 * t17) - (dq2 * t9)) - (dq3 * (((((-I_leg) - t0) + t12) + t5) + t9))) + ((dx * t22) * t23)) - ((dy * t19) * t22));
+    double b1 = ((((dq2 * t1) + (dq3 * t1)) + (dx * t25)) - (dy * t26));
+    double b2 = (((((dq1 * t17) + (dq2 * t14)) + (dq3 * (((t10 + t13) + t15) + t16))) + (dx * (((-t21) * t23) + t28))) - (dy * (((-t19) * t21) + t30)));
+    double l10 = (t10 / kc0);
+    double l20 = (M02 / kc0);
+    double d1 = (((-l10) * t10) + t1);
+    double l21 = ((((-l20) * t10) + t14) / d1);
+    double d2 = ((((-M02) * l20) + M22) - ((d1 * l21) * l21));
+    double z1 = (((-b0) * l10) + b1);
+    double z2 = ((((-b0) * l20) + b2) - (l21 * z1));
+    double a3 = (z2 / d2);
+    double a2 = (((-a3) * l21) + (z1 / d1));
+    double a1 = ((((-a2) * l10) - (a3 * l20)) + (b0 / kc0));
+    double ax = (((-a1) * t31) - (a3 * t31));
+    double ay = (((-a1) * t32) - (a3 * t32));
+    PyObject *py_r0 = PyTuple_New(2);
+    if (py_r0 == NULL) goto done;
+    PyObject *py_r1 = PyList_New(5);
+    if (py_r1 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r0, 0, py_r1);
+    PyObject *py_r2 = PyFloat_FromDouble(ax);
+    if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r1, 0, py_r2);
+    PyObject *py_r3 = PyFloat_FromDouble(ay);
+    if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r1, 1, py_r3);
+    PyObject *py_r4 = PyFloat_FromDouble(a1);
+    if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r1, 2, py_r4);
+    PyObject *py_r5 = PyFloat_FromDouble(a2);
+    if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r1, 3, py_r5);
+    PyObject *py_r6 = PyFloat_FromDouble(a3);
+    if (py_r6 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r1, 4, py_r6);
+    PyObject *py_r7 = PyList_New(2);
+    if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r0, 1, py_r7);
+    PyObject *py_r8 = PyFloat_FromDouble(((((t20 * (ax - dx)) + (t25 * (a2 - dq2))) + (t27 * (a1 - dq1))) + (t28 * (a3 - dq3))));
+    if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r7, 0, py_r8);
+    PyObject *py_r9 = PyFloat_FromDouble(((((t20 * (ay - dy)) - (t26 * (a2 - dq2))) - (t29 * (a1 - dq1))) - (t30 * (a3 - dq3))));
+    if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r7, 1, py_r9);
+    result = py_r0;
+done:
+    (void)failed;
+    return result;
+}
+
+static PyObject *
+impact_map_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    PyObject *result = NULL;
+    int failed = 0;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "impact_map_2() takes 3 arguments (q, dqm, k)");
+        return NULL;
+    }
+    PyObject *q = args[0];
+    PyObject *dqm = args[1];
+    PyObject *k = args[2];
+    double q_[5];
+    if (unpack(q, q_, 5, "impact_map_2", "q") < 0) goto done;
+    double q2 = q_[2];
+    double q1 = q_[3];
+    double q3 = q_[4];
+    double dqm_[5];
+    if (unpack(dqm, dqm_, 5, "impact_map_2", "dqm") < 0) goto done;
+    double dx = dqm_[0];
+    double dy = dqm_[1];
+    double dq2 = dqm_[2];
+    double dq1 = dqm_[3];
+    double dq3 = dqm_[4];
+    double k_[26];
+    if (unpack(k, k_, 26, "impact_map_2", "k") < 0) goto done;
+    double I_leg = k_[5];
+    double l_leg = k_[6];
+    double t0 = k_[9];
+    double t1 = k_[10];
+    double t4 = k_[13];
+    double t5 = k_[14];
+    double t6 = k_[15];
+    double t7 = k_[16];
+    double t11 = k_[17];
+    double t15 = k_[18];
+    double t16 = k_[19];
+    double t17 = k_[20];
+    double t20 = k_[21];
+    double t21 = k_[22];
+    double t22 = k_[23];
+    double kc0 = k_[24];
+    double kc1 = k_[25];
+    double t8 = cos((q1 - q2));
+    double t9 = (t5 * t8);
+    double t10 = (-t9);
+    double t12 = ((l_leg * t11) * cos(q1));
+    double t13 = (-t12);
+    double t14 = (t1 + t10);
+    double t18 = (q1 + q3);
+    double t19 = sin(t18);
+    double t23 = cos(t18);
+    double t24 = (q2 + q3);
+    double t25 = (t4 * cos(t24));
+    double t26 = (t4 * sin(t24));
+    double t27 = (t23 * t4);
+    double t28 = (((t11 * cos(q3)) + t25) + t27);
+    double t29 = (t19 * t4);
+    double t30 = (((t11 * sin(q3)) + t26) + t29);
+    double t31 = (l_leg * t23);
+    double t32 = ((-l_leg) * t19);
+    double M02 = ((t13 + t14) + t7);
+    double M22 = ((kc1 - (2.0 * t12)) - (t6 * t8));
+    double b0 = (((((dq1 * t17) - (dq2 * t9)) - (dq3 * (((((-I_leg) - t0) + t12) + t5) + t9))) + ((dx * t22) * t23)) - ((dy * t19) * t22));
+    double b1 = ((((dq2 * t1) + (dq3 * t1)) + (dx * t25)) - (dy * t26));
+    double b2 = (((((dq1 * t17) + (dq2 * t14)) + (dq3 * (((t10 + t13) + t15) + t16))) + (dx * (((-t21) * t23) + t28))) - (dy * (((-t19) * t21) + t30)));
+    double l10 = (t10 / kc0);
+    double l20 = (M02 / kc0);
+    double d1 = (((-l10) * t10) + t1);
+    double l21 = ((((-l20) * t10) + t14) / d1);
+    double d2 = ((((-M02) * l20) + M22) - ((d1 * l21) * l21));
+    double z1 = (((-b0) * l10) + b1);
+    double z2 = ((((-b0) * l20) + b2) - (l21 * z1));
+    double a3 = (z2 / d2);
+    double a2 = (((-a3) * l21) + (z1 / d1));
+    double a1 = ((((-a2) * l10) - (a3 * l20)) + (b0 / kc0));
+    double ax = (((-a1) * t31) - (a3 * t31));
+    double ay = (((-a1) * t32) - (a3 * t32));
+    PyObject *py_r0 = PyTuple_New(2);
+    if (py_r0 == NULL) goto done;
+    PyObject *py_r1 = PyList_New(5);
+    if (py_r1 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r0, 0, py_r1);
+    PyObject *py_r2 = PyFloat_FromDouble(ax);
+    if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r1, 0, py_r2);
+    PyObject *py_r3 = PyFloat_FromDouble(ay);
+    if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r1, 1, py_r3);
+    PyObject *py_r4 = PyFloat_FromDouble(a2);
+    if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r1, 2, py_r4);
+    PyObject *py_r5 = PyFloat_FromDouble(a1);
+    if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r1, 3, py_r5);
+    PyObject *py_r6 = PyFloat_FromDouble(a3);
+    if (py_r6 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r1, 4, py_r6);
+    PyObject *py_r7 = PyList_New(2);
+    if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyTuple_SET_ITEM(py_r0, 1, py_r7);
+    PyObject *py_r8 = PyFloat_FromDouble(((((t20 * (ax - dx)) + (t25 * (a2 - dq2))) + (t27 * (a1 - dq1))) + (t28 * (a3 - dq3))));
+    if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r7, 0, py_r8);
+    PyObject *py_r9 = PyFloat_FromDouble(((((t20 * (ay - dy)) - (t26 * (a2 - dq2))) - (t29 * (a1 - dq1))) - (t30 * (a3 - dq3))));
+    if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
+    PyList_SET_ITEM(py_r7, 1, py_r9);
+    result = py_r0;
+done:
+    (void)failed;
+    return result;
+}
+
+static PyObject *
 fixed_base_dynamics_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     PyObject *result = NULL;
@@ -4337,6 +4563,8 @@ static PyMethodDef methods[] = {
     {"stance_terms_1", (PyCFunction)(void (*)(void))stance_terms_1, METH_FASTCALL, "Floating-base KKT (leg 1 on the ground), reduced: Mr (6 upper), br (3), A (6), gamma (2), m_total (1; D_bb = m_total I2), D_br (6), h_b (2)."},
     {"stance_floating_1", (PyCFunction)(void (*)(void))stance_floating_1, METH_FASTCALL, "Floating-base KKT (leg 1 on the ground) solved: (ddq (5), F (2)) as lists."},
     {"stance_floating_2", (PyCFunction)(void (*)(void))stance_floating_2, METH_FASTCALL, "Floating-base KKT (leg 2 on the ground) solved: (ddq (5), F (2)) as lists."},
+    {"impact_map_1", (PyCFunction)(void (*)(void))impact_map_1, METH_FASTCALL, "Rigid impact of foot 1 (KKT [D -J^T; J 0][dq+; L] = [D dq-; 0], reduced): (dq+ (5), impulse of the ground on the foot (2), N s) as lists."},
+    {"impact_map_2", (PyCFunction)(void (*)(void))impact_map_2, METH_FASTCALL, "Rigid impact of foot 2 (impact_map_1 of the relabeled state): (dq+ (5), impulse (2)) as lists."},
     {"fixed_base_dynamics_1", (PyCFunction)(void (*)(void))fixed_base_dynamics_1, METH_FASTCALL, "Fixed-base chain pinned at the foot of leg 1: ddq_s (3) of D_s ddq_s = B_s u - C_s dq_s - G_s."},
     {"fixed_base_kinematics_1", (PyCFunction)(void (*)(void))fixed_base_kinematics_1, METH_FASTCALL, "Fixed-base chain pinned at the foot of leg 1: J_com (6), Jdot_com dq_s (2), hip minus foot (2), hip velocity (2)."},
     {"dop853_step_7", (PyCFunction)(void (*)(void))dop853_step_7, METH_FASTCALL, "``dop853_step`` for states of exactly 7 entries, unrolled."},
@@ -4361,7 +4589,7 @@ PyInit__cmodel(void)
 {
     PyObject *m = PyModule_Create(&module);
     if (m == NULL) return NULL;
-    if (PyModule_AddStringConstant(m, "SOURCE_SHA256", "7b524ba1d0b970583a2050fade6ac078bf99b2a327216e395af64f7a39468621") < 0) {
+    if (PyModule_AddStringConstant(m, "SOURCE_SHA256", "ad770a0e682ba7a87016bb58be6556ddcf149fc8bde1efd212a351269ec980e3") < 0) {
         Py_DECREF(m);
         return NULL;
     }

@@ -8,7 +8,7 @@
 
 static double (*volatile libm_pow)(double, double) = pow;
 
-#define BIPED_SIM_KERNELS_SHA256 "7b524ba1d0b970583a2050fade6ac078bf99b2a327216e395af64f7a39468621"
+#define BIPED_SIM_KERNELS_SHA256 "ad770a0e682ba7a87016bb58be6556ddcf149fc8bde1efd212a351269ec980e3"
 
 static inline int
 k_mass_matrix(const double *q, const double *k, double *out)
@@ -603,6 +603,152 @@ k_stance_floating_2(const double *q, const double *dq, const double *u, const do
     out[4] = a3;
     out[5] = (((((a1 * t22) + (a2 * t25)) + (a3 * t39)) + (ax * t16)) - t36);
     out[6] = ((((((-a1) * t15) - (a2 * t34)) - (a3 * t38)) + (ay * t16)) - t28);
+    return 0;
+}
+
+static inline int
+k_impact_map_1(const double *q, const double *dqm, const double *k, double *out)
+{
+    double q1 = q[2];
+    double q2 = q[3];
+    double q3 = q[4];
+    double dx = dqm[0];
+    double dy = dqm[1];
+    double dq1 = dqm[2];
+    double dq2 = dqm[3];
+    double dq3 = dqm[4];
+    double I_leg = k[5];
+    double l_leg = k[6];
+    double t0 = k[9];
+    double t1 = k[10];
+    double t4 = k[13];
+    double t5 = k[14];
+    double t6 = k[15];
+    double t7 = k[16];
+    double t11 = k[17];
+    double t15 = k[18];
+    double t16 = k[19];
+    double t17 = k[20];
+    double t20 = k[21];
+    double t21 = k[22];
+    double t22 = k[23];
+    double kc0 = k[24];
+    double kc1 = k[25];
+    double t8 = cos((q1 - q2));
+    double t9 = (t5 * t8);
+    double t10 = (-t9);
+    double t12 = ((l_leg * t11) * cos(q1));
+    double t13 = (-t12);
+    double t14 = (t1 + t10);
+    double t18 = (q1 + q3);
+    double t19 = sin(t18);
+    double t23 = cos(t18);
+    double t24 = (q2 + q3);
+    double t25 = (t4 * cos(t24));
+    double t26 = (t4 * sin(t24));
+    double t27 = (t23 * t4);
+    double t28 = (((t11 * cos(q3)) + t25) + t27);
+    double t29 = (t19 * t4);
+    double t30 = (((t11 * sin(q3)) + t26) + t29);
+    double t31 = (l_leg * t23);
+    double t32 = ((-l_leg) * t19);
+    double M02 = ((t13 + t14) + t7);
+    double M22 = ((kc1 - (2.0 * t12)) - (t6 * t8));
+    double b0 = (((((dq1 * t17) - (dq2 * t9)) - (dq3 * (((((-I_leg) - t0) + t12) + t5) + t9))) + ((dx * t22) * t23)) - ((dy * t19) * t22));
+    double b1 = ((((dq2 * t1) + (dq3 * t1)) + (dx * t25)) - (dy * t26));
+    double b2 = (((((dq1 * t17) + (dq2 * t14)) + (dq3 * (((t10 + t13) + t15) + t16))) + (dx * (((-t21) * t23) + t28))) - (dy * (((-t19) * t21) + t30)));
+    double l10 = (t10 / kc0);
+    double l20 = (M02 / kc0);
+    double d1 = (((-l10) * t10) + t1);
+    double l21 = ((((-l20) * t10) + t14) / d1);
+    double d2 = ((((-M02) * l20) + M22) - ((d1 * l21) * l21));
+    double z1 = (((-b0) * l10) + b1);
+    double z2 = ((((-b0) * l20) + b2) - (l21 * z1));
+    double a3 = (z2 / d2);
+    double a2 = (((-a3) * l21) + (z1 / d1));
+    double a1 = ((((-a2) * l10) - (a3 * l20)) + (b0 / kc0));
+    double ax = (((-a1) * t31) - (a3 * t31));
+    double ay = (((-a1) * t32) - (a3 * t32));
+    out[0] = ax;
+    out[1] = ay;
+    out[2] = a1;
+    out[3] = a2;
+    out[4] = a3;
+    out[5] = ((((t20 * (ax - dx)) + (t25 * (a2 - dq2))) + (t27 * (a1 - dq1))) + (t28 * (a3 - dq3)));
+    out[6] = ((((t20 * (ay - dy)) - (t26 * (a2 - dq2))) - (t29 * (a1 - dq1))) - (t30 * (a3 - dq3)));
+    return 0;
+}
+
+static inline int
+k_impact_map_2(const double *q, const double *dqm, const double *k, double *out)
+{
+    double q2 = q[2];
+    double q1 = q[3];
+    double q3 = q[4];
+    double dx = dqm[0];
+    double dy = dqm[1];
+    double dq2 = dqm[2];
+    double dq1 = dqm[3];
+    double dq3 = dqm[4];
+    double I_leg = k[5];
+    double l_leg = k[6];
+    double t0 = k[9];
+    double t1 = k[10];
+    double t4 = k[13];
+    double t5 = k[14];
+    double t6 = k[15];
+    double t7 = k[16];
+    double t11 = k[17];
+    double t15 = k[18];
+    double t16 = k[19];
+    double t17 = k[20];
+    double t20 = k[21];
+    double t21 = k[22];
+    double t22 = k[23];
+    double kc0 = k[24];
+    double kc1 = k[25];
+    double t8 = cos((q1 - q2));
+    double t9 = (t5 * t8);
+    double t10 = (-t9);
+    double t12 = ((l_leg * t11) * cos(q1));
+    double t13 = (-t12);
+    double t14 = (t1 + t10);
+    double t18 = (q1 + q3);
+    double t19 = sin(t18);
+    double t23 = cos(t18);
+    double t24 = (q2 + q3);
+    double t25 = (t4 * cos(t24));
+    double t26 = (t4 * sin(t24));
+    double t27 = (t23 * t4);
+    double t28 = (((t11 * cos(q3)) + t25) + t27);
+    double t29 = (t19 * t4);
+    double t30 = (((t11 * sin(q3)) + t26) + t29);
+    double t31 = (l_leg * t23);
+    double t32 = ((-l_leg) * t19);
+    double M02 = ((t13 + t14) + t7);
+    double M22 = ((kc1 - (2.0 * t12)) - (t6 * t8));
+    double b0 = (((((dq1 * t17) - (dq2 * t9)) - (dq3 * (((((-I_leg) - t0) + t12) + t5) + t9))) + ((dx * t22) * t23)) - ((dy * t19) * t22));
+    double b1 = ((((dq2 * t1) + (dq3 * t1)) + (dx * t25)) - (dy * t26));
+    double b2 = (((((dq1 * t17) + (dq2 * t14)) + (dq3 * (((t10 + t13) + t15) + t16))) + (dx * (((-t21) * t23) + t28))) - (dy * (((-t19) * t21) + t30)));
+    double l10 = (t10 / kc0);
+    double l20 = (M02 / kc0);
+    double d1 = (((-l10) * t10) + t1);
+    double l21 = ((((-l20) * t10) + t14) / d1);
+    double d2 = ((((-M02) * l20) + M22) - ((d1 * l21) * l21));
+    double z1 = (((-b0) * l10) + b1);
+    double z2 = ((((-b0) * l20) + b2) - (l21 * z1));
+    double a3 = (z2 / d2);
+    double a2 = (((-a3) * l21) + (z1 / d1));
+    double a1 = ((((-a2) * l10) - (a3 * l20)) + (b0 / kc0));
+    double ax = (((-a1) * t31) - (a3 * t31));
+    double ay = (((-a1) * t32) - (a3 * t32));
+    out[0] = ax;
+    out[1] = ay;
+    out[2] = a2;
+    out[3] = a1;
+    out[4] = a3;
+    out[5] = ((((t20 * (ax - dx)) + (t25 * (a2 - dq2))) + (t27 * (a1 - dq1))) + (t28 * (a3 - dq3)));
+    out[6] = ((((t20 * (ay - dy)) - (t26 * (a2 - dq2))) - (t29 * (a1 - dq1))) - (t30 * (a3 - dq3)));
     return 0;
 }
 

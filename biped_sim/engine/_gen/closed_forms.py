@@ -463,6 +463,138 @@ def stance_floating_2(q, dq, u, k):
     return [ax, ay, a2, a1, a3], [a1*t22 + a2*t25 + a3*t39 + ax*t16 - t36, -a1*t15 - a2*t34 - a3*t38 + ay*t16 - t28]
 
 
+def impact_map_1_constants(p):
+    """Parameter-only subexpressions of impact_map_1."""
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = p
+    t0 = c_leg*c_leg*m_leg
+    t1 = I_leg + t0
+    t2 = l_leg*l_leg
+    t3 = 2*m_leg
+    t4 = c_leg*m_leg
+    t5 = l_leg*t4
+    t6 = 2*t5
+    t7 = m_torso*t2 + t2*t3 - t6
+    t11 = c_torso*m_torso
+    t15 = 2*I_leg + I_torso + c_torso*c_torso*m_torso + 2*t0
+    t16 = -t5
+    t17 = t1 + t16
+    t20 = m_torso + t3
+    t21 = l_leg*t20
+    t22 = -t21 + t4
+    kc0 = t1 + t7
+    kc1 = t15 + t7
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t7, t11, t15, t16, t17, t20, t21, t22, kc0, kc1,)
+
+
+def impact_map_1(q, dqm, k):
+    """Rigid impact of foot 1 (KKT [D -J^T; J 0][dq+; L] = [D dq-; 0], reduced): (dq+ (5), impulse of the ground on the foot (2), N s) as lists."""
+    x, y, q1, q2, q3 = q
+    dx, dy, dq1, dq2, dq3 = dqm
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t7, t11, t15, t16, t17, t20, t21, t22, kc0, kc1 = k
+    t8 = cos(q1 - q2)
+    t9 = t5*t8
+    t10 = -t9
+    t12 = l_leg*t11*cos(q1)
+    t13 = -t12
+    t14 = t1 + t10
+    t18 = q1 + q3
+    t19 = sin(t18)
+    t23 = cos(t18)
+    t24 = q2 + q3
+    t25 = t4*cos(t24)
+    t26 = t4*sin(t24)
+    t27 = t23*t4
+    t28 = t11*cos(q3) + t25 + t27
+    t29 = t19*t4
+    t30 = t11*sin(q3) + t26 + t29
+    t31 = l_leg*t23
+    t32 = -l_leg*t19
+    M02 = t13 + t14 + t7
+    M22 = kc1 - 2*t12 - t6*t8
+    b0 = dq1*t17 - dq2*t9 - dq3*(-I_leg - t0 + t12 + t5 + t9) + dx*t22*t23 - dy*t19*t22
+    b1 = dq2*t1 + dq3*t1 + dx*t25 - dy*t26
+    b2 = dq1*t17 + dq2*t14 + dq3*(t10 + t13 + t15 + t16) + dx*(-t21*t23 + t28) - dy*(-t19*t21 + t30)
+    l10 = t10/kc0
+    l20 = M02/kc0
+    d1 = -l10*t10 + t1
+    l21 = (-l20*t10 + t14)/d1
+    d2 = -M02*l20 + M22 - d1*l21*l21
+    z1 = -b0*l10 + b1
+    z2 = -b0*l20 + b2 - l21*z1
+    a3 = z2/d2
+    a2 = -a3*l21 + z1/d1
+    a1 = -a2*l10 - a3*l20 + b0/kc0
+    ax = -a1*t31 - a3*t31
+    ay = -a1*t32 - a3*t32
+    return [ax, ay, a1, a2, a3], [t20*(ax - dx) + t25*(a2 - dq2) + t27*(a1 - dq1) + t28*(a3 - dq3), t20*(ay - dy) - t26*(a2 - dq2) - t29*(a1 - dq1) - t30*(a3 - dq3)]
+
+
+def impact_map_2_constants(p):
+    """Parameter-only subexpressions of impact_map_2."""
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = p
+    t0 = c_leg*c_leg*m_leg
+    t1 = I_leg + t0
+    t2 = l_leg*l_leg
+    t3 = 2*m_leg
+    t4 = c_leg*m_leg
+    t5 = l_leg*t4
+    t6 = 2*t5
+    t7 = m_torso*t2 + t2*t3 - t6
+    t11 = c_torso*m_torso
+    t15 = 2*I_leg + I_torso + c_torso*c_torso*m_torso + 2*t0
+    t16 = -t5
+    t17 = t1 + t16
+    t20 = m_torso + t3
+    t21 = l_leg*t20
+    t22 = -t21 + t4
+    kc0 = t1 + t7
+    kc1 = t15 + t7
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t7, t11, t15, t16, t17, t20, t21, t22, kc0, kc1,)
+
+
+def impact_map_2(q, dqm, k):
+    """Rigid impact of foot 2 (impact_map_1 of the relabeled state): (dq+ (5), impulse (2)) as lists."""
+    x, y, q2, q1, q3 = q
+    dx, dy, dq2, dq1, dq3 = dqm
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t7, t11, t15, t16, t17, t20, t21, t22, kc0, kc1 = k
+    t8 = cos(q1 - q2)
+    t9 = t5*t8
+    t10 = -t9
+    t12 = l_leg*t11*cos(q1)
+    t13 = -t12
+    t14 = t1 + t10
+    t18 = q1 + q3
+    t19 = sin(t18)
+    t23 = cos(t18)
+    t24 = q2 + q3
+    t25 = t4*cos(t24)
+    t26 = t4*sin(t24)
+    t27 = t23*t4
+    t28 = t11*cos(q3) + t25 + t27
+    t29 = t19*t4
+    t30 = t11*sin(q3) + t26 + t29
+    t31 = l_leg*t23
+    t32 = -l_leg*t19
+    M02 = t13 + t14 + t7
+    M22 = kc1 - 2*t12 - t6*t8
+    b0 = dq1*t17 - dq2*t9 - dq3*(-I_leg - t0 + t12 + t5 + t9) + dx*t22*t23 - dy*t19*t22
+    b1 = dq2*t1 + dq3*t1 + dx*t25 - dy*t26
+    b2 = dq1*t17 + dq2*t14 + dq3*(t10 + t13 + t15 + t16) + dx*(-t21*t23 + t28) - dy*(-t19*t21 + t30)
+    l10 = t10/kc0
+    l20 = M02/kc0
+    d1 = -l10*t10 + t1
+    l21 = (-l20*t10 + t14)/d1
+    d2 = -M02*l20 + M22 - d1*l21*l21
+    z1 = -b0*l10 + b1
+    z2 = -b0*l20 + b2 - l21*z1
+    a3 = z2/d2
+    a2 = -a3*l21 + z1/d1
+    a1 = -a2*l10 - a3*l20 + b0/kc0
+    ax = -a1*t31 - a3*t31
+    ay = -a1*t32 - a3*t32
+    return [ax, ay, a2, a1, a3], [t20*(ax - dx) + t25*(a2 - dq2) + t27*(a1 - dq1) + t28*(a3 - dq3), t20*(ay - dy) - t26*(a2 - dq2) - t29*(a1 - dq1) - t30*(a3 - dq3)]
+
+
 def fixed_base_dynamics_1_constants(p):
     """Parameter-only subexpressions of fixed_base_dynamics_1."""
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = p
@@ -562,4 +694,4 @@ def fixed_base_kinematics_1(qs, dqs, k):
     t24 = t1*t21
     return (-t1*t5, t7*t8, t11*t2, t12*t5, -t13*t8, -t16*t2, -t2*(dq3*(dq3*t16 + t19 - t22) + t17*t19 - t20*t22), -t2*(dq3*(dq3*t11 + t23 - t24) + t17*t23 - t20*t24), t15, t10, -t20*t9, t14*t20,)
 
-CONSTANTS = {'mass_matrix': mass_matrix_constants, 'coriolis_matrix': coriolis_matrix_constants, 'gravity_vector': gravity_vector_constants, 'bias_forces': bias_forces_constants, 'foot_positions': foot_positions_constants, 'foot_jacobian_1': foot_jacobian_1_constants, 'foot_jacobian_2': foot_jacobian_2_constants, 'foot_jacobian_dot_1': foot_jacobian_dot_1_constants, 'foot_jacobian_dot_2': foot_jacobian_dot_2_constants, 'foot_kinematics': foot_kinematics_constants, 'energy': energy_constants, 'com_position': com_position_constants, 'stance_terms_1': stance_terms_1_constants, 'stance_floating_1': stance_floating_1_constants, 'stance_floating_2': stance_floating_2_constants, 'fixed_base_dynamics_1': fixed_base_dynamics_1_constants, 'fixed_base_kinematics_1': fixed_base_kinematics_1_constants}
+CONSTANTS = {'mass_matrix': mass_matrix_constants, 'coriolis_matrix': coriolis_matrix_constants, 'gravity_vector': gravity_vector_constants, 'bias_forces': bias_forces_constants, 'foot_positions': foot_positions_constants, 'foot_jacobian_1': foot_jacobian_1_constants, 'foot_jacobian_2': foot_jacobian_2_constants, 'foot_jacobian_dot_1': foot_jacobian_dot_1_constants, 'foot_jacobian_dot_2': foot_jacobian_dot_2_constants, 'foot_kinematics': foot_kinematics_constants, 'energy': energy_constants, 'com_position': com_position_constants, 'stance_terms_1': stance_terms_1_constants, 'stance_floating_1': stance_floating_1_constants, 'stance_floating_2': stance_floating_2_constants, 'impact_map_1': impact_map_1_constants, 'impact_map_2': impact_map_2_constants, 'fixed_base_dynamics_1': fixed_base_dynamics_1_constants, 'fixed_base_kinematics_1': fixed_base_kinematics_1_constants}
