@@ -6,8 +6,8 @@ gait takes its new state from ``CollisionDynamics``.
 
 * ``touchdown_reset``: the rigid plastic impact of docs/model.md "Impact" (``impact_map``), then
   relabeling: the foot that landed is the new stance foot; ``double_touchdown_reset``: both feet at
-  once, the new stance foot the one that took the larger normal impulse (double support is not
-  modelled);
+  once, the new stance foot the one that took the larger normal impulse, the rear foot on a tie
+  (double support is not modelled);
 * ``liftoff_reset``: the stance foot leaves the ground; the velocities are unchanged, flight follows;
 * ``slip_event``: the ground force leaves the friction cone; the model has no sliding phase;
 * ``push_reset``: an impulse on the hip from outside (``push_response``), with the stance foot held
@@ -26,6 +26,10 @@ from biped_sim.engine.results import Event
 #: a larger one is a typo or a unit error (N instead of N s over a short time), not a disturbance
 PUSH_IMPULSE_LIMIT = 100.0
 
+#: two normal impulses of a double touchdown within this relative difference are a tie (the solve
+#: computes them to ~1e-15 relative)
+TIE_TOL = 1e-9
+
 
 def touchdown_reset(model, t, q, dq, legs, stance_leg, ground, mu=None) -> Event:
     """The impact of foot ``legs[0]`` (or of both feet, ``legs == [1, 2]``) at the state (q, dq) (arrays)."""
@@ -36,7 +40,15 @@ def touchdown_reset(model, t, q, dq, legs, stance_leg, ground, mu=None) -> Event
     else:
         n1 = normal_tangent(impulse[0:2], ground)[0]
         n2 = normal_tangent(impulse[2:4], ground)[0]
-        new, kind = (1 if n1 >= n2 else 2), "double_touchdown"
+        if abs(n1 - n2) <= TIE_TOL * max(abs(n1), abs(n2)):
+            # a tie (a symmetric landing): which impulse is larger is rounding, so the rear foot, by
+            # rule: then the front foot's touchdown is the next event and says that both feet stay
+            # down; on the front foot the rear one's sinking would pass for a scuff behind it
+            p1x, p2x = model.foot_position(q, 1)[0], model.foot_position(q, 2)[0]
+            new = 1 if p1x <= p2x else 2
+        else:
+            new = 1 if n1 > n2 else 2
+        kind = "double_touchdown"
     ql = q.tolist()
     loss = model.energy_fast(ql, dq.tolist()) - model.energy_fast(ql, dq_plus.tolist())
     warnings = impact_warnings(model, q, dq_plus, impulse, legs, stance_leg, ground, mu)
@@ -45,7 +57,8 @@ def touchdown_reset(model, t, q, dq, legs, stance_leg, ground, mu=None) -> Event
 
 def double_touchdown_reset(model, t, q, dq, stance_leg, ground, mu=None) -> Event:
     """Both feet land at once (within ``simultaneous_tol``): the plastic impact of both, the run goes
-    on in stance on the foot that took the larger normal impulse (double support is not modelled)."""
+    on in stance on the foot that took the larger normal impulse, the rear foot on a tie (double support
+    is not modelled)."""
     return touchdown_reset(model, t, q, dq, [1, 2], stance_leg, ground, mu)
 
 
