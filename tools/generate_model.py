@@ -200,6 +200,29 @@ def split_constant(ex, const):
     return sp.Add(*c), sp.Add(*[a for a in ex.args if a not in c])
 
 
+#: sin and cos of the three angles, named: every sin or cos of a sum of angles is expanded into them, so a
+#: function calls sincos three times at most (the stance right-hand side called it on q1 + q3, q2 + q3
+#: and q3, and cos on q1 - q2 and q1: five libm calls, a third of the compiled loop's time)
+ONE_ANGLE = {f(a): sp.Symbol(f"{'s' if f is sp.sin else 'c'}_{a}") for a in (q1, q2, q3) for f in (sp.sin, sp.cos)}
+
+
+def one_angle_trig(ex):
+    """``ex`` with its sines and cosines in terms of the ``ONE_ANGLE`` names."""
+    ex = ex.replace(lambda e: isinstance(e, (sp.sin, sp.cos)) and isinstance(e.args[0], sp.Add), sp.expand_trig)
+    return ex.xreplace(ONE_ANGLE)
+
+
+def name_square_bases(ex, names, bound):
+    """``ex`` with the base of every square of a sum or product bound to a new name first (appended to
+    ``bound`` as (name, base)): ``t*t`` instead of ``(a + b)**2``, which CPython's float power computes
+    with libm's pow (the compiled twin calls the same pow to keep the bits: tens of ns against a product)."""
+    if ex.is_Pow and ex.exp == 2 and not ex.base.is_Atom:
+        s = next(names)
+        bound.append((s, name_square_bases(ex.base, names, bound)))
+        return s ** 2
+    return ex.func(*[name_square_bases(a, names, bound) for a in ex.args]) if ex.args else ex
+
+
 def fn(name, unpack, outputs, doc, names=None, tail=None):
     """Two functions of straight-line scalar code with shared subexpressions.
 
@@ -212,6 +235,7 @@ def fn(name, unpack, outputs, doc, names=None, tail=None):
     flat = []
     for o in outputs:
         flat.extend(list(o) if isinstance(o, sp.MatrixBase) else [o])
+    flat = [one_angle_trig(sp.sympify(e)) for e in flat]
     repl, reduced = sp.cse(flat, symbols=sp.numbered_symbols("t"), optimizations="basic")
     const = set(PARAMS)
     hoisted, body = [], []
@@ -233,6 +257,12 @@ def fn(name, unpack, outputs, doc, names=None, tail=None):
         else:
             body.append((sym, hoist(ex)))
     reduced = [hoist(r) for r in reduced]
+    squares, unsquared = sp.numbered_symbols("sq"), []
+    for sym, ex in body:
+        ex = name_square_bases(ex, squares, unsquared)
+        unsquared.append((sym, ex))
+    reduced = [name_square_bases(r, squares, unsquared) for r in reduced]
+    body = unsquared
     knames = [str(s) for s in PARAMS] + [str(s) for s, _ in hoisted]
     args = [u.split(" = ")[1] for u in unpack] + ["k"]
     lines = [f"def {name}_constants(p):",
@@ -242,6 +272,8 @@ def fn(name, unpack, outputs, doc, names=None, tail=None):
     lines.append("    return (" + ", ".join(knames) + ",)")
     lines += ["", "", f"def {name}({', '.join(args)}):", f'    """{doc}"""']
     lines += ["    " + u for u in unpack]
+    used = set().union(*(ex.free_symbols for _, ex in body), *(r.free_symbols for r in reduced))
+    lines += [f"    {v} = {py(f)}" for f, v in ONE_ANGLE.items() if v in used]
     lines.append("    " + ", ".join(knames) + " = k")
     lines += [f"    {s} = {py(ex)}" for s, ex in body]
     if tail is None:

@@ -112,23 +112,27 @@ mass_matrix(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double q1 = q_[2];
     double q2 = q_[3];
     double q3 = q_[4];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[16];
     if (unpack(k, k_, 16, "mass_matrix", "k") < 0) goto done;
     double t1 = k_[10];
-    double t3 = k_[11];
-    double t7 = k_[12];
-    double t15 = k_[14];
+    double t2 = k_[11];
+    double t5 = k_[12];
+    double t13 = k_[14];
     double kc0 = k_[15];
-    double t2 = (q1 + q3);
-    double t4 = (t3 * cos(t2));
-    double t5 = (q2 + q3);
-    double t6 = (t3 * cos(t5));
-    double t8 = ((t4 + t6) + (t7 * cos(q3)));
-    double t9 = (t3 * sin(t2));
+    double t3 = (t2 * ((c_q1 * c_q3) - (s_q1 * s_q3)));
+    double t4 = (t2 * ((c_q2 * c_q3) - (s_q2 * s_q3)));
+    double t6 = (((c_q3 * t5) + t3) + t4);
+    double t7 = (t2 * ((c_q1 * s_q3) + (c_q3 * s_q1)));
+    double t8 = (-t7);
+    double t9 = (t2 * ((c_q2 * s_q3) + (c_q3 * s_q2)));
     double t10 = (-t9);
-    double t11 = (t3 * sin(t5));
-    double t12 = (-t11);
-    double t13 = (((-t11) - (t7 * sin(q3))) - t9);
+    double t11 = ((((-s_q3) * t5) - t7) - t9);
     PyObject *py_r0 = PyTuple_New(25);
     if (py_r0 == NULL) goto done;
     PyObject *py_r1 = PyFloat_FromDouble(t1);
@@ -137,13 +141,13 @@ mass_matrix(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r2 = PyLong_FromLong(0L);
     if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r2);
-    PyObject *py_r3 = PyFloat_FromDouble(t4);
+    PyObject *py_r3 = PyFloat_FromDouble(t3);
     if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 2, py_r3);
-    PyObject *py_r4 = PyFloat_FromDouble(t6);
+    PyObject *py_r4 = PyFloat_FromDouble(t4);
     if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 3, py_r4);
-    PyObject *py_r5 = PyFloat_FromDouble(t8);
+    PyObject *py_r5 = PyFloat_FromDouble(t6);
     if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 4, py_r5);
     PyObject *py_r6 = PyLong_FromLong(0L);
@@ -152,55 +156,55 @@ mass_matrix(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r7 = PyFloat_FromDouble(t1);
     if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 6, py_r7);
-    PyObject *py_r8 = PyFloat_FromDouble(t10);
+    PyObject *py_r8 = PyFloat_FromDouble(t8);
     if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 7, py_r8);
-    PyObject *py_r9 = PyFloat_FromDouble(t12);
+    PyObject *py_r9 = PyFloat_FromDouble(t10);
     if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 8, py_r9);
-    PyObject *py_r10 = PyFloat_FromDouble(t13);
+    PyObject *py_r10 = PyFloat_FromDouble(t11);
     if (py_r10 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 9, py_r10);
-    PyObject *py_r11 = PyFloat_FromDouble(t4);
+    PyObject *py_r11 = PyFloat_FromDouble(t3);
     if (py_r11 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 10, py_r11);
-    PyObject *py_r12 = PyFloat_FromDouble(t10);
+    PyObject *py_r12 = PyFloat_FromDouble(t8);
     if (py_r12 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 11, py_r12);
-    PyObject *py_r13 = PyFloat_FromDouble(t15);
+    PyObject *py_r13 = PyFloat_FromDouble(t13);
     if (py_r13 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 12, py_r13);
     PyObject *py_r14 = PyLong_FromLong(0L);
     if (py_r14 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 13, py_r14);
-    PyObject *py_r15 = PyFloat_FromDouble(t15);
+    PyObject *py_r15 = PyFloat_FromDouble(t13);
     if (py_r15 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 14, py_r15);
-    PyObject *py_r16 = PyFloat_FromDouble(t6);
+    PyObject *py_r16 = PyFloat_FromDouble(t4);
     if (py_r16 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 15, py_r16);
-    PyObject *py_r17 = PyFloat_FromDouble(t12);
+    PyObject *py_r17 = PyFloat_FromDouble(t10);
     if (py_r17 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 16, py_r17);
     PyObject *py_r18 = PyLong_FromLong(0L);
     if (py_r18 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 17, py_r18);
-    PyObject *py_r19 = PyFloat_FromDouble(t15);
+    PyObject *py_r19 = PyFloat_FromDouble(t13);
     if (py_r19 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 18, py_r19);
-    PyObject *py_r20 = PyFloat_FromDouble(t15);
+    PyObject *py_r20 = PyFloat_FromDouble(t13);
     if (py_r20 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 19, py_r20);
-    PyObject *py_r21 = PyFloat_FromDouble(t8);
+    PyObject *py_r21 = PyFloat_FromDouble(t6);
     if (py_r21 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 20, py_r21);
-    PyObject *py_r22 = PyFloat_FromDouble(t13);
+    PyObject *py_r22 = PyFloat_FromDouble(t11);
     if (py_r22 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 21, py_r22);
-    PyObject *py_r23 = PyFloat_FromDouble(t15);
+    PyObject *py_r23 = PyFloat_FromDouble(t13);
     if (py_r23 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 22, py_r23);
-    PyObject *py_r24 = PyFloat_FromDouble(t15);
+    PyObject *py_r24 = PyFloat_FromDouble(t13);
     if (py_r24 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 23, py_r24);
     PyObject *py_r25 = PyFloat_FromDouble(kc0);
@@ -234,20 +238,24 @@ coriolis_matrix(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double dq1 = dq_[2];
     double dq2 = dq_[3];
     double dq3 = dq_[4];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[10];
     if (unpack(k, k_, 10, "coriolis_matrix", "k") < 0) goto done;
     double m_torso = k_[0];
     double c_torso = k_[3];
-    double t2 = k_[9];
+    double t1 = k_[9];
     double t0 = (dq1 + dq3);
-    double t1 = (q1 + q3);
-    double t3 = (t2 * sin(t1));
-    double t4 = (dq2 + dq3);
-    double t5 = (q2 + q3);
-    double t6 = (t2 * sin(t5));
-    double t7 = ((c_torso * dq3) * m_torso);
-    double t8 = (t2 * cos(t1));
-    double t9 = (t2 * cos(t5));
+    double t2 = (t1 * ((c_q1 * s_q3) + (c_q3 * s_q1)));
+    double t3 = (dq2 + dq3);
+    double t4 = (t1 * ((c_q2 * s_q3) + (c_q3 * s_q2)));
+    double t5 = ((c_torso * dq3) * m_torso);
+    double t6 = (t1 * ((c_q1 * c_q3) - (s_q1 * s_q3)));
+    double t7 = (t1 * ((c_q2 * c_q3) - (s_q2 * s_q3)));
     PyObject *py_r0 = PyTuple_New(25);
     if (py_r0 == NULL) goto done;
     PyObject *py_r1 = PyLong_FromLong(0L);
@@ -256,13 +264,13 @@ coriolis_matrix(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r2 = PyLong_FromLong(0L);
     if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r2);
-    PyObject *py_r3 = PyFloat_FromDouble(((-t0) * t3));
+    PyObject *py_r3 = PyFloat_FromDouble(((-t0) * t2));
     if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 2, py_r3);
-    PyObject *py_r4 = PyFloat_FromDouble(((-t4) * t6));
+    PyObject *py_r4 = PyFloat_FromDouble(((-t3) * t4));
     if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 3, py_r4);
-    PyObject *py_r5 = PyFloat_FromDouble(((((((-dq1) * t3) - (dq2 * t6)) - (dq3 * t3)) - (dq3 * t6)) - (t7 * sin(q3))));
+    PyObject *py_r5 = PyFloat_FromDouble(((((((-dq1) * t2) - (dq2 * t4)) - (dq3 * t2)) - (dq3 * t4)) - (s_q3 * t5)));
     if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 4, py_r5);
     PyObject *py_r6 = PyLong_FromLong(0L);
@@ -271,13 +279,13 @@ coriolis_matrix(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r7 = PyLong_FromLong(0L);
     if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 6, py_r7);
-    PyObject *py_r8 = PyFloat_FromDouble(((-t0) * t8));
+    PyObject *py_r8 = PyFloat_FromDouble(((-t0) * t6));
     if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 7, py_r8);
-    PyObject *py_r9 = PyFloat_FromDouble(((-t4) * t9));
+    PyObject *py_r9 = PyFloat_FromDouble(((-t3) * t7));
     if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 8, py_r9);
-    PyObject *py_r10 = PyFloat_FromDouble(((((((-dq1) * t8) - (dq2 * t9)) - (dq3 * t8)) - (dq3 * t9)) - (t7 * cos(q3))));
+    PyObject *py_r10 = PyFloat_FromDouble(((((((-c_q3) * t5) - (dq1 * t6)) - (dq2 * t7)) - (dq3 * t6)) - (dq3 * t7)));
     if (py_r10 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 9, py_r10);
     PyObject *py_r11 = PyLong_FromLong(0L);
@@ -347,6 +355,12 @@ gravity_vector(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double q1 = q_[2];
     double q2 = q_[3];
     double q3 = q_[4];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[10];
     if (unpack(k, k_, 10, "gravity_vector", "k") < 0) goto done;
     double m_torso = k_[0];
@@ -354,8 +368,8 @@ gravity_vector(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double m_leg = k_[4];
     double g = k_[8];
     double t0 = k_[9];
-    double t1 = (t0 * sin((q1 + q3)));
-    double t2 = (t0 * sin((q2 + q3)));
+    double t1 = (t0 * ((c_q1 * s_q3) + (c_q3 * s_q1)));
+    double t2 = (t0 * ((c_q2 * s_q3) + (c_q3 * s_q2)));
     PyObject *py_r0 = PyTuple_New(5);
     if (py_r0 == NULL) goto done;
     PyObject *py_r1 = PyLong_FromLong(0L);
@@ -370,7 +384,7 @@ gravity_vector(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r4 = PyFloat_FromDouble(((-g) * t2));
     if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 3, py_r4);
-    PyObject *py_r5 = PyFloat_FromDouble(((-g) * ((((c_torso * m_torso) * sin(q3)) + t1) + t2)));
+    PyObject *py_r5 = PyFloat_FromDouble(((-g) * ((((c_torso * m_torso) * s_q3) + t1) + t2)));
     if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 4, py_r5);
     result = py_r0;
@@ -401,42 +415,46 @@ bias_forces(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double dq1 = dq_[2];
     double dq2 = dq_[3];
     double dq3 = dq_[4];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[13];
     if (unpack(k, k_, 13, "bias_forces", "k") < 0) goto done;
     double c_leg = k_[7];
     double g = k_[8];
     double t1 = k_[9];
-    double t5 = k_[10];
-    double t10 = k_[11];
+    double t4 = k_[10];
+    double t8 = k_[11];
     double kc0 = k_[12];
     double t0 = (dq3 * dq3);
-    double t2 = (t1 * sin(q3));
-    double t3 = (q1 + q3);
-    double t4 = sin(t3);
-    double t6 = (t4 * t5);
-    double t7 = (q2 + q3);
-    double t8 = sin(t7);
-    double t9 = (t5 * t8);
-    double t11 = ((c_leg * dq3) * t10);
-    double t12 = (t5 * cos(t3));
-    double t13 = (dq1 * t12);
-    double t14 = (t5 * cos(t7));
-    double t15 = (dq2 * t14);
+    double t2 = (s_q3 * t1);
+    double t3 = ((c_q1 * s_q3) + (c_q3 * s_q1));
+    double t5 = (t3 * t4);
+    double t6 = ((c_q2 * s_q3) + (c_q3 * s_q2));
+    double t7 = (t4 * t6);
+    double t9 = ((c_leg * dq3) * t8);
+    double t10 = (t4 * ((c_q1 * c_q3) - (s_q1 * s_q3)));
+    double t11 = (dq1 * t10);
+    double t12 = (t4 * ((c_q2 * c_q3) - (s_q2 * s_q3)));
+    double t13 = (dq2 * t12);
     PyObject *py_r0 = PyTuple_New(5);
     if (py_r0 == NULL) goto done;
-    PyObject *py_r1 = PyFloat_FromDouble((((((((((-dq1) * dq1) * t6) - ((dq1 * t11) * t4)) - ((dq2 * dq2) * t9)) - ((dq2 * t11) * t8)) - (t0 * t2)) - (t0 * t6)) - (t0 * t9)));
+    PyObject *py_r1 = PyFloat_FromDouble((((((((((-dq1) * dq1) * t5) - ((dq1 * t3) * t9)) - ((dq2 * dq2) * t7)) - ((dq2 * t6) * t9)) - (t0 * t2)) - (t0 * t5)) - (t0 * t7)));
     if (py_r1 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 0, py_r1);
-    PyObject *py_r2 = PyFloat_FromDouble((((((-dq3) * ((((((dq3 * t1) * cos(q3)) + (dq3 * t12)) + (dq3 * t14)) + t13) + t15)) + kc0) - (t13 * (dq1 + dq3))) - (t15 * (dq2 + dq3))));
+    PyObject *py_r2 = PyFloat_FromDouble((((((-dq3) * ((((((c_q3 * dq3) * t1) + (dq3 * t10)) + (dq3 * t12)) + t11) + t13)) + kc0) - (t11 * (dq1 + dq3))) - (t13 * (dq2 + dq3))));
     if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r2);
-    PyObject *py_r3 = PyFloat_FromDouble(((-g) * t6));
+    PyObject *py_r3 = PyFloat_FromDouble(((-g) * t5));
     if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 2, py_r3);
-    PyObject *py_r4 = PyFloat_FromDouble(((-g) * t9));
+    PyObject *py_r4 = PyFloat_FromDouble(((-g) * t7));
     if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 3, py_r4);
-    PyObject *py_r5 = PyFloat_FromDouble(((-g) * ((t2 + t6) + t9)));
+    PyObject *py_r5 = PyFloat_FromDouble(((-g) * ((t2 + t5) + t7)));
     if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 4, py_r5);
     result = py_r0;
@@ -463,23 +481,27 @@ foot_positions(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double q1 = q_[2];
     double q2 = q_[3];
     double q3 = q_[4];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[9];
     if (unpack(k, k_, 9, "foot_positions", "k") < 0) goto done;
     double l_leg = k_[6];
-    double t0 = (q1 + q3);
-    double t1 = (q2 + q3);
     PyObject *py_r0 = PyTuple_New(4);
     if (py_r0 == NULL) goto done;
-    PyObject *py_r1 = PyFloat_FromDouble(((l_leg * sin(t0)) + x));
+    PyObject *py_r1 = PyFloat_FromDouble(((l_leg * ((c_q1 * s_q3) + (c_q3 * s_q1))) + x));
     if (py_r1 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 0, py_r1);
-    PyObject *py_r2 = PyFloat_FromDouble(((l_leg * cos(t0)) + y));
+    PyObject *py_r2 = PyFloat_FromDouble(((l_leg * ((c_q1 * c_q3) - (s_q1 * s_q3))) + y));
     if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r2);
-    PyObject *py_r3 = PyFloat_FromDouble(((l_leg * sin(t1)) + x));
+    PyObject *py_r3 = PyFloat_FromDouble(((l_leg * ((c_q2 * s_q3) + (c_q3 * s_q2))) + x));
     if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 2, py_r3);
-    PyObject *py_r4 = PyFloat_FromDouble(((l_leg * cos(t1)) + y));
+    PyObject *py_r4 = PyFloat_FromDouble(((l_leg * ((c_q2 * c_q3) - (s_q2 * s_q3))) + y));
     if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 3, py_r4);
     result = py_r0;
@@ -503,12 +525,15 @@ foot_jacobian_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     if (unpack(q, q_, 5, "foot_jacobian_1", "q") < 0) goto done;
     double q1 = q_[2];
     double q3 = q_[4];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[9];
     if (unpack(k, k_, 9, "foot_jacobian_1", "k") < 0) goto done;
     double l_leg = k_[6];
-    double t0 = (q1 + q3);
-    double t1 = (l_leg * cos(t0));
-    double t2 = ((-l_leg) * sin(t0));
+    double t0 = (l_leg * ((c_q1 * c_q3) - (s_q1 * s_q3)));
+    double t1 = ((-l_leg) * ((c_q1 * s_q3) + (c_q3 * s_q1)));
     PyObject *py_r0 = PyTuple_New(10);
     if (py_r0 == NULL) goto done;
     PyObject *py_r1 = PyLong_FromLong(1L);
@@ -517,13 +542,13 @@ foot_jacobian_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r2 = PyLong_FromLong(0L);
     if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r2);
-    PyObject *py_r3 = PyFloat_FromDouble(t1);
+    PyObject *py_r3 = PyFloat_FromDouble(t0);
     if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 2, py_r3);
     PyObject *py_r4 = PyLong_FromLong(0L);
     if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 3, py_r4);
-    PyObject *py_r5 = PyFloat_FromDouble(t1);
+    PyObject *py_r5 = PyFloat_FromDouble(t0);
     if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 4, py_r5);
     PyObject *py_r6 = PyLong_FromLong(0L);
@@ -532,13 +557,13 @@ foot_jacobian_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r7 = PyLong_FromLong(1L);
     if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 6, py_r7);
-    PyObject *py_r8 = PyFloat_FromDouble(t2);
+    PyObject *py_r8 = PyFloat_FromDouble(t1);
     if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 7, py_r8);
     PyObject *py_r9 = PyLong_FromLong(0L);
     if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 8, py_r9);
-    PyObject *py_r10 = PyFloat_FromDouble(t2);
+    PyObject *py_r10 = PyFloat_FromDouble(t1);
     if (py_r10 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 9, py_r10);
     result = py_r0;
@@ -562,12 +587,15 @@ foot_jacobian_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     if (unpack(q, q_, 5, "foot_jacobian_2", "q") < 0) goto done;
     double q2 = q_[3];
     double q3 = q_[4];
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[9];
     if (unpack(k, k_, 9, "foot_jacobian_2", "k") < 0) goto done;
     double l_leg = k_[6];
-    double t0 = (q2 + q3);
-    double t1 = (l_leg * cos(t0));
-    double t2 = ((-l_leg) * sin(t0));
+    double t0 = (l_leg * ((c_q2 * c_q3) - (s_q2 * s_q3)));
+    double t1 = ((-l_leg) * ((c_q2 * s_q3) + (c_q3 * s_q2)));
     PyObject *py_r0 = PyTuple_New(10);
     if (py_r0 == NULL) goto done;
     PyObject *py_r1 = PyLong_FromLong(1L);
@@ -579,10 +607,10 @@ foot_jacobian_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r3 = PyLong_FromLong(0L);
     if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 2, py_r3);
-    PyObject *py_r4 = PyFloat_FromDouble(t1);
+    PyObject *py_r4 = PyFloat_FromDouble(t0);
     if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 3, py_r4);
-    PyObject *py_r5 = PyFloat_FromDouble(t1);
+    PyObject *py_r5 = PyFloat_FromDouble(t0);
     if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 4, py_r5);
     PyObject *py_r6 = PyLong_FromLong(0L);
@@ -594,10 +622,10 @@ foot_jacobian_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r8 = PyLong_FromLong(0L);
     if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 7, py_r8);
-    PyObject *py_r9 = PyFloat_FromDouble(t2);
+    PyObject *py_r9 = PyFloat_FromDouble(t1);
     if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 8, py_r9);
-    PyObject *py_r10 = PyFloat_FromDouble(t2);
+    PyObject *py_r10 = PyFloat_FromDouble(t1);
     if (py_r10 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 9, py_r10);
     result = py_r0;
@@ -626,13 +654,16 @@ foot_jacobian_dot_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     if (unpack(dq, dq_, 5, "foot_jacobian_dot_1", "dq") < 0) goto done;
     double dq1 = dq_[2];
     double dq3 = dq_[4];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[9];
     if (unpack(k, k_, 9, "foot_jacobian_dot_1", "k") < 0) goto done;
     double l_leg = k_[6];
-    double t0 = (q1 + q3);
-    double t1 = (l_leg * (dq1 + dq3));
-    double t2 = ((-t1) * sin(t0));
-    double t3 = ((-t1) * cos(t0));
+    double t0 = (l_leg * (dq1 + dq3));
+    double t1 = ((-t0) * ((c_q1 * s_q3) + (c_q3 * s_q1)));
+    double t2 = ((-t0) * ((c_q1 * c_q3) - (s_q1 * s_q3)));
     PyObject *py_r0 = PyTuple_New(10);
     if (py_r0 == NULL) goto done;
     PyObject *py_r1 = PyLong_FromLong(0L);
@@ -641,13 +672,13 @@ foot_jacobian_dot_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r2 = PyLong_FromLong(0L);
     if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r2);
-    PyObject *py_r3 = PyFloat_FromDouble(t2);
+    PyObject *py_r3 = PyFloat_FromDouble(t1);
     if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 2, py_r3);
     PyObject *py_r4 = PyLong_FromLong(0L);
     if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 3, py_r4);
-    PyObject *py_r5 = PyFloat_FromDouble(t2);
+    PyObject *py_r5 = PyFloat_FromDouble(t1);
     if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 4, py_r5);
     PyObject *py_r6 = PyLong_FromLong(0L);
@@ -656,13 +687,13 @@ foot_jacobian_dot_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r7 = PyLong_FromLong(0L);
     if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 6, py_r7);
-    PyObject *py_r8 = PyFloat_FromDouble(t3);
+    PyObject *py_r8 = PyFloat_FromDouble(t2);
     if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 7, py_r8);
     PyObject *py_r9 = PyLong_FromLong(0L);
     if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 8, py_r9);
-    PyObject *py_r10 = PyFloat_FromDouble(t3);
+    PyObject *py_r10 = PyFloat_FromDouble(t2);
     if (py_r10 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 9, py_r10);
     result = py_r0;
@@ -691,13 +722,16 @@ foot_jacobian_dot_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     if (unpack(dq, dq_, 5, "foot_jacobian_dot_2", "dq") < 0) goto done;
     double dq2 = dq_[3];
     double dq3 = dq_[4];
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[9];
     if (unpack(k, k_, 9, "foot_jacobian_dot_2", "k") < 0) goto done;
     double l_leg = k_[6];
-    double t0 = (q2 + q3);
-    double t1 = (l_leg * (dq2 + dq3));
-    double t2 = ((-t1) * sin(t0));
-    double t3 = ((-t1) * cos(t0));
+    double t0 = (l_leg * (dq2 + dq3));
+    double t1 = ((-t0) * ((c_q2 * s_q3) + (c_q3 * s_q2)));
+    double t2 = ((-t0) * ((c_q2 * c_q3) - (s_q2 * s_q3)));
     PyObject *py_r0 = PyTuple_New(10);
     if (py_r0 == NULL) goto done;
     PyObject *py_r1 = PyLong_FromLong(0L);
@@ -709,10 +743,10 @@ foot_jacobian_dot_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r3 = PyLong_FromLong(0L);
     if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 2, py_r3);
-    PyObject *py_r4 = PyFloat_FromDouble(t2);
+    PyObject *py_r4 = PyFloat_FromDouble(t1);
     if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 3, py_r4);
-    PyObject *py_r5 = PyFloat_FromDouble(t2);
+    PyObject *py_r5 = PyFloat_FromDouble(t1);
     if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 4, py_r5);
     PyObject *py_r6 = PyLong_FromLong(0L);
@@ -724,10 +758,10 @@ foot_jacobian_dot_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r8 = PyLong_FromLong(0L);
     if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 7, py_r8);
-    PyObject *py_r9 = PyFloat_FromDouble(t3);
+    PyObject *py_r9 = PyFloat_FromDouble(t2);
     if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 8, py_r9);
-    PyObject *py_r10 = PyFloat_FromDouble(t3);
+    PyObject *py_r10 = PyFloat_FromDouble(t2);
     if (py_r10 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 9, py_r10);
     result = py_r0;
@@ -762,40 +796,44 @@ foot_kinematics(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double dq1 = dq_[2];
     double dq2 = dq_[3];
     double dq3 = dq_[4];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[9];
     if (unpack(k, k_, 9, "foot_kinematics", "k") < 0) goto done;
     double l_leg = k_[6];
-    double t0 = (q1 + q3);
-    double t1 = (l_leg * sin(t0));
-    double t2 = (l_leg * cos(t0));
-    double t3 = (q2 + q3);
-    double t4 = (l_leg * sin(t3));
-    double t5 = (l_leg * cos(t3));
-    double t6 = (-dy);
+    double t0 = (l_leg * ((c_q1 * s_q3) + (c_q3 * s_q1)));
+    double t1 = (l_leg * ((c_q1 * c_q3) - (s_q1 * s_q3)));
+    double t2 = (l_leg * ((c_q2 * s_q3) + (c_q3 * s_q2)));
+    double t3 = (l_leg * ((c_q2 * c_q3) - (s_q2 * s_q3)));
+    double t4 = (-dy);
     PyObject *py_r0 = PyTuple_New(8);
     if (py_r0 == NULL) goto done;
-    PyObject *py_r1 = PyFloat_FromDouble((t1 + x));
+    PyObject *py_r1 = PyFloat_FromDouble((t0 + x));
     if (py_r1 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 0, py_r1);
-    PyObject *py_r2 = PyFloat_FromDouble((t2 + y));
+    PyObject *py_r2 = PyFloat_FromDouble((t1 + y));
     if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r2);
-    PyObject *py_r3 = PyFloat_FromDouble((t4 + x));
+    PyObject *py_r3 = PyFloat_FromDouble((t2 + x));
     if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 2, py_r3);
-    PyObject *py_r4 = PyFloat_FromDouble((t5 + y));
+    PyObject *py_r4 = PyFloat_FromDouble((t3 + y));
     if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 3, py_r4);
-    PyObject *py_r5 = PyFloat_FromDouble((((dq1 * t2) + (dq3 * t2)) + dx));
+    PyObject *py_r5 = PyFloat_FromDouble((((dq1 * t1) + (dq3 * t1)) + dx));
     if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 4, py_r5);
-    PyObject *py_r6 = PyFloat_FromDouble(((((-dq1) * t1) - (dq3 * t1)) - t6));
+    PyObject *py_r6 = PyFloat_FromDouble(((((-dq1) * t0) - (dq3 * t0)) - t4));
     if (py_r6 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 5, py_r6);
-    PyObject *py_r7 = PyFloat_FromDouble((((dq2 * t5) + (dq3 * t5)) + dx));
+    PyObject *py_r7 = PyFloat_FromDouble((((dq2 * t3) + (dq3 * t3)) + dx));
     if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 6, py_r7);
-    PyObject *py_r8 = PyFloat_FromDouble(((((-dq2) * t4) - (dq3 * t4)) - t6));
+    PyObject *py_r8 = PyFloat_FromDouble(((((-dq2) * t2) - (dq3 * t2)) - t4));
     if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 7, py_r8);
     result = py_r0;
@@ -829,6 +867,12 @@ energy(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double dq1 = dq_[2];
     double dq2 = dq_[3];
     double dq3 = dq_[4];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[9];
     if (unpack(k, k_, 9, "energy", "k") < 0) goto done;
     double m_torso = k_[0];
@@ -838,20 +882,26 @@ energy(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double I_leg = k_[5];
     double c_leg = k_[7];
     double g = k_[8];
-    double t0 = (c_torso * cos(q3));
+    double t0 = (c_q3 * c_torso);
     double t1 = (-dy);
-    double t2 = (q1 + q3);
-    double t3 = (c_leg * cos(t2));
-    double t4 = (c_leg * sin(t2));
-    double t5 = (q2 + q3);
-    double t6 = (c_leg * cos(t5));
-    double t7 = (c_leg * sin(t5));
+    double t2 = (c_leg * ((c_q1 * c_q3) - (s_q1 * s_q3)));
+    double t3 = (c_leg * ((c_q1 * s_q3) + (c_q3 * s_q1)));
+    double t4 = (c_leg * ((c_q2 * c_q3) - (s_q2 * s_q3)));
+    double t5 = (c_leg * ((c_q2 * s_q3) + (c_q3 * s_q2)));
+    double sq0 = (dq1 + dq3);
+    double sq1 = (dq2 + dq3);
+    double sq2 = (((dq1 * t3) + (dq3 * t3)) + t1);
+    double sq3 = (((dq1 * t2) + (dq3 * t2)) + dx);
+    double sq4 = (((dq2 * t5) + (dq3 * t5)) + t1);
+    double sq5 = (((dq2 * t4) + (dq3 * t4)) + dx);
+    double sq6 = (((c_torso * dq3) * s_q3) + t1);
+    double sq7 = ((dq3 * t0) + dx);
     PyObject *py_r0 = PyTuple_New(2);
     if (py_r0 == NULL) goto done;
-    PyObject *py_r1 = PyFloat_FromDouble(((((((((1.0 / 2.0) * I_leg) * libm_pow((dq1 + dq3), 2.0)) + (((1.0 / 2.0) * I_leg) * libm_pow((dq2 + dq3), 2.0))) + ((((1.0 / 2.0) * I_torso) * dq3) * dq3)) + (((1.0 / 2.0) * m_leg) * (libm_pow((((dq1 * t3) + (dq3 * t3)) + dx), 2.0) + libm_pow((((dq1 * t4) + (dq3 * t4)) + t1), 2.0)))) + (((1.0 / 2.0) * m_leg) * (libm_pow((((dq2 * t6) + (dq3 * t6)) + dx), 2.0) + libm_pow((((dq2 * t7) + (dq3 * t7)) + t1), 2.0)))) + (((1.0 / 2.0) * m_torso) * (libm_pow(((dq3 * t0) + dx), 2.0) + libm_pow((((c_torso * dq3) * sin(q3)) + t1), 2.0)))));
+    PyObject *py_r1 = PyFloat_FromDouble((((((((((1.0 / 2.0) * I_leg) * sq0) * sq0) + ((((1.0 / 2.0) * I_leg) * sq1) * sq1)) + ((((1.0 / 2.0) * I_torso) * dq3) * dq3)) + (((1.0 / 2.0) * m_leg) * ((sq2 * sq2) + (sq3 * sq3)))) + (((1.0 / 2.0) * m_leg) * ((sq4 * sq4) + (sq5 * sq5)))) + (((1.0 / 2.0) * m_torso) * ((sq6 * sq6) + (sq7 * sq7)))));
     if (py_r1 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 0, py_r1);
-    PyObject *py_r2 = PyFloat_FromDouble((g * (((m_leg * (t3 + y)) + (m_leg * (t6 + y))) + (m_torso * (t0 + y)))));
+    PyObject *py_r2 = PyFloat_FromDouble((g * (((m_leg * (t2 + y)) + (m_leg * (t4 + y))) + (m_torso * (t0 + y)))));
     if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r2);
     result = py_r0;
@@ -878,6 +928,12 @@ com_position(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double q1 = q_[2];
     double q2 = q_[3];
     double q3 = q_[4];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[10];
     if (unpack(k, k_, 10, "com_position", "k") < 0) goto done;
     double m_torso = k_[0];
@@ -885,14 +941,12 @@ com_position(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double m_leg = k_[4];
     double c_leg = k_[7];
     double t0 = k_[9];
-    double t1 = (q1 + q3);
-    double t2 = (q2 + q3);
     PyObject *py_r0 = PyTuple_New(2);
     if (py_r0 == NULL) goto done;
-    PyObject *py_r1 = PyFloat_FromDouble((t0 * (((m_leg * ((c_leg * sin(t1)) + x)) + (m_leg * ((c_leg * sin(t2)) + x))) + (m_torso * ((c_torso * sin(q3)) + x)))));
+    PyObject *py_r1 = PyFloat_FromDouble((t0 * (((m_leg * ((c_leg * ((c_q1 * s_q3) + (c_q3 * s_q1))) + x)) + (m_leg * ((c_leg * ((c_q2 * s_q3) + (c_q3 * s_q2))) + x))) + (m_torso * ((c_torso * s_q3) + x)))));
     if (py_r1 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 0, py_r1);
-    PyObject *py_r2 = PyFloat_FromDouble((t0 * (((m_leg * ((c_leg * cos(t1)) + y)) + (m_leg * ((c_leg * cos(t2)) + y))) + (m_torso * ((c_torso * cos(q3)) + y)))));
+    PyObject *py_r2 = PyFloat_FromDouble((t0 * (((m_leg * ((c_leg * ((c_q1 * c_q3) - (s_q1 * s_q3))) + y)) + (m_leg * ((c_leg * ((c_q2 * c_q3) - (s_q2 * s_q3))) + y))) + (m_torso * ((c_q3 * c_torso) + y)))));
     if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r2);
     result = py_r0;
@@ -928,6 +982,12 @@ stance_terms_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     if (unpack(u, u_, 2, "stance_terms_1", "u") < 0) goto done;
     double u1 = u_[0];
     double u2 = u_[1];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[22];
     if (unpack(k, k_, 22, "stance_terms_1", "k") < 0) goto done;
     double l_leg = k_[6];
@@ -938,41 +998,39 @@ stance_terms_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double t6 = k_[15];
     double t8 = k_[16];
     double t10 = k_[17];
-    double t16 = k_[18];
+    double t15 = k_[18];
     double kc0 = k_[19];
     double kc1 = k_[20];
     double kc2 = k_[21];
-    double t7 = cos((q1 - q2));
+    double t7 = ((c_q1 * c_q2) + (s_q1 * s_q2));
     double t9 = (((-l_leg) * t7) * t8);
-    double t11 = ((l_leg * t10) * cos(q1));
+    double t11 = ((c_q1 * l_leg) * t10);
     double t12 = (t1 + t9);
-    double t13 = (q1 + q3);
-    double t14 = sin(t13);
-    double t15 = (t14 * t8);
-    double t17 = (dq1 + dq3);
-    double t18 = (t17 * t17);
-    double t19 = cos(t13);
-    double t20 = (l_leg * t19);
-    double t21 = (t18 * t20);
-    double t22 = (t19 * t8);
-    double t23 = (dq1 * t22);
-    double t24 = (q2 + q3);
-    double t25 = (t8 * cos(t24));
-    double t26 = (dq2 * t25);
-    double t27 = (t10 * cos(q3));
-    double t28 = ((((dq3 * (((((dq3 * t22) + (dq3 * t25)) + (dq3 * t27)) + t23) + t26)) + kc0) + (t17 * t23)) + (t26 * (dq2 + dq3)));
-    double t29 = (l_leg * t14);
-    double t30 = (t18 * t29);
-    double t31 = (dq3 * dq3);
-    double t32 = (t10 * sin(q3));
-    double t33 = sin(t24);
-    double t34 = (t33 * t8);
-    double t35 = (dq3 * t4);
-    double t36 = ((((((((dq1 * dq1) * t15) + ((dq1 * t14) * t35)) + ((dq2 * dq2) * t34)) + ((dq2 * t33) * t35)) + (t15 * t31)) + (t31 * t32)) + (t31 * t34));
-    double t37 = (((-t20) * (((-t16) * t30) + t36)) + (t29 * (((-t16) * t21) + t28)));
-    double t38 = ((t15 + t32) + t34);
-    double t39 = ((t22 + t25) + t27);
-    double t40 = (-t29);
+    double t13 = ((c_q1 * s_q3) + (c_q3 * s_q1));
+    double t14 = (t13 * t8);
+    double t16 = (dq1 + dq3);
+    double t17 = (t16 * t16);
+    double t18 = ((c_q1 * c_q3) - (s_q1 * s_q3));
+    double t19 = (l_leg * t18);
+    double t20 = (t17 * t19);
+    double t21 = (t18 * t8);
+    double t22 = (dq1 * t21);
+    double t23 = (t8 * ((c_q2 * c_q3) - (s_q2 * s_q3)));
+    double t24 = (dq2 * t23);
+    double t25 = (c_q3 * t10);
+    double t26 = ((((dq3 * (((((dq3 * t21) + (dq3 * t23)) + (dq3 * t25)) + t22) + t24)) + kc0) + (t16 * t22)) + (t24 * (dq2 + dq3)));
+    double t27 = (l_leg * t13);
+    double t28 = (t17 * t27);
+    double t29 = (dq3 * dq3);
+    double t30 = (s_q3 * t10);
+    double t31 = ((c_q2 * s_q3) + (c_q3 * s_q2));
+    double t32 = (t31 * t8);
+    double t33 = (dq3 * t4);
+    double t34 = ((((((((dq1 * dq1) * t14) + ((dq1 * t13) * t33)) + ((dq2 * dq2) * t32)) + ((dq2 * t31) * t33)) + (t14 * t29)) + (t29 * t30)) + (t29 * t32));
+    double t35 = (((-t19) * (((-t15) * t28) + t34)) + (t27 * (((-t15) * t20) + t26)));
+    double t36 = ((t14 + t30) + t32);
+    double t37 = ((t21 + t23) + t25);
+    double t38 = (-t27);
     PyObject *py_r0 = PyTuple_New(26);
     if (py_r0 == NULL) goto done;
     PyObject *py_r1 = PyFloat_FromDouble(kc1);
@@ -993,64 +1051,64 @@ stance_terms_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r6 = PyFloat_FromDouble(((kc2 - (2.0 * t11)) - (t5 * t7)));
     if (py_r6 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 5, py_r6);
-    PyObject *py_r7 = PyFloat_FromDouble((((g * t15) + t37) + u1));
+    PyObject *py_r7 = PyFloat_FromDouble((((g * t14) + t35) + u1));
     if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 6, py_r7);
-    PyObject *py_r8 = PyFloat_FromDouble(((((g * t34) + (t21 * t34)) - (t25 * t30)) + u2));
+    PyObject *py_r8 = PyFloat_FromDouble(((((g * t32) + (t20 * t32)) - (t23 * t28)) + u2));
     if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 7, py_r8);
-    PyObject *py_r9 = PyFloat_FromDouble(((((g * t38) + (t21 * t38)) - (t30 * t39)) + t37));
+    PyObject *py_r9 = PyFloat_FromDouble(((((g * t36) + (t20 * t36)) - (t28 * t37)) + t35));
     if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 8, py_r9);
-    PyObject *py_r10 = PyFloat_FromDouble(t20);
+    PyObject *py_r10 = PyFloat_FromDouble(t19);
     if (py_r10 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 9, py_r10);
     PyObject *py_r11 = PyLong_FromLong(0L);
     if (py_r11 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 10, py_r11);
-    PyObject *py_r12 = PyFloat_FromDouble(t20);
+    PyObject *py_r12 = PyFloat_FromDouble(t19);
     if (py_r12 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 11, py_r12);
-    PyObject *py_r13 = PyFloat_FromDouble(t40);
+    PyObject *py_r13 = PyFloat_FromDouble(t38);
     if (py_r13 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 12, py_r13);
     PyObject *py_r14 = PyLong_FromLong(0L);
     if (py_r14 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 13, py_r14);
-    PyObject *py_r15 = PyFloat_FromDouble(t40);
+    PyObject *py_r15 = PyFloat_FromDouble(t38);
     if (py_r15 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 14, py_r15);
-    PyObject *py_r16 = PyFloat_FromDouble(t30);
+    PyObject *py_r16 = PyFloat_FromDouble(t28);
     if (py_r16 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 15, py_r16);
-    PyObject *py_r17 = PyFloat_FromDouble(t21);
+    PyObject *py_r17 = PyFloat_FromDouble(t20);
     if (py_r17 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 16, py_r17);
-    PyObject *py_r18 = PyFloat_FromDouble(t16);
+    PyObject *py_r18 = PyFloat_FromDouble(t15);
     if (py_r18 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 17, py_r18);
-    PyObject *py_r19 = PyFloat_FromDouble(t22);
+    PyObject *py_r19 = PyFloat_FromDouble(t21);
     if (py_r19 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 18, py_r19);
-    PyObject *py_r20 = PyFloat_FromDouble(t25);
+    PyObject *py_r20 = PyFloat_FromDouble(t23);
     if (py_r20 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 19, py_r20);
-    PyObject *py_r21 = PyFloat_FromDouble(t39);
+    PyObject *py_r21 = PyFloat_FromDouble(t37);
     if (py_r21 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 20, py_r21);
-    PyObject *py_r22 = PyFloat_FromDouble((-t15));
+    PyObject *py_r22 = PyFloat_FromDouble((-t14));
     if (py_r22 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 21, py_r22);
-    PyObject *py_r23 = PyFloat_FromDouble((-t34));
+    PyObject *py_r23 = PyFloat_FromDouble((-t32));
     if (py_r23 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 22, py_r23);
-    PyObject *py_r24 = PyFloat_FromDouble((-t38));
+    PyObject *py_r24 = PyFloat_FromDouble((-t36));
     if (py_r24 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 23, py_r24);
-    PyObject *py_r25 = PyFloat_FromDouble((-t36));
+    PyObject *py_r25 = PyFloat_FromDouble((-t34));
     if (py_r25 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 24, py_r25);
-    PyObject *py_r26 = PyFloat_FromDouble((-t28));
+    PyObject *py_r26 = PyFloat_FromDouble((-t26));
     if (py_r26 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 25, py_r26);
     result = py_r0;
@@ -1086,6 +1144,12 @@ stance_floating_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     if (unpack(u, u_, 2, "stance_floating_1", "u") < 0) goto done;
     double u1 = u_[0];
     double u2 = u_[1];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[22];
     if (unpack(k, k_, 22, "stance_floating_1", "k") < 0) goto done;
     double l_leg = k_[6];
@@ -1096,46 +1160,44 @@ stance_floating_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double t6 = k_[15];
     double t8 = k_[16];
     double t10 = k_[17];
-    double t16 = k_[18];
+    double t15 = k_[18];
     double kc0 = k_[19];
     double kc1 = k_[20];
     double kc2 = k_[21];
-    double t7 = cos((q1 - q2));
+    double t7 = ((c_q1 * c_q2) + (s_q1 * s_q2));
     double t9 = (((-l_leg) * t7) * t8);
-    double t11 = ((l_leg * t10) * cos(q1));
+    double t11 = ((c_q1 * l_leg) * t10);
     double t12 = (t1 + t9);
-    double t13 = (q1 + q3);
-    double t14 = sin(t13);
-    double t15 = (t14 * t8);
-    double t17 = (dq1 + dq3);
-    double t18 = (t17 * t17);
-    double t19 = cos(t13);
-    double t20 = (l_leg * t19);
-    double t21 = (t18 * t20);
-    double t22 = (t19 * t8);
-    double t23 = (dq1 * t22);
-    double t24 = (q2 + q3);
-    double t25 = (t8 * cos(t24));
-    double t26 = (dq2 * t25);
-    double t27 = (t10 * cos(q3));
-    double t28 = ((((dq3 * (((((dq3 * t22) + (dq3 * t25)) + (dq3 * t27)) + t23) + t26)) + kc0) + (t17 * t23)) + (t26 * (dq2 + dq3)));
-    double t29 = (l_leg * t14);
-    double t30 = (t18 * t29);
-    double t31 = (dq3 * dq3);
-    double t32 = (t10 * sin(q3));
-    double t33 = sin(t24);
-    double t34 = (t33 * t8);
-    double t35 = (dq3 * t4);
-    double t36 = ((((((((dq1 * dq1) * t15) + ((dq1 * t14) * t35)) + ((dq2 * dq2) * t34)) + ((dq2 * t33) * t35)) + (t15 * t31)) + (t31 * t32)) + (t31 * t34));
-    double t37 = (((-t20) * (((-t16) * t30) + t36)) + (t29 * (((-t16) * t21) + t28)));
-    double t38 = ((t15 + t32) + t34);
-    double t39 = ((t22 + t25) + t27);
-    double t40 = (-t29);
+    double t13 = ((c_q1 * s_q3) + (c_q3 * s_q1));
+    double t14 = (t13 * t8);
+    double t16 = (dq1 + dq3);
+    double t17 = (t16 * t16);
+    double t18 = ((c_q1 * c_q3) - (s_q1 * s_q3));
+    double t19 = (l_leg * t18);
+    double t20 = (t17 * t19);
+    double t21 = (t18 * t8);
+    double t22 = (dq1 * t21);
+    double t23 = (t8 * ((c_q2 * c_q3) - (s_q2 * s_q3)));
+    double t24 = (dq2 * t23);
+    double t25 = (c_q3 * t10);
+    double t26 = ((((dq3 * (((((dq3 * t21) + (dq3 * t23)) + (dq3 * t25)) + t22) + t24)) + kc0) + (t16 * t22)) + (t24 * (dq2 + dq3)));
+    double t27 = (l_leg * t13);
+    double t28 = (t17 * t27);
+    double t29 = (dq3 * dq3);
+    double t30 = (s_q3 * t10);
+    double t31 = ((c_q2 * s_q3) + (c_q3 * s_q2));
+    double t32 = (t31 * t8);
+    double t33 = (dq3 * t4);
+    double t34 = ((((((((dq1 * dq1) * t14) + ((dq1 * t13) * t33)) + ((dq2 * dq2) * t32)) + ((dq2 * t31) * t33)) + (t14 * t29)) + (t29 * t30)) + (t29 * t32));
+    double t35 = (((-t19) * (((-t15) * t28) + t34)) + (t27 * (((-t15) * t20) + t26)));
+    double t36 = ((t14 + t30) + t32);
+    double t37 = ((t21 + t23) + t25);
+    double t38 = (-t27);
     double M02 = (((-t11) + t12) + t6);
     double M22 = ((kc2 - (2.0 * t11)) - (t5 * t7));
-    double b0 = (((g * t15) + t37) + u1);
-    double b1 = ((((g * t34) + (t21 * t34)) - (t25 * t30)) + u2);
-    double b2 = ((((g * t38) + (t21 * t38)) - (t30 * t39)) + t37);
+    double b0 = (((g * t14) + t35) + u1);
+    double b1 = ((((g * t32) + (t20 * t32)) - (t23 * t28)) + u2);
+    double b2 = ((((g * t36) + (t20 * t36)) - (t28 * t37)) + t35);
     double l10 = (t9 / kc1);
     double l20 = (M02 / kc1);
     double d1 = (((-l10) * t9) + t1);
@@ -1146,8 +1208,8 @@ stance_floating_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double a3 = (z2 / d2);
     double a2 = (((-a3) * l21) + (z1 / d1));
     double a1 = ((((-a2) * l10) - (a3 * l20)) + (b0 / kc1));
-    double ax = ((((-a1) * t20) - (a3 * t20)) + t30);
-    double ay = ((((-a1) * t40) - (a3 * t40)) + t21);
+    double ax = ((((-a1) * t19) - (a3 * t19)) + t28);
+    double ay = ((((-a1) * t38) - (a3 * t38)) + t20);
     PyObject *py_r0 = PyTuple_New(2);
     if (py_r0 == NULL) goto done;
     PyObject *py_r1 = PyList_New(5);
@@ -1171,10 +1233,10 @@ stance_floating_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r7 = PyList_New(2);
     if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r7);
-    PyObject *py_r8 = PyFloat_FromDouble((((((a1 * t22) + (a2 * t25)) + (a3 * t39)) + (ax * t16)) - t36));
+    PyObject *py_r8 = PyFloat_FromDouble((((((a1 * t21) + (a2 * t23)) + (a3 * t37)) + (ax * t15)) - t34));
     if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
     PyList_SET_ITEM(py_r7, 0, py_r8);
-    PyObject *py_r9 = PyFloat_FromDouble(((((((-a1) * t15) - (a2 * t34)) - (a3 * t38)) + (ay * t16)) - t28));
+    PyObject *py_r9 = PyFloat_FromDouble(((((((-a1) * t14) - (a2 * t32)) - (a3 * t36)) + (ay * t15)) - t26));
     if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
     PyList_SET_ITEM(py_r7, 1, py_r9);
     result = py_r0;
@@ -1210,6 +1272,12 @@ stance_floating_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     if (unpack(u, u_, 2, "stance_floating_2", "u") < 0) goto done;
     double u2 = u_[0];
     double u1 = u_[1];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[22];
     if (unpack(k, k_, 22, "stance_floating_2", "k") < 0) goto done;
     double l_leg = k_[6];
@@ -1220,46 +1288,44 @@ stance_floating_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double t6 = k_[15];
     double t8 = k_[16];
     double t10 = k_[17];
-    double t16 = k_[18];
+    double t15 = k_[18];
     double kc0 = k_[19];
     double kc1 = k_[20];
     double kc2 = k_[21];
-    double t7 = cos((q1 - q2));
+    double t7 = ((c_q1 * c_q2) + (s_q1 * s_q2));
     double t9 = (((-l_leg) * t7) * t8);
-    double t11 = ((l_leg * t10) * cos(q1));
+    double t11 = ((c_q1 * l_leg) * t10);
     double t12 = (t1 + t9);
-    double t13 = (q1 + q3);
-    double t14 = sin(t13);
-    double t15 = (t14 * t8);
-    double t17 = (dq1 + dq3);
-    double t18 = (t17 * t17);
-    double t19 = cos(t13);
-    double t20 = (l_leg * t19);
-    double t21 = (t18 * t20);
-    double t22 = (t19 * t8);
-    double t23 = (dq1 * t22);
-    double t24 = (q2 + q3);
-    double t25 = (t8 * cos(t24));
-    double t26 = (dq2 * t25);
-    double t27 = (t10 * cos(q3));
-    double t28 = ((((dq3 * (((((dq3 * t22) + (dq3 * t25)) + (dq3 * t27)) + t23) + t26)) + kc0) + (t17 * t23)) + (t26 * (dq2 + dq3)));
-    double t29 = (l_leg * t14);
-    double t30 = (t18 * t29);
-    double t31 = (dq3 * dq3);
-    double t32 = (t10 * sin(q3));
-    double t33 = sin(t24);
-    double t34 = (t33 * t8);
-    double t35 = (dq3 * t4);
-    double t36 = ((((((((dq1 * dq1) * t15) + ((dq1 * t14) * t35)) + ((dq2 * dq2) * t34)) + ((dq2 * t33) * t35)) + (t15 * t31)) + (t31 * t32)) + (t31 * t34));
-    double t37 = (((-t20) * (((-t16) * t30) + t36)) + (t29 * (((-t16) * t21) + t28)));
-    double t38 = ((t15 + t32) + t34);
-    double t39 = ((t22 + t25) + t27);
-    double t40 = (-t29);
+    double t13 = ((c_q1 * s_q3) + (c_q3 * s_q1));
+    double t14 = (t13 * t8);
+    double t16 = (dq1 + dq3);
+    double t17 = (t16 * t16);
+    double t18 = ((c_q1 * c_q3) - (s_q1 * s_q3));
+    double t19 = (l_leg * t18);
+    double t20 = (t17 * t19);
+    double t21 = (t18 * t8);
+    double t22 = (dq1 * t21);
+    double t23 = (t8 * ((c_q2 * c_q3) - (s_q2 * s_q3)));
+    double t24 = (dq2 * t23);
+    double t25 = (c_q3 * t10);
+    double t26 = ((((dq3 * (((((dq3 * t21) + (dq3 * t23)) + (dq3 * t25)) + t22) + t24)) + kc0) + (t16 * t22)) + (t24 * (dq2 + dq3)));
+    double t27 = (l_leg * t13);
+    double t28 = (t17 * t27);
+    double t29 = (dq3 * dq3);
+    double t30 = (s_q3 * t10);
+    double t31 = ((c_q2 * s_q3) + (c_q3 * s_q2));
+    double t32 = (t31 * t8);
+    double t33 = (dq3 * t4);
+    double t34 = ((((((((dq1 * dq1) * t14) + ((dq1 * t13) * t33)) + ((dq2 * dq2) * t32)) + ((dq2 * t31) * t33)) + (t14 * t29)) + (t29 * t30)) + (t29 * t32));
+    double t35 = (((-t19) * (((-t15) * t28) + t34)) + (t27 * (((-t15) * t20) + t26)));
+    double t36 = ((t14 + t30) + t32);
+    double t37 = ((t21 + t23) + t25);
+    double t38 = (-t27);
     double M02 = (((-t11) + t12) + t6);
     double M22 = ((kc2 - (2.0 * t11)) - (t5 * t7));
-    double b0 = (((g * t15) + t37) + u1);
-    double b1 = ((((g * t34) + (t21 * t34)) - (t25 * t30)) + u2);
-    double b2 = ((((g * t38) + (t21 * t38)) - (t30 * t39)) + t37);
+    double b0 = (((g * t14) + t35) + u1);
+    double b1 = ((((g * t32) + (t20 * t32)) - (t23 * t28)) + u2);
+    double b2 = ((((g * t36) + (t20 * t36)) - (t28 * t37)) + t35);
     double l10 = (t9 / kc1);
     double l20 = (M02 / kc1);
     double d1 = (((-l10) * t9) + t1);
@@ -1270,8 +1336,8 @@ stance_floating_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double a3 = (z2 / d2);
     double a2 = (((-a3) * l21) + (z1 / d1));
     double a1 = ((((-a2) * l10) - (a3 * l20)) + (b0 / kc1));
-    double ax = ((((-a1) * t20) - (a3 * t20)) + t30);
-    double ay = ((((-a1) * t40) - (a3 * t40)) + t21);
+    double ax = ((((-a1) * t19) - (a3 * t19)) + t28);
+    double ay = ((((-a1) * t38) - (a3 * t38)) + t20);
     PyObject *py_r0 = PyTuple_New(2);
     if (py_r0 == NULL) goto done;
     PyObject *py_r1 = PyList_New(5);
@@ -1295,10 +1361,10 @@ stance_floating_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r7 = PyList_New(2);
     if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r7);
-    PyObject *py_r8 = PyFloat_FromDouble((((((a1 * t22) + (a2 * t25)) + (a3 * t39)) + (ax * t16)) - t36));
+    PyObject *py_r8 = PyFloat_FromDouble((((((a1 * t21) + (a2 * t23)) + (a3 * t37)) + (ax * t15)) - t34));
     if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
     PyList_SET_ITEM(py_r7, 0, py_r8);
-    PyObject *py_r9 = PyFloat_FromDouble(((((((-a1) * t15) - (a2 * t34)) - (a3 * t38)) + (ay * t16)) - t28));
+    PyObject *py_r9 = PyFloat_FromDouble(((((((-a1) * t14) - (a2 * t32)) - (a3 * t36)) + (ay * t15)) - t26));
     if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
     PyList_SET_ITEM(py_r7, 1, py_r9);
     result = py_r0;
@@ -1331,6 +1397,12 @@ impact_map_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double dq1 = dqm_[2];
     double dq2 = dqm_[3];
     double dq3 = dqm_[4];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[26];
     if (unpack(k, k_, 26, "impact_map_1", "k") < 0) goto done;
     double I_leg = k_[5];
@@ -1345,34 +1417,32 @@ impact_map_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double t15 = k_[18];
     double t16 = k_[19];
     double t17 = k_[20];
-    double t20 = k_[21];
-    double t21 = k_[22];
-    double t22 = k_[23];
+    double t19 = k_[21];
+    double t20 = k_[22];
+    double t21 = k_[23];
     double kc0 = k_[24];
     double kc1 = k_[25];
-    double t8 = cos((q1 - q2));
+    double t8 = ((c_q1 * c_q2) + (s_q1 * s_q2));
     double t9 = (t5 * t8);
     double t10 = (-t9);
-    double t12 = ((l_leg * t11) * cos(q1));
+    double t12 = ((c_q1 * l_leg) * t11);
     double t13 = (-t12);
     double t14 = (t1 + t10);
-    double t18 = (q1 + q3);
-    double t19 = sin(t18);
-    double t23 = cos(t18);
-    double t24 = (q2 + q3);
-    double t25 = (t4 * cos(t24));
-    double t26 = (t4 * sin(t24));
-    double t27 = (t23 * t4);
-    double t28 = (((t11 * cos(q3)) + t25) + t27);
-    double t29 = (t19 * t4);
-    double t30 = (((t11 * sin(q3)) + t26) + t29);
-    double t31 = (l_leg * t23);
-    double t32 = ((-l_leg) * t19);
+    double t18 = ((c_q1 * s_q3) + (c_q3 * s_q1));
+    double t22 = ((c_q1 * c_q3) - (s_q1 * s_q3));
+    double t23 = (t4 * ((c_q2 * c_q3) - (s_q2 * s_q3)));
+    double t24 = (t4 * ((c_q2 * s_q3) + (c_q3 * s_q2)));
+    double t25 = (t18 * t4);
+    double t26 = (((s_q3 * t11) + t24) + t25);
+    double t27 = (t22 * t4);
+    double t28 = (((c_q3 * t11) + t23) + t27);
+    double t29 = (l_leg * t22);
+    double t30 = ((-l_leg) * t18);
     double M02 = ((t13 + t14) + t7);
     double M22 = ((kc1 - (2.0 * t12)) - (t6 * t8));
-    double b0 = (((((dq1 * t17) - (dq2 * t9)) - (dq3 * (((((-I_leg) - t0) + t12) + t5) + t9))) + ((dx * t22) * t23)) - ((dy * t19) * t22));
-    double b1 = ((((dq2 * t1) + (dq3 * t1)) + (dx * t25)) - (dy * t26));
-    double b2 = (((((dq1 * t17) + (dq2 * t14)) + (dq3 * (((t10 + t13) + t15) + t16))) + (dx * (((-t21) * t23) + t28))) - (dy * (((-t19) * t21) + t30)));
+    double b0 = (((((dq1 * t17) - (dq2 * t9)) - (dq3 * (((((-I_leg) - t0) + t12) + t5) + t9))) + ((dx * t21) * t22)) - ((dy * t18) * t21));
+    double b1 = ((((dq2 * t1) + (dq3 * t1)) + (dx * t23)) - (dy * t24));
+    double b2 = (((((dq1 * t17) + (dq2 * t14)) + (dq3 * (((t10 + t13) + t15) + t16))) + (dx * (((-t20) * t22) + t28))) - (dy * (((-t18) * t20) + t26)));
     double l10 = (t10 / kc0);
     double l20 = (M02 / kc0);
     double d1 = (((-l10) * t10) + t1);
@@ -1383,8 +1453,8 @@ impact_map_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double a3 = (z2 / d2);
     double a2 = (((-a3) * l21) + (z1 / d1));
     double a1 = ((((-a2) * l10) - (a3 * l20)) + (b0 / kc0));
-    double ax = (((-a1) * t31) - (a3 * t31));
-    double ay = (((-a1) * t32) - (a3 * t32));
+    double ax = (((-a1) * t29) - (a3 * t29));
+    double ay = (((-a1) * t30) - (a3 * t30));
     PyObject *py_r0 = PyTuple_New(2);
     if (py_r0 == NULL) goto done;
     PyObject *py_r1 = PyList_New(5);
@@ -1408,10 +1478,10 @@ impact_map_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r7 = PyList_New(2);
     if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r7);
-    PyObject *py_r8 = PyFloat_FromDouble(((((t20 * (ax - dx)) + (t25 * (a2 - dq2))) + (t27 * (a1 - dq1))) + (t28 * (a3 - dq3))));
+    PyObject *py_r8 = PyFloat_FromDouble(((((t19 * (ax - dx)) + (t23 * (a2 - dq2))) + (t27 * (a1 - dq1))) + (t28 * (a3 - dq3))));
     if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
     PyList_SET_ITEM(py_r7, 0, py_r8);
-    PyObject *py_r9 = PyFloat_FromDouble(((((t20 * (ay - dy)) - (t26 * (a2 - dq2))) - (t29 * (a1 - dq1))) - (t30 * (a3 - dq3))));
+    PyObject *py_r9 = PyFloat_FromDouble(((((t19 * (ay - dy)) - (t24 * (a2 - dq2))) - (t25 * (a1 - dq1))) - (t26 * (a3 - dq3))));
     if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
     PyList_SET_ITEM(py_r7, 1, py_r9);
     result = py_r0;
@@ -1444,6 +1514,12 @@ impact_map_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double dq2 = dqm_[2];
     double dq1 = dqm_[3];
     double dq3 = dqm_[4];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[26];
     if (unpack(k, k_, 26, "impact_map_2", "k") < 0) goto done;
     double I_leg = k_[5];
@@ -1458,34 +1534,32 @@ impact_map_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double t15 = k_[18];
     double t16 = k_[19];
     double t17 = k_[20];
-    double t20 = k_[21];
-    double t21 = k_[22];
-    double t22 = k_[23];
+    double t19 = k_[21];
+    double t20 = k_[22];
+    double t21 = k_[23];
     double kc0 = k_[24];
     double kc1 = k_[25];
-    double t8 = cos((q1 - q2));
+    double t8 = ((c_q1 * c_q2) + (s_q1 * s_q2));
     double t9 = (t5 * t8);
     double t10 = (-t9);
-    double t12 = ((l_leg * t11) * cos(q1));
+    double t12 = ((c_q1 * l_leg) * t11);
     double t13 = (-t12);
     double t14 = (t1 + t10);
-    double t18 = (q1 + q3);
-    double t19 = sin(t18);
-    double t23 = cos(t18);
-    double t24 = (q2 + q3);
-    double t25 = (t4 * cos(t24));
-    double t26 = (t4 * sin(t24));
-    double t27 = (t23 * t4);
-    double t28 = (((t11 * cos(q3)) + t25) + t27);
-    double t29 = (t19 * t4);
-    double t30 = (((t11 * sin(q3)) + t26) + t29);
-    double t31 = (l_leg * t23);
-    double t32 = ((-l_leg) * t19);
+    double t18 = ((c_q1 * s_q3) + (c_q3 * s_q1));
+    double t22 = ((c_q1 * c_q3) - (s_q1 * s_q3));
+    double t23 = (t4 * ((c_q2 * c_q3) - (s_q2 * s_q3)));
+    double t24 = (t4 * ((c_q2 * s_q3) + (c_q3 * s_q2)));
+    double t25 = (t18 * t4);
+    double t26 = (((s_q3 * t11) + t24) + t25);
+    double t27 = (t22 * t4);
+    double t28 = (((c_q3 * t11) + t23) + t27);
+    double t29 = (l_leg * t22);
+    double t30 = ((-l_leg) * t18);
     double M02 = ((t13 + t14) + t7);
     double M22 = ((kc1 - (2.0 * t12)) - (t6 * t8));
-    double b0 = (((((dq1 * t17) - (dq2 * t9)) - (dq3 * (((((-I_leg) - t0) + t12) + t5) + t9))) + ((dx * t22) * t23)) - ((dy * t19) * t22));
-    double b1 = ((((dq2 * t1) + (dq3 * t1)) + (dx * t25)) - (dy * t26));
-    double b2 = (((((dq1 * t17) + (dq2 * t14)) + (dq3 * (((t10 + t13) + t15) + t16))) + (dx * (((-t21) * t23) + t28))) - (dy * (((-t19) * t21) + t30)));
+    double b0 = (((((dq1 * t17) - (dq2 * t9)) - (dq3 * (((((-I_leg) - t0) + t12) + t5) + t9))) + ((dx * t21) * t22)) - ((dy * t18) * t21));
+    double b1 = ((((dq2 * t1) + (dq3 * t1)) + (dx * t23)) - (dy * t24));
+    double b2 = (((((dq1 * t17) + (dq2 * t14)) + (dq3 * (((t10 + t13) + t15) + t16))) + (dx * (((-t20) * t22) + t28))) - (dy * (((-t18) * t20) + t26)));
     double l10 = (t10 / kc0);
     double l20 = (M02 / kc0);
     double d1 = (((-l10) * t10) + t1);
@@ -1496,8 +1570,8 @@ impact_map_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double a3 = (z2 / d2);
     double a2 = (((-a3) * l21) + (z1 / d1));
     double a1 = ((((-a2) * l10) - (a3 * l20)) + (b0 / kc0));
-    double ax = (((-a1) * t31) - (a3 * t31));
-    double ay = (((-a1) * t32) - (a3 * t32));
+    double ax = (((-a1) * t29) - (a3 * t29));
+    double ay = (((-a1) * t30) - (a3 * t30));
     PyObject *py_r0 = PyTuple_New(2);
     if (py_r0 == NULL) goto done;
     PyObject *py_r1 = PyList_New(5);
@@ -1521,10 +1595,10 @@ impact_map_2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *py_r7 = PyList_New(2);
     if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r7);
-    PyObject *py_r8 = PyFloat_FromDouble(((((t20 * (ax - dx)) + (t25 * (a2 - dq2))) + (t27 * (a1 - dq1))) + (t28 * (a3 - dq3))));
+    PyObject *py_r8 = PyFloat_FromDouble(((((t19 * (ax - dx)) + (t23 * (a2 - dq2))) + (t27 * (a1 - dq1))) + (t28 * (a3 - dq3))));
     if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
     PyList_SET_ITEM(py_r7, 0, py_r8);
-    PyObject *py_r9 = PyFloat_FromDouble(((((t20 * (ay - dy)) - (t26 * (a2 - dq2))) - (t29 * (a1 - dq1))) - (t30 * (a3 - dq3))));
+    PyObject *py_r9 = PyFloat_FromDouble(((((t19 * (ay - dy)) - (t24 * (a2 - dq2))) - (t25 * (a1 - dq1))) - (t26 * (a3 - dq3))));
     if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
     PyList_SET_ITEM(py_r7, 1, py_r9);
     result = py_r0;
@@ -1560,8 +1634,14 @@ fixed_base_dynamics_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     if (unpack(u, u_, 2, "fixed_base_dynamics_1", "u") < 0) goto done;
     double u1 = u_[0];
     double u2 = u_[1];
-    double k_[23];
-    if (unpack(k, k_, 23, "fixed_base_dynamics_1", "k") < 0) goto done;
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
+    double k_[22];
+    if (unpack(k, k_, 22, "fixed_base_dynamics_1", "k") < 0) goto done;
     double m_torso = k_[0];
     double c_torso = k_[3];
     double m_leg = k_[4];
@@ -1572,38 +1652,35 @@ fixed_base_dynamics_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double t0 = k_[9];
     double t1 = k_[10];
     double t3 = k_[12];
-    double t7 = k_[13];
-    double t9 = k_[14];
-    double t10 = k_[15];
-    double t11 = k_[16];
-    double t12 = k_[17];
-    double t18 = k_[18];
-    double t19 = k_[19];
-    double kc0 = k_[20];
-    double kc1 = k_[21];
-    double kc2 = k_[22];
-    double t4 = (q1 - q2);
-    double t5 = cos(t4);
-    double t6 = (c_leg * t5);
-    double t8 = (c_torso * cos(q1));
-    double t13 = sin(t4);
-    double t14 = (t11 * t13);
-    double t15 = (dq2 * t14);
-    double t16 = ((l_leg * t15) * (dq2 + dq3));
-    double t17 = sin((q1 + q3));
-    double t20 = (t19 * sin(q1));
+    double t6 = k_[13];
+    double t8 = k_[14];
+    double t9 = k_[15];
+    double t10 = k_[16];
+    double t11 = k_[17];
+    double t17 = k_[18];
+    double kc0 = k_[19];
+    double kc1 = k_[20];
+    double kc2 = k_[21];
+    double t4 = ((c_q1 * c_q2) + (s_q1 * s_q2));
+    double t5 = (c_leg * t4);
+    double t7 = (c_q1 * c_torso);
+    double t12 = ((c_q1 * s_q2) - (c_q2 * s_q1));
+    double t13 = (t10 * t12);
+    double t14 = (dq2 * t13);
+    double t15 = ((l_leg * t14) * (dq2 + dq3));
+    double t16 = ((c_q1 * s_q3) + (c_q3 * s_q1));
+    double t18 = ((c_q2 * s_q3) + (c_q3 * s_q2));
+    double t19 = (dq1 + dq3);
+    double t20 = (t12 * t19);
     double t21 = (dq3 * l_leg);
-    double t22 = sin((q2 + q3));
-    double t23 = (dq1 + dq3);
-    double t24 = (t13 * t23);
-    double t25 = (dq1 * (t14 + t20));
-    double D01 = ((-t6) * t7);
-    double D02 = ((t3 - (t7 * (t1 + t6))) - (t9 * (t1 + t8)));
-    double D12 = (I_leg + (t11 * (c_leg - (l_leg * t5))));
-    double D22 = ((kc2 + (m_leg * ((t0 + t10) - (t12 * t6)))) + (m_torso * (((c_torso * c_torso) + t0) - (t12 * t8))));
-    double r0 = ((((((-g) * t17) * (((-t11) + t18) + t9)) + t16) + (t21 * (((dq3 * t14) + (dq3 * t20)) + t15))) + u1);
-    double r1 = (((-t11) * ((((dq1 * l_leg) * t24) - (g * t22)) + (t21 * t24))) + u2);
-    double r2 = ((((g * (((((t11 * t17) + (t11 * t22)) - (t17 * t18)) - (t17 * t9)) + (t19 * sin(q3)))) - ((l_leg * t23) * t25)) + t16) + (t21 * (t15 - t25)));
+    double t22 = (dq1 * (((c_torso * m_torso) * s_q1) - t13));
+    double D01 = ((-t5) * t6);
+    double D02 = ((t3 - (t6 * (t1 + t5))) - (t8 * (t1 + t7)));
+    double D12 = (I_leg + (t10 * (c_leg - (l_leg * t4))));
+    double D22 = ((kc2 + (m_leg * ((t0 - (t11 * t5)) + t9))) + (m_torso * (((c_torso * c_torso) + t0) - (t11 * t7))));
+    double r0 = (((((dq3 * l_leg) * (((((c_torso * dq3) * m_torso) * s_q1) - (dq3 * t13)) - t14)) - ((g * t16) * (((-t10) + t17) + t8))) - t15) + u1);
+    double r1 = ((t10 * ((((dq1 * l_leg) * t20) + (g * t18)) + (t20 * t21))) + u2);
+    double r2 = ((((g * ((((((c_torso * m_torso) * s_q3) + (t10 * t16)) + (t10 * t18)) - (t16 * t17)) - (t16 * t8))) - ((l_leg * t19) * t22)) - t15) - (t21 * (t14 + t22)));
     double l10 = (D01 / kc0);
     double l20 = (D02 / kc0);
     double d1 = (((-D01) * l10) + kc1);
@@ -1653,6 +1730,12 @@ fixed_base_kinematics_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double dq1 = dqs_[0];
     double dq2 = dqs_[1];
     double dq3 = dqs_[2];
+    double s_q1 = sin(q1);
+    double c_q1 = cos(q1);
+    double s_q2 = sin(q2);
+    double c_q2 = cos(q2);
+    double s_q3 = sin(q3);
+    double c_q3 = cos(q3);
     double k_[14];
     if (unpack(k, k_, 14, "fixed_base_kinematics_1", "k") < 0) goto done;
     double m_torso = k_[0];
@@ -1660,67 +1743,65 @@ fixed_base_kinematics_1(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double m_leg = k_[4];
     double l_leg = k_[6];
     double c_leg = k_[7];
-    double t2 = k_[9];
-    double t3 = k_[10];
-    double t4 = k_[11];
-    double t5 = k_[12];
-    double t8 = k_[13];
-    double t0 = (q1 + q3);
-    double t1 = cos(t0);
-    double t6 = (q2 + q3);
-    double t7 = (c_leg * cos(t6));
-    double t9 = (l_leg * t1);
-    double t10 = (-t9);
-    double t11 = (((m_leg * (t10 + t7)) + (m_torso * ((c_torso * cos(q3)) + t10))) + (t1 * t3));
-    double t12 = sin(t0);
-    double t13 = (c_leg * sin(t6));
-    double t14 = (l_leg * t12);
-    double t15 = (-t14);
-    double t16 = (((m_leg * (t13 + t15)) + (m_torso * ((c_torso * sin(q3)) + t15))) + (t12 * t3));
-    double t17 = (dq2 + dq3);
-    double t18 = (dq2 * m_leg);
-    double t19 = (t13 * t18);
-    double t20 = (dq1 + dq3);
-    double t21 = (dq1 * t4);
-    double t22 = (t12 * t21);
-    double t23 = (t18 * t7);
-    double t24 = (t1 * t21);
+    double t1 = k_[9];
+    double t2 = k_[10];
+    double t3 = k_[11];
+    double t4 = k_[12];
+    double t6 = k_[13];
+    double t0 = ((c_q1 * c_q3) - (s_q1 * s_q3));
+    double t5 = (c_leg * ((c_q2 * c_q3) - (s_q2 * s_q3)));
+    double t7 = (l_leg * t0);
+    double t8 = (-t7);
+    double t9 = (((m_leg * (t5 + t8)) + (m_torso * ((c_q3 * c_torso) + t8))) + (t0 * t2));
+    double t10 = ((c_q1 * s_q3) + (c_q3 * s_q1));
+    double t11 = (c_leg * ((c_q2 * s_q3) + (c_q3 * s_q2)));
+    double t12 = (l_leg * t10);
+    double t13 = (-t12);
+    double t14 = (((m_leg * (t11 + t13)) + (m_torso * ((c_torso * s_q3) + t13))) + (t10 * t2));
+    double t15 = (dq2 + dq3);
+    double t16 = (dq2 * m_leg);
+    double t17 = (t11 * t16);
+    double t18 = (dq1 + dq3);
+    double t19 = (dq1 * t3);
+    double t20 = (t10 * t19);
+    double t21 = (t16 * t5);
+    double t22 = (t0 * t19);
     PyObject *py_r0 = PyTuple_New(12);
     if (py_r0 == NULL) goto done;
-    PyObject *py_r1 = PyFloat_FromDouble(((-t1) * t5));
+    PyObject *py_r1 = PyFloat_FromDouble(((-t0) * t4));
     if (py_r1 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 0, py_r1);
-    PyObject *py_r2 = PyFloat_FromDouble((t7 * t8));
+    PyObject *py_r2 = PyFloat_FromDouble((t5 * t6));
     if (py_r2 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 1, py_r2);
-    PyObject *py_r3 = PyFloat_FromDouble((t11 * t2));
+    PyObject *py_r3 = PyFloat_FromDouble((t1 * t9));
     if (py_r3 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 2, py_r3);
-    PyObject *py_r4 = PyFloat_FromDouble((t12 * t5));
+    PyObject *py_r4 = PyFloat_FromDouble((t10 * t4));
     if (py_r4 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 3, py_r4);
-    PyObject *py_r5 = PyFloat_FromDouble(((-t13) * t8));
+    PyObject *py_r5 = PyFloat_FromDouble(((-t11) * t6));
     if (py_r5 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 4, py_r5);
-    PyObject *py_r6 = PyFloat_FromDouble(((-t16) * t2));
+    PyObject *py_r6 = PyFloat_FromDouble(((-t1) * t14));
     if (py_r6 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 5, py_r6);
-    PyObject *py_r7 = PyFloat_FromDouble(((-t2) * (((dq3 * (((dq3 * t16) + t19) - t22)) + (t17 * t19)) - (t20 * t22))));
+    PyObject *py_r7 = PyFloat_FromDouble(((-t1) * (((dq3 * (((dq3 * t14) + t17) - t20)) + (t15 * t17)) - (t18 * t20))));
     if (py_r7 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 6, py_r7);
-    PyObject *py_r8 = PyFloat_FromDouble(((-t2) * (((dq3 * (((dq3 * t11) + t23) - t24)) + (t17 * t23)) - (t20 * t24))));
+    PyObject *py_r8 = PyFloat_FromDouble(((-t1) * (((dq3 * (((dq3 * t9) + t21) - t22)) + (t15 * t21)) - (t18 * t22))));
     if (py_r8 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 7, py_r8);
-    PyObject *py_r9 = PyFloat_FromDouble(t15);
+    PyObject *py_r9 = PyFloat_FromDouble(t13);
     if (py_r9 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 8, py_r9);
-    PyObject *py_r10 = PyFloat_FromDouble(t10);
+    PyObject *py_r10 = PyFloat_FromDouble(t8);
     if (py_r10 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 9, py_r10);
-    PyObject *py_r11 = PyFloat_FromDouble(((-t20) * t9));
+    PyObject *py_r11 = PyFloat_FromDouble(((-t18) * t7));
     if (py_r11 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 10, py_r11);
-    PyObject *py_r12 = PyFloat_FromDouble((t14 * t20));
+    PyObject *py_r12 = PyFloat_FromDouble((t12 * t18));
     if (py_r12 == NULL) { Py_DECREF(py_r0); goto done; }
     PyTuple_SET_ITEM(py_r0, 11, py_r12);
     result = py_r0;
@@ -4589,7 +4670,7 @@ PyInit__cmodel(void)
 {
     PyObject *m = PyModule_Create(&module);
     if (m == NULL) return NULL;
-    if (PyModule_AddStringConstant(m, "SOURCE_SHA256", "ad770a0e682ba7a87016bb58be6556ddcf149fc8bde1efd212a351269ec980e3") < 0) {
+    if (PyModule_AddStringConstant(m, "SOURCE_SHA256", "392acd051c4428f3669b473976fec3069fce7f485b77953c83c9ea7044405cbe") < 0) {
         Py_DECREF(m);
         return NULL;
     }

@@ -14,53 +14,61 @@ def mass_matrix_constants(p):
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = p
     t0 = 2*m_leg
     t1 = m_torso + t0
-    t3 = c_leg*m_leg
-    t7 = c_torso*m_torso
-    t14 = c_leg*c_leg
-    t15 = I_leg + m_leg*t14
-    kc0 = 2*I_leg + I_torso + c_torso*c_torso*m_torso + t0*t14
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t3, t7, t14, t15, kc0,)
+    t2 = c_leg*m_leg
+    t5 = c_torso*m_torso
+    t12 = c_leg*c_leg
+    t13 = I_leg + m_leg*t12
+    kc0 = 2*I_leg + I_torso + c_torso*c_torso*m_torso + t0*t12
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t5, t12, t13, kc0,)
 
 
 def mass_matrix(q, k):
     """D(q), 5x5 row-major (25 values)."""
     x, y, q1, q2, q3 = q
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t3, t7, t14, t15, kc0 = k
-    t2 = q1 + q3
-    t4 = t3*cos(t2)
-    t5 = q2 + q3
-    t6 = t3*cos(t5)
-    t8 = t4 + t6 + t7*cos(q3)
-    t9 = t3*sin(t2)
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t5, t12, t13, kc0 = k
+    t3 = t2*(c_q1*c_q3 - s_q1*s_q3)
+    t4 = t2*(c_q2*c_q3 - s_q2*s_q3)
+    t6 = c_q3*t5 + t3 + t4
+    t7 = t2*(c_q1*s_q3 + c_q3*s_q1)
+    t8 = -t7
+    t9 = t2*(c_q2*s_q3 + c_q3*s_q2)
     t10 = -t9
-    t11 = t3*sin(t5)
-    t12 = -t11
-    t13 = -t11 - t7*sin(q3) - t9
-    return (t1, 0, t4, t6, t8, 0, t1, t10, t12, t13, t4, t10, t15, 0, t15, t6, t12, 0, t15, t15, t8, t13, t15, t15, kc0,)
+    t11 = -s_q3*t5 - t7 - t9
+    return (t1, 0, t3, t4, t6, 0, t1, t8, t10, t11, t3, t8, t13, 0, t13, t4, t10, 0, t13, t13, t6, t11, t13, t13, kc0,)
 
 
 def coriolis_matrix_constants(p):
     """Parameter-only subexpressions of coriolis_matrix."""
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = p
-    t2 = c_leg*m_leg
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t2,)
+    t1 = c_leg*m_leg
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t1,)
 
 
 def coriolis_matrix(q, dq, k):
     """C(q, dq) from the Christoffel symbols of D, row-major."""
     x, y, q1, q2, q3 = q
     dx, dy, dq1, dq2, dq3 = dq
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t2 = k
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t1 = k
     t0 = dq1 + dq3
-    t1 = q1 + q3
-    t3 = t2*sin(t1)
-    t4 = dq2 + dq3
-    t5 = q2 + q3
-    t6 = t2*sin(t5)
-    t7 = c_torso*dq3*m_torso
-    t8 = t2*cos(t1)
-    t9 = t2*cos(t5)
-    return (0, 0, -t0*t3, -t4*t6, -dq1*t3 - dq2*t6 - dq3*t3 - dq3*t6 - t7*sin(q3), 0, 0, -t0*t8, -t4*t9, -dq1*t8 - dq2*t9 - dq3*t8 - dq3*t9 - t7*cos(q3), 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,)
+    t2 = t1*(c_q1*s_q3 + c_q3*s_q1)
+    t3 = dq2 + dq3
+    t4 = t1*(c_q2*s_q3 + c_q3*s_q2)
+    t5 = c_torso*dq3*m_torso
+    t6 = t1*(c_q1*c_q3 - s_q1*s_q3)
+    t7 = t1*(c_q2*c_q3 - s_q2*s_q3)
+    return (0, 0, -t0*t2, -t3*t4, -dq1*t2 - dq2*t4 - dq3*t2 - dq3*t4 - s_q3*t5, 0, 0, -t0*t6, -t3*t7, -c_q3*t5 - dq1*t6 - dq2*t7 - dq3*t6 - dq3*t7, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,)
 
 
 def gravity_vector_constants(p):
@@ -73,41 +81,51 @@ def gravity_vector_constants(p):
 def gravity_vector(q, k):
     """G(q) = dV/dq."""
     x, y, q1, q2, q3 = q
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0 = k
-    t1 = t0*sin(q1 + q3)
-    t2 = t0*sin(q2 + q3)
-    return (0, g*(2*m_leg + m_torso), -g*t1, -g*t2, -g*(c_torso*m_torso*sin(q3) + t1 + t2),)
+    t1 = t0*(c_q1*s_q3 + c_q3*s_q1)
+    t2 = t0*(c_q2*s_q3 + c_q3*s_q2)
+    return (0, g*(2*m_leg + m_torso), -g*t1, -g*t2, -g*(c_torso*m_torso*s_q3 + t1 + t2),)
 
 
 def bias_forces_constants(p):
     """Parameter-only subexpressions of bias_forces."""
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = p
     t1 = c_torso*m_torso
-    t5 = c_leg*m_leg
-    t10 = 2*m_leg
-    kc0 = g*(m_torso + t10)
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t1, t5, t10, kc0,)
+    t4 = c_leg*m_leg
+    t8 = 2*m_leg
+    kc0 = g*(m_torso + t8)
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t1, t4, t8, kc0,)
 
 
 def bias_forces(q, dq, k):
     """C(q, dq) dq + G(q)."""
     x, y, q1, q2, q3 = q
     dx, dy, dq1, dq2, dq3 = dq
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t1, t5, t10, kc0 = k
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t1, t4, t8, kc0 = k
     t0 = dq3*dq3
-    t2 = t1*sin(q3)
-    t3 = q1 + q3
-    t4 = sin(t3)
-    t6 = t4*t5
-    t7 = q2 + q3
-    t8 = sin(t7)
-    t9 = t5*t8
-    t11 = c_leg*dq3*t10
-    t12 = t5*cos(t3)
-    t13 = dq1*t12
-    t14 = t5*cos(t7)
-    t15 = dq2*t14
-    return (-dq1*dq1*t6 - dq1*t11*t4 - dq2*dq2*t9 - dq2*t11*t8 - t0*t2 - t0*t6 - t0*t9, -dq3*(dq3*t1*cos(q3) + dq3*t12 + dq3*t14 + t13 + t15) + kc0 - t13*(dq1 + dq3) - t15*(dq2 + dq3), -g*t6, -g*t9, -g*(t2 + t6 + t9),)
+    t2 = s_q3*t1
+    t3 = c_q1*s_q3 + c_q3*s_q1
+    t5 = t3*t4
+    t6 = c_q2*s_q3 + c_q3*s_q2
+    t7 = t4*t6
+    t9 = c_leg*dq3*t8
+    t10 = t4*(c_q1*c_q3 - s_q1*s_q3)
+    t11 = dq1*t10
+    t12 = t4*(c_q2*c_q3 - s_q2*s_q3)
+    t13 = dq2*t12
+    return (-dq1*dq1*t5 - dq1*t3*t9 - dq2*dq2*t7 - dq2*t6*t9 - t0*t2 - t0*t5 - t0*t7, -dq3*(c_q3*dq3*t1 + dq3*t10 + dq3*t12 + t11 + t13) + kc0 - t11*(dq1 + dq3) - t13*(dq2 + dq3), -g*t5, -g*t7, -g*(t2 + t5 + t7),)
 
 
 def foot_positions_constants(p):
@@ -119,10 +137,14 @@ def foot_positions_constants(p):
 def foot_positions(q, k):
     """p_1 (2), then p_2 (2)."""
     x, y, q1, q2, q3 = q
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = k
-    t0 = q1 + q3
-    t1 = q2 + q3
-    return (l_leg*sin(t0) + x, l_leg*cos(t0) + y, l_leg*sin(t1) + x, l_leg*cos(t1) + y,)
+    return (l_leg*(c_q1*s_q3 + c_q3*s_q1) + x, l_leg*(c_q1*c_q3 - s_q1*s_q3) + y, l_leg*(c_q2*s_q3 + c_q3*s_q2) + x, l_leg*(c_q2*c_q3 - s_q2*s_q3) + y,)
 
 
 def foot_jacobian_1_constants(p):
@@ -134,11 +156,14 @@ def foot_jacobian_1_constants(p):
 def foot_jacobian_1(q, k):
     """J_1 = dp_1/dq, 2x5 row-major."""
     x, y, q1, q2, q3 = q
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = k
-    t0 = q1 + q3
-    t1 = l_leg*cos(t0)
-    t2 = -l_leg*sin(t0)
-    return (1, 0, t1, 0, t1, 0, 1, t2, 0, t2,)
+    t0 = l_leg*(c_q1*c_q3 - s_q1*s_q3)
+    t1 = -l_leg*(c_q1*s_q3 + c_q3*s_q1)
+    return (1, 0, t0, 0, t0, 0, 1, t1, 0, t1,)
 
 
 def foot_jacobian_2_constants(p):
@@ -150,11 +175,14 @@ def foot_jacobian_2_constants(p):
 def foot_jacobian_2(q, k):
     """J_2 = dp_2/dq, 2x5 row-major."""
     x, y, q1, q2, q3 = q
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = k
-    t0 = q2 + q3
-    t1 = l_leg*cos(t0)
-    t2 = -l_leg*sin(t0)
-    return (1, 0, 0, t1, t1, 0, 1, 0, t2, t2,)
+    t0 = l_leg*(c_q2*c_q3 - s_q2*s_q3)
+    t1 = -l_leg*(c_q2*s_q3 + c_q3*s_q2)
+    return (1, 0, 0, t0, t0, 0, 1, 0, t1, t1,)
 
 
 def foot_jacobian_dot_1_constants(p):
@@ -167,12 +195,15 @@ def foot_jacobian_dot_1(q, dq, k):
     """dJ_1/dt, 2x5 row-major."""
     x, y, q1, q2, q3 = q
     dx, dy, dq1, dq2, dq3 = dq
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = k
-    t0 = q1 + q3
-    t1 = l_leg*(dq1 + dq3)
-    t2 = -t1*sin(t0)
-    t3 = -t1*cos(t0)
-    return (0, 0, t2, 0, t2, 0, 0, t3, 0, t3,)
+    t0 = l_leg*(dq1 + dq3)
+    t1 = -t0*(c_q1*s_q3 + c_q3*s_q1)
+    t2 = -t0*(c_q1*c_q3 - s_q1*s_q3)
+    return (0, 0, t1, 0, t1, 0, 0, t2, 0, t2,)
 
 
 def foot_jacobian_dot_2_constants(p):
@@ -185,12 +216,15 @@ def foot_jacobian_dot_2(q, dq, k):
     """dJ_2/dt, 2x5 row-major."""
     x, y, q1, q2, q3 = q
     dx, dy, dq1, dq2, dq3 = dq
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = k
-    t0 = q2 + q3
-    t1 = l_leg*(dq2 + dq3)
-    t2 = -t1*sin(t0)
-    t3 = -t1*cos(t0)
-    return (0, 0, 0, t2, t2, 0, 0, 0, t3, t3,)
+    t0 = l_leg*(dq2 + dq3)
+    t1 = -t0*(c_q2*s_q3 + c_q3*s_q2)
+    t2 = -t0*(c_q2*c_q3 - s_q2*s_q3)
+    return (0, 0, 0, t1, t1, 0, 0, 0, t2, t2,)
 
 
 def foot_kinematics_constants(p):
@@ -203,15 +237,19 @@ def foot_kinematics(q, dq, k):
     """p_1 (2), p_2 (2), dp_1/dt (2), dp_2/dt (2)."""
     x, y, q1, q2, q3 = q
     dx, dy, dq1, dq2, dq3 = dq
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = k
-    t0 = q1 + q3
-    t1 = l_leg*sin(t0)
-    t2 = l_leg*cos(t0)
-    t3 = q2 + q3
-    t4 = l_leg*sin(t3)
-    t5 = l_leg*cos(t3)
-    t6 = -dy
-    return (t1 + x, t2 + y, t4 + x, t5 + y, dq1*t2 + dq3*t2 + dx, -dq1*t1 - dq3*t1 - t6, dq2*t5 + dq3*t5 + dx, -dq2*t4 - dq3*t4 - t6,)
+    t0 = l_leg*(c_q1*s_q3 + c_q3*s_q1)
+    t1 = l_leg*(c_q1*c_q3 - s_q1*s_q3)
+    t2 = l_leg*(c_q2*s_q3 + c_q3*s_q2)
+    t3 = l_leg*(c_q2*c_q3 - s_q2*s_q3)
+    t4 = -dy
+    return (t0 + x, t1 + y, t2 + x, t3 + y, dq1*t1 + dq3*t1 + dx, -dq1*t0 - dq3*t0 - t4, dq2*t3 + dq3*t3 + dx, -dq2*t2 - dq3*t2 - t4,)
 
 
 def energy_constants(p):
@@ -224,16 +262,28 @@ def energy(q, dq, k):
     """(T, V): kinetic and potential energy."""
     x, y, q1, q2, q3 = q
     dx, dy, dq1, dq2, dq3 = dq
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = k
-    t0 = c_torso*cos(q3)
+    t0 = c_q3*c_torso
     t1 = -dy
-    t2 = q1 + q3
-    t3 = c_leg*cos(t2)
-    t4 = c_leg*sin(t2)
-    t5 = q2 + q3
-    t6 = c_leg*cos(t5)
-    t7 = c_leg*sin(t5)
-    return ((1/2)*I_leg*(dq1 + dq3)**2 + (1/2)*I_leg*(dq2 + dq3)**2 + (1/2)*I_torso*dq3*dq3 + (1/2)*m_leg*((dq1*t3 + dq3*t3 + dx)**2 + (dq1*t4 + dq3*t4 + t1)**2) + (1/2)*m_leg*((dq2*t6 + dq3*t6 + dx)**2 + (dq2*t7 + dq3*t7 + t1)**2) + (1/2)*m_torso*((dq3*t0 + dx)**2 + (c_torso*dq3*sin(q3) + t1)**2), g*(m_leg*(t3 + y) + m_leg*(t6 + y) + m_torso*(t0 + y)),)
+    t2 = c_leg*(c_q1*c_q3 - s_q1*s_q3)
+    t3 = c_leg*(c_q1*s_q3 + c_q3*s_q1)
+    t4 = c_leg*(c_q2*c_q3 - s_q2*s_q3)
+    t5 = c_leg*(c_q2*s_q3 + c_q3*s_q2)
+    sq0 = dq1 + dq3
+    sq1 = dq2 + dq3
+    sq2 = dq1*t3 + dq3*t3 + t1
+    sq3 = dq1*t2 + dq3*t2 + dx
+    sq4 = dq2*t5 + dq3*t5 + t1
+    sq5 = dq2*t4 + dq3*t4 + dx
+    sq6 = c_torso*dq3*s_q3 + t1
+    sq7 = dq3*t0 + dx
+    return ((1/2)*I_leg*sq0*sq0 + (1/2)*I_leg*sq1*sq1 + (1/2)*I_torso*dq3*dq3 + (1/2)*m_leg*(sq2*sq2 + sq3*sq3) + (1/2)*m_leg*(sq4*sq4 + sq5*sq5) + (1/2)*m_torso*(sq6*sq6 + sq7*sq7), g*(m_leg*(t2 + y) + m_leg*(t4 + y) + m_torso*(t0 + y)),)
 
 
 def com_position_constants(p):
@@ -246,10 +296,14 @@ def com_position_constants(p):
 def com_position(q, k):
     """Centre of mass of the whole robot."""
     x, y, q1, q2, q3 = q
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0 = k
-    t1 = q1 + q3
-    t2 = q2 + q3
-    return (t0*(m_leg*(c_leg*sin(t1) + x) + m_leg*(c_leg*sin(t2) + x) + m_torso*(c_torso*sin(q3) + x)), t0*(m_leg*(c_leg*cos(t1) + y) + m_leg*(c_leg*cos(t2) + y) + m_torso*(c_torso*cos(q3) + y)),)
+    return (t0*(m_leg*(c_leg*(c_q1*s_q3 + c_q3*s_q1) + x) + m_leg*(c_leg*(c_q2*s_q3 + c_q3*s_q2) + x) + m_torso*(c_torso*s_q3 + x)), t0*(m_leg*(c_leg*(c_q1*c_q3 - s_q1*s_q3) + y) + m_leg*(c_leg*(c_q2*c_q3 - s_q2*s_q3) + y) + m_torso*(c_q3*c_torso + y)),)
 
 
 def stance_terms_1_constants(p):
@@ -264,11 +318,11 @@ def stance_terms_1_constants(p):
     t6 = m_torso*t2 + t2*t3 - t5
     t8 = c_leg*m_leg
     t10 = c_torso*m_torso
-    t16 = m_torso + t3
-    kc0 = -g*t16
+    t15 = m_torso + t3
+    kc0 = -g*t15
     kc1 = t1 + t6
     kc2 = 2*I_leg + I_torso + c_torso*c_torso*m_torso + 2*t0 + t6
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16, kc0, kc1, kc2,)
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t15, kc0, kc1, kc2,)
 
 
 def stance_terms_1(q, dq, u, k):
@@ -276,39 +330,43 @@ def stance_terms_1(q, dq, u, k):
     x, y, q1, q2, q3 = q
     dx, dy, dq1, dq2, dq3 = dq
     u1, u2 = u
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16, kc0, kc1, kc2 = k
-    t7 = cos(q1 - q2)
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t15, kc0, kc1, kc2 = k
+    t7 = c_q1*c_q2 + s_q1*s_q2
     t9 = -l_leg*t7*t8
-    t11 = l_leg*t10*cos(q1)
+    t11 = c_q1*l_leg*t10
     t12 = t1 + t9
-    t13 = q1 + q3
-    t14 = sin(t13)
-    t15 = t14*t8
-    t17 = dq1 + dq3
-    t18 = t17*t17
-    t19 = cos(t13)
-    t20 = l_leg*t19
-    t21 = t18*t20
-    t22 = t19*t8
-    t23 = dq1*t22
-    t24 = q2 + q3
-    t25 = t8*cos(t24)
-    t26 = dq2*t25
-    t27 = t10*cos(q3)
-    t28 = dq3*(dq3*t22 + dq3*t25 + dq3*t27 + t23 + t26) + kc0 + t17*t23 + t26*(dq2 + dq3)
-    t29 = l_leg*t14
-    t30 = t18*t29
-    t31 = dq3*dq3
-    t32 = t10*sin(q3)
-    t33 = sin(t24)
-    t34 = t33*t8
-    t35 = dq3*t4
-    t36 = dq1*dq1*t15 + dq1*t14*t35 + dq2*dq2*t34 + dq2*t33*t35 + t15*t31 + t31*t32 + t31*t34
-    t37 = -t20*(-t16*t30 + t36) + t29*(-t16*t21 + t28)
-    t38 = t15 + t32 + t34
-    t39 = t22 + t25 + t27
-    t40 = -t29
-    return (kc1, t9, -t11 + t12 + t6, t1, t12, kc2 - 2*t11 - t5*t7, g*t15 + t37 + u1, g*t34 + t21*t34 - t25*t30 + u2, g*t38 + t21*t38 - t30*t39 + t37, t20, 0, t20, t40, 0, t40, t30, t21, t16, t22, t25, t39, -t15, -t34, -t38, -t36, -t28,)
+    t13 = c_q1*s_q3 + c_q3*s_q1
+    t14 = t13*t8
+    t16 = dq1 + dq3
+    t17 = t16*t16
+    t18 = c_q1*c_q3 - s_q1*s_q3
+    t19 = l_leg*t18
+    t20 = t17*t19
+    t21 = t18*t8
+    t22 = dq1*t21
+    t23 = t8*(c_q2*c_q3 - s_q2*s_q3)
+    t24 = dq2*t23
+    t25 = c_q3*t10
+    t26 = dq3*(dq3*t21 + dq3*t23 + dq3*t25 + t22 + t24) + kc0 + t16*t22 + t24*(dq2 + dq3)
+    t27 = l_leg*t13
+    t28 = t17*t27
+    t29 = dq3*dq3
+    t30 = s_q3*t10
+    t31 = c_q2*s_q3 + c_q3*s_q2
+    t32 = t31*t8
+    t33 = dq3*t4
+    t34 = dq1*dq1*t14 + dq1*t13*t33 + dq2*dq2*t32 + dq2*t31*t33 + t14*t29 + t29*t30 + t29*t32
+    t35 = -t19*(-t15*t28 + t34) + t27*(-t15*t20 + t26)
+    t36 = t14 + t30 + t32
+    t37 = t21 + t23 + t25
+    t38 = -t27
+    return (kc1, t9, -t11 + t12 + t6, t1, t12, kc2 - 2*t11 - t5*t7, g*t14 + t35 + u1, g*t32 + t20*t32 - t23*t28 + u2, g*t36 + t20*t36 - t28*t37 + t35, t19, 0, t19, t38, 0, t38, t28, t20, t15, t21, t23, t37, -t14, -t32, -t36, -t34, -t26,)
 
 
 def stance_floating_1_constants(p):
@@ -323,11 +381,11 @@ def stance_floating_1_constants(p):
     t6 = m_torso*t2 + t2*t3 - t5
     t8 = c_leg*m_leg
     t10 = c_torso*m_torso
-    t16 = m_torso + t3
-    kc0 = -g*t16
+    t15 = m_torso + t3
+    kc0 = -g*t15
     kc1 = t1 + t6
     kc2 = 2*I_leg + I_torso + c_torso*c_torso*m_torso + 2*t0 + t6
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16, kc0, kc1, kc2,)
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t15, kc0, kc1, kc2,)
 
 
 def stance_floating_1(q, dq, u, k):
@@ -335,43 +393,47 @@ def stance_floating_1(q, dq, u, k):
     x, y, q1, q2, q3 = q
     dx, dy, dq1, dq2, dq3 = dq
     u1, u2 = u
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16, kc0, kc1, kc2 = k
-    t7 = cos(q1 - q2)
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t15, kc0, kc1, kc2 = k
+    t7 = c_q1*c_q2 + s_q1*s_q2
     t9 = -l_leg*t7*t8
-    t11 = l_leg*t10*cos(q1)
+    t11 = c_q1*l_leg*t10
     t12 = t1 + t9
-    t13 = q1 + q3
-    t14 = sin(t13)
-    t15 = t14*t8
-    t17 = dq1 + dq3
-    t18 = t17*t17
-    t19 = cos(t13)
-    t20 = l_leg*t19
-    t21 = t18*t20
-    t22 = t19*t8
-    t23 = dq1*t22
-    t24 = q2 + q3
-    t25 = t8*cos(t24)
-    t26 = dq2*t25
-    t27 = t10*cos(q3)
-    t28 = dq3*(dq3*t22 + dq3*t25 + dq3*t27 + t23 + t26) + kc0 + t17*t23 + t26*(dq2 + dq3)
-    t29 = l_leg*t14
-    t30 = t18*t29
-    t31 = dq3*dq3
-    t32 = t10*sin(q3)
-    t33 = sin(t24)
-    t34 = t33*t8
-    t35 = dq3*t4
-    t36 = dq1*dq1*t15 + dq1*t14*t35 + dq2*dq2*t34 + dq2*t33*t35 + t15*t31 + t31*t32 + t31*t34
-    t37 = -t20*(-t16*t30 + t36) + t29*(-t16*t21 + t28)
-    t38 = t15 + t32 + t34
-    t39 = t22 + t25 + t27
-    t40 = -t29
+    t13 = c_q1*s_q3 + c_q3*s_q1
+    t14 = t13*t8
+    t16 = dq1 + dq3
+    t17 = t16*t16
+    t18 = c_q1*c_q3 - s_q1*s_q3
+    t19 = l_leg*t18
+    t20 = t17*t19
+    t21 = t18*t8
+    t22 = dq1*t21
+    t23 = t8*(c_q2*c_q3 - s_q2*s_q3)
+    t24 = dq2*t23
+    t25 = c_q3*t10
+    t26 = dq3*(dq3*t21 + dq3*t23 + dq3*t25 + t22 + t24) + kc0 + t16*t22 + t24*(dq2 + dq3)
+    t27 = l_leg*t13
+    t28 = t17*t27
+    t29 = dq3*dq3
+    t30 = s_q3*t10
+    t31 = c_q2*s_q3 + c_q3*s_q2
+    t32 = t31*t8
+    t33 = dq3*t4
+    t34 = dq1*dq1*t14 + dq1*t13*t33 + dq2*dq2*t32 + dq2*t31*t33 + t14*t29 + t29*t30 + t29*t32
+    t35 = -t19*(-t15*t28 + t34) + t27*(-t15*t20 + t26)
+    t36 = t14 + t30 + t32
+    t37 = t21 + t23 + t25
+    t38 = -t27
     M02 = -t11 + t12 + t6
     M22 = kc2 - 2*t11 - t5*t7
-    b0 = g*t15 + t37 + u1
-    b1 = g*t34 + t21*t34 - t25*t30 + u2
-    b2 = g*t38 + t21*t38 - t30*t39 + t37
+    b0 = g*t14 + t35 + u1
+    b1 = g*t32 + t20*t32 - t23*t28 + u2
+    b2 = g*t36 + t20*t36 - t28*t37 + t35
     l10 = t9/kc1
     l20 = M02/kc1
     d1 = -l10*t9 + t1
@@ -382,9 +444,9 @@ def stance_floating_1(q, dq, u, k):
     a3 = z2/d2
     a2 = -a3*l21 + z1/d1
     a1 = -a2*l10 - a3*l20 + b0/kc1
-    ax = -a1*t20 - a3*t20 + t30
-    ay = -a1*t40 - a3*t40 + t21
-    return [ax, ay, a1, a2, a3], [a1*t22 + a2*t25 + a3*t39 + ax*t16 - t36, -a1*t15 - a2*t34 - a3*t38 + ay*t16 - t28]
+    ax = -a1*t19 - a3*t19 + t28
+    ay = -a1*t38 - a3*t38 + t20
+    return [ax, ay, a1, a2, a3], [a1*t21 + a2*t23 + a3*t37 + ax*t15 - t34, -a1*t14 - a2*t32 - a3*t36 + ay*t15 - t26]
 
 
 def stance_floating_2_constants(p):
@@ -399,11 +461,11 @@ def stance_floating_2_constants(p):
     t6 = m_torso*t2 + t2*t3 - t5
     t8 = c_leg*m_leg
     t10 = c_torso*m_torso
-    t16 = m_torso + t3
-    kc0 = -g*t16
+    t15 = m_torso + t3
+    kc0 = -g*t15
     kc1 = t1 + t6
     kc2 = 2*I_leg + I_torso + c_torso*c_torso*m_torso + 2*t0 + t6
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16, kc0, kc1, kc2,)
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t15, kc0, kc1, kc2,)
 
 
 def stance_floating_2(q, dq, u, k):
@@ -411,43 +473,47 @@ def stance_floating_2(q, dq, u, k):
     x, y, q2, q1, q3 = q
     dx, dy, dq2, dq1, dq3 = dq
     u2, u1 = u
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t16, kc0, kc1, kc2 = k
-    t7 = cos(q1 - q2)
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t8, t10, t15, kc0, kc1, kc2 = k
+    t7 = c_q1*c_q2 + s_q1*s_q2
     t9 = -l_leg*t7*t8
-    t11 = l_leg*t10*cos(q1)
+    t11 = c_q1*l_leg*t10
     t12 = t1 + t9
-    t13 = q1 + q3
-    t14 = sin(t13)
-    t15 = t14*t8
-    t17 = dq1 + dq3
-    t18 = t17*t17
-    t19 = cos(t13)
-    t20 = l_leg*t19
-    t21 = t18*t20
-    t22 = t19*t8
-    t23 = dq1*t22
-    t24 = q2 + q3
-    t25 = t8*cos(t24)
-    t26 = dq2*t25
-    t27 = t10*cos(q3)
-    t28 = dq3*(dq3*t22 + dq3*t25 + dq3*t27 + t23 + t26) + kc0 + t17*t23 + t26*(dq2 + dq3)
-    t29 = l_leg*t14
-    t30 = t18*t29
-    t31 = dq3*dq3
-    t32 = t10*sin(q3)
-    t33 = sin(t24)
-    t34 = t33*t8
-    t35 = dq3*t4
-    t36 = dq1*dq1*t15 + dq1*t14*t35 + dq2*dq2*t34 + dq2*t33*t35 + t15*t31 + t31*t32 + t31*t34
-    t37 = -t20*(-t16*t30 + t36) + t29*(-t16*t21 + t28)
-    t38 = t15 + t32 + t34
-    t39 = t22 + t25 + t27
-    t40 = -t29
+    t13 = c_q1*s_q3 + c_q3*s_q1
+    t14 = t13*t8
+    t16 = dq1 + dq3
+    t17 = t16*t16
+    t18 = c_q1*c_q3 - s_q1*s_q3
+    t19 = l_leg*t18
+    t20 = t17*t19
+    t21 = t18*t8
+    t22 = dq1*t21
+    t23 = t8*(c_q2*c_q3 - s_q2*s_q3)
+    t24 = dq2*t23
+    t25 = c_q3*t10
+    t26 = dq3*(dq3*t21 + dq3*t23 + dq3*t25 + t22 + t24) + kc0 + t16*t22 + t24*(dq2 + dq3)
+    t27 = l_leg*t13
+    t28 = t17*t27
+    t29 = dq3*dq3
+    t30 = s_q3*t10
+    t31 = c_q2*s_q3 + c_q3*s_q2
+    t32 = t31*t8
+    t33 = dq3*t4
+    t34 = dq1*dq1*t14 + dq1*t13*t33 + dq2*dq2*t32 + dq2*t31*t33 + t14*t29 + t29*t30 + t29*t32
+    t35 = -t19*(-t15*t28 + t34) + t27*(-t15*t20 + t26)
+    t36 = t14 + t30 + t32
+    t37 = t21 + t23 + t25
+    t38 = -t27
     M02 = -t11 + t12 + t6
     M22 = kc2 - 2*t11 - t5*t7
-    b0 = g*t15 + t37 + u1
-    b1 = g*t34 + t21*t34 - t25*t30 + u2
-    b2 = g*t38 + t21*t38 - t30*t39 + t37
+    b0 = g*t14 + t35 + u1
+    b1 = g*t32 + t20*t32 - t23*t28 + u2
+    b2 = g*t36 + t20*t36 - t28*t37 + t35
     l10 = t9/kc1
     l20 = M02/kc1
     d1 = -l10*t9 + t1
@@ -458,9 +524,9 @@ def stance_floating_2(q, dq, u, k):
     a3 = z2/d2
     a2 = -a3*l21 + z1/d1
     a1 = -a2*l10 - a3*l20 + b0/kc1
-    ax = -a1*t20 - a3*t20 + t30
-    ay = -a1*t40 - a3*t40 + t21
-    return [ax, ay, a2, a1, a3], [a1*t22 + a2*t25 + a3*t39 + ax*t16 - t36, -a1*t15 - a2*t34 - a3*t38 + ay*t16 - t28]
+    ax = -a1*t19 - a3*t19 + t28
+    ay = -a1*t38 - a3*t38 + t20
+    return [ax, ay, a2, a1, a3], [a1*t21 + a2*t23 + a3*t37 + ax*t15 - t34, -a1*t14 - a2*t32 - a3*t36 + ay*t15 - t26]
 
 
 def impact_map_1_constants(p):
@@ -478,42 +544,46 @@ def impact_map_1_constants(p):
     t15 = 2*I_leg + I_torso + c_torso*c_torso*m_torso + 2*t0
     t16 = -t5
     t17 = t1 + t16
-    t20 = m_torso + t3
-    t21 = l_leg*t20
-    t22 = -t21 + t4
+    t19 = m_torso + t3
+    t20 = l_leg*t19
+    t21 = -t20 + t4
     kc0 = t1 + t7
     kc1 = t15 + t7
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t7, t11, t15, t16, t17, t20, t21, t22, kc0, kc1,)
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t7, t11, t15, t16, t17, t19, t20, t21, kc0, kc1,)
 
 
 def impact_map_1(q, dqm, k):
     """Rigid impact of foot 1 (KKT [D -J^T; J 0][dq+; L] = [D dq-; 0], reduced): (dq+ (5), impulse of the ground on the foot (2), N s) as lists."""
     x, y, q1, q2, q3 = q
     dx, dy, dq1, dq2, dq3 = dqm
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t7, t11, t15, t16, t17, t20, t21, t22, kc0, kc1 = k
-    t8 = cos(q1 - q2)
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t7, t11, t15, t16, t17, t19, t20, t21, kc0, kc1 = k
+    t8 = c_q1*c_q2 + s_q1*s_q2
     t9 = t5*t8
     t10 = -t9
-    t12 = l_leg*t11*cos(q1)
+    t12 = c_q1*l_leg*t11
     t13 = -t12
     t14 = t1 + t10
-    t18 = q1 + q3
-    t19 = sin(t18)
-    t23 = cos(t18)
-    t24 = q2 + q3
-    t25 = t4*cos(t24)
-    t26 = t4*sin(t24)
-    t27 = t23*t4
-    t28 = t11*cos(q3) + t25 + t27
-    t29 = t19*t4
-    t30 = t11*sin(q3) + t26 + t29
-    t31 = l_leg*t23
-    t32 = -l_leg*t19
+    t18 = c_q1*s_q3 + c_q3*s_q1
+    t22 = c_q1*c_q3 - s_q1*s_q3
+    t23 = t4*(c_q2*c_q3 - s_q2*s_q3)
+    t24 = t4*(c_q2*s_q3 + c_q3*s_q2)
+    t25 = t18*t4
+    t26 = s_q3*t11 + t24 + t25
+    t27 = t22*t4
+    t28 = c_q3*t11 + t23 + t27
+    t29 = l_leg*t22
+    t30 = -l_leg*t18
     M02 = t13 + t14 + t7
     M22 = kc1 - 2*t12 - t6*t8
-    b0 = dq1*t17 - dq2*t9 - dq3*(-I_leg - t0 + t12 + t5 + t9) + dx*t22*t23 - dy*t19*t22
-    b1 = dq2*t1 + dq3*t1 + dx*t25 - dy*t26
-    b2 = dq1*t17 + dq2*t14 + dq3*(t10 + t13 + t15 + t16) + dx*(-t21*t23 + t28) - dy*(-t19*t21 + t30)
+    b0 = dq1*t17 - dq2*t9 - dq3*(-I_leg - t0 + t12 + t5 + t9) + dx*t21*t22 - dy*t18*t21
+    b1 = dq2*t1 + dq3*t1 + dx*t23 - dy*t24
+    b2 = dq1*t17 + dq2*t14 + dq3*(t10 + t13 + t15 + t16) + dx*(-t20*t22 + t28) - dy*(-t18*t20 + t26)
     l10 = t10/kc0
     l20 = M02/kc0
     d1 = -l10*t10 + t1
@@ -524,9 +594,9 @@ def impact_map_1(q, dqm, k):
     a3 = z2/d2
     a2 = -a3*l21 + z1/d1
     a1 = -a2*l10 - a3*l20 + b0/kc0
-    ax = -a1*t31 - a3*t31
-    ay = -a1*t32 - a3*t32
-    return [ax, ay, a1, a2, a3], [t20*(ax - dx) + t25*(a2 - dq2) + t27*(a1 - dq1) + t28*(a3 - dq3), t20*(ay - dy) - t26*(a2 - dq2) - t29*(a1 - dq1) - t30*(a3 - dq3)]
+    ax = -a1*t29 - a3*t29
+    ay = -a1*t30 - a3*t30
+    return [ax, ay, a1, a2, a3], [t19*(ax - dx) + t23*(a2 - dq2) + t27*(a1 - dq1) + t28*(a3 - dq3), t19*(ay - dy) - t24*(a2 - dq2) - t25*(a1 - dq1) - t26*(a3 - dq3)]
 
 
 def impact_map_2_constants(p):
@@ -544,42 +614,46 @@ def impact_map_2_constants(p):
     t15 = 2*I_leg + I_torso + c_torso*c_torso*m_torso + 2*t0
     t16 = -t5
     t17 = t1 + t16
-    t20 = m_torso + t3
-    t21 = l_leg*t20
-    t22 = -t21 + t4
+    t19 = m_torso + t3
+    t20 = l_leg*t19
+    t21 = -t20 + t4
     kc0 = t1 + t7
     kc1 = t15 + t7
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t7, t11, t15, t16, t17, t20, t21, t22, kc0, kc1,)
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t7, t11, t15, t16, t17, t19, t20, t21, kc0, kc1,)
 
 
 def impact_map_2(q, dqm, k):
     """Rigid impact of foot 2 (impact_map_1 of the relabeled state): (dq+ (5), impulse (2)) as lists."""
     x, y, q2, q1, q3 = q
     dx, dy, dq2, dq1, dq3 = dqm
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t7, t11, t15, t16, t17, t20, t21, t22, kc0, kc1 = k
-    t8 = cos(q1 - q2)
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t4, t5, t6, t7, t11, t15, t16, t17, t19, t20, t21, kc0, kc1 = k
+    t8 = c_q1*c_q2 + s_q1*s_q2
     t9 = t5*t8
     t10 = -t9
-    t12 = l_leg*t11*cos(q1)
+    t12 = c_q1*l_leg*t11
     t13 = -t12
     t14 = t1 + t10
-    t18 = q1 + q3
-    t19 = sin(t18)
-    t23 = cos(t18)
-    t24 = q2 + q3
-    t25 = t4*cos(t24)
-    t26 = t4*sin(t24)
-    t27 = t23*t4
-    t28 = t11*cos(q3) + t25 + t27
-    t29 = t19*t4
-    t30 = t11*sin(q3) + t26 + t29
-    t31 = l_leg*t23
-    t32 = -l_leg*t19
+    t18 = c_q1*s_q3 + c_q3*s_q1
+    t22 = c_q1*c_q3 - s_q1*s_q3
+    t23 = t4*(c_q2*c_q3 - s_q2*s_q3)
+    t24 = t4*(c_q2*s_q3 + c_q3*s_q2)
+    t25 = t18*t4
+    t26 = s_q3*t11 + t24 + t25
+    t27 = t22*t4
+    t28 = c_q3*t11 + t23 + t27
+    t29 = l_leg*t22
+    t30 = -l_leg*t18
     M02 = t13 + t14 + t7
     M22 = kc1 - 2*t12 - t6*t8
-    b0 = dq1*t17 - dq2*t9 - dq3*(-I_leg - t0 + t12 + t5 + t9) + dx*t22*t23 - dy*t19*t22
-    b1 = dq2*t1 + dq3*t1 + dx*t25 - dy*t26
-    b2 = dq1*t17 + dq2*t14 + dq3*(t10 + t13 + t15 + t16) + dx*(-t21*t23 + t28) - dy*(-t19*t21 + t30)
+    b0 = dq1*t17 - dq2*t9 - dq3*(-I_leg - t0 + t12 + t5 + t9) + dx*t21*t22 - dy*t18*t21
+    b1 = dq2*t1 + dq3*t1 + dx*t23 - dy*t24
+    b2 = dq1*t17 + dq2*t14 + dq3*(t10 + t13 + t15 + t16) + dx*(-t20*t22 + t28) - dy*(-t18*t20 + t26)
     l10 = t10/kc0
     l20 = M02/kc0
     d1 = -l10*t10 + t1
@@ -590,9 +664,9 @@ def impact_map_2(q, dqm, k):
     a3 = z2/d2
     a2 = -a3*l21 + z1/d1
     a1 = -a2*l10 - a3*l20 + b0/kc0
-    ax = -a1*t31 - a3*t31
-    ay = -a1*t32 - a3*t32
-    return [ax, ay, a2, a1, a3], [t20*(ax - dx) + t25*(a2 - dq2) + t27*(a1 - dq1) + t28*(a3 - dq3), t20*(ay - dy) - t26*(a2 - dq2) - t29*(a1 - dq1) - t30*(a3 - dq3)]
+    ax = -a1*t29 - a3*t29
+    ay = -a1*t30 - a3*t30
+    return [ax, ay, a2, a1, a3], [t19*(ax - dx) + t23*(a2 - dq2) + t27*(a1 - dq1) + t28*(a3 - dq3), t19*(ay - dy) - t24*(a2 - dq2) - t25*(a1 - dq1) - t26*(a3 - dq3)]
 
 
 def fixed_base_dynamics_1_constants(p):
@@ -602,17 +676,16 @@ def fixed_base_dynamics_1_constants(p):
     t1 = -l_leg
     t2 = m_leg*(c_leg + t1)**2
     t3 = I_leg + t2
-    t7 = l_leg*m_leg
-    t9 = l_leg*m_torso
-    t10 = c_leg*c_leg
-    t11 = c_leg*m_leg
-    t12 = 2*l_leg
-    t18 = 2*t7
-    t19 = c_torso*m_torso
+    t6 = l_leg*m_leg
+    t8 = l_leg*m_torso
+    t9 = c_leg*c_leg
+    t10 = c_leg*m_leg
+    t11 = 2*l_leg
+    t17 = 2*t6
     kc0 = m_leg*t0 + m_torso*t0 + t3
-    kc1 = I_leg + m_leg*t10
+    kc1 = I_leg + m_leg*t9
     kc2 = 2*I_leg + I_torso + t2
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t7, t9, t10, t11, t12, t18, t19, kc0, kc1, kc2,)
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t6, t8, t9, t10, t11, t17, kc0, kc1, kc2,)
 
 
 def fixed_base_dynamics_1(qs, dqs, u, k):
@@ -620,29 +693,33 @@ def fixed_base_dynamics_1(qs, dqs, u, k):
     q1, q2, q3 = qs
     dq1, dq2, dq3 = dqs
     u1, u2 = u
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t7, t9, t10, t11, t12, t18, t19, kc0, kc1, kc2 = k
-    t4 = q1 - q2
-    t5 = cos(t4)
-    t6 = c_leg*t5
-    t8 = c_torso*cos(q1)
-    t13 = sin(t4)
-    t14 = t11*t13
-    t15 = dq2*t14
-    t16 = l_leg*t15*(dq2 + dq3)
-    t17 = sin(q1 + q3)
-    t20 = t19*sin(q1)
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t0, t1, t2, t3, t6, t8, t9, t10, t11, t17, kc0, kc1, kc2 = k
+    t4 = c_q1*c_q2 + s_q1*s_q2
+    t5 = c_leg*t4
+    t7 = c_q1*c_torso
+    t12 = c_q1*s_q2 - c_q2*s_q1
+    t13 = t10*t12
+    t14 = dq2*t13
+    t15 = l_leg*t14*(dq2 + dq3)
+    t16 = c_q1*s_q3 + c_q3*s_q1
+    t18 = c_q2*s_q3 + c_q3*s_q2
+    t19 = dq1 + dq3
+    t20 = t12*t19
     t21 = dq3*l_leg
-    t22 = sin(q2 + q3)
-    t23 = dq1 + dq3
-    t24 = t13*t23
-    t25 = dq1*(t14 + t20)
-    D01 = -t6*t7
-    D02 = t3 - t7*(t1 + t6) - t9*(t1 + t8)
-    D12 = I_leg + t11*(c_leg - l_leg*t5)
-    D22 = kc2 + m_leg*(t0 + t10 - t12*t6) + m_torso*(c_torso*c_torso + t0 - t12*t8)
-    r0 = -g*t17*(-t11 + t18 + t9) + t16 + t21*(dq3*t14 + dq3*t20 + t15) + u1
-    r1 = -t11*(dq1*l_leg*t24 - g*t22 + t21*t24) + u2
-    r2 = g*(t11*t17 + t11*t22 - t17*t18 - t17*t9 + t19*sin(q3)) - l_leg*t23*t25 + t16 + t21*(t15 - t25)
+    t22 = dq1*(c_torso*m_torso*s_q1 - t13)
+    D01 = -t5*t6
+    D02 = t3 - t6*(t1 + t5) - t8*(t1 + t7)
+    D12 = I_leg + t10*(c_leg - l_leg*t4)
+    D22 = kc2 + m_leg*(t0 - t11*t5 + t9) + m_torso*(c_torso*c_torso + t0 - t11*t7)
+    r0 = dq3*l_leg*(c_torso*dq3*m_torso*s_q1 - dq3*t13 - t14) - g*t16*(-t10 + t17 + t8) - t15 + u1
+    r1 = t10*(dq1*l_leg*t20 + g*t18 + t20*t21) + u2
+    r2 = g*(c_torso*m_torso*s_q3 + t10*t16 + t10*t18 - t16*t17 - t16*t8) - l_leg*t19*t22 - t15 - t21*(t14 + t22)
     l10 = D01/kc0
     l20 = D02/kc0
     d1 = -D01*l10 + kc1
@@ -659,39 +736,43 @@ def fixed_base_dynamics_1(qs, dqs, u, k):
 def fixed_base_kinematics_1_constants(p):
     """Parameter-only subexpressions of fixed_base_kinematics_1."""
     m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g = p
-    t2 = 1/(2*m_leg + m_torso)
-    t3 = m_leg*(c_leg - l_leg)
-    t4 = l_leg*m_leg + l_leg*m_torso - t3
-    t5 = t2*t4
-    t8 = m_leg*t2
-    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t2, t3, t4, t5, t8,)
+    t1 = 1/(2*m_leg + m_torso)
+    t2 = m_leg*(c_leg - l_leg)
+    t3 = l_leg*m_leg + l_leg*m_torso - t2
+    t4 = t1*t3
+    t6 = m_leg*t1
+    return (m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t1, t2, t3, t4, t6,)
 
 
 def fixed_base_kinematics_1(qs, dqs, k):
     """Fixed-base chain pinned at the foot of leg 1: J_com (6), Jdot_com dq_s (2), hip minus foot (2), hip velocity (2)."""
     q1, q2, q3 = qs
     dq1, dq2, dq3 = dqs
-    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t2, t3, t4, t5, t8 = k
-    t0 = q1 + q3
-    t1 = cos(t0)
-    t6 = q2 + q3
-    t7 = c_leg*cos(t6)
-    t9 = l_leg*t1
-    t10 = -t9
-    t11 = m_leg*(t10 + t7) + m_torso*(c_torso*cos(q3) + t10) + t1*t3
-    t12 = sin(t0)
-    t13 = c_leg*sin(t6)
-    t14 = l_leg*t12
-    t15 = -t14
-    t16 = m_leg*(t13 + t15) + m_torso*(c_torso*sin(q3) + t15) + t12*t3
-    t17 = dq2 + dq3
-    t18 = dq2*m_leg
-    t19 = t13*t18
-    t20 = dq1 + dq3
-    t21 = dq1*t4
-    t22 = t12*t21
-    t23 = t18*t7
-    t24 = t1*t21
-    return (-t1*t5, t7*t8, t11*t2, t12*t5, -t13*t8, -t16*t2, -t2*(dq3*(dq3*t16 + t19 - t22) + t17*t19 - t20*t22), -t2*(dq3*(dq3*t11 + t23 - t24) + t17*t23 - t20*t24), t15, t10, -t20*t9, t14*t20,)
+    s_q1 = sin(q1)
+    c_q1 = cos(q1)
+    s_q2 = sin(q2)
+    c_q2 = cos(q2)
+    s_q3 = sin(q3)
+    c_q3 = cos(q3)
+    m_torso, I_torso, l_torso, c_torso, m_leg, I_leg, l_leg, c_leg, g, t1, t2, t3, t4, t6 = k
+    t0 = c_q1*c_q3 - s_q1*s_q3
+    t5 = c_leg*(c_q2*c_q3 - s_q2*s_q3)
+    t7 = l_leg*t0
+    t8 = -t7
+    t9 = m_leg*(t5 + t8) + m_torso*(c_q3*c_torso + t8) + t0*t2
+    t10 = c_q1*s_q3 + c_q3*s_q1
+    t11 = c_leg*(c_q2*s_q3 + c_q3*s_q2)
+    t12 = l_leg*t10
+    t13 = -t12
+    t14 = m_leg*(t11 + t13) + m_torso*(c_torso*s_q3 + t13) + t10*t2
+    t15 = dq2 + dq3
+    t16 = dq2*m_leg
+    t17 = t11*t16
+    t18 = dq1 + dq3
+    t19 = dq1*t3
+    t20 = t10*t19
+    t21 = t16*t5
+    t22 = t0*t19
+    return (-t0*t4, t5*t6, t1*t9, t10*t4, -t11*t6, -t1*t14, -t1*(dq3*(dq3*t14 + t17 - t20) + t15*t17 - t18*t20), -t1*(dq3*(dq3*t9 + t21 - t22) + t15*t21 - t18*t22), t13, t8, -t18*t7, t12*t18,)
 
 CONSTANTS = {'mass_matrix': mass_matrix_constants, 'coriolis_matrix': coriolis_matrix_constants, 'gravity_vector': gravity_vector_constants, 'bias_forces': bias_forces_constants, 'foot_positions': foot_positions_constants, 'foot_jacobian_1': foot_jacobian_1_constants, 'foot_jacobian_2': foot_jacobian_2_constants, 'foot_jacobian_dot_1': foot_jacobian_dot_1_constants, 'foot_jacobian_dot_2': foot_jacobian_dot_2_constants, 'foot_kinematics': foot_kinematics_constants, 'energy': energy_constants, 'com_position': com_position_constants, 'stance_terms_1': stance_terms_1_constants, 'stance_floating_1': stance_floating_1_constants, 'stance_floating_2': stance_floating_2_constants, 'impact_map_1': impact_map_1_constants, 'impact_map_2': impact_map_2_constants, 'fixed_base_dynamics_1': fixed_base_dynamics_1_constants, 'fixed_base_kinematics_1': fixed_base_kinematics_1_constants}
