@@ -1019,13 +1019,12 @@ Loop_step(Loop *L, PyObject *unused)
     Py_RETURN_NONE;
 }
 
-/* run(t_end, E0, push_work, energy_lost, data, n, appended, provisional, every, keep_last_only)
- * -> (outcome, n, appended, provisional, accepted steps, and the last one's t, work and h_abs, locator_changed,
- *     failure)
- * Quiet steps until t_end: DONE, PENDING (a step taken, for Python to handle), GROW (the sample
- * buffer is full), FAILED (the step failed: failure = (kind, value, t)). */
+/* A run (run, held, periods): quiet steps until t_end, the samples written into the simulator's Samples
+ * array; its outcome DONE, PENDING (a step taken, for Python to handle), GROW (the sample array or the
+ * event records are full), FAILED (the step failed: failure = (kind, value, t)) or RAISED. */
 typedef struct {
     double E0, push_work, energy_lost;
+    PyObject *samples;           /* the run's Samples (a new reference while the run lasts) */
     double *data;
     long cap, n, appended, every, accepted;
     int provisional, last_only;
@@ -1079,21 +1078,55 @@ quiet_until(Loop *L, double t_end, RunState *rs)
     return DONE;
 }
 
-/* the run arguments (t_end, E0, push_work, energy_lost, data, n, appended, provisional, every, keep_last_only)
- * from args[1:10] into rs; 0, or -1 with an exception */
+/* the attributes a run reads and writes, interned at import */
+static PyObject *a_E0, *a_push_work, *a_energy_lost, *a_samples, *a_data, *a_n, *a_appended, *a_provisional, *a_every,
+    *a_keep;
+
 static int
-run_state(Loop *L, PyObject *const *args, RunState *rs, Py_buffer *buf)
+attr_double(PyObject *o, PyObject *name, double *out)
 {
-    rs->E0 = PyFloat_AsDouble(args[1]);
-    rs->push_work = PyFloat_AsDouble(args[2]);
-    rs->energy_lost = PyFloat_AsDouble(args[3]);
-    rs->n = PyLong_AsLong(args[5]);
-    rs->appended = PyLong_AsLong(args[6]);
-    rs->provisional = PyObject_IsTrue(args[7]);
-    rs->every = PyLong_AsLong(args[8]);
-    rs->last_only = PyObject_IsTrue(args[9]);
-    if (PyErr_Occurred()) return -1;
-    if (PyObject_GetBuffer(args[4], buf, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0) return -1;
+    PyObject *v = PyObject_GetAttr(o, name);
+    if (v == NULL) return -1;
+    *out = PyFloat_AsDouble(v);
+    Py_DECREF(v);
+    return *out == -1.0 && PyErr_Occurred() ? -1 : 0;
+}
+
+static int
+attr_long(PyObject *o, PyObject *name, long *out)
+{
+    PyObject *v = PyObject_GetAttr(o, name);
+    if (v == NULL) return -1;
+    *out = PyLong_AsLong(v);
+    Py_DECREF(v);
+    return *out == -1 && PyErr_Occurred() ? -1 : 0;
+}
+
+/* A run's state from the simulator ``sim``: its energy terms (E0, push_work, energy_lost) and its Samples
+ * (the array _data, with n, appended, provisional, every, and keep False: the last sample only), whose
+ * counters run_result writes back. 0, or -1 with an exception. */
+static int
+run_state(Loop *L, PyObject *sim, RunState *rs, Py_buffer *buf)
+{
+    PyObject *samples = PyObject_GetAttr(sim, a_samples), *data = NULL, *keep = NULL;
+    int ok = samples != NULL && !attr_double(sim, a_E0, &rs->E0) && !attr_double(sim, a_push_work, &rs->push_work)
+             && !attr_double(sim, a_energy_lost, &rs->energy_lost) && !attr_long(samples, a_n, &rs->n)
+             && !attr_long(samples, a_appended, &rs->appended) && !attr_long(samples, a_every, &rs->every)
+             && (keep = PyObject_GetAttr(samples, a_keep)) != NULL && (data = PyObject_GetAttr(samples, a_data)) != NULL;
+    if (ok) {
+        PyObject *prov = PyObject_GetAttr(samples, a_provisional);
+        rs->provisional = prov == NULL ? -1 : PyObject_IsTrue(prov);
+        Py_XDECREF(prov);
+        rs->last_only = keep == Py_False;
+        ok = rs->provisional >= 0 && PyObject_GetBuffer(data, buf, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) == 0;
+    }
+    Py_XDECREF(keep);
+    Py_XDECREF(data);
+    if (!ok) {
+        Py_XDECREF(samples);
+        return -1;
+    }
+    rs->samples = samples;
     rs->data = buf->buf;
     rs->cap = (long)(buf->len / (Py_ssize_t)(17 * sizeof(double)));
     rs->accepted = 0;
@@ -1104,26 +1137,33 @@ run_state(Loop *L, PyObject *const *args, RunState *rs, Py_buffer *buf)
     return 0;
 }
 
+/* the Samples' counters written back; (outcome, accepted steps, and the last one's t, work and h_abs,
+ * locator_changed, events waiting in take_events, failure or None) */
 static PyObject *
 run_result(Loop *L, int outcome, RunState *rs, Py_buffer *buf)
 {
     PyBuffer_Release(buf);
+    PyObject *n = PyLong_FromLong(rs->n), *appended = PyLong_FromLong(rs->appended);
+    int bad = n == NULL || appended == NULL || PyObject_SetAttr(rs->samples, a_n, n) < 0
+              || PyObject_SetAttr(rs->samples, a_appended, appended) < 0
+              || PyObject_SetAttr(rs->samples, a_provisional, rs->provisional ? Py_True : Py_False) < 0;
+    Py_XDECREF(n);
+    Py_XDECREF(appended);
+    Py_DECREF(rs->samples);
+    if (bad) return NULL;
     if (L->callback_failed) outcome = RAISED;     /* the caller takes the accepted steps, then raise_error() */
-    return Py_BuildValue("(illildddiN)", outcome, rs->n, rs->appended, rs->provisional, rs->accepted, rs->t_accepted,
-                         rs->w_accepted, rs->h_accepted, L->locator_changed,
-                         outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
+    return Py_BuildValue("(ildddiiN)", outcome, rs->accepted, rs->t_accepted, rs->w_accepted, rs->h_accepted,
+                         L->locator_changed, L->n_events, outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
 }
 
-/* run(t_end, E0, push_work, energy_lost, data, n, appended, provisional, every, keep_last_only)
- * -> (outcome, n, appended, provisional, accepted steps, and the last one's t, work and h_abs, locator_changed,
- *     failure) */
+/* run(t_end, sim) -> run_result's tuple: the quiet steps to t_end */
 static PyObject *
-run_quiet(Loop *L, PyObject *const *args)
+run_quiet(Loop *L, PyObject *t_end_arg, PyObject *sim)
 {
     RunState rs;
     Py_buffer buf;
-    double t_end = PyFloat_AsDouble(args[0]);
-    if (PyErr_Occurred() || run_state(L, args, &rs, &buf) < 0) return NULL;
+    double t_end = PyFloat_AsDouble(t_end_arg);
+    if (PyErr_Occurred() || run_state(L, sim, &rs, &buf) < 0) return NULL;
     return run_result(L, quiet_until(L, t_end, &rs), &rs, &buf);
 }
 
@@ -1137,7 +1177,7 @@ hold(Loop *L, double u0, double u1, double t_bound)
     restart(L, L->t, t_bound);
 }
 
-/* periods(kind, ctrl, period, control_periods, t_final, t_stop, <the 10 arguments of run>)
+/* periods(kind, ctrl, period, control_periods, t_final, t_stop, sim)
  * -> (<run's result>, control_periods, t_next, u1, u2): control periods of a compiled law held (as
  * HybridSimulator.advance_period computes them, the command at each period's start) until t_final, or
  * the first period boundary at or after t_stop - 1e-9 period (a push due), or a run outcome the Python
@@ -1145,8 +1185,8 @@ hold(Loop *L, double u0, double u1, double t_bound)
 static PyObject *
 Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 16) {
-        PyErr_SetString(PyExc_TypeError, "periods() takes 16 arguments");
+    if (nargs != 7) {
+        PyErr_SetString(PyExc_TypeError, "periods() takes 7 arguments");
         return NULL;
     }
     int kind = (int)PyLong_AsLong(args[0]);
@@ -1161,7 +1201,7 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     if (doubles(args[1], ctrl, 8, 8, "ctrl", NULL)) return NULL;
     RunState rs;
     Py_buffer buf;
-    if (run_state(L, args + 6, &rs, &buf) < 0) return NULL;
+    if (run_state(L, args[6], &rs, &buf) < 0) return NULL;
     int outcome = DONE;
     long k = k0;
     double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, tol = 1e-9 * period;
@@ -1187,28 +1227,28 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 static PyObject *
 Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 10) {
-        PyErr_SetString(PyExc_TypeError, "run() takes 10 arguments");
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "run() takes 2 arguments");
         return NULL;
     }
-    return run_quiet(L, args);
+    return run_quiet(L, args[0], args[1]);
 }
 
-/* held(u1, u2, h_abs or None, <the 10 arguments of run>): a control period under a held torque from where the
+/* held(u1, u2, h_abs or None, t_end, sim): a control period under a held torque from where the
  * last run left the state (the same mode): the start of begin() (f = rhs(t, y) under the new torque,
  * the carried-over step size), then run() to its end, in one call (the node's period) */
 static PyObject *
 Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 13) {
-        PyErr_SetString(PyExc_TypeError, "held() takes 13 arguments");
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "held() takes 5 arguments");
         return NULL;
     }
     double u0 = PyFloat_AsDouble(args[0]), u1 = PyFloat_AsDouble(args[1]), t_bound = PyFloat_AsDouble(args[3]);
     if (PyErr_Occurred() || carry_step_arg(L, args[2]) < 0) return NULL;
     hold(L, u0, u1, t_bound);
     if (L->callback_failed) return raise_callback_error(L);
-    return run_quiet(L, args + 3);
+    return run_quiet(L, args[3], args[4]);
 }
 
 /* stats() -> (steps, max drift, max drift rate, max |residual|) since the last call; then zero */
@@ -1490,6 +1530,12 @@ PyMODINIT_FUNC
 PyInit__core(void)
 {
     if (PyType_Ready(&LoopType) < 0) return NULL;
+    PyObject **names[] = {&a_E0, &a_push_work, &a_energy_lost, &a_samples, &a_data, &a_n, &a_appended, &a_provisional,
+                          &a_every, &a_keep};
+    const char *strings[] = {"E0", "push_work", "energy_lost", "_samples", "_data", "n", "appended", "provisional",
+                             "every", "keep"};
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
+        if ((*names[i] = PyUnicode_InternFromString(strings[i])) == NULL) return NULL;
     PyObject *m = PyModule_Create(&module);
     if (m == NULL) return NULL;
     Py_INCREF(&LoopType);

@@ -197,27 +197,11 @@ class CompiledStepper(integrators._ListRungeKutta):
             return PYTHON_STEPS
         if self.locator_stale:
             self._push_locator(sim.locator)
-        while True:      # GROW: _run_arguments makes the room, _after_run takes the events
-            outcome = self._after_run(sim, t_end, *self._take(sim, self.loop.run(*self._run_arguments(sim, t_end))))
+        while True:      # GROW: _make_room makes it, _after_run takes the events
+            _make_room(sim._samples)
+            outcome = self._after_run(sim, t_end, *self.loop.run(t_end, sim))
             if outcome != GROW:
                 return outcome
-
-    @staticmethod
-    def _run_arguments(sim, t_end):
-        """The arguments of the C loop's run: to t_end, the energy balance's terms, the sample array with
-        Samples' counters (its room for two samples made first: an impact's)."""
-        s = sim._samples
-        if s.keep is not False and s.n + 2 > len(s._data):
-            s.grow()
-        return (t_end, sim.E0, sim.push_work, sim.energy_lost, s._data, s.n, s.appended, s.provisional, s.every,
-                s.keep is False)
-
-    @staticmethod
-    def _take(sim, result):
-        """Samples' counters from a run's result; (outcome, accepted, t, w, h_abs, changed, fail)."""
-        s = sim._samples
-        outcome, s.n, s.appended, s.provisional, accepted, t, w, h_abs, changed, fail = result
-        return outcome, accepted, t, w, h_abs, changed, fail
 
     def command(self, sim, controller):
         """The control period's command of a compiled law at the simulator's state, computed in C (the
@@ -242,12 +226,11 @@ class CompiledStepper(integrators._ListRungeKutta):
         if self.locator_stale:
             self._push_locator(sim.locator)
         kind, params = law
+        _make_room(sim._samples)
         result, sim.control_periods, t_next, u = self.loop.periods(
-            TORQUE_KINDS[kind], params, period, sim.control_periods, t_final, t_stop,
-            *self._run_arguments(sim, t_final))
+            TORQUE_KINDS[kind], params, period, sim.control_periods, t_final, t_stop, sim)
         sim._u = list(u)
-        outcome, *rest = self._take(sim, result)
-        outcome = self._after_run(sim, t_next, outcome, *rest)
+        outcome = self._after_run(sim, t_next, *result)
         if outcome == GROW:      # the period in progress goes on in run(), which makes room
             return self.run(sim, t_next), t_next
         return outcome, t_next
@@ -257,15 +240,17 @@ class CompiledStepper(integrators._ListRungeKutta):
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""
         if self.state_stale or self.locator_stale or _python_only(sim.locator):
             return None
-        outcome = self._after_run(sim, t_end, *self._take(sim, self.loop.held(sim._u[0], sim._u[1], sim._h,
-                                                                             *self._run_arguments(sim, t_end))))
+        # (no room made first: a full array comes back GROW before a step, and run() goes on)
+        outcome = self._after_run(sim, t_end, *self.loop.held(sim._u[0], sim._u[1], sim._h, t_end, sim))
         return self.run(sim, t_end) if outcome == GROW else outcome
 
-    def _after_run(self, sim, t_end, outcome, accepted, t, w, h_abs, changed, fail):
+    def _after_run(self, sim, t_end, outcome, accepted, t, w, h_abs, changed, n_events, fail):
+        """A run's result (its samples are written and Samples' counters set): the simulator's state, the
+        Events of what the loop applied, then the outcome's own handling."""
         s, loc = sim._samples, sim.locator
         if changed:
             self.pull_locator(loc)
-        for record in self.loop.take_events():    # applied in C: their Events, in order
+        for record in self.loop.take_events() if n_events else ():    # applied in C: their Events, in order
             if record[0] == TOUCHDOWN:
                 _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, sim.energy_lost, pin = record
                 sim.stance_leg, sim.pin = new, list(pin)
@@ -277,9 +262,9 @@ class CompiledStepper(integrators._ListRungeKutta):
                 _, leg, stance_leg, scuff, t_up, q, dq = record
                 sim._add_event(scuff_event(leg, stance_leg, scuff, t_up, q, dq, sim.opt.scuff_depth))
         if accepted:
-            row = s._data[s.n - 1]
+            qdq = s._data[s.n - 1, 1:11].copy()
             sim.t, sim.work, sim._h = t, w, h_abs
-            sim.q, sim.dq = row[1:6].copy(), row[6:11].copy()
+            sim.q, sim.dq = qdq[:5], qdq[5:]
         if outcome == RAISED:     # the Python controller raised: after the steps accepted before it
             self.loop.raise_error()
         if outcome == FAILED:
@@ -312,6 +297,12 @@ class CompiledStepper(integrators._ListRungeKutta):
     def dense_at(self, t):
         """The dense output at t, from C (the interpolant's own arithmetic: the same bits)."""
         return self.loop.dense_at(t)
+
+
+def _make_room(samples):
+    """Room for two more samples (an impact's) before a run: the C loop writes into the array."""
+    if samples.keep is not False and samples.n + 2 > len(samples._data):
+        samples.grow()
 
 
 def compiled_torque(controller, stance_leg, q, dq, model):
