@@ -65,6 +65,13 @@ def torque_law(controller):
     return law() if callable(law) else None
 
 
+def reference_law(controller):
+    """(kind, parameters) of a controller whose law the loop computes itself (a reference walking law),
+    else None (no controller: a held torque; or one called back)."""
+    law = torque_law(controller)
+    return law if law is not None and law[0] != "held" else None
+
+
 def _torque_in_mode(controller, stance_leg):
     """The loop's torque law in a mode: compiled, or the controller called back from C through the same
     checked call as the Python loop's (``modes.bind_controller``)."""
@@ -206,10 +213,8 @@ class CompiledStepper(integrators._ListRungeKutta):
     def command(self, sim, controller):
         """The control period's command of a compiled law at the simulator's state, computed in C (the
         law's own torques bit for bit), or None where the Python controller must be called."""
-        if self.state_stale or sim._stepper is not self:
-            return None
-        law = torque_law(controller)
-        if law is None or law[0] == "held":
+        law = reference_law(controller)
+        if law is None or self.state_stale or sim._stepper is not self:
             return None
         return self.loop.law_torque(TORQUE_KINDS[law[0]], law[1])
 
@@ -308,8 +313,8 @@ def _make_room(samples):
 def compiled_torque(controller, stance_leg, q, dq, model):
     """The compiled law's torque at (q, dq) (lists) in stance on ``stance_leg``, for comparing it with
     the controller's own (tests); None when the loop does not compile this controller."""
-    law = torque_law(controller)
-    if _core is None or law is None or law[0] == "held":
+    law = reference_law(controller)
+    if _core is None or law is None:
         return None
     loop = _new_loop(model)
     loop.begin(METHOD_CODES["dop853"], stance_leg, 0.0, 0.0, TORQUE_KINDS["held"], 0.0, 0.0, None, 0.0,

@@ -220,9 +220,8 @@ class HybridSimulator:
         tol = 1e-9 * period
         while self.status == "running" and self.t < t_final and t_stop > self.t + tol:
             st = self._compiled
-            law = compiled_loop.torque_law(controller) if st is not None and self._stepper is st else None
-            if (law is None or law[0] == "held" or self._initial_sample_pending
-                    or not st.can_run_periods(self)):
+            law = compiled_loop.reference_law(controller) if st is not None and self._stepper is st else None
+            if law is None or self._initial_sample_pending or not st.can_run_periods(self):
                 self.advance_period(period, controller=controller, t_final=t_final)
             else:
                 self.advance(t_final, _periods=(period, law, t_final, t_stop))
