@@ -22,7 +22,6 @@ from __future__ import annotations
 import struct
 import zlib
 
-import numpy as np
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import (
@@ -42,9 +41,6 @@ from mcap.records import (
 MAGIC = b"\x89MCAP0\r\n"
 #: the Message record: opcode, record length, channel id, sequence, log time, publish time (then data)
 MESSAGE_RECORD = struct.Struct("<BQHIQQ")
-#: MESSAGE_RECORD's fields as a numpy record (packed, little-endian): a batch's heads in one array
-_MESSAGE_HEAD = np.dtype([("opcode", "u1"), ("length", "<u8"), ("channel", "<u2"), ("sequence", "<u4"),
-                          ("log_time", "<u8"), ("publish_time", "<u8")])
 _MESSAGE_INDEX_HEAD = struct.Struct("<BQHI")   # opcode, record length, channel id, records' byte length
 _MESSAGE_FIELDS = MESSAGE_RECORD.size - 9      # the record length counts what follows opcode + length
 _FOOTER_START = struct.Struct("<BQQQ")         # the footer's bytes that its summary CRC covers
@@ -104,52 +100,13 @@ class McapFileWriter:
         chunk = self._chunk
         index = self._message_index.get(channel_id)
         if index is None:
-            index = self._message_index[channel_id] = ([], [])
-        index[0].append(log_time)
-        index[1].append(len(chunk))
+            index = self._message_index[channel_id] = []
+        index.append((log_time, len(chunk)))
         chunk += MESSAGE_RECORD.pack(Opcode.MESSAGE, _MESSAGE_FIELDS + len(data), channel_id, sequence, log_time,
                                      publish_time)
         chunk += data
         if len(chunk) > self.chunk_size:
             self._end_chunk()
-
-    def add_messages(self, channel_ids, times, datas: list, sequences):
-        """``add_message`` of n messages at once (log time = publish time): ``channel_ids``, ``times``
-        and ``sequences`` numpy integer arrays of n, ``datas`` a list of n bytes. The record heads are
-        one numpy array's bytes and the chunk grows by one join, so that a message costs the writer
-        process a fraction of ``add_message``'s Python (its batches hold a few hundred); chunks end
-        where ``add_message`` one by one would end them."""
-        step = MESSAGE_RECORD.size
-        sizes = np.fromiter(map(len, datas), np.uint64, len(datas)) + step
-        while len(datas):
-            ends = np.cumsum(sizes) + len(self._chunk)
-            k = int(np.searchsorted(ends, self.chunk_size, side="right")) + 1   # through the one past chunk_size
-            self._append_records(channel_ids[:k], times[:k], datas[:k], sequences[:k], sizes[:k], ends[:k])
-            if ends[:k][-1] > self.chunk_size:
-                self._end_chunk()
-            channel_ids, times, sequences, sizes = channel_ids[k:], times[k:], sequences[k:], sizes[k:]
-            datas = datas[k:]
-
-    def _append_records(self, channel_ids, times, datas, sequences, sizes, ends):
-        n, step = len(datas), MESSAGE_RECORD.size
-        head = np.empty(n, _MESSAGE_HEAD)
-        head["opcode"] = Opcode.MESSAGE
-        head["length"] = sizes - 9          # the record length counts what follows opcode and length
-        head["channel"], head["sequence"], head["log_time"], head["publish_time"] = channel_ids, sequences, times, times
-        heads = head.tobytes()
-        parts = [b""] * (2 * n)
-        parts[0::2] = [heads[i:i + step] for i in range(0, step * n, step)]
-        parts[1::2] = datas
-        offsets = ends - sizes
-        found, first = np.unique(channel_ids, return_index=True)
-        for channel_id in found[np.argsort(first)].tolist():     # in order of appearance, as add_message
-            mine = channel_ids == channel_id
-            index = self._message_index.get(channel_id)
-            if index is None:
-                index = self._message_index[channel_id] = ([], [])
-            index[0].extend(times[mine].tolist())
-            index[1].extend(offsets[mine].tolist())
-        self._chunk += b"".join(parts)
 
     def add_metadata(self, name: str, metadata: dict):
         """A Metadata record, written at once between chunks (the chunk in progress stays open)."""
@@ -198,14 +155,14 @@ class McapFileWriter:
 
     def _new_chunk(self):
         self._chunk = bytearray()
-        self._message_index = {}      # channel id -> ([log time], [offset in the chunk]) of its messages
+        self._message_index = {}      # channel id -> [(log time, offset in the chunk)]
 
     def _end_chunk(self):
         if not self._message_index:
             return
         raw = bytes(self._chunk)
-        start = min(min(times) for times, _ in self._message_index.values())
-        end = max(max(times) for times, _ in self._message_index.values())
+        times = [t for records in self._message_index.values() for t, _ in records]
+        start, end = min(times), max(times)
         packed = self._compress(raw)
         chunk_start = self._out.tell()
         chunk_length = self._write(Chunk(compression=self.compression, data=packed, message_start_time=start,
@@ -213,10 +170,10 @@ class McapFileWriter:
                                          uncompressed_size=len(raw)))
         index_start = self._out.tell()
         index_offsets, indexes = {}, bytearray()
-        for channel_id, (times, offsets) in self._message_index.items():
+        for channel_id, records in self._message_index.items():
             index_offsets[channel_id] = index_start + len(indexes)
-            indexes += _message_index_bytes(channel_id, np.column_stack((times, offsets)))
-            self.message_counts[channel_id] = self.message_counts.get(channel_id, 0) + len(times)
+            indexes += _message_index_bytes(channel_id, records)
+            self.message_counts[channel_id] = self.message_counts.get(channel_id, 0) + len(records)
         index_length = len(indexes)
         self._out.write(indexes)
         self._chunk_indexes.append(ChunkIndex(
@@ -236,14 +193,13 @@ class McapFileWriter:
             channel_message_counts={cid: n for cid, n in counts.items() if n})
 
 
-def _message_index_bytes(channel_id: int, records) -> bytes:
+def _message_index_bytes(channel_id: int, records: list) -> bytes:
     """The MessageIndex record of a channel in a chunk, packed at once: the bytes of mcap's
-    ``MessageIndex(channel_id, records).write`` (tested) of ``records``, (time, offset) pairs (a
-    list, or an n x 2 array), which writes each pair with two calls, about 1.5 us a message of the
-    writer process."""
-    pairs = np.asarray(records, dtype="<u8").reshape(-1)
-    size = 8 * len(pairs)
-    return _MESSAGE_INDEX_HEAD.pack(Opcode.MESSAGE_INDEX, 6 + size, channel_id, size) + pairs.tobytes()
+    ``MessageIndex(channel_id, records).write`` (tested), which writes each (time, offset) pair with
+    two calls, about 1.5 us a message of the writer process."""
+    n = len(records)
+    return (_MESSAGE_INDEX_HEAD.pack(Opcode.MESSAGE_INDEX, 6 + 16 * n, channel_id, 16 * n)
+            + struct.pack(f"<{2 * n}Q", *[v for record in records for v in record]))
 
 
 def _record_bytes(record) -> bytes:

@@ -20,6 +20,7 @@ file open), ``{"error": ...}`` at once when writing fails, ``{"done": true, "cou
 """
 from __future__ import annotations
 
+import itertools
 import json
 import marshal
 import os
@@ -27,8 +28,6 @@ import struct
 import sys
 import time
 from pathlib import Path
-
-import numpy as np
 
 from biped_sim.recording.bagformat import PROFILE, bag_metadata, channel_metadata, rosbag2_record, write_metadata_yaml
 from biped_sim.recording.bagio import lock_for_writing
@@ -84,13 +83,11 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
     mcap = file_writer(f, PROFILE, LIBRARY, compression=compression, chunk_size=chunk_size)
     report(ready=True)       # started: the recording process may begin its run (BagRecorder.wait_ready)
     topics, channels, schemas = {}, {}, {}
-    channel, sequence = {}, {}      # topic name -> channel id -> its next sequence number
+    channel, sequence = {}, {}      # by topic name: the channel id, the next sequence numbers
     error = None
     dirty = False
     last_flush = time.monotonic()
     add_message, read, frame, message = mcap.add_message, inp.read, FRAME, MESSAGE
-    add_messages = getattr(mcap, "add_messages", None) or (lambda ids, times, datas, seqs: [   # other writers
-        add_message(*m) for m in zip(ids.tolist(), times.tolist(), datas, times.tolist(), seqs.tolist())])
     while True:
         head = read(frame.size)
         if len(head) < frame.size:
@@ -103,7 +100,17 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
             continue
         try:
             if kind == BATCH:
-                add_messages(*_numbered(marshal.loads(payload), channel, sequence))
+                try:
+                    for item in marshal.loads(payload):
+                        if len(item) == 3:
+                            t_ns, name, data = item
+                            add_message(channel[name], t_ns, data, t_ns, next(sequence[name]))
+                        else:
+                            t_ns, messages = item
+                            for name, data in messages:
+                                add_message(channel[name], t_ns, data, t_ns, next(sequence[name]))
+                except KeyError as exc:
+                    raise ValueError(f"unknown topic {exc}: written before add_topic") from None
                 dirty = True
             elif kind == b"M":
                 cid, t_ns, seq = message.unpack_from(payload)
@@ -112,7 +119,7 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
             elif kind == b"T":
                 info = json.loads(payload)
                 channels[info["id"]] = channel[info["name"]] = add_topic(mcap, info, schemas)
-                sequence[channel[info["name"]]] = 1
+                sequence[info["name"]] = itertools.count(1)
                 topics[channels[info["id"]]] = {k: info[k] for k in ("name", "type", "qos", "hash")}
             elif kind == b"P":
                 mcap.add_metadata("biped_sim", json.loads(payload))
@@ -139,37 +146,6 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
         t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
     report(done=True, counts=counts, error=error)
     return 1 if error else 0
-
-
-def _numbered(items, channel: dict, sequence: dict):
-    """A BATCH frame's items as the arguments of ``add_messages``: channel ids, times (arrays), the
-    list of CDR bytes, sequence numbers (an array). ``channel`` maps a topic to its channel id,
-    ``sequence`` a channel id to its next sequence number (updated). Python per item, not per
-    message: a write_messages item's (topic, data) pairs are unzipped at once."""
-    names, times, datas = [], [], []
-    for item in items:
-        if len(item) == 3:
-            t_ns, name, data = item
-            names.append(name)
-            times.append(t_ns)
-            datas.append(data)
-        elif item[1]:
-            t_ns, messages = item
-            topics, cdr = zip(*messages)
-            names += topics
-            datas += cdr
-            times += [t_ns] * len(cdr)
-    try:
-        ids = np.fromiter(map(channel.__getitem__, names), np.uint16, len(names))
-    except KeyError as exc:
-        raise ValueError(f"unknown topic {exc}: written before add_topic") from None
-    sequences = np.empty(len(ids), np.uint32)
-    for cid in np.unique(ids).tolist():
-        mine = ids == cid
-        k = int(np.count_nonzero(mine))
-        sequences[mine] = np.arange(sequence[cid], sequence[cid] + k)
-        sequence[cid] += k
-    return ids, np.array(times, np.uint64), datas, sequences
 
 
 def main(argv=None) -> int:

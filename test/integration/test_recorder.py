@@ -438,34 +438,3 @@ def test_the_packed_message_index_is_mcaps_record():
         builder = RecordBuilder()
         MessageIndex(channel_id=3, records=records).write(builder)
         assert _message_index_bytes(3, records) == builder.end()
-
-
-def test_a_batch_of_messages_writes_the_file_of_add_message_one_by_one():
-    # the writer process adds each 0.1 s of messages with add_messages (numpy record heads); the file
-    # must be the one add_message writes message by message, chunk boundaries included
-    import io
-
-    import numpy as np
-
-    from biped_sim.recording.mcapfile import McapFileWriter
-    rng = np.random.default_rng(3)
-    n = 700
-    ids = rng.integers(1, 4, n).astype(np.uint16)
-    times = np.sort(rng.integers(0, 10**9, n)).astype(np.uint64)
-    seqs = np.arange(1, n + 1, dtype=np.uint32)
-    datas = [bytes(rng.integers(0, 256, int(k), dtype=np.uint8)) for k in rng.integers(0, 300, n)]
-    files = []
-    for batched in (False, True):
-        out = io.BytesIO()
-        w = McapFileWriter(out, "ros2", "test", compression="none", chunk_size=4096)
-        for c in range(3):
-            w.add_channel(f"/t{c}", "cdr", 0, {})
-        if batched:
-            for a in range(0, n, 250):
-                w.add_messages(ids[a:a + 250], times[a:a + 250], datas[a:a + 250], seqs[a:a + 250])
-        else:
-            for cid, t, data, seq in zip(ids.tolist(), times.tolist(), datas, seqs.tolist()):
-                w.add_message(cid, t, data, t, seq)
-        w.finish()
-        files.append(out.getvalue())
-    assert files[0] == files[1] and len(files[0]) > 10 * 4096
