@@ -1,9 +1,9 @@
 """Record a run to a rosbag2 bag directory holding one MCAP file, off the simulation's hot path.
 
 Owns the recording process's side of a bag: :class:`BagRecorder` serialises each message
-(:mod:`biped_sim.recording.cdr`), frames it (:mod:`biped_sim.recording.writer`'s protocol) and hands
-the frames to a writer process, which writes the MCAP file (:mod:`biped_sim.recording.mcapfile`)
-and ends the bag. The bag is what ``ros2 bag record -s mcap`` on Jazzy writes
+(:mod:`biped_sim.recording.cdr`), queues it and hands the queue to a writer process
+(:mod:`biped_sim.recording.writer`'s protocol), which writes the MCAP file
+(:mod:`biped_sim.recording.mcapfile`) and ends the bag. The bag is what ``ros2 bag record -s mcap`` on Jazzy writes
 (:mod:`biped_sim.recording.bagformat`), so that ``ros2 bag info/play``, Foxglove and ``rosbags``
 open it:
 
