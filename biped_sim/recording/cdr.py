@@ -152,9 +152,12 @@ class StateSerializer:
     these bytes and records the same bytes: filling rosidl messages (their setters check every value)
     and letting rclpy convert and serialise them cost about 35 us a period more (bench_node)."""
 
-    def __init__(self, names):
+    def __init__(self, names, labels=None):
         self.names = tuple(names)
         self._joint_state, self._wrench = {}, {}      # (struct, constant) per frame id (and size)
+        # what ``period`` names each message by: the output name, or e.g. its topic (``labels``), so that
+        # the node hands the list to the recorder as it is
+        self._labels = tuple((labels or {}).get(name, name) for name in ("joint_states", "ground_reaction", "clock"))
 
     def joint_state(self, sec: int, nanosec: int, frame_id: str, position, velocity, effort) -> bytes:
         """sensor_msgs/JointState(header(stamp, frame_id), the names, position, velocity, effort)."""
@@ -180,18 +183,20 @@ class StateSerializer:
 
     def period(self, t_ns: int, frame_id: str, position, velocity, u, force, joint_states=True,
                ground_reaction=True, clock=True) -> list:
-        """The state messages of one period as ``sim_node`` publishes them: [(output name, CDR bytes)] of
+        """The state messages of one period as ``sim_node`` publishes them: [(label, CDR bytes)] of
         joint_states (effort B u = [0, 0, u1, u2, 0]), ground_reaction (unless ``force`` is None: in
-        flight) and clock, those asked for, stamped ``t_ns``."""
+        flight) and clock, those asked for, stamped ``t_ns``; a label is the output name unless
+        ``labels`` named it otherwise."""
         sec, nanosec = divmod(t_ns, 1_000_000_000)
         out = []
+        labels = self._labels
         if joint_states:
-            out.append(("joint_states", self.joint_state(sec, nanosec, frame_id, position, velocity,
-                                                         [0.0, 0.0, float(u[0]), float(u[1]), 0.0])))
+            out.append((labels[0], self.joint_state(sec, nanosec, frame_id, position, velocity,
+                                                    [0.0, 0.0, float(u[0]), float(u[1]), 0.0])))
         if ground_reaction and force is not None:
-            out.append(("ground_reaction", self.wrench_stamped(sec, nanosec, frame_id, force)))
+            out.append((labels[1], self.wrench_stamped(sec, nanosec, frame_id, force)))
         if clock:
-            out.append(("clock", self.clock(sec, nanosec)))
+            out.append((labels[2], self.clock(sec, nanosec)))
         return out
 
 

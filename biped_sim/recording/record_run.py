@@ -56,7 +56,7 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
     period, duration = params["control_period"], params["duration"]
     u = [0.0, 0.0]
 
-    serializer = StateSerializer(M.JOINT_NAMES)
+    serializer = StateSerializer(M.JOINT_NAMES, labels={name: "/" + name for name in M.TOPIC_TYPES})
     markers = (MarkerStream(sim.model, params["slope"], params["marker_rate"])
                if recorder is not None and "/markers" in topics else None)
 
@@ -67,7 +67,7 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
             state = serializer.period(t_ns, M.foot_frame(sim.stance_leg), sim.q.tolist(), sim.dq.tolist(), u,
                                       sim.ground_force if sim.stance_leg else None, js, grf, clock)
             if recorder is not None and state:
-                recorder.write_messages(t_ns, [("/" + name, data) for name, data in state])
+                recorder.write_messages(t_ns, state)
         if markers is not None:
             msg = markers.poll(sim.t, sim, force=last)
             if msg is not None:

@@ -5,8 +5,11 @@ and the end of a bag (the ``rosbag2`` record, the summary, ``metadata.yaml``), w
 :func:`biped_sim.recording.recover.recover` shares.
 
 Frames: ``FRAME`` (kind, payload length) then the payload. Kinds: ``T`` a topic (JSON: id, name,
-type, qos, hash, definition), ``P`` the run's parameters record (JSON), ``M`` a message (``MESSAGE``:
-the recorder's topic id, time ns, sequence; then the CDR bytes), ``C`` close. The end of the input
+type, qos, hash, definition), ``P`` the run's parameters record (JSON), ``B`` a batch of messages
+(the ``marshal`` of a list whose items are ``(t_ns, topic, CDR bytes)`` or ``(t_ns, [(topic, CDR
+bytes), ...])``: what the recorder queued in 0.1 s, handed over in one call; this process numbers each
+topic's messages 1, 2, ...), ``M`` one message (``MESSAGE``: the recorder's topic id, time ns,
+sequence; then the CDR bytes), ``C`` close. The end of the input
 without ``C`` (the recording process died, even by SIGKILL) closes the bag the same way.
 
 Started by ``BagRecorder`` as ``python -m biped_sim.recording.writer BAG_DIR MCAP_NAME COMPRESSION
@@ -17,7 +20,9 @@ file open), ``{"error": ...}`` at once when writing fails, ``{"done": true, "cou
 """
 from __future__ import annotations
 
+import itertools
 import json
+import marshal
 import os
 import struct
 import sys
@@ -29,7 +34,8 @@ from biped_sim.recording.bagio import lock_for_writing
 
 FRAME = struct.Struct("<cI")          # kind, payload length
 MESSAGE = struct.Struct("<HqI")       # channel (the recorder's topic id), time ns, sequence
-MESSAGE_FRAME = struct.Struct("<cIHqI")   # FRAME and MESSAGE in one, as the recorder packs them
+MESSAGE_FRAME = struct.Struct("<cIHqI")   # FRAME and MESSAGE in one
+BATCH = b"B"
 LIBRARY = "biped_sim recorder (mcap python records)"
 
 
@@ -77,6 +83,7 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
     mcap = file_writer(f, PROFILE, LIBRARY, compression=compression, chunk_size=chunk_size)
     report(ready=True)       # started: the recording process may begin its run (BagRecorder.wait_ready)
     topics, channels, schemas = {}, {}, {}
+    channel, sequence = {}, {}      # by topic name: the channel id, the next sequence numbers
     error = None
     dirty = False
     last_flush = time.monotonic()
@@ -92,13 +99,27 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
         if error is not None:
             continue
         try:
-            if kind == b"M":
+            if kind == BATCH:
+                try:
+                    for item in marshal.loads(payload):
+                        if len(item) == 3:
+                            t_ns, name, data = item
+                            add_message(channel[name], t_ns, data, t_ns, next(sequence[name]))
+                        else:
+                            t_ns, messages = item
+                            for name, data in messages:
+                                add_message(channel[name], t_ns, data, t_ns, next(sequence[name]))
+                except KeyError as exc:
+                    raise ValueError(f"unknown topic {exc}: written before add_topic") from None
+                dirty = True
+            elif kind == b"M":
                 cid, t_ns, seq = message.unpack_from(payload)
                 add_message(channels[cid], t_ns, memoryview(payload)[message.size:], t_ns, seq)
                 dirty = True
             elif kind == b"T":
                 info = json.loads(payload)
-                channels[info["id"]] = add_topic(mcap, info, schemas)
+                channels[info["id"]] = channel[info["name"]] = add_topic(mcap, info, schemas)
+                sequence[info["name"]] = itertools.count(1)
                 topics[channels[info["id"]]] = {k: info[k] for k in ("name", "type", "qos", "hash")}
             elif kind == b"P":
                 mcap.add_metadata("biped_sim", json.loads(payload))

@@ -48,6 +48,8 @@ class GuardedRecorder:
         self.on_failure = on_failure
         self.failure = None              # the exception that ended the recording
         self._lock = threading.Lock()
+        # the recorder's own methods until it fails, then ones that drop (no test at every write)
+        self._write, self._write_messages = recorder.write, recorder.write_messages
 
     @property
     def path(self):
@@ -65,24 +67,24 @@ class GuardedRecorder:
             first = self.failure is None
             if first:
                 self.failure = exc
+                self._write = self._write_messages = _drop
         if first:
             self.on_failure(exc)
-
-    def _guarded(self, write, *args):
-        if self.failure is None:
-            try:
-                write(*args)
-            except OSError as exc:
-                self._failed(exc)
 
     def wait_ready(self, timeout=10.0) -> bool:
         return self.recorder.wait_ready(timeout)
 
     def write(self, topic, msg, t_ns):
-        self._guarded(self.recorder.write, topic, msg, t_ns)
+        try:
+            self._write(topic, msg, t_ns)
+        except OSError as exc:
+            self._failed(exc)
 
     def write_messages(self, t_ns, messages):
-        self._guarded(self.recorder.write_messages, t_ns, messages)
+        try:
+            self._write_messages(t_ns, messages)
+        except OSError as exc:
+            self._failed(exc)
 
     def close(self, logger=None, t: float = 0.0) -> bool:
         """Close the bag (the writer ends it); False if that failed. A failure not reported before (the
@@ -98,3 +100,7 @@ class GuardedRecorder:
                 logger.error(failure_message(self.path, exc, t))
             return False
         return self.failure is None
+
+
+def _drop(*_args):
+    """A write after the recording failed: dropped."""

@@ -105,11 +105,12 @@ class SimNode(Node):
         self.markers = MarkerStream(self.sim.model, prm["slope"], prm["marker_rate"]) if "markers" in out else None
         self.sub = self.create_subscription(Float64MultiArray, "hip_torque", self._on_command, COMMAND_QOS)
         self.control = SimControl(self, COMMAND_QOS)    # ~/pause, ~/step, ~/reset and the push topic
-        self._state_cdr = StateSerializer(JOINT_NAMES)
-        self._state_pubs = {name: pub for name, pub in (("joint_states", self.pub_js),
-                                                        ("ground_reaction", self.pub_grf), ("clock", self.pub_clock))}
-        self._state_outputs = tuple(pub is not None for pub in self._state_pubs.values())
-        self._state_topics = {name: pub.topic_name for name, pub in self._state_pubs.items() if pub is not None}
+        state_pubs = dict(joint_states=self.pub_js, ground_reaction=self.pub_grf, clock=self.pub_clock)
+        self._state_outputs = tuple(pub is not None for pub in state_pubs.values())
+        # the state messages come labelled with their topics: published by topic, recorded as they come
+        self._state_cdr = StateSerializer(JOINT_NAMES, labels={name: pub.topic_name for name, pub in
+                                                               state_pubs.items() if pub is not None})
+        self._state_pubs = {pub.topic_name: pub for pub in state_pubs.values() if pub is not None}
         self.recorder = self.bag_path = None
         if prm["record"]:
             self._open_recorder()
@@ -316,10 +317,10 @@ class SimNode(Node):
         t_ns = to_ns(sim.t)
         state = self._state_cdr.period(t_ns, foot_frame(sim.stance_leg), sim.q.tolist(), sim.dq.tolist(), self.u,
                                        sim.ground_force if sim.stance_leg else None, *self._state_outputs)
-        for name, data in state:
-            self._state_pubs[name].publish(data)
+        for topic, data in state:
+            self._state_pubs[topic].publish(data)
         if self.recorder is not None and state:
-            self.recorder.write_messages(t_ns, [(self._state_topics[name], data) for name, data in state])
+            self.recorder.write_messages(t_ns, state)
         if self.markers is not None:   # the last state of a run is always drawn
             msg = self.markers.poll(time.monotonic(), sim, force=self.finished or self.stopped)
             if msg is not None:   # serialised once for the topic and the bag (1.2 ms a MarkerArray)
