@@ -24,9 +24,9 @@ import time
 from biped_sim.analysis.sweep import default_workers, run_one, sweep
 
 GRID = {"kp": [100.0, 200.0, 400.0, 800.0], "step_angle": [0.15, 0.18, 0.22, 0.25]}
-#: long enough that a run (about 0.2 s on the compiled loop; 4 s took 15 ms) outweighs a pool's start-up,
-#: so that the scaling figure measures the runs
-DURATION = 60.0
+#: long enough that the runs (about 1 s each on the compiled loop; 4 s took 15 ms) outweigh a pool's start-up
+#: (0.1 to 1.7 s here), so that the scaling figure measures the runs
+DURATION = 300.0
 TINY_GRID = {"duration": [0.001], "model.g": [9.81 + i * 1e-3 for i in range(200)]}
 
 
