@@ -182,8 +182,10 @@ def test_a_users_mistake_is_one_line_and_exit_2(tmp_path):
 def test_ctrl_c_stops_the_sweep_and_writes_the_runs_done(tmp_path):
     out = tmp_path / "partial.csv"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
+    # runs of 100 s (about 0.3 s each): the whole sweep takes seconds, so Ctrl-C after two runs comes in
+    # the middle of it (1 s runs take 3 ms now: the sweep could end before the signal arrived)
     p = subprocess.Popen([CLI, "sweep", "walk", "--set", "kp=50:500:40",
-                          "--duration", "1", "--workers", "2", "-o", str(out)], stderr=subprocess.PIPE, text=True,
+                          "--duration", "100", "--workers", "2", "-o", str(out)], stderr=subprocess.PIPE, text=True,
                          env=env, start_new_session=True)
     seen = ""
     while "[2/40]" not in seen:            # two runs done: the pool is running
