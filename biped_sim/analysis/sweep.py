@@ -246,7 +246,9 @@ def _sigint_blocked():
     raise it in the middle of a submit: a worker started but not yet known to the pool, left alive to
     fail once we are gone. The Ctrl-C held back is raised when the block ends."""
     deferred = []
-    in_main = threading.current_thread() is threading.main_thread()
+    # (a process started with SIGINT ignored, as by a shell's '&', keeps ignoring it here too)
+    in_main = threading.current_thread() is threading.main_thread() \
+        and signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
     old_handler = signal.signal(signal.SIGINT, lambda *_: deferred.append(True)) if in_main else None
     old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:

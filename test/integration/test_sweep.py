@@ -179,6 +179,12 @@ def test_a_users_mistake_is_one_line_and_exit_2(tmp_path):
         assert p.stderr.startswith("biped-sim sweep: error: ")
 
 
+def _ctrl_c_as_in_a_terminal():
+    """The sweep's SIGINT as a terminal leaves it (default): a test run started in the background by a
+    non-interactive shell would hand its children SIGINT ignored, and they would rightly ignore Ctrl-C."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_stops_the_sweep_and_writes_the_runs_done(tmp_path):
     out = tmp_path / "partial.csv"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -186,7 +192,7 @@ def test_ctrl_c_stops_the_sweep_and_writes_the_runs_done(tmp_path):
     # the middle of it (1 s runs take 3 ms now: the sweep could end before the signal arrived)
     p = subprocess.Popen([CLI, "sweep", "walk", "--set", "kp=50:500:40",
                           "--duration", "100", "--workers", "2", "-o", str(out)], stderr=subprocess.PIPE, text=True,
-                         env=env, start_new_session=True)
+                         env=env, start_new_session=True, preexec_fn=_ctrl_c_as_in_a_terminal)
     seen = ""
     while "[2/40]" not in seen:            # two runs done: the pool is running
         ch = p.stderr.read(1)
@@ -221,7 +227,7 @@ def test_ctrl_c_while_the_pool_starts_is_quiet(tmp_path, moment):
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     p = subprocess.Popen([CLI, "sweep", "walk", "--set", "kp=50:500:8", "--duration", "1", "--workers", "2",
                           "-o", str(tmp_path / "s.csv")], stderr=subprocess.PIPE, text=True, env=env,
-                         start_new_session=True)
+                         start_new_session=True, preexec_fn=_ctrl_c_as_in_a_terminal)
     end = time.monotonic() + 60
     while True:
         assert time.monotonic() < end and p.poll() is None, "the pool never started"
@@ -234,6 +240,25 @@ def test_ctrl_c_while_the_pool_starts_is_quiet(tmp_path, moment):
     time.sleep(1.0)                        # a worker left behind would print after its parent is gone
     assert p.returncode == 130, err
     assert "Traceback" not in err and "Error" not in err, err
+
+
+def test_a_sweep_started_with_sigint_ignored_keeps_ignoring_it(tmp_path):
+    """Started as by a shell's '&' (SIGINT ignored), a Ctrl-C while its pool starts (when the sweep
+    holds a Ctrl-C back) neither stops it nor turns into an interruption later: it runs to the end."""
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    out = tmp_path / "s.csv"
+    p = subprocess.Popen([CLI, "sweep", "walk", "--set", "kp=50:500:8", "--duration", "1", "--workers", "2",
+                          "-o", str(out)], stderr=subprocess.PIPE, text=True, env=env, start_new_session=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    end = time.monotonic() + 60
+    while not _children(p.pid):
+        assert time.monotonic() < end and p.poll() is None, "the pool never started"
+        time.sleep(0.001)
+    os.killpg(p.pid, signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 0 and "interrupted" not in err and "Traceback" not in err, err
+    with open(out) as f:
+        assert len(list(csv.DictReader(f))) == 8
 
 
 def test_interrupted_sweep_keeps_its_rows():
