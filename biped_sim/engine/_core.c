@@ -709,6 +709,18 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     return 3;
 }
 
+/* The feet and the force at the step's end, kept for the next step's start (EventLocator's _feet_end
+ * and _force_end) */
+static void
+cache_step_end(Loop *L, const double *feet8, const double *F)
+{
+    L->cache_ok = 1;
+    L->cache_t = L->t;
+    memcpy(L->cache_feet, feet8, 8 * sizeof(double));
+    L->cache_F[0] = F[0];
+    L->cache_F[1] = F[1];
+}
+
 /* The body of HybridSimulator._integrate for the step just taken, when nothing happens in it but a
  * scuff (its start, its end): 1 and the step accepted (sample written to row, state projected), 2 the
  * same and a scuff ended in it (kept in L->events, its Event the Python code's to make), or 0 (pending:
@@ -774,10 +786,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     if (touching) {
         if (scuffing) { L->why = 3; return 0; }
         /* the locator's cache is of the step's end (EventLocator.locate sets it before it looks) */
-        L->cache_ok = 1;
-        L->cache_t = L->t;
-        memcpy(L->cache_feet, ft1, sizeof ft1);
-        L->cache_F[0] = F1[0]; L->cache_F[1] = F1[1];
+        cache_step_end(L, ft1, F1);
         return touchdown(L, t_touch, row, E0, push_work, energy_lost, residual_out);
     }
     /* a resting free foot pushed into the ground (_resting_feet_pushed_in) */
@@ -824,10 +833,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         for (int j = 0; j < 10; j++)
             ev->v[4 + j] = L->t_old <= scuff[2] && scuff[2] <= L->t ? dense_at(L, j, scuff[2]) : NAN;
     }
-    L->cache_ok = 1;
-    L->cache_t = L->t;
-    memcpy(L->cache_feet, ft1, sizeof ft1);
-    L->cache_F[0] = F1[0]; L->cache_F[1] = F1[1];
+    cache_step_end(L, ft1, F1);
     for (int leg = 1; leg <= 2; leg++)
         if (!L->armed[leg - 1] && leg != st && ft1[4 * (leg - 1) + 1] > L->arm_height) {
             L->armed[leg - 1] = 1;

@@ -138,10 +138,10 @@ class CompiledStepper(integrators._ListRungeKutta):
     def nrejected(self):
         return self.loop.counts()[1]
 
-    def start(self, sim, t_bound, law, reset_counters):
+    def start(self, t_bound, law, reset_counters):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
         torque law, f at the start, the carried-over step size (or the initial one)."""
-        kind, params = law
+        sim, (kind, params) = self.sim, law
         self.loop.begin(self.method_code, sim.stance_leg, sim.pin[0], sim.pin[1], TORQUE_KINDS[kind], sim._u[0],
                         sim._u[1], params, sim.t, sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound, sim._h,
                         reset_counters)
@@ -159,20 +159,22 @@ class CompiledStepper(integrators._ListRungeKutta):
         self.t, self.t_old, self.h, self.h_abs, self.y, self.y_old, self.f, _, _, _ = self.loop.state()
         self._dense = None
 
-    def _push_locator(self, locator):
+    def _push_locator(self):
+        sim = self.sim
+        locator = sim.locator
         (t_feet, ft), (t_force, F) = locator._feet_end, locator._force_end
         same = t_feet is not None and t_feet == t_force
         (leg, scuff), = locator.active_scuffs.items() or ((0, [0.0, 0.0, 0.0]),)
         self.loop.set_locator(locator.armed[0], locator.armed[1], t_feet if same else None,
                               [v for foot in ft for v in foot] if same else None, F if same else None, leg, scuff,
                               locator.deepest_scuff, locator.scuffs)
-        sim = self.sim
         self.loop.set_history(sim.impacts.times[-1] if sim.impacts.times else None, len(sim._mode_event_times),
                               sim._mode_event_times[-49:])
         self.locator_stale = False
 
-    def pull_locator(self, locator):
+    def _pull_locator(self):
         """The armed feet and the scuff as the loop left them, into the Python locator."""
+        locator = self.sim.locator
         a1, a2, leg, scuff, locator.deepest_scuff, locator.scuffs = self.loop.locator()
         locator.armed = [bool(a1), bool(a2)]
         locator.active_scuffs = {leg: scuff} if leg else {}
@@ -196,65 +198,73 @@ class CompiledStepper(integrators._ListRungeKutta):
             raise _step_failure(fail)
         _, _, self.sim._last_u, self.sim._last_F, _, _ = self.loop.handed()
 
-    def run(self, sim, t_end):
+    def run(self, t_end):
         """The quiet steps to ``t_end`` in C. DONE (at t_end: the simulator's state is the last sample's),
         PENDING (a step taken, not accepted: the Python code handles it), or PYTHON_STEPS (the locator
         holds a latched guard or two scuffs, which only the Python code follows: step in Python)."""
+        sim = self.sim
         if _python_only(sim.locator):
             return PYTHON_STEPS
         if self.locator_stale:
-            self._push_locator(sim.locator)
+            self._push_locator()
         while True:      # GROW: _make_room makes it, _after_run takes the events
             _make_room(sim._samples)
-            outcome = self._after_run(sim, t_end, *self.loop.run(t_end, sim))
+            outcome = self._after_run(*self.loop.run(t_end, sim))
             if outcome != GROW:
                 return outcome
 
-    def command(self, sim, controller):
+    def command(self, controller):
         """The control period's command of a compiled law at the simulator's state, computed in C (the
         law's own torques bit for bit), or None where the Python controller must be called."""
         law = reference_law(controller)
-        if law is None or self.state_stale or sim._stepper is not self:
+        if law is None or self.state_stale or self.sim._stepper is not self:
             return None
         return self.loop.law_torque(TORQUE_KINDS[law[0]], law[1])
 
-    def can_run_periods(self, sim):
+    def can_run_periods(self):
         """Whether ``periods`` can run now: the simulator's state is the loop's, and the locator holds
         nothing only the Python code follows."""
-        return not self.state_stale and not _python_only(sim.locator)
+        return not self.state_stale and not _python_only(self.sim.locator)
 
-    def periods(self, sim, period, law, t_final, t_stop):
+    def periods(self, period, law, t_final, t_stop):
         """Control periods of a compiled law, each command computed and held in C, as ``advance_period``
         would run them, until ``t_final`` or a push due at ``t_stop``: (outcome, t_next), DONE when they
         all ran, else the outcome of the step handed back in the period ending at ``t_next``
         (``can_run_periods`` first)."""
+        sim, (kind, params) = self.sim, law
         if self.locator_stale:
-            self._push_locator(sim.locator)
-        kind, params = law
+            self._push_locator()
         _make_room(sim._samples)
         result, sim.control_periods, t_next, u = self.loop.periods(
             TORQUE_KINDS[kind], params, period, sim.control_periods, t_final, t_stop, sim)
         sim._u = list(u)
-        outcome = self._after_run(sim, t_next, *result)
+        outcome = self._after_run(*result)
         if outcome == GROW:      # the period in progress goes on in run(), which makes room
-            return self.run(sim, t_next), t_next
+            return self.run(t_next), t_next
         return outcome, t_next
 
-    def held_period(self, sim, t_end):
+    def held_period(self, t_end):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""
+        sim = self.sim
         if self.state_stale or self.locator_stale or _python_only(sim.locator):
             return None
         # (no room made first: a full array comes back GROW before a step, and run() goes on)
-        outcome = self._after_run(sim, t_end, *self.loop.held(sim._u[0], sim._u[1], sim._h, t_end, sim))
-        return self.run(sim, t_end) if outcome == GROW else outcome
+        outcome = self._after_run(*self.loop.held(sim._u[0], sim._u[1], sim._h, t_end, sim))
+        return self.run(t_end) if outcome == GROW else outcome
 
-    def _after_run(self, sim, t_end, outcome, accepted, t, w, h_abs, changed, n_events, fail):
+    def python_changed(self):
+        """The Python code changed the simulator's state or its locator (an event, a push, a step it
+        handles): the loop takes both again before it runs."""
+        self.state_stale = self.locator_stale = True
+
+    def _after_run(self, outcome, accepted, t, w, h_abs, changed, n_events, fail):
         """A run's result (its samples are written and Samples' counters set): the simulator's state, the
         Events of what the loop applied, then the outcome's own handling."""
+        sim = self.sim
         s, loc = sim._samples, sim.locator
         if changed:
-            self.pull_locator(loc)
+            self._pull_locator()
         for record in self.loop.take_events() if n_events else ():    # applied in C: their Events, in order
             if record[0] == TOUCHDOWN:
                 _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, sim.energy_lost, pin = record
@@ -275,12 +285,11 @@ class CompiledStepper(integrators._ListRungeKutta):
         if outcome == FAILED:
             raise _step_failure(fail)
         if outcome == PENDING:
-            self.state_stale = True
+            self.python_changed()
             self._sync()
             start_feet, start_F, sim._last_u, sim._last_F, _, _ = self.loop.handed()
             loc._feet_end = (self.t_old, (FootState(*start_feet[:4]), FootState(*start_feet[4:])))
             loc._force_end = (self.t_old, start_F)
-            self.locator_stale = True
         return outcome
 
     def replace_y(self, y):

@@ -204,7 +204,7 @@ class HybridSimulator:
         self.control_periods = k + 1
         if controller is not None:
             # a reference law on the compiled loop: its torque computed in C, the same bits
-            u = self._compiled.command(self, controller) if self._compiled is not None else None
+            u = self._compiled.command(controller) if self._compiled is not None else None
             if u is None:
                 u = self.command(controller)
             if u is None:
@@ -221,13 +221,13 @@ class HybridSimulator:
         while self.status == "running" and self.t < t_final and t_stop > self.t + tol:
             st = self._compiled
             law = compiled_loop.reference_law(controller) if st is not None and self._stepper is st else None
-            if law is None or self._initial_sample_pending or not st.can_run_periods(self):
+            if law is None or self._initial_sample_pending or not st.can_run_periods():
                 self.advance_period(period, controller=controller, t_final=t_final)
             else:
                 self.advance(t_final, _periods=(period, law, t_final, t_stop))
 
     def _integrate_periods(self, period, law, t_final, t_stop):
-        outcome, t_next = self._compiled.periods(self, period, law, t_final, t_stop)
+        outcome, t_next = self._compiled.periods(period, law, t_final, t_stop)
         if outcome != compiled_loop.DONE:     # the rest of the period in progress, as any
             self._integrate(t_next, outcome)
 
@@ -237,7 +237,7 @@ class HybridSimulator:
         the stance foot held (:mod:`biped_sim.engine.pushes`). Returns its events. A bad impulse
         (not two finite numbers, above ``PUSH_IMPULSE_LIMIT``) raises ValueError."""
         if self._compiled is not None:
-            self._compiled.locator_stale = self._compiled.state_stale = True
+            self._compiled.python_changed()
         return apply_push(self, impulse)
 
     def command(self, controller):
@@ -252,7 +252,7 @@ class HybridSimulator:
     def _new_stepper(self, t_bound):
         law = compiled_loop.covers(self, self._controller)
         if law is not None and self._stepper is not None and self._stepper is self._compiled:
-            self._compiled.start(self, t_bound, law, False)   # the same C stepper: its counters go on
+            self._compiled.start(t_bound, law, False)   # the same C stepper: its counters go on
             return
         if self._stepper is not None:
             self._nfev_base += self._stepper.nfev
@@ -260,7 +260,7 @@ class HybridSimulator:
         if law is not None:     # the mode stepped by the compiled loop (compiled_loop.py)
             if self._compiled is None:
                 self._compiled = compiled_loop.CompiledStepper(self)
-            self._compiled.start(self, t_bound, law, True)
+            self._compiled.start(t_bound, law, True)
             self._stepper, self._to_phys = self._compiled, floating_to_phys
             return
         rhs, to_phys, from_phys = mode_functions(
@@ -290,20 +290,20 @@ class HybridSimulator:
         """To t_end; ``outcome``: the compiled loop's, of a step it took and handed back (continue from it)."""
         st = self._stepper
         if outcome is None and self._controller is None and st is not None and st is self._compiled:
-            outcome = st.held_period(self, t_end)    # the node's period: one C call while nothing happens
+            outcome = st.held_period(t_end)    # the node's period: one C call while nothing happens
         if outcome is None:
             self._new_stepper(t_end)
             st = self._stepper
         while self.t < t_end and self.status == "running":
             if st is self._compiled:    # its quiet steps in C; a step it hands back is handled below
                 if outcome is None:
-                    outcome = st.run(self, t_end)
+                    outcome = st.run(t_end)
                 if outcome == compiled_loop.DONE:
                     break
                 if outcome == compiled_loop.PYTHON_STEPS:
                     st.step()
                 outcome = None
-                st.locator_stale = st.state_stale = True     # the Python code handles this step
+                st.python_changed()     # the Python code handles this step
             else:
                 st.step()
             self._stats["steps"] += 1
@@ -384,7 +384,7 @@ class HybridSimulator:
         """Apply the reset of the guard that fired, take the new mode from its event."""
         self._samples.keep_last()       # the sample at the event, before its reset
         if self._compiled is not None:
-            self._compiled.locator_stale = self._compiled.state_stale = True
+            self._compiled.python_changed()
         qa, dqa = np.array(q), np.array(dq)
         old = self.stance_leg
         if guard.kind == "touchdown":

@@ -121,7 +121,7 @@ def test_the_loop_steps_in_c():
     steps, *_ = sim._compiled.loop.stats()
     assert steps >= 150
     # a control period's command of a reference law is computed in C, with the law's own torque
-    u = sim._compiled.command(sim, ctrl)
+    u = sim._compiled.command(ctrl)
     assert u is not None and np.array(u).tobytes() == np.array(sim.command(ctrl), dtype=float).tobytes()
 
 
