@@ -159,8 +159,13 @@ def flight_fast(model, q, dq, u):
     return np.linalg.solve(D, rhs).tolist()
 
 
+def _impact_legs(impact_leg):
+    """The landing feet of ``impact_leg``: (1,) or (2,), or (1, 2) for both (given as (1, 2), "both" or 0)."""
+    return (1, 2) if impact_leg in ((1, 2), "both", 0) else (check_leg(impact_leg),)
+
+
 def _impact_jacobian(model, q, impact_leg):
-    legs = (1, 2) if impact_leg in ((1, 2), "both", 0) else (check_leg(impact_leg),)
+    legs = _impact_legs(impact_leg)
     return np.vstack([model.foot_jacobian(q, leg) for leg in legs])
 
 
@@ -196,7 +201,7 @@ def impact_map_fast(model, q, dq_minus, impact_leg):
     KKT system reduced on the null space of J, as stance's), both feet by the KKT solve with D and J
     straight from the closed forms."""
     ql = q.tolist()
-    legs = (1, 2) if impact_leg in ((1, 2), "both", 0) else (check_leg(impact_leg),)
+    legs = _impact_legs(impact_leg)
     if len(legs) == 1:
         impact = gen.impact_map_2 if legs[0] == 2 else gen.impact_map_1
         dq_plus, impulse = impact(ql, dq_minus.tolist(), model.k["impact_map_1"])   # the same constants
