@@ -8,8 +8,7 @@ Frames: ``FRAME`` (kind, payload length) then the payload. Kinds: ``T`` a topic 
 type, qos, hash, definition), ``P`` the run's parameters record (JSON), ``B`` a batch of messages
 (the ``marshal`` of a list whose items are ``(t_ns, topic, CDR bytes)`` or ``(t_ns, [(topic, CDR
 bytes), ...])``: what the recorder queued in 0.1 s, handed over in one call; this process numbers each
-topic's messages 1, 2, ...), ``M`` one message (``MESSAGE``: the recorder's topic id, time ns,
-sequence; then the CDR bytes), ``C`` close. The end of the input
+topic's messages 1, 2, ...), ``C`` close. The end of the input
 without ``C`` (the recording process died, even by SIGKILL) closes the bag the same way.
 
 Started by ``BagRecorder`` as ``python -m biped_sim.recording.writer BAG_DIR MCAP_NAME COMPRESSION
@@ -33,8 +32,6 @@ from biped_sim.recording.bagformat import PROFILE, bag_metadata, channel_metadat
 from biped_sim.recording.bagio import lock_for_writing
 
 FRAME = struct.Struct("<cI")          # kind, payload length
-MESSAGE = struct.Struct("<HqI")       # channel (the recorder's topic id), time ns, sequence
-MESSAGE_FRAME = struct.Struct("<cIHqI")   # FRAME and MESSAGE in one
 BATCH = b"B"
 LIBRARY = "biped_sim recorder (mcap python records)"
 
@@ -82,12 +79,12 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
         from biped_sim.recording.mcapfile import McapFileWriter as file_writer
     mcap = file_writer(f, PROFILE, LIBRARY, compression=compression, chunk_size=chunk_size)
     report(ready=True)       # started: the recording process may begin its run (BagRecorder.wait_ready)
-    topics, channels, schemas = {}, {}, {}
+    topics, schemas = {}, {}
     channel, sequence = {}, {}      # by topic name: the channel id, the next sequence numbers
     error = None
     dirty = False
     last_flush = time.monotonic()
-    add_message, read, frame, message = mcap.add_message, inp.read, FRAME, MESSAGE
+    add_message, read, frame = mcap.add_message, inp.read, FRAME
     while True:
         head = read(frame.size)
         if len(head) < frame.size:
@@ -112,15 +109,11 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
                 except KeyError as exc:
                     raise ValueError(f"unknown topic {exc}: written before add_topic") from None
                 dirty = True
-            elif kind == b"M":
-                cid, t_ns, seq = message.unpack_from(payload)
-                add_message(channels[cid], t_ns, memoryview(payload)[message.size:], t_ns, seq)
-                dirty = True
             elif kind == b"T":
                 info = json.loads(payload)
-                channels[info["id"]] = channel[info["name"]] = add_topic(mcap, info, schemas)
+                cid = channel[info["name"]] = add_topic(mcap, info, schemas)
                 sequence[info["name"]] = itertools.count(1)
-                topics[channels[info["id"]]] = {k: info[k] for k in ("name", "type", "qos", "hash")}
+                topics[cid] = {k: info[k] for k in ("name", "type", "qos", "hash")}
             elif kind == b"P":
                 mcap.add_metadata("biped_sim", json.loads(payload))
                 f.flush()
