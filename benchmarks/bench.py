@@ -261,6 +261,15 @@ def bench_compiled_loop(model, repeats=5):
             sim.advance_period(1e-3, u=u)
         return (time.perf_counter() - t0) / len(commands) * 1e6
 
+    def held_and_read():
+        # as the node: the state read as lists every period, for its messages
+        sim = HybridSimulator(model, q0, dq0, method="dopri5")
+        t0 = time.perf_counter()
+        for u in commands:
+            sim.advance_period(1e-3, u=u)
+            sim.state_lists()
+        return (time.perf_counter() - t0) / len(commands) * 1e6
+
     def walk():
         t0 = time.perf_counter()
         r = simulate(model, q0, dq0, 10.0, controller=ctrl)
@@ -270,11 +279,13 @@ def bench_compiled_loop(model, repeats=5):
         return _median_us(lambda: rec.command(ctrl), 2000)
 
     times = {True: ([], []), False: ([], [])}
+    read = []
     for _ in range(repeats):
         for enabled in (True, False):
             compiled_loop.enabled = enabled
             times[enabled][0].append(held())
             times[enabled][1].append(walk()[0])
+        read.append(held_and_read())
     compiled_loop.enabled = True
     unit = python_rhs_us()
     (c_held, c_walk), (p_held, p_walk) = ([statistics.median(v) for v in times[e]] for e in (True, False))
@@ -283,6 +294,8 @@ def bench_compiled_loop(model, repeats=5):
     print(f"  held torque, 1 ms periods (dopri5, 2 s walk, engine only): compiled {c_held:.2f} us a period = "
           f"{c_held / unit:.2f} rhs calls (real-time factor {1e3 / c_held:.0f}); Python loop {p_held:.1f} us "
           f"= {p_held / unit:.1f}; x{p_held / c_held:.1f}")
+    print(f"  the same with the state read every period as the node reads it (sim.state_lists()): "
+          f"{statistics.median(read):.2f} us a period")
     print(f"  10 s walk, continuous feedback (dop853, 1e-9): compiled {c_walk * 1e3:.1f} ms (real-time factor "
           f"{10 / c_walk:.0f}); Python loop {p_walk * 1e3:.1f} ms; x{p_walk / c_walk:.1f}")
     tracemalloc.start()

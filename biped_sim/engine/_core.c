@@ -22,7 +22,9 @@
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <structmember.h>
 #include <math.h>
+#include <time.h>
 #include <string.h>
 
 #include "_gen/_kernels.h"
@@ -98,6 +100,10 @@ typedef struct {
     double cache_t, cache_feet[8], cache_F[2];
     /* the step handed back: its start's feet and force, and its end's torque and force */
     double start_feet[8], start_F[2], end_u[2], end_F[2];
+    /* the Python code changed the simulator's state / its locator since the loop last held them
+     * (CompiledStepper.python_changed): the loop takes them again before it runs */
+    char state_stale, locator_stale;
+    double state_now[10];    /* q and dq as the last quiet period() left them (state_arrays) */
 } Loop;
 
 /* -- controllers (biped_sim/control/walking.py) ------------------------------------------------- */
@@ -1143,10 +1149,9 @@ run_state(Loop *L, PyObject *sim, RunState *rs, Py_buffer *buf)
     return 0;
 }
 
-/* the Samples' counters written back; (outcome, accepted steps, and the last one's t, work and h_abs,
- * locator_changed, events waiting in take_events, failure or None) */
-static PyObject *
-run_result(Loop *L, int outcome, RunState *rs, Py_buffer *buf)
+/* the end of a run: the Samples' counters written back (0, or -1 with an exception) */
+static int
+end_run(RunState *rs, Py_buffer *buf)
 {
     PyBuffer_Release(buf);
     PyObject *n = PyLong_FromLong(rs->n), *appended = PyLong_FromLong(rs->appended);
@@ -1156,7 +1161,15 @@ run_result(Loop *L, int outcome, RunState *rs, Py_buffer *buf)
     Py_XDECREF(n);
     Py_XDECREF(appended);
     Py_DECREF(rs->samples);
-    if (bad) return NULL;
+    return bad ? -1 : 0;
+}
+
+/* end_run, then (outcome, accepted steps, and the last one's t, work and h_abs, locator_changed, events
+ * waiting in take_events, failure or None) */
+static PyObject *
+run_result(Loop *L, int outcome, RunState *rs, Py_buffer *buf)
+{
+    if (end_run(rs, buf) < 0) return NULL;
     if (L->callback_failed) outcome = RAISED;     /* the caller takes the accepted steps, then raise_error() */
     return Py_BuildValue("(ildddiiN)", outcome, rs->accepted, rs->t_accepted, rs->w_accepted, rs->h_accepted,
                          L->locator_changed, L->n_events, outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
@@ -1181,6 +1194,20 @@ hold(Loop *L, double u0, double u1, double t_bound)
     L->u_hold[0] = u0;
     L->u_hold[1] = u1;
     restart(L, L->t, t_bound);
+}
+
+/* The end of the control period that starts at t, the *k-th (as HybridSimulator.advance_period computes
+ * it, operation for operation): period k ends at (k + 1) period, or at t_final (> 0) where that comes first
+ * or within 1e-9 of a period. *k becomes the count of periods begun. */
+static double
+period_end(double t, double period, double t_final, long *k)
+{
+    long j = *k;
+    while ((j + 1) * period <= t) j++;     /* a run that starts between two periods (t0 > 0) */
+    double t_next = (j + 1) * period;
+    if (t_final > 0 && t_next >= t_final - 1e-9 * period) t_next = t_final;
+    *k = j + 1;
+    return t_next;
 }
 
 /* periods(kind, ctrl, period, control_periods, t_final, t_stop, sim)
@@ -1209,14 +1236,9 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     Py_buffer buf;
     if (run_state(L, args[6], &rs, &buf) < 0) return NULL;
     int outcome = DONE;
-    long k = k0;
     double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, tol = 1e-9 * period;
     while (L->t < t_final && t_stop > L->t + tol) {
-        k = k0;
-        while ((k + 1) * period <= L->t) k++;
-        t_next = (k + 1) * period;
-        if (t_final > 0 && t_next >= t_final - 1e-9 * period) t_next = t_final;
-        k0 = k + 1;
+        t_next = period_end(L->t, period, t_final, &k0);
         memcpy(L->ctrl, ctrl, sizeof ctrl);
         L->controller = kind;
         torque(L, L->t, L->y, L->y + 5, u);
@@ -1257,6 +1279,176 @@ Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     return run_quiet(L, args[3], args[4]);
 }
 
+/* the attributes of the simulator a quiet period reads and writes, interned at import */
+static PyObject *a_status, *a_running, *a_initial_sample_pending, *a_control_periods, *a_h, *a_u, *a_stats,
+    *a_wall_time, *a_t, *a_work, *a__q, *a__dq, *a_copy, *a_locator, *a_armed, *a_active_scuffs, *a_deepest_scuff,
+    *a_scuffs;
+static int pull_locator(Loop *L, PyObject *locator);
+
+/* u as two floats, as modes.two_finite_floats takes them: 0, or -1 (no exception) for anything the
+ * Python code must judge (it raises, or converts what this does not: a string, a generator, ...) */
+static int
+two_finite(PyObject *u, double *out)
+{
+    if (!(PyList_CheckExact(u) || PyTuple_CheckExact(u)) || PySequence_Fast_GET_SIZE(u) != 2) return -1;
+    for (int i = 0; i < 2; i++) {
+        PyObject *v = PySequence_Fast_GET_ITEM(u, i);
+        if (!PyFloat_Check(v) && !PyLong_Check(v)) return -1;
+        out[i] = PyFloat_AsDouble(v);
+        if (out[i] == -1.0 && PyErr_Occurred()) {
+            PyErr_Clear();     /* an int too large for a float: the Python code says so */
+            return -1;
+        }
+    }
+    return isfinite(out[0] + out[1]) ? 0 : -1;     /* as two_finite_floats: nan + x, inf - inf, 1e308 + 1e308 */
+}
+
+/* a new float64 array of n values (a copy of the template, so that no numpy headers are needed) */
+static PyObject *
+array_of(PyObject *template, const double *v, Py_ssize_t n)
+{
+    PyObject *a = PyObject_CallMethodNoArgs(template, a_copy);
+    Py_buffer b;
+    if (a == NULL || PyObject_GetBuffer(a, &b, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0) {
+        Py_XDECREF(a);
+        return NULL;
+    }
+    if (b.len == n * (Py_ssize_t)sizeof(double)) memcpy(b.buf, v, n * sizeof(double));
+    PyBuffer_Release(&b);
+    if (b.len != n * (Py_ssize_t)sizeof(double)) {
+        Py_DECREF(a);
+        PyErr_SetString(PyExc_ValueError, "state_arrays(): the template must be a float64 array of 5");
+        return NULL;
+    }
+    return a;
+}
+
+static double
+seconds_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);     /* time.perf_counter's clock */
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static int
+add_wall_time(PyObject *sim, double seconds)
+{
+    PyObject *stats = PyObject_GetAttr(sim, a_stats);
+    if (stats == NULL) return -1;
+    PyObject *was = PyDict_GetItemWithError(stats, a_wall_time), *now = NULL;
+    int bad = was == NULL || (now = PyFloat_FromDouble(PyFloat_AsDouble(was) + seconds)) == NULL
+              || PyDict_SetItem(stats, a_wall_time, now) < 0;
+    Py_XDECREF(now);
+    Py_DECREF(stats);
+    return bad ? -1 : 0;
+}
+
+static int
+set_float(PyObject *o, PyObject *name, double v)
+{
+    PyObject *f = PyFloat_FromDouble(v);
+    int bad = f == NULL || PyObject_SetAttr(o, name, f) < 0;
+    Py_XDECREF(f);
+    return bad ? -1 : 0;
+}
+
+/* period(period, u, t_final, sim) -> HybridSimulator.advance_period(period, u, t_final=t_final) under a
+ * held torque, in one call (the node's control period), when the loop holds the simulator's state and
+ * locator and the run goes on past its first sample. Returns [] (the events of a period run quiet to its
+ * end: the simulator's t, work, step size, control_periods, u, locator and wall time written, and its q
+ * and dq left to state_arrays(): sim._q = sim._dq = None), or (the run's result, t_next) for the Python
+ * code to finish (a touchdown or an ended scuff to make Events of, a step handed back, room to make, a failure), or None
+ * having changed nothing: the Python code runs the period (the loop is stale, the run has ended, u is not
+ * two finite numbers, ...). */
+static PyObject *
+Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "period() takes 4 arguments");
+        return NULL;
+    }
+    double wall0 = seconds_now(), u[2];
+    PyObject *sim = args[3];
+    if (L->state_stale || L->locator_stale || two_finite(args[1], u) < 0) Py_RETURN_NONE;
+    double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
+    if (PyErr_Occurred()) {
+        PyErr_Clear();
+        Py_RETURN_NONE;
+    }
+    PyObject *status = PyObject_GetAttr(sim, a_status), *pending = PyObject_GetAttr(sim, a_initial_sample_pending);
+    int running = status != NULL && pending == Py_False && PyUnicode_Check(status)
+                  && PyUnicode_Compare(status, a_running) == 0;
+    Py_XDECREF(status);
+    Py_XDECREF(pending);
+    long k;
+    if (!running || attr_long(sim, a_control_periods, &k) < 0) {
+        PyErr_Clear();
+        Py_RETURN_NONE;
+    }
+    double t_next = period_end(L->t, period, t_final, &k);
+    if (!isfinite(t_next)) Py_RETURN_NONE;     /* the Python code says why */
+    PyObject *h = PyObject_GetAttr(sim, a_h), *periods = PyLong_FromLong(k), *torque = Py_BuildValue("[dd]", u[0], u[1]);
+    int bad = h == NULL || periods == NULL || torque == NULL || carry_step_arg(L, h) < 0
+              || PyObject_SetAttr(sim, a_control_periods, periods) < 0 || PyObject_SetAttr(sim, a_u, torque) < 0;
+    Py_XDECREF(h);
+    Py_XDECREF(periods);
+    Py_XDECREF(torque);
+    RunState rs;
+    Py_buffer buf;
+    if (bad || run_state(L, sim, &rs, &buf) < 0) return NULL;
+    hold(L, u[0], u[1], t_next);
+    int outcome = quiet_until(L, t_next, &rs);
+    if (outcome != DONE || L->n_events || L->callback_failed) {
+        PyObject *r = run_result(L, outcome, &rs, &buf);
+        if (r == NULL || add_wall_time(sim, seconds_now() - wall0) < 0) {
+            Py_XDECREF(r);
+            return NULL;
+        }
+        return Py_BuildValue("(Nd)", r, t_next);
+    }
+    if (L->locator_changed) {    /* an armed foot, a scuff followed: the Python locator takes them now */
+        PyObject *locator = PyObject_GetAttr(sim, a_locator);
+        bad = locator == NULL || pull_locator(L, locator) < 0;
+        Py_XDECREF(locator);
+        if (bad) {
+            PyBuffer_Release(&buf);
+            Py_DECREF(rs.samples);
+            return NULL;
+        }
+    }
+    int moved = rs.accepted > 0;
+    if (moved) memcpy(L->state_now, rs.data + 17 * (rs.n - 1) + 1, sizeof L->state_now);   /* the last sample's q, dq */
+    if (end_run(&rs, &buf) < 0
+        || (moved && (set_float(sim, a_t, rs.t_accepted) < 0 || set_float(sim, a_work, rs.w_accepted) < 0
+                      || set_float(sim, a_h, rs.h_accepted) < 0 || PyObject_SetAttr(sim, a__q, Py_None) < 0
+                      || PyObject_SetAttr(sim, a__dq, Py_None) < 0))
+        || add_wall_time(sim, seconds_now() - wall0) < 0)
+        return NULL;
+    return PyList_New(0);
+}
+
+/* state_lists() -> (q, dq): the state the last quiet period() left, as two lists (what a message takes) */
+static PyObject *
+Loop_state_lists(Loop *L, PyObject *unused)
+{
+    (void)unused;
+    return Py_BuildValue("(NN)", list_of(L->state_now, 5), list_of(L->state_now + 5, 5));
+}
+
+/* state_arrays(template) -> (q, dq): the state the last quiet period() left, as two new float64 arrays
+ * (copies of template, a float64 array of 5) */
+static PyObject *
+Loop_state_arrays(Loop *L, PyObject *template)
+{
+    PyObject *q = array_of(template, L->state_now, 5), *dq = q == NULL ? NULL : array_of(template, L->state_now + 5, 5);
+    if (dq == NULL) {
+        Py_XDECREF(q);
+        return NULL;
+    }
+    return Py_BuildValue("(NN)", q, dq);
+}
+
 /* stats() -> (steps, max drift, max drift rate, max |residual|) since the last call; then zero */
 static PyObject *
 Loop_stats(Loop *L, PyObject *unused)
@@ -1268,14 +1460,36 @@ Loop_stats(Loop *L, PyObject *unused)
     return r;
 }
 
-/* locator() -> (armed 1, armed 2, scuff leg (0: none), [t_start, deepest, t_deepest], deepest of all scuffs,
- * scuffs so far) */
-static PyObject *
-Loop_locator(Loop *L, PyObject *unused)
+/* the armed feet and the scuff as the loop left them, written into the Python EventLocator ``locator``:
+ * armed [bool, bool], active_scuffs {leg: [t_start, deepest, t_deepest]} or {}, deepest_scuff, scuffs.
+ * 0, or -1 with an exception. */
+static int
+pull_locator(Loop *L, PyObject *locator)
 {
-    (void)unused;
-    return Py_BuildValue("(iii[ddd]dl)", L->armed[0], L->armed[1], L->scuff_leg, L->scuff[0], L->scuff[1], L->scuff[2],
-                         L->deepest_scuff, L->scuffs);
+    PyObject *armed = Py_BuildValue("[OO]", L->armed[0] ? Py_True : Py_False, L->armed[1] ? Py_True : Py_False);
+    PyObject *scuffs = PyDict_New(), *deepest = PyFloat_FromDouble(L->deepest_scuff), *count = PyLong_FromLong(L->scuffs);
+    int bad = armed == NULL || scuffs == NULL || deepest == NULL || count == NULL;
+    if (!bad && L->scuff_leg) {
+        PyObject *leg = PyLong_FromLong(L->scuff_leg), *scuff = list_of(L->scuff, 3);
+        bad = leg == NULL || scuff == NULL || PyDict_SetItem(scuffs, leg, scuff) < 0;
+        Py_XDECREF(leg);
+        Py_XDECREF(scuff);
+    }
+    bad = bad || PyObject_SetAttr(locator, a_armed, armed) < 0 || PyObject_SetAttr(locator, a_active_scuffs, scuffs) < 0
+          || PyObject_SetAttr(locator, a_deepest_scuff, deepest) < 0 || PyObject_SetAttr(locator, a_scuffs, count) < 0;
+    Py_XDECREF(armed);
+    Py_XDECREF(scuffs);
+    Py_XDECREF(deepest);
+    Py_XDECREF(count);
+    return bad ? -1 : 0;
+}
+
+/* pull_locator(locator): pull_locator above, from the Python code */
+static PyObject *
+Loop_pull_locator(Loop *L, PyObject *locator)
+{
+    if (pull_locator(L, locator) < 0) return NULL;
+    Py_RETURN_NONE;
 }
 
 /* locate_crossing(leg, ta, tb) -> the time foot leg's height crosses zero on the last step's dense output
@@ -1485,8 +1699,11 @@ static PyMethodDef Loop_methods[] = {
     {"begin", (PyCFunction)(void (*)(void))Loop_begin, METH_FASTCALL, NULL},
     {"held", (PyCFunction)(void (*)(void))Loop_held, METH_FASTCALL, NULL},
     {"periods", (PyCFunction)(void (*)(void))Loop_periods, METH_FASTCALL, NULL},
+    {"period", (PyCFunction)(void (*)(void))Loop_period, METH_FASTCALL, NULL},
+    {"state_arrays", (PyCFunction)Loop_state_arrays, METH_O, NULL},
+    {"state_lists", (PyCFunction)Loop_state_lists, METH_NOARGS, NULL},
     {"stats", (PyCFunction)Loop_stats, METH_NOARGS, NULL},
-    {"locator", (PyCFunction)Loop_locator, METH_NOARGS, NULL},
+    {"pull_locator", (PyCFunction)Loop_pull_locator, METH_O, NULL},
     {"counts", (PyCFunction)Loop_counts, METH_NOARGS, NULL},
     {"set_events", (PyCFunction)Loop_set_events, METH_VARARGS, NULL},
     {"set_history", (PyCFunction)Loop_set_history, METH_VARARGS, NULL},
@@ -1503,6 +1720,12 @@ static PyMethodDef Loop_methods[] = {
     {"set_counters", (PyCFunction)Loop_counters, METH_VARARGS, NULL},
     {"law_torque", (PyCFunction)Loop_law_torque, METH_VARARGS, NULL},
     {NULL, NULL, 0, NULL},
+};
+
+static PyMemberDef Loop_members[] = {
+    {"state_stale", T_BOOL, offsetof(Loop, state_stale), 0, "the simulator's state is not the loop's"},
+    {"locator_stale", T_BOOL, offsetof(Loop, locator_stale), 0, "the Python locator changed what the loop holds of it"},
+    {NULL, 0, 0, 0, NULL},
 };
 
 static void
@@ -1523,6 +1746,7 @@ static PyTypeObject LoopType = {
     .tp_flags = Py_TPFLAGS_DEFAULT,
     .tp_new = PyType_GenericNew,
     .tp_methods = Loop_methods,
+    .tp_members = Loop_members,
     .tp_doc = "The compiled hybrid loop's state (see biped_sim/engine/compiled_loop.py).",
 };
 
@@ -1537,9 +1761,13 @@ PyInit__core(void)
 {
     if (PyType_Ready(&LoopType) < 0) return NULL;
     PyObject **names[] = {&a_E0, &a_push_work, &a_energy_lost, &a_samples, &a_data, &a_n, &a_appended, &a_provisional,
-                          &a_every, &a_keep};
+                          &a_every, &a_keep, &a_status, &a_running, &a_initial_sample_pending, &a_control_periods,
+                          &a_h, &a_u, &a_stats, &a_wall_time, &a_t, &a_work, &a__q, &a__dq, &a_copy, &a_locator,
+                          &a_armed, &a_active_scuffs, &a_deepest_scuff, &a_scuffs};
     const char *strings[] = {"E0", "push_work", "energy_lost", "_samples", "_data", "n", "appended", "provisional",
-                             "every", "keep"};
+                             "every", "keep", "status", "running", "_initial_sample_pending", "control_periods",
+                             "_h", "_u", "_stats", "wall_time", "t", "work", "_q", "_dq", "copy", "locator", "armed",
+                             "active_scuffs", "deepest_scuff", "scuffs"};
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
         if ((*names[i] = PyUnicode_InternFromString(strings[i])) == NULL) return NULL;
     PyObject *m = PyModule_Create(&module);

@@ -111,7 +111,7 @@ class CompiledStepper(integrators._ListRungeKutta):
     """The stepper of a mode the compiled loop runs: its state lives in the C ``Loop``; the fields the
     Python code reads (``t``, ``y``, ``t_old``, ``y_old``, ``h``, ``h_abs``) are copied out only when a
     step is handed back (``_sync``). The locator's armed feet and scuff live in C while it runs, and
-    are exchanged when either side changed them (``locator_stale``, ``locator_changed``)."""
+    are exchanged when either side changed them (``loop.locator_stale``, ``locator_changed``)."""
 
     def __init__(self, sim):
         self.sim = sim
@@ -127,8 +127,8 @@ class CompiledStepper(integrators._ListRungeKutta):
         self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
         self.method, self.method_code = sim.method, METHOD_CODES[sim.method]
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
-        self.locator_stale = True      # the Python locator changed what the loop holds of it
-        self.state_stale = True        # the simulator's state is not the loop's (an event, a push, a handed step)
+        self.python_changed()           # the loop holds nothing of the simulator yet
+        self.template = np.zeros(5)     # (the arrays period() makes, q and dq, are copies of it)
 
     @property
     def nfev(self):
@@ -146,7 +146,7 @@ class CompiledStepper(integrators._ListRungeKutta):
                         sim._u[1], params, sim.t, sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound, sim._h,
                         reset_counters)
         self.t_bound = t_bound
-        self.state_stale = False
+        self.loop.state_stale = False
         if sim._h is None:
             self._sync()
             h0 = integrators.initial_step(self.loop.rhs, self.t, self.y, self.f, t_bound, self.rtol, self.atol,
@@ -170,14 +170,11 @@ class CompiledStepper(integrators._ListRungeKutta):
                               locator.deepest_scuff, locator.scuffs)
         self.loop.set_history(sim.impacts.times[-1] if sim.impacts.times else None, len(sim._mode_event_times),
                               sim._mode_event_times[-49:])
-        self.locator_stale = False
+        self.loop.locator_stale = False
 
     def _pull_locator(self):
         """The armed feet and the scuff as the loop left them, into the Python locator."""
-        locator = self.sim.locator
-        a1, a2, leg, scuff, locator.deepest_scuff, locator.scuffs = self.loop.locator()
-        locator.armed = [bool(a1), bool(a2)]
-        locator.active_scuffs = {leg: scuff} if leg else {}
+        self.loop.pull_locator(self.sim.locator)
 
     def merge_stats(self, stats):
         """Add the loop's statistics since the last merge into the simulator's."""
@@ -205,7 +202,7 @@ class CompiledStepper(integrators._ListRungeKutta):
         sim = self.sim
         if _python_only(sim.locator):
             return PYTHON_STEPS
-        if self.locator_stale:
+        if self.loop.locator_stale:
             self._push_locator()
         while True:      # GROW: _make_room makes it, _after_run takes the events
             _make_room(sim._samples)
@@ -217,14 +214,14 @@ class CompiledStepper(integrators._ListRungeKutta):
         """The control period's command of a compiled law at the simulator's state, computed in C (the
         law's own torques bit for bit), or None where the Python controller must be called."""
         law = reference_law(controller)
-        if law is None or self.state_stale or self.sim._stepper is not self:
+        if law is None or self.loop.state_stale or self.sim._stepper is not self:
             return None
         return self.loop.law_torque(TORQUE_KINDS[law[0]], law[1])
 
     def can_run_periods(self):
         """Whether ``periods`` can run now: the simulator's state is the loop's, and the locator holds
         nothing only the Python code follows."""
-        return not self.state_stale and not _python_only(self.sim.locator)
+        return not self.loop.state_stale and not _python_only(self.sim.locator)
 
     def periods(self, period, law, t_final, t_stop):
         """Control periods of a compiled law, each command computed and held in C, as ``advance_period``
@@ -232,7 +229,7 @@ class CompiledStepper(integrators._ListRungeKutta):
         all ran, else the outcome of the step handed back in the period ending at ``t_next``
         (``can_run_periods`` first)."""
         sim, (kind, params) = self.sim, law
-        if self.locator_stale:
+        if self.loop.locator_stale:
             self._push_locator()
         _make_room(sim._samples)
         result, sim.control_periods, t_next, u = self.loop.periods(
@@ -247,16 +244,20 @@ class CompiledStepper(integrators._ListRungeKutta):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""
         sim = self.sim
-        if self.state_stale or self.locator_stale or _python_only(sim.locator):
+        if self.loop.state_stale or self.loop.locator_stale or _python_only(sim.locator):
             return None
         # (no room made first: a full array comes back GROW before a step, and run() goes on)
-        outcome = self._after_run(*self.loop.held(sim._u[0], sim._u[1], sim._h, t_end, sim))
+        return self.finish_held(self.loop.held(sim._u[0], sim._u[1], sim._h, t_end, sim), t_end)
+
+    def finish_held(self, result, t_end):
+        """The outcome of a held period's run (``held``, ``period``) that came back with ``result``."""
+        outcome = self._after_run(*result)
         return self.run(t_end) if outcome == GROW else outcome
 
     def python_changed(self):
         """The Python code changed the simulator's state or its locator (an event, a push, a step it
         handles): the loop takes both again before it runs."""
-        self.state_stale = self.locator_stale = True
+        self.loop.state_stale = self.loop.locator_stale = True
 
     def _after_run(self, outcome, accepted, t, w, h_abs, changed, n_events, fail):
         """A run's result (its samples are written and Samples' counters set): the simulator's state, the

@@ -127,6 +127,45 @@ class HybridSimulator:
         return None if self._stepper is None else len(self._stepper.y)
 
     @property
+    def q(self):
+        """The coordinates now, ``[x, y, q1, q2, q3]`` (physical, leg 1 stays leg 1): a new array each time
+        the state changes."""
+        if self._q is None:
+            self._state_from_loop()
+        return self._q
+
+    @q.setter
+    def q(self, value):
+        self._q = value
+
+    @property
+    def dq(self):
+        """The rates now (as ``q``)."""
+        if self._dq is None:
+            self._state_from_loop()
+        return self._dq
+
+    @dq.setter
+    def dq(self, value):
+        self._dq = value
+
+    def state_lists(self):
+        """``(q.tolist(), dq.tolist())``, what a message takes, without making the arrays where a quiet
+        period left them unmade (the node publishes the state every period)."""
+        if self._q is None and self._dq is None:
+            return self._compiled.loop.state_lists()
+        return self.q.tolist(), self.dq.tolist()
+
+    def _state_from_loop(self):
+        # a quiet period run by the compiled loop (Loop.period) leaves q and dq (None) to be made when read:
+        # the node's engine period makes no arrays nobody reads
+        q, dq = self._compiled.loop.state_arrays(self._compiled.template)
+        if self._q is None:
+            self._q = q
+        if self._dq is None:
+            self._dq = dq
+
+    @property
     def u(self):
         """The torque held now, [u1, u2] (N m): the last ``advance`` or ``advance_period``'s."""
         return list(self._u)
@@ -162,11 +201,13 @@ class HybridSimulator:
             return []
         return self._advance(float(t_end), u, controller, _periods)
 
-    def _advance(self, t_end, u, controller, periods=None):
+    def _advance(self, t_end, u, controller, periods=None, held=None):
+        """``advance``'s run (``periods``: advance_periods' in C; ``held``: a Loop.period's result to finish)."""
         if u is not None:   # (plain float checks: the node calls this every control period)
-            self._u = two_finite_floats(u)
-            if self._u is None:
+            checked = two_finite_floats(u)
+            if checked is None:      # refused: the torque held stays
                 raise ValueError(f"u must be two finite torques, got {u!r}")
+            self._u = checked
         self._controller = controller
         n_events = len(self.events)
         wall0 = time.perf_counter()
@@ -175,7 +216,9 @@ class HybridSimulator:
                 self._initial_sample_pending = False
                 self._redo_initial_sample()
                 self._check_stance_start(self.t)
-            if periods is None:
+            if held is not None:
+                self._integrate(t_end, self._compiled.finish_held(held, t_end))
+            elif periods is None:
                 self._integrate(t_end)
             else:
                 self._integrate_periods(*periods)
@@ -193,6 +236,13 @@ class HybridSimulator:
         inside the period): ``u``, or ``controller(t, q, dq, stance_leg)`` evaluated once at the
         period's start. Period k ends at (k + 1) ``period``, or at ``t_final`` (> 0) where that comes
         first or within 1e-9 of a period. Returns the events of the period."""
+        st = self._compiled
+        if controller is None and st is not None:
+            # the node's period in one C call while the loop holds the state (Loop.period, _core.c: these
+            # lines' twin); None when it cannot, having changed nothing
+            done = st.loop.period(period, u, t_final, self)
+            if done is not None:
+                return done if type(done) is list else self._advance(done[1], None, None, held=done[0])
         if self.status != "running":
             return []
         k = self.control_periods
@@ -257,6 +307,8 @@ class HybridSimulator:
         if self._stepper is not None:
             self._nfev_base += self._stepper.nfev
             self._rejected_base += self._stepper.nrejected
+        if self._compiled is not None:
+            self._compiled.python_changed()     # (another stepper, or the loop's begun again)
         if law is not None:     # the mode stepped by the compiled loop (compiled_loop.py)
             if self._compiled is None:
                 self._compiled = compiled_loop.CompiledStepper(self)

@@ -64,7 +64,7 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
         # the state messages of the period as the node publishes them: serialised once, recorded in one call
         t_ns = M.to_ns(sim.t)
         if build_messages or recorder is not None:
-            state = serializer.period(t_ns, M.foot_frame(sim.stance_leg), sim.q.tolist(), sim.dq.tolist(), u,
+            state = serializer.period(t_ns, M.foot_frame(sim.stance_leg), *sim.state_lists(), u,
                                       sim.ground_force if sim.stance_leg else None, js, grf, clock)
             if recorder is not None and state:
                 recorder.write_messages(t_ns, state)

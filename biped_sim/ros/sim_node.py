@@ -315,7 +315,7 @@ class SimNode(Node):
         recorder as they are."""
         sim = self.sim
         t_ns = to_ns(sim.t)
-        state = self._state_cdr.period(t_ns, foot_frame(sim.stance_leg), sim.q.tolist(), sim.dq.tolist(), self.u,
+        state = self._state_cdr.period(t_ns, foot_frame(sim.stance_leg), *sim.state_lists(), self.u,
                                        sim.ground_force if sim.stance_leg else None, *self._state_outputs)
         for topic, data in state:
             self._state_pubs[topic].publish(data)

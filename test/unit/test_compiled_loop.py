@@ -200,6 +200,73 @@ def test_held_torques_run_the_same_on_both_loops(u1, u2, speed):
     assert_same_run(a, b, f"{u1} {u2} {speed}")
 
 
+def _node_periods(period, method, t_final, keep, gain, push_at, bad_at, mu):
+    """The node's loop (sim_node.step): a command computed outside the engine, held for a period by
+    advance_period(u=...); a push between two periods, torques the engine refuses, and the state read
+    after every period."""
+    ctrl = PDWalkingController(MODEL)
+    q0, dq0 = ctrl.initial_state()
+    sim = bs.HybridSimulator(MODEL, q0, dq0, method=method, keep_samples=keep, mu=mu, stop_on_slip=False)
+    seen = []
+    while sim.status == "running" and sim.t < t_final:
+        k = sim.control_periods
+        if k == bad_at:
+            for bad in ([math.nan, 0.0], [1.0], [math.inf, -math.inf], "ab", [1e308, 1e308]):
+                with pytest.raises(ValueError, match="two finite torques"):
+                    sim.advance_period(period, u=bad, t_final=t_final)
+        if k == push_at:
+            sim.push([1.5, 0.0])
+            if sim.status != "running":
+                break
+        u = [gain * v for v in sim.command(ctrl)]
+        if k % 5 == 1:
+            u = ["%r" % u[0], int(u[1])]      # what float() takes: the Python code's path
+        events = sim.advance_period(period, u=u, t_final=t_final)
+        seen.append((sim.t, sim.q.tolist(), sim.dq.tolist(), sim.control_periods, sim.u, sim.stance_leg,
+                     [(e.kind, e.time) for e in events]))
+    return sim.result(), seen
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.sampled_from([1e-3, 2.5e-3, 4e-3]), st.sampled_from(["dopri5", "dop853"]), st.floats(0.6, 1.3),
+       st.sampled_from([True, 7, False, "events"]), st.floats(0.6, 1.2), st.integers(0, 300), st.integers(0, 300),
+       st.sampled_from([None, 0.6, 0.08]))
+def test_the_nodes_held_periods_run_the_same_on_both_loops(period, method, t_final, keep, gain, push_at, bad_at, mu):
+    """advance_period(u=...) runs a quiet period in one C call (Loop.period) and hands anything else to the
+    Python code: the same run, period by period, as the Python loop's (with a friction coefficient that
+    slips, the foot kept pinned: the slip guard latched, which only the Python code follows)."""
+    (a, seen_a), (b, seen_b) = both_loops(lambda: _node_periods(period, method, t_final, keep, gain, push_at,
+                                                                 bad_at, mu))
+    what = f"{period} {method} {t_final} {keep} {gain} {push_at} {bad_at} {mu}"
+    assert_same_run(a, b, what)
+    assert len(seen_a) == len(seen_b), what
+    for ra, rb in zip(seen_a, seen_b):
+        assert ra[3:] == rb[3:], what
+        assert abs(ra[0] - rb[0]) <= 1e-12, what
+        np.testing.assert_allclose(ra[1] + ra[2], rb[1] + rb[2], rtol=0, atol=1e-10, err_msg=what)
+
+
+def test_a_quiet_held_period_is_one_c_call_and_its_state_a_new_array():
+    """Not a vacuous comparison: the node's periods ran in Loop.period (which leaves q and dq to be made
+    when read), the state read is new each period, never an array changed in place, and state_lists()
+    gives its values."""
+    ctrl = PDWalkingController(MODEL)
+    q0, dq0 = ctrl.initial_state()
+    sim = bs.HybridSimulator(MODEL, q0, dq0, method="dopri5")
+    quiet, before, kept = 0, None, None
+    for _ in range(300):
+        events = sim.advance_period(1e-3, u=sim.command(ctrl))
+        quiet += not events and sim._q is None
+        lists = sim.state_lists()
+        q = sim.q
+        assert lists == (q.tolist(), sim.dq.tolist())
+        assert q is not before and np.array_equal(q, sim.result().q[-1])
+        if before is not None:     # the last period's array is as it was read: nothing wrote into it
+            assert not np.array_equal(before, q) and np.array_equal(before, kept)
+        before, kept = q, q.copy()
+    assert sim.status == "running" and quiet >= 250
+
+
 @pytest.mark.parametrize("cls", [WalkingController, PDWalkingController])
 def test_the_compiled_laws_give_the_python_torques_bit_for_bit(cls):
     rng = np.random.default_rng(3)
