@@ -285,8 +285,8 @@ def bench_compiled_loop(model, repeats=5):
             compiled_loop.enabled = enabled
             times[enabled][0].append(held())
             times[enabled][1].append(walk()[0])
+        compiled_loop.enabled = True
         read.append(held_and_read())
-    compiled_loop.enabled = True
     unit = python_rhs_us()
     (c_held, c_walk), (p_held, p_walk) = ([statistics.median(v) for v in times[e]] for e in (True, False))
     print(f"  one right-hand-side call in pure Python (the unit below): {unit:.2f} us; "

@@ -95,7 +95,7 @@ typedef struct {
     int locator_changed;     /* armed or the scuff changed in the last run (the Python locator must read them) */
     /* the run's statistics since the last stats() (HybridSimulator.stats) */
     long steps;
-    double max_drift, max_rate, max_residual;
+    double max_drift, max_rate, max_residual, wall_time;
     int cache_ok;
     double cache_t, cache_feet[8], cache_F[2];
     /* the step handed back: its start's feet and force, and its end's torque and force */
@@ -1280,8 +1280,7 @@ Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 }
 
 /* the attributes of the simulator a quiet period reads and writes, interned at import */
-static PyObject *a_status, *a_running, *a_initial_sample_pending, *a_control_periods, *a_h, *a_u, *a_stats,
-    *a_wall_time, *a_t, *a_work, *a__q, *a__dq, *a_copy, *a_locator, *a_armed, *a_active_scuffs, *a_deepest_scuff,
+static PyObject *a_status, *a_running, *a_initial_sample_pending, *a_control_periods, *a_h, *a_u, *a_t, *a_work, *a__q, *a__dq, *a_copy, *a_locator, *a_armed, *a_active_scuffs, *a_deepest_scuff,
     *a_scuffs;
 static int pull_locator(Loop *L, PyObject *locator);
 
@@ -1332,19 +1331,6 @@ seconds_now(void)
 }
 
 static int
-add_wall_time(PyObject *sim, double seconds)
-{
-    PyObject *stats = PyObject_GetAttr(sim, a_stats);
-    if (stats == NULL) return -1;
-    PyObject *was = PyDict_GetItemWithError(stats, a_wall_time), *now = NULL;
-    int bad = was == NULL || (now = PyFloat_FromDouble(PyFloat_AsDouble(was) + seconds)) == NULL
-              || PyDict_SetItem(stats, a_wall_time, now) < 0;
-    Py_XDECREF(now);
-    Py_DECREF(stats);
-    return bad ? -1 : 0;
-}
-
-static int
 set_float(PyObject *o, PyObject *name, double v)
 {
     PyObject *f = PyFloat_FromDouble(v);
@@ -1356,7 +1342,8 @@ set_float(PyObject *o, PyObject *name, double v)
 /* period(period, u, t_final, sim) -> HybridSimulator.advance_period(period, u, t_final=t_final) under a
  * held torque, in one call (the node's control period), when the loop holds the simulator's state and
  * locator and the run goes on past its first sample. Returns [] (the events of a period run quiet to its
- * end: the simulator's t, work, step size, control_periods, u, locator and wall time written, and its q
+ * end: the simulator's t, work, step size, control_periods, u and locator written, its wall time kept for
+ * stats(), and its q
  * and dq left to state_arrays(): sim._q = sim._dq = None), or (the run's result, t_next) for the Python
  * code to finish (a touchdown or an ended scuff to make Events of, a step handed back, room to make, a failure), or None
  * having changed nothing: the Python code runs the period (the loop is stale, the run has ended, u is not
@@ -1401,11 +1388,8 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     int outcome = quiet_until(L, t_next, &rs);
     if (outcome != DONE || L->n_events || L->callback_failed) {
         PyObject *r = run_result(L, outcome, &rs, &buf);
-        if (r == NULL || add_wall_time(sim, seconds_now() - wall0) < 0) {
-            Py_XDECREF(r);
-            return NULL;
-        }
-        return Py_BuildValue("(Nd)", r, t_next);
+        L->wall_time += seconds_now() - wall0;
+        return r == NULL ? NULL : Py_BuildValue("(Nd)", r, t_next);
     }
     if (L->locator_changed) {    /* an armed foot, a scuff followed: the Python locator takes them now */
         PyObject *locator = PyObject_GetAttr(sim, a_locator);
@@ -1422,9 +1406,9 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     if (end_run(&rs, &buf) < 0
         || (moved && (set_float(sim, a_t, rs.t_accepted) < 0 || set_float(sim, a_work, rs.w_accepted) < 0
                       || set_float(sim, a_h, rs.h_accepted) < 0 || PyObject_SetAttr(sim, a__q, Py_None) < 0
-                      || PyObject_SetAttr(sim, a__dq, Py_None) < 0))
-        || add_wall_time(sim, seconds_now() - wall0) < 0)
+                      || PyObject_SetAttr(sim, a__dq, Py_None) < 0)))
         return NULL;
+    L->wall_time += seconds_now() - wall0;
     return PyList_New(0);
 }
 
@@ -1449,14 +1433,15 @@ Loop_state_arrays(Loop *L, PyObject *template)
     return Py_BuildValue("(NN)", q, dq);
 }
 
-/* stats() -> (steps, max drift, max drift rate, max |residual|) since the last call; then zero */
+/* stats() -> (steps, max drift, max drift rate, max |residual|, wall time of period() calls) since the last
+ * call; then zero */
 static PyObject *
 Loop_stats(Loop *L, PyObject *unused)
 {
     (void)unused;
-    PyObject *r = Py_BuildValue("(lddd)", L->steps, L->max_drift, L->max_rate, L->max_residual);
+    PyObject *r = Py_BuildValue("(ldddd)", L->steps, L->max_drift, L->max_rate, L->max_residual, L->wall_time);
     L->steps = 0;
-    L->max_drift = L->max_rate = L->max_residual = 0.0;
+    L->max_drift = L->max_rate = L->max_residual = L->wall_time = 0.0;
     return r;
 }
 
@@ -1762,11 +1747,11 @@ PyInit__core(void)
     if (PyType_Ready(&LoopType) < 0) return NULL;
     PyObject **names[] = {&a_E0, &a_push_work, &a_energy_lost, &a_samples, &a_data, &a_n, &a_appended, &a_provisional,
                           &a_every, &a_keep, &a_status, &a_running, &a_initial_sample_pending, &a_control_periods,
-                          &a_h, &a_u, &a_stats, &a_wall_time, &a_t, &a_work, &a__q, &a__dq, &a_copy, &a_locator,
+                          &a_h, &a_u, &a_t, &a_work, &a__q, &a__dq, &a_copy, &a_locator,
                           &a_armed, &a_active_scuffs, &a_deepest_scuff, &a_scuffs};
     const char *strings[] = {"E0", "push_work", "energy_lost", "_samples", "_data", "n", "appended", "provisional",
                              "every", "keep", "status", "running", "_initial_sample_pending", "control_periods",
-                             "_h", "_u", "_stats", "wall_time", "t", "work", "_q", "_dq", "copy", "locator", "armed",
+                             "_h", "_u", "t", "work", "_q", "_dq", "copy", "locator", "armed",
                              "active_scuffs", "deepest_scuff", "scuffs"};
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
         if ((*names[i] = PyUnicode_InternFromString(strings[i])) == NULL) return NULL;

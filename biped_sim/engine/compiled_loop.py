@@ -178,9 +178,10 @@ class CompiledStepper(integrators._ListRungeKutta):
 
     def merge_stats(self, stats):
         """Add the loop's statistics since the last merge into the simulator's."""
-        steps, drift, rate, residual = self.loop.stats()
+        steps, drift, rate, residual, wall_time = self.loop.stats()
         stats["steps"] += steps
         stats["compiled_loop_steps"] += steps
+        stats["wall_time"] += wall_time     # (of the periods run whole in C: Loop.period)
         for key, v in (("max_constraint_drift_position", drift), ("max_constraint_drift_velocity", rate),
                        ("max_energy_balance_residual", residual)):
             if v > stats[key]:

@@ -54,6 +54,14 @@ from biped_sim.engine.results import (
 )
 
 
+def held_torque(u):
+    """u as two finite floats [u1, u2], or ValueError (plain float checks: the node's every period)."""
+    checked = two_finite_floats(u)
+    if checked is None:
+        raise ValueError(f"u must be two finite torques, got {u!r}")
+    return checked
+
+
 class HybridSimulator:
     """Integrates the hybrid dynamics forward from a state, one ``advance(t_end, u)`` at a time.
 
@@ -203,11 +211,8 @@ class HybridSimulator:
 
     def _advance(self, t_end, u, controller, periods=None, held=None):
         """``advance``'s run (``periods``: advance_periods' in C; ``held``: a Loop.period's result to finish)."""
-        if u is not None:   # (plain float checks: the node calls this every control period)
-            checked = two_finite_floats(u)
-            if checked is None:      # refused: the torque held stays
-                raise ValueError(f"u must be two finite torques, got {u!r}")
-            self._u = checked
+        if u is not None:   # (refused: the torque held stays)
+            self._u = held_torque(u)
         self._controller = controller
         n_events = len(self.events)
         wall0 = time.perf_counter()
@@ -245,6 +250,8 @@ class HybridSimulator:
                 return done if type(done) is list else self._advance(done[1], None, None, held=done[0])
         if self.status != "running":
             return []
+        if controller is None and u is not None:
+            u = held_torque(u)      # (refused: no period begun)
         k = self.control_periods
         while (k + 1) * period <= self.t:   # a run that starts between two periods (t0 > 0)
             k += 1

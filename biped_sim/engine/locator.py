@@ -61,6 +61,11 @@ class EventLocator:
             if leg:
                 self.armed[leg - 1] = False
 
+    def restart(self, t, feet, F):
+        """The state changed at ``t`` without a step (a push): the next step starts from it, whose feet
+        and stance force (under the torque held until then) are these, not the last step end's."""
+        self._feet_end, self._force_end = (t, feet), (t, F)
+
     def _value(self, guard, t, q, dq, force_at, feet=None, F=None):
         if guard.kind == "touchdown":
             if feet is None:   # the height only (root finding evaluates this many times)

@@ -45,7 +45,10 @@ def apply_push(sim, impulse) -> list:
         sim._push_event(lift)
     dq_list = sim.dq.tolist()
     u = sim._torque_at(t, q.tolist(), dq_list)
-    sim._record(sim.q, sim.dq, sim.stance_leg, sim._force_at(t, q.tolist(), dq_list, u), u)
+    F = sim._force_at(t, q.tolist(), dq_list, u)
+    sim._record(sim.q, sim.dq, sim.stance_leg, F, u)
+    # the next step starts from the pushed state, not from the last step's end (the same time)
+    sim.locator.restart(t, sim.feet(q.tolist(), dq_list), F)
     if ev.warnings and sim.opt.stop_on_slip:
         sim._stop("stopped", f"the push at t={t:.9g} s: {ev.warnings[0]}; the model has no sliding phase "
                              "(raise mu, or set stop_on_slip=False to keep the foot pinned)")

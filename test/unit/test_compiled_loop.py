@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 
 import biped_sim as bs
 from biped_sim.control.walking import PDWalkingController, WalkingController
@@ -231,6 +231,7 @@ def _node_periods(period, method, t_final, keep, gain, push_at, bad_at, mu):
 @given(st.sampled_from([1e-3, 2.5e-3, 4e-3]), st.sampled_from(["dopri5", "dop853"]), st.floats(0.6, 1.3),
        st.sampled_from([True, 7, False, "events"]), st.floats(0.6, 1.2), st.integers(0, 300), st.integers(0, 300),
        st.sampled_from([None, 0.6, 0.08]))
+@example(1e-3, "dopri5", 1.0, True, 1.0, 51, 0, 0.08)   # a push at a period's end: the next step starts from it
 def test_the_nodes_held_periods_run_the_same_on_both_loops(period, method, t_final, keep, gain, push_at, bad_at, mu):
     """advance_period(u=...) runs a quiet period in one C call (Loop.period) and hands anything else to the
     Python code: the same run, period by period, as the Python loop's (with a friction coefficient that

@@ -129,6 +129,27 @@ def test_zero_order_hold_equals_stepping_the_simulator(model, walker):
             assert np.ptp(r.u[inside], axis=0).max() == 0.0
 
 
+@pytest.mark.parametrize("bad", [[math.nan, 0.0], [1.0], [math.inf, -math.inf], "ab", [1e308, 1e308], None])
+def test_a_refused_torque_loses_nothing(model, walker, bad):
+    """A torque the engine refuses (ValueError) begins no period and keeps the torque held: the run goes
+    on as if the call had not been made (a push after it, too)."""
+    q0, dq0 = walker.initial_state()
+    runs = []
+    for refuse in (False, True):
+        sim = HybridSimulator(model, q0, dq0, method="dopri5")
+        for k in range(60):
+            if refuse and k in (0, 20, 40):
+                with pytest.raises(ValueError, match="two finite torques"):
+                    sim.advance_period(1e-3, u=bad if bad is not None else [1.0, None])
+            if k == 30:
+                sim.push([1.0, 0.0])
+            sim.advance_period(1e-3, u=walker(sim.t, sim.q, sim.dq, sim.stance_leg) if k % 10 else None)
+        runs.append(sim)
+    a, b = runs
+    assert b.control_periods == a.control_periods == 60 and b.u == a.u
+    np.testing.assert_array_equal(b.result().q, a.result().q)
+
+
 def test_guard_that_is_zero_right_after_a_reset_does_not_fire_again(model, walk10):
     times = np.array([e.time for e in walk10.impacts])
     assert np.min(np.diff(times)) > 0.2      # no re-fire of the new swing foot's guard
