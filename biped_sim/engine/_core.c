@@ -1230,6 +1230,10 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         PyErr_SetString(PyExc_ValueError, "periods(): a compiled law (1 or 2)");
         return NULL;
     }
+    if (!(period > 0.0 && period < INFINITY)) {
+        PyErr_SetString(PyExc_ValueError, "periods(): period must be a positive finite number");
+        return NULL;
+    }
     double ctrl[8];
     if (doubles(args[1], ctrl, 8, 8, "ctrl", NULL)) return NULL;
     RunState rs;
@@ -1359,7 +1363,7 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     PyObject *sim = args[3];
     if (L->state_stale || L->locator_stale || two_finite(args[1], u) < 0) Py_RETURN_NONE;
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
-    if (PyErr_Occurred()) {
+    if (PyErr_Occurred() || PyBool_Check(args[0]) || !(period > 0.0 && period < INFINITY)) {   /* Python says why */
         PyErr_Clear();
         Py_RETURN_NONE;
     }

@@ -41,7 +41,7 @@ from biped_sim.engine.modes import (
     project_onto_pin,
     two_finite_floats,
 )
-from biped_sim.engine.options import Options, check_run_arguments
+from biped_sim.engine.options import Options, check_number, check_run_arguments
 from biped_sim.engine.pushes import apply_push
 from biped_sim.engine.resets import double_touchdown_reset, liftoff_reset, slip_event, touchdown_reset
 from biped_sim.engine.results import (
@@ -250,8 +250,9 @@ class HybridSimulator:
                 return done if type(done) is list else self._advance(done[1], None, None, held=done[0])
         if self.status != "running":
             return []
+        check_number("period", period, 0.0, math.inf, "s", open_low=True)   # (refused: no period begun)
         if controller is None and u is not None:
-            u = held_torque(u)      # (refused: no period begun)
+            u = held_torque(u)
         k = self.control_periods
         while (k + 1) * period <= self.t:   # a run that starts between two periods (t0 > 0)
             k += 1
@@ -274,6 +275,7 @@ class HybridSimulator:
         """``advance_period(period, controller=controller, t_final=t_final)`` repeated until ``t_final``, or
         until a period starts at or after ``t_stop`` (within 1e-9 period: a push due then). The same run;
         on the compiled loop a reference law's periods run in C, their commands computed there."""
+        check_number("period", period, 0.0, math.inf, "s", open_low=True)
         tol = 1e-9 * period
         while self.status == "running" and self.t < t_final and t_stop > self.t + tol:
             st = self._compiled

@@ -150,6 +150,20 @@ def test_a_refused_torque_loses_nothing(model, walker, bad):
     np.testing.assert_array_equal(b.result().q, a.result().q)
 
 
+@pytest.mark.parametrize("period", [0.0, -1e-3, math.nan, math.inf, "1e-3", True])
+def test_a_bad_control_period_is_refused_and_begins_nothing(model, walker, period):
+    """(a zero or negative period used to loop forever looking for the period's end)"""
+    q0, dq0 = walker.initial_state()
+    sim = HybridSimulator(model, q0, dq0, method="dopri5")
+    for _ in range(5):      # past the first period: the compiled loop holds the state
+        sim.advance_period(1e-3, u=[0.0, 0.0])
+    t, k = sim.t, sim.control_periods
+    for call in (lambda: sim.advance_period(period, u=[1.0, 0.0]), lambda: sim.advance_periods(period, walker, 1.0)):
+        with pytest.raises(ValueError, match="period must be a number in"):
+            call()
+        assert (sim.t, sim.control_periods, sim.status) == (t, k, "running")
+
+
 def test_guard_that_is_zero_right_after_a_reset_does_not_fire_again(model, walk10):
     times = np.array([e.time for e in walk10.impacts])
     assert np.min(np.diff(times)) > 0.2      # no re-fire of the new swing foot's guard
