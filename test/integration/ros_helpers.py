@@ -251,3 +251,31 @@ def complete_messages(paths) -> int:
         except Exception:  # noqa: BLE001 - the part still being written
             pass
     return n
+
+
+class Control:
+    """Service clients of the node's ~/pause, ~/step, ~/reset."""
+
+    def __init__(self, client, proc):
+        from std_srvs.srv import SetBool, Trigger
+        self.SetBool, self.Trigger = SetBool, Trigger
+        self.c, self.proc = client, proc
+        self.pause_cli = client.node.create_client(SetBool, "/biped_sim/pause")
+        self.step_cli = client.node.create_client(Trigger, "/biped_sim/step")
+        self.reset_cli = client.node.create_client(Trigger, "/biped_sim/reset")
+        for cli in (self.pause_cli, self.step_cli, self.reset_cli):
+            client.spin_until(cli.service_is_ready, what=f"the service {cli.srv_name}", proc=proc)
+
+    def call(self, cli, request):
+        future = cli.call_async(request)
+        self.c.spin_until(future.done, timeout=30, what=f"the answer of {cli.srv_name}", proc=self.proc)
+        return future.result()
+
+    def pause(self, on):
+        return self.call(self.pause_cli, self.SetBool.Request(data=on))
+
+    def step(self):
+        return self.call(self.step_cli, self.Trigger.Request())
+
+    def reset(self):
+        return self.call(self.reset_cli, self.Trigger.Request())

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from ros_helpers import BIN, Client, NodeProcess, complete_messages, ros_domain, ros_env, start_node  # noqa: E402
+from ros_helpers import BIN, Client, Control, NodeProcess, complete_messages, ros_domain, ros_env, start_node  # noqa: E402
 
 pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
@@ -177,7 +177,11 @@ def test_a_second_controller_is_named_at_once_and_cannot_change_the_run():
         c.spin_until(lambda: c.node.count_publishers("/hip_torque") == 2, 60, "two hip_torque publishers")
         js = c.collect("/joint_states", JointState)
         diag = c.collect("/diagnostics", DiagnosticArray)
-        with start_node({"duration": duration, "record": False}, dom, extra_args=ctl) as sim:
+        # started paused until the node itself has seen both (its discovery takes 1-3 s here): a run
+        # shorter than that would go by with one controller
+        with start_node({"duration": duration, "record": False, "start_paused": True}, dom, extra_args=ctl) as sim:
+            wait_for(lambda: "2 nodes publish /hip_torque" in sim.output(), 60, "the node naming both", [sim])
+            assert Control(c, sim).pause(False).success
             assert sim.wait(90) == 0, sim.output()
             status = run_status(c, diag, sim)
             c.spin_until(lambda: js and t_of(js[-1]) >= duration, 10, "the last state")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from ros_helpers import Client, bag_messages, ros_domain, start_node
+from ros_helpers import Client, Control, bag_messages, ros_domain, start_node
 
 rclpy = pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
@@ -18,7 +18,6 @@ from geometry_msgs.msg import Vector3Stamped  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
-from std_srvs.srv import SetBool, Trigger  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from biped_sim.engine.dynamics import push_response  # noqa: E402
@@ -39,32 +38,6 @@ def ns(stamp):
 def events(arrays, name):
     return [(ns(a.header.stamp), {kv.key: kv.value for kv in s.values}, s.message)
             for a in arrays for s in a.status if s.name == name]
-
-
-class Control:
-    """Service clients of the node's ~/pause, ~/step, ~/reset."""
-
-    def __init__(self, client, proc):
-        self.c, self.proc = client, proc
-        self.pause_cli = client.node.create_client(SetBool, "/biped_sim/pause")
-        self.step_cli = client.node.create_client(Trigger, "/biped_sim/step")
-        self.reset_cli = client.node.create_client(Trigger, "/biped_sim/reset")
-        for cli in (self.pause_cli, self.step_cli, self.reset_cli):
-            client.spin_until(cli.service_is_ready, what=f"the service {cli.srv_name}", proc=proc)
-
-    def call(self, cli, request):
-        future = cli.call_async(request)
-        self.c.spin_until(future.done, timeout=30, what=f"the answer of {cli.srv_name}", proc=self.proc)
-        return future.result()
-
-    def pause(self, on):
-        return self.call(self.pause_cli, SetBool.Request(data=on))
-
-    def step(self):
-        return self.call(self.step_cli, Trigger.Request())
-
-    def reset(self):
-        return self.call(self.reset_cli, Trigger.Request())
 
 
 def stepped_to(answer):
