@@ -1284,8 +1284,8 @@ Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 }
 
 /* the attributes of the simulator a quiet period reads and writes, interned at import */
-static PyObject *a_status, *a_running, *a_initial_sample_pending, *a_control_periods, *a_h, *a_u, *a_t, *a_work, *a__q, *a__dq, *a_copy, *a_locator, *a_armed, *a_active_scuffs, *a_deepest_scuff,
-    *a_scuffs;
+static PyObject *a_status, *a_running, *a_initial_sample_pending, *a_control_periods, *a_h, *a_u, *a_t, *a_work,
+    *a__q, *a__dq, *a_copy, *a_locator, *a_armed, *a_active_scuffs, *a_deepest_scuff, *a_scuffs;
 static int pull_locator(Loop *L, PyObject *locator);
 
 /* u as two floats, as modes.two_finite_floats takes them: 0, or -1 (no exception) for anything the
@@ -1347,11 +1347,10 @@ set_float(PyObject *o, PyObject *name, double v)
  * held torque, in one call (the node's control period), when the loop holds the simulator's state and
  * locator and the run goes on past its first sample. Returns [] (the events of a period run quiet to its
  * end: the simulator's t, work, step size, control_periods, u and locator written, its wall time kept for
- * stats(), and its q
- * and dq left to state_arrays(): sim._q = sim._dq = None), or (the run's result, t_next) for the Python
- * code to finish (a touchdown or an ended scuff to make Events of, a step handed back, room to make, a failure), or None
- * having changed nothing: the Python code runs the period (the loop is stale, the run has ended, u is not
- * two finite numbers, ...). */
+ * stats(), its q and dq left to state_arrays(): sim._q = sim._dq = None), or (the run's result, t_next)
+ * for the Python code to finish (a touchdown or an ended scuff to make Events of, a step handed back, room
+ * to make, a failure), or None having changed nothing: the Python code runs the period (the loop is
+ * stale, the run has ended, u is not two finite numbers, a bad period, ...). */
 static PyObject *
 Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -1379,7 +1378,8 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     }
     double t_next = period_end(L->t, period, t_final, &k);
     if (!isfinite(t_next)) Py_RETURN_NONE;     /* the Python code says why */
-    PyObject *h = PyObject_GetAttr(sim, a_h), *periods = PyLong_FromLong(k), *torque = Py_BuildValue("[dd]", u[0], u[1]);
+    PyObject *h = PyObject_GetAttr(sim, a_h), *periods = PyLong_FromLong(k);
+    PyObject *torque = Py_BuildValue("[dd]", u[0], u[1]);
     int bad = h == NULL || periods == NULL || torque == NULL || carry_step_arg(L, h) < 0
               || PyObject_SetAttr(sim, a_control_periods, periods) < 0 || PyObject_SetAttr(sim, a_u, torque) < 0;
     Py_XDECREF(h);
@@ -1395,22 +1395,18 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         L->wall_time += seconds_now() - wall0;
         return r == NULL ? NULL : Py_BuildValue("(Nd)", r, t_next);
     }
+    int moved = rs.accepted > 0;
+    if (moved) memcpy(L->state_now, rs.data + 17 * (rs.n - 1) + 1, sizeof L->state_now);   /* the last sample's q, dq */
+    if (end_run(&rs, &buf) < 0) return NULL;
     if (L->locator_changed) {    /* an armed foot, a scuff followed: the Python locator takes them now */
         PyObject *locator = PyObject_GetAttr(sim, a_locator);
         bad = locator == NULL || pull_locator(L, locator) < 0;
         Py_XDECREF(locator);
-        if (bad) {
-            PyBuffer_Release(&buf);
-            Py_DECREF(rs.samples);
-            return NULL;
-        }
+        if (bad) return NULL;
     }
-    int moved = rs.accepted > 0;
-    if (moved) memcpy(L->state_now, rs.data + 17 * (rs.n - 1) + 1, sizeof L->state_now);   /* the last sample's q, dq */
-    if (end_run(&rs, &buf) < 0
-        || (moved && (set_float(sim, a_t, rs.t_accepted) < 0 || set_float(sim, a_work, rs.w_accepted) < 0
-                      || set_float(sim, a_h, rs.h_accepted) < 0 || PyObject_SetAttr(sim, a__q, Py_None) < 0
-                      || PyObject_SetAttr(sim, a__dq, Py_None) < 0)))
+    if (moved && (set_float(sim, a_t, rs.t_accepted) < 0 || set_float(sim, a_work, rs.w_accepted) < 0
+                  || set_float(sim, a_h, rs.h_accepted) < 0 || PyObject_SetAttr(sim, a__q, Py_None) < 0
+                  || PyObject_SetAttr(sim, a__dq, Py_None) < 0))
         return NULL;
     L->wall_time += seconds_now() - wall0;
     return PyList_New(0);

@@ -269,7 +269,9 @@ class HybridSimulator:
                 return self.events[-1:]
         if not math.isfinite(t_next):
             raise ValueError(f"period must be a finite number of seconds, got {period!r}")
-        return self._advance(float(t_next), u, None)
+        if u is not None:       # checked above, or by the controller's call
+            self._u = u
+        return self._advance(float(t_next), None, None)
 
     def advance_periods(self, period, controller, t_final, t_stop=math.inf):
         """``advance_period(period, controller=controller, t_final=t_final)`` repeated until ``t_final``, or
