@@ -10,9 +10,10 @@ venv: $(STAMP)
 
 # uv installs the stack in ~8 s here (pip: ~45 s); pip stays as the fallback.
 # --reinstall-package: uv would keep an installed editable biped_sim and not rebuild the compiled
-# twin (biped_sim/engine/_gen/_cmodel.c) or the compiled loop (biped_sim/engine/_core.c) after a change.
+# twin (biped_sim/engine/_gen/_cmodel.c), the compiled loop (biped_sim/engine/_core.c) or the recorder's
+# frame buffer (biped_sim/recording/_frames.c) after a change.
 $(STAMP): requirements.txt setup.py setup.cfg biped_sim/engine/_gen/_cmodel.c biped_sim/engine/_core.c \
-          biped_sim/engine/_gen/_kernels.h
+          biped_sim/engine/_gen/_kernels.h biped_sim/recording/_frames.c
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	@if $(PY) -m pip install -q uv==0.13.8 >/dev/null 2>&1; then \
 	    $(VENV)/bin/uv pip install -q --python $(PY) -r requirements.txt --reinstall-package biped_sim -e . ; \

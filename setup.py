@@ -22,7 +22,10 @@ setup(
                            extra_compile_args=["-O2", "-ffp-contract=off"], optional=True),
                  Extension("biped_sim.engine._core", ["biped_sim/engine/_core.c"],
                            depends=["biped_sim/engine/_gen/_kernels.h"],
-                           extra_compile_args=["-O2", "-ffp-contract=off"], optional=True)],
+                           extra_compile_args=["-O2", "-ffp-contract=off"], optional=True),
+                 # the recorder's frame buffer (biped_sim/recording/frames.py: its Python twin is the fallback)
+                 Extension("biped_sim.recording._frames", ["biped_sim/recording/_frames.c"],
+                           extra_compile_args=["-O2"], optional=True)],
     # every third-party import of the installed package; ROS packages (rclpy, the message packages,
     # ament_index_python) come from a ROS installation and are declared in package.xml instead
     # zstandard and lz4 (chunk compression of the bag writer, recording/mcapfile.py) come with mcap;

@@ -130,8 +130,8 @@ def _proc_cpu(pid):
 def _write_cost(params, path, n=4000):
     """CPU us per control period of what recording adds in the simulating thread, measured alone:
     the hip_torque command's CDR and ``write``, and the state's ``write_messages`` (the three messages
-    the node has serialised to publish them, queued in one call), best of 3 (the sender thread's
-    ``marshal`` every 0.1 s is not in it: about 0.3 us a period)."""
+    the node has serialised to publish them, appended in one call), best of 3 (the sender thread's
+    hand-over every 0.1 s is not in it)."""
     from biped_sim.recording import messages as M
     from biped_sim.recording.cdr import StateSerializer, float64_multi_array_data
     from biped_sim.recording.record_run import topics_for
@@ -252,8 +252,7 @@ def _frames_of(bag):
 
     from biped_sim.recording import bagio
     from biped_sim.recording.bagformat import message_definition, qos_dict, type_hash
-    from biped_sim.recording.recorder import _batch
-    from biped_sim.recording.writer import FRAME
+    from biped_sim.recording.frames import FRAME, FrameBuffer
     head, ids = bytearray(), {}
     types = bagio.channels(bag)
     messages = list(bagio.messages(bag))
@@ -262,10 +261,13 @@ def _frames_of(bag):
         info = json.dumps(dict(id=ids[topic], name=topic, type=typ, qos=[qos_dict()], hash=type_hash(typ),
                                definition=message_definition(typ))).encode()
         head += FRAME.pack(b"T", len(info)) + info
-    # the recorder's batches (its _batch, as its sender thread makes them), 400 messages each: 0.1 s of
-    # a recorded run's four messages a period
-    items = [(t_ns, topic, data) for topic, _typ, t_ns, data in messages]
-    body = b"".join(_batch(items[i:i + 400]) for i in range(0, len(items), 400))
+    # the recorder's M frames (its FrameBuffer, as its sender thread takes them), 400 messages each
+    buf, body = FrameBuffer(ids), bytearray()
+    for i, (topic, _typ, t_ns, data) in enumerate(messages, 1):
+        buf.message(t_ns, topic, data)
+        if i % 400 == 0:
+            body += buf.take()
+    body += buf.take()
     return bytes(head), bytes(head) + body, messages, types
 
 

@@ -1,15 +1,10 @@
 """The bag writer process: frames from the recording process on stdin -> the bag's MCAP file.
 
-Owns the frame protocol between :class:`biped_sim.recording.recorder.BagRecorder` and this process,
-and the end of a bag (the ``rosbag2`` record, the summary, ``metadata.yaml``), which
-:func:`biped_sim.recording.recover.recover` shares.
-
-Frames: ``FRAME`` (kind, payload length) then the payload. Kinds: ``T`` a topic (JSON: id, name,
-type, qos, hash, definition), ``P`` the run's parameters record (JSON), ``B`` a batch of messages
-(the ``marshal`` of a list whose items are ``(t_ns, topic, CDR bytes)`` or ``(t_ns, [(topic, CDR
-bytes), ...])``: what the recorder queued in 0.1 s, handed over in one call; this process numbers each
-topic's messages 1, 2, ...), ``C`` close. The end of the input
-without ``C`` (the recording process died, even by SIGKILL) closes the bag the same way.
+Owns the reading of the frames that :class:`biped_sim.recording.recorder.BagRecorder` sends (their
+protocol: :mod:`biped_sim.recording.frames`) and the end of a bag (the ``rosbag2`` record, the
+summary, ``metadata.yaml``), which :func:`biped_sim.recording.recover.recover` shares. This process
+numbers each topic's messages 1, 2, ... The end of the input without ``C`` (the recording process
+died, even by SIGKILL) closes the bag the same way as ``C``.
 
 Started by ``BagRecorder`` as ``python -m biped_sim.recording.writer BAG_DIR MCAP_NAME COMPRESSION
 CHUNK_SIZE FLUSH_INTERVAL [MODULE:CLASS]`` (the last: another file writer, for the recording
@@ -21,18 +16,15 @@ from __future__ import annotations
 
 import itertools
 import json
-import marshal
 import os
-import struct
 import sys
 import time
 from pathlib import Path
 
 from biped_sim.recording.bagformat import PROFILE, bag_metadata, channel_metadata, rosbag2_record, write_metadata_yaml
 from biped_sim.recording.bagio import lock_for_writing
+from biped_sim.recording.frames import FRAME, MESSAGES, records
 
-FRAME = struct.Struct("<cI")          # kind, payload length
-BATCH = b"B"
 LIBRARY = "biped_sim recorder (mcap python records)"
 
 
@@ -80,7 +72,7 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
     mcap = file_writer(f, PROFILE, LIBRARY, compression=compression, chunk_size=chunk_size)
     report(ready=True)       # started: the recording process may begin its run (BagRecorder.wait_ready)
     topics, schemas = {}, {}
-    channel, sequence = {}, {}      # by topic name: the channel id, the next sequence numbers
+    channel, sequence = {}, {}      # by the recorder's topic id: the MCAP channel id, the next sequence numbers
     error = None
     dirty = False
     last_flush = time.monotonic()
@@ -96,23 +88,17 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
         if error is not None:
             continue
         try:
-            if kind == BATCH:
+            if kind == MESSAGES:
                 try:
-                    for item in marshal.loads(payload):
-                        if len(item) == 3:
-                            t_ns, name, data = item
-                            add_message(channel[name], t_ns, data, t_ns, next(sequence[name]))
-                        else:
-                            t_ns, messages = item
-                            for name, data in messages:
-                                add_message(channel[name], t_ns, data, t_ns, next(sequence[name]))
+                    for t_ns, topic_id, data in records(payload):
+                        add_message(channel[topic_id], t_ns, data, t_ns, next(sequence[topic_id]))
                 except KeyError as exc:
-                    raise ValueError(f"unknown topic {exc}: written before add_topic") from None
+                    raise ValueError(f"unknown topic id {exc}: written before add_topic") from None
                 dirty = True
             elif kind == b"T":
                 info = json.loads(payload)
-                cid = channel[info["name"]] = add_topic(mcap, info, schemas)
-                sequence[info["name"]] = itertools.count(1)
+                cid = channel[info["id"]] = add_topic(mcap, info, schemas)
+                sequence[info["id"]] = itertools.count(1)
                 topics[cid] = {k: info[k] for k in ("name", "type", "qos", "hash")}
             elif kind == b"P":
                 mcap.add_metadata("biped_sim", json.loads(payload))

@@ -1,0 +1,115 @@
+"""The recorder's frame buffer: the compiled twin gives the Python one's bytes, refuses what it refuses, and
+loses nothing to a sender thread that takes while the simulating thread appends."""
+from __future__ import annotations
+
+import threading
+
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from biped_sim.recording import frames
+from biped_sim.recording.frames import FRAME, MESSAGES, PyFrameBuffer, records
+
+compiled = frames._twin
+needs_c = pytest.mark.skipif(compiled is None, reason=f"no compiled frame buffer: {frames.WHY_PYTHON}")
+
+TOPICS = ["/joint_states", "/ground_reaction", "/clock", "/unknown"]
+CHANNELS = {"/joint_states": 1, "/ground_reaction": 2, "/clock": 7}
+
+cdr = st.one_of(st.binary(max_size=300), st.just(bytearray(b"x")), st.just("text"))
+time_ns = st.one_of(st.integers(0, 2**64 - 1), st.integers(-5, -1), st.just(2**64), st.just(1.5))
+op = st.one_of(
+    st.tuples(st.just("message"), time_ns, st.sampled_from(TOPICS), cdr),
+    st.tuples(st.just("messages"), time_ns, st.one_of(
+        st.lists(st.one_of(st.tuples(st.sampled_from(TOPICS), cdr), st.just(["/clock", b""]), st.just(("/clock",))),
+                 max_size=4),
+        st.just(iter([("/clock", b"")])), st.just(None))),
+    st.tuples(st.just("frame"), st.sampled_from([b"T", b"P", b"C", b"TT", b""]), st.binary(max_size=50)),
+    st.tuples(st.just("take")),
+)
+
+
+def apply(buf, operation):
+    """(what the call returned, or the type of the exception it raised; the buffer's length after)."""
+    name, *args = operation
+    try:
+        out = getattr(buf, name)(*args)
+    except (ValueError, TypeError, OverflowError) as exc:
+        return type(exc), len(buf)
+    return out, len(buf)
+
+
+@needs_c
+@settings(max_examples=300, deadline=None)
+@given(st.lists(op, max_size=25))
+def test_the_compiled_buffer_gives_the_python_buffers_bytes_and_refusals(operations):
+    py, c = PyFrameBuffer(dict(CHANNELS)), compiled(dict(CHANNELS))
+    for operation in operations:
+        assert apply(c, operation) == apply(py, operation), operation
+    assert c.take() == py.take()
+    assert len(c) == len(py) == 0
+
+
+@pytest.mark.parametrize("make", [PyFrameBuffer, pytest.param(compiled, marks=needs_c)], ids=["Python", "C"])
+def test_frames_and_records_read_back_in_order_and_a_refused_call_changes_nothing(make):
+    channels = {"/a": 1}
+    buf = make(channels)
+    buf.frame(b"T", b"topic a")
+    buf.message(5, "/a", b"one")
+    before = len(buf)
+    with pytest.raises(ValueError, match="unknown topic '/b'"):
+        buf.messages(6, [("/a", b"two"), ("/b", b"three")])      # all or none
+    with pytest.raises(TypeError, match="must be bytes"):
+        buf.messages(6, [("/a", b"two"), ("/a", "three")])
+    with pytest.raises(ValueError, match="t_ns must be >= 0"):
+        buf.message(-1, "/a", b"two")
+    assert len(buf) == before
+    channels["/b"] = 2                                             # a topic added later is known from then on
+    buf.messages(6, [("/a", b"two"), ("/b", b"three")])
+    buf.frame(b"C", b"")
+    data = buf.take()
+    assert len(buf) == 0 and buf.take() == b""
+    out, off = [], 0
+    while off < len(data):
+        kind, n = FRAME.unpack_from(data, off)
+        payload = data[off + FRAME.size:off + FRAME.size + n]
+        out.append((kind, list(records(payload)) if kind == MESSAGES else payload))
+        off += FRAME.size + n
+    assert out == [(b"T", b"topic a"), (MESSAGES, [(5, 1, b"one"), (6, 1, b"two"), (6, 2, b"three")]), (b"C", b"")]
+
+
+def test_a_record_cut_short_is_an_error_not_a_shorter_message():
+    buf = PyFrameBuffer({"/a": 1})
+    buf.message(1, "/a", b"hello")
+    payload = buf.take()[FRAME.size:]
+    assert list(records(payload)) == [(1, 1, b"hello")]
+    for cut in (3, len(payload) - 1):
+        with pytest.raises(ValueError, match="cut short"):
+            list(records(payload[:cut]))
+
+
+@pytest.mark.parametrize("make", [PyFrameBuffer, pytest.param(compiled, marks=needs_c)], ids=["Python", "C"])
+def test_a_sender_thread_taking_meanwhile_loses_and_repeats_no_message(make):
+    buf = make({"/a": 1, "/b": 2})
+    taken, done = [], threading.Event()
+
+    def sender():
+        while not done.is_set():
+            taken.append(buf.take())
+        taken.append(buf.take())
+    thread = threading.Thread(target=sender)
+    thread.start()
+    n = 20000
+    for i in range(n):
+        buf.messages(i, [("/a", i.to_bytes(4, "little")), ("/b", b"")])
+    done.set()
+    thread.join()
+    got = []
+    for data in taken:
+        off = 0
+        while off < len(data):
+            kind, size = FRAME.unpack_from(data, off)
+            assert kind == MESSAGES
+            got.extend(records(data[off + FRAME.size:off + FRAME.size + size]))
+            off += FRAME.size + size
+    assert got == [r for i in range(n) for r in ((i, 1, i.to_bytes(4, "little")), (i, 2, b""))]
