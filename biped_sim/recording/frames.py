@@ -6,8 +6,8 @@ Kinds: ``T`` a topic (JSON: id, name, type, qos, hash, definition), ``P`` the ru
 (JSON), ``M`` messages, ``C`` close. An ``M`` payload is records, each ``RECORD`` (t_ns, channel id,
 CDR length) then the CDR; the writer process numbers each topic's messages 1, 2, ...
 
-:class:`PyFrameBuffer` appends frames and records to one buffer that a sender thread empties
-(``take``) every 0.1 s; ``FrameBuffer`` is its compiled twin (``_frames.c``, the same bytes), used
+:class:`PyFrameBuffer` appends frames and records to one buffer that a sender thread writes to the
+pipe (``write_to``) every 0.1 s; ``FrameBuffer`` is its compiled twin (``_frames.c``, the same bytes), used
 when it was built: a period's messages then cost the simulating thread one C call and leave no object
 behind for the cyclic collector (docs/performance.md, "Recording"). ``BIPED_SIM_PURE_PYTHON=1``
 forces the Python one.
@@ -28,16 +28,22 @@ class PyFrameBuffer:
     """Frames for the writer process, appended by the simulating thread and taken by the sender thread.
 
     ``channels``: {topic: channel id 1..65535}, the caller's dict (a topic added to it later is known
-    from then on). ``message``/``messages`` append records to the open ``M`` frame, ``frame`` a frame of
-    its own (it ends the open ``M`` frame), ``take()`` returns everything so far and empties the buffer.
-    A call checks everything it is given before it appends anything: a refused call (unknown topic,
-    CDR not bytes, a negative time) changes nothing. Each call holds a lock, so that ``take`` from
-    another thread sees whole calls (the compiled twin needs none: a C call holds the interpreter lock).
+    from then on). ``capacity``: bytes the compiled twin allocates and touches at once for each of its
+    two buffers, so that filling them does not page fault during the run (the Python twin ignores it).
+
+    ``message``/``messages`` append records to the open ``M`` frame, ``frame`` a frame of its own (it
+    ends the open ``M`` frame), ``take()`` returns everything so far and empties the buffer,
+    ``write_to(fd)`` writes it to a file descriptor and empties it. A call checks everything it is
+    given before it appends anything: a refused call (unknown topic, CDR not bytes, a negative time)
+    changes nothing. Each call holds a lock, so that the sender thread sees whole calls (the compiled
+    twin needs none: a C call holds the interpreter lock).
     """
 
-    def __init__(self, channels: dict):
+    def __init__(self, channels: dict, capacity: int = 0):
         if not isinstance(channels, dict):
             raise TypeError(f"channels must be a dict, not {type(channels).__name__}")
+        if capacity < 0:
+            raise ValueError("capacity must be >= 0")
         self.channels = channels
         self._buf = bytearray()
         self._open = -1            # offset of the open M frame's header, or -1
@@ -107,6 +113,20 @@ class PyFrameBuffer:
             out = bytes(self._buf)
             del self._buf[:]
             return out
+
+
+    def write_to(self, fd) -> int:
+        """Everything appended so far written to ``fd`` (a file descriptor or an object with ``fileno``);
+        the buffer empties. Returns the number of bytes. (The compiled twin writes without the
+        interpreter lock and keeps the written buffer for the next messages.)"""
+        fd = fd if isinstance(fd, int) else fd.fileno()
+        if fd < 0:
+            raise ValueError("file descriptor cannot be a negative integer")
+        data = self.take()
+        view, done = memoryview(data), 0
+        while done < len(data):
+            done += os.write(fd, view[done:])
+        return len(data)
 
 
 def _check_time(t_ns) -> int:

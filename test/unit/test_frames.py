@@ -2,6 +2,7 @@
 loses nothing to a sender thread that takes while the simulating thread appends."""
 from __future__ import annotations
 
+import os
 import threading
 
 import pytest
@@ -26,6 +27,7 @@ op = st.one_of(
         st.just(iter([("/clock", b"")])), st.just(None))),
     st.tuples(st.just("frame"), st.sampled_from([b"T", b"P", b"C", b"TT", b""]), st.binary(max_size=50)),
     st.tuples(st.just("take")),
+    st.tuples(st.just("write_to"), st.sampled_from([-1, 999])),   # not a descriptor; not open: OSError, emptied
 )
 
 
@@ -34,16 +36,16 @@ def apply(buf, operation):
     name, *args = operation
     try:
         out = getattr(buf, name)(*args)
-    except (ValueError, TypeError, OverflowError) as exc:
+    except (ValueError, TypeError, OverflowError, OSError) as exc:
         return type(exc), len(buf)
     return out, len(buf)
 
 
 @needs_c
 @settings(max_examples=300, deadline=None)
-@given(st.lists(op, max_size=25))
-def test_the_compiled_buffer_gives_the_python_buffers_bytes_and_refusals(operations):
-    py, c = PyFrameBuffer(dict(CHANNELS)), compiled(dict(CHANNELS))
+@given(st.lists(op, max_size=25), st.sampled_from([0, 16, 4096]))
+def test_the_compiled_buffer_gives_the_python_buffers_bytes_and_refusals(operations, capacity):
+    py, c = PyFrameBuffer(dict(CHANNELS), capacity), compiled(dict(CHANNELS), capacity=capacity)
     for operation in operations:
         assert apply(c, operation) == apply(py, operation), operation
     assert c.take() == py.take()
@@ -88,15 +90,26 @@ def test_a_record_cut_short_is_an_error_not_a_shorter_message():
             list(records(payload[:cut]))
 
 
+@pytest.mark.parametrize("hand_over", ["take", "write_to"])
 @pytest.mark.parametrize("make", [PyFrameBuffer, pytest.param(compiled, marks=needs_c)], ids=["Python", "C"])
-def test_a_sender_thread_taking_meanwhile_loses_and_repeats_no_message(make):
+def test_a_sender_thread_handing_over_meanwhile_loses_and_repeats_no_message(make, hand_over):
     buf = make({"/a": 1, "/b": 2})
     taken, done = [], threading.Event()
+    if hand_over == "take":
+        def send():
+            taken.append(buf.take())
+    else:             # through a pipe, read by a third thread, as the writer process reads it
+        r, w = os.pipe()
+        reader = threading.Thread(target=lambda: taken.extend(iter(lambda: os.read(r, 65536), b"")))
+        reader.start()
+
+        def send():
+            assert buf.write_to(w) >= 0
 
     def sender():
         while not done.is_set():
-            taken.append(buf.take())
-        taken.append(buf.take())
+            send()
+        send()
     thread = threading.Thread(target=sender)
     thread.start()
     n = 20000
@@ -104,12 +117,28 @@ def test_a_sender_thread_taking_meanwhile_loses_and_repeats_no_message(make):
         buf.messages(i, [("/a", i.to_bytes(4, "little")), ("/b", b"")])
     done.set()
     thread.join()
-    got = []
-    for data in taken:
-        off = 0
-        while off < len(data):
-            kind, size = FRAME.unpack_from(data, off)
-            assert kind == MESSAGES
-            got.extend(records(data[off + FRAME.size:off + FRAME.size + size]))
-            off += FRAME.size + size
+    if hand_over == "write_to":
+        os.close(w)
+        reader.join()
+        os.close(r)
+    data, got, off = b"".join(taken), [], 0
+    while off < len(data):
+        kind, size = FRAME.unpack_from(data, off)
+        assert kind == MESSAGES
+        got.extend(records(data[off + FRAME.size:off + FRAME.size + size]))
+        off += FRAME.size + size
     assert got == [r for i in range(n) for r in ((i, 1, i.to_bytes(4, "little")), (i, 2, b""))]
+    assert len(buf) == 0
+
+
+@pytest.mark.parametrize("make", [PyFrameBuffer, pytest.param(compiled, marks=needs_c)], ids=["Python", "C"])
+def test_write_to_a_closed_pipe_is_an_oserror(make):
+    buf = make({"/a": 1})
+    r, w = os.pipe()
+    os.close(r)
+    buf.message(1, "/a", b"x")
+    with pytest.raises(BrokenPipeError):
+        buf.write_to(w)
+    os.close(w)
+    buf.message(2, "/a", b"y")           # the buffer goes on (the recorder reports the failure)
+    assert list(records(buf.take()[FRAME.size:])) == [(2, 1, b"y")]
