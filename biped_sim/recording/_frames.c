@@ -350,8 +350,108 @@ static PyTypeObject FrameBufferType = {
     .tp_as_sequence = &FrameBuffer_as_sequence,
 };
 
+/* ---- the writer process's side: M frames -> MCAP Message records -------------------------------------
+ * The compiled twin of McapFileWriter.add_records' Python loop (frames.records, then add_message for
+ * each): the same Message records in the chunk, the same (log time, offset) pairs in the message index,
+ * the same sequence numbers. Why: that loop was about 1 us of the writer process's CPU a message, and the
+ * writer working on the other vCPU is what slows a fast node run (docs/performance.md, "Recording"). */
+
+static uint64_t get_u64(const unsigned char *p) {
+    uint64_t v = 0;
+    for (int i = 7; i >= 0; i--) v = (v << 8) | p[i];
+    return v;
+}
+
+/* append_messages(payload, offset, chunk, chunk_size, message_index, channels, sequences) -> offset
+ * Appends the records of the M frame ``payload`` from ``offset`` to the bytearray ``chunk`` as Message
+ * records until the chunk holds more than ``chunk_size`` bytes or the payload ends; returns the offset
+ * reached. ``channels``: {topic id: channel id}; ``sequences``: {topic id: last sequence number},
+ * updated; ``message_index``: {channel id: [(log time, offset in the chunk)]}, appended to. */
+static PyObject *append_messages(PyObject *module, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 7 || !PyBytes_Check(args[0]) || !PyByteArray_Check(args[2]) || !PyDict_Check(args[4])
+        || !PyDict_Check(args[5]) || !PyDict_Check(args[6])) {
+        PyErr_SetString(PyExc_TypeError, "append_messages(payload: bytes, offset, chunk: bytearray, chunk_size, "
+                                         "message_index: dict, channels: dict, sequences: dict)");
+        return NULL;
+    }
+    const unsigned char *p = (const unsigned char *)PyBytes_AS_STRING(args[0]);
+    Py_ssize_t end = PyBytes_GET_SIZE(args[0]);
+    Py_ssize_t off = PyLong_AsSsize_t(args[1]);
+    if (off == -1 && PyErr_Occurred()) return NULL;
+    Py_ssize_t chunk_size = PyLong_AsSsize_t(args[3]);
+    if (chunk_size == -1 && PyErr_Occurred()) return NULL;
+    PyObject *chunk = args[2], *index = args[4], *channels = args[5], *sequences = args[6];
+    while (off < end) {
+        if (end - off < RECORD_SIZE) goto cut_short;
+        uint64_t t = get_u64(p + off);
+        long topic = (long)p[off + 8] | ((long)p[off + 9] << 8);
+        Py_ssize_t size = (Py_ssize_t)((uint32_t)p[off + 10] | ((uint32_t)p[off + 11] << 8)
+                                       | ((uint32_t)p[off + 12] << 16) | ((uint32_t)p[off + 13] << 24));
+        if (end - off - RECORD_SIZE < size) goto cut_short;
+        PyObject *topic_id = PyLong_FromLong(topic);
+        if (topic_id == NULL) return NULL;
+        PyObject *cid_obj = PyDict_GetItemWithError(channels, topic_id);      /* borrowed */
+        PyObject *last = cid_obj ? PyDict_GetItemWithError(sequences, topic_id) : NULL;
+        if (last == NULL) {
+            if (!PyErr_Occurred()) PyErr_SetObject(PyExc_KeyError, topic_id);
+            Py_DECREF(topic_id);
+            return NULL;
+        }
+        long cid = PyLong_AsLong(cid_obj);
+        unsigned long long prev = PyLong_AsUnsignedLongLong(last);
+        if ((cid == -1 || prev == (unsigned long long)-1) && PyErr_Occurred()) {
+            Py_DECREF(topic_id);
+            return NULL;
+        }
+        uint32_t seq = (uint32_t)(prev + 1);
+        PyObject *seq_obj = PyLong_FromUnsignedLong(seq);
+        int bad = seq_obj == NULL || PyDict_SetItem(sequences, topic_id, seq_obj) < 0;
+        Py_XDECREF(seq_obj);
+        Py_DECREF(topic_id);
+        if (bad) return NULL;
+        Py_ssize_t at = PyByteArray_GET_SIZE(chunk);
+        PyObject *list = PyDict_GetItemWithError(index, cid_obj);
+        if (list == NULL) {
+            if (PyErr_Occurred()) return NULL;
+            list = PyList_New(0);
+            if (list == NULL) return NULL;
+            bad = PyDict_SetItem(index, cid_obj, list) < 0;
+            Py_DECREF(list);                    /* the dict holds it */
+            if (bad) return NULL;
+        }
+        PyObject *pair = Py_BuildValue("(Kn)", (unsigned long long)t, at);
+        if (pair == NULL) return NULL;
+        bad = PyList_Append(list, pair) < 0;
+        Py_DECREF(pair);
+        if (bad) return NULL;
+        /* the Message record: opcode 0x05, record length, channel id, sequence, log time, publish time, data */
+        if (PyByteArray_Resize(chunk, at + 9 + 22 + size) < 0) return NULL;
+        char *q = PyByteArray_AS_STRING(chunk) + at;
+        q[0] = 0x05;
+        put_u64(q + 1, (uint64_t)(22 + size));
+        put_u16(q + 9, (uint16_t)cid);
+        put_u32(q + 11, seq);
+        put_u64(q + 15, t);
+        put_u64(q + 23, t);
+        memcpy(q + 31, p + off + RECORD_SIZE, (size_t)size);
+        off += RECORD_SIZE + size;
+        if (PyByteArray_GET_SIZE(chunk) > chunk_size) break;
+    }
+    return PyLong_FromSsize_t(off);
+cut_short:
+    PyErr_SetString(PyExc_ValueError, "a message record cut short in an M frame");
+    return NULL;
+}
+
+static PyMethodDef module_methods[] = {
+    {"append_messages", (PyCFunction)(void (*)(void))append_messages, METH_FASTCALL,
+     "append_messages(payload, offset, chunk, chunk_size, message_index, channels, sequences) -> offset"},
+    {NULL, NULL, 0, NULL},
+};
+
 static struct PyModuleDef frames_module = {
-    PyModuleDef_HEAD_INIT, "_frames", "The compiled twin of biped_sim.recording.frames.PyFrameBuffer.", -1, NULL,
+    PyModuleDef_HEAD_INIT, "_frames", "The compiled twins of biped_sim.recording.frames.PyFrameBuffer and of "
+    "McapFileWriter.add_records' loop.", -1, module_methods,
 };
 
 PyMODINIT_FUNC PyInit__frames(void) {

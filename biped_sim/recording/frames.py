@@ -153,19 +153,33 @@ def records(payload: bytes):
         off += size
 
 
-def _compiled_twin():
-    """(FrameBuffer class or None, why not)."""
+def add_numbered(add_message, payload: bytes, channels: dict, sequences: dict):
+    """The messages of an ``M`` frame's payload, each ``add_message(channel id, t_ns, data, t_ns,
+    sequence)``: ``channels`` {topic id: channel id}, ``sequences`` {topic id: the last sequence number},
+    updated (a topic's messages are numbered 1, 2, ..., modulo 2**32). KeyError for a topic id not in
+    both. The writer process's loop in Python; ``McapFileWriter.add_records`` runs its compiled twin."""
+    for t_ns, topic_id, data in records(payload):
+        channel_id = channels[topic_id]
+        sequence = sequences[topic_id] = (sequences[topic_id] + 1) & 0xFFFFFFFF
+        add_message(channel_id, t_ns, data, t_ns, sequence)
+
+
+def _compiled_twins():
+    """(the _frames module or None, why not)."""
     if os.environ.get("BIPED_SIM_PURE_PYTHON", "") not in ("", "0"):
         return None, "BIPED_SIM_PURE_PYTHON is set"
     try:
-        from biped_sim.recording._frames import FrameBuffer as compiled
+        from biped_sim.recording import _frames
     except ImportError:
         return None, ("the compiled twin biped_sim/recording/_frames was not built: install gcc and the Python "
                       "headers, then make venv")
-    return compiled, ""
+    return _frames, ""
 
 
-_twin, WHY_PYTHON = _compiled_twin()
+_twins, WHY_PYTHON = _compiled_twins()
+_twin = _twins.FrameBuffer if _twins else None
 #: the buffer ``BagRecorder`` uses: the compiled twin if it was built, else :class:`PyFrameBuffer`
 FrameBuffer = _twin or PyFrameBuffer
-IMPLEMENTATION = "C" if _twin else "Python"
+#: ``_frames.append_messages`` (the compiled twin of :func:`add_numbered`'s loop for McapFileWriter), or None
+append_messages = _twins.append_messages if _twins else None
+IMPLEMENTATION = "C" if _twins else "Python"

@@ -14,7 +14,6 @@ file open), ``{"error": ...}`` at once when writing fails, ``{"done": true, "cou
 """
 from __future__ import annotations
 
-import itertools
 import json
 import os
 import sys
@@ -23,7 +22,7 @@ from pathlib import Path
 
 from biped_sim.recording.bagformat import PROFILE, bag_metadata, channel_metadata, rosbag2_record, write_metadata_yaml
 from biped_sim.recording.bagio import lock_for_writing
-from biped_sim.recording.frames import FRAME, MESSAGES, records
+from biped_sim.recording.frames import FRAME, MESSAGES, add_numbered
 
 LIBRARY = "biped_sim recorder (mcap python records)"
 
@@ -72,11 +71,13 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
     mcap = file_writer(f, PROFILE, LIBRARY, compression=compression, chunk_size=chunk_size)
     report(ready=True)       # started: the recording process may begin its run (BagRecorder.wait_ready)
     topics, schemas = {}, {}
-    channel, sequence = {}, {}      # by the recorder's topic id: the MCAP channel id, the next sequence numbers
+    channel, sequence = {}, {}      # by the recorder's topic id: the MCAP channel id, the last sequence number
     error = None
     dirty = False
     last_flush = time.monotonic()
-    add_message, read, frame = mcap.add_message, inp.read, FRAME
+    read, frame = inp.read, FRAME
+    add_records = getattr(mcap, "add_records", None) or (    # file writers of the benchmark have no add_records
+        lambda payload, channels, sequences: add_numbered(mcap.add_message, payload, channels, sequences))
     while True:
         head = read(frame.size)
         if len(head) < frame.size:
@@ -90,15 +91,14 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
         try:
             if kind == MESSAGES:
                 try:
-                    for t_ns, topic_id, data in records(payload):
-                        add_message(channel[topic_id], t_ns, data, t_ns, next(sequence[topic_id]))
+                    add_records(payload, channel, sequence)
                 except KeyError as exc:
                     raise ValueError(f"unknown topic id {exc}: written before add_topic") from None
                 dirty = True
             elif kind == b"T":
                 info = json.loads(payload)
                 cid = channel[info["id"]] = add_topic(mcap, info, schemas)
-                sequence[info["id"]] = itertools.count(1)
+                sequence[info["id"]] = 0
                 topics[cid] = {k: info[k] for k in ("name", "type", "qos", "hash")}
             elif kind == b"P":
                 mcap.add_metadata("biped_sim", json.loads(payload))

@@ -142,3 +142,47 @@ def test_write_to_a_closed_pipe_is_an_oserror(make):
     os.close(w)
     buf.message(2, "/a", b"y")           # the buffer goes on (the recorder reports the failure)
     assert list(records(buf.take()[FRAME.size:])) == [(2, 1, b"y")]
+
+
+@needs_c
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 2**64 - 1), st.sampled_from([1, 2, 3, 9]), st.binary(max_size=120)),
+                max_size=40),
+       st.sampled_from([64, 300, 1 << 20]), st.sampled_from([0, 7, 2**32 - 2]), st.integers(0, 40))
+def test_the_writer_process_loop_in_c_writes_the_python_loops_file(messages, chunk_size, first, cut):
+    """McapFileWriter.add_records (C) and add_numbered with add_message (Python) on the same M frames:
+    the same MCAP file, the same sequence numbers (wrapping at 2**32), the same refusal of topic id 9."""
+    import io
+
+    from biped_sim.recording.frames import add_numbered
+    from biped_sim.recording.mcapfile import McapFileWriter
+    buf = PyFrameBuffer({"/a": 1, "/b": 2, "/c": 3, "/x": 9})
+    for i, (t, topic, data) in enumerate(messages):
+        buf.message(t, "/" + "abc"[topic - 1] if topic < 9 else "/x", data)
+        if i == cut:
+            buf.frame(b"T", b"")           # two M frames
+    data, payloads, off = buf.take(), [], 0
+    while off < len(data):
+        kind, n = FRAME.unpack_from(data, off)
+        if kind == MESSAGES:
+            payloads.append(data[off + FRAME.size:off + FRAME.size + n])
+        off += FRAME.size + n
+    out = {}
+    for name in ("C", "Python"):
+        f = io.BytesIO()
+        w = McapFileWriter(f, "ros2", "test", compression="none", chunk_size=chunk_size)
+        schema = w.add_schema("s", "ros2msg", b"")
+        channels = {tid: w.add_channel(f"/{tid}", "cdr", schema, {}) for tid in (1, 2, 3)}
+        sequences = {1: first, 2: first, 3: first, 9: 0}
+        refused = []
+        for payload in payloads:
+            try:
+                if name == "C":
+                    w.add_records(payload, channels, sequences)
+                else:
+                    add_numbered(w.add_message, payload, channels, sequences)
+            except KeyError as exc:
+                refused.append(exc.args)
+        w.finish()
+        out[name] = f.getvalue(), sequences, refused
+    assert out["C"] == out["Python"]
