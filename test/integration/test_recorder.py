@@ -219,8 +219,11 @@ def test_unwritable_path_full_disk_and_used_directory_fail_at_start(tmp_path):
 
 # -- signals -------------------------------------------------------------------------------------------
 def start_recording(folder):
+    # radau (scipy's implicit integrator, about 1000 periods a wall second here) keeps the bag small: the
+    # compiled loop records some 40 000 messages a wall second, which the readers then decode for tens of s
     proc = subprocess.Popen([str(BIN / "biped-sim"), "simulate", "--scene", "walk", "--duration", "3600",
-                             "--record", str(folder)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                             "--method", "radau", "--record", str(folder)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     line = proc.stdout.readline()
     assert line.startswith("recording to "), line
     bag = Path(line.split("recording to ", 1)[1].strip())
