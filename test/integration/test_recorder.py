@@ -229,7 +229,7 @@ def start_recording(folder):
     bag = Path(line.split("recording to ", 1)[1].strip())
     mcap = bag / f"{bag.name}_0.mcap"
     end = time.monotonic() + 60
-    while count_complete(mcap)[0] < 300:      # some chunks on disk
+    while count_complete(mcap)[0] < 1300:     # some chunks on disk: 300 periods and more (4 messages each)
         assert proc.poll() is None and time.monotonic() < end, "the recording did not start"
         time.sleep(0.2)
     return proc, bag
