@@ -114,7 +114,6 @@ class PyFrameBuffer:
             del self._buf[:]
             return out
 
-
     def write_to(self, fd) -> int:
         """Everything appended so far written to ``fd`` (a file descriptor or an object with ``fileno``);
         the buffer empties. Returns the number of bytes. (The compiled twin writes without the

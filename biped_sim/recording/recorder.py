@@ -101,8 +101,8 @@ class BagRecorder:
             [sys.executable, "-m", "biped_sim.recording.writer", str(self.path), self.mcap_name, compression,
              str(int(chunk_size)), repr(float(flush_interval)), *([file_writer] if file_writer else [])],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, start_new_session=True, bufsize=0)
-        self._topics = {}          # name -> (id, serialiser)
-        self._channel_ids = {}     # name -> id: the frame buffer's view of the topics
+        self._serializers = {}     # topic name -> its message's serialiser
+        self._channel_ids = {}     # topic name -> id (1, 2, ...): the frame buffer reads it too
         # what the simulation hands over, in order: the frames for the writer process
         self._frames = FrameBuffer(self._channel_ids, capacity=BUFFER_BYTES)
         self._lock = threading.Lock()
@@ -131,7 +131,7 @@ class BagRecorder:
     def add_topic(self, topic: str, type_name: str, qos=None):
         """Declare a topic (full name, e.g. ``/joint_states``) of ``type_name`` (``pkg/msg/Name``)."""
         self._check()
-        if topic in self._topics:
+        if topic in self._channel_ids:
             return
         from rclpy.serialization import serialize_message
 
@@ -139,20 +139,20 @@ class BagRecorder:
         from biped_sim.recording.messages import message_class
         serialize_message(message_class(type_name)())   # load the type support now, not in the run
         info = dict(name=topic, type=type_name, qos=[qos_dict(qos)], hash=type_hash(type_name),
-                    definition=message_definition(type_name), id=len(self._topics) + 1)
-        self._topics[topic] = (info["id"], serializer(type_name))
+                    definition=message_definition(type_name), id=len(self._channel_ids) + 1)
+        self._serializers[topic] = serializer(type_name)
         self._frame(b"T", json.dumps(info).encode())    # before any message of the topic can follow it
         self._channel_ids[topic] = info["id"]
 
     def write(self, topic: str, msg, t_ns: int):
-        """Queue one message (an rclpy message object, or its CDR bytes) at simulation time t_ns (int)."""
+        """Record one message (an rclpy message object, or its CDR bytes) at simulation time t_ns (int)."""
         # the simulation thread pays for this at every message: one test for all the checks
-        entry = self._topics.get(topic)
-        if entry is None or self._error is not None or self._closed:
+        serialize = self._serializers.get(topic)
+        if serialize is None or self._error is not None or self._closed:
             self._check()
-            raise ValueError(f"unknown topic {topic!r}: call add_topic first (topics: {sorted(self._topics)})")
+            raise ValueError(f"unknown topic {topic!r}: call add_topic first (topics: {sorted(self._serializers)})")
         self._frames.message(t_ns, topic, msg if type(msg) is bytes else (
-            bytes(msg) if isinstance(msg, (bytearray, memoryview)) else entry[1](msg)))
+            bytes(msg) if isinstance(msg, (bytearray, memoryview)) else serialize(msg)))
 
     def write_messages(self, t_ns: int, messages: list):
         """Record messages of one time, ``messages`` a list of ``(topic, CDR bytes)`` (the node's state
