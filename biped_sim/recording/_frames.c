@@ -366,7 +366,8 @@ static uint64_t get_u64(const unsigned char *p) {
  * Appends the records of the M frame ``payload`` from ``offset`` to the bytearray ``chunk`` as Message
  * records until the chunk holds more than ``chunk_size`` bytes or the payload ends; returns the offset
  * reached. ``channels``: {topic id: channel id}; ``sequences``: {topic id: last sequence number},
- * updated; ``message_index``: {channel id: [(log time, offset in the chunk)]}, appended to. */
+ * updated; ``message_index``: {channel id: bytearray of (log time, offset in the chunk) as <QQ pairs},
+ * appended to (packed here, as the MessageIndex record holds them: no object a message). */
 static PyObject *append_messages(PyObject *module, PyObject *const *args, Py_ssize_t nargs) {
     if (nargs != 7 || !PyBytes_Check(args[0]) || !PyByteArray_Check(args[2]) || !PyDict_Check(args[4])
         || !PyDict_Check(args[5]) || !PyDict_Check(args[6])) {
@@ -410,20 +411,22 @@ static PyObject *append_messages(PyObject *module, PyObject *const *args, Py_ssi
         Py_DECREF(topic_id);
         if (bad) return NULL;
         Py_ssize_t at = PyByteArray_GET_SIZE(chunk);
-        PyObject *list = PyDict_GetItemWithError(index, cid_obj);
-        if (list == NULL) {
+        PyObject *pairs = PyDict_GetItemWithError(index, cid_obj);       /* borrowed */
+        if (pairs == NULL) {
             if (PyErr_Occurred()) return NULL;
-            list = PyList_New(0);
-            if (list == NULL) return NULL;
-            bad = PyDict_SetItem(index, cid_obj, list) < 0;
-            Py_DECREF(list);                    /* the dict holds it */
+            pairs = PyByteArray_FromStringAndSize(NULL, 0);
+            if (pairs == NULL) return NULL;
+            bad = PyDict_SetItem(index, cid_obj, pairs) < 0;
+            Py_DECREF(pairs);                   /* the dict holds it */
             if (bad) return NULL;
+        } else if (!PyByteArray_Check(pairs)) {
+            PyErr_SetString(PyExc_TypeError, "message_index values must be bytearrays of (log time, offset) pairs");
+            return NULL;
         }
-        PyObject *pair = Py_BuildValue("(Kn)", (unsigned long long)t, at);
-        if (pair == NULL) return NULL;
-        bad = PyList_Append(list, pair) < 0;
-        Py_DECREF(pair);
-        if (bad) return NULL;
+        Py_ssize_t n_pairs = PyByteArray_GET_SIZE(pairs);
+        if (PyByteArray_Resize(pairs, n_pairs + 16) < 0) return NULL;
+        put_u64(PyByteArray_AS_STRING(pairs) + n_pairs, t);
+        put_u64(PyByteArray_AS_STRING(pairs) + n_pairs + 8, (uint64_t)at);
         /* the Message record: opcode 0x05, record length, channel id, sequence, log time, publish time, data */
         if (PyByteArray_Resize(chunk, at + 9 + 22 + size) < 0) return NULL;
         char *q = PyByteArray_AS_STRING(chunk) + at;

@@ -461,8 +461,10 @@ def test_the_packed_message_index_is_mcaps_record():
     from mcap.data_stream import RecordBuilder
     from mcap.records import MessageIndex
 
-    from biped_sim.recording.mcapfile import _message_index_bytes
-    for records in ([], [(7, 0)], [(1_000_000_000 + i, 60 * i) for i in range(1000)]):
+    from biped_sim.recording.mcapfile import _log_times, _message_index_bytes
+    for records in ([], [(7, 0)], [(1_000_000_000 + i, 60 * i) for i in range(1000)], [(2**64 - 1, 2**63)]):
         builder = RecordBuilder()
         MessageIndex(channel_id=3, records=records).write(builder)
-        assert _message_index_bytes(3, records) == builder.end()
+        pairs = bytearray(b"".join(struct.pack("<QQ", *record) for record in records))   # as the chunk keeps them
+        assert _message_index_bytes(3, pairs) == builder.end()
+        assert list(_log_times(pairs)) == [t for t, _ in records]
