@@ -66,7 +66,10 @@ class BagRecorder:
     the writer sees the end of its input and finalises the bag. It also closes a chunk at least
     every ``flush_interval`` s, so if both die, everything older survives (see :func:`recover`). A
     failure of the writer (e.g. the disk fills up) is raised by the next ``write`` or by ``close``,
-    never swallowed.
+    never swallowed; ``on_error`` (a callable, None by default) also hears of it at once, from the
+    thread that found it, until ``close`` begins (close raises what it finds itself).
+    ``append_period`` is ``write_messages`` without its checks, for a caller that learns of failures
+    from ``on_error`` (``sim_node``: one C call a period, no Python frame).
     ``file_writer`` (``"module:Class"``): another MCAP file writer for the writer process than
     :class:`~biped_sim.recording.mcapfile.McapFileWriter` (the recording benchmark compares them).
     """
@@ -105,10 +108,12 @@ class BagRecorder:
         self._channel_ids = {}     # topic name -> id (1, 2, ...): the frame buffer reads it too
         # what the simulation hands over, in order: the frames for the writer process
         self._frames = FrameBuffer(self._channel_ids, capacity=BUFFER_BYTES)
+        self.append_period = self._frames.messages      # (t_ns, [(topic, CDR bytes)]): write_messages unchecked
         self._lock = threading.Lock()
         self._wake = threading.Event()
         self._ready = threading.Event()     # the writer process has started (wait_ready)
         self._error = None
+        self.on_error = None                # callable(OSError), see the class docstring
         self._status = None
         self._closed = False
         self._closing = False
@@ -172,6 +177,7 @@ class BagRecorder:
             if self._closed:
                 return
             self._closed = True
+            self.on_error = None          # from here close raises what goes wrong
         try:
             atexit.unregister(self.close)
         except Exception:  # noqa: BLE001
@@ -189,7 +195,7 @@ class BagRecorder:
         if self._error is None and self._proc.returncode != 0:
             self._error = f"the bag writer exited with code {self._proc.returncode}"
         if self._error is not None:
-            raise OSError(errno.EIO, f"recording to {self.path} failed: {self._error}")
+            raise self._failure()
 
     @property
     def message_counts(self):
@@ -212,9 +218,25 @@ class BagRecorder:
 
     def _check(self):
         if self._error is not None:
-            raise OSError(errno.EIO, f"recording to {self.path} failed: {self._error}")
+            raise self._failure()
         if self._closed:
             raise ValueError(f"the recorder of {self.path} is closed")
+
+    def _failure(self) -> OSError:
+        return OSError(errno.EIO, f"recording to {self.path} failed: {self._error}")
+
+    def _fail(self, why: str):
+        """The writer failed (a thread found it): kept for the next write and close, told to on_error."""
+        with self._lock:
+            first = self._error is None
+            if first:
+                self._error = why
+            on_error = self.on_error if first else None
+        if on_error is not None:
+            try:
+                on_error(self._failure())
+            except Exception:  # noqa: BLE001 - the owner's handler must not end the thread; writes still raise
+                pass
 
     # -- threads: hand the buffer to the writer process, read its status -------------------------
     def _send_loop(self):
@@ -226,7 +248,7 @@ class BagRecorder:
             try:
                 self._frames.write_to(out)
             except (BrokenPipeError, OSError) as exc:
-                self._error = self._error or f"the bag writer process is gone ({exc})"
+                self._fail(f"the bag writer process is gone ({exc})")
             if closing:
                 try:
                     out.close()
@@ -249,7 +271,7 @@ class BagRecorder:
             if status.get("ready"):
                 self._ready.set()
             if status.get("error"):
-                self._error = self._error or status["error"]
+                self._fail(status["error"])
             if status.get("done"):
                 self._status = status
 

@@ -2,11 +2,12 @@
 
 Owns what happens between the node and its :class:`biped_sim.recording.recorder.BagRecorder` once
 the bag cannot be written any more: :class:`GuardedRecorder` has the recorder's interface (``add_topic``,
-``write``, ``write_messages``, ``wait_ready``, ``close``) and turns the first ``OSError`` of a write (the recorder
-raises the writer process's failure on the next write, see its docstring) into one call of the
-node's ``on_failure(exc)``; every later write is dropped. The node then ends the run cleanly (its
-final status, exit code 1) instead of a traceback from inside a callback, and the bag keeps what was
-written before the fault (closed by the writer, or repaired by ``biped-sim recover``).
+``write``, ``write_messages``, ``wait_ready``, ``close``) and turns the first failure (an ``OSError`` of a
+write, or the recorder's ``on_error`` from its threads as soon as they find the writer process failed,
+see its docstring) into one call of the node's ``on_failure(exc)``; every later write is dropped. The
+node then ends the run cleanly (its final status, exit code 1) instead of a traceback from inside a
+callback, and the bag keeps what was written before the fault (closed by the writer, or repaired by
+``biped-sim recover``).
 :func:`failure_message` is the line the node logs: the bag, the cause, the free space.
 """
 from __future__ import annotations
@@ -48,8 +49,12 @@ class GuardedRecorder:
         self.on_failure = on_failure
         self.failure = None              # the exception that ended the recording
         self._lock = threading.Lock()
-        # the recorder's own methods until it fails, then ones that drop (no test at every write)
-        self._write, self._write_messages = recorder.write, recorder.write_messages
+        # the recorder's own methods until it fails, then ones that drop (no test at every write).
+        # write_messages, a period's state (the node's hot path), is the recorder's unchecked C call:
+        # a failure comes from on_error instead of an OSError of the next write
+        self._write = recorder.write
+        self.write_messages = recorder.append_period
+        recorder.on_error = self._failed
 
     @property
     def path(self):
@@ -67,7 +72,7 @@ class GuardedRecorder:
             first = self.failure is None
             if first:
                 self.failure = exc
-                self._write = self._write_messages = _drop
+                self._write = self.write_messages = _drop
         if first:
             self.on_failure(exc)
 
@@ -77,12 +82,6 @@ class GuardedRecorder:
     def write(self, topic, msg, t_ns):
         try:
             self._write(topic, msg, t_ns)
-        except OSError as exc:
-            self._failed(exc)
-
-    def write_messages(self, t_ns, messages):
-        try:
-            self._write_messages(t_ns, messages)
         except OSError as exc:
             self._failed(exc)
 

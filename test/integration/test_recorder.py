@@ -468,3 +468,32 @@ def test_the_packed_message_index_is_mcaps_record():
         pairs = bytearray(b"".join(struct.pack("<QQ", *record) for record in records))   # as the chunk keeps them
         assert _message_index_bytes(3, pairs) == builder.end()
         assert list(_log_times(pairs)) == [t for t, _ in records]
+
+
+def test_a_killed_writer_is_told_to_on_error_once_and_raised_by_the_next_checked_write(tmp_path):
+    # sim_node's hot path (append_period) does not check the recorder: the sender thread tells on_error
+    from biped_sim.recording.cdr import float64_multi_array_data
+    from biped_sim.recording.recorder import BagRecorder
+    rec = BagRecorder(tmp_path / "bag", send_interval=0.01)
+    rec.add_topic("/hip_torque", "std_msgs/msg/Float64MultiArray")
+    heard = []
+    rec.on_error = heard.append
+    assert rec.wait_ready(30)
+    data = float64_multi_array_data([1.0, -1.0])
+    os.kill(rec.writer_pid, signal.SIGKILL)
+    deadline = time.monotonic() + 30
+    k = 0
+    while not heard and time.monotonic() < deadline:
+        rec.append_period(k, [("/hip_torque", data)])     # unchecked: goes on until the sender finds the pipe broken
+        k += 1
+        time.sleep(0.001)
+    assert len(heard) == 1 and isinstance(heard[0], OSError) and "writer process is gone" in str(heard[0])
+    with pytest.raises(OSError, match="writer process is gone"):
+        rec.write_messages(k, [("/hip_torque", data)])     # the checked call raises it
+    for _ in range(20):
+        rec.append_period(k, [("/hip_torque", data)])
+    time.sleep(0.1)
+    assert len(heard) == 1                                  # told once
+    with pytest.raises(OSError):
+        rec.close()
+    assert len(heard) == 1
