@@ -180,8 +180,8 @@ class McapFileWriter:
         if not self._message_index:
             return
         raw = bytes(self._chunk)
-        start = min(min(_log_times(pairs)) for pairs in self._message_index.values())
-        end = max(max(_log_times(pairs)) for pairs in self._message_index.values())
+        times = [_log_times(pairs) for pairs in self._message_index.values()]
+        start, end = min(map(min, times)), max(map(max, times))
         packed = self._compress(raw)
         chunk_start = self._out.tell()
         chunk_length = self._write(Chunk(compression=self.compression, data=packed, message_start_time=start,
@@ -192,7 +192,7 @@ class McapFileWriter:
         for channel_id, pairs in self._message_index.items():
             index_offsets[channel_id] = index_start + len(indexes)
             indexes += _message_index_bytes(channel_id, pairs)
-            self.message_counts[channel_id] = self.message_counts.get(channel_id, 0) + len(pairs) // 16
+            self.message_counts[channel_id] = self.message_counts.get(channel_id, 0) + len(pairs) // _INDEX_PAIR.size
         index_length = len(indexes)
         self._out.write(indexes)
         self._chunk_indexes.append(ChunkIndex(
