@@ -67,7 +67,8 @@ class BagRecorder:
     every ``flush_interval`` s, so if both die, everything older survives (see :func:`recover`). A
     failure of the writer (e.g. the disk fills up) is raised by the next ``write`` or by ``close``,
     never swallowed; ``on_error`` (a callable, None by default) also hears of it at once, from the
-    thread that found it, until ``close`` begins (close raises what it finds itself).
+    thread that found it (or from the assignment, if the failure came first), until ``close`` begins
+    (close raises what it finds itself).
     ``append_period`` is ``write_messages`` without its checks, for a caller that learns of failures
     from ``on_error`` (``sim_node``: one C call a period, no Python frame).
     ``file_writer`` (``"module:Class"``): another MCAP file writer for the writer process than
@@ -113,7 +114,7 @@ class BagRecorder:
         self._wake = threading.Event()
         self._ready = threading.Event()     # the writer process has started (wait_ready)
         self._error = None
-        self.on_error = None                # callable(OSError), see the class docstring
+        self._on_error = None               # callable(OSError): the on_error property
         self._status = None
         self._closed = False
         self._closing = False
@@ -177,7 +178,7 @@ class BagRecorder:
             if self._closed:
                 return
             self._closed = True
-            self.on_error = None          # from here close raises what goes wrong
+            self._on_error = None         # from here close raises what goes wrong
         try:
             atexit.unregister(self.close)
         except Exception:  # noqa: BLE001
@@ -216,6 +217,20 @@ class BagRecorder:
         """The process id of the writer process (the recording benchmark measures its CPU time)."""
         return self._proc.pid
 
+    @property
+    def on_error(self):
+        """Called once with the ``OSError`` when the writer fails during the run (see the class docstring)."""
+        return self._on_error
+
+    @on_error.setter
+    def on_error(self, handler):
+        # the threads run from the constructor on: a failure they found before this assignment is told now
+        with self._lock:
+            self._on_error = None if self._closed else handler
+            late = handler is not None and self._error is not None and not self._closed
+        if late:
+            self._tell(handler)
+
     def _check(self):
         if self._error is not None:
             raise self._failure()
@@ -231,12 +246,15 @@ class BagRecorder:
             first = self._error is None
             if first:
                 self._error = why
-            on_error = self.on_error if first else None
+            on_error = self._on_error if first else None
         if on_error is not None:
-            try:
-                on_error(self._failure())
-            except Exception:  # noqa: BLE001 - the owner's handler must not end the thread; writes still raise
-                pass
+            self._tell(on_error)
+
+    def _tell(self, on_error):
+        try:
+            on_error(self._failure())
+        except Exception:  # noqa: BLE001 - the owner's handler must not end the thread; writes still raise
+            pass
 
     # -- threads: hand the buffer to the writer process, read its status -------------------------
     def _send_loop(self):

@@ -497,3 +497,33 @@ def test_a_killed_writer_is_told_to_on_error_once_and_raised_by_the_next_checked
     with pytest.raises(OSError):
         rec.close()
     assert len(heard) == 1
+
+
+def test_on_error_set_after_the_writer_failed_hears_of_it_at_once(tmp_path):
+    # the recorder's threads run from its constructor on: an owner that sets on_error later is told then
+    from biped_sim.recording.cdr import float64_multi_array_data
+    from biped_sim.recording.recorder import BagRecorder
+    rec = BagRecorder(tmp_path / "bag", send_interval=0.01)
+    rec.add_topic("/hip_torque", "std_msgs/msg/Float64MultiArray")
+    assert rec.wait_ready(30)
+    data = float64_multi_array_data([1.0, -1.0])
+    os.kill(rec.writer_pid, signal.SIGKILL)
+    deadline = time.monotonic() + 30
+    failed = None
+    while failed is None and time.monotonic() < deadline:
+        try:
+            rec.write("/hip_torque", data, 0)
+        except OSError as exc:
+            failed = exc
+        time.sleep(0.01)
+    assert failed is not None and "writer process is gone" in str(failed)
+    heard = []
+    rec.on_error = heard.append
+    assert len(heard) == 1 and "writer process is gone" in str(heard[0]) and rec.on_error == heard.append
+    rec.on_error = None                 # clearing it tells nothing
+    assert len(heard) == 1
+    with pytest.raises(OSError):
+        rec.close()
+    rec.on_error = heard.append         # a closed recorder keeps no handler and tells nothing
+    assert rec.on_error is None and len(heard) == 1
+
