@@ -527,3 +527,15 @@ def test_on_error_set_after_the_writer_failed_hears_of_it_at_once(tmp_path):
     rec.on_error = heard.append         # a closed recorder keeps no handler and tells nothing
     assert rec.on_error is None and len(heard) == 1
 
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="F_GETPIPE_SZ is Linux's")
+def test_the_pipe_to_the_writer_holds_a_hand_over(tmp_path):
+    # a fast run's hand-over (about 2 MB) goes through in few wake-ups of the sender thread
+    import fcntl
+
+    from biped_sim.recording.recorder import PIPE_BYTES, BagRecorder
+    rec = BagRecorder(tmp_path / "bag")
+    try:
+        assert fcntl.fcntl(rec._proc.stdin.fileno(), fcntl.F_GETPIPE_SZ) == PIPE_BYTES
+    finally:
+        rec.close()
