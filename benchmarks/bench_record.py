@@ -330,6 +330,11 @@ def _rosbags_write(path, messages, types):
     return time.process_time() - c0
 
 
+#: the largest |median| of the A/A pairs for which the node row's verdict stands (quiet runs of this VM
+#: gave -0.8 to -2.8 %, a noisy spell 27.4 %)
+AA_RESOLUTION = 0.05
+
+
 def node_bench(duration=12.0, pairs=20):
     """Issue 15's recording row: ``sim_node`` in ``fast`` mode (1 kHz control and publish rate, u = 0 from
     the balanced default state, the default outputs) run ``pairs`` times back to back without and with
@@ -388,16 +393,19 @@ def print_node_bench(nb, duration):
         costs = sorted(costs)
         return costs[len(costs) // 2], costs[0], costs[-1]
     cost, lo, hi = spread(1.0 - on / off for off, on in zip(nb[False], nb[True]))
+    aa = spread(1.0 - b / a for a, b in nb["aa"]) if nb.get("aa") else None
+    # the row means something only when the same statistic finds no difference where there is none
+    resolved = aa is not None and abs(aa[0]) <= AA_RESOLUTION
+    verdict = ("not met" if cost > 0.10 else "met" if resolved else
+               f"not shown: the A/A median is beyond +-{AA_RESOLUTION * 100:g} %, the machine too noisy; run it again")
     print(f"  sim_node, time_mode fast, {duration:g} s at 1 kHz publish rate (u = 0, balanced start), real-time "
           f"factor without recording {sorted(round(v, 1) for v in nb[False])}, with "
           f"{sorted(round(v, 1) for v in nb[True])}")
     print(f"  recording overhead on a fast-mode node run (paired): {cost * 100:.1f} %, median of {len(nb[True])} "
-          f"back-to-back pairs (range {lo * 100:.1f} to {hi * 100:.1f} %; target <= 10 %: "
-          f"{'met' if cost <= 0.10 else 'not met'})")
-    if nb.get("aa"):
-        aa, aa_lo, aa_hi = spread(1.0 - b / a for a, b in nb["aa"])
+          f"back-to-back pairs (range {lo * 100:.1f} to {hi * 100:.1f} %; target <= 10 %: {verdict})")
+    if aa is not None:
         print(f"    the same statistic of {len(nb['aa'])} A/A pairs (both runs without recording, between the pairs "
-              f"above): {aa * 100:.1f} % (range {aa_lo * 100:.1f} to {aa_hi * 100:.1f} %)")
+              f"above): {aa[0] * 100:.1f} % (range {aa[1] * 100:.1f} to {aa[2] * 100:.1f} %)")
     print(f"    between the best run of each side (the runs the machine disturbed least): "
           f"{(1.0 - max(nb[True]) / max(nb[False])) * 100:.1f} %")
     cpu, cpu_lo, cpu_hi = spread(1.0 - off / on for off, on in zip(nb[False, "cpu"], nb[True, "cpu"]))
