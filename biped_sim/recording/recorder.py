@@ -55,8 +55,8 @@ def _widen_pipe(f):
     A hand-over of a fast run is about 2 MB. Through the default 64 KiB pipe the sender thread blocked,
     and the writer process woke it, 21-74 times in 13 000 periods appended at a fast run's pace (0.24
     s), 11-13 times with 1 MiB. On a 2-vCPU VM those wake-ups cost the simulating thread more than
-    their CPU: the recording overhead of a fast node run went from 18.8 to 4.4 % (docs/performance.md,
-    "Recording")."""
+    their CPU: in four alternated comparisons the recording overhead of a fast node run was 5.4-18.8 %
+    with 64 KiB and 3.7-12.2 % with 1 MiB, lower in each (docs/performance.md, "Recording")."""
     try:
         import fcntl
         fcntl.fcntl(f.fileno(), fcntl.F_SETPIPE_SZ, PIPE_BYTES)
