@@ -397,6 +397,7 @@ def print_node_bench(nb, duration):
     # the row means something only when the same statistic finds no difference where there is none
     resolved = aa is not None and abs(aa[0]) <= AA_RESOLUTION
     verdict = ("not met" if cost > 0.10 else "met" if resolved else
+               "not shown: no A/A pairs (they come with --node-pairs >= 2)" if aa is None else
                f"not shown: the A/A median is beyond +-{AA_RESOLUTION * 100:g} %, the machine too noisy; run it again")
     print(f"  sim_node, time_mode fast, {duration:g} s at 1 kHz publish rate (u = 0, balanced start), real-time "
           f"factor without recording {sorted(round(v, 1) for v in nb[False])}, with "
