@@ -132,7 +132,7 @@ def case_stiff_pd(quick, broken):
         methods = [("dop853", {}), ("radau", {}), ("bdf", {}), ("rk4", dict(step=1e-3))]
         for meth, kw in methods:
             r, w = _timed(simulate, m, q0, dq0, T, controller=ctrl, method=meth, rtol=1e-8, atol=1e-8,
-                          phases=frozenset({"stance"}), scuff_depth=0.05, **kw)
+                          phases=frozenset({"stance"}), scuff_rule="behind", scuff_depth=0.05, **kw)
             runs[meth] = (r, w)
         done = {k: v for k, v in runs.items() if v[0].status == "completed"}
         ends = [np.concatenate([v[0].q[-1], v[0].dq[-1]]) for v in done.values()]

@@ -1,8 +1,10 @@
 """What "completed" means, checked from a result's samples alone, independently of the engine's own
 checks (``engine/invariants.py``): the stability suite and the tests judge runs with it.
 
-At every sample: a finite state; every foot at or above the ground within ``ground_tol`` (a foot behind
-the stance foot may scuff down to ``scuff_depth``: the stated exception of ``touchdown_rule="front"``);
+At every sample: a finite state; every foot at or above the ground within ``ground_tol`` (a swing foot
+passing through the ground may scuff down to ``scuff_depth``: the stated exception of
+``touchdown_rule="front"``, under ``scuff_rule`` "forward" while it moves forward, under "behind" while it
+is behind the stance foot);
 in stance, the ground pushes (normal force >= -``force_tol``). The tolerances are the run's own
 (``result.options``).
 """
@@ -20,9 +22,10 @@ def violations(model, result, upto=None, most=5) -> list[str]:
     slope = opt.slope if opt is not None else 0.0
     ground_tol = opt.ground_tol if opt is not None else 1e-9
     force_tol = opt.force_tol if opt is not None else 1e-6
-    scuff_depth = opt.scuff_depth if opt is not None else 3e-3
+    scuff_depth = opt.scuff_depth if opt is not None else math.inf
     front_tol = opt.front_tol if opt is not None else 1e-5
     behind_allowed = opt is None or opt.touchdown_rule == "front"
+    forward_rule = opt is None or opt.scuff_rule == "forward"
     s, c, tn = math.sin(slope), math.cos(slope), math.tan(slope)
     out = []
     n = len(result.t) if upto is None else min(upto, len(result.t))
@@ -35,10 +38,14 @@ def violations(model, result, upto=None, most=5) -> list[str]:
             if j == leg:
                 continue
             height = feet[j - 1][1] + tn * feet[j - 1][0]
-            behind = leg and behind_allowed and feet[j - 1][0] <= feet[leg - 1][0] + front_tol
-            if height < (-scuff_depth if behind else -ground_tol):
+            if forward_rule:    # the foot passes through while it moves forward more than it sinks
+                v = model.foot_velocity(q, dq, j)
+                passing = leg and behind_allowed and v[0] > 0.0 and v[0] + v[1] + tn * v[0] >= 0.0
+            else:
+                passing = leg and behind_allowed and feet[j - 1][0] <= feet[leg - 1][0] + front_tol
+            if height < (-scuff_depth if passing else -ground_tol):
                 out.append(f"t={t:.9g} s: foot {j} is {-height:.3g} m below the ground"
-                           + (" behind the stance foot, deeper than scuff_depth" if behind else ""))
+                           + (" passing through it, deeper than scuff_depth" if passing else ""))
         if leg:
             normal = result.grf[k][0] * s + result.grf[k][1] * c
             if normal < -force_tol:

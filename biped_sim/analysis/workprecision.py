@@ -105,7 +105,7 @@ def cases(model):
         Case("passive_fall", "stance on leg 1, u=0, phases={stance}: the pure constrained ODE, 1 s "
              "(the foot would lift off at 1.08 s)", qf, dqf, 1.0,
              # the swing foot grazes the ground behind the stance foot 1 cm deep (no impact phase)
-             options=dict(phases=frozenset({"stance"}), scuff_depth=0.05)),
+             options=dict(phases=frozenset({"stance"}), scuff_rule="behind", scuff_depth=0.05)),
         Case("walking", "WalkingController, 5 s, 10 impacts", qw, dqw, 5.0, walking=True),
         # after the landing, the unpowered swing foot grazes the ground behind the stance foot 7.7 mm
         # deep (a scuff: straight legs, no knees), deeper than the default scuff_depth of 3 mm

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from biped_sim.engine.integrators import FIXED_STEP_METHODS, METHODS
 from biped_sim.engine.model import BipedParameters
-from biped_sim.engine.options import PHASES
+from biped_sim.engine.options import PHASES, SCUFF_RULES
 
 CONTRACT_NAMES = ("time_mode", "control_period", "initial_q", "initial_dq", "initial_stance_leg",
                   "rtol", "atol", "duration")
@@ -110,8 +110,12 @@ PARAMETERS = [
     Param("phases", list, ["stance", "impact", "flight"], "phases this scene needs", item=str,
           choices=tuple(sorted(PHASES))),
     Param("outputs", list, list(DEFAULT_OUTPUTS), "topics to publish (and record)", item=str, choices=OUTPUTS),
-    Param("touchdown_rule", str, "front", "front: only touchdowns in front of the stance foot count; any",
-          choices=("front", "any")),
+    Param("touchdown_rule", str, "front", "front: a swing foot crossing the ground behind the stance foot may pass "
+          "through it (a scuff, see scuff_rule); any: every crossing is a touchdown", choices=("front", "any")),
+    Param("scuff_rule", str, "forward", "which crossings pass through the ground under touchdown_rule front: "
+          "forward: a swing foot moving forward more than it sinks (a foot falling back lands); behind: every "
+          "one behind the stance foot", choices=SCUFF_RULES),
+    Param("scuff_depth", float, 0.0, "a scuff deeper than this (m) stops the run; 0 = no bound", 0.0, 10.0),
     Param("slope", float, 0.0, "ground slope (rad); positive: the ground falls in +x", -0.5, 0.5),
     Param("mu", float, 0.0, "friction coefficient; 0 = enough friction (slip never checked)", 0.0, 100.0),
     Param("on_slip", str, "stop", "stop the run on slip, or keep the foot pinned and go on",
@@ -182,7 +186,8 @@ def engine_arguments(params: dict) -> dict:
     kwargs = dict(model=model, q0=params["initial_q"], dq0=params["initial_dq"],
                   stance_leg=params["initial_stance_leg"], rtol=params["rtol"], atol=params["atol"],
                   method=resolve_method(params), mu=params["mu"] or None, base=params["base"], phases=phases,
-                  touchdown_rule=params["touchdown_rule"], slope=params["slope"],
+                  touchdown_rule=params["touchdown_rule"], scuff_rule=params["scuff_rule"],
+                  scuff_depth=params["scuff_depth"] or math.inf, slope=params["slope"],
                   stop_on_slip=params["on_slip"] == "stop",
                   compute_grf=bool({"ground_reaction", "markers"} & set(params["outputs"])))
     if params["method"] in FIXED_STEP_METHODS:

@@ -55,11 +55,13 @@ typedef struct {
     double rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu, front_tol, scuff_depth;
     double event_tol, zeno_interval, impulse_tol, contact_tol;
     long max_events;
-    int front_rule, compute_grf;
+    int front_rule, forward_rule, compute_grf;   /* touchdown_rule "front", scuff_rule "forward" */
     /* the history the Python code checks an impact against: the last impact's time, the mode events so
      * far and the times of the last 49 (HybridSimulator._mode_event_times), in a ring */
     double last_impact, ring[49];
     long n_impacts, mode_events;
+    double recent_impacts[4];   /* the last (up to) 4 impact times, oldest first (ImpactHistory.times[-4:]) */
+    int n_recent;
     /* the touchdowns applied and the scuffs ended since the Python code last took them (take_events),
      * in order: their Events are the Python code's to make */
     EventRecord events[EVENT_ROOM];
@@ -597,6 +599,13 @@ locate_crossing(Loop *L, int leg, double ta, double tb, double *root)
 
 /* -- the quiet steps ----------------------------------------------------------------------------- */
 
+/* guards.swinging_through of a foot (x, height, dx, dheight): moving forward more than it sinks */
+static int
+swinging_through(const double *foot)
+{
+    return foot[2] > 0.0 && foot[2] + foot[3] >= 0.0;
+}
+
 /* EventLocator._track_scuffs of the swing foot over a step in which nothing else happens (t_end = the
  * step's end), on copies: 0 and the scuff followed (scuff, deepest updated), 1 when it ended in the
  * step (the foot above the ground at its end), -1 when the Python code must see this step (the scuff
@@ -616,7 +625,9 @@ track_scuff(Loop *L, int leg, double *scuff, double *deepest)
             scuff[1] = depth;
             scuff[2] = tt;
         }
-        if (depth > 0 && ft[4 * (leg - 1)] > ft[4 * (st - 1)] + L->front_tol) return -1;
+        /* guards.passes_through: under the ground, not swinging through ("forward") or in front ("behind") */
+        if (depth > 0 && (L->forward_rule ? !swinging_through(ft + 4 * (leg - 1))
+                                          : ft[4 * (leg - 1)] > ft[4 * (st - 1)] + L->front_tol)) return -1;
     }
     *deepest = *deepest > scuff[1] ? *deepest : scuff[1];
     if (scuff[1] > L->scuff_depth) return -1;
@@ -701,9 +712,13 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     ev->v[21] = L->pin[1];
     L->leg = nw;
     L->armed[0] = L->armed[1] = 0;
+    L->cache_ok = 0;        /* EventLocator.after_reset: the step end's feet and force are not the new state's */
     L->locator_changed = 1;
     L->last_impact = t_ev;
     L->n_impacts++;
+    if (L->n_recent == 4) memmove(L->recent_impacts, L->recent_impacts + 1, 3 * sizeof(double));
+    else L->n_recent++;
+    L->recent_impacts[L->n_recent - 1] = t_ev;
     L->ring[L->mode_events % 49] = t_ev;
     L->mode_events++;
     /* the next mode's start (begin): f at the state after the impact, the step size carried over */
@@ -767,13 +782,21 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         int crossing = g0 > 0 && g1 <= 0;
         if (crossing || (g0 > 0 && g1 > 0 && may_dip(L, sw, g0, g1, bracket))) {
             if (locate_crossing(L, sw, bracket[0], bracket[1], &t_root) < 0 || !L->front_rule) { L->why = 2; return 0; }
-            /* _is_scuff: at or behind the stance foot, a scuff; in front, a touchdown (the Python code's) */
+            /* _is_scuff (guards.starts_scuff): at or behind the stance foot, and under scuff_rule "forward"
+             * moving forward, a scuff; else a touchdown (the Python code's) */
             double fr[8];
             feet_at(L, t_root, fr);
-            if (fr[4 * (sw - 1)] > fr[4 * (st - 1)] + L->front_tol) {
+            if (fr[4 * (sw - 1)] > fr[4 * (st - 1)] + L->front_tol || (L->forward_rule && !swinging_through(fr + 4 * (sw - 1)))) {
                 touching = 1;         /* a touchdown: applied below if nothing else happens in the step */
                 t_touch = t_root;
             } else {
+                /* ImpactHistory.accumulating: a crossing that continues impacts whose gaps shrink is the Python
+                 * code's to decide (an impact of the Zeno limit) */
+                if (L->n_recent == 4) {
+                    const double *r = L->recent_impacts;
+                    double g0 = r[1] - r[0], g1 = r[2] - r[1], g2 = r[3] - r[2];
+                    if (g0 > g1 && g1 > g2 && g2 <= 0.5 * g0 && t_root - r[3] < g2) { L->why = 22; return 0; }
+                }
                 scuffs++;
                 scuffing = 1;
                 scuff[0] = scuff[2] = t_root;
@@ -923,16 +946,16 @@ Loop_set_model(Loop *L, PyObject *args)
 
 /* set_options(rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu or None,
  *             stop_on_slip, project, check_invariants, impact_phase, slope, to_power_basis (64), front_tol,
- *             scuff_depth, event_tol, touchdown_rule == "front") */
+ *             scuff_depth, event_tol, touchdown_rule == "front", scuff_rule == "forward") */
 static PyObject *
 Loop_set_options(Loop *L, PyObject *args)
 {
     PyObject *mu, *tpb;
     double slope;
-    if (!PyArg_ParseTuple(args, "ddddddddOppppdOdddp", &L->rtol, &L->atol, &L->max_step, &L->max_speed,
+    if (!PyArg_ParseTuple(args, "ddddddddOppppdOdddpp", &L->rtol, &L->atol, &L->max_step, &L->max_speed,
                           &L->ground_tol, &L->force_tol, &L->graze_tol, &L->arm_height, &mu, &L->stop_on_slip,
                           &L->project, &L->check_invariants, &L->impact_phase, &slope, &tpb, &L->front_tol,
-                          &L->scuff_depth, &L->event_tol, &L->front_rule))
+                          &L->scuff_depth, &L->event_tol, &L->front_rule, &L->forward_rule))
         return NULL;
     L->has_mu = mu != Py_None;
     L->mu = L->has_mu ? PyFloat_AsDouble(mu) : 0.0;
@@ -954,18 +977,19 @@ Loop_set_events(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* set_history(last impact time or None, mode events so far, the times of the last 49 (a list)) */
+/* set_history(the last (up to 4) impact times (a list), mode events so far, the times of the last 49 (a list)) */
 static PyObject *
 Loop_set_history(Loop *L, PyObject *args)
 {
-    PyObject *last, *times;
-    Py_ssize_t n;
+    PyObject *recent, *times;
+    Py_ssize_t n, n_recent;
     double v[49];
-    if (!PyArg_ParseTuple(args, "OlO", &last, &L->mode_events, &times) || doubles(times, v, 0, 49, "times", &n))
+    if (!PyArg_ParseTuple(args, "OlO", &recent, &L->mode_events, &times)
+        || doubles(recent, L->recent_impacts, 0, 4, "recent impacts", &n_recent) || doubles(times, v, 0, 49, "times", &n))
         return NULL;
-    L->n_impacts = last != Py_None;
-    L->last_impact = last != Py_None ? PyFloat_AsDouble(last) : 0.0;
-    if (PyErr_Occurred()) return NULL;
+    L->n_recent = (int)n_recent;
+    L->n_impacts = n_recent > 0;
+    L->last_impact = n_recent > 0 ? L->recent_impacts[n_recent - 1] : 0.0;
     for (Py_ssize_t i = 0; i < n; i++) L->ring[(L->mode_events - n + i) % 49] = v[i];
     Py_RETURN_NONE;
 }

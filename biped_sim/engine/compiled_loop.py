@@ -121,7 +121,8 @@ class CompiledStepper(integrators._ListRungeKutta):
                               opt.graze_tol, opt.arm_height, sim.mu, opt.stop_on_slip, opt.project_constraints,
                               opt.check_invariants, "impact" in opt.phases, opt.slope,
                               integrators._DOP853Interpolant.TO_POWER_BASIS.ravel().tolist(), opt.front_tol,
-                              opt.scuff_depth, opt.event_tol, opt.touchdown_rule == "front")
+                              opt.scuff_depth, opt.event_tol, opt.touchdown_rule == "front",
+                              opt.scuff_rule == "forward")
         self.loop.set_events(opt.compute_grf, opt.zeno_interval, opt.impulse_tol, opt.contact_tol,
                              opt.max_events)
         self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
@@ -168,7 +169,7 @@ class CompiledStepper(integrators._ListRungeKutta):
         self.loop.set_locator(locator.armed[0], locator.armed[1], t_feet if same else None,
                               [v for foot in ft for v in foot] if same else None, F if same else None, leg, scuff,
                               locator.deepest_scuff, locator.scuffs)
-        self.loop.set_history(sim.impacts.times[-1] if sim.impacts.times else None, len(sim._mode_event_times),
+        self.loop.set_history(sim.impacts.times[-4:], len(sim._mode_event_times),
                               sim._mode_event_times[-49:])
         self.loop.locator_stale = False
 
@@ -277,7 +278,8 @@ class CompiledStepper(integrators._ListRungeKutta):
                 sim.impacts.record(t_ev)   # no Zeno stop: the loop hands back an impact that could make one
             else:
                 _, leg, stance_leg, scuff, t_up, q, dq = record
-                sim._add_event(scuff_event(leg, stance_leg, scuff, t_up, q, dq, sim.opt.scuff_depth))
+                sim._add_event(scuff_event(leg, stance_leg, scuff, t_up, q, dq, sim.opt.scuff_depth,
+                                           sim.opt.scuff_rule))
         if accepted:
             qdq = s._data[s.n - 1, 1:11].copy()
             sim.t, sim.work, sim._h = t, w, h_abs

@@ -111,6 +111,33 @@ def active_guards(stance_leg, armed, phases, mu) -> list[Guard]:
     return guards
 
 
+# -- the scuff assumption of touchdown_rule "front" --------------------------------------------------
+def swinging_through(foot: FootState) -> bool:
+    """A foot moving forward more than it sinks (a crossing at most 45 degrees steep): a leg swinging
+    through near the bottom of its arc, not a robot falling onto its foot (which moves backward, or
+    down)."""
+    return foot.dx > 0.0 and foot.dx + foot.dheight >= 0.0
+
+
+def starts_scuff(swing: FootState, stance: FootState, opt) -> bool:
+    """Whether the swing foot, crossing the ground going down here, passes through it (a scuff) rather
+    than touching down: at or behind the stance foot (within ``front_tol`` counts as behind), and under
+    ``scuff_rule`` "forward" swinging through (``swinging_through``; a foot that comes down behind
+    otherwise is the robot falling back onto it, and lands)."""
+    if swing.x > stance.x + opt.front_tol:
+        return False
+    return opt.scuff_rule == "behind" or swinging_through(swing)
+
+
+def passes_through(swing: FootState, stance: FootState, opt) -> bool:
+    """Whether a swing foot under the ground still passes through it, as a scuff under way: under
+    ``scuff_rule`` "forward" while it swings through (wherever it is), under "behind" while it is behind
+    the stance foot."""
+    if opt.scuff_rule == "forward":
+        return swinging_through(swing)
+    return swing.x <= stance.x + opt.front_tol
+
+
 # -- locating a crossing -----------------------------------------------------------------------
 def locate_crossing(guard_at, ta, tb, event_tol) -> float:
     """The time in [ta, tb] where ``guard_at`` (positive at ta, <= 0 at tb) crosses zero, to
@@ -136,8 +163,8 @@ def check_initial_contact(feet, stance_leg, opt):
     ground within ``contact_tol`` and at rest, and the swing foot not below it; in flight, both feet
     not below it; and no free foot on the ground moving into it (that is an impact still to apply, not
     a state to start from). "Not below" is the invariant's own bound, ``ground_tol``, with the run's
-    one allowance: a swing foot behind the stance foot (``touchdown_rule`` "front") may be up to
-    ``scuff_depth`` below, a scuff (as right after an impact, perturbed). A start the check of every
+    one allowance: a swing foot whose crossing would be a scuff (``touchdown_rule`` "front", ``starts_scuff``) may be
+    up to ``scuff_depth`` below. A start the check of every
     sample would reject is refused here, before it can end "completed" with its first sample wrong."""
     tol = opt.contact_tol
     if stance_leg:
@@ -151,12 +178,14 @@ def check_initial_contact(feet, stance_leg, opt):
                              f"({f.dx:.6g}, {f.dheight:.6g}) m/s; it must be at rest (J dq = 0; "
                              "biped_sim.stance_state gives a consistent dq)")
         swing = feet[2 - stance_leg]
-        behind = opt.touchdown_rule == "front" and swing.x <= f.x + opt.front_tol
-        if swing.height < -(opt.scuff_depth if behind else opt.ground_tol):
+        scuff = opt.touchdown_rule == "front" and starts_scuff(swing, f, opt)
+        if swing.height < -(opt.scuff_depth if scuff else opt.ground_tol):
             raise ValueError(
                 f"initial state: the swing foot (leg {3 - stance_leg}) is {-swing.height:.6g} m below the ground "
-                + (f"behind the stance foot (scuff_depth {opt.scuff_depth:g} m)" if behind else
-                   f"(ground_tol {opt.ground_tol:g} m)") + "; raise the hip or the foot")
+                + (f"passing through it (scuff_depth {opt.scuff_depth:g} m)" if scuff else
+                   f"(ground_tol {opt.ground_tol:g} m; it passes through only behind the stance foot" + (
+                       " moving forward, scuff_rule 'forward')" if opt.scuff_rule == "forward" else
+                       ", scuff_rule 'behind')")) + "; raise the hip or the foot")
     else:
         for leg in (1, 2):
             if feet[leg - 1].height < -opt.ground_tol:

@@ -96,7 +96,8 @@ class HybridSimulator:
         self.push_work = 0.0                # kinetic energy added by pushes (J)
         self.E0 = model.energy(q0, dq0)
         self.events: list[Event] = []
-        self.locator = EventLocator(model, self.ground, self.opt, mu, feet, stance_leg)
+        self.impacts = ImpactHistory(self.opt.zeno_count, self.opt.zeno_interval)
+        self.locator = EventLocator(model, self.ground, self.opt, mu, feet, stance_leg, self.impacts)
         self.pin = list(G.foot_xy(model, q0.tolist(), stance_leg)) if stance_leg else None
         self.status, self.message = "running", ""
         self.control_periods = 0            # advance_period calls so far
@@ -108,7 +109,6 @@ class HybridSimulator:
         self._compiled = None               # the compiled loop's stepper, built at its first mode
         self._last_F, self._last_u = [0.0, 0.0], [0.0, 0.0]   # the last right-hand-side evaluation's
         self._initial_sample_pending = True    # the t0 sample, redone under the first advance's torque
-        self.impacts = ImpactHistory(self.opt.zeno_count, self.opt.zeno_interval)
         self._mode_event_times: list[float] = []   # the events that changed the mode (not the scuffs)
         self._stats = dict(steps=0, compiled_loop_steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
                           max_constraint_drift_position=0.0, max_constraint_drift_velocity=0.0,

@@ -6,7 +6,7 @@ status "failed" (``InvariantViolation``), saying which invariant, when and by ho
 
 * the state is finite;
 * every foot is at or above the ground (``ground_tol``); the one stated exception is a scuff of
-  ``touchdown_rule="front"``, bounded by ``scuff_depth`` (``locator.py``);
+  ``touchdown_rule="front"`` (a foot passing through the ground, ``scuff_rule``; ``locator.py``);
 * in stance, the ground pushes (normal force >= -``force_tol``) and, with a friction coefficient and
   ``stop_on_slip``, the force is inside the friction cone;
 * an impact pushes (every normal impulse >= -``impulse_tol``) and leaves every foot that stays on the ground at rest
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 
-from biped_sim.engine.guards import normal_tangent
+from biped_sim.engine.guards import normal_tangent, starts_scuff
 from biped_sim.engine.results import SceneAssumptionError, SimulationError
 
 
@@ -38,14 +38,14 @@ def check_sample(t, q, dq, feet, stance_leg, F, ground, mu, opt, scuffing, last_
         if leg == stance_leg or leg in scuffing or f.height >= -opt.ground_tol:
             continue
         if "impact" not in opt.phases:
-            # no touchdown guard is built: the scene, not the run, is at fault; behind the stance
-            # foot it is the scuff of touchdown_rule "front", bounded the same way
-            behind = stance_leg and opt.touchdown_rule == "front" and f.x <= feet[stance_leg - 1].x + opt.front_tol
-            if behind and -f.height <= opt.scuff_depth:
+            # no touchdown guard is built: the scene, not the run, is at fault; where a crossing would be a
+            # scuff of touchdown_rule "front", it is one, bounded the same way
+            scuff = stance_leg and opt.touchdown_rule == "front" and starts_scuff(f, feet[stance_leg - 1], opt)
+            if scuff and -f.height <= opt.scuff_depth:
                 continue
             raise SceneAssumptionError(
                 f"foot {leg} touches the ground at t={t:.9g} s (it is {-f.height:.3g} m below at the end of the "
-                "step" + (f", behind the stance foot: deeper than scuff_depth={opt.scuff_depth:g} m" if behind else "")
+                "step" + (f", passing through it: deeper than scuff_depth={opt.scuff_depth:g} m" if scuff else "")
                 + "), but this scene has no impact phase: add 'impact' to its phases")
         why = ""
         if last_impact is not None and last_impact.kind == "double_touchdown":
@@ -112,3 +112,12 @@ class ImpactHistory:
 
     def gaps(self):
         return [b - a for a, b in zip(self.times, self.times[1:])]
+
+    def accumulating(self, t):
+        """Whether a crossing at t continues a run of impacts that accumulate: the last three gaps shrink,
+        the last to at most half the first (a walk's steps settle far more slowly), and t comes sooner
+        than the last gap. That is the Zeno limit, where a foot comes back to the ground at vanishing
+        speed: such a crossing is an impact (whose check says Zeno), never a scuff. (_core.c quiet_step
+        hands it back.)"""
+        g = self.gaps()[-3:]
+        return len(g) == 3 and g[0] > g[1] > g[2] and g[2] <= 0.5 * g[0] and t - self.times[-1] < g[2]

@@ -3,13 +3,20 @@
 Under ``touchdown_rule="front"`` a swing foot that goes below the ground behind the stance foot
 (straight legs without knees graze the ground near mid-stance) is not a touchdown: that is the
 modelling assumption of the compass-gait literature (Drake's ``FootCollision`` guard too). Here it is
-explicit and bounded: each such excursion is a *scuff*, tracked from the down-crossing until the foot
-is above the ground again, reported as an Event (kind ``scuff``: when, which foot, deepest dip), and
-a scuff deeper than ``scuff_depth``, or one that carries the foot under the ground to the front of
-the stance foot, stops the run (``SceneAssumptionError``: status "stopped"). A down-crossing within
-``front_tol`` of the stance foot's x counts as behind, so that roundoff cannot decide it.
+explicit and bounded (``guards.starts_scuff``, ``guards.passes_through``): under ``scuff_rule``
+"forward" (the default) a foot passes through the ground while it moves forward, as a swinging leg
+does, and one that comes down behind the stance foot without moving forward lands (the robot falls
+back onto it); under "behind" every crossing behind the stance foot passes through. Each excursion is
+a *scuff*, tracked from the down-crossing until the foot is above the ground again, reported as an
+Event (kind ``scuff``: when, which foot, deepest dip); a scuff that stops passing through while under
+the ground (it stops moving forward; under "behind": it reaches the front of the stance foot), or one
+deeper than ``scuff_depth`` (no bound by default), stops the run (``SceneAssumptionError``: status
+"stopped"). A down-crossing within ``front_tol`` of the stance foot's x counts as behind, so that
+roundoff cannot decide it.
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -29,8 +36,9 @@ class EventLocator:
     ``force_at(t, q, dq) -> [Fx, Fy]`` for the stance guards.
     """
 
-    def __init__(self, model, ground, opt, mu, feet, stance_leg):
+    def __init__(self, model, ground, opt, mu, feet, stance_leg, impacts):
         self.model, self.ground, self.opt, self.mu = model, ground, opt, mu
+        self.impacts = impacts   # the run's ImpactHistory: a crossing in the Zeno limit is an impact
         # at the start no reset has just happened, so a free foot above the ground, however little,
         # is armed at once: its crossing is found (a foot on it arms when it rises above arm_height)
         self.armed = [feet[0].height > 0.0, feet[1].height > 0.0]
@@ -47,7 +55,9 @@ class EventLocator:
         return G.active_guards(stance_leg, self.armed, self.opt.phases, self.mu)
 
     def after_reset(self, event):
-        """Disarm the feet the reset put on the ground (or that just left it)."""
+        """Disarm the feet the reset put on the ground (or that just left it); forget the feet and force
+        kept of the last step's end: the reset changed the state they were computed from."""
+        self._feet_end = self._force_end = (None, None)
         for leg in self.active_scuffs:
             # a liftoff with the other foot still under the ground behind: no mode of the model has
             # a free foot below the ground
@@ -82,6 +92,8 @@ class EventLocator:
         guards = self.guards(stance_leg)
         if not guards and not self._resting_feet_pushed_in(feet1, stance_leg):
             self._arm(feet1, stance_leg)
+            # the step's end is the next step's start: what is kept of the step before is no longer its state
+            self._feet_end, self._force_end = (st.t, feet1), (None, None)
             return None, None
         # the step's start is the last step's end: its feet and force are known (the projection
         # since moved the state by the drift only, ~1e-14)
@@ -126,7 +138,7 @@ class EventLocator:
             # and that the dynamics push into it: a touchdown from where it rests, not a crossing
             guard = G.Guard("touchdown", leg)
             guard_at = self._on_dense_output(st, to_phys, guard, force_at)
-            t_root = self._crossing(st, guard, guard_at, (st.t_old, st.t))
+            t_root = self._crossing(st, guard, guard_at, landing_bracket(guard_at, st.t_old, st.t))
             if not self._is_scuff(st, to_phys, guard, stance_leg, t_root):
                 roots.append((t_root, guard))
         t_end = min(roots)[0] if roots else st.t
@@ -163,12 +175,12 @@ class EventLocator:
         return guard_at
 
     def _is_scuff(self, st, to_phys, guard, stance_leg, t_root):
-        """Under touchdown_rule "front", a touchdown at or behind the stance foot is a scuff: start
-        following it."""
+        """Under touchdown_rule "front", a crossing that passes through the ground (``guards.starts_scuff``)
+        is a scuff: start following it."""
         if guard.kind != "touchdown" or not stance_leg or self.opt.touchdown_rule != "front":
             return False
         fr = self._feet_at(st, to_phys, t_root)
-        if fr[guard.leg - 1].x > fr[stance_leg - 1].x + self.opt.front_tol:
+        if not G.starts_scuff(fr[guard.leg - 1], fr[stance_leg - 1], self.opt) or self.impacts.accumulating(t_root):
             return False
         self.scuffs += 1
         self.active_scuffs[guard.leg] = [t_root, 0.0, t_root]
@@ -183,7 +195,7 @@ class EventLocator:
     def _track_scuffs(self, st, to_phys, stance_leg, t_end, n=8):
         """Follow each scuffing foot over the step up to ``t_end``: its deepest dip (on n + 1 points of
         the dense output), the end of the scuff when it is above the ground again, and the two ways
-        a scuff leaves the model (deeper than scuff_depth; under the ground in front)."""
+        a scuff leaves the model (it stops passing through under the ground; deeper than scuff_depth)."""
         for leg, scuff in list(self.active_scuffs.items()):
             t0 = max(scuff[0], st.t_old)
             for t in np.linspace(t0, t_end, n + 1).tolist():
@@ -191,18 +203,16 @@ class EventLocator:
                 depth = -feet[leg - 1].height
                 if depth > scuff[1]:
                     scuff[1], scuff[2] = depth, t
-                if depth > 0 and feet[leg - 1].x > feet[stance_leg - 1].x + self.opt.front_tol:
-                    raise SceneAssumptionError(
-                        f"foot {leg} went below the ground behind the stance foot at t={scuff[0]:.9g} s and is "
-                        f"{depth:.3g} m below it in front of the stance foot at t={t:.9g} s: a touchdown there "
-                        "cannot be placed (the legs are too long for this gait; touchdown_rule='any' makes every "
-                        "crossing a touchdown)")
+                if depth > 0 and not G.passes_through(feet[leg - 1], feet[stance_leg - 1], self.opt):
+                    raise SceneAssumptionError(scuff_left_model(leg, scuff[0], depth, t, feet[leg - 1],
+                                                                self.opt.scuff_rule))
             self.deepest_scuff = max(self.deepest_scuff, scuff[1])
             if scuff[1] > self.opt.scuff_depth:
                 raise SceneAssumptionError(
                     f"foot {leg} went {scuff[1]:.3g} m below the ground behind the stance foot (leg {stance_leg}) "
                     f"at t={scuff[2]:.9g} s, deeper than scuff_depth={self.opt.scuff_depth:g} m: the robot is "
-                    "falling onto that foot, which the model (touchdown_rule='front') does not let touch down")
+                    "falling onto that foot, which the model (touchdown_rule='front') does not let touch down "
+                    "(a larger scuff_depth, or inf, lets deeper scuffs pass)")
             if feet[leg - 1].height > 0.0:     # the loop's last point is t_end
                 del self.active_scuffs[leg]
                 self.scuff_events.append(self._scuff_event(st, to_phys, leg, stance_leg, scuff, t_end))
@@ -210,7 +220,7 @@ class EventLocator:
     def _scuff_event(self, st, to_phys, leg, stance_leg, scuff, t_up):
         t_deep = scuff[2]
         q, dq, _ = to_phys(st.dense_at(t_deep)) if st.t_old <= t_deep <= st.t else (None, None, None)
-        return scuff_event(leg, stance_leg, scuff, t_up, q, dq, self.opt.scuff_depth)
+        return scuff_event(leg, stance_leg, scuff, t_up, q, dq, self.opt.scuff_depth, self.opt.scuff_rule)
 
     def _feet_at(self, st, to_phys, t):
         q, dq, _ = to_phys(st.dense_at(t))
@@ -222,7 +232,35 @@ class EventLocator:
                 self.armed[leg - 1] = True
 
 
-def scuff_event(leg, stance_leg, scuff, t_up, q, dq, scuff_depth) -> Event:
+def landing_bracket(height_at, t_old, t, n=16):
+    """Where a free foot that rested on the ground at the step's start and is under it at its end lands:
+    a touchdown needs the foot moving down, so where it rose above the ground inside the step (it lifted
+    off and comes back) the bracket ends at the last down-crossing of ``height_at`` seen on n + 1 even
+    points and on points closing in on the start geometrically (a hop shorter than the step's 1/n); else
+    the step's start (the dynamics push the resting foot in from there)."""
+    dt = t - t_old
+    ts = sorted(set(np.linspace(t_old, t, n + 1).tolist() + [t_old + dt * 0.5 ** k for k in range(1, 53)]))
+    ts = [tk for tk in ts if t_old < tk < t] + [t]
+    above = [k for k, tk in enumerate(ts[:-1]) if height_at(tk) > 0.0]
+    return (ts[above[-1]], ts[above[-1] + 1]) if above else (t_old, t)
+
+
+def scuff_left_model(leg, t_start, depth, t, foot, scuff_rule) -> str:
+    """The message of a scuff that stops passing through the ground while the foot (a FootState) is under it."""
+    if scuff_rule == "forward":
+        return (f"foot {leg} went below the ground behind the stance foot at t={t_start:.9g} s swinging forward (a "
+                f"scuff) and at t={t:.9g} s, {depth:.3g} m below the ground, no longer swings through (it moves at "
+                f"{foot.dx:.3g} m/s forward, {foot.dheight:.3g} m/s up): the robot is falling onto that foot, which "
+                "cannot touch down under the ground (scuff_rule='forward': a foot passes through the ground only while "
+                "it moves forward more than it sinks; scuff_rule='behind' lets every foot behind the stance foot pass, "
+                "touchdown_rule='any' makes every crossing a touchdown)")
+    return (f"foot {leg} went below the ground behind the stance foot at t={t_start:.9g} s and is {depth:.3g} m below "
+            f"it in front of the stance foot at t={t:.9g} s: a touchdown there cannot be placed (scuff_rule='behind': "
+            "a foot passes through the ground only behind the stance foot; scuff_rule='forward' lets a foot moving "
+            "forward pass, touchdown_rule='any' makes every crossing a touchdown)")
+
+
+def scuff_event(leg, stance_leg, scuff, t_up, q, dq, scuff_depth, scuff_rule) -> Event:
     """The Event of a scuff of foot ``leg`` that ended at ``t_up`` (``scuff``: [t_start, deepest,
     t_deepest]; q, dq: the state at t_deepest, or None when it is not inside the last step)."""
     t_start, depth, t_deep = scuff
@@ -231,4 +269,5 @@ def scuff_event(leg, stance_leg, scuff, t_up, q, dq, scuff_depth) -> Event:
     return Event(t_start, "scuff", leg, q, dq, dq.copy(), None, stance_leg, stance_leg,
                  message=f"foot {leg} scuffed the ground behind the stance foot from t={t_start:.9g} s to "
                          f"t={t_up:.9g} s, {depth:.3g} m deep at t={t_deep:.9g} s (the assumption of "
-                         f"touchdown_rule='front'; bounded by scuff_depth={scuff_depth:g} m)")
+                         f"touchdown_rule='front', scuff_rule='{scuff_rule}'"
+                         + (f"; bounded by scuff_depth={scuff_depth:g} m)" if math.isfinite(scuff_depth) else ")"))

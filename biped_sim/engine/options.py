@@ -10,6 +10,9 @@ import numpy as np
 from biped_sim.engine.integrators import ADAPTIVE_METHODS, FIXED_STEP_METHODS, METHODS
 
 PHASES = frozenset({"stance", "impact", "flight"})
+#: the scuff rules of touchdown_rule "front": a swing foot under the ground passes through it while it moves
+#: forward ("forward"), or wherever it is behind the stance foot ("behind", the compass-gait literature's)
+SCUFF_RULES = ("forward", "behind")
 
 
 @dataclass
@@ -17,7 +20,11 @@ class Options:
     base: str = "floating"
     phases: frozenset = PHASES
     touchdown_rule: str = "front"
-    scuff_depth: float = 3e-3          # m; a swing foot deeper than this behind the stance foot stops the run
+    # which crossings of the swing foot are scuffs (passes through the ground) under touchdown_rule "front":
+    # "forward" those of a foot moving forward (it lands where it does not), "behind" every one behind the
+    # stance foot (docs/engine.md "Scuffs")
+    scuff_rule: str = "forward"
+    scuff_depth: float = math.inf      # m; a scuff deeper than this stops the run (inf: no bound)
     front_tol: float = 1e-5            # m; a touchdown within this of the stance foot's x counts as behind
     stop_on_slip: bool = True
     project_constraints: bool = True
@@ -53,15 +60,19 @@ class Options:
             raise ValueError("the fixed-base method has no flight phase: use base='floating' or drop 'flight'")
         if self.touchdown_rule not in ("front", "any"):
             raise ValueError(f"touchdown_rule must be 'front' or 'any', got {self.touchdown_rule!r}")
+        if self.scuff_rule not in SCUFF_RULES:
+            raise ValueError(f"scuff_rule must be one of {', '.join(map(repr, SCUFF_RULES))}, got {self.scuff_rule!r}")
         check_number("slope", self.slope, -math.pi / 2, math.pi / 2, "rad, strictly between -pi/2 and pi/2",
                      open_low=True, open_high=True)
         for name, low, what in (("event_tol", 0.0, "s"), ("contact_tol", 0.0, "m and m/s"),
-                                ("scuff_depth", 0.0, "m"), ("front_tol", 0.0, "m"), ("graze_tol", 0.0, "m"),
+                                ("front_tol", 0.0, "m"), ("graze_tol", 0.0, "m"),
                                 ("zeno_interval", 0.0, "s"), ("max_speed", 0.0, "m/s and rad/s"),
                                 ("ground_tol", 0.0, "m"), ("force_tol", 0.0, "N"), ("impulse_tol", 0.0, "N s")):
             check_number(name, getattr(self, name), low, math.inf, what, open_low=True)
         for name, what in (("arm_height", "m"), ("simultaneous_tol", "s")):
             check_number(name, getattr(self, name), 0.0, math.inf, what)
+        check_number("scuff_depth", self.scuff_depth, 0.0, math.inf, "m, or inf for no bound", open_low=True,
+                     allow_inf=True)
         check_number("max_step", self.max_step, 0.0, math.inf, "s, or inf for no limit", open_low=True,
                      allow_inf=True)
         if self.step is not None:

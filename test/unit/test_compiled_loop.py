@@ -91,6 +91,7 @@ EDGES = {
     "loose tolerance": dict(rtol=1e-5, atol=1e-5),
     "max_step": dict(max_step=2e-3),
     "shallow scuffs": dict(scuff_depth=1e-5),
+    "scuffs of round 2's rule": dict(scuff_rule="behind", scuff_depth=3e-3),
     "max_speed reached": dict(max_speed=1.0),
     "an event limit": dict(max_events=3),
 }
@@ -100,6 +101,35 @@ EDGES = {
 def test_the_edges_run_the_same_on_both_loops(case):
     a, b = both_loops(_walk(**EDGES[case]))
     assert_same_run(a, b, case)
+
+
+def _rocking_v(touchdown_rule):
+    from biped_sim.analysis.stability import HipPD
+    q0, dq0 = bs.stance_state(MODEL, [math.pi - 0.3, math.pi + 0.3, 0.0], [0.0, 0.0, 0.3])
+    return lambda: bs.simulate(MODEL, q0, dq0, 5.0, controller=HipPD(1e4, 200.0, q0[2:4]),
+                               touchdown_rule=touchdown_rule)
+
+
+SCUFF_RULE_RUNS = {
+    # a walk whose swing foot scuffs 3.8 mm deep (round 2 stopped it), continuous and held 2 ms
+    "a deep scuff, continuous": lambda: bs.simulate(
+        MODEL, *WalkingController(MODEL).initial_state(), 3.0, controller=WalkingController(MODEL, lag=-0.15)),
+    "a deep scuff, held 2 ms": lambda: bs.simulate(
+        MODEL, *WalkingController(MODEL).initial_state(), 3.0, controller=WalkingController(MODEL, lag=-0.15),
+        control_period=2e-3),
+    "a scuff into the front": lambda: bs.simulate(
+        MODEL, *WalkingController(MODEL).initial_state(), 3.0,
+        controller=WalkingController(MODEL, lag=-0.01, clearance=0.3), control_period=1e-3),
+    "a fall back onto the rear foot": lambda: bs.load_scene("passive").simulate(t_final=2.0),
+    "the rocking V's Zeno limit": _rocking_v("front"),
+}
+
+
+@pytest.mark.parametrize("case", list(SCUFF_RULE_RUNS))
+def test_the_scuff_rule_runs_the_same_on_both_loops(case):
+    a, b = both_loops(SCUFF_RULE_RUNS[case])
+    assert_same_run(a, b, case)
+    assert a.stats["compiled_loop_steps"] > 0
 
 
 def test_the_walk_is_bit_for_bit_the_python_walk():

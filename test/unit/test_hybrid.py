@@ -14,7 +14,7 @@ from biped_sim.engine.simulate import simulate, stance_state
 STANCE_ONLY = frozenset({"stance"})
 # the pinned chain's ODE: the unpowered swing foot passes centimetres under the ground behind the
 # stance foot (a scuff, which a scene without impacts bounds by scuff_depth too)
-PINNED_CHAIN = dict(phases=STANCE_ONLY, scuff_depth=1.0)
+PINNED_CHAIN = dict(phases=STANCE_ONLY, scuff_rule="behind", scuff_depth=1.0)
 
 
 @pytest.fixture(scope="module")

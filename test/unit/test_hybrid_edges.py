@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 import biped_sim as bs
 from biped_sim.analysis.edge_cases import (
@@ -13,7 +14,8 @@ from biped_sim.analysis.edge_cases import (
     spinning_stance,
     swing_foot_just_above,
 )
-from biped_sim.analysis.verify import violations
+from biped_sim.analysis.verify import result_violations, violations
+from biped_sim.engine.guards import foot_states
 
 MODEL = bs.BipedModel()
 WALKER = bs.WalkingController(MODEL)
@@ -153,25 +155,30 @@ def test_a_free_foot_on_the_ground_moving_into_it_is_refused_as_ambiguous():
         bs.simulate(MODEL, q, dq, 0.1)
 
 
-@pytest.mark.parametrize("side, depth, refused", [
-    (+1, 3e-8, True),      # in front, deeper than ground_tol: a touchdown that was never applied
-    (+1, 5e-10, False),    # in front, within ground_tol
-    (-1, 2e-7, False),     # behind the stance foot: a scuff within scuff_depth (a perturbed post-impact state)
-    (-1, 4e-3, True),      # behind, deeper than scuff_depth
+@pytest.mark.parametrize("side, depth, swing_rate, options, refused", [
+    (+1, 3e-8, 0.0, {}, True),      # in front, deeper than ground_tol: a touchdown that was never applied
+    (+1, 5e-10, 0.0, {}, False),    # in front, within ground_tol
+    (-1, 2e-7, -1.0, {}, False),    # behind, swinging forward: a scuff under way
+    (-1, 4e-3, -1.0, {}, False),    # the same 4 mm deep: no depth bound by default
+    (-1, 4e-3, -1.0, dict(scuff_depth=3e-3), True),   # ... deeper than a scuff_depth given
+    (-1, 2e-7, 0.0, {}, True),      # behind at rest: the robot stands on that foot, a touchdown never applied
+    (-1, 2e-7, 0.0, dict(scuff_rule="behind"), False),   # ... which scuff_rule "behind" lets pass
 ])
-def test_a_swing_foot_below_the_ground_at_the_start_is_refused_by_the_runs_own_bounds(side, depth, refused):
+def test_a_swing_foot_below_the_ground_at_the_start_is_refused_by_the_runs_own_bounds(side, depth, swing_rate,
+                                                                                       options, refused):
     """The start check and the invariant of every sample agree: what the run would call a violation is
-    refused before it starts. The swing leg hangs straight under the hip, the stance leg is tilted by
-    ``a`` so that the hip is ``depth`` lower than a leg's length (side +1: the swing foot in front)."""
+    refused before it starts. The swing leg hangs straight under the hip (turning forward at
+    ``swing_rate`` rad/s), the stance leg is tilted by ``a`` so that the hip is ``depth`` lower than a
+    leg's length (side +1: the swing foot in front)."""
     a = side * math.acos(1.0 - depth / MODEL.parameters.l_leg)
-    q, dq = bs.stance_state(MODEL, [math.pi + a, math.pi, 0.0], [0.0, 0.0, 0.0], stance_leg=1)
+    q, dq = bs.stance_state(MODEL, [math.pi + a, math.pi, 0.0], [0.0, swing_rate, 0.0], stance_leg=1)
     swing = MODEL.foot_position(q, 2)
     assert swing[1] == pytest.approx(-depth, rel=1e-6) and np.sign(swing[0]) == side
     if refused:
         with pytest.raises(ValueError, match=r"swing foot \(leg 2\) is .* below the ground"):
-            bs.simulate(MODEL, q, dq, 0.05)
+            bs.simulate(MODEL, q, dq, 0.05, **options)
     else:
-        r = bs.simulate(MODEL, q, dq, 0.05)
+        r = bs.simulate(MODEL, q, dq, 0.05, **options)
         assert r.status != "completed" or not violations(MODEL, r), violations(MODEL, r)
 
 
@@ -210,14 +217,55 @@ def test_the_walk_reports_each_scuff_and_stays_within_scuff_depth():
     assert [e.time for e in r.events] == sorted(e.time for e in r.events)
 
 
-def test_falling_back_onto_the_rear_foot_stops_with_which_foot_when_and_how_deep():
+def test_falling_back_onto_the_rear_foot_lands_on_it_and_ends_honestly():
     r = bs.load_scene("passive").simulate(t_final=2.0)
-    assert r.status == "stopped", r.message
-    assert "foot 1 went" in r.message and "deeper than scuff_depth=0.003 m" in r.message
-    depth = float(r.message.split("foot 1 went ")[1].split(" m below")[0])
+    # it tips forward onto foot 2, then falls back: foot 1 comes down behind foot 2 moving backward, and lands
+    fall = next(e for e in r.events if e.kind == "touchdown" and e.leg == 1)
+    assert MODEL.foot_position(fall.q, 1)[0] < MODEL.foot_position(fall.q, 2)[0]
+    assert MODEL.foot_velocity(fall.q, fall.dq_minus, 1)[0] < 0.0
+    # and the rocking on both feet that follows ends where the impacts accumulate, with no foot under the ground
+    assert r.status == "stopped" and r.events[-1].kind == "zeno", r.message
+    assert not result_violations(MODEL, r), result_violations(MODEL, r)
+    # round 2's rule, a depth bound, stops the same fall by its depth
+    r2 = bs.load_scene("passive").simulate(t_final=2.0, scuff_rule="behind", scuff_depth=3e-3)
+    assert r2.status == "stopped" and "deeper than scuff_depth=0.003 m" in r2.message, r2.message
+    depth = float(r2.message.split("foot 1 went ")[1].split(" m below")[0])
     assert depth > 0.003
-    # a larger bound lets the same fall go on further, a tighter one stops it earlier
-    assert bs.load_scene("passive").simulate(t_final=2.0, scuff_depth=1e-3).t[-1] <= r.t[-1]
+    assert bs.load_scene("passive").simulate(t_final=2.0, scuff_rule="behind", scuff_depth=1e-3).t[-1] <= r2.t[-1]
+
+
+# -- round 3: the scuff rule tells a swing from a fall by its motion, not its depth ----------------------
+#: walks of the reference law whose swing foot scuffs deeper than 3 mm (lag -0.15) or into the front of
+#: the stance foot (lag -0.01, clearance 0.3), which round 2's rule (scuff_rule "behind", scuff_depth 3 mm)
+#: stopped within the first step
+WALKS_THAT_SCUFF = [(dict(lag=-0.15), 1e-3), (dict(lag=-0.15), 2e-3), (dict(lag=-0.15), None),
+                    (dict(lag=-0.01, clearance=0.3), 1e-3)]
+
+
+def walk_that_scuffs(law, period, t_final=10.0, **options):
+    q0, dq0 = bs.WalkingController(MODEL).initial_state()
+    return bs.simulate(MODEL, q0, dq0, t_final, controller=bs.WalkingController(MODEL, **law),
+                       control_period=period, **options)
+
+
+@pytest.mark.parametrize("law, period", WALKS_THAT_SCUFF)
+def test_a_walk_whose_swing_foot_scuffs_runs_to_its_end_with_default_options(law, period):
+    round2 = walk_that_scuffs(law, period, t_final=2.0, scuff_rule="behind", scuff_depth=3e-3)
+    assert round2.status == "stopped" and round2.t[-1] < 1.0, round2.message
+    r = walk_that_scuffs(law, period)
+    assert r.status == "completed" and len(r.impacts) >= 20, r.message
+    assert not violations(MODEL, r), violations(MODEL, r)
+    scuffs = [e for e in r.events if e.kind == "scuff"]
+    assert len(scuffs) >= 20 and "scuff_rule='forward'" in scuffs[0].message
+    assert r.stats["deepest_scuff"] > (3e-3 if law["lag"] == -0.15 else 0.0)
+
+
+def test_the_scuff_options_are_checked_by_name():
+    q0, dq0 = bs.WalkingController(MODEL).initial_state()
+    with pytest.raises(ValueError, match="scuff_rule must be one of 'forward', 'behind', got 'sideways'"):
+        bs.simulate(MODEL, q0, dq0, 0.1, scuff_rule="sideways")
+    with pytest.raises(ValueError, match="scuff_depth must be a number"):
+        bs.simulate(MODEL, q0, dq0, 0.1, scuff_depth=0.0)
 
 
 def test_touchdown_rule_any_takes_the_mid_stance_crossing_as_a_touchdown():
@@ -230,18 +278,23 @@ def test_a_crossing_at_the_stance_foot_is_decided_the_same_at_every_tolerance():
     # the swing leg rotates onto the stance leg: its foot reaches the ground exactly at the stance
     # foot (the legs coincide), then moves under the ground in front of it
     q, dq = coincident_crossing(MODEL)
-    outcomes = set()
-    for tol in (1e-6, 1e-8, 1e-10, 1e-12):
-        r = bs.simulate(MODEL, q, dq, 0.3, rtol=tol, atol=tol)
-        outcomes.add((r.status, tuple(e.kind for e in r.events), "in front of the stance foot" in r.message))
-    assert outcomes == {("stopped", ("error",), True)}, outcomes
+    # (under scuff_rule "forward" the foot swings on through the ground; under "behind" it may not pass the
+    # stance foot)
+    for rule, expected in (("forward", ("completed", (), False)), ("behind", ("stopped", ("error",), True))):
+        outcomes = set()
+        for tol in (1e-6, 1e-8, 1e-10, 1e-12):
+            r = bs.simulate(MODEL, q, dq, 0.3, rtol=tol, atol=tol, scuff_rule=rule)
+            outcomes.add((r.status, tuple(e.kind for e in r.events), "in front of the stance foot" in r.message))
+        assert outcomes == {expected}, (rule, outcomes)
 
 
 # -- item 7: the rocking V stops as Zeno -----------------------------------------------------------------
-def test_a_rocking_v_whose_impacts_accumulate_stops_as_zeno_not_as_a_fall():
+@pytest.mark.parametrize("touchdown_rule", ["front", "any"])
+def test_a_rocking_v_whose_impacts_accumulate_stops_as_zeno_not_as_a_fall(touchdown_rule):
     from biped_sim.analysis.stability import HipPD
     q0, dq0 = bs.stance_state(MODEL, [math.pi - 0.3, math.pi + 0.3, 0.0], [0.0, 0.0, 0.3])
-    r = bs.simulate(MODEL, q0, dq0, 5.0, controller=HipPD(1e4, 200.0, q0[2:4]), touchdown_rule="any")
+    r = bs.simulate(MODEL, q0, dq0, 5.0, controller=HipPD(1e4, 200.0, q0[2:4]), touchdown_rule=touchdown_rule)
+    assert not result_violations(MODEL, r), result_violations(MODEL, r)     # no foot under the ground
     gaps = np.diff([e.time for e in r.impacts])
     assert r.status == "stopped" and r.events[-1].kind == "zeno", r.message
     assert "impacts accumulate (Zeno" in r.message and "fell" not in r.message
@@ -275,3 +328,55 @@ def test_a_dip_of_micrometres_inside_one_step_is_a_touchdown(method, tol):
     assert abs(r.events[0].time - 0.034733) < 1e-4
     # the located time is where the foot reaches the ground
     assert abs(MODEL.foot_position(r.events[0].q, 2)[1]) < 1e-10
+
+
+# -- round 3 (R3): a foot that lifts off and lands again inside one step lands moving down ------------
+@settings(max_examples=25, deadline=None)
+@given(push_x=st.floats(-0.5, 0.5), push_y=st.floats(0.1, 1.0))
+def test_a_foot_that_lifts_off_and_lands_inside_one_step_lands_moving_down(push_x, push_y):
+    """A robot standing at rest on both feet, pushed up a little: its feet leave the ground and land
+    again within the first integration step. The landing is where a foot comes down (the same as with
+    steps of at most 0.1 ms), never the liftoff instant."""
+    q0, dq0 = bs.stance_state(MODEL, [math.pi - 0.2, math.pi + 0.2, 0.0], [0.0, 0.0, 0.0])
+    runs = [bs.simulate(MODEL, q0, dq0, 0.05, pushes=[(0.0, [push_x, push_y])], max_step=max_step,
+                        phases=frozenset({"stance", "impact", "flight"})) for max_step in (math.inf, 1e-4)]
+    landings = [next((e for e in r.events if e.kind in ("touchdown", "double_touchdown")), None) for r in runs]
+    assert (landings[0] is None) == (landings[1] is None)
+    if landings[0] is None:
+        return
+    assert landings[0].time == pytest.approx(landings[1].time, abs=1e-9)
+    feet = foot_states(MODEL, landings[0].q.tolist(), landings[0].dq_minus.tolist())
+    landed = [1, 2] if landings[0].kind == "double_touchdown" else [landings[0].leg]
+    assert all(feet[leg - 1].dheight < 0.0 for leg in landed)
+
+
+# -- round 3 (R5): no cached value outlives the state it was computed from --------------------------------
+@pytest.mark.parametrize("compiled", [True, False])
+def test_no_cached_foot_or_force_outlives_its_state_across_periods_with_resets(compiled):
+    """Landings from flight that lift off again at once (bouncing_landing and variations), held 1 ms: at
+    every period boundary the locator's cached feet and force at the simulator's time are those of its
+    state (a stale cache hid the next crossing)."""
+    from biped_sim.engine import compiled_loop
+    q, dq = bouncing_landing()
+    rng = np.random.default_rng(7)
+    compiled_loop.enabled = compiled
+    checked = 0
+    try:
+        for _ in range(12):
+            q1, dq1 = q.copy(), dq.copy()
+            dq1[0], dq1[1], dq1[3] = rng.uniform(2.0, 6.0), rng.uniform(-1.5, -0.1), rng.uniform(-3.0, 3.0)
+            sim = bs.HybridSimulator(MODEL, q1, dq1, stance_leg=0, phases=frozenset({"stance", "impact", "flight"}))
+            while sim.status == "running" and sim.t < 0.2:
+                sim.advance_period(1e-3, u=[rng.uniform(-50, 50), rng.uniform(-50, 50)])
+                loc = sim.locator
+                t_feet, feet = loc._feet_end
+                if t_feet == sim.t and feet is not None:
+                    now = sim.feet(sim.q.tolist(), sim.dq.tolist())
+                    np.testing.assert_allclose(np.ravel(feet), np.ravel(now), atol=1e-9)
+                    checked += 1
+                t_force, F = loc._force_end
+                if t_force == sim.t and F is not None and sim.stance_leg:
+                    np.testing.assert_allclose(F, sim._force_at(sim.t, sim.q.tolist(), sim.dq.tolist()), atol=1e-6)
+    finally:
+        compiled_loop.enabled = True
+    assert checked > 0
