@@ -53,6 +53,32 @@ def coincident_crossing(model):
     return stance_state(model, [math.pi + 0.2, math.pi + 0.25, 0.0], [0.0, -1.0, 0.0])
 
 
+def walk_that_scuffs(model, lag=-0.15, clearance=0.5, control_period=1e-3, t_final=10.0, **options):
+    """The reference law with its mid-stance graze moved behind the stance foot: with lag -0.15 the swing
+    foot scuffs 3.8 mm deep, with lag -0.01 and clearance 0.3 into the front of the stance foot. Round 2's
+    rule (scuff_rule "behind", scuff_depth 3 mm) stopped both within the first step."""
+    from biped_sim.control.walking import WalkingController
+    q0, dq0 = WalkingController(model).initial_state()
+    return _simulate(model, q0, dq0, t_final, controller=WalkingController(model, lag=lag, clearance=clearance),
+                     control_period=control_period, **options)
+
+
+def rocking_v(model, touchdown_rule="front", **options):
+    """A V whose hips a stiff PD holds, rocking from foot to foot until its impacts accumulate (Zeno)."""
+    from biped_sim.analysis.stability import HipPD
+    q0, dq0 = stance_state(model, [math.pi - 0.3, math.pi + 0.3, 0.0], [0.0, 0.0, 0.3])
+    return _simulate(model, q0, dq0, 5.0, controller=HipPD(1e4, 200.0, q0[2:4]), touchdown_rule=touchdown_rule,
+                     **options)
+
+
+def standing_v_pushed_up(model, push, max_step=math.inf):
+    """The robot standing at rest on both feet, pushed (N s) on the hip at t = 0: a small upward push lifts
+    both feet, which land again within the first integration step."""
+    q0, dq0 = stance_state(model, [math.pi - 0.2, math.pi + 0.2, 0.0], [0.0, 0.0, 0.0])
+    return _simulate(model, q0, dq0, 0.05, pushes=[(0.0, list(push))], max_step=max_step,
+                     phases=frozenset({"stance", "impact", "flight"}))
+
+
 def edge_verdicts(quick, verdict):
     """The rows of group "edge": ``verdict(name, ok, figures, seconds)`` builds each. A row passes only
     if every sample of every run in it keeps the invariants (``verify.result_violations``)."""
@@ -81,8 +107,10 @@ def edge_verdicts(quick, verdict):
         ok = (r.status == "completed" and 0 < n <= r.stats["scuffs_ignored"] <= n + 1
               and r.stats["deepest_scuff"] < 3e-3
               and fall.status == "stopped" and any(e.kind == "touchdown" and e.leg == 1 for e in fall.events))
+        land = next((e.time for e in fall.events if e.kind == "touchdown" and e.leg == 1), math.nan)
         return ok, (f"walk: {n} scuffs, deepest {r.stats['deepest_scuff'] * 1e3:.2f} mm; falling back onto the rear "
-                    f"foot: {fall.status} at {fall.t[-1]:.3f} s")
+                    f"foot: lands on it at {land:.3f} s, then {fall.events[-1].kind}, {fall.status} at "
+                    f"{fall.t[-1]:.3f} s")
 
     def liftoff_at_start():
         q, dq = spinning_stance(m)
@@ -116,9 +144,36 @@ def edge_verdicts(quick, verdict):
         ok = bool(r.events) and r.events[0].kind == "touchdown" and r.events[0].time < 0.01
         return ok, f"swing foot 1e-9 m above the ground: {r.events[0].kind if r.events else 'no event'}"
 
+    def scuff_is_a_swing():     # issue 28: a scuff is told from a fall by the foot's motion, not its depth
+        t_final = 3.0 if quick else 10.0
+        deep = walk_that_scuffs(m, lag=-0.15, t_final=t_final)
+        front = walk_that_scuffs(m, lag=-0.01, clearance=0.3, t_final=t_final)
+        old = [walk_that_scuffs(m, lag=lag, clearance=c, t_final=1.0, scuff_rule="behind", scuff_depth=3e-3)
+               for lag, c in ((-0.15, 0.5), (-0.01, 0.3))]
+        runs.extend([deep, front, *old])
+        ok = deep.status == front.status == "completed" and all(r.status == "stopped" for r in old)
+        return ok, (f"scuffing 3.8 mm deep: {deep.status} {deep.t[-1]:g} s, {len(deep.impacts)} impacts, deepest "
+                    f"{deep.stats['deepest_scuff'] * 1e3:.2f} mm; into the front: {front.status} {front.t[-1]:g} s; "
+                    f"round 2's rule stopped them at {old[0].t[-1]:.3f} and {old[1].t[-1]:.3f} s")
+
+    def zeno_rocking_v():       # issue 28, D7l: the Zeno limit under the default rule
+        r = rocking_v(m)
+        runs.append(r)
+        ok = r.status == "stopped" and r.events[-1].kind == "zeno" and "Zeno" in r.message
+        return ok, f"{len(r.impacts)} impacts, end: {r.events[-1].kind} at {r.t[-1]:.6f} s ({r.status})"
+
+    def relanding_in_a_step():   # issue 28, R3: a landing needs the foot moving down
+        pushed, fine = (standing_v_pushed_up(m, (0.0, 0.125), max_step=s) for s in (math.inf, 1e-4))
+        runs.extend([pushed, fine])
+        land = [next(e for e in r.events if e.kind in ("touchdown", "double_touchdown")) for r in (pushed, fine)]
+        ok = land[0].time > 0.0 and abs(land[0].time - land[1].time) < 1e-9
+        return ok, (f"pushed up 0.125 N s: lands at {land[0].time * 1e3:.4f} ms ({land[0].kind}); with steps of "
+                    f"0.1 ms at {land[1].time * 1e3:.4f} ms")
+
     for name, fn in (("scuffs_bounded", scuffs), ("liftoff_at_start", liftoff_at_start),
                      ("grazing_dip_20um", grazing_dip), ("crossing_at_stance_x", coincident),
-                     ("foot_just_above_ground", just_above)):
+                     ("foot_just_above_ground", just_above), ("scuff_is_a_swing", scuff_is_a_swing),
+                     ("zeno_rocking_v", zeno_rocking_v), ("relanding_in_a_step", relanding_in_a_step)):
         row(name, fn)
     return rows
 

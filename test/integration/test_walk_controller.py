@@ -85,6 +85,32 @@ def test_lockstep_walk_with_the_controller_node_matches_headless():
         assert f"stance_source='{source}'" in log
 
 
+def test_a_lockstep_walk_whose_swing_foot_scuffs_deep_runs_to_its_end_as_headless():
+    """The scuff rule of round 3 through the node: the reference law with its mid-stance graze 0.15 rad
+    behind the stance foot (lag -0.15: the swing foot scuffs 3.8 mm deep), torques held 2 ms in
+    lockstep. Round 2's rule (scuff_rule behind, scuff_depth 3 mm: the node's parameters) stops it at
+    0.082 s; with the defaults it walks to its end, the same run as headless."""
+    duration = 1.5
+    overrides = {"control_period": 0.002, "duration": duration}
+    ref = load_scene("walk", overrides={**overrides, "lag": -0.15}).simulate()
+    assert ref.status == "completed" and len(ref.impacts) == 3 and ref.stats["deepest_scuff"] > 3e-3
+    round2 = load_scene("walk", overrides={**overrides, "lag": -0.15, "scuff_rule": "behind",
+                                           "scuff_depth": 0.003}).simulate()
+    assert round2.status == "stopped" and round2.t[-1] < 0.1, round2.message
+    with ros_domain() as dom:
+        with start_node({**overrides, "record": False}, dom, extra_args=scene_args("walk")) as sim, \
+                Client(dom) as c:
+            js = c.collect("/joint_states", JointState)
+            c.wait_subscribed("/joint_states", proc=sim)
+            with start_node({"lag": -0.15}, dom, executable="walk_controller", extra_args=scene_args("walk")) as ctl:
+                _spin_all([c], lambda: js and _t(js[-1]) >= duration - 1e-9, 120,
+                          f"the state at t = {duration} s", [sim, ctl])
+                assert ctl.stop() == 0
+            assert sim.wait(20) == 0, sim.output()
+    assert list(js[-1].position) == ref.q[-1].tolist() and list(js[-1].velocity) == ref.dq[-1].tolist()
+    assert "duration 1.5 s reached: the run ends" in sim.output(), sim.output()
+
+
 def test_controller_refuses_unknown_parameters():
     with ros_domain() as dom:
         with start_node({"kq": 1.0}, dom, executable="walk_controller") as ctl:

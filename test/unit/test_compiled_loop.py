@@ -15,6 +15,7 @@ import pytest
 from hypothesis import example, given, settings, strategies as st
 
 import biped_sim as bs
+from biped_sim.analysis.edge_cases import rocking_v, walk_that_scuffs
 from biped_sim.control.walking import PDWalkingController, WalkingController
 from biped_sim.engine import compiled_loop
 from biped_sim.engine.model import BipedModel
@@ -103,25 +104,12 @@ def test_the_edges_run_the_same_on_both_loops(case):
     assert_same_run(a, b, case)
 
 
-def _rocking_v(touchdown_rule):
-    from biped_sim.analysis.stability import HipPD
-    q0, dq0 = bs.stance_state(MODEL, [math.pi - 0.3, math.pi + 0.3, 0.0], [0.0, 0.0, 0.3])
-    return lambda: bs.simulate(MODEL, q0, dq0, 5.0, controller=HipPD(1e4, 200.0, q0[2:4]),
-                               touchdown_rule=touchdown_rule)
-
-
-SCUFF_RULE_RUNS = {
-    # a walk whose swing foot scuffs 3.8 mm deep (round 2 stopped it), continuous and held 2 ms
-    "a deep scuff, continuous": lambda: bs.simulate(
-        MODEL, *WalkingController(MODEL).initial_state(), 3.0, controller=WalkingController(MODEL, lag=-0.15)),
-    "a deep scuff, held 2 ms": lambda: bs.simulate(
-        MODEL, *WalkingController(MODEL).initial_state(), 3.0, controller=WalkingController(MODEL, lag=-0.15),
-        control_period=2e-3),
-    "a scuff into the front": lambda: bs.simulate(
-        MODEL, *WalkingController(MODEL).initial_state(), 3.0,
-        controller=WalkingController(MODEL, lag=-0.01, clearance=0.3), control_period=1e-3),
+SCUFF_RULE_RUNS = {     # (edge_cases' builders)
+    "a deep scuff, continuous": lambda: walk_that_scuffs(MODEL, lag=-0.15, control_period=None, t_final=3.0),
+    "a deep scuff, held 2 ms": lambda: walk_that_scuffs(MODEL, lag=-0.15, control_period=2e-3, t_final=3.0),
+    "a scuff into the front": lambda: walk_that_scuffs(MODEL, lag=-0.01, clearance=0.3, t_final=3.0),
     "a fall back onto the rear foot": lambda: bs.load_scene("passive").simulate(t_final=2.0),
-    "the rocking V's Zeno limit": _rocking_v("front"),
+    "the rocking V's Zeno limit": lambda: rocking_v(MODEL),
 }
 
 

@@ -11,8 +11,11 @@ from biped_sim.analysis.edge_cases import (
     bouncing_landing,
     coincident_crossing,
     grazing_flight,
+    rocking_v,
     spinning_stance,
+    standing_v_pushed_up,
     swing_foot_just_above,
+    walk_that_scuffs,
 )
 from biped_sim.analysis.verify import result_violations, violations
 from biped_sim.engine.guards import foot_states
@@ -237,22 +240,16 @@ def test_falling_back_onto_the_rear_foot_lands_on_it_and_ends_honestly():
 # -- round 3: the scuff rule tells a swing from a fall by its motion, not its depth ----------------------
 #: walks of the reference law whose swing foot scuffs deeper than 3 mm (lag -0.15) or into the front of
 #: the stance foot (lag -0.01, clearance 0.3), which round 2's rule (scuff_rule "behind", scuff_depth 3 mm)
-#: stopped within the first step
+#: stopped within the first step (edge_cases.walk_that_scuffs)
 WALKS_THAT_SCUFF = [(dict(lag=-0.15), 1e-3), (dict(lag=-0.15), 2e-3), (dict(lag=-0.15), None),
                     (dict(lag=-0.01, clearance=0.3), 1e-3)]
 
 
-def walk_that_scuffs(law, period, t_final=10.0, **options):
-    q0, dq0 = bs.WalkingController(MODEL).initial_state()
-    return bs.simulate(MODEL, q0, dq0, t_final, controller=bs.WalkingController(MODEL, **law),
-                       control_period=period, **options)
-
-
 @pytest.mark.parametrize("law, period", WALKS_THAT_SCUFF)
 def test_a_walk_whose_swing_foot_scuffs_runs_to_its_end_with_default_options(law, period):
-    round2 = walk_that_scuffs(law, period, t_final=2.0, scuff_rule="behind", scuff_depth=3e-3)
+    round2 = walk_that_scuffs(MODEL, **law, control_period=period, t_final=2.0, scuff_rule="behind", scuff_depth=3e-3)
     assert round2.status == "stopped" and round2.t[-1] < 1.0, round2.message
-    r = walk_that_scuffs(law, period)
+    r = walk_that_scuffs(MODEL, **law, control_period=period)
     assert r.status == "completed" and len(r.impacts) >= 20, r.message
     assert not violations(MODEL, r), violations(MODEL, r)
     scuffs = [e for e in r.events if e.kind == "scuff"]
@@ -291,9 +288,7 @@ def test_a_crossing_at_the_stance_foot_is_decided_the_same_at_every_tolerance():
 # -- item 7: the rocking V stops as Zeno -----------------------------------------------------------------
 @pytest.mark.parametrize("touchdown_rule", ["front", "any"])
 def test_a_rocking_v_whose_impacts_accumulate_stops_as_zeno_not_as_a_fall(touchdown_rule):
-    from biped_sim.analysis.stability import HipPD
-    q0, dq0 = bs.stance_state(MODEL, [math.pi - 0.3, math.pi + 0.3, 0.0], [0.0, 0.0, 0.3])
-    r = bs.simulate(MODEL, q0, dq0, 5.0, controller=HipPD(1e4, 200.0, q0[2:4]), touchdown_rule=touchdown_rule)
+    r = rocking_v(MODEL, touchdown_rule)
     assert not result_violations(MODEL, r), result_violations(MODEL, r)     # no foot under the ground
     gaps = np.diff([e.time for e in r.impacts])
     assert r.status == "stopped" and r.events[-1].kind == "zeno", r.message
@@ -337,9 +332,7 @@ def test_a_foot_that_lifts_off_and_lands_inside_one_step_lands_moving_down(push_
     """A robot standing at rest on both feet, pushed up a little: its feet leave the ground and land
     again within the first integration step. The landing is where a foot comes down (the same as with
     steps of at most 0.1 ms), never the liftoff instant."""
-    q0, dq0 = bs.stance_state(MODEL, [math.pi - 0.2, math.pi + 0.2, 0.0], [0.0, 0.0, 0.0])
-    runs = [bs.simulate(MODEL, q0, dq0, 0.05, pushes=[(0.0, [push_x, push_y])], max_step=max_step,
-                        phases=frozenset({"stance", "impact", "flight"})) for max_step in (math.inf, 1e-4)]
+    runs = [standing_v_pushed_up(MODEL, (push_x, push_y), max_step) for max_step in (math.inf, 1e-4)]
     landings = [next((e for e in r.events if e.kind in ("touchdown", "double_touchdown")), None) for r in runs]
     assert (landings[0] is None) == (landings[1] is None)
     if landings[0] is None:
