@@ -434,6 +434,20 @@ class ScipyStepper(_Stepper):
         self.t_old, self.y_old = self.t, self.y
         self.t, self.y = self.solver.t, self.solver.y.copy()
 
+    def replace_y(self, y):
+        """Continue the solver from the state y at its time. The one-step methods (RK45, DOP853, Radau)
+        step from (y, f = fun(t, y)): f is evaluated again (one evaluation). BDF steps from its
+        backward differences D (D[0] the state): the interpolant through the past steps is shifted
+        by the correction, its differences (the rates) and its order kept; a restart would fall
+        back to order 1 and a new Jacobian, at orders of magnitude more steps."""
+        super().replace_y(y)
+        solver = self.solver
+        if isinstance(solver, _scipy_integrate().BDF):
+            solver.D[0] += self.y - solver.y
+        else:
+            solver.f = solver.fun(solver.t, self.y)
+        solver.y = self.y.copy()
+
     def dense_output(self):
         return self.solver.dense_output()
 
