@@ -43,7 +43,13 @@ from biped_sim.engine.modes import (
 )
 from biped_sim.engine.options import Options, check_number, check_run_arguments
 from biped_sim.engine.pushes import apply_push
-from biped_sim.engine.resets import double_touchdown_reset, liftoff_reset, slip_event, touchdown_reset
+from biped_sim.engine.resets import (
+    double_touchdown_reset,
+    friction_cone_stop,
+    liftoff_reset,
+    slip_event,
+    touchdown_reset,
+)
 from biped_sim.engine.results import (
     IMPACT_KINDS,
     Event,
@@ -470,6 +476,8 @@ class HybridSimulator:
                 self.events.append(Event(t, "zeno", self.stance_leg, self.q.copy(), self.dq.copy(), self.dq.copy(),
                                          message=zeno))
                 self._stop("stopped", zeno)
+            elif self.status == "running" and (slip := friction_cone_stop(ev, self.ground, self.mu, self.opt)):
+                self._stop("stopped", slip)    # the impulse slips: as a push's, or a stance force's (slip)
             if self.status == "running":
                 self._check_stance_start(t)
         elif guard.kind == "liftoff":

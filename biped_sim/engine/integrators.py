@@ -409,6 +409,7 @@ class ScipyStepper(_Stepper):
         if h is not None or self.h0 is not None:
             kw["first_step"] = min(h or self.h0, max(t_bound - t0, 1e-15))
         self.solver = self.cls(self.fun, self.t, self.y, self.t_bound, **kw)
+        self._f_replaced = False
 
     @property
     def nfev(self):
@@ -425,6 +426,9 @@ class ScipyStepper(_Stepper):
     def step(self):
         if self.t >= self.t_bound:
             return
+        if self._f_replaced:        # f at the state replace_y gave, evaluated only for a step taken from it
+            self.solver.f = self.solver.fun(self.t, self.solver.y)
+            self._f_replaced = False
         msg = self.solver.step()
         if self.solver.status == "failed":
             raise StepFailure(f"{self.cls.__name__} failed at t={self.solver.t:.9g} s: {msg}")
@@ -433,6 +437,21 @@ class ScipyStepper(_Stepper):
         self.naccepted += 1
         self.t_old, self.y_old = self.t, self.y
         self.t, self.y = self.solver.t, self.solver.y.copy()
+
+    def replace_y(self, y):
+        """Continue the solver from the state y at its time. The one-step methods (RK45, DOP853, Radau)
+        step from (y, f = fun(t, y)): f is evaluated again, at the next step (one evaluation; none
+        where the stepper is left at the end of its interval). BDF steps from its backward
+        differences D (D[0] the state): the interpolant through the past steps is shifted by the
+        correction, its differences (the rates) and its order kept; a restart would fall back to
+        order 1 and a new Jacobian, at orders of magnitude more steps."""
+        super().replace_y(y)
+        solver = self.solver
+        if isinstance(solver, _scipy_integrate().BDF):
+            solver.D[0] += self.y - solver.y
+        else:
+            self._f_replaced = True
+        solver.y = self.y.copy()
 
     def dense_output(self):
         return self.solver.dense_output()

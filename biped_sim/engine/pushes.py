@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from biped_sim.engine.resets import check_push, liftoff_reset, push_reset
+from biped_sim.engine.resets import check_push, friction_cone_stop, liftoff_reset, push_reset
 from biped_sim.engine.results import SceneAssumptionError
 
 
@@ -49,9 +49,9 @@ def apply_push(sim, impulse) -> list:
     sim._record(sim.q, sim.dq, sim.stance_leg, F, u)
     # the next step starts from the pushed state, not from the last step's end (the same time)
     sim.locator.restart(t, sim.feet(q.tolist(), dq_list), F)
-    if ev.warnings and sim.opt.stop_on_slip:
-        sim._stop("stopped", f"the push at t={t:.9g} s: {ev.warnings[0]}; the model has no sliding phase "
-                             "(raise mu, or set stop_on_slip=False to keep the foot pinned)")
+    slip = friction_cone_stop(ev, sim.ground, sim.mu, sim.opt)
+    if slip is not None:
+        sim._stop("stopped", slip)
     elif sim.status == "running":
         sim._check_stance_start(t)   # the new velocities can make the normal force negative at once
     return sim.events[n_events:]

@@ -10,6 +10,7 @@ gait takes its new state from ``CollisionDynamics``.
   (double support is not modelled);
 * ``liftoff_reset``: the stance foot leaves the ground; the velocities are unchanged, flight follows;
 * ``slip_event``: the ground force leaves the friction cone; the model has no sliding phase;
+  ``friction_cone_stop``: the same for the ground's impulse of an impact or a push;
 * ``push_reset``: an impulse on the hip from outside (``push_response``), with the stance foot held
   while the ground can hold it.
 """
@@ -85,6 +86,33 @@ def impact_warnings(model, q, dq_plus, impulse, legs, old, ground, mu) -> list[s
     return warnings
 
 
+def friction_cone_stop(ev, ground, mu, opt) -> str | None:
+    """Why the run stops at the impact or push ``ev`` (its ground impulse applied as a sticking contact),
+    or None: with ``mu`` and ``opt.stop_on_slip``, a ground impulse Lambda outside the friction cone,
+    |Lambda_t| > mu Lambda_n by more than ``opt.impulse_tol``, is a slip the model does not have, as a
+    stance force outside it is (``slip_event``). The one rule of touchdowns, double touchdowns and
+    pushes; ``stop_on_slip=False`` keeps the sticking impulse, with the event's warning. (Within the
+    tolerance the impulse is zero to rounding and its direction meaningless: a foot landing at rest.)"""
+    if mu is None or not opt.stop_on_slip:
+        return None
+    if ev.kind == "push":
+        legs = [ev.leg] if ev.leg and ev.stance_leg_after == ev.leg else []   # held; lifted: no ground impulse
+        what = f"the push at t={ev.time:.9g} s"
+        keep = "keep the foot pinned"
+    else:
+        legs = [1, 2] if ev.kind == "double_touchdown" else [ev.leg]
+        what = f"the {ev.kind.replace('_', ' ')} at t={ev.time:.9g} s"
+        keep = "keep the sticking impact"
+    for j, leg in enumerate(legs):
+        n, tg = normal_tangent(ev.impulse[2 * j: 2 * j + 2], ground)
+        if abs(tg) - mu * n > opt.impulse_tol:
+            ratio = f"|Lambda_t|/Lambda_n = {abs(tg) / n:.6g}" if n > 0 else f"Lambda_n = {n:.6g} N s"
+            return (f"{what}: the ground's impulse on foot {leg} is outside the friction cone ({ratio} > "
+                    f"mu = {mu:g}: |Lambda_t| = {abs(tg):.6g} N s > mu Lambda_n = {mu * n:.6g} N s); the model "
+                    f"has no sliding phase (raise mu, or set stop_on_slip=False to {keep} with a warning)")
+    return None
+
+
 def liftoff_reset(t, q, dq, stance_leg, flight_allowed) -> Event:
     """The stance foot leaves the ground (its normal force reached zero). Without a flight phase in
     the scene this is an ``error`` event: the run stops."""
@@ -125,7 +153,7 @@ def push_reset(model, t, q, dq, impulse, stance_leg, ground, mu, flight_allowed)
     free response (``stance_leg_after`` 0; the simulator follows with a liftoff), or, without a
     flight phase, or if the free response would drive the foot into the ground (a sliding contact,
     not modelled), an ``error`` Event: the run stops. A ground impulse outside the friction cone
-    (with ``mu``) is a warning of the event."""
+    (with ``mu``) is a warning of the event (and a stop: ``friction_cone_stop``)."""
     P = check_push(impulse)
     dq_plus, ground_impulse = push_response(model, q, dq, P, stance_leg)
     after, warnings = stance_leg, []

@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import example, given, settings, strategies as st
+from hypothesis import event, example, given, settings, strategies as st
 
 import biped_sim as bs
 from biped_sim.analysis.edge_cases import rocking_v, walk_that_scuffs
 from biped_sim.control.walking import PDWalkingController, WalkingController
-from biped_sim.engine import compiled_loop
+from biped_sim.engine import compiled_loop, guards as G
 from biped_sim.engine.model import BipedModel
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -331,3 +331,69 @@ def test_pure_python_switch_runs_the_python_loop_with_the_same_run():
     assert runs[""]["available"] is True
     a, b = runs[""], runs["1"]
     assert a["events"] == b["events"] and a["t"] == b["t"] and a["q"] == b["q"]
+
+
+@st.composite
+def _landing(draw):
+    """A start from which a foot lands: in stance on either foot, the torque held over 10 ms periods (the
+    compiled loop's touchdowns), or in flight (a V that may land on both feet at once)."""
+    a, torso = draw(st.floats(-0.6, 0.6)), draw(st.floats(-0.4, 0.4))
+    rates = [draw(st.floats(-2.0, 2.0)) for _ in range(3)]
+    leg = draw(st.sampled_from([0, 1, 2]))
+    if leg:
+        b = math.copysign(abs(a) + draw(st.floats(1e-3, 0.4)), draw(st.sampled_from([-1.0, 1.0])))  # swing foot up
+        joints = [math.pi + a - torso, math.pi + b - torso, torso]
+        q, dq = bs.stance_state(MODEL, joints if leg == 1 else joints[1::-1] + [torso], rates, stance_leg=leg)
+        return q, dq, leg
+    b = -a if draw(st.booleans()) else draw(st.floats(-0.6, 0.6))
+    height = max(math.cos(a), math.cos(b)) * MODEL.parameters.l_leg + draw(st.floats(1e-6, 0.2))
+    q = np.array([0.0, height, math.pi + a - torso, math.pi + b - torso, torso])
+    return q, np.array([draw(st.floats(-2.0, 2.0)), draw(st.floats(-1.5, 0.0))] + rates), 0
+
+
+def _impulses_outside_the_cone(r, mu):
+    """(impact, foot) of every landing impulse outside the friction cone by more than impulse_tol."""
+    ground = G.Ground.of(r.options.slope)
+    out = []
+    for e in r.impacts:
+        for j, leg in enumerate([1, 2] if e.kind == "double_touchdown" else [e.leg]):
+            n, tg = G.normal_tangent(e.impulse[2 * j: 2 * j + 2], ground)
+            if abs(tg) - mu * n > r.options.impulse_tol:
+                out.append((e, leg))
+    return out
+
+
+# a flight landing on foot 1 at 0.57 |Lambda_t|/Lambda_n (mu 0.338), and one on foot 1 from stance on foot
+# 2 under a held torque (the compiled loop's touchdown, which hands it back: why 19), both "completed"
+# with the sticking impact kept and a warning before the cone held at impacts
+_FLIGHT_LANDING = (np.array([-0.198669330795062, 1.030066577841242, 2.791592653589793, 3.191592653589794, 0.15]),
+                   np.array([1.489, -1.672, -1.744, 2.43, -0.966]), 0)
+_STANCE_LANDING = bs.stance_state(MODEL, [3.087, 3.3423, -0.3322], [-1.5488, 1.8369, -1.6192], stance_leg=2) + (2,)
+
+
+@settings(max_examples=30, deadline=None)
+@example(start=_FLIGHT_LANDING, u=(0.0, 0.0), mu=0.338)
+@example(start=_STANCE_LANDING, u=(55.29, -31.728), mu=0.639)
+@given(start=_landing(), u=st.tuples(st.floats(-60.0, 60.0), st.floats(-60.0, 60.0)), mu=st.floats(0.05, 1.0))
+def test_no_run_completes_with_a_landing_impulse_outside_the_friction_cone(start, u, mu):
+    """With mu (and stop_on_slip), a run either completes with every impact impulse inside the friction
+    cone, or ends at the impact whose impulse leaves it, saying why; on both loops, the same run."""
+    q, dq, leg = start
+    a, b = both_loops(lambda: bs.simulate(MODEL, q, dq, 0.3, controller=lambda t, q, dq, s: u, stance_leg=leg,
+                                          mu=mu, control_period=0.01))
+    assert_same_run(a, b, f"{start} {u} {mu}")
+    outside = _impulses_outside_the_cone(a, mu)
+    event(f"{a.status}, {'flight' if leg == 0 else 'stance'} start, {len(a.impacts)} impacts, "
+          f"{'an impulse outside the cone' if outside else 'inside'}")
+    if a.status == "completed":
+        assert not outside, [e.warnings for e, _ in outside]
+        return
+    assert a.message
+    if outside:
+        impact, foot = outside[0]
+        assert impact is a.impacts[-1] and a.events[-1].time == impact.time, a.message   # it ended there
+        if "friction cone" in a.message:
+            assert a.status == "stopped"
+            assert f"the {impact.kind.replace('_', ' ')} at t={impact.time:.9g} s" in a.message
+            assert f"on foot {foot}" in a.message and f"mu = {mu:g}" in a.message
+            assert "|Lambda_t|/Lambda_n = " in a.message and "stop_on_slip=False" in a.message

@@ -18,6 +18,7 @@ from biped_sim.analysis.edge_cases import (
     walk_that_scuffs,
 )
 from biped_sim.analysis.verify import result_violations, violations
+from biped_sim.engine import compiled_loop
 from biped_sim.engine.guards import foot_states
 
 MODEL = bs.BipedModel()
@@ -373,3 +374,51 @@ def test_no_cached_foot_or_force_outlives_its_state_across_periods_with_resets(c
     finally:
         compiled_loop.enabled = True
     assert checked > 0
+
+
+# landings whose impulse is outside the friction cone: on foot 1 from flight, the second touchdown
+# (|Lambda_t|/Lambda_n 0.575, mu 0.338), and a V landing on both feet at once (foot 1 at 0.70, mu 0.3)
+L_LEG = MODEL.parameters.l_leg
+CONE_LANDINGS = {
+    "touchdown": (np.array([-0.198669330795062, 1.030066577841242, 2.791592653589793, 3.191592653589794, 0.15]),
+                  np.array([1.489, -1.672, -1.744, 2.43, -0.966]), 0.338, "the touchdown at t=0.063205574 s",
+                  "0.574565"),
+    "double touchdown": (np.array([0.0, math.cos(0.3) * L_LEG + 0.05, math.pi + 0.3, math.pi - 0.3, 0.0]),
+                         np.array([0.5, -0.5, 0.0, 0.0, 0.0]), 0.3, "the double touchdown at t=0.062130927 s",
+                         "0.703793"),
+}
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+@pytest.mark.parametrize("kind", sorted(CONE_LANDINGS))
+def test_a_landing_impulse_outside_the_friction_cone_stops_the_run(kind, compiled):
+    """As a stance force outside the cone (a slip) and a push's ground impulse outside it do: a sticking
+    impact the ground cannot give; the message says which foot, when, |Lambda_t|/Lambda_n, mu and what to
+    change. stop_on_slip=False keeps the sticking impact, with the event's warning."""
+    q, dq, mu, when, ratio = CONE_LANDINGS[kind]
+    compiled_loop.enabled = compiled
+    try:
+        stopped = bs.simulate(MODEL, q, dq, 0.08, stance_leg=0, mu=mu)
+        kept = bs.simulate(MODEL, q, dq, 0.08, stance_leg=0, mu=mu, stop_on_slip=False)
+    finally:
+        compiled_loop.enabled = True
+    assert stopped.status == "stopped" and stopped.events[-1].kind == kind.replace(" ", "_"), stopped.message
+    assert stopped.message.startswith(when + ": the ground's impulse on foot 1 is outside the friction cone "
+                                      f"(|Lambda_t|/Lambda_n = {ratio} > mu = {mu:g}"), stopped.message
+    assert "raise mu, or set stop_on_slip=False to keep the sticking impact with a warning" in stopped.message
+    impact = next(e for e in kept.impacts if e.time == stopped.events[-1].time)     # the same impact, kept
+    assert kept.status == "completed" and any("friction cone" in w for w in impact.warnings)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_push_and_a_landing_outside_the_cone_stop_by_the_same_rule(compiled):
+    compiled_loop.enabled = compiled
+    try:
+        r = bs.load_scene("walk").simulate(t_final=1.0, pushes=[(0.3, [-3.0, 0.0])], mu=1.0)
+    finally:
+        compiled_loop.enabled = True
+    assert r.status == "stopped" and r.events[-1].kind == "push"
+    assert r.message == ("the push at t=0.3 s: the ground's impulse on foot 1 is outside the friction cone "
+                         "(|Lambda_t|/Lambda_n = 1.36767 > mu = 1: |Lambda_t| = 0.23089 N s > mu Lambda_n = "
+                         "0.16882 N s); the model has no sliding phase (raise mu, or set stop_on_slip=False to "
+                         "keep the foot pinned with a warning)")
