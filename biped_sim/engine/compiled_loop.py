@@ -28,8 +28,9 @@ from biped_sim.engine.locator import scuff_event
 from biped_sim.engine.modes import bind_controller
 from biped_sim.engine.results import Event
 
-DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED, TOUCHDOWN = range(8)
-# (SCUFF_ENDED and TOUCHDOWN: the kinds of take_events' records)
+DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED, TOUCHDOWN, TORQUE_CHANGE = range(9)
+# (SCUFF_ENDED and TOUCHDOWN: the kinds of take_events' records; TORQUE_CHANGE: periods() stopped before a
+# period whose command the stance guards refuse at its start, for the Python code to run)
 TORQUE_KINDS = {"held": 0, "pd_walking": 1, "walking": 2, "callback": 3}
 
 
@@ -227,8 +228,9 @@ class CompiledStepper(integrators._ListRungeKutta):
     def periods(self, period, law, t_final, t_stop):
         """Control periods of a compiled law, each command computed and held in C, as ``advance_period``
         would run them, until ``t_final`` or a push due at ``t_stop``: (outcome, t_next), DONE when they
-        all ran, else the outcome of the step handed back in the period ending at ``t_next``
-        (``can_run_periods`` first)."""
+        all ran, TORQUE_CHANGE before a period whose command the stance guards refuse at its start (not
+        begun: ``advance_period`` runs it), else the outcome of the step handed back in the period ending
+        at ``t_next`` (``can_run_periods`` first)."""
         sim, (kind, params) = self.sim, law
         if self.loop.locator_stale:
             self._push_locator()
