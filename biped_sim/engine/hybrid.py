@@ -521,11 +521,18 @@ class HybridSimulator:
         n, tg = G.normal_tangent(F_sample if F is None else F, self.ground)
         slip = G.Guard("slip", leg)
         if n < 0.0:
-            self._reset(G.Guard("liftoff", leg), [leg], t, q.tolist(), dq.tolist())
-            if self.stance_leg == 0 and F is None:   # in flight from this very instant: so is the sample just taken
-                self._samples.set_last_in_flight()
+            guard = G.Guard("liftoff", leg)
         elif self.mu is not None and slip not in self.locator.latched and G.slip_guard(n, tg, self.mu) < 0.0:
-            self._reset(slip, [leg], t, q.tolist(), dq.tolist())
+            guard = slip
+        else:
+            return
+        q, dq = q.tolist(), dq.tolist()
+        if F is not None:
+            # the next step starts here under the new torque, not from the last step's end under the old one
+            self.locator.restart(t, self.feet(q, dq), F)
+        self._reset(guard, [leg], t, q, dq)
+        if guard.kind == "liftoff" and self.stance_leg == 0 and F is None:
+            self._samples.set_last_in_flight()   # in flight from this very instant: so is the sample just taken
 
     def _push_event(self, ev):
         self._samples.keep_last()       # the sample after the event's reset
