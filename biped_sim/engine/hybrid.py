@@ -284,7 +284,8 @@ class HybridSimulator:
         tol = 1e-9 * period
         while self.status == "running" and self.t < t_final and t_stop > self.t + tol:
             st = self._compiled
-            law = compiled_loop.reference_law(controller) if st is not None and self._stepper is st else None
+            on_loop = st is not None and self._stepper is st
+            law = compiled_loop.reference_law(controller, self.model) if on_loop else None
             if law is None or self._initial_sample_pending or not st.can_run_periods():
                 self.advance_period(period, controller=controller, t_final=t_final)
             else:
