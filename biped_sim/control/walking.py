@@ -53,10 +53,17 @@ class WalkingController:
     def _law_parameters(self):
         return (self.torso_pitch, self._a2, self._ddb, self.clearance, self.lag, self.kp, self.kd, self.torque_limit)
 
-    def compiled_law(self):
-        """("walking", parameters): the engine's compiled loop runs this law in C with the same torques
-        (biped_sim/engine/_core.c); None for a subclass that changes the law."""
-        return ("walking", self._law_parameters()) if type(self).__call__ is WalkingController.__call__ else None
+    def compiled_law(self, model):
+        """("walking", parameters) when the engine's compiled loop, computing this law in C
+        (biped_sim/engine/_core.c) on ``model``'s constants (the simulator's), gives this controller's
+        own torques bit for bit; else None, and the loop calls the controller back: a subclass or an
+        instance that replaces a method the law runs, or a controller on a model whose closed form
+        (``stance_terms_1``: the mass matrix and bias of ``stance_joint_affine_fast``) is not ``model``'s."""
+        if not _runs_as(self, WalkingController, ("__call__", "outputs", "swing_target", "_law_parameters")):
+            return None
+        if self.model is not model and self.model.k["stance_terms_1"] != model.k["stance_terms_1"]:
+            return None
+        return "walking", self._law_parameters()
 
     def swing_target(self, phi_s):
         """f(phi_s) and its first two derivatives."""
@@ -125,10 +132,12 @@ class PDWalkingController(WalkingController):
     gait too (step period 0.551 s with the defaults), more slowly.
     """
 
-    def compiled_law(self):
-        """("pd_walking", parameters), as :meth:`WalkingController.compiled_law`."""
-        return (("pd_walking", self._law_parameters()) if type(self).__call__ is PDWalkingController.__call__
-                else None)
+    def compiled_law(self, model):
+        """("pd_walking", parameters), as :meth:`WalkingController.compiled_law`; the PD law in stance uses
+        no model constant, so it runs compiled on any ``model``."""
+        if not _runs_as(self, PDWalkingController, ("__call__", "swing_target", "_law_parameters")):
+            return None
+        return "pd_walking", self._law_parameters()
 
     def __call__(self, t, q, dq, stance_leg):
         """(u1, u2), a tuple: this runs at every right-hand-side evaluation, so only y and dy of
@@ -153,3 +162,12 @@ class PDWalkingController(WalkingController):
         u_stance = u_stance if u_stance > -lim else -lim
         u_stance = u_stance if u_stance < lim else lim
         return (u_stance, u_swing) if stance_leg == 1 else (u_swing, u_stance)
+
+
+def _runs_as(controller, cls, methods):
+    """Whether ``controller`` runs ``cls``'s own ``methods`` (none replaced by a subclass or on the instance)
+    on parameters that are Python numbers (an attribute set after ``__init__`` to a float32, say, would
+    compute in another precision than C's doubles)."""
+    own = vars(controller)
+    return (all(getattr(type(controller), name) is getattr(cls, name) and name not in own for name in methods)
+            and all(isinstance(v, (float, int)) for v in controller._law_parameters()))

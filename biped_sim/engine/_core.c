@@ -35,7 +35,8 @@
 
 enum { DOP853 = 0, DOPRI5 = 1 };
 enum { HELD = 0, PD_WALKING = 1, WALKING = 2, CALLBACK = 3 };
-enum { DONE = 0, PENDING = 1, GROW = 2, FAILED = 3, PYTHON_STEPS = 4, SCUFF_ENDED = 5, RAISED = 6, TOUCHDOWN = 7 };
+enum { DONE = 0, PENDING = 1, GROW = 2, FAILED = 3, PYTHON_STEPS = 4, SCUFF_ENDED = 5, RAISED = 6, TOUCHDOWN = 7,
+       TORQUE_CHANGE = 8 };
 enum { FAIL_NONE = 0, FAIL_STEP_SIZE = 1, FAIL_NON_FINITE = 2, FAIL_CALLBACK = 3 };
 
 typedef struct { double x, height, dx, dheight; } Foot;
@@ -1220,6 +1221,19 @@ hold(Loop *L, double u0, double u1, double t_bound)
     restart(L, L->t, t_bound);
 }
 
+/* Whether the stance guards refuse the torque hold() just set, at the period's start: the ground would
+ * pull (normal force < 0) or the force leave the friction cone, on the force restart() evaluated there (the
+ * test of HybridSimulator._check_stance_start). Then the period is the Python code's, which reports the
+ * liftoff or the slip at that instant: the start's evaluation is taken back (the Python code makes its
+ * own), nothing else was changed. */
+static int
+refused_at_start(Loop *L)
+{
+    if (!(normal(L, L->last_F) < 0.0 || (L->has_mu && slip_margin(L, L->last_F) < 0.0))) return 0;
+    L->nfev -= 1;
+    return 1;
+}
+
 /* The end of the control period that starts at t, the *k-th (as HybridSimulator.advance_period computes
  * it, operation for operation): period k ends at (k + 1) period, or at t_final (> 0) where that comes first
  * or within 1e-9 of a period. *k becomes the count of periods begun. */
@@ -1238,7 +1252,9 @@ period_end(double t, double period, double t_final, long *k)
  * -> (<run's result>, control_periods, t_next, u1, u2): control periods of a compiled law held (as
  * HybridSimulator.advance_period computes them, the command at each period's start) until t_final, or
  * the first period boundary at or after t_stop - 1e-9 period (a push due), or a run outcome the Python
- * code must see (then mid-period: its end t_next and its torque come back) */
+ * code must see (then mid-period: its end t_next and its torque come back), or a period whose command the
+ * stance guards refuse at its start (TORQUE_CHANGE: not begun, the count and torque of the periods before
+ * it come back, and the Python code runs it) */
 static PyObject *
 Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -1266,12 +1282,21 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     int outcome = DONE;
     double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, tol = 1e-9 * period;
     while (L->t < t_final && t_stop > L->t + tol) {
-        t_next = period_end(L->t, period, t_final, &k0);
+        long k = k0;
+        double t_end = period_end(L->t, period, t_final, &k), command[2];
         memcpy(L->ctrl, ctrl, sizeof ctrl);
         L->controller = kind;
-        torque(L, L->t, L->y, L->y + 5, u);
+        torque(L, L->t, L->y, L->y + 5, command);
         carry_step(L, L->h_abs);     /* as begin() carries it over */
-        hold(L, u[0], u[1], t_next);
+        hold(L, command[0], command[1], t_end);
+        if (refused_at_start(L)) {
+            outcome = TORQUE_CHANGE;
+            break;
+        }
+        k0 = k;
+        t_next = t_end;
+        u[0] = command[0];
+        u[1] = command[1];
         outcome = quiet_until(L, t_next, &rs);
         if (outcome != DONE) break;
     }
@@ -1374,7 +1399,8 @@ set_float(PyObject *o, PyObject *name, double v)
  * stats(), its q and dq left to state_arrays(): sim._q = sim._dq = None), or (the run's result, t_next)
  * for the Python code to finish (a touchdown or an ended scuff to make Events of, a step handed back, room
  * to make, a failure), or None having changed nothing: the Python code runs the period (the loop is
- * stale, the run has ended, u is not two finite numbers, a bad period, ...). */
+ * stale, the run has ended, u is not two finite numbers, a bad period, the stance guards refuse u at the
+ * period's start, ...). */
 static PyObject *
 Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -1402,17 +1428,20 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     }
     double t_next = period_end(L->t, period, t_final, &k);
     if (!isfinite(t_next)) Py_RETURN_NONE;     /* the Python code says why */
-    PyObject *h = PyObject_GetAttr(sim, a_h), *periods = PyLong_FromLong(k);
-    PyObject *torque = Py_BuildValue("[dd]", u[0], u[1]);
-    int bad = h == NULL || periods == NULL || torque == NULL || carry_step_arg(L, h) < 0
-              || PyObject_SetAttr(sim, a_control_periods, periods) < 0 || PyObject_SetAttr(sim, a_u, torque) < 0;
+    PyObject *h = PyObject_GetAttr(sim, a_h);
+    int bad = h == NULL || carry_step_arg(L, h) < 0;
     Py_XDECREF(h);
+    if (bad) return NULL;
+    hold(L, u[0], u[1], t_next);
+    if (refused_at_start(L)) Py_RETURN_NONE;
+    PyObject *periods = PyLong_FromLong(k), *torque = Py_BuildValue("[dd]", u[0], u[1]);
+    bad = periods == NULL || torque == NULL || PyObject_SetAttr(sim, a_control_periods, periods) < 0
+          || PyObject_SetAttr(sim, a_u, torque) < 0;
     Py_XDECREF(periods);
     Py_XDECREF(torque);
     RunState rs;
     Py_buffer buf;
     if (bad || run_state(L, sim, &rs, &buf) < 0) return NULL;
-    hold(L, u[0], u[1], t_next);
     int outcome = quiet_until(L, t_next, &rs);
     if (outcome != DONE || L->n_events || L->callback_failed) {
         PyObject *r = run_result(L, outcome, &rs, &buf);

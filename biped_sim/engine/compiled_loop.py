@@ -3,8 +3,9 @@
 Owns one choice and one hand-over. The choice: a mode runs on the compiled loop when it is
 floating-base stance, stepped by dop853 or dopri5, with no ``on_step`` observer, and the extension
 was built from the current generated kernels; its torque is held, a reference law that the loop
-compiles (``controller.compiled_law()``: :class:`~biped_sim.control.walking.WalkingController` and
-``PDWalkingController``), or any other Python controller, called back. Else, and always with
+compiles (``controller.compiled_law(model)``: :class:`~biped_sim.control.walking.WalkingController` and
+``PDWalkingController`` when the result is bit for bit the controller's own on the simulator's model),
+or any other Python controller, called back. Else, and always with
 ``BIPED_SIM_PURE_PYTHON=1``, the Python loop of ``hybrid.py`` runs, the readable reference. Both give
 the same run (test/unit/test_compiled_loop.py).
 
@@ -28,8 +29,9 @@ from biped_sim.engine.locator import scuff_event
 from biped_sim.engine.modes import bind_controller
 from biped_sim.engine.results import Event
 
-DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED, TOUCHDOWN = range(8)
-# (SCUFF_ENDED and TOUCHDOWN: the kinds of take_events' records)
+DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED, TOUCHDOWN, TORQUE_CHANGE = range(9)
+# (SCUFF_ENDED and TOUCHDOWN: the kinds of take_events' records; TORQUE_CHANGE: periods() stopped before a
+# period whose command the stance guards refuse at its start, for the Python code to run)
 TORQUE_KINDS = {"held": 0, "pd_walking": 1, "walking": 2, "callback": 3}
 
 
@@ -57,25 +59,27 @@ enabled = True
 METHOD_CODES = {"dop853": 0, "dopri5": 1}
 
 
-def torque_law(controller):
-    """("held", None) for no controller, (kind, parameters) for a controller the loop compiles, else None."""
+def torque_law(controller, model):
+    """("held", None) for no controller, (kind, parameters) for a controller whose law the loop computes
+    on ``model``'s constants (the simulator's) with the controller's own result
+    (``controller.compiled_law(model)``), else None."""
     if controller is None:
         return "held", None
     law = getattr(controller, "compiled_law", None)
-    return law() if callable(law) else None
+    return law(model) if callable(law) else None
 
 
-def reference_law(controller):
-    """(kind, parameters) of a controller whose law the loop computes itself (a reference walking law),
-    else None (no controller: a held torque; or one called back)."""
-    law = torque_law(controller)
+def reference_law(controller, model):
+    """(kind, parameters) of a controller whose law the loop computes itself on ``model``'s constants (a
+    reference walking law), else None (no controller: a held torque; or one called back)."""
+    law = torque_law(controller, model)
     return law if law is not None and law[0] != "held" else None
 
 
-def _torque_in_mode(controller, stance_leg):
+def _torque_in_mode(controller, stance_leg, model):
     """The loop's torque law in a mode: compiled, or the controller called back from C through the same
     checked call as the Python loop's (``modes.bind_controller``)."""
-    law = torque_law(controller)
+    law = torque_law(controller, model)
     return law if law is not None else ("callback", bind_controller(controller, stance_leg))
 
 
@@ -84,7 +88,7 @@ def covers(sim, controller):
     if (_core is None or not enabled or not sim.stance_leg or sim.opt.base != "floating"
             or sim.method not in METHOD_CODES or sim.on_step is not None):
         return None
-    return _torque_in_mode(controller, sim.stance_leg)
+    return _torque_in_mode(controller, sim.stance_leg, sim.model)
 
 
 def _new_loop(model):
@@ -215,7 +219,7 @@ class CompiledStepper(integrators._ListRungeKutta):
     def command(self, controller):
         """The control period's command of a compiled law at the simulator's state, computed in C (the
         law's own torques bit for bit), or None where the Python controller must be called."""
-        law = reference_law(controller)
+        law = reference_law(controller, self.sim.model)
         if law is None or self.loop.state_stale or self.sim._stepper is not self:
             return None
         return self.loop.law_torque(TORQUE_KINDS[law[0]], law[1])
@@ -228,8 +232,9 @@ class CompiledStepper(integrators._ListRungeKutta):
     def periods(self, period, law, t_final, t_stop):
         """Control periods of a compiled law, each command computed and held in C, as ``advance_period``
         would run them, until ``t_final`` or a push due at ``t_stop``: (outcome, t_next), DONE when they
-        all ran, else the outcome of the step handed back in the period ending at ``t_next``
-        (``can_run_periods`` first)."""
+        all ran, TORQUE_CHANGE before a period whose command the stance guards refuse at its start (not
+        begun: ``advance_period`` runs it), else the outcome of the step handed back in the period ending
+        at ``t_next`` (``can_run_periods`` first)."""
         sim, (kind, params) = self.sim, law
         if self.loop.locator_stale:
             self._push_locator()
@@ -325,8 +330,8 @@ def _make_room(samples):
 
 def compiled_torque(controller, stance_leg, q, dq, model):
     """The compiled law's torque at (q, dq) (lists) in stance on ``stance_leg``, for comparing it with
-    the controller's own (tests); None when the loop does not compile this controller."""
-    law = reference_law(controller)
+    the controller's own (tests); None when the loop does not compile this controller on ``model``."""
+    law = reference_law(controller, model)
     if _core is None or law is None:
         return None
     loop = _new_loop(model)

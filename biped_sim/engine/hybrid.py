@@ -115,6 +115,7 @@ class HybridSimulator:
         self._compiled = None               # the compiled loop's stepper, built at its first mode
         self._last_F, self._last_u = [0.0, 0.0], [0.0, 0.0]   # the last right-hand-side evaluation's
         self._initial_sample_pending = True    # the t0 sample, redone under the first advance's torque
+        self._periods_outcome = None        # how the compiled loop's last periods() ended
         self._mode_event_times: list[float] = []   # the events that changed the mode (not the scuffs)
         self._stats = dict(steps=0, compiled_loop_steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
                           max_constraint_drift_position=0.0, max_constraint_drift_velocity=0.0,
@@ -227,6 +228,8 @@ class HybridSimulator:
                 self._initial_sample_pending = False
                 self._redo_initial_sample()
                 self._check_stance_start(self.t)
+            elif controller is None and held is None and periods is None:
+                self._check_torque_change()
             if held is not None:
                 self._integrate(t_end, self._compiled.finish_held(held, t_end))
             elif periods is None:
@@ -287,16 +290,23 @@ class HybridSimulator:
         tol = 1e-9 * period
         while self.status == "running" and self.t < t_final and t_stop > self.t + tol:
             st = self._compiled
-            law = compiled_loop.reference_law(controller) if st is not None and self._stepper is st else None
+            on_loop = st is not None and self._stepper is st
+            law = compiled_loop.reference_law(controller, self.model) if on_loop else None
             if law is None or self._initial_sample_pending or not st.can_run_periods():
                 self.advance_period(period, controller=controller, t_final=t_final)
             else:
+                self._periods_outcome = None
                 self.advance(t_final, _periods=(period, law, t_final, t_stop))
+                if self._periods_outcome == compiled_loop.TORQUE_CHANGE and self.status == "running":
+                    # the stance guards refuse the next period's command at its start: its events are the
+                    # Python code's (_check_torque_change)
+                    self.advance_period(period, controller=controller, t_final=t_final)
 
     def _integrate_periods(self, period, law, t_final, t_stop):
         outcome, t_next = self._compiled.periods(period, law, t_final, t_stop)
-        if outcome != compiled_loop.DONE:     # the rest of the period in progress, as any
-            self._integrate(t_next, outcome)
+        self._periods_outcome = outcome
+        if outcome not in (compiled_loop.DONE, compiled_loop.TORQUE_CHANGE):    # the rest of the period in
+            self._integrate(t_next, outcome)                                   # progress, as any
 
     def push(self, impulse):
         """A push: the impulse (N s, [x forward, y up]) on the hip, applied now, between two
@@ -498,20 +508,40 @@ class HybridSimulator:
                 self._stop("stopped", ev.message + "; the model has no sliding phase (raise mu, or "
                            "set stop_on_slip=False to keep the foot pinned)")
 
-    def _check_stance_start(self, t):
+    def _check_torque_change(self):
+        """The held torque may change at this instant (``advance(u=...)``, a control period's start): the
+        stance guards at the state now under the torque from now on. (The compiled loop hands such a
+        period back before it changes anything: ``Loop.period``, ``Loop.periods``.)"""
+        if self.stance_leg:
+            q, dq = self.state_lists()
+            self._check_stance_start(self.t, self._force_at(self.t, q, dq))
+
+    def _check_stance_start(self, t, F=None):
         """A stance that starts with the ground pulling on the foot (normal force < 0), or with the
         force outside the friction cone, ends at that instant: the liftoff and slip guards are
-        already past zero there, so no crossing inside a step would ever find them."""
+        already past zero there, so no crossing inside a step would ever find them. The same holds
+        where the torque changes in stance: ``F`` is the force at t under the new torque (the last
+        sample, at t, keeps the old torque and its force, the stance's last); by default it is the
+        last sample's, taken at t under the torque from now on. A latched slip guard stays off, as in
+        the locator."""
         if not self.stance_leg:
             return
-        t0, q, dq, leg, F, u, residual = self._samples.last()
-        n, tg = G.normal_tangent(F, self.ground)
+        t0, q, dq, leg, F_sample, u, residual = self._samples.last()
+        n, tg = G.normal_tangent(F_sample if F is None else F, self.ground)
+        slip = G.Guard("slip", leg)
         if n < 0.0:
-            self._reset(G.Guard("liftoff", leg), [leg], t, q.tolist(), dq.tolist())
-            if self.stance_leg == 0:    # in flight from this very instant: so is the sample just taken
-                self._samples.set_last_in_flight()
-        elif self.mu is not None and G.slip_guard(n, tg, self.mu) < 0.0:
-            self._reset(G.Guard("slip", leg), [leg], t, q.tolist(), dq.tolist())
+            guard = G.Guard("liftoff", leg)
+        elif self.mu is not None and slip not in self.locator.latched and G.slip_guard(n, tg, self.mu) < 0.0:
+            guard = slip
+        else:
+            return
+        q, dq = q.tolist(), dq.tolist()
+        if F is not None:
+            # the next step starts here under the new torque, not from the last step's end under the old one
+            self.locator.restart(t, self.feet(q, dq), F)
+        self._reset(guard, [leg], t, q, dq)
+        if guard.kind == "liftoff" and self.stance_leg == 0 and F is None:
+            self._samples.set_last_in_flight()   # in flight from this very instant: so is the sample just taken
 
     def _push_event(self, ev):
         self._samples.keep_last()       # the sample after the event's reset

@@ -305,9 +305,112 @@ def test_a_changed_law_is_not_compiled():
     class Mine(PDWalkingController):
         def __call__(self, t, q, dq, stance_leg):
             return [0.0, 0.0]
-    assert compiled_loop.torque_law(Mine(MODEL)) is None
-    assert compiled_loop.torque_law(lambda t, q, dq, leg: (0.0, 0.0)) is None
-    assert compiled_loop.torque_law(PDWalkingController(MODEL))[0] == "pd_walking"
+    assert compiled_loop.torque_law(Mine(MODEL), MODEL) is None
+    assert compiled_loop.torque_law(lambda t, q, dq, leg: (0.0, 0.0), MODEL) is None
+    assert compiled_loop.torque_law(PDWalkingController(MODEL), MODEL)[0] == "pd_walking"
+
+
+# -- issue 28, R2: a law runs compiled only where the result is the controller's own ------------------------
+class SwingAhead(WalkingController):
+    """Another swing target, the swing foot 0.05 rad further forward: not the compiled law."""
+    def swing_target(self, phi_s):
+        f, df, ddf = super().swing_target(phi_s)
+        return f - 0.05, df, ddf
+
+
+class StiffTorso(WalkingController):
+    """Other outputs: the torso held 0.05 rad further forward."""
+    def outputs(self, q, dq, stance_leg):
+        (y0, y1), dy, H, bias = super().outputs(q, dq, stance_leg)
+        return (y0 - 0.05, y1), dy, H, bias
+
+
+class PDSwingAhead(PDWalkingController):
+    def swing_target(self, phi_s):
+        f, df, ddf = super().swing_target(phi_s)
+        return f - 0.05, df, ddf
+
+
+def _swing_on_the_instance():
+    ctrl = WalkingController(MODEL)
+    plain = ctrl.swing_target
+    ctrl.swing_target = lambda phi_s: tuple(v - 0.05 * (i == 0) for i, v in enumerate(plain(phi_s)))
+    return ctrl
+
+
+OWN_LAWS = {
+    "a subclass with its own swing_target": lambda: SwingAhead(MODEL),
+    "a subclass with its own outputs": lambda: StiffTorso(MODEL),
+    "a PD subclass with its own swing_target": lambda: PDSwingAhead(MODEL),
+    "swing_target replaced on the instance": _swing_on_the_instance,
+    "a controller on another model (m_leg 4)": lambda: WalkingController(BipedModel(m_leg=4.0)),
+}
+
+
+def _commanded(ctrl, mode, t_final=0.6):
+    """A walk of the simulator's MODEL under ctrl: continuous feedback, simulate's held 1 ms periods
+    (advance_periods), or advance_period(controller=...) one period at a time."""
+    q0, dq0 = WalkingController(MODEL).initial_state()
+    if mode != "advance_period":
+        return bs.simulate(MODEL, q0, dq0, t_final, controller=ctrl, control_period=mode)
+    sim = bs.HybridSimulator(MODEL, q0, dq0)
+    while sim.status == "running" and sim.t < t_final - 1e-12:
+        sim.advance_period(1e-3, controller=ctrl, t_final=t_final)
+    return sim.result()
+
+
+def _assert_the_controllers_own_torques(ctrl, r, period):
+    assert r.status == "completed" and len(r.t) > 20, r.message
+    if period is None:       # at each sample's own state (the projection moves it by the drift only)
+        expected = [ctrl(t, q, dq, int(leg)) for t, q, dq, leg in zip(r.t, r.q, r.dq, r.stance_leg)]
+        np.testing.assert_allclose(r.u, expected, rtol=0, atol=1e-9)
+        return
+    # held: the sample after a period's start carries the command at that start's state, bit for bit
+    starts = 0
+    for i in range(len(r.t) - 1):
+        k = round(r.t[i] / period)
+        if abs(r.t[i] - k * period) < 1e-12 and k * period < r.t[i + 1] <= (k + 1) * period + 1e-12:
+            expected = np.asarray(ctrl(r.t[i], r.q[i], r.dq[i], int(r.stance_leg[i])), dtype=float)
+            assert r.u[i + 1].tobytes() == expected.tobytes(), (r.t[i], r.u[i + 1], expected)
+            starts += 1
+    assert starts > 100
+
+
+@pytest.mark.parametrize("mode", [None, 1e-3, "advance_period"])
+@pytest.mark.parametrize("case", list(OWN_LAWS))
+def test_a_law_that_is_not_the_compiled_one_gives_the_controllers_own_torques_on_both_loops(case, mode):
+    ctrl = OWN_LAWS[case]()
+    a, b = both_loops(lambda: _commanded(ctrl, mode))
+    assert a.stats["compiled_loop_steps"] > 0      # the loop ran, calling the controller back
+    _assert_the_controllers_own_torques(ctrl, a, 1e-3 if mode else None)
+    assert_same_run(a, b, case)
+    assert np.array_equal(a.u, b.u) and np.array_equal(a.q, b.q)
+
+
+@pytest.mark.parametrize("mode", [None, 1e-3, "advance_period"])
+@pytest.mark.parametrize("cls", [WalkingController, PDWalkingController])
+def test_the_reference_laws_on_the_simulators_model_still_run_compiled(cls, mode):
+    ctrl = cls(BipedModel())      # another object, the same parameters: the same constants
+    assert compiled_loop.reference_law(ctrl, MODEL)[0] == {WalkingController: "walking"}.get(cls, "pd_walking")
+    a, b = both_loops(lambda: _commanded(ctrl, mode))
+    assert a.stats["compiled_loop_steps"] > 0
+    _assert_the_controllers_own_torques(ctrl, a, 1e-3 if mode else None)
+    assert np.array_equal(a.u, b.u) and np.array_equal(a.q, b.q)
+
+
+def test_which_controllers_the_loop_compiles():
+    other = BipedModel(m_leg=4.0)
+    assert compiled_loop.reference_law(WalkingController(other), MODEL) is None
+    assert compiled_loop.reference_law(WalkingController(other), other)[0] == "walking"
+    # the PD law in stance uses no model constant: the same torques on any model
+    assert compiled_loop.reference_law(PDWalkingController(other), MODEL)[0] == "pd_walking"
+    for make in OWN_LAWS.values():
+        assert compiled_loop.reference_law(make(), MODEL) is None
+    changed = WalkingController(MODEL)
+    changed.kp = 120        # a gain set after __init__: the law's parameters are read at each use
+    assert compiled_loop.reference_law(changed, MODEL)[1][5] == 120
+    changed.kd = np.float32(20.0)       # another precision than C's doubles: called back
+    assert compiled_loop.reference_law(changed, MODEL) is None
 
 
 WALK = """
