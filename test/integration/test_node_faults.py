@@ -373,3 +373,25 @@ def test_a_full_disk_mid_run_ends_the_run_cleanly_and_keeps_the_bag(mode, tmp_pa
     recover(bag)
     times = bag_joint_state_times(bag)      # everything on disk before the disk filled up, in order
     assert bag_message_count(bag) >= on_disk and times == sorted(times) and times[-1] <= float(status["time"])
+
+
+# -- issue 34, item 1: every signal that ends a process in normal use ends it as SIGINT does --------------
+def test_sighup_ends_the_node_and_the_controller_cleanly(tmp_path):
+    """The terminal or the ssh session closes: SIGHUP. Its default action killed both nodes with no
+    log line, no final status and the bag left open (exit code -1)."""
+    params = dict(scene="hup", bag_dir=str(tmp_path))
+    with ros_domain() as dom, Client(dom) as c, start_node(params, dom, extra_args=["--ros-args", "--params-file",
+                                                                                 WALK]) as sim, \
+            start_node(None, dom, "walk_controller", ["--ros-args", "--params-file", WALK]) as ctrl:
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        js = c.collect("/joint_states", JointState)
+        c.wait_subscribed("/diagnostics", proc=sim)
+        c.spin_until(lambda: js and t_of(js[-1]) > 0.01, 60, "the walk under way", sim)
+        assert ctrl.stop(signal.SIGHUP) == 0, ctrl.output()
+        assert sim.stop(signal.SIGHUP) == 0, sim.output()
+        status = run_status(c, diag, sim)
+    assert "SIGHUP: shutting down after" in one_line(ctrl.output(), "SIGHUP")
+    assert "SIGHUP: shutting down at t=" in one_line(sim.output(), "SIGHUP")
+    assert status["status"] == "running" and int(status["control_periods"]) > 10, status
+    bag = next(p for p in tmp_path.iterdir() if p.is_dir())
+    assert (bag / "metadata.yaml").exists() and bag_joint_state_times(bag)[-1] == pytest.approx(float(status["time"]))
