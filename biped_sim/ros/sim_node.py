@@ -86,7 +86,10 @@ class SimNode(Node):
         self.timeout = 0.0 if self.mode == "lockstep" else prm["command_timeout"]
         self.u = [0.0, 0.0]
         self.finished = False           # duration reached
-        self.stopped = False            # the engine stopped (error): stay up for inspection
+        self.stopped = False            # the engine stopped (error)
+        # a run without a duration is watched by someone: after an engine stop it stays up for
+        # inspection (and ~/reset). A run with one is a batch run: nobody is there to press Ctrl-C
+        self.stay_up_after_stop = self.duration == 0
         self.counts = dict(received=0, rejected=0, clipped=0, timeouts=0, ignored=0, stale=0)
         self.fault = None               # (status, message): the run ended by a fault (recording, lockstep_timeout)
         self.last_command_wall = None
@@ -284,8 +287,10 @@ class SimNode(Node):
     def _on_engine_stopped(self):
         self.stopped = True
         sim = self.sim
-        self.get_logger().error(f"the engine {sim.status} at t={sim.t:.9f} s: {sim.message}. The node stays "
-                                "up for inspection (the last state stays published); stop it with Ctrl-C")
+        then = ("The node stays up for inspection (the last state stays published; ~/reset restarts the run); "
+                "stop it with Ctrl-C" if self.stay_up_after_stop else
+                f"The run ends here, before its duration {self.duration:g} s (exit code 1)")
+        self.get_logger().error(f"the engine {sim.status} at t={sim.t:.9f} s: {sim.message}. {then}")
         self.publish_state()
         self.publish_run_status()
 
@@ -329,7 +334,8 @@ class SimNode(Node):
     # -- time modes ---------------------------------------------------------------------------
     def run(self, should_stop, executor):
         """The run in the chosen time mode, until the duration, an engine error or ``should_stop()``;
-        after an engine error the node stays up (for inspection) until ``should_stop()``."""
+        after an engine error a run without a duration stays up (for inspection) until ``should_stop()``
+        or a ``~/reset``; one with a duration ends there."""
         self._cpu_run0 = time.process_time()
         self.publish_state()
         if self.mode == "lockstep":     # the command callback steps and publishes
@@ -351,7 +357,7 @@ class SimNode(Node):
         self._wall_end = time.monotonic()
         if self.finished:
             self.publish_run_status()
-        while not should_stop() and self.stopped:
+        while not should_stop() and self.stopped and self.stay_up_after_stop:
             wait()
 
     def log_figures(self):
@@ -426,7 +432,9 @@ def main(argv=None):
             closed = node.close()
             node.destroy_node()
         rclpy.try_shutdown()
-    return 1 if node.fault or not closed else 0
+    # a run that did not complete by itself: a fault, or an engine stop that ended a run with a duration
+    incomplete = node.fault or (node.stopped and not node.stay_up_after_stop)
+    return 1 if incomplete or not closed else 0
 
 
 if __name__ == "__main__":

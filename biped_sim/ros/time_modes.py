@@ -106,9 +106,9 @@ class RealtimePacer:
 
 
 def run_lockstep(node, should_stop, spin):
-    """Spin until the duration is reached: the command callback steps and publishes. ``spin``: the
-    node's :class:`~biped_sim.ros.one_topic_spin.OneTopicSpin` on ``hip_torque``."""
-    while not should_stop() and not node.finished:
+    """Spin until the duration is reached or the engine stops: the command callback steps and
+    publishes. ``spin``: the node's :class:`~biped_sim.ros.one_topic_spin.OneTopicSpin` on ``hip_torque``."""
+    while not (should_stop() or node.finished or node.stopped):
         spin.spin_once(0.1)
 
 

@@ -13,7 +13,17 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from ros_helpers import BIN, Client, Control, NodeProcess, complete_messages, ros_domain, ros_env, start_node  # noqa: E402
+from ros_helpers import (  # noqa: E402
+    BIN,
+    Client,
+    Control,
+    NodeProcess,
+    bag_messages,
+    complete_messages,
+    ros_domain,
+    ros_env,
+    start_node,
+)
 
 pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
@@ -395,3 +405,25 @@ def test_sighup_ends_the_node_and_the_controller_cleanly(tmp_path):
     assert status["status"] == "running" and int(status["control_periods"]) > 10, status
     bag = next(p for p in tmp_path.iterdir() if p.is_dir())
     assert (bag / "metadata.yaml").exists() and bag_joint_state_times(bag)[-1] == pytest.approx(float(status["time"]))
+
+
+# -- issue 34, item 2: a run with a duration that the engine stops ends the node ---------------------------
+PASSIVE = str(load_scene("passive").path)
+
+
+def test_a_stopped_run_with_a_duration_ends_the_node_with_exit_code_1(tmp_path):
+    """The passive scene for 3 s stops by Zeno at 1.56 s. It used to leave the node up "for
+    inspection" forever, a batch script having to kill it; with a duration set it ends there."""
+    params = dict(duration=3.0, bag_dir=str(tmp_path))
+    with ros_domain() as dom, start_node(params, dom, extra_args=["--ros-args", "--params-file", PASSIVE]) as sim:
+        assert sim.wait(60) == 1, sim.output()
+    line = one_line(sim.output(), "the engine stopped at t=")
+    assert "[ERROR]" in line and "The run ends here, before its duration 3 s (exit code 1)" in line, line
+    bag = next(p for p in tmp_path.iterdir() if p.is_dir())
+    assert (bag / "metadata.yaml").exists()           # closed: the end is clean
+    # the final status, as the bag recorded it (a subscriber may not be matched before the run ends)
+    runs = [s for _t, a in bag_messages(bag)["/diagnostics"] for s in a.status if s.name == "biped_sim/run"]
+    status = {kv.key: kv.value for kv in runs[-1].values}
+    assert len(runs) == 1 and runs[0].level == 2 and status["status"] == "stopped", status
+    t_end = float(status["time"])
+    assert 1.5 < t_end < 3.0 and bag_joint_state_times(bag)[-1] == pytest.approx(t_end, abs=1e-9)
