@@ -95,6 +95,7 @@ class SimNode(Node):
         self.last_command_wall = None
         self.timed_out = False
         self._wall_first_period = None  # wall clock at the first control period (figures: periods per wall s)
+        self.earlier_runs = dict(runs=0, periods=0, engine_wall=0.0)   # the engines ~/reset replaced (figures)
 
         out = set(prm["outputs"])
         self.pub_js = self._publisher(JointState, "joint_states") if "joint_states" in out else None
@@ -139,6 +140,13 @@ class SimNode(Node):
         return {k: v for k, v in pubs.items() if v is not None}
 
     # -- recording ------------------------------------------------------------------------------
+    def replace_engine(self, sim):
+        """``sim`` (a new engine, ~/reset) replaces the current one, whose cost the figures keep."""
+        self.earlier_runs["runs"] += 1
+        self.earlier_runs["periods"] += self.sim.control_periods
+        self.earlier_runs["engine_wall"] += self.sim.stats["wall_time"]
+        self.sim = sim
+
     def _open_recorder(self, path=None):
         try:
             from biped_sim.recording.recorder import BagRecorder  # optional: needs mcap
@@ -364,15 +372,24 @@ class SimNode(Node):
         """The run's cost: control periods, engine time and this process's CPU time per period, and the
         wall time from the first control period (in lockstep: the first command) to the end of the run
         (``benchmarks/bench_node.py`` and ``bench_record.py`` read this line)."""
-        n = self.sim.control_periods
+        earlier = self.earlier_runs      # the runs before each ~/reset count too
+        n = earlier["periods"] + self.sim.control_periods
         k = max(1, n)
+        engine = earlier["engine_wall"] + self.sim.stats["wall_time"]
         cpu = getattr(self, "_cpu_end", time.process_time()) - getattr(self, "_cpu_run0", 0.0)
-        wall = (getattr(self, "_wall_end", time.monotonic()) - self._wall_first_period
-                if self._wall_first_period is not None else 0.0)
+        end = getattr(self, "_wall_end", time.monotonic())
+        wall = paused = 0.0
+        if self._wall_first_period is not None:
+            wall = end - self._wall_first_period
+            paused = self.control.paused_between(self._wall_first_period, end)
+        running = wall - paused
+        runs = (f" in {earlier['runs'] + 1} runs ({earlier['runs']} ~/reset), the last" if earlier["runs"] else "")
         self.get_logger().info(
-            f"{n} control periods to t={self.sim.t:.6f} s: engine {1e3 * self.sim.stats['wall_time'] / k:.3f} ms "
-            f"(wall) and process CPU {1e3 * cpu / k:.3f} ms per period; wall {wall:.4f} s from the first control "
-            f"period ({n / wall if wall > 0 else 0.0:.1f} periods/s); commands {self.counts}")
+            f"{n} control periods{runs} to t={self.sim.t:.6f} s: engine {1e3 * engine / k:.3f} ms (wall) and process "
+            f"CPU {1e3 * cpu / k:.3f} ms per period; wall {wall:.4f} s from the first control period "
+            f"({n / running if running > 0 else 0.0:.1f} periods/s" + (f" over the {running:.4f} s not paused"
+                                                                       if paused > 0 else "")
+            + f"); commands {self.counts}")
 
     def flush(self, timeout=5.0):
         """Wait (at most ``timeout`` s in all) until subscribers acknowledged what was published: a
