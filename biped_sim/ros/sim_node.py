@@ -98,6 +98,12 @@ class SimNode(Node):
         self.earlier_runs = dict(runs=0, periods=0, engine_wall=0.0)   # the engines ~/reset replaced (figures)
 
         out = set(prm["outputs"])
+        if self.mode == "lockstep" and "joint_states" not in out:
+            # a lockstep controller answers each joint_states message: without it no command comes and
+            # the run waits in silence (the watch's warning needs lockstep_warn_after s, if it is set)
+            raise StartupError(f"time_mode lockstep needs joint_states in outputs (the controller answers each "
+                               f"state with the command that advances the run; outputs={prm['outputs']}): add "
+                               "it, e.g. outputs:=[" + ", ".join(["joint_states", *prm["outputs"]]) + "]")
         self.pub_js = self._publisher(JointState, "joint_states") if "joint_states" in out else None
         self.pub_grf = self._publisher(WrenchStamped, "ground_reaction") if "ground_reaction" in out else None
         self.pub_impact = (self._publisher(DiagnosticArray, "impact")

@@ -427,3 +427,21 @@ def test_a_stopped_run_with_a_duration_ends_the_node_with_exit_code_1(tmp_path):
     assert len(runs) == 1 and runs[0].level == 2 and status["status"] == "stopped", status
     t_end = float(status["time"])
     assert 1.5 < t_end < 3.0 and bag_joint_state_times(bag)[-1] == pytest.approx(t_end, abs=1e-9)
+
+
+# -- issue 34, item 4: lockstep without a state topic ----------------------------------------------------
+def test_lockstep_without_joint_states_is_refused_at_start(tmp_path):
+    """Its controller has no state to answer: the run waited in silence (walk_controller too)."""
+    argv = [str(BIN / "sim_node"), "--ros-args", "-p", "time_mode:=lockstep", "-p", "outputs:=[ground_reaction, clock]",
+            "-p", f"bag_dir:={tmp_path}"]
+    with ros_domain() as dom:
+        try:
+            done = subprocess.run(argv, env=ros_env(dom), capture_output=True, text=True, timeout=30,
+                                  stdin=subprocess.DEVNULL)
+        except subprocess.TimeoutExpired:
+            pytest.fail("sim_node started a lockstep run without joint_states (ran until killed)")
+    assert done.returncode == 2, done.stdout + done.stderr
+    line = one_line(done.stderr, "sim_node: error:")
+    assert "time_mode lockstep needs joint_states in outputs" in line
+    assert "outputs:=[joint_states, ground_reaction, clock]" in line, line
+    assert list(tmp_path.iterdir()) == []                # nothing recorded
