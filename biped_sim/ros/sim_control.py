@@ -210,6 +210,11 @@ class SimControl:
     def _reset(self, req):
         node = self.node
         t_old = node.sim.t
+        # a run that has not advanced is at the scene's initial state: the reset republishes the very
+        # state the controller may have answered already (start_paused, or a second reset in one
+        # pause), and a lockstep controller does not answer a state twice: its held answer stands
+        untouched = node.sim.control_periods == 0 and t_old == 0.0 and node.sim.status == "running"
+        keep_held = self.lockstep and untouched
         self.resets += 1
         new_bag = None
         if node.recorder is not None:
@@ -231,11 +236,12 @@ class SimControl:
         node.replace_engine(HybridSimulator(**P.engine_arguments(node.params), keep_samples=False))
         if node.markers is not None:      # the new run's events count from 0; its first state drawn at once
             node.markers.restart()
-        node.u = [0.0, 0.0]
+        if not keep_held:
+            node.u = [0.0, 0.0]
+            self.lockstep_command_held = False
         node.finished = node.stopped = node.timed_out = False
         node.last_command_wall = None
         self.take_pushes()                # a push aimed at the old run does not hit the new one
-        self.lockstep_command_held = False
         self._publish_marker(0.0, dict(time="0.0", resets=str(self.resets), previous_time=repr(float(t_old)),
                                        previous_bag=old_bag or ""),
                              f"restarted at t = 0 from the scene's initial state (reset {self.resets}, "

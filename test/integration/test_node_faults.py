@@ -436,7 +436,7 @@ def test_lockstep_without_joint_states_is_refused_at_start(tmp_path):
             "-p", f"bag_dir:={tmp_path}"]
     with ros_domain() as dom:
         try:
-            done = subprocess.run(argv, env=ros_env(dom), capture_output=True, text=True, timeout=30,
+            done = subprocess.run(argv, env=ros_env(dom), capture_output=True, text=True, timeout=20,
                                   stdin=subprocess.DEVNULL)
         except subprocess.TimeoutExpired:
             pytest.fail("sim_node started a lockstep run without joint_states (ran until killed)")
@@ -445,3 +445,30 @@ def test_lockstep_without_joint_states_is_refused_at_start(tmp_path):
     assert "time_mode lockstep needs joint_states in outputs" in line
     assert "outputs:=[joint_states, ground_reaction, clock]" in line, line
     assert list(tmp_path.iterdir()) == []                # nothing recorded
+
+
+# -- issue 34, item 5: a reset while paused in lockstep ------------------------------------------------------
+def test_lockstep_resets_at_t0_while_paused_do_not_stall_the_run():
+    """start_paused, the controller answers the state at t = 0, then two ~/reset in the pause: each
+    republishes that same state, which walk_controller rightly does not answer twice, and the reset
+    dropped the held answer: after the resume nothing advanced. The run must go on, and as headless."""
+    duration = 0.05
+    walk = ["--ros-args", "--params-file", WALK]
+    with ros_domain() as dom, Client(dom) as c, \
+            start_node({"duration": duration, "record": False, "start_paused": True}, dom, extra_args=walk) as sim, \
+            start_node(None, dom, "walk_controller", walk) as ctrl:
+        js = c.collect("/joint_states", JointState)
+        commands = c.collect("/hip_torque", Float64MultiArray, transient_local=False)
+        srv = Control(c, sim)
+        c.spin_until(lambda: any(M.answered_ns(m) == 0 for m in commands), 60, "the answer to t = 0", sim)
+        for _ in range(2):
+            answer = srv.reset()
+            assert answer.success and "from t=0.000000 s" in answer.message, answer.message
+        c.wait_subscribed("/joint_states", proc=sim)
+        assert srv.pause(False).success
+        c.spin_until(lambda: js and t_of(js[-1]) >= duration, 30, "the last state", sim)
+        assert sim.wait(30) == 0, sim.output()
+        assert ctrl.alive
+    assert "waiting for a hip_torque command" not in sim.output()
+    ref = load_scene("walk").simulate(hold=True, t_final=duration)
+    assert list(js[-1].position) == ref.q[-1].tolist() and list(js[-1].velocity) == ref.dq[-1].tolist()
