@@ -82,7 +82,7 @@ def main(argv=None):
     from biped_sim.ros import startup
     types = dict(joint_states=JointState, ground_reaction=WrenchStamped, impact=DiagnosticArray,
                  diagnostics=DiagnosticArray, clock=Clock)
-    # SIGINT and SIGTERM set a flag the loop reads (rclpy's own handlers shut the context down under
+    # SIGINT, SIGTERM and SIGHUP set a flag the loop reads (rclpy's own handlers shut the context down under
     # a running wait, and spin_once then raises RCLError: a traceback for a plain stop)
     stop = startup.init("biped_echo", None)
     if stop is None:

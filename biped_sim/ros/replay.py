@@ -11,7 +11,6 @@ durability) with a queue deep enough to not drop at high rates.
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import time
 
@@ -128,10 +127,9 @@ def main(argv=None):
     from rclpy.signals import SignalHandlerOptions
 
     from biped_sim.recording.messages import message_class
-    stop = []
+    from biped_sim.ros.startup import catch_stop_signals
     rclpy.init(args=["replay"] + ros_args, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGINT, lambda *_: stop.append(1))
-    signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
+    stop = catch_stop_signals([])     # SIGINT, SIGTERM, SIGHUP: stop playing, say so, close cleanly
     node = rclpy.create_node("biped_sim_replay")
     pubs = {t: node.create_publisher(message_class(channels[t]), t, _qos(args.bag, t)) for t in topics}
     clock_pub = None

@@ -45,6 +45,7 @@ class SimControl:
         self.lockstep = node.mode == "lockstep"
         self.cond = threading.Condition()
         self.paused = bool(node.params["start_paused"])
+        self.pauses = [[time.monotonic(), None]] if self.paused else []   # [begin, end] (wall), the figures
         self.pushes = []                  # impulses to apply at the start of the next control period
         self.requests = deque()           # step and reset requests for the loop thread
         self.lockstep_command_held = False   # lockstep: a command came while paused
@@ -90,6 +91,10 @@ class SimControl:
         with self.cond:
             was, self.paused = self.paused, bool(request.data)
             self.cond.notify_all()
+        if self.paused and not was:
+            self.pauses.append([time.monotonic(), None])
+        elif was and not self.paused:
+            self.pauses[-1][1] = time.monotonic()
         state = "paused" if self.paused else "running"
         response.success = True
         response.message = (f"{'already ' if was == self.paused else ''}{state} at t={node.sim.t:.6f} s"
@@ -100,6 +105,10 @@ class SimControl:
             self.lockstep_command_held = False     # the period the held command asked for
             node._lockstep(node.sim.t)
         return response
+
+    def paused_between(self, begin: float, end: float) -> float:
+        """Wall seconds the run was paused between the wall times ``begin`` and ``end``."""
+        return sum(max(0.0, min(end, b if b is not None else end) - max(begin, a)) for a, b in self.pauses)
 
     def hold_in_lockstep(self) -> bool:
         """Lockstep: True if paused (the command is held, not stepped: it steps once on resume)."""
@@ -182,9 +191,17 @@ class SimControl:
                 t0 = node.sim.t
                 node.step()
                 node.publish_state()
-                req.success = node.sim.status == "running"
-                req.message = (f"stepped one control period from t={t0:.6f} s to t={node.sim.t:.6f} s"
-                               + ("" if req.success else f"; the engine {node.sim.status}: {node.sim.message}"))
+                sim = node.sim
+                req.success = sim.status == "running"
+                if req.success:
+                    req.message = (f"stepped one control period from t={t0:.6f} s to t={sim.t:.6f} s"
+                                   + (f"; the run has reached its duration {node.duration:g} s" if node.finished
+                                      else ""))
+                else:   # the step did not complete: say where it ended, not that it stepped
+                    req.message = (f"the step from t={t0:.6f} s did not complete: the engine {sim.status} at "
+                                   f"t={sim.t:.9f} s: {sim.message}"
+                                   + ("; ~/reset restarts the run" if node.stay_up_after_stop else
+                                      "; the run ends here (duration set)"))
             else:
                 self._reset(req)
         finally:
@@ -193,6 +210,11 @@ class SimControl:
     def _reset(self, req):
         node = self.node
         t_old = node.sim.t
+        # a run that has not advanced is at the scene's initial state: the reset republishes the very
+        # state the controller may have answered already (start_paused, or a second reset in one
+        # pause), and a lockstep controller does not answer a state twice: its held answer stands
+        untouched = node.sim.control_periods == 0 and t_old == 0.0 and node.sim.status == "running"
+        keep_held = self.lockstep and untouched
         self.resets += 1
         new_bag = None
         if node.recorder is not None:
@@ -211,14 +233,15 @@ class SimControl:
             except StartupError as exc:   # the run goes on, unrecorded, and says so
                 node.get_logger().error(f"~/reset: {exc}; the run after the reset is NOT recorded")
                 new_bag = None
-        node.sim = HybridSimulator(**P.engine_arguments(node.params), keep_samples=False)
+        node.replace_engine(HybridSimulator(**P.engine_arguments(node.params), keep_samples=False))
         if node.markers is not None:      # the new run's events count from 0; its first state drawn at once
             node.markers.restart()
-        node.u = [0.0, 0.0]
+        if not keep_held:
+            node.u = [0.0, 0.0]
+            self.lockstep_command_held = False
         node.finished = node.stopped = node.timed_out = False
         node.last_command_wall = None
         self.take_pushes()                # a push aimed at the old run does not hit the new one
-        self.lockstep_command_held = False
         self._publish_marker(0.0, dict(time="0.0", resets=str(self.resets), previous_time=repr(float(t_old)),
                                        previous_bag=old_bag or ""),
                              f"restarted at t = 0 from the scene's initial state (reset {self.resets}, "

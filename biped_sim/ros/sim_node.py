@@ -86,14 +86,24 @@ class SimNode(Node):
         self.timeout = 0.0 if self.mode == "lockstep" else prm["command_timeout"]
         self.u = [0.0, 0.0]
         self.finished = False           # duration reached
-        self.stopped = False            # the engine stopped (error): stay up for inspection
+        self.stopped = False            # the engine stopped (error)
+        # a run without a duration is watched by someone: after an engine stop it stays up for
+        # inspection (and ~/reset). A run with one is a batch run: nobody is there to press Ctrl-C
+        self.stay_up_after_stop = self.duration == 0
         self.counts = dict(received=0, rejected=0, clipped=0, timeouts=0, ignored=0, stale=0)
         self.fault = None               # (status, message): the run ended by a fault (recording, lockstep_timeout)
         self.last_command_wall = None
         self.timed_out = False
         self._wall_first_period = None  # wall clock at the first control period (figures: periods per wall s)
+        self.earlier_runs = dict(runs=0, periods=0, engine_wall=0.0)   # the engines ~/reset replaced (figures)
 
         out = set(prm["outputs"])
+        if self.mode == "lockstep" and "joint_states" not in out:
+            # a lockstep controller answers each joint_states message: without it no command comes and
+            # the run waits in silence (the watch's warning needs lockstep_warn_after s, if it is set)
+            raise StartupError(f"time_mode lockstep needs joint_states in outputs (the controller answers each "
+                               f"state with the command that advances the run; outputs={prm['outputs']}): add "
+                               "it, e.g. outputs:=[" + ", ".join(["joint_states", *prm["outputs"]]) + "]")
         self.pub_js = self._publisher(JointState, "joint_states") if "joint_states" in out else None
         self.pub_grf = self._publisher(WrenchStamped, "ground_reaction") if "ground_reaction" in out else None
         self.pub_impact = (self._publisher(DiagnosticArray, "impact")
@@ -136,6 +146,13 @@ class SimNode(Node):
         return {k: v for k, v in pubs.items() if v is not None}
 
     # -- recording ------------------------------------------------------------------------------
+    def replace_engine(self, sim):
+        """``sim`` (a new engine, ~/reset) replaces the current one, whose cost the figures keep."""
+        self.earlier_runs["runs"] += 1
+        self.earlier_runs["periods"] += self.sim.control_periods
+        self.earlier_runs["engine_wall"] += self.sim.stats["wall_time"]
+        self.sim = sim
+
     def _open_recorder(self, path=None):
         try:
             from biped_sim.recording.recorder import BagRecorder  # optional: needs mcap
@@ -284,8 +301,10 @@ class SimNode(Node):
     def _on_engine_stopped(self):
         self.stopped = True
         sim = self.sim
-        self.get_logger().error(f"the engine {sim.status} at t={sim.t:.9f} s: {sim.message}. The node stays "
-                                "up for inspection (the last state stays published); stop it with Ctrl-C")
+        then = ("The node stays up for inspection (the last state stays published; ~/reset restarts the run); "
+                "stop it with Ctrl-C" if self.stay_up_after_stop else
+                f"The run ends here, before its duration {self.duration:g} s (exit code 1)")
+        self.get_logger().error(f"the engine {sim.status} at t={sim.t:.9f} s: {sim.message}. {then}")
         self.publish_state()
         self.publish_run_status()
 
@@ -329,7 +348,8 @@ class SimNode(Node):
     # -- time modes ---------------------------------------------------------------------------
     def run(self, should_stop, executor):
         """The run in the chosen time mode, until the duration, an engine error or ``should_stop()``;
-        after an engine error the node stays up (for inspection) until ``should_stop()``."""
+        after an engine error a run without a duration stays up (for inspection) until ``should_stop()``
+        or a ``~/reset``; one with a duration ends there."""
         self._cpu_run0 = time.process_time()
         self.publish_state()
         if self.mode == "lockstep":     # the command callback steps and publishes
@@ -351,22 +371,31 @@ class SimNode(Node):
         self._wall_end = time.monotonic()
         if self.finished:
             self.publish_run_status()
-        while not should_stop() and self.stopped:
+        while not should_stop() and self.stopped and self.stay_up_after_stop:
             wait()
 
     def log_figures(self):
         """The run's cost: control periods, engine time and this process's CPU time per period, and the
         wall time from the first control period (in lockstep: the first command) to the end of the run
         (``benchmarks/bench_node.py`` and ``bench_record.py`` read this line)."""
-        n = self.sim.control_periods
+        earlier = self.earlier_runs      # the runs before each ~/reset count too
+        n = earlier["periods"] + self.sim.control_periods
         k = max(1, n)
+        engine = earlier["engine_wall"] + self.sim.stats["wall_time"]
         cpu = getattr(self, "_cpu_end", time.process_time()) - getattr(self, "_cpu_run0", 0.0)
-        wall = (getattr(self, "_wall_end", time.monotonic()) - self._wall_first_period
-                if self._wall_first_period is not None else 0.0)
+        end = getattr(self, "_wall_end", time.monotonic())
+        wall = paused = 0.0
+        if self._wall_first_period is not None:
+            wall = end - self._wall_first_period
+            paused = self.control.paused_between(self._wall_first_period, end)
+        running = wall - paused
+        runs = (f" in {earlier['runs'] + 1} runs ({earlier['runs']} ~/reset), the last" if earlier["runs"] else "")
         self.get_logger().info(
-            f"{n} control periods to t={self.sim.t:.6f} s: engine {1e3 * self.sim.stats['wall_time'] / k:.3f} ms "
-            f"(wall) and process CPU {1e3 * cpu / k:.3f} ms per period; wall {wall:.4f} s from the first control "
-            f"period ({n / wall if wall > 0 else 0.0:.1f} periods/s); commands {self.counts}")
+            f"{n} control periods{runs} to t={self.sim.t:.6f} s: engine {1e3 * engine / k:.3f} ms (wall) and process "
+            f"CPU {1e3 * cpu / k:.3f} ms per period; wall {wall:.4f} s from the first control period "
+            f"({n / running if running > 0 else 0.0:.1f} periods/s" + (f" over the {running:.4f} s not paused"
+                                                                       if paused > 0 else "")
+            + f"); commands {self.counts}")
 
     def flush(self, timeout=5.0):
         """Wait (at most ``timeout`` s in all) until subscribers acknowledged what was published: a
@@ -426,7 +455,9 @@ def main(argv=None):
             closed = node.close()
             node.destroy_node()
         rclpy.try_shutdown()
-    return 1 if node.fault or not closed else 0
+    # a run that did not complete by itself: a fault, or an engine stop that ended a run with a duration
+    incomplete = node.fault or (node.stopped and not node.stay_up_after_stop)
+    return 1 if incomplete or not closed else 0
 
 
 if __name__ == "__main__":

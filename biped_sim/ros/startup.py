@@ -2,8 +2,10 @@
 
 Owns the start and the refusal, so that a bad command line gives one line on stderr and exit code 2
 (no traceback) in ``sim_node`` and ``walk_controller`` alike. rclpy's own signal handlers are off:
-SIGINT and SIGTERM only append to a list that the node's loop polls, so that the node ends its run
-cleanly (final status, bag closed) instead of being interrupted inside a callback.
+the stop signals (:data:`STOP_SIGNALS`: SIGINT, SIGTERM and SIGHUP, every signal that ends a process
+in normal use) only append to a list that the node's loop polls, so that the node ends its run
+cleanly (final status, bag closed) instead of being interrupted inside a callback or, for SIGHUP
+(the terminal or the ssh session closed), killed without a word.
 """
 from __future__ import annotations
 
@@ -79,18 +81,31 @@ def mixed_list_message(text: str) -> str | None:
             "list as a float, e.g. [0.0, 1.0, 3.14, 3.14, 0.0]")
 
 
+#: the signals that end a process in normal use: Ctrl-C, kill (and systemd, docker stop), and the
+#: terminal or ssh session closing (SIGHUP: its default action killed the node with no log line)
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+def catch_stop_signals(stop: list) -> list:
+    """Make each of :data:`STOP_SIGNALS` append its number to ``stop`` (and return ``stop``). A SIGHUP
+    ignored on entry stays ignored: ``nohup`` asks for a process that outlives its terminal."""
+    for signum in STOP_SIGNALS:
+        if signum == signal.SIGHUP and signal.getsignal(signum) is signal.SIG_IGN:
+            continue
+        signal.signal(signum, lambda signum, _frame: stop.append(signum))
+    return stop
+
+
 def init(program: str, args: list) -> list | None:
-    """``rclpy.init`` with ``args`` and the stop signals caught: returns the list each SIGINT/SIGTERM
-    is appended to, or None (after :func:`refuse`) if the ROS arguments cannot be read."""
+    """``rclpy.init`` with ``args`` and the stop signals caught: returns the list each stop signal
+    (:data:`STOP_SIGNALS`) is appended to, or None (after :func:`refuse`) if the ROS arguments cannot
+    be read."""
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # a bad --ros-args or params file; rcl says which, e.g. a list of mixed types
         refuse(program, mixed_list_message(str(exc)) or f"cannot read the ROS arguments: {exc}")
         return None
-    stop = []
-    signal.signal(signal.SIGINT, lambda signum, _frame: stop.append(signum))
-    signal.signal(signal.SIGTERM, lambda signum, _frame: stop.append(signum))
-    return stop
+    return catch_stop_signals([])
 
 
 def signal_name(signum: int) -> str:

@@ -42,7 +42,12 @@ class PublishSchedule:
 
 
 class RealtimePacer:
-    """Holds a loop to the wall clock: simulated time t is due at ``start + t / rate_factor``."""
+    """Holds a loop to the wall clock: simulated time t is due at ``start + t / rate_factor``.
+
+    The figures count the stretches the loop ran paced (a segment: from a start or a
+    :meth:`restart` to the last period waited for), not the pauses, ``~/step`` s and resets between
+    them: after a reset to t = 0 the simulated time of the whole run is not ``t``, and a pause is
+    neither jitter nor a slow real-time factor."""
 
     def __init__(self, rate_factor: float, control_period: float, publish_period: float):
         self.rate = rate_factor
@@ -52,7 +57,11 @@ class RealtimePacer:
         self.cpu_start = time.process_time()
         self.last_lag_report = self.start
         self.lag_reports = 0
-        self.publication_times = []                             # wall clock (figures)
+        self.publication_times = [[]]                           # wall clock, one list per segment (figures)
+        self.publications = 0
+        self.segment_t, self.segment_wall = 0.0, self.start     # where the current segment began
+        self.last_t, self.last_wall = 0.0, self.start           # the last period waited for
+        self.earlier_t, self.earlier_wall = 0.0, 0.0            # the segments before it, summed
 
     def wait_until(self, t: float) -> str | None:
         """Sleep until simulated time ``t`` is due; a warning if it is already late by more than a
@@ -72,26 +81,39 @@ class RealtimePacer:
             time.sleep(left - SLEEP_MARGIN)
         while time.monotonic() < deadline:
             pass
+        self.last_t, self.last_wall = t, time.monotonic()
         return warning
 
     def restart(self, t: float):
-        """Simulated time ``t`` is due now (after a pause, a step or a reset: time stood still or went back)."""
-        self.start = time.monotonic() - t / self.rate
+        """Simulated time ``t`` is due now (after a pause, a step or a reset: time stood still or went
+        back): the current segment ends at the last period waited for, a new one begins."""
+        now = time.monotonic()
+        self.earlier_t += self.last_t - self.segment_t
+        self.earlier_wall += self.last_wall - self.segment_wall
+        self.segment_t = self.last_t = t
+        self.segment_wall = self.last_wall = now
+        self.start = now - t / self.rate
+        if self.publication_times[-1]:
+            self.publication_times.append([])
 
     def published(self):
-        if len(self.publication_times) < MAX_PUBLICATION_TIMES:
-            self.publication_times.append(time.monotonic())
+        if self.publications < MAX_PUBLICATION_TIMES:
+            self.publications += 1
+            self.publication_times[-1].append(time.monotonic())
 
     def figures(self, t: float, control_periods: int) -> dict | None:
-        """Achieved publish rate and period jitter (wall), real-time factor and CPU time per control
-        period of the run so far; None with fewer than 3 publications."""
-        walls = self.publication_times
-        if len(walls) < 3:
+        """Achieved publish rate and period jitter (wall, within segments), real-time factor (simulated
+        time paced over the wall time it took) and CPU time per control period of the run so far;
+        None with fewer than 3 publications in a row."""
+        segments = [walls for walls in self.publication_times if len(walls) >= 2]
+        d = sorted(abs((b - a) - self.publish_period) for walls in segments for a, b in zip(walls, walls[1:]))
+        if len(d) < 2:
             return None
-        d = sorted(abs((b - a) - self.publish_period) for a, b in zip(walls, walls[1:]))
         pick = lambda q: d[min(len(d) - 1, int(q * (len(d) - 1)))]  # noqa: E731
-        return dict(publications=len(walls), rate=(len(walls) - 1) / (walls[-1] - walls[0]), jitter_p50=pick(0.5),
-                    jitter_p99=pick(0.99), rtf=t / (time.monotonic() - self.start),
+        paced_t = self.earlier_t + self.last_t - self.segment_t
+        paced_wall = self.earlier_wall + self.last_wall - self.segment_wall
+        return dict(publications=self.publications, rate=len(d) / sum(w[-1] - w[0] for w in segments),
+                    jitter_p50=pick(0.5), jitter_p99=pick(0.99), rtf=paced_t / paced_wall if paced_wall > 0 else 0.0,
                     cpu=(time.process_time() - self.cpu_start) / max(1, control_periods))
 
     def report(self, t: float, control_periods: int) -> str | None:
@@ -106,9 +128,9 @@ class RealtimePacer:
 
 
 def run_lockstep(node, should_stop, spin):
-    """Spin until the duration is reached: the command callback steps and publishes. ``spin``: the
-    node's :class:`~biped_sim.ros.one_topic_spin.OneTopicSpin` on ``hip_torque``."""
-    while not should_stop() and not node.finished:
+    """Spin until the duration is reached or the engine stops: the command callback steps and
+    publishes. ``spin``: the node's :class:`~biped_sim.ros.one_topic_spin.OneTopicSpin` on ``hip_torque``."""
+    while not (should_stop() or node.finished or node.stopped):
         spin.spin_once(0.1)
 
 

@@ -107,7 +107,7 @@ def main(argv=None):
 
     from biped_sim.recording.messages import stamp_ns, torque_msg
     from biped_sim.ros import startup
-    # SIGINT and SIGTERM set a flag the loops read (rclpy's own handlers shut the context down under
+    # SIGINT, SIGTERM and SIGHUP set a flag the loops read (rclpy's own handlers shut the context down under
     # a running wait, and spin_once then raises RCLError: a traceback for a plain stop)
     stop = startup.init("torque_pub", None)
     if stop is None:

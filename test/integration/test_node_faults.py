@@ -13,7 +13,17 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from ros_helpers import BIN, Client, Control, NodeProcess, complete_messages, ros_domain, ros_env, start_node  # noqa: E402
+from ros_helpers import (  # noqa: E402
+    BIN,
+    Client,
+    Control,
+    NodeProcess,
+    bag_messages,
+    complete_messages,
+    ros_domain,
+    ros_env,
+    start_node,
+)
 
 pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
@@ -373,3 +383,92 @@ def test_a_full_disk_mid_run_ends_the_run_cleanly_and_keeps_the_bag(mode, tmp_pa
     recover(bag)
     times = bag_joint_state_times(bag)      # everything on disk before the disk filled up, in order
     assert bag_message_count(bag) >= on_disk and times == sorted(times) and times[-1] <= float(status["time"])
+
+
+# -- issue 34, item 1: every signal that ends a process in normal use ends it as SIGINT does --------------
+def test_sighup_ends_the_node_and_the_controller_cleanly(tmp_path):
+    """The terminal or the ssh session closes: SIGHUP. Its default action killed both nodes with no
+    log line, no final status and the bag left open (exit code -1)."""
+    params = dict(scene="hup", bag_dir=str(tmp_path))
+    with ros_domain() as dom, Client(dom) as c, start_node(params, dom, extra_args=["--ros-args", "--params-file",
+                                                                                 WALK]) as sim, \
+            start_node(None, dom, "walk_controller", ["--ros-args", "--params-file", WALK]) as ctrl:
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        js = c.collect("/joint_states", JointState)
+        c.wait_subscribed("/diagnostics", proc=sim)
+        c.spin_until(lambda: js and t_of(js[-1]) > 0.01, 60, "the walk under way", sim)
+        assert ctrl.stop(signal.SIGHUP) == 0, ctrl.output()
+        assert sim.stop(signal.SIGHUP) == 0, sim.output()
+        status = run_status(c, diag, sim)
+    assert "SIGHUP: shutting down after" in one_line(ctrl.output(), "SIGHUP")
+    assert "SIGHUP: shutting down at t=" in one_line(sim.output(), "SIGHUP")
+    assert status["status"] == "running" and int(status["control_periods"]) > 10, status
+    bag = next(p for p in tmp_path.iterdir() if p.is_dir())
+    assert (bag / "metadata.yaml").exists() and bag_joint_state_times(bag)[-1] == pytest.approx(float(status["time"]))
+
+
+# -- issue 34, item 2: a run with a duration that the engine stops ends the node ---------------------------
+PASSIVE = str(load_scene("passive").path)
+
+
+def test_a_stopped_run_with_a_duration_ends_the_node_with_exit_code_1(tmp_path):
+    """The passive scene for 3 s stops by Zeno at 1.56 s. It used to leave the node up "for
+    inspection" forever, a batch script having to kill it; with a duration set it ends there."""
+    params = dict(duration=3.0, bag_dir=str(tmp_path))
+    with ros_domain() as dom, start_node(params, dom, extra_args=["--ros-args", "--params-file", PASSIVE]) as sim:
+        assert sim.wait(60) == 1, sim.output()
+    line = one_line(sim.output(), "the engine stopped at t=")
+    assert "[ERROR]" in line and "The run ends here, before its duration 3 s (exit code 1)" in line, line
+    bag = next(p for p in tmp_path.iterdir() if p.is_dir())
+    assert (bag / "metadata.yaml").exists()           # closed: the end is clean
+    # the final status, as the bag recorded it (a subscriber may not be matched before the run ends)
+    runs = [s for _t, a in bag_messages(bag)["/diagnostics"] for s in a.status if s.name == "biped_sim/run"]
+    status = {kv.key: kv.value for kv in runs[-1].values}
+    assert len(runs) == 1 and runs[0].level == 2 and status["status"] == "stopped", status
+    t_end = float(status["time"])
+    assert 1.5 < t_end < 3.0 and bag_joint_state_times(bag)[-1] == pytest.approx(t_end, abs=1e-9)
+
+
+# -- issue 34, item 4: lockstep without a state topic ----------------------------------------------------
+def test_lockstep_without_joint_states_is_refused_at_start(tmp_path):
+    """Its controller has no state to answer: the run waited in silence (walk_controller too)."""
+    argv = [str(BIN / "sim_node"), "--ros-args", "-p", "time_mode:=lockstep", "-p", "outputs:=[ground_reaction, clock]",
+            "-p", f"bag_dir:={tmp_path}"]
+    with ros_domain() as dom:
+        try:
+            done = subprocess.run(argv, env=ros_env(dom), capture_output=True, text=True, timeout=20,
+                                  stdin=subprocess.DEVNULL)
+        except subprocess.TimeoutExpired:
+            pytest.fail("sim_node started a lockstep run without joint_states (ran until killed)")
+    assert done.returncode == 2, done.stdout + done.stderr
+    line = one_line(done.stderr, "sim_node: error:")
+    assert "time_mode lockstep needs joint_states in outputs" in line
+    assert "outputs:=[joint_states, ground_reaction, clock]" in line, line
+    assert list(tmp_path.iterdir()) == []                # nothing recorded
+
+
+# -- issue 34, item 5: a reset while paused in lockstep ------------------------------------------------------
+def test_lockstep_resets_at_t0_while_paused_do_not_stall_the_run():
+    """start_paused, the controller answers the state at t = 0, then two ~/reset in the pause: each
+    republishes that same state, which walk_controller rightly does not answer twice, and the reset
+    dropped the held answer: after the resume nothing advanced. The run must go on, and as headless."""
+    duration = 0.05
+    walk = ["--ros-args", "--params-file", WALK]
+    with ros_domain() as dom, Client(dom) as c, \
+            start_node({"duration": duration, "record": False, "start_paused": True}, dom, extra_args=walk) as sim, \
+            start_node(None, dom, "walk_controller", walk) as ctrl:
+        js = c.collect("/joint_states", JointState)
+        commands = c.collect("/hip_torque", Float64MultiArray, transient_local=False)
+        srv = Control(c, sim)
+        c.spin_until(lambda: any(M.answered_ns(m) == 0 for m in commands), 60, "the answer to t = 0", sim)
+        for _ in range(2):
+            answer = srv.reset()
+            assert answer.success and "from t=0.000000 s" in answer.message, answer.message
+        c.wait_subscribed("/joint_states", proc=sim)
+        assert srv.pause(False).success
+        c.spin_until(lambda: js and t_of(js[-1]) >= duration, 30, "the last state", sim)
+        assert sim.wait(30) == 0, sim.output()
+        assert ctrl.alive
+    assert "waiting for a hip_torque command" not in sim.output()
+    ref = load_scene("walk").simulate(hold=True, t_final=duration)
+    assert list(js[-1].position) == ref.q[-1].tolist() and list(js[-1].velocity) == ref.dq[-1].tolist()

@@ -4,6 +4,7 @@ leaves read back with ``rosbags`` and re-simulated."""
 from __future__ import annotations
 
 import ast
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -241,3 +242,39 @@ def test_fast_reset_restarts_a_run_the_engine_stopped():
         assert second["status"] == "stopped" and second["time"] == first["time"]
         assert any(ns(m.header.stamp) == 0 for m in js[before:])  # time went back to 0
         assert proc.stop() == 0
+
+
+def test_answers_and_figures_say_what_happened_around_a_failed_step_and_a_reset():
+    """Issue 34, item 3: a ~/step during which the engine stops answered "stepped one control period
+    from t=X to t=X"; after a ~/reset the closing figures counted only the new run (0 periods, the
+    process's CPU per period in hundreds of ms, real-time factor 0.000)."""
+    params = dict(time_mode="realtime", record=False, command_timeout=0.0, publish_rate=50.0,
+                  initial_q=SCENE["initial_q"], initial_dq=SCENE["initial_dq"], phases=["stance", "impact"])
+    with ros_domain() as dom, start_node(params, dom) as proc, Client(dom) as c:
+        js = c.collect("/joint_states", JointState)
+        push_pub = c.publisher("/push", Vector3Stamped)
+        srv = Control(c, proc)
+        c.wait_matched(push_pub, proc=proc)
+        c.spin_until(lambda: js and ns(js[-1].header.stamp) > 0.2e9, timeout=30, what="0.2 s of run", proc=proc)
+        paused = srv.pause(True)
+        t_pause = float(paused.message.split("t=")[1].split(" s")[0])
+        push_pub.publish(Vector3Stamped(vector=rclpy_vector(0.0, 40.0, 0.0)))   # up: lifts the stance foot
+        for _ in range(20):             # the push and the ~/step travel separately: step until it applied
+            answer = srv.step()
+            if not answer.success:
+                break
+        assert not answer.success and "stepped" not in answer.message, answer.message
+        assert answer.message.startswith("the step from t=") and "did not complete: the engine stopped at t=" \
+            in answer.message and "lifts the stance foot" in answer.message, answer.message
+        assert "~/reset restarts the run" in answer.message
+        assert srv.reset().success
+        assert proc.stop(signal.SIGINT) == 0
+    log = proc.output()
+    figures = next(ln for ln in log.splitlines() if "realtime figures:" in ln)
+    rtf = float(figures.split("real-time factor ")[1].split(";")[0])
+    assert 0.3 < rtf < 1.5, figures              # the 0.2 s and more that ran paced, not t = 0 after the reset
+    summary = next(ln for ln in log.splitlines() if " control periods" in ln and "per period" in ln)
+    periods = int(summary.split("]: ")[1].split(" ")[0])
+    assert " in 2 runs (1 ~/reset), the last to t=0.000000 s" in summary and periods >= round(t_pause * 1e3), summary
+    cpu_ms = float(summary.split("process CPU ")[1].split(" ms")[0])
+    assert cpu_ms < 5.0, summary                 # the process's CPU over all the periods, not over the last run's
