@@ -44,7 +44,10 @@ BUFFER_BYTES = 4 * 1024 * 1024
 
 
 def default_bag_path(bag_dir="bags", scene="custom", now=None) -> Path:
-    """``<bag_dir>/<scene>-<UTC time>`` (e.g. bags/walk-20261122T024500Z)."""
+    """``<bag_dir>/<scene>-<UTC time>`` (e.g. bags/walk-20261122T024500Z); ValueError for a scene
+    name that is a path (it would choose another folder than ``bag_dir``)."""
+    from biped_sim.config.parameters import check_file_name
+    check_file_name(str(scene), "the scene name")
     now = now or datetime.now(timezone.utc)
     return Path(bag_dir) / f"{scene}-{now.strftime('%Y%m%dT%H%M%S')}{now.microsecond // 1000:03d}Z"
 

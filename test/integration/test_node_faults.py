@@ -373,3 +373,37 @@ def test_a_full_disk_mid_run_ends_the_run_cleanly_and_keeps_the_bag(mode, tmp_pa
     recover(bag)
     times = bag_joint_state_times(bag)      # everything on disk before the disk filled up, in order
     assert bag_message_count(bag) >= on_disk and times == sorted(times) and times[-1] <= float(status["time"])
+
+
+# -- issue 34, item 1: a parameter that would place a file outside the folder the user chose ----------------
+def test_a_scene_name_that_is_a_path_is_refused_and_writes_nothing_outside_bag_dir(tmp_path):
+    """``scene`` becomes part of the bag's name: ``scene:=../../x`` or an absolute path would record
+    outside ``bag_dir``. sim_node (by -p and by a params file) and ``simulate --record`` refuse it at start."""
+    work, outside = tmp_path / "work", tmp_path / "outside"
+    work.mkdir()
+    outside.mkdir()
+    scene_file = tmp_path / "escape.yaml"
+    scene_file.write_text(Path(WALK).read_text().replace("scene: walk", f"scene: {outside}/s", 1))
+    params_file = tmp_path / "params.yaml"
+    params_file.write_text(f"biped_sim:\n  ros__parameters:\n    scene: {outside}/p\n")
+    runs = {  # program line: the scene value it gives
+        "sim_node -p": ([str(BIN / "sim_node"), "--ros-args", "-p", "scene:=../../outside/n"], "../../outside/n"),
+        "sim_node params file": ([str(BIN / "sim_node"), "--ros-args", "--params-file", str(params_file)],
+                                 f"{outside}/p"),
+        "simulate": ([str(BIN / "biped-sim"), "simulate", "--scene", str(scene_file), "--duration", "0.05",
+                      "--record", "bags"], f"{outside}/s"),
+    }
+    with ros_domain() as dom:
+        for what, (argv, scene) in runs.items():
+            if argv[0].endswith("sim_node"):   # ends by itself on the old code too: a short fast run
+                argv += ["-p", "bag_dir:=bags", "-p", "time_mode:=fast", "-p", "duration:=0.05"]
+            done = subprocess.run(argv, env=ros_env(dom), cwd=work, capture_output=True, text=True, timeout=60,
+                                  stdin=subprocess.DEVNULL)
+            program = "biped-sim simulate" if what == "simulate" else "sim_node"
+            assert done.returncode == 2, f"{what}: {done.stdout}{done.stderr}"
+            lines = [ln for ln in done.stderr.splitlines() if ln.startswith(f"{program}: error:")]
+            assert len(lines) == 1 and "Traceback" not in done.stderr, f"{what}: {done.stderr}"
+            assert "parameter 'scene' must be a plain name, not a path" in lines[0], lines[0]
+            assert repr(scene) in lines[0], lines[0]
+    assert list(outside.iterdir()) == [] and not (tmp_path / "s-").exists()       # nothing outside bag_dir
+    assert not (work / "bags").exists() or list((work / "bags").iterdir()) == []  # nor a bag at all
