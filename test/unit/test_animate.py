@@ -186,3 +186,26 @@ def test_thinned_keeps_an_even_sample_of_any_length_in_bounded_memory():
         kept = th.array()[:, 0]
         assert len(kept) <= 100 and kept[0] == 0 and np.all(np.diff(kept) == th.stride)
         assert len(kept) == n if n <= 100 else len(kept) > 50 and kept[-1] > n - 2 * th.stride
+
+
+def test_animate_of_a_bag_cut_short_says_so_and_where_it_ends(tmp_path, capsys):
+    """(issue 34, item 5) A bag whose writer was killed is drawn up to its last complete chunk; before,
+    nothing said that the animation ends early."""
+    from mcap.reader import make_reader
+    assert biped_sim(["simulate", "--scene", "walk", "--duration", "4", "--record", str(tmp_path / "b")]) == 0
+    mcap = next((tmp_path / "b").glob("*/*.mcap"))
+    with open(mcap, "rb") as f:
+        chunks = make_reader(f).get_summary().chunk_indexes
+    assert len(chunks) >= 2
+    size = chunks[-1].chunk_start_offset + 100              # inside the last chunk: what a SIGKILL leaves
+    cut = tmp_path / "cut"
+    cut.mkdir()
+    (cut / mcap.name).write_bytes(mcap.read_bytes()[:size])
+    capsys.readouterr()
+    assert biped_sim(["animate", str(cut), "-o", str(tmp_path / "cut.gif"), "-q"]) == 0
+    err = capsys.readouterr().err
+    assert f"the bag is CUT SHORT at {size} bytes" in err, err
+    end = chunks[-2].message_end_time / 1e9
+    assert f"drawn up to its last complete chunk, t = {end:.6g} s" in err and f"biped-sim recover {cut}" in err, err
+    frames, _ = gif_frames(tmp_path / "cut.gif")
+    assert len(frames) == int(end * 20 + 1e-9) + 1 < 81          # up to the cut, not the whole 4 s at 20 fps
