@@ -64,12 +64,22 @@ def run(args):
             print(f"biped-sim animate: the run {result.status} at t={result.t[-1]:.6g} s: {result.message} "
                   "(drawn up to there)", file=sys.stderr)
         track = A.track_from_result(result, scene.engine_arguments()["model"], scene.params["slope"])
+        bar = None if args.quiet else A.ProgressBar()
+        n, fps = A.write(track, args.output, fps=args.fps, speed=args.speed, start=args.start,
+                         duration=args.duration, progress=bar)
         source = f"scene {scene.name}"
     else:
-        track = A.track_from_bag(args.bag)
+        # a bag is read as a stream, frame by frame: the memory does not grow with the run's length
+        bar = None if args.quiet else A.ProgressBar()
+        n, fps, states = A.write_bag(args.bag, args.output, fps=args.fps, speed=args.speed, start=args.start,
+                                     duration=args.duration, progress=bar)
         source = args.bag
-    bar = None if args.quiet else A.ProgressBar()
-    n, fps = A.write(track, args.output, fps=args.fps, speed=args.speed, start=args.start, duration=args.duration,
-                progress=bar)
+        if states.cut:
+            what = "is BEING RECORDED right now" if states.being_written else (
+                f"is CUT SHORT{states.cut.removeprefix('cut short')}")
+            print(f"biped-sim animate: the bag {what}: drawn up to its last complete chunk, t = "
+                  f"{states.t_last:.6g} s (the run is longer)"
+                  + ("" if states.being_written else f"; run 'biped-sim recover {args.bag}' to repair the file"),
+                  file=sys.stderr)
     print(f"wrote {args.output}: {n} frames at {fps:.4g} fps, speed {args.speed:g}x, from {source}")
     return 0

@@ -18,7 +18,10 @@ def register(sub):
 def run(args):
     from biped_sim.recording.recover import recover
     info = recover(args.bag)
-    print(f"recovered {info['messages']} messages into {info['path']} (original kept as {info['kept']})")
+    if info["kept"] is None:
+        print(f"{info['path']} is complete; wrote the bag's missing metadata.yaml ({info['messages']} messages)")
+    else:
+        print(f"recovered {info['messages']} messages into {info['path']} (original kept as {info['kept']})")
     for topic, n in info["topics"].items():
         print(f"  {topic:24s} {n}")
     if info["end"]:

@@ -33,6 +33,7 @@ class Param:
     choices: tuple | None = None
     item: type | None = None      # element type of a list
     length: int | None = None     # fixed list length
+    file_name: bool = False       # the value becomes part of a file's name: a plain name, never a path
 
     def check(self, value):
         """The value converted to this parameter's type, or ValueError naming the parameter."""
@@ -62,6 +63,8 @@ class Param:
                 raise ValueError(f"{where} must be a string, got {value!r}")
             if self.choices and value not in self.choices:
                 raise ValueError(f"{where} must be one of {list(self.choices)}, got {value!r}")
+            if self.file_name:
+                check_file_name(value, where)
             return value
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ValueError(f"{where} must be a number, got {value!r}")
@@ -80,9 +83,37 @@ class Param:
         return value
 
 
+#: the longest value of a ``file_name`` parameter (UTF-8 bytes): a bag's file is
+#: ``<scene>-<UTC time>-reset<N>_0.mcap``, and a file name has at most 255 bytes (NAME_MAX)
+FILE_NAME_MAX_BYTES = 200
+
+
+def check_file_name(value: str, where: str) -> str:
+    """``value`` if it is a plain file name (no folder in it), else ValueError naming ``where``.
+
+    A value that becomes part of a file's name must not choose the folder: ``scene:=../../tmp/x`` or
+    ``scene:=/tmp/x`` would put the bag outside ``bag_dir``, the one folder the user chose for it."""
+    why = None
+    if not value:
+        why = "it is empty"
+    elif value in (".", ".."):
+        why = f"{value!r} names a folder"
+    elif "/" in value or "\\" in value:
+        why = "it holds a path separator ('/' or '\\')"
+    elif any(ord(c) < 32 for c in value):
+        why = "it holds a control character"
+    elif len(value.encode("utf-8", "surrogatepass")) > FILE_NAME_MAX_BYTES:
+        why = f"it is longer than {FILE_NAME_MAX_BYTES} bytes"
+    if why:
+        raise ValueError(f"{where} must be a plain name, not a path (it becomes part of a file name; "
+                         f"the folder is bag_dir): got {value!r}, {why}")
+    return value
+
+
 _defaults = BipedParameters()
 PARAMETERS = [
-    Param("scene", str, "custom", "name of the scene (used in the bag's name)"),
+    Param("scene", str, "custom", "name of the scene (used in the bag's name: a plain name, no '/')",
+          file_name=True),
     Param("time_mode", str, "realtime", "realtime: sim time follows the wall clock times rate_factor; "
           "fast: as fast as possible; lockstep: one control period per torque command",
           choices=("realtime", "fast", "lockstep")),

@@ -71,12 +71,20 @@ def frame_times(track: Track, fps: float, speed: float = 1.0, start: float | Non
                 duration: float | None = None) -> np.ndarray:
     """The simulated times of the frames: one every ``speed / fps`` s from ``start`` (default: the
     first state) over ``duration`` (default: to the last state)."""
-    t0 = track.t[0] if start is None else max(float(start), track.t[0])
-    t1 = track.t[-1] if duration is None else min(t0 + float(duration), track.t[-1])
-    if t0 > track.t[-1]:
-        raise ValueError(f"--start {start} is after the run's end (t = {track.t[-1]:.6g} s)")
+    t0, step, n = frame_grid(track.t[0], track.t[-1], fps, speed, start, duration)
+    return t0 + np.arange(n) * step
+
+
+def frame_grid(t_first: float, t_last: float, fps: float, speed: float = 1.0, start: float | None = None,
+               duration: float | None = None) -> tuple[float, float, int]:
+    """(time of the first frame, time between frames, number of frames) of a run whose states span
+    ``t_first .. t_last`` (see :func:`frame_times`); frame k is at ``t0 + k * step``."""
+    t0 = t_first if start is None else max(float(start), t_first)
+    t1 = t_last if duration is None else min(t0 + float(duration), t_last)
+    if t0 > t_last:
+        raise ValueError(f"--start {start} is after the run's end (t = {t_last:.6g} s)")
     n = max(1, int(math.floor((t1 - t0) * fps / speed + 1e-9)) + 1)
-    return t0 + np.arange(n) * (speed / fps)
+    return t0, speed / fps, n
 
 
 _PALETTE = {"background": (255, 255, 255), "ground": (77, 77, 77), "tick": (190, 190, 190), "text": (0, 0, 0)}
@@ -195,11 +203,21 @@ def write(track: Track, path, fps=20.0, speed=1.0, start=None, duration=None, pr
     if kind == "gif":
         fps = gif_fps(fps)
     times = frame_times(track, fps, speed, start, duration)
-    images = frames(track, times, progress)
+    write_frames(frames(track, times, progress), path, kind, fps)
+    return len(times), fps
+
+
+def write_frames(images, path, kind, fps):
+    """Write the images (an iterable, consumed one at a time) as a GIF or an MP4 at ``fps``.
+
+    Each frame is encoded and let go before the next is drawn: the memory does not grow with the
+    number of frames (Pillow's ``save_all`` keeps every frame until the end: 0.4 MB a frame, 2.4 GB
+    for a 273 s run at 20 fps)."""
     if kind == "gif":
-        first = next(images)
-        first.save(path, save_all=True, append_images=list(images), duration=round(1000 / fps), loop=0)
-        return len(times), fps
+        with GifStream(path, fps) as gif:
+            for img in images:
+                gif.add(img)
+        return
     import imageio_ffmpeg
     writer = imageio_ffmpeg.write_frames(str(path), (WIDTH, HEIGHT), fps=fps, quality=7)
     writer.send(None)
@@ -208,7 +226,137 @@ def write(track: Track, path, fps=20.0, speed=1.0, start=None, duration=None, pr
             writer.send(img.convert("RGB").tobytes())
     finally:
         writer.close()
-    return len(times), fps
+
+
+class GifStream:
+    """A looping GIF written one frame at a time (Pillow's public ``GifImagePlugin.getheader`` and
+    ``getdata``), all frames on the first frame's palette (the drawer's, the same in every frame).
+    A frame after the first is written as the rectangle that changed since the one before (as Pillow's
+    ``save_all`` does), so only the previous frame is kept."""
+
+    def __init__(self, path, fps):
+        self.path, self.delay_ms = path, round(1000 / fps)
+        self.previous = None
+        self.file = open(path, "wb")
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def add(self, img):
+        from PIL import GifImagePlugin, ImageChops
+        if self.previous is None:
+            header, _used = GifImagePlugin.getheader(img, None, {"loop": 0, "optimize": False})
+            self.file.write(b"".join(header))
+            box = (0, 0) + img.size
+        else:
+            box = ImageChops.difference(self.previous, img).getbbox() or (0, 0, 1, 1)
+        part = img if box == (0, 0) + img.size else img.crop(box)
+        self.file.write(b"".join(GifImagePlugin.getdata(part, offset=box[:2], duration=self.delay_ms)))
+        self.previous = img
+
+    def close(self):
+        if not self.file.closed:
+            self.file.write(b";")           # the GIF trailer
+            self.file.close()
+
+
+def write_bag(bag, path, fps=20.0, speed=1.0, start=None, duration=None, progress=None):
+    """Write the animation of a biped_sim bag to ``path`` reading the bag as a stream (the memory does
+    not grow with the bag); returns (number of frames, frame rate used, BagStates of the bag: its
+    times, whether it is cut short)."""
+    kind = check_output(path)
+    if kind == "gif":
+        fps = gif_fps(fps)
+    states = BagStates(bag)
+    t0, step, n = frame_grid(states.t_first, states.t_last, fps, speed, start, duration)
+    write_frames(states.frames(t0, step, n, progress), path, kind, fps)
+    return n, fps, states
+
+
+class BagStates:
+    """The states of a biped_sim bag read as a stream: first ``t_first``/``t_last`` (seconds; a pass
+    over the joint_states without decoding them), then :meth:`frames` (a second pass). ``cut``: why
+    the file is incomplete ('' if whole; it is read up to its last complete chunk)."""
+
+    def __init__(self, bag):
+        from biped_sim.recording import bagio, inspect_bag
+        self.bag = bag
+        try:
+            topics = bagio.channels(bag)
+            self.cut = bagio.cut_short(bag)
+            self.being_written = bool(self.cut) and bagio.being_written(bag)
+            self.t_js = bagio.find_topic(topics, "joint_states")
+            self.t_grf = bagio.find_topic(topics, "ground_reaction")
+            self.t_imp = bagio.find_topic(topics, "impact")
+            first = last = None
+            count = 0
+            if self.t_js is not None:
+                for _topic, _typ, t_ns, _data in bagio.messages(bag, topics=[self.t_js]):
+                    first = t_ns if first is None else first
+                    last, count = t_ns, count + 1
+        except ValueError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - mcap's reader raises many kinds for a file that is not a bag
+            raise ValueError(f"cannot read {bag} as an MCAP bag: {type(exc).__name__}: {exc}") from None
+        if not count:
+            raise ValueError(f"{bag} has no joint_states messages: not a biped_sim run (or an empty one); "
+                             f"topics: {sorted(topics) or 'none'}")
+        self.count, self.t_first, self.t_last = count, first / 1e9, last / 1e9
+        try:
+            params = bagio.run_parameters(bag)
+        except ValueError:
+            params = {}
+        self.model = inspect_bag.run_model(params)
+        self.slope = float(params.get("slope", 0.0) or 0.0)
+
+    def frames(self, t0, step, n, progress=None):
+        """Yield the image of frame k (time ``t0 + k * step``, k < n): the last state at or before it,
+        drawn as :func:`frames` draws a Track."""
+        from biped_sim.recording import bagio, messages as M
+        drawer = FrameDrawer(Track(None, None, None, None, [], self.model, self.slope))
+        impacts = []                  # (time, landing foot position), pruned as the frames pass them
+        k = 0
+        state = None                  # (t_ns, q, leg, force) of the last state before the next frame
+        grf = (None, (0.0, 0.0))      # the last ground force (stamp ns, force): it follows its state
+
+        def draw_until(t_next):
+            nonlocal k
+            while k < n and (t_next is None or t0 + k * step < t_next):
+                tk = t0 + k * step
+                while len(impacts) > 1 and impacts[1][0] <= tk:
+                    impacts.pop(0)
+                flash = impacts[0][1] if impacts and impacts[0][0] <= tk <= impacts[0][0] + MK.FLASH_DURATION \
+                    else None
+                t_ns, q, leg, force = state
+                yield drawer.draw(tk, q, leg, grf[1] if grf[0] == t_ns else force, flash)
+                k += 1
+                if progress is not None:
+                    progress(k, n)
+
+        topics = [t for t in (self.t_js, self.t_grf, self.t_imp) if t is not None]
+        for topic, typ, _t, data in bagio.messages(self.bag, topics=topics):
+            msg = bagio.decode(typ, data)
+            if topic == self.t_js:
+                t_ns, q, _dq, _u, leg = M.joint_state_values(msg)
+                if state is not None:
+                    yield from draw_until(t_ns / 1e9)
+                    if k >= n:
+                        return
+                state = (t_ns, np.array(q), leg, (0.0, 0.0))
+            elif topic == self.t_grf:
+                t_ns, force, _leg = M.wrench_values(msg)
+                grf = (t_ns, tuple(force))
+            else:
+                for e in M.event_values(msg):
+                    q, foot = e.get("q"), e.get("foot")
+                    if isinstance(q, list) and len(q) == 5 and foot in (1, 2):
+                        impacts.append((float(e["time"]), tuple(self.model.foot_position(np.array(q), foot))))
+                impacts.sort(key=lambda i: i[0])
+        if state is not None:
+            yield from draw_until(None)
 
 
 class ProgressBar:

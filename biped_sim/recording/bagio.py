@@ -147,26 +147,43 @@ def messages(bag, topics=None, start_ns=None):
 
 
 def _scan_messages(f, topics, start_ns):
+    """The messages of a file without a summary, in log-time order, holding about one chunk at a time:
+    a message is yielded once a chunk that starts after it has been read (chunks start in time order
+    in a recorded bag; ties keep the file order). Memory does not grow with the file."""
+    import heapq
+
     from mcap.records import Channel, Chunk, Message, Schema
     from mcap.stream_reader import StreamReader, breakup_chunk
     f.seek(0)
-    schemas, chans, out = {}, {}, []
-    try:
-        for rec in StreamReader(f, emit_chunks=True).records:
-            recs = breakup_chunk(rec) if isinstance(rec, Chunk) else [rec]
-            for r in recs:
-                if isinstance(r, Schema):
-                    schemas[r.id] = r
-                elif isinstance(r, Channel):
-                    chans[r.id] = r
-                elif isinstance(r, Message):
-                    c = chans[r.channel_id]
-                    if (topics is None or c.topic in topics) and (start_ns is None or r.log_time >= start_ns):
-                        out.append((c.topic, schemas[c.schema_id].name, r.log_time, r.data))
-    except Exception:  # noqa: BLE001 - the truncated tail
-        pass
-    out.sort(key=lambda m: m[2])  # stable: ties stay in file order
-    yield from out
+    schemas, chans, pending = {}, {}, []    # pending: a heap of (log time, file order, message)
+    order = 0
+    records = iter(StreamReader(f, emit_chunks=True).records)
+    while True:
+        try:
+            rec = next(records)
+        except StopIteration:
+            break
+        except Exception:  # noqa: BLE001 - the truncated tail
+            break
+        if isinstance(rec, Chunk):
+            while pending and pending[0][0] < rec.message_start_time:
+                yield heapq.heappop(pending)[2]
+            recs = breakup_chunk(rec)
+        else:
+            recs = [rec]
+        for r in recs:
+            if isinstance(r, Schema):
+                schemas[r.id] = r
+            elif isinstance(r, Channel):
+                chans[r.id] = r
+            elif isinstance(r, Message):
+                c = chans[r.channel_id]
+                if (topics is None or c.topic in topics) and (start_ns is None or r.log_time >= start_ns):
+                    heapq.heappush(pending, (r.log_time, order, (c.topic, schemas[c.schema_id].name, r.log_time,
+                                                                 r.data)))
+                    order += 1
+    while pending:
+        yield heapq.heappop(pending)[2]
 
 
 _classes = {}

@@ -14,48 +14,103 @@ import numpy as np
 from biped_sim.config.parameters import method_label
 from biped_sim.recording import bagio, messages as M
 
+#: the most samples of a time series ``load_run`` keeps for the figure (a bag longer than that is
+#: thinned evenly: every 2nd, 4th, ... state); the figures of the summary use every state
+MAX_POINTS = 5000
 
-def load_run(bag) -> dict:
-    """Arrays of a bag: t, q, dq, u, leg (joint_states), grf (t, F, leg), impacts, commands, events."""
+
+class Thinned:
+    """Rows of a time series kept for a figure in bounded memory: every ``stride``-th row, at most
+    ``capacity``; when full, every second kept row is let go and the stride doubles."""
+
+    def __init__(self, width, capacity=MAX_POINTS):
+        self.rows = np.full((max(2, int(capacity)), width), np.nan)   # all of it at once: the same for any bag
+        self.n = 0              # rows kept
+        self.seen = 0           # rows offered
+        self.stride = 1
+
+    def add(self, row):
+        if self.seen % self.stride == 0:
+            if self.n == len(self.rows):
+                half = self.rows[:self.n:2].copy()
+                self.n = len(half)
+                self.rows[:self.n] = half
+                self.stride *= 2
+                if self.seen % self.stride:
+                    self.seen += 1
+                    return
+            self.rows[self.n] = row
+            self.n += 1
+        self.seen += 1
+
+    def array(self):
+        return self.rows[:self.n].copy()
+
+
+def load_run(bag, max_points=MAX_POINTS) -> dict:
+    """A bag read as a stream, in memory that does not grow with it: the figures of the summary over
+    every state (``stats``), and for the figure at most ``max_points`` samples of each series: t, q,
+    dq, u, leg (joint_states), grf (t, F), then impacts and events (diagnostics) and the commands'
+    count."""
     topics = bagio.channels(bag)
     t_js = bagio.find_topic(topics, "joint_states")
     t_grf = bagio.find_topic(topics, "ground_reaction")
     t_imp = bagio.find_topic(topics, "impact")
     t_diag = bagio.find_topic(topics, "diagnostics")
     t_cmd = bagio.find_topic(topics, "hip_torque")
-    js, grf, impacts, events, cmds = [], [], [], [], []
+    js, grf = Thinned(1 + 5 + 5 + 2 + 1, max_points), Thinned(3, max_points)
+    impacts, events, commands = [], [], 0
     counts, first, last = {}, {}, {}
+    st = dict(n=0, q_first=None, q_last=None, t_first=None, t_last=None, hip_min=math.inf, hip_max=-math.inf,
+              u1=0.0, u2=0.0, u_sq=0.0, fn_min=math.inf, fn_max=-math.inf, ratio=0.0, n_grf=0)
     for topic, typ, t_ns, data in bagio.messages(bag):
         counts[topic] = counts.get(topic, 0) + 1
         first.setdefault(topic, t_ns)
         last[topic] = t_ns
-        if topic not in (t_js, t_grf, t_imp, t_diag, t_cmd):
+        if topic not in (t_js, t_grf, t_imp, t_diag):
+            if topic == t_cmd:
+                commands += 1
             continue
         msg = bagio.decode(typ, data)
         if topic == t_js:
-            js.append(M.joint_state_values(msg))
+            ts, q, dq, u, leg = M.joint_state_values(msg)
+            q, dq, u = (q + [math.nan] * 5)[:5], (dq + [math.nan] * 5)[:5], (u + [0.0, 0.0])[:2]
+            js.add([ts / 1e9, *q, *dq, *u, leg])
+            if st["n"] == 0:
+                st["q_first"], st["t_first"] = q, ts / 1e9
+            st["q_last"], st["t_last"], st["n"] = q, ts / 1e9, st["n"] + 1
+            st["hip_min"], st["hip_max"] = min(st["hip_min"], q[1]), max(st["hip_max"], q[1])
+            st["u1"], st["u2"] = max(st["u1"], abs(u[0])), max(st["u2"], abs(u[1]))
+            st["u_sq"] += u[0] * u[0] + u[1] * u[1]
         elif topic == t_grf:
-            grf.append(M.wrench_values(msg))
+            ts, (fx, fy), _leg = M.wrench_values(msg)
+            grf.add([ts / 1e9, fx, fy])
+            st["n_grf"] += 1
+            st["fn_min"], st["fn_max"] = min(st["fn_min"], fy), max(st["fn_max"], fy)
+            st["ratio"] = max(st["ratio"], abs(fx) / max(abs(fy), 1e-12))
         elif topic == t_imp:
             impacts.extend(M.event_values(msg))
-        elif topic == t_diag:
-            events.extend(M.event_values(msg))
         else:
-            cmds.append((t_ns, list(msg.data)))
+            events.extend(e for e in M.event_values(msg) if _kept_event(e))
     run = dict(topics=topics, counts=counts, first=first, last=last, impacts=impacts, events=events,
-               commands=cmds, cut=bagio.cut_short(bag), being_written=bagio.being_written(bag))
-    run["t"] = np.array([j[0] for j in js]) / 1e9
-    run["q"] = np.array([j[1] for j in js]).reshape(-1, 5)
-    run["dq"] = np.array([j[2] for j in js]).reshape(-1, 5)
-    run["u"] = np.array([j[3] for j in js]).reshape(-1, 2)
-    run["leg"] = np.array([j[4] for j in js], dtype=int)
-    run["grf_t"] = np.array([g[0] for g in grf]) / 1e9
-    run["grf"] = np.array([g[1] for g in grf]).reshape(-1, 2)
+               commands=commands, stats=st, cut=bagio.cut_short(bag), being_written=bagio.being_written(bag))
+    rows = js.array()
+    run["t"], run["q"], run["dq"], run["u"] = rows[:, 0], rows[:, 1:6], rows[:, 6:11], rows[:, 11:13]
+    run["leg"] = rows[:, 13].astype(int)
+    rows = grf.array()
+    run["grf_t"], run["grf"] = rows[:, 0], rows[:, 1:3]
     try:
         run["params"] = bagio.run_parameters(bag)
     except ValueError:
         run["params"] = None
     return run
+
+
+def _kept_event(e) -> bool:
+    """The diagnostics the summary reports (pushes, resets, the run's end and errors): a run's
+    periodic status messages are not kept."""
+    name = e.get("name", "")
+    return e.get("kind") == "push" or name == "biped_sim/reset" or name.endswith("/run") or e.get("level", 0) >= 2
 
 
 def run_model(params):
@@ -91,31 +146,27 @@ def summary(bag, run=None) -> str:
     imps = run["impacts"]
     lines.append(f"impacts     {len(imps)}" + (": " + ", ".join(
         f"t={e['time']:.4f} s foot {e['foot']}" for e in imps[:8]) + (" ..." if len(imps) > 8 else "") if imps else ""))
-    t, q = run["t"], run["q"]
-    if len(t):
-        dist = q[-1, 0] - q[0, 0]
-        span = t[-1] - t[0]
+    st = run["stats"]
+    if st["n"]:
+        dist = st["q_last"][0] - st["q_first"][0]
+        span = st["t_last"] - st["t_first"]
         lines.append(f"distance    {dist:.4g} m in {span:.4g} s (mean speed {dist / max(span, 1e-12):.3g} m/s), "
-                     f"hip height {q[:, 1].min():.3g} .. {q[:, 1].max():.3g} m")
+                     f"hip height {st['hip_min']:.3g} .. {st['hip_max']:.3g} m")
         if len(imps) >= 2:
             ti = np.array([e["time"] for e in imps])
             xs = np.array([_foot_x(e, p) for e in imps])
             lines.append(f"steps       period {np.mean(np.diff(ti)):.4g} s (min {np.min(np.diff(ti)):.4g}, max "
                          f"{np.max(np.diff(ti)):.4g}), length {np.mean(np.diff(xs)):.4g} m")
-        if run["u"].size:
-            u = run["u"]
-            u1, u2 = np.abs(u[:, 0]).max(), np.abs(u[:, 1]).max()
-            lines.append(f"torques     |u1| max {u1:.4g} N m, |u2| max {u2:.4g} N m, "
-                         f"rms {math.sqrt(float(np.mean(u ** 2))):.4g} N m")
-        if len(run["grf"]):
-            F = run["grf"]
-            lines.append(f"ground      normal force {F[:, 1].min():.4g} .. {F[:, 1].max():.4g} N, "
-                         f"max |F_t / F_n| {np.max(np.abs(F[:, 0]) / np.maximum(np.abs(F[:, 1]), 1e-12)):.3g}")
+        lines.append(f"torques     |u1| max {st['u1']:.4g} N m, |u2| max {st['u2']:.4g} N m, "
+                     f"rms {math.sqrt(st['u_sq'] / (2 * st['n'])):.4g} N m")
+        if st["n_grf"]:
+            lines.append(f"ground      normal force {st['fn_min']:.4g} .. {st['fn_max']:.4g} N, "
+                         f"max |F_t / F_n| {st['ratio']:.3g}")
         loss = sum(e.get("energy_loss", 0.0) or 0.0 for e in imps if isinstance(e.get("energy_loss"), float))
         if imps:
             lines.append(f"energy      {loss:.4g} J lost in impacts")
     if run["commands"]:
-        lines.append(f"commands    {len(run['commands'])} on hip_torque")
+        lines.append(f"commands    {run['commands']} on hip_torque")
     pushes = [e for e in run["events"] if e.get("kind") == "push"]
     if pushes:
         lines.append(f"pushes      {len(pushes)}: " + ", ".join(

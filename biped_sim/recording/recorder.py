@@ -44,7 +44,10 @@ BUFFER_BYTES = 4 * 1024 * 1024
 
 
 def default_bag_path(bag_dir="bags", scene="custom", now=None) -> Path:
-    """``<bag_dir>/<scene>-<UTC time>`` (e.g. bags/walk-20261122T024500Z)."""
+    """``<bag_dir>/<scene>-<UTC time>`` (e.g. bags/walk-20261122T024500Z); ValueError for a scene
+    name that is a path (it would choose another folder than ``bag_dir``)."""
+    from biped_sim.config.parameters import check_file_name
+    check_file_name(str(scene), "the scene name")
     now = now or datetime.now(timezone.utc)
     return Path(bag_dir) / f"{scene}-{now.strftime('%Y%m%dT%H%M%S')}{now.microsecond // 1000:03d}Z"
 
@@ -101,23 +104,33 @@ class BagRecorder:
         if self.path.exists() and (not self.path.is_dir() or any(self.path.iterdir())):
             raise ValueError(f"bag path {self.path} exists and is not an empty directory; "
                              "choose a new bag path")
+        created = not self.path.exists()
         try:
             self.path.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise OSError(exc.errno, f"cannot create the bag directory {self.path}: {exc.strerror}") from None
-        if not os.access(self.path, os.W_OK):
-            raise OSError(errno.EACCES, f"the bag directory {self.path} is not writable")
-        free = shutil.disk_usage(self.path).free
-        if free < min_free_bytes:
-            raise OSError(errno.ENOSPC, f"not enough free disk space for the bag {self.path}: "
-                                        f"{free / 1e6:.1f} MB free, at least {min_free_bytes / 1e6:.0f} MB needed")
         self.mcap_name = f"{self.path.name}_0.mcap"
         try:
-            with open(self.path / self.mcap_name, "wb"):
-                pass
-        except OSError as exc:
-            raise OSError(exc.errno,
-                          f"cannot write the bag file {self.path / self.mcap_name}: {exc.strerror}") from None
+            if not os.access(self.path, os.W_OK):
+                raise OSError(errno.EACCES, f"the bag directory {self.path} is not writable")
+            free = shutil.disk_usage(self.path).free
+            if free < min_free_bytes:
+                raise OSError(errno.ENOSPC, f"not enough free disk space for the bag {self.path}: {free / 1e6:.1f} "
+                                            f"MB free, at least {min_free_bytes / 1e6:.0f} MB needed")
+            try:
+                with open(self.path / self.mcap_name, "wb"):
+                    pass
+            except OSError as exc:
+                raise OSError(exc.errno,
+                              f"cannot write the bag file {self.path / self.mcap_name}: {exc.strerror}") from None
+        except OSError:
+            if created:     # refused: leave no empty bag directory behind (a ~/reset tries the next name)
+                try:
+                    (self.path / self.mcap_name).unlink(missing_ok=True)
+                    self.path.rmdir()
+                except OSError:
+                    pass
+            raise
         self._proc = subprocess.Popen(
             [sys.executable, "-m", "biped_sim.recording.writer", str(self.path), self.mcap_name, compression,
              str(int(chunk_size)), repr(float(flush_interval)), *([file_writer] if file_writer else [])],

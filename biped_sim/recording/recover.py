@@ -25,6 +25,33 @@ def kept_name(src: Path) -> Path:
     return kept
 
 
+def write_missing_metadata(bag_dir: Path, src: Path) -> dict:
+    """A complete MCAP whose ``metadata.yaml`` could not be written at the end of the recording (its
+    folder became read-only, or full, before the close): ``metadata.yaml`` from the MCAP's summary,
+    the MCAP unchanged. Returns recover's dict, ``kept`` None (no file replaced)."""
+    import yaml
+    from mcap.reader import make_reader
+
+    from biped_sim.recording.bagformat import bag_metadata, write_metadata_yaml
+    with open(src, "rb") as f:
+        summary = make_reader(f).get_summary()
+    stats = summary.statistics
+    counts = stats.channel_message_counts if stats else {}
+    topics = [dict(name=c.topic, type=summary.schemas[c.schema_id].name if c.schema_id in summary.schemas else "",
+                   qos=yaml.safe_load(c.metadata.get("offered_qos_profiles", "")) or [],
+                   hash=c.metadata.get("topic_type_hash", ""), count=counts.get(c.id, 0))
+              for c in summary.channels.values()]
+    info = bag_metadata(src.name, topics, stats.message_start_time if stats else 0,
+                        stats.message_end_time if stats else 0)
+    try:
+        write_metadata_yaml(bag_dir, info)
+    except OSError as exc:
+        raise OSError(exc.errno, f"cannot write {bag_dir / 'metadata.yaml'} ({exc.strerror}): make the bag's "
+                                 "folder writable, then run biped-sim recover again; nothing was changed") from None
+    return dict(path=str(src), kept=None, messages=sum(t["count"] for t in topics), end="",
+                topics={t["name"]: t["count"] for t in topics})
+
+
 def recover(bag_dir, compression="zstd") -> dict:
     """Rewrite a bag's MCAP cut short (SIGKILL, power loss) into a clean one; regenerate metadata.yaml.
 
@@ -33,6 +60,8 @@ def recover(bag_dir, compression="zstd") -> dict:
     never over an earlier one. Returns dict(path, kept, messages, topics={topic: count}, end=why
     the original ended). Refuses, changing nothing: a file that is not MCAP or has no complete
     message (ValueError), a file a bag writer holds right now, and a complete bag (CommandError).
+    A complete MCAP without ``metadata.yaml`` (its folder became unwritable before the close) gets
+    its ``metadata.yaml`` (:func:`write_missing_metadata`).
     """
     import yaml
     from mcap.records import Channel, Chunk, Message, Metadata, Schema
@@ -50,6 +79,8 @@ def recover(bag_dir, compression="zstd") -> dict:
         raise CommandError(f"{src} is being recorded right now (a bag writer holds it): wait until the "
                            "recording ends; nothing was changed")
     if not bagio.cut_short(src):
+        if not (bag_dir / "metadata.yaml").is_file():
+            return write_missing_metadata(bag_dir, src)
         raise CommandError(f"nothing to recover: {src} is complete (it has its summary); nothing was changed")
     schemas, channels, metadata, messages = {}, {}, [], []
     problem = ""

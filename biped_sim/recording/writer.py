@@ -39,8 +39,18 @@ def finish_bag(mcap, f, bag_dir: Path, mcap_name: str, topics: dict) -> dict:
     mcap.add_metadata("rosbag2", rosbag2_record(info))
     mcap.finish()
     os.fsync(f.fileno())
-    write_metadata_yaml(bag_dir, info)
+    try:
+        write_metadata_yaml(bag_dir, info)
+    except OSError as exc:
+        # the MCAP is whole (written through its open file); only its folder refuses a new file
+        raise MetadataNotWritten(f"the bag's MCAP is complete but its metadata.yaml could not be written "
+                                 f"({exc.strerror or exc}): make {bag_dir} writable (or free space), then run "
+                                 f"'biped-sim recover {bag_dir}' to write it") from None
     return info
+
+
+class MetadataNotWritten(OSError):
+    """A bag complete but for its metadata.yaml (``biped-sim recover`` writes it)."""
 
 
 def bag_info(mcap, mcap_name: str, topics: dict) -> dict:
@@ -118,6 +128,9 @@ def write_frames(inp, f, path: Path, mcap_name: str, compression="zstd", chunk_s
         else:   # the MCAP stays without summary (recover repairs it); metadata.yaml counts what is on disk
             f.flush()
             write_metadata_yaml(path, info := bag_info(mcap, mcap_name, topics))
+    except MetadataNotWritten as exc:
+        error = error or str(exc)
+        report(error=error)
     except Exception as exc:  # noqa: BLE001
         error = error or f"{type(exc).__name__}: {exc}"
         report(error=error)

@@ -34,6 +34,8 @@ def allowed_values(p: Param) -> str:
     kind = {float: "double", int: "integer", bool: "bool (true/false)", str: "string"}[p.type]
     if p.choices:
         return f"{kind}, one of {list(p.choices)}"
+    if p.file_name:
+        return f"{kind}, a plain name (no '/' or '\\': it becomes part of a file name)"
     if p.low is not None or p.high is not None:
         return f"{kind} in [{p.low}, {p.high}]"
     return kind

@@ -51,6 +51,7 @@ class SimControl:
         self.lockstep_command_held = False   # lockstep: a command came while paused
         self.resets = 0
         self.first_bag = None
+        self.recording_off = None         # why the last ~/reset could not open its bag (recording wanted)
         self.counts = dict(pushes_received=0, pushes_refused=0)
         node.create_service(SetBool, "~/pause", self._on_pause)
         node.create_service(Trigger, "~/step", self._on_step)
@@ -216,23 +217,16 @@ class SimControl:
         untouched = node.sim.control_periods == 0 and t_old == 0.0 and node.sim.status == "running"
         keep_held = self.lockstep and untouched
         self.resets += 1
-        new_bag = None
-        if node.recorder is not None:
-            self.first_bag = self.first_bag or node.bag_path
-            new_bag = f"{self.first_bag}-reset{self.resets}"
+        old_bag = node.bag_path if node.recorder is not None else None
+        new_recorder, new_bag, not_recorded = self._next_recorder()
         self._publish_marker(t_old, dict(time=repr(float(t_old)), resets=str(self.resets),
                                          next_bag=new_bag or ""),
                              f"reset at t={t_old:.6f} s: the simulation restarts at t = 0"
-                             + (f"; recording goes on in {new_bag}" if new_bag else ""))
-        old_bag = node.bag_path
-        if node.recorder is not None:
-            req.old_recorder = node.recorder
-            node.recorder = None
-            try:
-                node._open_recorder(new_bag)
-            except StartupError as exc:   # the run goes on, unrecorded, and says so
-                node.get_logger().error(f"~/reset: {exc}; the run after the reset is NOT recorded")
-                new_bag = None
+                             + (f"; recording goes on in {new_bag}" if new_bag else "")
+                             + (f"; the run after the reset is NOT recorded: {not_recorded}" if not_recorded else ""))
+        if old_bag is not None or new_bag is not None:
+            req.old_recorder, node.recorder = node.recorder, new_recorder
+            node.bag_path = new_bag if new_bag is not None else node.bag_path
         node.replace_engine(HybridSimulator(**P.engine_arguments(node.params), keep_samples=False))
         if node.markers is not None:      # the new run's events count from 0; its first state drawn at once
             node.markers.restart()
@@ -249,8 +243,32 @@ class SimControl:
         node.publish_state()
         req.success = True
         req.message = (f"reset to t = 0 at the scene's initial state (from t={t_old:.6f} s; reset {self.resets})"
-                       + (f"; recording to {new_bag}" if new_bag else ""))
+                       + (f"; recording to {new_bag}" if new_bag else "")
+                       + (f"; recording is OFF: {not_recorded}" if not_recorded else ""))
         node.get_logger().info(f"~/reset: {req.message}")
+
+    def _next_recorder(self):
+        """(recorder, path, None) of the bag after a reset, or (None, None, why not) when it cannot be
+        created (a full disk), or (None, None, None) for a run not recorded (record false). A reset after
+        one that could not record tries again: recording comes back with the space."""
+        node = self.node
+        if node.recorder is None and self.recording_off is None:
+            return None, None, None
+        self.first_bag = self.first_bag or node.bag_path
+        path = f"{self.first_bag}-reset{self.resets}"
+        old_recorder, old_path = node.recorder, node.bag_path
+        node.recorder = None
+        try:
+            node._open_recorder(path)
+            self.recording_off = None
+            return node.recorder, path, None
+        except StartupError as exc:   # the run goes on, unrecorded, and the answer says so
+            self.recording_off = (f"{exc}; the next ~/reset tries again (free some space, or set bag_dir "
+                                  "before starting the node)")
+            node.get_logger().error(f"~/reset: the run after the reset is NOT recorded: {self.recording_off}")
+            return None, None, self.recording_off
+        finally:
+            node.recorder, node.bag_path = old_recorder, old_path     # the old bag gets the reset marker
 
     def _publish_marker(self, t, values, message):
         st = DiagnosticStatus(level=DiagnosticStatus.OK, name="biped_sim/reset", message=message)

@@ -299,6 +299,19 @@ def writer_process(pid: int):
 
 
 
+def child_process(pid: int, name: bytes):
+    """The pid of the first descendant of ``pid`` whose command line holds ``name``, or None."""
+    todo = [pid]
+    while todo:
+        p = todo.pop()
+        for task in Path(f"/proc/{p}/task").iterdir():
+            for child in (task / "children").read_text().split():
+                if name in Path(f"/proc/{child}/cmdline").read_bytes():
+                    return int(child)
+                todo.append(int(child))
+    return None
+
+
 def check_failed_run(proc, status, why: str) -> str:
     """The node ended the run on the recording fault: exit code 1, one error line, the final status."""
     log = proc.output()
@@ -484,3 +497,83 @@ def test_lockstep_resets_at_t0_while_paused_do_not_stall_the_run():
     assert "waiting for a hip_torque command" not in sim.output()
     ref = load_scene("walk").simulate(hold=True, t_final=duration)
     assert list(js[-1].position) == ref.q[-1].tolist() and list(js[-1].velocity) == ref.dq[-1].tolist()
+
+
+# -- issue 34, item 1: a parameter that would place a file outside the folder the user chose ----------------
+def test_a_scene_name_that_is_a_path_is_refused_and_writes_nothing_outside_bag_dir(tmp_path):
+    """``scene`` becomes part of the bag's name: ``scene:=../../x`` or an absolute path would record
+    outside ``bag_dir``. sim_node (by -p and by a params file) and ``simulate --record`` refuse it at start."""
+    work, outside = tmp_path / "work", tmp_path / "outside"
+    work.mkdir()
+    outside.mkdir()
+    scene_file = tmp_path / "escape.yaml"
+    scene_file.write_text(Path(WALK).read_text().replace("scene: walk", f"scene: {outside}/s", 1))
+    params_file = tmp_path / "params.yaml"
+    params_file.write_text(f"biped_sim:\n  ros__parameters:\n    scene: {outside}/p\n")
+    runs = {  # program line: the scene value it gives
+        "sim_node -p": ([str(BIN / "sim_node"), "--ros-args", "-p", "scene:=../../outside/n"], "../../outside/n"),
+        "sim_node params file": ([str(BIN / "sim_node"), "--ros-args", "--params-file", str(params_file)],
+                                 f"{outside}/p"),
+        "simulate": ([str(BIN / "biped-sim"), "simulate", "--scene", str(scene_file), "--duration", "0.05",
+                      "--record", "bags"], f"{outside}/s"),
+    }
+    with ros_domain() as dom:
+        for what, (argv, scene) in runs.items():
+            if argv[0].endswith("sim_node"):   # ends by itself on the old code too: a short fast run
+                argv += ["-p", "bag_dir:=bags", "-p", "time_mode:=fast", "-p", "duration:=0.05"]
+            done = subprocess.run(argv, env=ros_env(dom), cwd=work, capture_output=True, text=True, timeout=60,
+                                  stdin=subprocess.DEVNULL)
+            program = "biped-sim simulate" if what == "simulate" else "sim_node"
+            assert done.returncode == 2, f"{what}: {done.stdout}{done.stderr}"
+            lines = [ln for ln in done.stderr.splitlines() if ln.startswith(f"{program}: error:")]
+            assert len(lines) == 1 and "Traceback" not in done.stderr, f"{what}: {done.stderr}"
+            assert "parameter 'scene' must be a plain name, not a path" in lines[0], lines[0]
+            assert repr(scene) in lines[0], lines[0]
+    assert list(outside.iterdir()) == [] and not (tmp_path / "s-").exists()       # nothing outside bag_dir
+    assert not (work / "bags").exists() or list((work / "bags").iterdir()) == []  # nor a bag at all
+
+
+# -- issue 34, item 4: a ~/reset with little disk left ------------------------------------------------------
+def test_a_reset_with_little_disk_says_recording_is_off_and_a_later_one_records_again(tmp_path):
+    """The bag folder on an 80 MB tmpfs of the node's own mount namespace (as the full-disk case). The
+    test fills it to below the 64 MB the recorder needs, and calls ~/reset: the answer says the run
+    after it is not recorded, and why (before: a plain "reset to t = 0 ...", and recording stayed off
+    for the rest of the node's life). With the space back, the next ~/reset records again, to
+    ``<first bag>-reset2``, which rosbags reads; no empty ``-reset1`` folder is left."""
+    why = namespaces_work()
+    if why:
+        pytest.skip(why)
+    disk, saved = tmp_path / "disk", tmp_path / "saved"
+    disk.mkdir()
+    saved.mkdir()
+    script = (f"mount -t tmpfs -o size=80m tmpfs {disk} || exit 97\n"
+              f"{BIN / 'sim_node'} --ros-args -p scene:=lowdisk -p command_timeout:=0.0 -p bag_dir:={disk}\n"
+              f"rc=$?\nrm -f {disk}/filler\ncp -a {disk}/. {saved}/\nexit $rc\n")
+    with ros_domain() as dom, Client(dom) as c, NodeProcess(["unshare", "-rm", "sh", "-c", script], dom) as sim:
+        try:
+            control = Control(c, sim)
+            inside = Path(f"/proc/{sim.proc.pid}/root{disk}")
+            wait_for(lambda: complete_messages(list(inside.glob("lowdisk-*/*.mcap"))) > 0, 60, "the first bag",
+                     [sim])
+            first = next(inside.glob("lowdisk-*"))
+            with open(inside / "filler", "wb", buffering=0) as filler:       # leave about 30 MB free
+                block = bytes(1 << 20)
+                for _ in range(48):
+                    filler.write(block)
+            off = control.reset()
+            assert off.success and "recording is OFF" in off.message, off.message
+            assert "not enough free disk space" in off.message and "the next ~/reset tries again" in off.message
+            (inside / "filler").unlink()                                       # the space is back
+            on = control.reset()
+            assert on.success and f"recording to {disk}/{first.name}-reset2" in on.message, on.message
+            assert "OFF" not in on.message
+            time.sleep(0.5)                                                     # a little of the new run
+        finally:   # SIGTERM to the node itself: the shell around it would die and leave it running
+            node = child_process(sim.proc.pid, b"sim_node") if sim.alive else None
+            if node is not None:
+                os.kill(node, signal.SIGTERM)
+        assert sim.wait(30) == 0, sim.output()
+    assert "the run after the reset is NOT recorded" in sim.output()
+    assert sorted(p.name for p in saved.iterdir()) == [first.name, f"{first.name}-reset2"]   # no empty -reset1
+    times = bag_joint_state_times(saved / f"{first.name}-reset2")
+    assert times and times[0] == 0.0 and times == sorted(times)

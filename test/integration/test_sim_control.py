@@ -248,7 +248,9 @@ def test_answers_and_figures_say_what_happened_around_a_failed_step_and_a_reset(
     """Issue 34, item 3: a ~/step during which the engine stops answered "stepped one control period
     from t=X to t=X"; after a ~/reset the closing figures counted only the new run (0 periods, the
     process's CPU per period in hundreds of ms, real-time factor 0.000)."""
-    params = dict(time_mode="realtime", record=False, command_timeout=0.0, publish_rate=50.0,
+    # at a quarter of real time: the pause must land before the unpowered robot falls by itself (at 1.53 s),
+    # however loaded the machine
+    params = dict(time_mode="realtime", rate_factor=0.25, record=False, command_timeout=0.0, publish_rate=50.0,
                   initial_q=SCENE["initial_q"], initial_dq=SCENE["initial_dq"], phases=["stance", "impact"])
     with ros_domain() as dom, start_node(params, dom) as proc, Client(dom) as c:
         js = c.collect("/joint_states", JointState)
@@ -272,7 +274,7 @@ def test_answers_and_figures_say_what_happened_around_a_failed_step_and_a_reset(
     log = proc.output()
     figures = next(ln for ln in log.splitlines() if "realtime figures:" in ln)
     rtf = float(figures.split("real-time factor ")[1].split(";")[0])
-    assert 0.3 < rtf < 1.5, figures              # the 0.2 s and more that ran paced, not t = 0 after the reset
+    assert 0.08 < rtf < 0.4, figures             # the 0.2 s and more that ran paced, not t = 0 after the reset
     summary = next(ln for ln in log.splitlines() if " control periods" in ln and "per period" in ln)
     periods = int(summary.split("]: ")[1].split(" ")[0])
     assert " in 2 runs (1 ~/reset), the last to t=0.000000 s" in summary and periods >= round(t_pause * 1e3), summary

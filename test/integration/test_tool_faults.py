@@ -291,3 +291,53 @@ def test_torque_pub_takes_negative_numbers_and_stops_when_a_lockstep_run_ends(tm
         assert sent >= 200, done.stdout                 # one command a period of the 0.2 s run at least
         node.stop()
     assert "'rejected': 0" in node.output(), node.output()      # -5e-1 was taken as the torque it is
+
+
+# -- issue 34, item 3: the bag's folder becomes unwritable before the close ------------------------------------
+READ_ONLY_BEFORE_CLOSE = """
+{bin}/biped-sim simulate --scene walk --duration 60 --record {bags} > {out} 2> {err} &
+pid=$!
+for i in $(seq 300); do
+  sleep 0.05; f=$(ls {bags}/*/*.mcap 2>/dev/null) && [ "$(stat -c %s "$f")" -gt 50000 ] && break
+done
+d=$(ls -d {bags}/*)
+mount --bind "$d" "$d" && mount -o remount,ro,bind "$d" || {{ kill -KILL $pid; exit 97; }}
+touch "$d/probe" 2>/dev/null && {{ kill -KILL $pid; exit 98; }}
+kill -TERM $pid
+wait $pid
+"""
+
+
+def test_a_bag_folder_made_read_only_before_the_close_leaves_a_bag_recover_completes(tmp_path):
+    """The bag's folder becomes read-only during ``simulate --record`` (a read-only bind mount over it
+    in the run's own mount namespace, ``unshare -rm``: also as root); then SIGTERM closes the bag. The
+    MCAP, written through its open file, is complete; metadata.yaml cannot be created. The run says so
+    in one line and names ``biped-sim recover``, which (the folder writable again, outside the
+    namespace) writes metadata.yaml: rosbags reads every message. Before, recover refused the bag
+    ("nothing to recover") and rosbags could not open it."""
+    probe = subprocess.run(["unshare", "-rm", "sh", "-c", f"mount --bind {tmp_path} {tmp_path}"],
+                           capture_output=True, text=True, timeout=20)
+    if probe.returncode != 0:
+        pytest.skip(f"unshare -rm cannot bind-mount here: {probe.stderr.strip()}")
+    bags, out, err = tmp_path / "bags", tmp_path / "sim.out", tmp_path / "sim.err"
+    bags.mkdir()
+    script = READ_ONLY_BEFORE_CLOSE.format(bin=BIN, bags=bags, out=out, err=err)
+    done = subprocess.run(["unshare", "-rm", "sh", "-c", script], capture_output=True, text=True, timeout=120,
+                          stdin=subprocess.DEVNULL)
+    assert done.returncode == 1, (done.returncode, done.stdout, done.stderr, err.read_text())
+    bag = next(bags.iterdir())
+    line = one_error_line(subprocess.CompletedProcess([], 1, "", err.read_text()), "biped-sim simulate")
+    assert "MCAP is complete but its metadata.yaml could not be written (Read-only file system)" in line, line
+    assert f"'biped-sim recover {bag}'" in line, line
+    assert sorted(p.name for p in bag.iterdir()) == [f"{bag.name}_0.mcap"]     # no metadata.yaml, no .tmp
+    mcap_before = (bag / f"{bag.name}_0.mcap").read_bytes()
+    rec = biped_sim("recover", bag)
+    assert rec.returncode == 0 and "is complete; wrote the bag's missing metadata.yaml" in rec.stdout, \
+        rec.stdout + rec.stderr
+    assert (bag / f"{bag.name}_0.mcap").read_bytes() == mcap_before               # the MCAP untouched
+    from mcap.reader import make_reader
+    from rosbags.rosbag2 import Reader
+    with open(bag / f"{bag.name}_0.mcap", "rb") as f:
+        in_file = make_reader(f).get_summary().statistics.message_count
+    with Reader(bag) as reader:
+        assert reader.message_count == in_file == sum(1 for _ in reader.messages()) > 1000

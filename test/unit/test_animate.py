@@ -118,3 +118,94 @@ def test_bad_input_is_one_line_and_exit_code_2(tmp_path, capsys, case, argv, say
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("biped-sim animate: error: ") and says in err[0], (case, err)
     assert not (tmp_path / "out.gif").exists()
+
+
+# -- issue 34, item 2: memory that does not grow with the bag ----------------------------------------------
+PEAK_RSS = r"""
+import sys
+from biped_sim.cli import main as biped_sim
+
+
+def vm(key):   # the process's own figures (KB): VmHWM is the peak RSS since the start or the last reset
+    return int(next(ln.split()[1] for ln in open("/proc/self/status") if ln.startswith(key + ":")))
+
+
+warm, bag, out = sys.argv[1:4]
+args = ["animate", "-o", out, "--fps", "50", "-q"] if out != "-" else ["inspect", "--no-png"]
+biped_sim(args[:1] + [warm] + args[1:])     # everything imported and cached first, on a tiny bag
+with open("/proc/self/clear_refs", "w") as f:
+    f.write("5")                              # resets VmHWM to the RSS now (Linux)
+before = vm("VmRSS")
+code = biped_sim(args[:1] + [bag] + args[1:])
+print("PEAK", code, before, vm("VmHWM"))
+"""
+
+
+def peak_growth_kb(tool, warm, bag, tmp_path) -> tuple[int, int]:
+    """(peak RSS in KB, its growth over the warmed-up process) of ``biped-sim animate`` (50 frames a
+    simulated second) or ``inspect --no-png`` of ``bag``, in a fresh process (after a run on ``warm``)."""
+    import subprocess
+    import sys
+    out = str(tmp_path / "m.gif") if tool == "animate" else "-"
+    done = subprocess.run([sys.executable, "-c", PEAK_RSS, str(warm), str(bag), out], capture_output=True,
+                          text=True, timeout=120, stdin=subprocess.DEVNULL)
+    line = [ln for ln in done.stdout.splitlines() if ln.startswith("PEAK")]
+    assert done.returncode == 0 and line, done.stdout + done.stderr
+    _, code, before, after = line[0].split()
+    assert code == "0", done.stdout + done.stderr
+    return int(after), int(after) - int(before)
+
+
+def test_animate_and_inspect_memory_does_not_grow_with_the_bag(tmp_path):
+    """A 1 s and a 4 s recorded walk at 4 kHz. ``animate`` at 50 frames a simulated second kept every
+    frame (peak RSS 105 and 172 MB before) and ``inspect`` every state as Python lists (87 and 102 MB,
+    its growth 1.0 and 15.7 MB). Now each frame is written and let go, and the states are summed up and
+    thinned as they are read: the longer bag's peak is the shorter's (89 and 89 MB; 85 and 85 MB)."""
+    bags = {}
+    for name, seconds in (("short", 1.0), ("long", 4.0)):
+        assert biped_sim(["simulate", "--scene", "walk", "--duration", str(seconds), "--control-period", "0.00025",
+                          "--record", str(tmp_path / name)]) == 0
+        bags[name] = next((tmp_path / name).iterdir())
+    figures = {}
+    for tool in ("animate", "inspect"):
+        for name in ("short", "long"):
+            figures[tool, name] = peak_growth_kb(tool, bags["short"], bags[name], tmp_path)
+    print({k: f"peak {v[0] / 1024:.1f} MB, growth {v[1] / 1024:.2f} MB" for k, v in figures.items()})
+    (a_short, _), (a_long, _) = figures["animate", "short"], figures["animate", "long"]
+    assert a_long < 1.15 * a_short, figures                    # was 1.6 times
+    (_, i_short), (_, i_long) = figures["inspect", "short"], figures["inspect", "long"]
+    assert i_long < 1.5 * i_short + 1024, figures              # was 15 times (1.0 and 15.7 MB)
+
+
+def test_thinned_keeps_an_even_sample_of_any_length_in_bounded_memory():
+    from biped_sim.recording.inspect_bag import Thinned
+    for n in (7, 100, 12345):
+        th = Thinned(1, capacity=100)
+        for i in range(n):
+            th.add([i])
+        kept = th.array()[:, 0]
+        assert len(kept) <= 100 and kept[0] == 0 and np.all(np.diff(kept) == th.stride)
+        assert len(kept) == n if n <= 100 else len(kept) > 50 and kept[-1] > n - 2 * th.stride
+
+
+def test_animate_of_a_bag_cut_short_says_so_and_where_it_ends(tmp_path, capsys):
+    """(issue 34, item 5) A bag whose writer was killed is drawn up to its last complete chunk; before,
+    nothing said that the animation ends early."""
+    from mcap.reader import make_reader
+    assert biped_sim(["simulate", "--scene", "walk", "--duration", "4", "--record", str(tmp_path / "b")]) == 0
+    mcap = next((tmp_path / "b").glob("*/*.mcap"))
+    with open(mcap, "rb") as f:
+        chunks = make_reader(f).get_summary().chunk_indexes
+    assert len(chunks) >= 2
+    size = chunks[-1].chunk_start_offset + 100              # inside the last chunk: what a SIGKILL leaves
+    cut = tmp_path / "cut"
+    cut.mkdir()
+    (cut / mcap.name).write_bytes(mcap.read_bytes()[:size])
+    capsys.readouterr()
+    assert biped_sim(["animate", str(cut), "-o", str(tmp_path / "cut.gif"), "-q"]) == 0
+    err = capsys.readouterr().err
+    assert f"the bag is CUT SHORT at {size} bytes" in err, err
+    end = chunks[-2].message_end_time / 1e9
+    assert f"drawn up to its last complete chunk, t = {end:.6g} s" in err and f"biped-sim recover {cut}" in err, err
+    frames, _ = gif_frames(tmp_path / "cut.gif")
+    assert len(frames) == int(end * 20 + 1e-9) + 1 < 81          # up to the cut, not the whole 4 s at 20 fps
