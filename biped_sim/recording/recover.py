@@ -79,7 +79,9 @@ def recover(bag_dir, compression="zstd") -> dict:
         raise CommandError(f"{src} is being recorded right now (a bag writer holds it): wait until the "
                            "recording ends; nothing was changed")
     if not bagio.cut_short(src):
-        if not (bag_dir / "metadata.yaml").is_file():
+        # a biped_sim bag whose folder became unwritable before the close (another program's MCAP is no
+        # bag of ours to complete)
+        if not (bag_dir / "metadata.yaml").is_file() and "biped_sim" in bagio.read_metadata(src):
             return write_missing_metadata(bag_dir, src)
         raise CommandError(f"nothing to recover: {src} is complete (it has its summary); nothing was changed")
     schemas, channels, metadata, messages = {}, {}, [], []
