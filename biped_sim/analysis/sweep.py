@@ -12,14 +12,18 @@ from __future__ import annotations
 
 import contextlib
 import inspect
+import io
 import itertools
 import math
 import multiprocessing
+import multiprocessing.context
+import multiprocessing.util
 import os
 import pickle
 import signal
 import threading
 import time
+import types
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import fields
@@ -38,13 +42,28 @@ OUTCOME = ("status", "message", "impacts", "t_end", "x_end", "mean_speed", "q_en
 IN_FLIGHT_PER_WORKER = 4
 
 
-class SweepInterrupted(KeyboardInterrupt):
-    """Ctrl-C during a sweep: the pool is stopped; ``rows`` holds the runs that finished, in grid
-    order (each row carries its ``index`` in the grid), and ``total`` the number of runs in the grid."""
+#: the signals that end a sweep and keep its finished runs: Ctrl-C, and what ``timeout``, a batch
+#: scheduler or systemd (SIGTERM) and a closed terminal (SIGHUP) send
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
-    def __init__(self, rows, total):
-        super().__init__(f"sweep interrupted after {len(rows)} of {total} runs")
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C (or SIGTERM, SIGHUP) during a sweep: the pool is stopped; ``rows`` holds the runs that
+    finished, in grid order (each row carries its ``index`` in the grid), ``total`` the number of runs
+    in the grid and ``signal`` the signal that stopped it (a :class:`signal.Signals`)."""
+
+    def __init__(self, rows, total, signum=signal.SIGINT):
+        self.signal = signal.Signals(signum)
+        super().__init__(f"sweep stopped by {self.signal.name} after {len(rows)} of {total} runs")
         self.rows, self.total = rows, total
+
+
+class _StopSignal(KeyboardInterrupt):
+    """A stop signal (:data:`STOP_SIGNALS`) raised in the sweep's thread, so that it unwinds as Ctrl-C does."""
+
+    def __init__(self, signum):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
 
 
 def grid_runs(grid) -> tuple[list[str], list[list], list[dict]]:
@@ -151,6 +170,8 @@ def sweep(scene, grid, duration=None, workers=None, backend="process", *, ray_ad
         raise ValueError("ray_address needs backend='ray'")
     scene = _scene_argument(scene)
     runs = check_sweep(scene, grid, duration, run_options)
+    if backend == "process":   # (Ray pickles such a function by value)
+        _check_not_from_main(run_options)
     tasks = [(scene, point, duration, run_options) for point in runs]
     execute = _run_ray if backend == "ray" else _run_processes
     rows = [None] * len(tasks)
@@ -225,12 +246,79 @@ def _start_method():
     """The fork server where there is one (POSIX): a clean single-threaded process that imports the
     engine once (numpy, scipy: ~2 s on a loaded machine) and forks the workers of every pool this
     process starts, so that a pool costs that import once and not once per worker or per sweep.
+    Its workers do not run the caller's ``__main__`` (:class:`_WorkerPopen`).
     Elsewhere spawned processes. Never a fork of this process, which may hold threads."""
     if "forkserver" in multiprocessing.get_all_start_methods():
-        context = multiprocessing.get_context("forkserver")
+        context = _WorkerContext()
         context.set_forkserver_preload([__name__])
         return context
     return multiprocessing.get_context("spawn")
+
+
+try:
+    from multiprocessing import forkserver as _forkserver, popen_forkserver as _popen_forkserver, spawn as _spawn
+except ImportError:   # no fork server here (Windows): spawned workers, which run __main__ as multiprocessing does
+    _popen_forkserver = None
+else:
+    class _WorkerPopen(_popen_forkserver.Popen):
+        """The fork server's start of a worker, less the caller's main module.
+
+        multiprocessing has every worker run the caller's ``__main__`` (the script, as
+        ``__mp_main__``) before its task, so that objects defined there unpickle. A script that calls
+        :func:`sweep` at its top level, unguarded (as most first scripts are), then has each worker
+        start a sweep of its own while it starts: a RuntimeError ("... before the current process
+        has finished its bootstrapping phase") in every worker, and error rows. A worker needs
+        nothing from ``__main__`` (:func:`run_one` and its arguments live in this package; a run
+        option defined in ``__main__`` is refused by :func:`_check_not_from_main`), so it is not run.
+        The rest is ``popen_forkserver.Popen._launch`` (CPython 3.8 to 3.13) as it is.
+        """
+
+        def _launch(self, process_obj):
+            prep_data = _spawn.get_preparation_data(process_obj._name)
+            prep_data.pop("init_main_from_path", None)
+            prep_data.pop("init_main_from_name", None)
+            buf = io.BytesIO()
+            multiprocessing.context.set_spawning_popen(self)
+            try:
+                multiprocessing.context.reduction.dump(prep_data, buf)
+                multiprocessing.context.reduction.dump(process_obj, buf)
+            finally:
+                multiprocessing.context.set_spawning_popen(None)
+            self.sentinel, w = _forkserver.connect_to_new_process(self._fds)
+            _parent_w = os.dup(w)
+            self.finalizer = multiprocessing.util.Finalize(self, multiprocessing.util.close_fds,
+                                                           (_parent_w, self.sentinel))
+            with open(w, "wb", closefd=True) as f:
+                f.write(buf.getbuffer())
+            self.pid = _forkserver.read_signed(self.sentinel)
+
+    class _WorkerProcess(multiprocessing.context.ForkServerProcess):
+        @staticmethod
+        def _Popen(process_obj):
+            return _WorkerPopen(process_obj)
+
+    class _WorkerContext(multiprocessing.context.ForkServerContext):
+        Process = _WorkerProcess
+
+
+def _check_not_from_main(run_options):
+    """A ValueError for a run option that is (or holds) a function or class defined in ``__main__``:
+    the process pool's workers do not run the caller's script (:class:`_WorkerPopen`), so they could
+    not unpickle it."""
+    for name, value in run_options.items():
+        found = []
+
+        class _Finder(pickle.Pickler):
+            def reducer_override(self, obj):
+                kind = obj if isinstance(obj, (type, types.FunctionType)) else type(obj)
+                if getattr(kind, "__module__", None) == "__main__":
+                    found.append(getattr(kind, "__qualname__", repr(kind)))
+                return NotImplemented
+
+        _Finder(io.BytesIO()).dump(value)
+        if found:
+            raise ValueError(f"run option {name!r}: {found[0]} is defined in the script (__main__), which the "
+                             "workers do not run: define it in a module of its own and import it from there")
 
 
 def _ignore_sigint():

@@ -5,6 +5,7 @@ is refused before any run; failing runs are rows. The Ray backend's agreement is
 test/integration/test_sweep_ray.py.
 """
 import csv
+import json
 import math
 import os
 import signal
@@ -287,3 +288,40 @@ def test_a_scene_file_given_by_a_relative_path(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     rows = bs.sweep("mine.yaml", {"duration": [0.1, 0.2]}, workers=2)
     assert [r["status"] for r in rows] == ["completed"] * 2 and rows[1]["t_end"] == 0.2
+
+
+# ---- faults, round 3 (issue 34) ----
+
+PLAIN_SCRIPT = '''
+import json
+import biped_sim as bs
+
+def my_controller(t, q, dq, stance_leg):
+    return [0.0, 0.0]
+
+grid = {"kp": [80.0, 400.0], "step_angle": [0.15, 0.25]}
+two = bs.sweep("walk", grid, duration=0.3, workers=2)
+one = bs.sweep("walk", grid, duration=0.3, workers=1)
+try:
+    bs.sweep("walk", grid, duration=0.3, workers=2, controller=my_controller)
+    refused = None
+except ValueError as exc:
+    refused = str(exc)
+strip = lambda rows: [{k: v for k, v in r.items() if k != "wall_time"} for r in rows]
+print(json.dumps({"statuses": [r["status"] for r in two], "same": strip(one) == strip(two), "refused": refused}))
+'''
+
+
+def test_a_sweep_from_a_plain_script_without_a_main_guard(tmp_path):
+    """A script that calls bs.sweep at its top level (no ``if __name__ == "__main__":``): its workers
+    do not run the script again (each did, and failed in its bootstrapping phase: error rows and a
+    screen of RuntimeError tracebacks); the rows do not depend on the number of workers. A run
+    option defined in the script, which the workers cannot import, is refused before any run."""
+    script = tmp_path / "first_sweep.py"
+    script.write_text(PLAIN_SCRIPT)
+    p = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert p.returncode == 0 and "Traceback" not in p.stderr and "bootstrapping" not in p.stderr, p.stderr
+    result = json.loads(p.stdout.splitlines()[-1])
+    assert result["statuses"] == ["completed"] * 4 and result["same"]
+    assert result["refused"] == ("run option 'controller': my_controller is defined in the script (__main__), which "
+                                 "the workers do not run: define it in a module of its own and import it from there")
