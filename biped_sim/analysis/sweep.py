@@ -177,13 +177,15 @@ def sweep(scene, grid, duration=None, workers=None, backend="process", *, ray_ad
     rows = [None] * len(tasks)
     done = 0
     try:
-        for index, row in execute(tasks, workers, ray_address):
-            rows[index] = dict(index=index, **row)
-            done += 1
-            if progress is not None:
-                progress(done, len(tasks), rows[index])
-    except KeyboardInterrupt:
-        raise SweepInterrupted([r for r in rows if r is not None], len(tasks)) from None
+        with _stop_signals_raised(), contextlib.closing(execute(tasks, workers, ray_address)) as finished:
+            for index, row in finished:
+                rows[index] = dict(index=index, **row)
+                done += 1
+                if progress is not None:
+                    progress(done, len(tasks), rows[index])
+    except KeyboardInterrupt as stop:
+        raise SweepInterrupted([r for r in rows if r is not None], len(tasks),
+                               getattr(stop, "signum", signal.SIGINT)) from None
     return rows
 
 
@@ -199,7 +201,8 @@ def _run_processes(tasks, workers, _address):
     """(index, row) of every task, as the runs finish, on a pool of ``workers`` processes.
 
     Workers forked by the fork server (:func:`_start_method`) that ignore SIGINT: Ctrl-C reaches
-    the parent only, which stops the pool and its workers.
+    the parent only, which stops the pool and its workers (so do SIGTERM and SIGHUP, which the
+    workers do not ignore: :func:`_worker_setup`).
     A worker that dies (a crash, the OOM killer) fails the runs in flight as rows and a new pool
     takes the rest.
     """
@@ -209,7 +212,7 @@ def _run_processes(tasks, workers, _address):
     in_flight = {}
     try:
         while True:
-            with _sigint_blocked():   # the processes a submit starts must not take a Ctrl-C meant for us
+            with _stop_signals_held():   # the processes a submit starts must not take a Ctrl-C meant for us
                 for index, task in itertools.islice(pending, workers * IN_FLIGHT_PER_WORKER - len(in_flight)):
                     in_flight[pool.submit(run_one, *task)] = index
             if not in_flight:
@@ -239,7 +242,7 @@ def _died(task) -> dict:
 
 
 def _new_pool(workers):
-    return ProcessPoolExecutor(max_workers=workers, mp_context=_start_method(), initializer=_ignore_sigint)
+    return ProcessPoolExecutor(max_workers=workers, mp_context=_start_method(), initializer=_worker_setup)
 
 
 def _start_method():
@@ -321,37 +324,98 @@ def _check_not_from_main(run_options):
                              "workers do not run: define it in a module of its own and import it from there")
 
 
-def _ignore_sigint():
+def _worker_setup():
+    """A worker's signals, and its end with the sweep's process whatever way that ends.
+
+    SIGINT ignored (Ctrl-C reaches the whole process group: the parent stops the pool). SIGTERM and
+    SIGHUP at their default, unblocked (a worker inherits the mask of the submit that started the
+    fork server, :func:`_stop_signals_held`): the pool's own shutdown of a broken pool terminates
+    its workers, and waits for them.
+
+    A worker inherits the write end of the pipe whose end tells the fork server that its client has
+    gone; while any worker held it, a sweep process that died (SIGTERM at its default, SIGKILL)
+    left the fork server and its workers running for ever, re-parented to init. Closed here, the
+    fork server ends with the sweep's process, and the workers with the fork server (the
+    kernel's parent-death signal, Linux).
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM, signal.SIGHUP})
+    server = getattr(_forkserver, "_forkserver", None) if _popen_forkserver is not None else None
+    alive_fd = getattr(server, "_forkserver_alive_fd", None)
+    if alive_fd is not None:
+        with contextlib.suppress(OSError):
+            os.close(alive_fd)
+        server._forkserver_alive_fd = None
+    if os.uname().sysname == "Linux":
+        import ctypes
+        pr_set_pdeathsig = 1
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0)
 
 
 @contextlib.contextmanager
-def _sigint_blocked():
-    """A Ctrl-C held back while a submit may start the fork server or a worker. Blocked in this thread,
-    so that they (which inherit the mask) cannot take it while they import the engine, before a
-    worker's initializer ignores it: each printed a KeyboardInterrupt traceback. And deferred in
-    Python, because the kernel may hand it to another thread of ours, and the interpreter would then
-    raise it in the middle of a submit: a worker started but not yet known to the pool, left alive to
-    fail once we are gone. The Ctrl-C held back is raised when the block ends."""
+def _stop_signals_raised():
+    """SIGTERM and SIGHUP (where they are at their default, which ends the process on the spot and
+    lost every finished run) and Ctrl-C (where Python's own handler has it) raise
+    :class:`_StopSignal` in the sweep's thread, once: the sweep unwinds (its pool stopped) and
+    returns its rows in :class:`SweepInterrupted`. A second signal during that unwinding is
+    ignored, so that the cleanup is not cut short. Only in the main thread (Python's signal
+    handlers run there); a handler of the caller's own is left alone."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    stopped = []
+
+    def stop(signum, _frame):
+        if not stopped:
+            stopped.append(signum)
+            raise _StopSignal(signum)
+
+    replaced = {}
+    for signum in STOP_SIGNALS:
+        default = signal.default_int_handler if signum == signal.SIGINT else signal.SIG_DFL
+        if signal.getsignal(signum) is default:
+            replaced[signum] = signal.signal(signum, stop)
+    try:
+        yield
+    finally:
+        for signum, handler in replaced.items():
+            signal.signal(signum, handler)
+
+
+@contextlib.contextmanager
+def _stop_signals_held():
+    """A stop signal (:data:`STOP_SIGNALS`) held back while a submit may start the fork server or a
+    worker. Blocked in this thread, so that they (which inherit the mask) cannot take it while they
+    import the engine, before a worker's initializer sets its signals: each printed a
+    KeyboardInterrupt traceback. And deferred in Python, because the kernel may hand it to another
+    thread of ours, and the interpreter would then raise it in the middle of a submit: a worker
+    started but not yet known to the pool, left alive to fail once we are gone. The signal held
+    back goes to its handler when the block ends."""
     deferred = []
+    old_handlers = {}
     # (a process started with SIGINT ignored, as by a shell's '&', keeps ignoring it here too)
-    in_main = threading.current_thread() is threading.main_thread() \
-        and signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
-    old_handler = signal.signal(signal.SIGINT, lambda *_: deferred.append(True)) if in_main else None
-    old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    if threading.current_thread() is threading.main_thread():
+        for signum in STOP_SIGNALS:
+            if callable(signal.getsignal(signum)):
+                old_handlers[signum] = signal.signal(signum, lambda signum, _: deferred.append(signum))
+    old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, set(STOP_SIGNALS))
     try:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
-        if in_main:
-            signal.signal(signal.SIGINT, old_handler)
+        for signum, handler in old_handlers.items():
+            signal.signal(signum, handler)
     if deferred:
-        raise KeyboardInterrupt
+        old_handlers[deferred[0]](deferred[0], None)
 
 
 def _stop_pool(pool):
     """Shut the pool down without waiting for the runs in flight (after Ctrl-C they are not wanted).
-    The executor has no public way to stop a running task: its worker processes are terminated."""
+    The executor has no public way to stop a running task: its worker processes are terminated
+    (killed, should one outlive SIGTERM for 5 s)."""
     processes = list(getattr(pool, "_processes", {}).values())
     pool.shutdown(wait=False, cancel_futures=True)
     for p in processes:
@@ -359,6 +423,9 @@ def _stop_pool(pool):
             p.terminate()
     for p in processes:
         p.join(timeout=5)
+        if p.is_alive():
+            p.kill()
+            p.join(timeout=5)
 
 
 def _run_ray(tasks, workers, address):

@@ -6,7 +6,9 @@ line, the CSV, the exit status; the sweep, its rows and its figure are biped_sim
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
+import signal
 import sys
 import time
 from pathlib import Path
@@ -22,8 +24,8 @@ def register(sub):
                     "message, impacts (steps walked), t_end, x_end (distance the hip travelled), mean_speed, "
                     "energy_residual and drift (the run's own error estimate), wall_time, q_end and dq_end. "
                     "Names are those of the scene file: kp, step_angle, duration, initial_q[0], "
-                    "walk_controller.torque_limit, ... (docs/sweeps.md). A failed run is a row; Ctrl-C writes "
-                    "the runs done.",
+                    "walk_controller.torque_limit, ... (docs/sweeps.md). A failed run is a row; Ctrl-C, SIGTERM "
+                    "or SIGHUP writes the runs done.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("scene", help="a scene name in msg_configs/ (walk, slope, ...) or a path to a .yaml file")
     p.add_argument("--set", dest="grid", action="append", required=True, metavar="NAME=VALUES",
@@ -98,11 +100,13 @@ def run(args):
         rows = sw.sweep(args.scene, grid, duration=args.duration, workers=args.workers, backend=args.backend,
                         ray_address=args.ray_address, progress=progress, **options)
     except sw.SweepInterrupted as stop:
-        if progress:
-            progress.end()
-        sw.write_csv(stop.rows, list(grid), out)
-        print(f"interrupted: {len(stop.rows)} of {stop.total} runs done, written to {out}", file=sys.stderr)
-        return 130
+        with _stop_signals_ignored():   # a second SIGTERM must not cut the CSV short
+            if progress:
+                progress.end()
+            sw.write_csv(stop.rows, list(grid), out)
+        how = "interrupted" if stop.signal == signal.SIGINT else f"stopped by {stop.signal.name}"
+        _say(f"{how}: {len(stop.rows)} of {stop.total} runs done, written to {out}")
+        return 128 + stop.signal
     if progress:
         progress.end()
     wall = time.perf_counter() - t0
@@ -117,6 +121,24 @@ def run(args):
     return 0
 
 
+@contextlib.contextmanager
+def _stop_signals_ignored():
+    old = {signum: signal.signal(signum, signal.SIG_IGN) for signum in sw.STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for signum, handler in old.items():
+            signal.signal(signum, handler)
+
+
+def _say(line):
+    """A line on stderr, which may have gone with its terminal (SIGHUP): the CSV is written already."""
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except OSError:
+        pass
+
+
 class ProgressLine:
     """``[done/total] failures  elapsed  left`` on one stderr line, rewritten in place."""
 
@@ -128,10 +150,15 @@ class ProgressLine:
         self.failures += row["status"] != "completed"
         elapsed = time.perf_counter() - self.t0
         left = elapsed / done * (total - done)
-        self.stream.write(f"\r[{done}/{total}] {self.failures} not completed, {elapsed:.0f} s elapsed, "
-                          f"~{left:.0f} s left   ")
-        self.stream.flush()
+        self._write(f"\r[{done}/{total}] {self.failures} not completed, {elapsed:.0f} s elapsed, ~{left:.0f} s left   ")
 
     def end(self):
-        self.stream.write("\n")
-        self.stream.flush()
+        self._write("\n")
+
+    def _write(self, text):
+        # a terminal that has gone (SIGHUP, EIO) does not stop the sweep: its rows still reach the CSV
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except OSError:
+            pass

@@ -325,3 +325,57 @@ def test_a_sweep_from_a_plain_script_without_a_main_guard(tmp_path):
     assert result["statuses"] == ["completed"] * 4 and result["same"]
     assert result["refused"] == ("run option 'controller': my_controller is defined in the script (__main__), which "
                                  "the workers do not run: define it in a module of its own and import it from there")
+
+
+def _descendants(pid):
+    found, todo = [], [pid]
+    while todo:
+        kids = _children(todo.pop())
+        found += kids
+        todo += kids
+    return found
+
+
+def _alive(pid):
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs /proc to see the pool's processes")
+@pytest.mark.parametrize("signum, to_group", [(signal.SIGTERM, True), (signal.SIGHUP, False), (signal.SIGKILL, False)])
+def test_a_sweep_ended_by_a_signal_keeps_its_rows_and_leaves_no_process(tmp_path, signum, to_group):
+    """SIGTERM (as ``timeout``, a batch scheduler or systemd send it: to the whole process group) and
+    SIGHUP (a closed terminal) end the sweep as Ctrl-C does: the runs done in the CSV, one line, exit
+    128 + the signal (SIGTERM left no CSV at all). Whatever ended it, SIGKILL included, neither the
+    fork server nor a worker outlives it (they ran on for ever, re-parented to init)."""
+    out = tmp_path / "partial.csv"
+    p = subprocess.Popen([CLI, "sweep", "walk", "--set", "kp=50:500:40", "--duration", "100", "--workers", "2",
+                          "-o", str(out)], stderr=subprocess.PIPE, text=True,
+                         env=dict(os.environ, PYTHONUNBUFFERED="1"), start_new_session=True)
+    seen = ""
+    while "[2/40]" not in seen:            # two runs done: the pool is running
+        ch = p.stderr.read(1)
+        assert ch, seen
+        seen += ch
+    pool = _descendants(p.pid)
+    assert len(pool) >= 3, pool            # the fork server and two workers (and the resource tracker)
+    if to_group:
+        os.killpg(p.pid, signum)
+    else:
+        os.kill(p.pid, signum)
+    _, err = p.communicate(timeout=60)
+    end = time.monotonic() + 10
+    while any(_alive(pid) for pid in pool) and time.monotonic() < end:
+        time.sleep(0.05)
+    assert not [pid for pid in pool if _alive(pid)], "processes of the sweep left behind"
+    if signum == signal.SIGKILL:
+        assert p.returncode == -signal.SIGKILL
+        return
+    assert p.returncode == 128 + signum, err
+    assert f"stopped by {signum.name}: " in err and "Traceback" not in err, err
+    with open(out) as f:
+        table = list(csv.DictReader(f))
+    assert 2 <= len(table) < 40 and all(t["status"] == "completed" for t in table)
+    assert err.strip().splitlines()[-1].endswith(f"{len(table)} of 40 runs done, written to {out}")
