@@ -11,6 +11,7 @@ computation). docs/sweeps.md shows the API and ``biped-sim sweep``.
 from __future__ import annotations
 
 import contextlib
+import errno
 import inspect
 import io
 import itertools
@@ -20,7 +21,9 @@ import multiprocessing.context
 import multiprocessing.util
 import os
 import pickle
+import secrets
 import signal
+import tempfile
 import threading
 import time
 import types
@@ -515,15 +518,89 @@ def csv_columns(names) -> list[str]:
     return ["index", *names, *scalars] + [f"q_end[{i}]" for i in range(5)] + [f"dq_end[{i}]" for i in range(5)]
 
 
+def check_writable(path, what="-o"):
+    """An OSError (or ValueError for a missing folder) now, before any run, if ``path`` cannot be
+    written: a read-only file system or folder, a folder in the way. Found only after every run, it
+    lost them all. A device or a pipe (``/dev/stdout``) is opened for appending (nothing written);
+    a file is tried as :func:`write_csv` writes it, by a file created beside it and removed."""
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise ValueError(f"{what} {path}: folder {path.parent} does not exist")
+    if path.is_dir():
+        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
+    try:
+        if path.exists() and not path.is_file():
+            with open(path, "ab"):
+                return
+        fd, temporary = _new_file_beside(path)
+        os.close(fd)
+        os.unlink(temporary)
+    except OSError as exc:   # the destination named, not the file tried beside it
+        raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
+
+
 def write_csv(rows, names, path):
-    """One line per row (numbers as Python's repr: they read back to the same bits)."""
+    """One line per row (numbers as Python's repr: they read back to the same bits).
+
+    The whole file or none: written to a new file beside ``path`` and renamed onto it (a full disk
+    left a CSV cut mid-row where the result should be). Should that fail (a full disk, a removed
+    folder), the rows are kept in a new file in the system's temp folder and the OSError raised
+    names ``path``, the reason and that file. A device or a pipe (``/dev/stdout``) is written in
+    place."""
+    path = Path(path)
+    if path.is_symlink():   # the file it points to is replaced, not the link
+        path = Path(os.path.realpath(path))
+    try:
+        if path.exists() and not path.is_file():
+            with open(path, "w", newline="") as f:
+                _write_rows(f, rows, names)
+            return
+        fd, temporary = _new_file_beside(path)
+        try:
+            with open(fd, "w", newline="") as f:
+                _write_rows(f, rows, names)
+                f.flush()
+                os.fsync(f.fileno())
+            if path.exists():   # the result keeps the permissions of the file it replaces
+                os.chmod(temporary, os.stat(path).st_mode & 0o7777)
+            os.replace(temporary, path)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(temporary)
+            raise
+    except OSError as exc:
+        raise OSError(exc.errno, f"{exc.strerror or exc}; {_keep_rows(rows, names, path)}", str(path)) from exc
+
+
+def _new_file_beside(path: Path) -> tuple[int, Path]:
+    """A new, empty, hidden file in ``path``'s folder (its descriptor and path), with the mode a new
+    file gets there (the umask's)."""
+    while True:
+        temporary = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+        try:
+            return os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), temporary
+        except FileExistsError:
+            continue
+
+
+def _keep_rows(rows, names, path: Path) -> str:
+    """The rows written to a new file in the system's temp folder; what became of them, as a clause."""
+    try:
+        fd, kept = tempfile.mkstemp(prefix=f"{path.stem}-", suffix=path.suffix or ".csv")
+        with open(fd, "w", newline="") as f:
+            _write_rows(f, rows, names)
+    except OSError as exc:
+        return f"the {len(rows)} rows could not be kept in the temp folder either ({exc.strerror or exc})"
+    return f"the {len(rows)} rows are kept in {kept}"
+
+
+def _write_rows(f, rows, names):
     import csv
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(csv_columns(names))
-        for r in rows:
-            w.writerow([r["index"], *(r[n] for n in names), *(r[c] for c in OUTCOME if c not in ("q_end", "dq_end")),
-                        *r["q_end"], *r["dq_end"]])
+    w = csv.writer(f)
+    w.writerow(csv_columns(names))
+    for r in rows:
+        w.writerow([r["index"], *(r[n] for n in names), *(r[c] for c in OUTCOME if c not in ("q_end", "dq_end")),
+                    *r["q_end"], *r["dq_end"]])
 
 
 def plot(rows, names, path, title="sweep"):

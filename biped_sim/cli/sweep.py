@@ -88,10 +88,9 @@ def run(args):
             raise ValueError(f"--set {name} given twice: give its values in one --set")
         grid[name] = values
     out = Path(args.output)
-    if not out.parent.is_dir():
-        raise ValueError(f"-o {args.output}: folder {out.parent} does not exist")
-    if args.plot and not Path(args.plot).parent.is_dir():
-        raise ValueError(f"--plot {args.plot}: folder {Path(args.plot).parent} does not exist")
+    sw.check_writable(out, "-o")   # before any run: found after them, it lost them all
+    if args.plot:
+        sw.check_writable(args.plot, "--plot")
     total = math.prod(len(v) for v in grid.values())
     progress = None if args.no_progress else ProgressLine(total)
     options = {"hold": False} if args.continuous else {}

@@ -4,7 +4,9 @@ The rows must be the single runs, bit for bit, whatever the number of workers; a
 is refused before any run; failing runs are rows. The Ray backend's agreement is
 test/integration/test_sweep_ray.py.
 """
+import contextlib
 import csv
+import errno
 import json
 import math
 import os
@@ -18,7 +20,7 @@ import numpy as np
 import pytest
 
 import biped_sim as bs
-from biped_sim.analysis.sweep import OUTCOME, SweepInterrupted, grid_runs
+from biped_sim.analysis.sweep import OUTCOME, SweepInterrupted, grid_runs, write_csv
 from biped_sim.cli import main
 from biped_sim.cli.sweep import parse_set
 
@@ -379,3 +381,61 @@ def test_a_sweep_ended_by_a_signal_keeps_its_rows_and_leaves_no_process(tmp_path
         table = list(csv.DictReader(f))
     assert 2 <= len(table) < 40 and all(t["status"] == "completed" for t in table)
     assert err.strip().splitlines()[-1].endswith(f"{len(table)} of 40 runs done, written to {out}")
+
+
+@pytest.fixture
+def small_tmpfs(tmp_path):
+    """A folder on a tmpfs of 64 KiB of our own (mount needs root): a disk to fill or make read-only."""
+    mounted = []
+
+    def mount(name, *options):
+        folder = tmp_path / name
+        folder.mkdir()
+        p = subprocess.run(["mount", "-t", "tmpfs", "-o", ",".join(["size=64k", *options]), "tmpfs", str(folder)],
+                           capture_output=True, text=True)
+        if p.returncode != 0:
+            pytest.skip(f"cannot mount a tmpfs here (needs root): {p.stderr.strip()}")
+        mounted.append(folder)
+        return folder
+
+    yield mount
+    for folder in mounted:
+        subprocess.run(["umount", str(folder)], check=False)
+
+
+def test_a_result_that_cannot_be_written_loses_nothing(tmp_path, small_tmpfs):
+    """A read-only destination is refused before any run (found after every run, it lost them all).
+    On a full disk the CSV is the old file, whole, not one cut mid-row; the rows are kept in a file
+    in the temp folder, and the one line names the CSV, the reason and that file. /dev/full (ENOSPC
+    on every write) the same, from Python."""
+    env = dict(os.environ, TMPDIR=str(tmp_path))
+    read_only = small_tmpfs("ro", "ro")
+    p = subprocess.run([CLI, "sweep", "walk", "--set", "kp=80,400", "--duration", "0.3", "-o",
+                        str(read_only / "gains.csv")], capture_output=True, text=True, env=env, timeout=60)
+    assert p.returncode == 1 and "[1/2]" not in p.stderr, p.stderr       # no run was made
+    assert p.stderr == (f"biped-sim sweep: error: {read_only / 'gains.csv'}: Read-only file system; "
+                        "choose a folder on a writable file system\n")
+
+    full = small_tmpfs("full")
+    (full / "gains.csv").write_text("index,kp\n")                        # the result of an earlier sweep
+    with open(full / "filler", "wb", buffering=0) as f, contextlib.suppress(OSError):   # the disk, full
+        while True:
+            f.write(b"\0" * 4096)
+    p = subprocess.run([CLI, "sweep", "walk", "--set", "kp=80,400", "--set", "step_angle=0.15,0.25", "--duration",
+                        "0.3", "--workers", "2", "--no-progress", "-o", str(full / "gains.csv")],
+                       capture_output=True, text=True, env=env, timeout=120)
+    assert p.returncode == 1 and p.stderr.count("\n") == 1 and "Traceback" not in p.stderr, p.stderr
+    kept = sorted(tmp_path.glob("gains-*.csv"))
+    assert len(kept) == 1
+    assert p.stderr == (f"biped-sim sweep: error: {full / 'gains.csv'}: No space left on device; the 4 rows are kept "
+                        f"in {kept[0]}; free some disk space or choose another disk\n")
+    assert (full / "gains.csv").read_text() == "index,kp\n"              # the old file, whole
+    assert sorted(f.name for f in full.iterdir()) == ["filler", "gains.csv"]   # no half-written file beside it
+    with open(kept[0]) as f:
+        table = list(csv.DictReader(f))
+    assert [int(t["index"]) for t in table] == [0, 1, 2, 3] and all(t["status"] == "completed" for t in table)
+
+    rows = [dict(index=0, kp=1.0, **dict({c: 0.0 for c in OUTCOME}, q_end=[0.0] * 5, dq_end=[0.0] * 5))]
+    with pytest.raises(OSError, match=r"No space left on device; the 1 rows are kept in .*/full-\w+\.csv") as caught:
+        write_csv(rows, ["kp"], "/dev/full")
+    assert caught.value.filename == "/dev/full" and caught.value.errno == errno.ENOSPC
