@@ -206,8 +206,8 @@ def _run_processes(tasks, workers, _address):
     Workers forked by the fork server (:func:`_start_method`) that ignore SIGINT: Ctrl-C reaches
     the parent only, which stops the pool and its workers (so do SIGTERM and SIGHUP, which the
     workers do not ignore: :func:`_worker_setup`).
-    A worker that dies (a crash, the OOM killer) fails the runs in flight as rows and a new pool
-    takes the rest.
+    A worker that dies (a crash, the OOM killer, the fork server's end) fails the runs in flight as
+    rows that say which process ended and how (:func:`_what_ended`), and a new pool takes the rest.
     """
     workers = min(workers or default_workers(), len(tasks))
     pending = iter(enumerate(tasks))
@@ -218,20 +218,22 @@ def _run_processes(tasks, workers, _address):
             with _stop_signals_held():   # the processes a submit starts must not take a Ctrl-C meant for us
                 for index, task in itertools.islice(pending, workers * IN_FLIGHT_PER_WORKER - len(in_flight)):
                     in_flight[pool.submit(run_one, *task)] = index
+            # the pool's workers, known before one dies: a broken pool forgets them
+            workers_seen = dict(getattr(pool, "_processes", None) or {})
             if not in_flight:
                 return
             finished, _ = wait(in_flight, return_when=FIRST_COMPLETED)
-            broken = False
+            ended = None
             for future in finished:
                 index = in_flight.pop(future)
                 try:
                     yield index, future.result()
                 except BrokenProcessPool:
-                    broken = True
-                    yield index, _died(tasks[index])
-            if broken:   # the other runs in flight died with the pool
+                    ended = ended or _what_ended(workers_seen)
+                    yield index, _died(tasks[index], ended)
+            if ended:   # the other runs in flight died with the pool
                 for index in in_flight.values():
-                    yield index, _died(tasks[index])
+                    yield index, _died(tasks[index], ended)
                 in_flight.clear()
                 pool.shutdown(wait=False, cancel_futures=True)
                 pool = _new_pool(workers)
@@ -239,9 +241,59 @@ def _run_processes(tasks, workers, _address):
         _stop_pool(pool)
 
 
-def _died(task) -> dict:
-    return dict(task[1], **_empty_outcome("error", "the worker process died during this run or one beside it "
-                                                   "(a crash or the out-of-memory killer)"), wall_time=0.0)
+def _died(task, ended) -> dict:
+    return dict(task[1], **_empty_outcome("error", f"during this run or one beside it, {ended}"), wall_time=0.0)
+
+
+def _what_ended(workers_seen) -> str:
+    """Which process of a broken pool ended, and how: "worker pid 123 was killed by SIGKILL (the
+    out-of-memory killer sends it)", "... exited with code 3", or the fork server's end, which
+    takes its workers with it (each then reads as exit code 255: the fork server that would report
+    it has gone). The executor itself terminates the other workers (SIGTERM) once one has died: a
+    worker ended otherwise is the one that broke the pool."""
+    codes = {}
+    deadline = time.monotonic() + 1.0
+    while not codes and time.monotonic() < deadline:   # the pool breaks a moment before its sentinel reads
+        codes = {pid: p.exitcode for pid, p in workers_seen.items() if p.exitcode is not None}
+        time.sleep(0 if codes else 0.01)
+    server_pid = getattr(getattr(_forkserver, "_forkserver", None), "_forkserver_pid", None) \
+        if _popen_forkserver is not None else None
+    deadline = time.monotonic() + 1.0
+    # 255: no exit code came from the fork server. Its pipes close as it dies, a moment before
+    # the kernel has its exit status: wait for that moment
+    while server_pid is not None and 255 in codes.values() and time.monotonic() < deadline:
+        try:
+            # WNOWAIT: multiprocessing reaps it itself (and starts another for the next pool)
+            status = os.waitid(os.P_PID, server_pid, os.WEXITED | os.WNOHANG | os.WNOWAIT)
+        except OSError:
+            break
+        if status is not None:
+            return f"the fork server (pid {server_pid}) {_how(status)}, and its workers with it"
+        time.sleep(0.01)
+    culprits = {pid: code for pid, code in codes.items() if code != -signal.SIGTERM} or codes
+    if not culprits:
+        return "a worker process ended (how is not known)"
+    return "; ".join(f"worker pid {pid} {_exit_description(code)}" for pid, code in sorted(culprits.items()))
+
+
+def _how(status) -> str:
+    """A waitid result as 'was killed by SIGKILL' or 'exited with code 3'."""
+    if status.si_code in (os.CLD_KILLED, os.CLD_DUMPED):
+        return _exit_description(-status.si_status)
+    return _exit_description(status.si_status)
+
+
+def _exit_description(code) -> str:
+    """A Process.exitcode (-N: signal N) as 'was killed by SIGKILL (...)' or 'exited with code 3'."""
+    if code >= 0:
+        return f"exited with code {code}"
+    try:
+        name = signal.Signals(-code).name
+    except ValueError:
+        name = f"signal {-code}"
+    why = {signal.SIGKILL: " (the out-of-memory killer sends it)", signal.SIGSEGV: " (a crash)",
+           signal.SIGBUS: " (a crash)", signal.SIGABRT: " (a crash)"}.get(-code, "")
+    return f"was killed by {name}{why}"
 
 
 def _new_pool(workers):
@@ -478,17 +530,39 @@ def _run_ray(tasks, workers, address):
             ray.shutdown()
 
 
+#: what an HTTP/2 client sends first (RFC 9113, 3.4), then an empty SETTINGS frame; the server of
+#: a Ray cluster (its GCS, gRPC) answers with its own SETTINGS frame
+_HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+_HTTP2_SETTINGS = 4
+
+
 def _check_reachable(address, timeout=5.0):
-    """A ValueError unless something listens at a ``host:port`` address (``ray.init`` would retry an
-    unreachable one for minutes); "auto" and ``ray://`` addresses are left to Ray."""
+    """A ValueError, within ``timeout`` seconds, unless a server that speaks gRPC (as a Ray head's GCS
+    does) listens at a ``host:port`` address: ``ray.init`` retries one where nothing listens, or
+    where something else does (a web server, a database), for minutes. "auto" and ``ray://``
+    addresses are left to Ray."""
     import socket
     host, sep, port = address.rpartition(":")
     if address == "auto" or "://" in address or not sep or not port.isdigit():
         return
     try:
-        socket.create_connection((host, int(port)), timeout=timeout).close()
+        with socket.create_connection((host, int(port)), timeout=timeout) as connection:
+            connection.sendall(_HTTP2_PREFACE)
+            answer = b""
+            while len(answer) < 9:
+                chunk = connection.recv(9 - len(answer))
+                if not chunk:
+                    break
+                answer += chunk
+    except socket.timeout:
+        raise ValueError(f"no Ray cluster at {address}: something listens there but did not answer within "
+                         f"{timeout:g} s (a Ray head listens on its GCS port, 6379 by default)") from None
     except OSError as exc:
         raise ValueError(f"no Ray cluster at {address}: {exc} (start one with: ray start --head)") from None
+    if len(answer) < 9 or answer[3] != _HTTP2_SETTINGS:
+        shown = answer[:9].decode("ascii", "replace").strip() or "nothing"
+        raise ValueError(f"no Ray cluster at {address}: something else listens there (it answered {shown!r}, "
+                         "not gRPC); give the Ray head's GCS port, 6379 by default") from None
 
 
 def _empty_outcome(status, message) -> dict:

@@ -10,6 +10,7 @@ import errno
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -439,3 +440,64 @@ def test_a_result_that_cannot_be_written_loses_nothing(tmp_path, small_tmpfs):
     with pytest.raises(OSError, match=r"No space left on device; the 1 rows are kept in .*/full-\w+\.csv") as caught:
         write_csv(rows, ["kp"], "/dev/full")
     assert caught.value.filename == "/dev/full" and caught.value.errno == errno.ENOSPC
+
+
+KILLING_SCRIPT = '''
+import json, os, signal, sys
+from multiprocessing import forkserver
+from pathlib import Path
+import biped_sim as bs
+
+def children(pid):
+    return [int(c) for t in Path(f"/proc/{pid}/task").glob("*") for c in (t / "children").read_text().split()]
+
+killed = []
+def kill_once(victim):
+    def progress(done, total, row):
+        if not killed:
+            server = forkserver._forkserver._forkserver_pid
+            pid = server if victim == "server" else children(server)[0]
+            os.kill(pid, signal.SIGKILL)
+            killed.append(pid)
+    return progress
+
+out = {}
+for victim in ("worker", "server"):
+    killed.clear()
+    rows = bs.sweep("walk", {"kp": [float(k) for k in range(50, 650, 50)]}, duration=100.0, workers=2,
+                    progress=kill_once(victim))
+    out[victim] = {"pid": killed[0], "errors": sorted({r["message"] for r in rows if r["status"] == "error"}),
+                   "completed": sum(r["status"] == "completed" for r in rows)}
+print(json.dumps(out))
+'''
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs /proc to find the pool's processes")
+def test_a_run_lost_with_its_worker_says_which_process_ended_and_how(tmp_path):
+    """A worker, then the fork server, killed (SIGKILL: what the out-of-memory killer sends) during a
+    sweep: the runs in flight are error rows naming the pid and the signal (they blamed "a crash or
+    the out-of-memory killer", no process named), and the sweep goes on with a new pool."""
+    script = tmp_path / "kill_a_worker.py"
+    script.write_text(KILLING_SCRIPT)
+    p = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    out = json.loads(p.stdout.splitlines()[-1])
+    worker, server = out["worker"], out["server"]
+    assert worker["errors"] == [f"during this run or one beside it, worker pid {worker['pid']} was killed by SIGKILL "
+                                "(the out-of-memory killer sends it)"], worker
+    assert server["errors"] == [f"during this run or one beside it, the fork server (pid {server['pid']}) was killed "
+                                "by SIGKILL (the out-of-memory killer sends it), and its workers with it"], server
+    assert worker["completed"] >= 4 and server["completed"] >= 4   # the runs not in flight ran on a new pool
+
+
+def test_a_grid_too_large_says_how_large_and_asks_for_yes(tmp_path):
+    """101,000 runs: one line with the number of runs and about how long they would take, and no run
+    without --yes (such a grid said nothing for minutes)."""
+    out = tmp_path / "big.csv"
+    t0 = time.perf_counter()
+    p = subprocess.run([CLI, "sweep", "walk", "--set", "kp=1:1000:1010", "--set", "kd=1:100:100", "--duration", "1",
+                        "--workers", "2", "-o", str(out)], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1, p.stderr
+    assert re.fullmatch(r"biped-sim sweep: error: 101,000 runs of walk, 1 s each: about \d+ (s|min|h) on 2 workers "
+                        r"\(a run took \d+ ms here\); more than 100,000: add --yes to start them\n", p.stderr), p.stderr
+    assert not out.exists() and time.perf_counter() - t0 < 30
