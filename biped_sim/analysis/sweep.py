@@ -11,15 +11,22 @@ computation). docs/sweeps.md shows the API and ``biped-sim sweep``.
 from __future__ import annotations
 
 import contextlib
+import errno
 import inspect
+import io
 import itertools
 import math
 import multiprocessing
+import multiprocessing.context
+import multiprocessing.util
 import os
 import pickle
+import secrets
 import signal
+import tempfile
 import threading
 import time
+import types
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import fields
@@ -38,13 +45,28 @@ OUTCOME = ("status", "message", "impacts", "t_end", "x_end", "mean_speed", "q_en
 IN_FLIGHT_PER_WORKER = 4
 
 
-class SweepInterrupted(KeyboardInterrupt):
-    """Ctrl-C during a sweep: the pool is stopped; ``rows`` holds the runs that finished, in grid
-    order (each row carries its ``index`` in the grid), and ``total`` the number of runs in the grid."""
+#: the signals that end a sweep and keep its finished runs: Ctrl-C, and what ``timeout``, a batch
+#: scheduler or systemd (SIGTERM) and a closed terminal (SIGHUP) send
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
-    def __init__(self, rows, total):
-        super().__init__(f"sweep interrupted after {len(rows)} of {total} runs")
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C (or SIGTERM, SIGHUP) during a sweep: the pool is stopped; ``rows`` holds the runs that
+    finished, in grid order (each row carries its ``index`` in the grid), ``total`` the number of runs
+    in the grid and ``signal`` the signal that stopped it (a :class:`signal.Signals`)."""
+
+    def __init__(self, rows, total, signum=signal.SIGINT):
+        self.signal = signal.Signals(signum)
+        super().__init__(f"sweep stopped by {self.signal.name} after {len(rows)} of {total} runs")
         self.rows, self.total = rows, total
+
+
+class _StopSignal(KeyboardInterrupt):
+    """A stop signal (:data:`STOP_SIGNALS`) raised in the sweep's thread, so that it unwinds as Ctrl-C does."""
+
+    def __init__(self, signum):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
 
 
 def grid_runs(grid) -> tuple[list[str], list[list], list[dict]]:
@@ -151,18 +173,22 @@ def sweep(scene, grid, duration=None, workers=None, backend="process", *, ray_ad
         raise ValueError("ray_address needs backend='ray'")
     scene = _scene_argument(scene)
     runs = check_sweep(scene, grid, duration, run_options)
+    if backend == "process":   # (Ray pickles such a function by value)
+        _check_not_from_main(run_options)
     tasks = [(scene, point, duration, run_options) for point in runs]
     execute = _run_ray if backend == "ray" else _run_processes
     rows = [None] * len(tasks)
     done = 0
     try:
-        for index, row in execute(tasks, workers, ray_address):
-            rows[index] = dict(index=index, **row)
-            done += 1
-            if progress is not None:
-                progress(done, len(tasks), rows[index])
-    except KeyboardInterrupt:
-        raise SweepInterrupted([r for r in rows if r is not None], len(tasks)) from None
+        with _stop_signals_raised(), contextlib.closing(execute(tasks, workers, ray_address)) as finished:
+            for index, row in finished:
+                rows[index] = dict(index=index, **row)
+                done += 1
+                if progress is not None:
+                    progress(done, len(tasks), rows[index])
+    except KeyboardInterrupt as stop:
+        raise SweepInterrupted([r for r in rows if r is not None], len(tasks),
+                               getattr(stop, "signum", signal.SIGINT)) from None
     return rows
 
 
@@ -178,9 +204,10 @@ def _run_processes(tasks, workers, _address):
     """(index, row) of every task, as the runs finish, on a pool of ``workers`` processes.
 
     Workers forked by the fork server (:func:`_start_method`) that ignore SIGINT: Ctrl-C reaches
-    the parent only, which stops the pool and its workers.
-    A worker that dies (a crash, the OOM killer) fails the runs in flight as rows and a new pool
-    takes the rest.
+    the parent only, which stops the pool and its workers (so do SIGTERM and SIGHUP, which the
+    workers do not ignore: :func:`_worker_setup`).
+    A worker that dies (a crash, the OOM killer, the fork server's end) fails the runs in flight as
+    rows that say which process ended and how (:func:`_what_ended`), and a new pool takes the rest.
     """
     workers = min(workers or default_workers(), len(tasks))
     pending = iter(enumerate(tasks))
@@ -188,23 +215,25 @@ def _run_processes(tasks, workers, _address):
     in_flight = {}
     try:
         while True:
-            with _sigint_blocked():   # the processes a submit starts must not take a Ctrl-C meant for us
+            with _stop_signals_held():   # the processes a submit starts must not take a Ctrl-C meant for us
                 for index, task in itertools.islice(pending, workers * IN_FLIGHT_PER_WORKER - len(in_flight)):
                     in_flight[pool.submit(run_one, *task)] = index
+            # the pool's workers, known before one dies: a broken pool forgets them
+            workers_seen = dict(getattr(pool, "_processes", None) or {})
             if not in_flight:
                 return
             finished, _ = wait(in_flight, return_when=FIRST_COMPLETED)
-            broken = False
+            ended = None
             for future in finished:
                 index = in_flight.pop(future)
                 try:
                     yield index, future.result()
                 except BrokenProcessPool:
-                    broken = True
-                    yield index, _died(tasks[index])
-            if broken:   # the other runs in flight died with the pool
+                    ended = ended or _what_ended(workers_seen)
+                    yield index, _died(tasks[index], ended)
+            if ended:   # the other runs in flight died with the pool
                 for index in in_flight.values():
-                    yield index, _died(tasks[index])
+                    yield index, _died(tasks[index], ended)
                 in_flight.clear()
                 pool.shutdown(wait=False, cancel_futures=True)
                 pool = _new_pool(workers)
@@ -212,58 +241,236 @@ def _run_processes(tasks, workers, _address):
         _stop_pool(pool)
 
 
-def _died(task) -> dict:
-    return dict(task[1], **_empty_outcome("error", "the worker process died during this run or one beside it "
-                                                   "(a crash or the out-of-memory killer)"), wall_time=0.0)
+def _died(task, ended) -> dict:
+    return dict(task[1], **_empty_outcome("error", f"during this run or one beside it, {ended}"), wall_time=0.0)
+
+
+def _what_ended(workers_seen) -> str:
+    """Which process of a broken pool ended, and how: "worker pid 123 was killed by SIGKILL (the
+    out-of-memory killer sends it)", "... exited with code 3", or the fork server's end, which
+    takes its workers with it (each then reads as exit code 255: the fork server that would report
+    it has gone). The executor itself terminates the other workers (SIGTERM) once one has died: a
+    worker ended otherwise is the one that broke the pool."""
+    codes = {}
+    deadline = time.monotonic() + 1.0
+    while not codes and time.monotonic() < deadline:   # the pool breaks a moment before its sentinel reads
+        codes = {pid: p.exitcode for pid, p in workers_seen.items() if p.exitcode is not None}
+        time.sleep(0 if codes else 0.01)
+    server_pid = getattr(getattr(_forkserver, "_forkserver", None), "_forkserver_pid", None) \
+        if _popen_forkserver is not None else None
+    deadline = time.monotonic() + 1.0
+    # 255: no exit code came from the fork server. Its pipes close as it dies, a moment before
+    # the kernel has its exit status: wait for that moment
+    while server_pid is not None and 255 in codes.values() and time.monotonic() < deadline:
+        try:
+            # WNOWAIT: multiprocessing reaps it itself (and starts another for the next pool)
+            status = os.waitid(os.P_PID, server_pid, os.WEXITED | os.WNOHANG | os.WNOWAIT)
+        except OSError:
+            break
+        if status is not None:
+            return f"the fork server (pid {server_pid}) {_how(status)}, and its workers with it"
+        time.sleep(0.01)
+    culprits = {pid: code for pid, code in codes.items() if code != -signal.SIGTERM} or codes
+    if not culprits:
+        return "a worker process ended (how is not known)"
+    return "; ".join(f"worker pid {pid} {_exit_description(code)}" for pid, code in sorted(culprits.items()))
+
+
+def _how(status) -> str:
+    """A waitid result as 'was killed by SIGKILL' or 'exited with code 3'."""
+    if status.si_code in (os.CLD_KILLED, os.CLD_DUMPED):
+        return _exit_description(-status.si_status)
+    return _exit_description(status.si_status)
+
+
+def _exit_description(code) -> str:
+    """A Process.exitcode (-N: signal N) as 'was killed by SIGKILL (...)' or 'exited with code 3'."""
+    if code >= 0:
+        return f"exited with code {code}"
+    try:
+        name = signal.Signals(-code).name
+    except ValueError:
+        name = f"signal {-code}"
+    why = {signal.SIGKILL: " (the out-of-memory killer sends it)", signal.SIGSEGV: " (a crash)",
+           signal.SIGBUS: " (a crash)", signal.SIGABRT: " (a crash)"}.get(-code, "")
+    return f"was killed by {name}{why}"
 
 
 def _new_pool(workers):
-    return ProcessPoolExecutor(max_workers=workers, mp_context=_start_method(), initializer=_ignore_sigint)
+    return ProcessPoolExecutor(max_workers=workers, mp_context=_start_method(), initializer=_worker_setup)
 
 
 def _start_method():
     """The fork server where there is one (POSIX): a clean single-threaded process that imports the
     engine once (numpy, scipy: ~2 s on a loaded machine) and forks the workers of every pool this
     process starts, so that a pool costs that import once and not once per worker or per sweep.
+    Its workers do not run the caller's ``__main__`` (:class:`_WorkerPopen`).
     Elsewhere spawned processes. Never a fork of this process, which may hold threads."""
     if "forkserver" in multiprocessing.get_all_start_methods():
-        context = multiprocessing.get_context("forkserver")
+        context = _WorkerContext()
         context.set_forkserver_preload([__name__])
         return context
     return multiprocessing.get_context("spawn")
 
 
-def _ignore_sigint():
+try:
+    from multiprocessing import forkserver as _forkserver, popen_forkserver as _popen_forkserver, spawn as _spawn
+except ImportError:   # no fork server here (Windows): spawned workers, which run __main__ as multiprocessing does
+    _popen_forkserver = None
+else:
+    class _WorkerPopen(_popen_forkserver.Popen):
+        """The fork server's start of a worker, less the caller's main module.
+
+        multiprocessing has every worker run the caller's ``__main__`` (the script, as
+        ``__mp_main__``) before its task, so that objects defined there unpickle. A script that calls
+        :func:`sweep` at its top level, unguarded (as most first scripts are), then has each worker
+        start a sweep of its own while it starts: a RuntimeError ("... before the current process
+        has finished its bootstrapping phase") in every worker, and error rows. A worker needs
+        nothing from ``__main__`` (:func:`run_one` and its arguments live in this package; a run
+        option defined in ``__main__`` is refused by :func:`_check_not_from_main`), so it is not run.
+        The rest is ``popen_forkserver.Popen._launch`` (CPython 3.8 to 3.13) as it is.
+        """
+
+        def _launch(self, process_obj):
+            prep_data = _spawn.get_preparation_data(process_obj._name)
+            prep_data.pop("init_main_from_path", None)
+            prep_data.pop("init_main_from_name", None)
+            buf = io.BytesIO()
+            multiprocessing.context.set_spawning_popen(self)
+            try:
+                multiprocessing.context.reduction.dump(prep_data, buf)
+                multiprocessing.context.reduction.dump(process_obj, buf)
+            finally:
+                multiprocessing.context.set_spawning_popen(None)
+            self.sentinel, w = _forkserver.connect_to_new_process(self._fds)
+            _parent_w = os.dup(w)
+            self.finalizer = multiprocessing.util.Finalize(self, multiprocessing.util.close_fds,
+                                                           (_parent_w, self.sentinel))
+            with open(w, "wb", closefd=True) as f:
+                f.write(buf.getbuffer())
+            self.pid = _forkserver.read_signed(self.sentinel)
+
+    class _WorkerProcess(multiprocessing.context.ForkServerProcess):
+        @staticmethod
+        def _Popen(process_obj):
+            return _WorkerPopen(process_obj)
+
+    class _WorkerContext(multiprocessing.context.ForkServerContext):
+        Process = _WorkerProcess
+
+
+def _check_not_from_main(run_options):
+    """A ValueError for a run option that is (or holds) a function or class defined in ``__main__``:
+    the process pool's workers do not run the caller's script (:class:`_WorkerPopen`), so they could
+    not unpickle it."""
+    for name, value in run_options.items():
+        found = []
+
+        class _Finder(pickle.Pickler):
+            def reducer_override(self, obj):
+                kind = obj if isinstance(obj, (type, types.FunctionType)) else type(obj)
+                if getattr(kind, "__module__", None) == "__main__":
+                    found.append(getattr(kind, "__qualname__", repr(kind)))
+                return NotImplemented
+
+        _Finder(io.BytesIO()).dump(value)
+        if found:
+            raise ValueError(f"run option {name!r}: {found[0]} is defined in the script (__main__), which the "
+                             "workers do not run: define it in a module of its own and import it from there")
+
+
+def _worker_setup():
+    """A worker's signals, and its end with the sweep's process whatever way that ends.
+
+    SIGINT ignored (Ctrl-C reaches the whole process group: the parent stops the pool). SIGTERM and
+    SIGHUP at their default, unblocked (a worker inherits the mask of the submit that started the
+    fork server, :func:`_stop_signals_held`): the pool's own shutdown of a broken pool terminates
+    its workers, and waits for them.
+
+    A worker inherits the write end of the pipe whose end tells the fork server that its client has
+    gone; while any worker held it, a sweep process that died (SIGTERM at its default, SIGKILL)
+    left the fork server and its workers running for ever, re-parented to init. Closed here, the
+    fork server ends with the sweep's process, and the workers with the fork server (the
+    kernel's parent-death signal, Linux).
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM, signal.SIGHUP})
+    server = getattr(_forkserver, "_forkserver", None) if _popen_forkserver is not None else None
+    alive_fd = getattr(server, "_forkserver_alive_fd", None)
+    if alive_fd is not None:
+        with contextlib.suppress(OSError):
+            os.close(alive_fd)
+        server._forkserver_alive_fd = None
+    if os.uname().sysname == "Linux":
+        import ctypes
+        pr_set_pdeathsig = 1
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0)
 
 
 @contextlib.contextmanager
-def _sigint_blocked():
-    """A Ctrl-C held back while a submit may start the fork server or a worker. Blocked in this thread,
-    so that they (which inherit the mask) cannot take it while they import the engine, before a
-    worker's initializer ignores it: each printed a KeyboardInterrupt traceback. And deferred in
-    Python, because the kernel may hand it to another thread of ours, and the interpreter would then
-    raise it in the middle of a submit: a worker started but not yet known to the pool, left alive to
-    fail once we are gone. The Ctrl-C held back is raised when the block ends."""
+def _stop_signals_raised():
+    """SIGTERM and SIGHUP (where they are at their default, which ends the process on the spot and
+    lost every finished run) and Ctrl-C (where Python's own handler has it) raise
+    :class:`_StopSignal` in the sweep's thread, once: the sweep unwinds (its pool stopped) and
+    returns its rows in :class:`SweepInterrupted`. A second signal during that unwinding is
+    ignored, so that the cleanup is not cut short. Only in the main thread (Python's signal
+    handlers run there); a handler of the caller's own is left alone."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    stopped = []
+
+    def stop(signum, _frame):
+        if not stopped:
+            stopped.append(signum)
+            raise _StopSignal(signum)
+
+    replaced = {}
+    for signum in STOP_SIGNALS:
+        default = signal.default_int_handler if signum == signal.SIGINT else signal.SIG_DFL
+        if signal.getsignal(signum) is default:
+            replaced[signum] = signal.signal(signum, stop)
+    try:
+        yield
+    finally:
+        for signum, handler in replaced.items():
+            signal.signal(signum, handler)
+
+
+@contextlib.contextmanager
+def _stop_signals_held():
+    """A stop signal (:data:`STOP_SIGNALS`) held back while a submit may start the fork server or a
+    worker. Blocked in this thread, so that they (which inherit the mask) cannot take it while they
+    import the engine, before a worker's initializer sets its signals: each printed a
+    KeyboardInterrupt traceback. And deferred in Python, because the kernel may hand it to another
+    thread of ours, and the interpreter would then raise it in the middle of a submit: a worker
+    started but not yet known to the pool, left alive to fail once we are gone. The signal held
+    back goes to its handler when the block ends."""
     deferred = []
+    old_handlers = {}
     # (a process started with SIGINT ignored, as by a shell's '&', keeps ignoring it here too)
-    in_main = threading.current_thread() is threading.main_thread() \
-        and signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
-    old_handler = signal.signal(signal.SIGINT, lambda *_: deferred.append(True)) if in_main else None
-    old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    if threading.current_thread() is threading.main_thread():
+        for signum in STOP_SIGNALS:
+            if callable(signal.getsignal(signum)):
+                old_handlers[signum] = signal.signal(signum, lambda signum, _: deferred.append(signum))
+    old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, set(STOP_SIGNALS))
     try:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
-        if in_main:
-            signal.signal(signal.SIGINT, old_handler)
+        for signum, handler in old_handlers.items():
+            signal.signal(signum, handler)
     if deferred:
-        raise KeyboardInterrupt
+        old_handlers[deferred[0]](deferred[0], None)
 
 
 def _stop_pool(pool):
     """Shut the pool down without waiting for the runs in flight (after Ctrl-C they are not wanted).
-    The executor has no public way to stop a running task: its worker processes are terminated."""
+    The executor has no public way to stop a running task: its worker processes are terminated
+    (killed, should one outlive SIGTERM for 5 s)."""
     processes = list(getattr(pool, "_processes", {}).values())
     pool.shutdown(wait=False, cancel_futures=True)
     for p in processes:
@@ -271,6 +478,9 @@ def _stop_pool(pool):
             p.terminate()
     for p in processes:
         p.join(timeout=5)
+        if p.is_alive():
+            p.kill()
+            p.join(timeout=5)
 
 
 def _run_ray(tasks, workers, address):
@@ -320,17 +530,39 @@ def _run_ray(tasks, workers, address):
             ray.shutdown()
 
 
+#: what an HTTP/2 client sends first (RFC 9113, 3.4), then an empty SETTINGS frame; the server of
+#: a Ray cluster (its GCS, gRPC) answers with its own SETTINGS frame
+_HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+_HTTP2_SETTINGS = 4
+
+
 def _check_reachable(address, timeout=5.0):
-    """A ValueError unless something listens at a ``host:port`` address (``ray.init`` would retry an
-    unreachable one for minutes); "auto" and ``ray://`` addresses are left to Ray."""
+    """A ValueError, within ``timeout`` seconds, unless a server that speaks gRPC (as a Ray head's GCS
+    does) listens at a ``host:port`` address: ``ray.init`` retries one where nothing listens, or
+    where something else does (a web server, a database), for minutes. "auto" and ``ray://``
+    addresses are left to Ray."""
     import socket
     host, sep, port = address.rpartition(":")
     if address == "auto" or "://" in address or not sep or not port.isdigit():
         return
     try:
-        socket.create_connection((host, int(port)), timeout=timeout).close()
+        with socket.create_connection((host, int(port)), timeout=timeout) as connection:
+            connection.sendall(_HTTP2_PREFACE)
+            answer = b""
+            while len(answer) < 9:
+                chunk = connection.recv(9 - len(answer))
+                if not chunk:
+                    break
+                answer += chunk
+    except socket.timeout:
+        raise ValueError(f"no Ray cluster at {address}: something listens there but did not answer within "
+                         f"{timeout:g} s (a Ray head listens on its GCS port, 6379 by default)") from None
     except OSError as exc:
         raise ValueError(f"no Ray cluster at {address}: {exc} (start one with: ray start --head)") from None
+    if len(answer) < 9 or answer[3] != _HTTP2_SETTINGS:
+        shown = answer[:9].decode("ascii", "replace").strip() or "nothing"
+        raise ValueError(f"no Ray cluster at {address}: something else listens there (it answered {shown!r}, "
+                         "not gRPC); give the Ray head's GCS port, 6379 by default") from None
 
 
 def _empty_outcome(status, message) -> dict:
@@ -360,15 +592,89 @@ def csv_columns(names) -> list[str]:
     return ["index", *names, *scalars] + [f"q_end[{i}]" for i in range(5)] + [f"dq_end[{i}]" for i in range(5)]
 
 
+def check_writable(path, what="-o"):
+    """An OSError (or ValueError for a missing folder) now, before any run, if ``path`` cannot be
+    written: a read-only file system or folder, a folder in the way. Found only after every run, it
+    lost them all. A device or a pipe (``/dev/stdout``) is opened for appending (nothing written);
+    a file is tried as :func:`write_csv` writes it, by a file created beside it and removed."""
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise ValueError(f"{what} {path}: folder {path.parent} does not exist")
+    if path.is_dir():
+        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
+    try:
+        if path.exists() and not path.is_file():
+            with open(path, "ab"):
+                return
+        fd, temporary = _new_file_beside(path)
+        os.close(fd)
+        os.unlink(temporary)
+    except OSError as exc:   # the destination named, not the file tried beside it
+        raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
+
+
 def write_csv(rows, names, path):
-    """One line per row (numbers as Python's repr: they read back to the same bits)."""
+    """One line per row (numbers as Python's repr: they read back to the same bits).
+
+    The whole file or none: written to a new file beside ``path`` and renamed onto it (a full disk
+    left a CSV cut mid-row where the result should be). Should that fail (a full disk, a removed
+    folder), the rows are kept in a new file in the system's temp folder and the OSError raised
+    names ``path``, the reason and that file. A device or a pipe (``/dev/stdout``) is written in
+    place."""
+    path = Path(path)
+    if path.is_symlink():   # the file it points to is replaced, not the link
+        path = Path(os.path.realpath(path))
+    try:
+        if path.exists() and not path.is_file():
+            with open(path, "w", newline="") as f:
+                _write_rows(f, rows, names)
+            return
+        fd, temporary = _new_file_beside(path)
+        try:
+            with open(fd, "w", newline="") as f:
+                _write_rows(f, rows, names)
+                f.flush()
+                os.fsync(f.fileno())
+            if path.exists():   # the result keeps the permissions of the file it replaces
+                os.chmod(temporary, os.stat(path).st_mode & 0o7777)
+            os.replace(temporary, path)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(temporary)
+            raise
+    except OSError as exc:
+        raise OSError(exc.errno, f"{exc.strerror or exc}; {_keep_rows(rows, names, path)}", str(path)) from exc
+
+
+def _new_file_beside(path: Path) -> tuple[int, Path]:
+    """A new, empty, hidden file in ``path``'s folder (its descriptor and path), with the mode a new
+    file gets there (the umask's)."""
+    while True:
+        temporary = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+        try:
+            return os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), temporary
+        except FileExistsError:
+            continue
+
+
+def _keep_rows(rows, names, path: Path) -> str:
+    """The rows written to a new file in the system's temp folder; what became of them, as a clause."""
+    try:
+        fd, kept = tempfile.mkstemp(prefix=f"{path.stem}-", suffix=path.suffix or ".csv")
+        with open(fd, "w", newline="") as f:
+            _write_rows(f, rows, names)
+    except OSError as exc:
+        return f"the {len(rows)} rows could not be kept in the temp folder either ({exc.strerror or exc})"
+    return f"the {len(rows)} rows are kept in {kept}"
+
+
+def _write_rows(f, rows, names):
     import csv
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(csv_columns(names))
-        for r in rows:
-            w.writerow([r["index"], *(r[n] for n in names), *(r[c] for c in OUTCOME if c not in ("q_end", "dq_end")),
-                        *r["q_end"], *r["dq_end"]])
+    w = csv.writer(f)
+    w.writerow(csv_columns(names))
+    for r in rows:
+        w.writerow([r["index"], *(r[n] for n in names), *(r[c] for c in OUTCOME if c not in ("q_end", "dq_end")),
+                    *r["q_end"], *r["dq_end"]])
 
 
 def plot(rows, names, path, title="sweep"):

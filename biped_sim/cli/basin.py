@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 from biped_sim.analysis import basin as bn, sweep as sw
 from biped_sim.cli.sweep import ProgressLine
@@ -36,9 +35,9 @@ def run(args):
         span = tuple(float(v) for v in args.span.split(","))
     except ValueError:
         raise ValueError(f"--span {args.span!r}: expected two numbers, DQ_STANCE,DQ_TORSO") from None
-    for path in (args.output, args.plot):
-        if path and not Path(path).parent.is_dir():
-            raise ValueError(f"{path}: folder {Path(path).parent} does not exist")
+    sw.check_writable(args.output, "-o")   # before any run: found after them, it lost them all
+    if args.plot:
+        sw.check_writable(args.plot, "--plot")
     progress = None if args.no_progress else ProgressLine(args.num ** 2)
     t0 = time.perf_counter()
     gait, rows = bn.basin(args.scene, span=span, num=args.num, duration=args.duration, workers=args.workers,

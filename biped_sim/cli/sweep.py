@@ -6,12 +6,19 @@ line, the CSV, the exit status; the sweep, its rows and its figure are biped_sim
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
+import signal
 import sys
 import time
 from pathlib import Path
 
 from biped_sim.analysis import sweep as sw
+
+#: from this many runs on, the command says how many and about how long before it starts them
+ANNOUNCED_GRID = 1_000
+#: past this many runs the command asks for --yes: hours of runs, and every row held in memory
+LARGE_GRID = 100_000
 
 
 def register(sub):
@@ -22,8 +29,8 @@ def register(sub):
                     "message, impacts (steps walked), t_end, x_end (distance the hip travelled), mean_speed, "
                     "energy_residual and drift (the run's own error estimate), wall_time, q_end and dq_end. "
                     "Names are those of the scene file: kp, step_angle, duration, initial_q[0], "
-                    "walk_controller.torque_limit, ... (docs/sweeps.md). A failed run is a row; Ctrl-C writes "
-                    "the runs done.",
+                    "walk_controller.torque_limit, ... (docs/sweeps.md). A failed run is a row; Ctrl-C, SIGTERM "
+                    "or SIGHUP writes the runs done.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("scene", help="a scene name in msg_configs/ (walk, slope, ...) or a path to a .yaml file")
     p.add_argument("--set", dest="grid", action="append", required=True, metavar="NAME=VALUES",
@@ -41,6 +48,9 @@ def register(sub):
     p.add_argument("--plot", default=None, help="a PNG: steps walked over the first two swept names (a heat map, "
                                                 "failures marked) or along the one swept name")
     p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
+    p.add_argument("--yes", action="store_true",
+                   help=f"start a grid of more than {LARGE_GRID:,} runs (without it such a grid is refused, "
+                        "saying how long it would take)")
     p.set_defaults(func=run)
 
 
@@ -86,23 +96,29 @@ def run(args):
             raise ValueError(f"--set {name} given twice: give its values in one --set")
         grid[name] = values
     out = Path(args.output)
-    if not out.parent.is_dir():
-        raise ValueError(f"-o {args.output}: folder {out.parent} does not exist")
-    if args.plot and not Path(args.plot).parent.is_dir():
-        raise ValueError(f"--plot {args.plot}: folder {Path(args.plot).parent} does not exist")
+    sw.check_writable(out, "-o")   # before any run: found after them, it lost them all
+    if args.plot:
+        sw.check_writable(args.plot, "--plot")
     total = math.prod(len(v) for v in grid.values())
-    progress = None if args.no_progress else ProgressLine(total)
     options = {"hold": False} if args.continuous else {}
+    if total >= ANNOUNCED_GRID:   # a large grid said nothing for minutes (building its runs, starting its pool)
+        plan = _plan(args, grid, total, options)
+        if total > LARGE_GRID and not args.yes:
+            raise ValueError(f"{plan}; more than {LARGE_GRID:,}: add --yes to start them")
+        print(plan, file=sys.stderr, flush=True)
+    progress = None if args.no_progress else ProgressLine(total)
     t0 = time.perf_counter()
     try:
         rows = sw.sweep(args.scene, grid, duration=args.duration, workers=args.workers, backend=args.backend,
                         ray_address=args.ray_address, progress=progress, **options)
     except sw.SweepInterrupted as stop:
-        if progress:
-            progress.end()
-        sw.write_csv(stop.rows, list(grid), out)
-        print(f"interrupted: {len(stop.rows)} of {stop.total} runs done, written to {out}", file=sys.stderr)
-        return 130
+        with _stop_signals_ignored():   # a second SIGTERM must not cut the CSV short
+            if progress:
+                progress.end()
+            sw.write_csv(stop.rows, list(grid), out)
+        how = "interrupted" if stop.signal == signal.SIGINT else f"stopped by {stop.signal.name}"
+        _say(f"{how}: {len(stop.rows)} of {stop.total} runs done, written to {out}")
+        return 128 + stop.signal
     if progress:
         progress.end()
     wall = time.perf_counter() - t0
@@ -117,6 +133,70 @@ def run(args):
     return 0
 
 
+#: grid points timed for the estimate of a large grid: spread over it (its first point alone, low
+#: gains that fall at once, made 1,600 runs of 12 s read as 3 s)
+TIMED_POINTS = 5
+
+
+def _plan(args, grid, total, options) -> str:
+    """'N runs of SCENE, D s each: about T on W workers (a run took X ms here)': the mean wall time of
+    a few points spread over the grid, each run in this process (after one run that pays for
+    importing the engine)."""
+    names, columns = list(grid), list(grid.values())
+    points = [_point(names, columns, round(i * (total - 1) / max(1, TIMED_POINTS - 1)))
+              for i in range(min(TIMED_POINTS, total))]
+    sw.run_one(args.scene, points[0], args.duration, options)
+    rows = [sw.run_one(args.scene, point, args.duration, options) for point in points]
+    line = f"{total:,} runs of {args.scene}" + (f", {args.duration:g} s each" if args.duration else "")
+    errors = [r for r in rows if r["status"] == "error"]
+    if errors:
+        return f"{line} (a run is an error: {errors[0]['message']})"
+    run_time = sum(r["wall_time"] for r in rows) / len(rows)
+    if args.backend == "ray" and not args.workers:
+        return f"{line}: about {_duration_text(total * run_time)} of one core's time " \
+               f"(a run took {run_time * 1e3:.0f} ms here)"
+    workers = min(args.workers or sw.default_workers(), total)
+    return f"{line}: about {_duration_text(total * run_time / workers)} on {workers} workers " \
+           f"(a run took {run_time * 1e3:.0f} ms here)"
+
+
+def _point(names, columns, index) -> dict:
+    """The grid's point ``index`` (row-major, the last name fastest) without building the others."""
+    point = {}
+    for name, values in zip(reversed(names), reversed(columns)):
+        index, i = divmod(index, len(values))
+        point[name] = values[i]
+    return {name: point[name] for name in names}
+
+
+def _duration_text(seconds) -> str:
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 90 * 60:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 48 * 3600:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.1f} days"
+
+
+@contextlib.contextmanager
+def _stop_signals_ignored():
+    old = {signum: signal.signal(signum, signal.SIG_IGN) for signum in sw.STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for signum, handler in old.items():
+            signal.signal(signum, handler)
+
+
+def _say(line):
+    """A line on stderr, which may have gone with its terminal (SIGHUP): the CSV is written already."""
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except OSError:
+        pass
+
+
 class ProgressLine:
     """``[done/total] failures  elapsed  left`` on one stderr line, rewritten in place."""
 
@@ -128,10 +208,15 @@ class ProgressLine:
         self.failures += row["status"] != "completed"
         elapsed = time.perf_counter() - self.t0
         left = elapsed / done * (total - done)
-        self.stream.write(f"\r[{done}/{total}] {self.failures} not completed, {elapsed:.0f} s elapsed, "
-                          f"~{left:.0f} s left   ")
-        self.stream.flush()
+        self._write(f"\r[{done}/{total}] {self.failures} not completed, {elapsed:.0f} s elapsed, ~{left:.0f} s left   ")
 
     def end(self):
-        self.stream.write("\n")
-        self.stream.flush()
+        self._write("\n")
+
+    def _write(self, text):
+        # a terminal that has gone (SIGHUP, EIO) does not stop the sweep: its rows still reach the CSV
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except OSError:
+            pass

@@ -4,9 +4,13 @@ The rows must be the single runs, bit for bit, whatever the number of workers; a
 is refused before any run; failing runs are rows. The Ray backend's agreement is
 test/integration/test_sweep_ray.py.
 """
+import contextlib
 import csv
+import errno
+import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -17,7 +21,7 @@ import numpy as np
 import pytest
 
 import biped_sim as bs
-from biped_sim.analysis.sweep import OUTCOME, SweepInterrupted, grid_runs
+from biped_sim.analysis.sweep import OUTCOME, SweepInterrupted, grid_runs, write_csv
 from biped_sim.cli import main
 from biped_sim.cli.sweep import parse_set
 
@@ -287,3 +291,213 @@ def test_a_scene_file_given_by_a_relative_path(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     rows = bs.sweep("mine.yaml", {"duration": [0.1, 0.2]}, workers=2)
     assert [r["status"] for r in rows] == ["completed"] * 2 and rows[1]["t_end"] == 0.2
+
+
+# ---- faults, round 3 (issue 34) ----
+
+PLAIN_SCRIPT = '''
+import json
+import biped_sim as bs
+
+def my_controller(t, q, dq, stance_leg):
+    return [0.0, 0.0]
+
+grid = {"kp": [80.0, 400.0], "step_angle": [0.15, 0.25]}
+two = bs.sweep("walk", grid, duration=0.3, workers=2)
+one = bs.sweep("walk", grid, duration=0.3, workers=1)
+try:
+    bs.sweep("walk", grid, duration=0.3, workers=2, controller=my_controller)
+    refused = None
+except ValueError as exc:
+    refused = str(exc)
+strip = lambda rows: [{k: v for k, v in r.items() if k != "wall_time"} for r in rows]
+print(json.dumps({"statuses": [r["status"] for r in two], "same": strip(one) == strip(two), "refused": refused}))
+'''
+
+
+def test_a_sweep_from_a_plain_script_without_a_main_guard(tmp_path):
+    """A script that calls bs.sweep at its top level (no ``if __name__ == "__main__":``): its workers
+    do not run the script again (each did, and failed in its bootstrapping phase: error rows and a
+    screen of RuntimeError tracebacks); the rows do not depend on the number of workers. A run
+    option defined in the script, which the workers cannot import, is refused before any run."""
+    script = tmp_path / "first_sweep.py"
+    script.write_text(PLAIN_SCRIPT)
+    p = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert p.returncode == 0 and "Traceback" not in p.stderr and "bootstrapping" not in p.stderr, p.stderr
+    result = json.loads(p.stdout.splitlines()[-1])
+    assert result["statuses"] == ["completed"] * 4 and result["same"]
+    assert result["refused"] == ("run option 'controller': my_controller is defined in the script (__main__), which "
+                                 "the workers do not run: define it in a module of its own and import it from there")
+
+
+def _descendants(pid):
+    found, todo = [], [pid]
+    while todo:
+        kids = _children(todo.pop())
+        found += kids
+        todo += kids
+    return found
+
+
+def _alive(pid):
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs /proc to see the pool's processes")
+@pytest.mark.parametrize("signum, to_group", [(signal.SIGTERM, True), (signal.SIGHUP, False), (signal.SIGKILL, False)])
+def test_a_sweep_ended_by_a_signal_keeps_its_rows_and_leaves_no_process(tmp_path, signum, to_group):
+    """SIGTERM (as ``timeout``, a batch scheduler or systemd send it: to the whole process group) and
+    SIGHUP (a closed terminal) end the sweep as Ctrl-C does: the runs done in the CSV, one line, exit
+    128 + the signal (SIGTERM left no CSV at all). Whatever ended it, SIGKILL included, neither the
+    fork server nor a worker outlives it (they ran on for ever, re-parented to init)."""
+    out = tmp_path / "partial.csv"
+    p = subprocess.Popen([CLI, "sweep", "walk", "--set", "kp=50:500:40", "--duration", "100", "--workers", "2",
+                          "-o", str(out)], stderr=subprocess.PIPE, text=True,
+                         env=dict(os.environ, PYTHONUNBUFFERED="1"), start_new_session=True)
+    seen = ""
+    while "[2/40]" not in seen:            # two runs done: the pool is running
+        ch = p.stderr.read(1)
+        assert ch, seen
+        seen += ch
+    pool = _descendants(p.pid)
+    assert len(pool) >= 3, pool            # the fork server and two workers (and the resource tracker)
+    if to_group:
+        os.killpg(p.pid, signum)
+    else:
+        os.kill(p.pid, signum)
+    _, err = p.communicate(timeout=60)
+    end = time.monotonic() + 10
+    while any(_alive(pid) for pid in pool) and time.monotonic() < end:
+        time.sleep(0.05)
+    assert not [pid for pid in pool if _alive(pid)], "processes of the sweep left behind"
+    if signum == signal.SIGKILL:
+        assert p.returncode == -signal.SIGKILL
+        return
+    assert p.returncode == 128 + signum, err
+    assert f"stopped by {signum.name}: " in err and "Traceback" not in err, err
+    with open(out) as f:
+        table = list(csv.DictReader(f))
+    assert 2 <= len(table) < 40 and all(t["status"] == "completed" for t in table)
+    assert err.strip().splitlines()[-1].endswith(f"{len(table)} of 40 runs done, written to {out}")
+
+
+@pytest.fixture
+def small_tmpfs(tmp_path):
+    """A folder on a tmpfs of 64 KiB of our own (mount needs root): a disk to fill or make read-only."""
+    mounted = []
+
+    def mount(name, *options):
+        folder = tmp_path / name
+        folder.mkdir()
+        p = subprocess.run(["mount", "-t", "tmpfs", "-o", ",".join(["size=64k", *options]), "tmpfs", str(folder)],
+                           capture_output=True, text=True)
+        if p.returncode != 0:
+            pytest.skip(f"cannot mount a tmpfs here (needs root): {p.stderr.strip()}")
+        mounted.append(folder)
+        return folder
+
+    yield mount
+    for folder in mounted:
+        subprocess.run(["umount", str(folder)], check=False)
+
+
+def test_a_result_that_cannot_be_written_loses_nothing(tmp_path, small_tmpfs):
+    """A read-only destination is refused before any run (found after every run, it lost them all).
+    On a full disk the CSV is the old file, whole, not one cut mid-row; the rows are kept in a file
+    in the temp folder, and the one line names the CSV, the reason and that file. /dev/full (ENOSPC
+    on every write) the same, from Python."""
+    env = dict(os.environ, TMPDIR=str(tmp_path))
+    read_only = small_tmpfs("ro", "ro")
+    p = subprocess.run([CLI, "sweep", "walk", "--set", "kp=80,400", "--duration", "0.3", "-o",
+                        str(read_only / "gains.csv")], capture_output=True, text=True, env=env, timeout=60)
+    assert p.returncode == 1 and "[1/2]" not in p.stderr, p.stderr       # no run was made
+    assert p.stderr == (f"biped-sim sweep: error: {read_only / 'gains.csv'}: Read-only file system; "
+                        "choose a folder on a writable file system\n")
+
+    full = small_tmpfs("full")
+    (full / "gains.csv").write_text("index,kp\n")                        # the result of an earlier sweep
+    with open(full / "filler", "wb", buffering=0) as f, contextlib.suppress(OSError):   # the disk, full
+        while True:
+            f.write(b"\0" * 4096)
+    p = subprocess.run([CLI, "sweep", "walk", "--set", "kp=80,400", "--set", "step_angle=0.15,0.25", "--duration",
+                        "0.3", "--workers", "2", "--no-progress", "-o", str(full / "gains.csv")],
+                       capture_output=True, text=True, env=env, timeout=120)
+    assert p.returncode == 1 and p.stderr.count("\n") == 1 and "Traceback" not in p.stderr, p.stderr
+    kept = sorted(tmp_path.glob("gains-*.csv"))
+    assert len(kept) == 1
+    assert p.stderr == (f"biped-sim sweep: error: {full / 'gains.csv'}: No space left on device; the 4 rows are kept "
+                        f"in {kept[0]}; free some disk space or choose another disk\n")
+    assert (full / "gains.csv").read_text() == "index,kp\n"              # the old file, whole
+    assert sorted(f.name for f in full.iterdir()) == ["filler", "gains.csv"]   # no half-written file beside it
+    with open(kept[0]) as f:
+        table = list(csv.DictReader(f))
+    assert [int(t["index"]) for t in table] == [0, 1, 2, 3] and all(t["status"] == "completed" for t in table)
+
+    rows = [dict(index=0, kp=1.0, **dict({c: 0.0 for c in OUTCOME}, q_end=[0.0] * 5, dq_end=[0.0] * 5))]
+    with pytest.raises(OSError, match=r"No space left on device; the 1 rows are kept in .*/full-\w+\.csv") as caught:
+        write_csv(rows, ["kp"], "/dev/full")
+    assert caught.value.filename == "/dev/full" and caught.value.errno == errno.ENOSPC
+
+
+KILLING_SCRIPT = '''
+import json, os, signal, sys
+from multiprocessing import forkserver
+from pathlib import Path
+import biped_sim as bs
+
+def children(pid):
+    return [int(c) for t in Path(f"/proc/{pid}/task").glob("*") for c in (t / "children").read_text().split()]
+
+killed = []
+def kill_once(victim):
+    def progress(done, total, row):
+        if not killed:
+            server = forkserver._forkserver._forkserver_pid
+            pid = server if victim == "server" else children(server)[0]
+            os.kill(pid, signal.SIGKILL)
+            killed.append(pid)
+    return progress
+
+out = {}
+for victim in ("worker", "server"):
+    killed.clear()
+    rows = bs.sweep("walk", {"kp": [float(k) for k in range(50, 650, 50)]}, duration=100.0, workers=2,
+                    progress=kill_once(victim))
+    out[victim] = {"pid": killed[0], "errors": sorted({r["message"] for r in rows if r["status"] == "error"}),
+                   "completed": sum(r["status"] == "completed" for r in rows)}
+print(json.dumps(out))
+'''
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs /proc to find the pool's processes")
+def test_a_run_lost_with_its_worker_says_which_process_ended_and_how(tmp_path):
+    """A worker, then the fork server, killed (SIGKILL: what the out-of-memory killer sends) during a
+    sweep: the runs in flight are error rows naming the pid and the signal (they blamed "a crash or
+    the out-of-memory killer", no process named), and the sweep goes on with a new pool."""
+    script = tmp_path / "kill_a_worker.py"
+    script.write_text(KILLING_SCRIPT)
+    p = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    out = json.loads(p.stdout.splitlines()[-1])
+    worker, server = out["worker"], out["server"]
+    assert worker["errors"] == [f"during this run or one beside it, worker pid {worker['pid']} was killed by SIGKILL "
+                                "(the out-of-memory killer sends it)"], worker
+    assert server["errors"] == [f"during this run or one beside it, the fork server (pid {server['pid']}) was killed "
+                                "by SIGKILL (the out-of-memory killer sends it), and its workers with it"], server
+    assert worker["completed"] >= 4 and server["completed"] >= 4   # the runs not in flight ran on a new pool
+
+
+def test_a_grid_too_large_says_how_large_and_asks_for_yes(tmp_path):
+    """101,000 runs: one line with the number of runs and about how long they would take, and no run
+    without --yes (such a grid said nothing for minutes)."""
+    out = tmp_path / "big.csv"
+    t0 = time.perf_counter()
+    p = subprocess.run([CLI, "sweep", "walk", "--set", "kp=1:1000:1010", "--set", "kd=1:100:100", "--duration", "1",
+                        "--workers", "2", "-o", str(out)], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1, p.stderr
+    assert re.fullmatch(r"biped-sim sweep: error: 101,000 runs of walk, 1 s each: about \d+ (s|min|h) on 2 workers "
+                        r"\(a run took \d+ ms here\); more than 100,000: add --yes to start them\n", p.stderr), p.stderr
+    assert not out.exists() and time.perf_counter() - t0 < 30
