@@ -1289,14 +1289,14 @@ static PyObject *a_status, *a_running, *a_initial_sample_pending, *a_control_per
 static int pull_locator(Loop *L, PyObject *locator);
 
 /* u as two floats, as modes.two_finite_floats takes them: 0, or -1 (no exception) for anything the
- * Python code must judge (it raises, or converts what this does not: a string, a generator, ...) */
+ * Python code must judge (it refuses it, or takes what this does not: an array, a numpy integer, ...) */
 static int
 two_finite(PyObject *u, double *out)
 {
     if (!(PyList_CheckExact(u) || PyTuple_CheckExact(u)) || PySequence_Fast_GET_SIZE(u) != 2) return -1;
     for (int i = 0; i < 2; i++) {
         PyObject *v = PySequence_Fast_GET_ITEM(u, i);
-        if (!PyFloat_Check(v) && !PyLong_Check(v)) return -1;
+        if ((!PyFloat_Check(v) && !PyLong_Check(v)) || PyBool_Check(v)) return -1;   /* (a bool is an int) */
         out[i] = PyFloat_AsDouble(v);
         if (out[i] == -1.0 && PyErr_Occurred()) {
             PyErr_Clear();     /* an int too large for a float: the Python code says so */
@@ -1362,7 +1362,8 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     PyObject *sim = args[3];
     if (L->state_stale || L->locator_stale || two_finite(args[1], u) < 0) Py_RETURN_NONE;
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
-    if (PyErr_Occurred() || PyBool_Check(args[0]) || !(period > 0.0 && period < INFINITY)) {   /* Python says why */
+    if (PyErr_Occurred() || PyBool_Check(args[0]) || !(period > 0.0 && period < INFINITY) || PyBool_Check(args[2])
+        || !(t_final >= 0.0)) {   /* Python says why */
         PyErr_Clear();
         Py_RETURN_NONE;
     }

@@ -33,7 +33,7 @@ from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
 from biped_sim.engine.integrators import StepFailure, make_stepper, prepare as prepare_stepper
 from biped_sim.engine.invariants import ImpactHistory, check_impact, check_sample
 from biped_sim.engine.locator import EventLocator
-from biped_sim.engine.model import BipedModel, as_state_vector
+from biped_sim.engine.model import BipedModel, as_state_vector, short_repr
 from biped_sim.engine.modes import (
     bind_controller,
     floating_to_phys,
@@ -58,7 +58,8 @@ def held_torque(u):
     """u as two finite floats [u1, u2], or ValueError (plain float checks: the node's every period)."""
     checked = two_finite_floats(u)
     if checked is None:
-        raise ValueError(f"u must be two finite torques, got {u!r}")
+        raise ValueError(f"u must be two finite torques (real numbers, N m: not bools, complex numbers or "
+                         f"strings), got {short_repr(u)}")
     return checked
 
 
@@ -79,6 +80,7 @@ class HybridSimulator:
         self.opt = Options(**options)
         self.opt.check()
         stance_leg = check_run_arguments(self.opt, method, rtol, atol, mu, stance_leg)
+        check_number("t0", t0, -math.inf, math.inf, "s")
         self.method, self.rtol, self.atol, self.mu = method, rtol, atol, mu
         prepare_stepper(method)          # the imports a run needs, paid here and not inside its first step
         G.prepare_event_location()
@@ -251,6 +253,7 @@ class HybridSimulator:
         if self.status != "running":
             return []
         check_number("period", period, 0.0, math.inf, "s", open_low=True)   # (refused: no period begun)
+        check_number("t_final", t_final, 0.0, math.inf, "s; 0 for none", allow_inf=True)
         if controller is None and u is not None:
             u = held_torque(u)
         k = self.control_periods

@@ -220,7 +220,7 @@ def _node_periods(period, method, t_final, keep, gain, push_at, bad_at, mu):
                 break
         u = [gain * v for v in sim.command(ctrl)]
         if k % 5 == 1:
-            u = ["%r" % u[0], int(u[1])]      # what float() takes: the Python code's path
+            u = np.array([u[0], int(u[1])])      # an array, which the C loop leaves to the Python code
         events = sim.advance_period(period, u=u, t_final=t_final)
         seen.append((sim.t, sim.q.tolist(), sim.dq.tolist(), sim.control_periods, sim.u, sim.stance_leg,
                      [(e.kind, e.time) for e in events]))
