@@ -1198,12 +1198,27 @@ hold(Loop *L, double u0, double u1, double t_bound)
 
 /* The end of the control period that starts at t, the *k-th (as HybridSimulator.advance_period computes
  * it, operation for operation): period k ends at (k + 1) period, or at t_final (> 0) where that comes first
- * or within 1e-9 of a period. *k becomes the count of periods begun. */
+ * or within 1e-9 of a period. *k becomes the count of periods begun. NAN (and *k unchanged) where the
+ * index would pass 2^53 (hybrid.period_index refuses it). */
 static double
 period_end(double t, double period, double t_final, long *k)
 {
     long j = *k;
-    while ((j + 1) * period <= t) j++;     /* a run that starts between two periods (t0 > 0) */
+    if ((j + 1) * period <= t) {     /* a run that starts between two periods (t0 > 0): hybrid.period_index */
+        if (!(t / period < 9007199254740992.0)) return NAN;
+        long lo = j, hi = (long)(t / period);
+        if (hi < j + 1) hi = j + 1;
+        while ((hi + 1) * period <= t) {
+            lo = hi;
+            hi *= 2;
+        }
+        while (hi - lo > 1) {
+            long mid = lo + (hi - lo) / 2;
+            if ((mid + 1) * period <= t) lo = mid;
+            else hi = mid;
+        }
+        j = hi;
+    }
     double t_next = (j + 1) * period;
     if (t_final > 0 && t_next >= t_final - 1e-9 * period) t_next = t_final;
     *k = j + 1;
@@ -1236,6 +1251,11 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     }
     double ctrl[8];
     if (doubles(args[1], ctrl, 8, 8, "ctrl", NULL)) return NULL;
+    long k_first = k0;
+    if (isnan(period_end(L->t, period, t_final, &k_first))) {   /* (the first period's index only can be late) */
+        PyErr_SetString(PyExc_ValueError, "periods(): more than 2**53 control periods before t");
+        return NULL;
+    }
     RunState rs;
     Py_buffer buf;
     if (run_state(L, args[6], &rs, &buf) < 0) return NULL;
