@@ -1236,12 +1236,27 @@ refused_at_start(Loop *L)
 
 /* The end of the control period that starts at t, the *k-th (as HybridSimulator.advance_period computes
  * it, operation for operation): period k ends at (k + 1) period, or at t_final (> 0) where that comes first
- * or within 1e-9 of a period. *k becomes the count of periods begun. */
+ * or within 1e-9 of a period. *k becomes the count of periods begun. NAN (and *k unchanged) where the
+ * index would pass 2^53 (hybrid.period_index refuses it). */
 static double
 period_end(double t, double period, double t_final, long *k)
 {
     long j = *k;
-    while ((j + 1) * period <= t) j++;     /* a run that starts between two periods (t0 > 0) */
+    if ((j + 1) * period <= t) {     /* a run that starts between two periods (t0 > 0): hybrid.period_index */
+        if (!(t / period < 9007199254740992.0)) return NAN;
+        long lo = j, hi = (long)(t / period);
+        if (hi < j + 1) hi = j + 1;
+        while ((hi + 1) * period <= t) {
+            lo = hi;
+            hi *= 2;
+        }
+        while (hi - lo > 1) {
+            long mid = lo + (hi - lo) / 2;
+            if ((mid + 1) * period <= t) lo = mid;
+            else hi = mid;
+        }
+        j = hi;
+    }
     double t_next = (j + 1) * period;
     if (t_final > 0 && t_next >= t_final - 1e-9 * period) t_next = t_final;
     *k = j + 1;
@@ -1276,6 +1291,11 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     }
     double ctrl[8];
     if (doubles(args[1], ctrl, 8, 8, "ctrl", NULL)) return NULL;
+    long k_first = k0;
+    if (isnan(period_end(L->t, period, t_final, &k_first))) {   /* (the first period's index only can be late) */
+        PyErr_SetString(PyExc_ValueError, "periods(): more than 2**53 control periods before t");
+        return NULL;
+    }
     RunState rs;
     Py_buffer buf;
     if (run_state(L, args[6], &rs, &buf) < 0) return NULL;
@@ -1338,14 +1358,14 @@ static PyObject *a_status, *a_running, *a_initial_sample_pending, *a_control_per
 static int pull_locator(Loop *L, PyObject *locator);
 
 /* u as two floats, as modes.two_finite_floats takes them: 0, or -1 (no exception) for anything the
- * Python code must judge (it raises, or converts what this does not: a string, a generator, ...) */
+ * Python code must judge (it refuses it, or takes what this does not: an array, a numpy integer, ...) */
 static int
 two_finite(PyObject *u, double *out)
 {
     if (!(PyList_CheckExact(u) || PyTuple_CheckExact(u)) || PySequence_Fast_GET_SIZE(u) != 2) return -1;
     for (int i = 0; i < 2; i++) {
         PyObject *v = PySequence_Fast_GET_ITEM(u, i);
-        if (!PyFloat_Check(v) && !PyLong_Check(v)) return -1;
+        if ((!PyFloat_Check(v) && !PyLong_Check(v)) || PyBool_Check(v)) return -1;   /* (a bool is an int) */
         out[i] = PyFloat_AsDouble(v);
         if (out[i] == -1.0 && PyErr_Occurred()) {
             PyErr_Clear();     /* an int too large for a float: the Python code says so */
@@ -1412,7 +1432,8 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     PyObject *sim = args[3];
     if (L->state_stale || L->locator_stale || two_finite(args[1], u) < 0) Py_RETURN_NONE;
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
-    if (PyErr_Occurred() || PyBool_Check(args[0]) || !(period > 0.0 && period < INFINITY)) {   /* Python says why */
+    if (PyErr_Occurred() || PyBool_Check(args[0]) || !(period > 0.0 && period < INFINITY) || PyBool_Check(args[2])
+        || !(t_final >= 0.0)) {   /* Python says why */
         PyErr_Clear();
         Py_RETURN_NONE;
     }

@@ -114,10 +114,13 @@ def stance_dynamics(model: BipedModel, q, dq, u=None, stance_leg=1, base="floati
     taken as the one the pin implies (so it agrees with the floating base when J dq = 0).
     F is the force of the ground on the stance foot (N), in world axes.
     """
-    if base == "floating" and (stance_leg == 1 or stance_leg == 2):
-        # fast path: the generated closed form straight on the arrays' lists; anything it cannot
-        # take (lists, wrong sizes, nested arrays) raises here and goes through the checks below
+    if base == "floating" and type(stance_leg) is int and (stance_leg == 1 or stance_leg == 2):
+        # fast path: the generated closed form straight on float arrays' lists; anything else (lists,
+        # wrong sizes, nested arrays; bool or complex arrays, whose lists it would take as numbers) goes
+        # through the checks below
         try:
+            if not (q.dtype.kind == "f" and dq.dtype.kind == "f" and (u is None or u.dtype.kind == "f")):
+                raise TypeError
             ql, dql, ul = q.tolist(), dq.tolist(), [0.0, 0.0] if u is None else u.tolist()
             ddq, F = stance_floating_fast(model, ql, dql, ul, stance_leg)
         except (AttributeError, TypeError, ValueError):
@@ -161,6 +164,8 @@ def flight_fast(model, q, dq, u):
 
 def _impact_legs(impact_leg):
     """The landing feet of ``impact_leg``: (1,) or (2,), or (1, 2) for both (given as (1, 2), "both" or 0)."""
+    if isinstance(impact_leg, bool):     # (False == 0 would mean both feet)
+        raise ValueError(f"impact_leg must be 1, 2, or (1, 2), 'both' or 0 for both feet, got {impact_leg!r}")
     return (1, 2) if impact_leg in ((1, 2), "both", 0) else (check_leg(impact_leg),)
 
 
@@ -251,13 +256,15 @@ def push_response(model: BipedModel, q, dq, impulse, stance_leg):
     q = as_state_vector(q, "q")
     dq = as_state_vector(dq, "dq")
     P = as_state_vector(impulse, "impulse", 2)
+    in_flight = stance_leg == 0 and not isinstance(stance_leg, bool)   # (False == 0)
+    leg = 0 if in_flight else check_leg(stance_leg)
     if not P.any():     # no push: exactly the state it was given (no rounding of a solve)
         return dq.copy(), np.zeros(2)
     D = model.mass_matrix(q)
     tau = J_HIP.T @ P
-    if not stance_leg:
+    if not leg:
         return dq + np.linalg.solve(D, tau), np.zeros(2)
-    return constrained_impulse_response(D, model.foot_jacobian(q, check_leg(stance_leg)), dq, tau)
+    return constrained_impulse_response(D, model.foot_jacobian(q, leg), dq, tau)
 
 
 R = np.array([[1, 0, 0, 0, 0], [0, 1, 0, 0, 0], [0, 0, 0, 1, 0], [0, 0, 1, 0, 0], [0, 0, 0, 0, 1]],

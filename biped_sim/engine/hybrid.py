@@ -33,7 +33,7 @@ from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
 from biped_sim.engine.integrators import StepFailure, make_stepper, prepare as prepare_stepper
 from biped_sim.engine.invariants import ImpactHistory, check_impact, check_sample
 from biped_sim.engine.locator import EventLocator
-from biped_sim.engine.model import BipedModel, as_state_vector
+from biped_sim.engine.model import BipedModel, as_state_vector, short_repr
 from biped_sim.engine.modes import (
     bind_controller,
     floating_to_phys,
@@ -64,8 +64,36 @@ def held_torque(u):
     """u as two finite floats [u1, u2], or ValueError (plain float checks: the node's every period)."""
     checked = two_finite_floats(u)
     if checked is None:
-        raise ValueError(f"u must be two finite torques, got {u!r}")
+        raise ValueError(f"u must be two finite torques (real numbers, N m: not bools, complex numbers or "
+                         f"strings), got {short_repr(u)}")
     return checked
+
+
+#: more control periods than this before t: (k + 1) * period no longer tells period k from its neighbours
+MAX_PERIOD_INDEX = 2 ** 53
+
+
+def period_index(t, period, k):
+    """The index of the control period under way at t: the smallest j >= k (the periods begun so far) with
+    (j + 1) * period > t, where period j ends. Found in a few operations, not counted from k: a run can
+    start at a late t0 (the C loop's twin: period_end in _core.c)."""
+    if (k + 1) * period > t:
+        return k
+    if not t / period < MAX_PERIOD_INDEX:
+        raise ValueError(f"period={period!r} s is too short for a run at t={t!r} s: more than 2**53 control "
+                         "periods would end before it")
+    # (j + 1) * period, a rounded product, never decreases with j: bisect between lo, whose period ends at or
+    # before t, and hi, whose period ends after it
+    lo, hi = k, max(k + 1, int(t / period))
+    while (hi + 1) * period <= t:
+        lo, hi = hi, 2 * hi
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if (mid + 1) * period <= t:
+            lo = mid
+        else:
+            hi = mid
+    return hi
 
 
 class HybridSimulator:
@@ -85,6 +113,7 @@ class HybridSimulator:
         self.opt = Options(**options)
         self.opt.check()
         stance_leg = check_run_arguments(self.opt, method, rtol, atol, mu, stance_leg)
+        check_number("t0", t0, -math.inf, math.inf, "s")
         self.method, self.rtol, self.atol, self.mu = method, rtol, atol, mu
         prepare_stepper(method)          # the imports a run needs, paid here and not inside its first step
         G.prepare_event_location()
@@ -260,11 +289,10 @@ class HybridSimulator:
         if self.status != "running":
             return []
         check_number("period", period, 0.0, math.inf, "s", open_low=True)   # (refused: no period begun)
+        check_number("t_final", t_final, 0.0, math.inf, "s; 0 for none", allow_inf=True)
         if controller is None and u is not None:
             u = held_torque(u)
-        k = self.control_periods
-        while (k + 1) * period <= self.t:   # a run that starts between two periods (t0 > 0)
-            k += 1
+        k = period_index(self.t, period, self.control_periods)
         t_next = (k + 1) * period
         if t_final > 0 and t_next >= t_final - 1e-9 * period:
             t_next = t_final          # the last period ends exactly at the run's end

@@ -8,6 +8,7 @@ torso angle; angle 0 points up. Plain numpy, no ROS.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, fields, replace
 from typing import NamedTuple
 
@@ -20,18 +21,71 @@ B = np.array([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 0.0]])
 COORDINATE_NAMES = ("base_x", "base_y", "hip_1", "hip_2", "torso_pitch")
 
 
+def short_repr(v, limit: int = 80) -> str:
+    """repr(v), cut to ``limit`` characters: what a refused argument's message shows of it."""
+    r = repr(v)
+    return r if len(r) <= limit else r[:limit - 3] + "..."
+
+
+def _is_real_number(x) -> bool:
+    """Whether x is one real number: an int or a float (numpy's too, or a 0-d array of one); not a bool,
+    a complex number or a string, which numpy and float() would convert without a word."""
+    if isinstance(x, (bool, np.bool_)):
+        return False
+    if isinstance(x, np.ndarray):
+        return x.ndim == 0 and x.dtype.kind in "iuf"
+    return isinstance(x, numbers.Real)
+
+
+def real_vector(v, n: int):
+    """(v as a float array of shape (n,), None), or (None, why not): v must be n real numbers, a list, a
+    tuple or an array of ints and floats (no bools, complex numbers, strings, None), all finite."""
+    if isinstance(v, (list, tuple)):
+        if any(isinstance(x, (bool, np.bool_)) for x in v):   # numpy would make them 0 and 1
+            return None, "type"
+    elif isinstance(v, (str, bytes, bytearray)):
+        return None, "type"
+    try:
+        a = np.asarray(v)
+    except (TypeError, ValueError):     # ragged nesting
+        return None, "type"
+    kind = a.dtype.kind
+    if kind == "O":     # Python objects: real numbers only (a Fraction, an int beyond int64), else refused
+        if not all(_is_real_number(x) for x in a.flat):
+            return None, "type"
+    elif kind not in "iuf":     # bools, complex numbers, strings, dates
+        return None, "type"
+    if a.shape != (n,):
+        return None, "shape"
+    try:
+        a = np.asarray(a, dtype=float)
+    except OverflowError:       # an int too large for a float
+        return None, "non-finite"
+    if not np.all(np.isfinite(a)):
+        return None, "non-finite"
+    return a, None
+
+
+def _is_finite(x) -> bool:
+    try:
+        return math.isfinite(x)
+    except OverflowError:       # an int too large for a float
+        return False
+
+
 def as_state_vector(v, name: str, n: int = 5) -> np.ndarray:
     """A float vector of length n with finite entries, or a ValueError that names the problem."""
-    try:
-        a = np.asarray(v, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be {n} numbers, got {v!r}") from exc
-    if a.shape != (n,):
-        raise ValueError(f"{name} must have shape ({n},), got shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        bad = [i for i in range(n) if not math.isfinite(a[i])]
-        raise ValueError(f"{name} has non-finite entries at index {bad}: {a.tolist()}")
-    return a
+    a, why = real_vector(v, n)
+    if why is None:
+        return a
+    if why == "type":
+        raise ValueError(f"{name} must be {n} real numbers (ints or floats; not bools, complex numbers or "
+                         f"strings), got {short_repr(v)}")
+    if why == "shape":
+        raise ValueError(f"{name} must have shape ({n},), got shape {np.shape(v)}")
+    values = np.asarray(v, dtype=object).tolist()
+    bad = [i for i, x in enumerate(values) if not _is_finite(x)]
+    raise ValueError(f"{name} has non-finite entries at index {bad}: {short_repr(values)}")
 
 
 class StickFigure(NamedTuple):

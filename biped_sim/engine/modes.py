@@ -21,24 +21,37 @@ import numpy as np
 
 from biped_sim.engine.compiled import gen
 from biped_sim.engine.dynamics import flight_fast, stance_fixed_accel_fast
+from biped_sim.engine.model import real_vector, short_repr
 from biped_sim.engine.results import SimulationError
 
 
 def two_finite_floats(u):
-    """[u0, u1] as Python floats if u is two finite numbers, else None (runs at every evaluation)."""
-    try:
-        u0, u1 = u
-        u0, u1 = float(u0), float(u1)
-    except (TypeError, IndexError, ValueError):
+    """[u0, u1] as Python floats if u is two finite real numbers with a finite sum (``model.real_vector``: a
+    list, tuple or array of ints and floats; no bools, complex numbers or strings), else None. Runs at every
+    evaluation: two floats in a list or tuple, and a float64 array, are taken without the general check."""
+    tu = type(u)
+    if tu is list or tu is tuple:
+        if len(u) == 2:
+            u0, u1 = u
+            if type(u0) is float and type(u1) is float and math.isfinite(u0 + u1):   # nan + x, inf - inf: nan
+                return [u0, u1]
+    elif tu is np.ndarray and u.shape == (2,) and u.dtype.char == "d":
+        u0, u1 = u.tolist()
+        if math.isfinite(u0 + u1):
+            return [u0, u1]
+    a, _ = real_vector(u, 2)     # anything else
+    if a is None:
         return None
-    return [u0, u1] if math.isfinite(u0 + u1) else None   # nan + x, inf - inf: nan; inf + x: inf
+    u0, u1 = a.tolist()
+    return [u0, u1] if math.isfinite(u0 + u1) else None    # (1e308 + 1e308: as the C loop's check)
 
 
 def checked_torques(u, t):
     """The two torques a controller returned, as finite floats, or a SimulationError."""
     out = two_finite_floats(u)
     if out is None:
-        raise SimulationError(f"the controller returned {u!r} at t={t:.9g} s: it must return two finite torques")
+        raise SimulationError(f"the controller returned {short_repr(u)} at t={t:.9g} s: it must return two finite "
+                              "torques (real numbers: not bools, complex numbers or strings)")
     return out
 
 

@@ -135,8 +135,6 @@ def slip_event(t, q, dq, stance_leg, F, ground, mu) -> Event:
 
 def check_push(impulse, name="impulse") -> np.ndarray:
     """The push as an array of two finite floats within PUSH_IMPULSE_LIMIT, or a ValueError naming ``name``."""
-    if isinstance(impulse, (str, bytes)):
-        raise ValueError(f"{name} must be 2 numbers (N s: x forward, y up), got {impulse!r}")
     P = as_state_vector(impulse, name, 2)
     size = float(np.hypot(P[0], P[1]))
     if size > PUSH_IMPULSE_LIMIT:

@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from biped_sim.engine.hybrid import HybridSimulator
-from biped_sim.engine.model import BipedModel, as_state_vector
+from biped_sim.engine.model import BipedModel, as_state_vector, check_leg
 from biped_sim.engine.options import check_number
 from biped_sim.engine.resets import check_push
 from biped_sim.engine.results import SimulationResult
@@ -19,10 +19,11 @@ def stance_state(model: BipedModel, joints, joint_rates, stance_leg=1, foot=(0.0
     """
     qs = as_state_vector(joints, "joints", 3)
     dqs = as_state_vector(joint_rates, "joint_rates", 3)
+    c = as_state_vector(foot, "foot", 2)
     l = model.parameters.l_leg  # noqa: E741 (the leg length, as docs/model.md names it)
-    i = 0 if stance_leg == 1 else 1
+    i = check_leg(stance_leg) - 1
     th, dth = qs[i] + qs[2], dqs[i] + dqs[2]
-    hip = np.array(foot, float) - l * np.array([math.sin(th), math.cos(th)])
+    hip = c - l * np.array([math.sin(th), math.cos(th)])
     dhip = -l * np.array([math.cos(th), -math.sin(th)]) * dth
     return np.concatenate([hip, qs]), np.concatenate([dhip, dqs])
 

@@ -17,7 +17,7 @@ from hypothesis import event, example, given, settings, strategies as st
 import biped_sim as bs
 from biped_sim.analysis.edge_cases import rocking_v, walk_that_scuffs
 from biped_sim.control.walking import PDWalkingController, WalkingController
-from biped_sim.engine import compiled_loop, guards as G
+from biped_sim.engine import compiled_loop, guards as G, hybrid
 from biped_sim.engine.model import BipedModel
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -238,7 +238,7 @@ def _node_periods(period, method, t_final, keep, gain, push_at, bad_at, mu):
                 break
         u = [gain * v for v in sim.command(ctrl)]
         if k % 5 == 1:
-            u = ["%r" % u[0], int(u[1])]      # what float() takes: the Python code's path
+            u = np.array([u[0], int(u[1])])      # an array, which the C loop leaves to the Python code
         events = sim.advance_period(period, u=u, t_final=t_final)
         seen.append((sim.t, sim.q.tolist(), sim.dq.tolist(), sim.control_periods, sim.u, sim.stance_leg,
                      [(e.kind, e.time) for e in events]))
@@ -500,3 +500,62 @@ def test_no_run_completes_with_a_landing_impulse_outside_the_friction_cone(start
             assert f"the {impact.kind.replace('_', ' ')} at t={impact.time:.9g} s" in a.message
             assert f"on foot {foot}" in a.message and f"mu = {mu:g}" in a.message
             assert "|Lambda_t|/Lambda_n = " in a.message and "stop_on_slip=False" in a.message
+
+
+def _period_index_counted(t, period, k):
+    while (k + 1) * period <= t:
+        k += 1
+    return k
+
+
+@settings(max_examples=300, deadline=None)
+@given(period=st.floats(1e-6, 10.0), m=st.integers(0, 3000), shift=st.sampled_from([-2, -1, 0, 1, 2, 0.5]),
+       behind=st.integers(0, 5))
+@example(period=1e-3, m=100, shift=0, behind=0).via("a period boundary met exactly")
+@example(period=0.1, m=3, shift=0, behind=0).via("3 * 0.1 > 0.3 in floating point")
+def test_the_first_periods_index_is_the_one_counted_from_the_periods_begun(period, m, shift, behind):
+    # t at a boundary (m * period), a few ulps either side of it, or inside a period; k periods begun, k <= m + 2
+    t = (m + shift) * period if shift == 0.5 else m * period
+    for _ in range(abs(shift) if shift != 0.5 else 0):
+        t = math.nextafter(t, math.inf if shift > 0 else -math.inf)
+    k = max(0, m + 2 - behind * (m // 4 + 1))
+    assert hybrid.period_index(t, period, k) == _period_index_counted(t, period, k)
+
+
+@settings(max_examples=100, deadline=None)
+@given(t=st.floats(1.0, 1e10), period=st.floats(1e-5, 1.0))   # (fewer than 2**53 periods)
+@example(t=1e5, period=1e-3).via("issue 28 R6: 16 s counted one by one")
+def test_the_first_periods_index_at_a_late_t_is_the_first_period_ending_after_t(t, period):
+    k = hybrid.period_index(t, period, 0)
+    assert (k + 1) * period > t and k * period <= t
+
+
+@pytest.mark.parametrize("t0", [1e5, 1e9])
+def test_a_run_from_a_late_t0_begins_the_period_under_way_on_both_loops(t0):
+    """The first period of a run from t0 (Python), and a period begun mid-period after advance() with no
+    period counted yet (on the compiled loop, one C call: Loop.period), end at the first (k + 1) period after t."""
+    period, q0, dq0 = 1e-3, *PDWalkingController(MODEL).initial_state()
+
+    def run():
+        out = []
+        for first in ("advance_period", "advance"):
+            sim = bs.HybridSimulator(MODEL, q0, dq0, t0=t0)
+            if first == "advance":
+                sim.advance(t0 + 0.35 * period)
+            t_start = sim.t
+            sim.advance_period(period, [0.0, 0.0])
+            k = sim.control_periods - 1
+            assert sim.status == "running" and sim.t == (k + 1) * period > t_start >= k * period
+            out.append((sim.t, sim.control_periods, sim._q is None))
+        return out
+
+    compiled, python = both_loops(run)
+    assert [r[:2] for r in compiled] == [r[:2] for r in python]
+    assert compiled[1][2] and not python[1][2]     # the compiled loop's period in C, the Python loop's not
+
+
+def test_a_period_too_short_to_count_up_to_t_is_refused():
+    sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state(), t0=1e5)
+    with pytest.raises(ValueError, match=r"period=1e-12 s is too short for a run at t=100000.0 s"):
+        sim.advance_period(1e-12, [0.0, 0.0])
+    assert sim.control_periods == 0 and sim.status == "running"

@@ -1,10 +1,11 @@
 """Hybrid edges (issue 14): bad arguments are refused before a run, a controller fault ends the run
 "failed" with its message in both control modes, and no run ends "completed" with a wrong answer."""
 import math
+import re
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import HealthCheck, assume, given, settings, strategies as st
 
 import biped_sim as bs
 from biped_sim.analysis.edge_cases import (
@@ -40,16 +41,110 @@ def test_stance_dynamics_refuses_non_finite_base_coordinates(index, vector, valu
         bs.stance_dynamics(MODEL, q, dq)
 
 
-BAD_TORQUES = ["ab", {"a": 1.0}, 1 + 2j, [1.0], [1.0, 2.0, 3.0], [math.nan, 0.0], None]
+BAD_TORQUES = ["ab", {"a": 1.0}, 1 + 2j, [1.0], [1.0, 2.0, 3.0], [math.nan, 0.0], None,
+               # what float() or numpy would take without a word: two characters, a dict's keys, bools, a
+               # complex array's real parts, a None entry, a column
+               "12", {1: 0.0, 2: 0.0}, [True, False], (0.5, True), np.array([True, False]), np.array([1 + 0j, 2 + 0j]),
+               [0.5, 1j], ["1", "2"], [0.5, None], [[0.5], [0.5]], {1.0, 2.0}, b"12"]
+
+
+@pytest.fixture(params=["compiled loop", "Python loop"])
+def loop(request):
+    compiled_loop.enabled = request.param == "compiled loop"
+    yield request.param
+    compiled_loop.enabled = True
 
 
 @pytest.mark.parametrize("control_period", [None, 0.01])
 @pytest.mark.parametrize("bad", BAD_TORQUES, ids=repr)
-def test_a_controller_returning_anything_but_two_finite_torques_fails_the_run(bad, control_period):
+def test_a_controller_returning_anything_but_two_finite_torques_fails_the_run(bad, control_period, loop):
     r = _run(controller=lambda *a: bad, control_period=control_period)
     assert r.status == "failed"
     assert f"the controller returned {bad!r}" in r.message and "two finite torques" in r.message
     assert r.events[-1].kind == "error"
+
+
+def _pushed_sim(v):
+    return bs.HybridSimulator(MODEL, Q0, DQ0).push(v)
+
+
+def _held(v, how):
+    sim = bs.HybridSimulator(MODEL, Q0, DQ0)
+    sim.advance_period(1e-3, [0.0, 0.0])
+    sim.advance_period(1e-3, [0.0, 0.0])    # (on the compiled loop, this one in one C call: Loop.period)
+    return sim.advance(0.01, u=v) if how == "advance" else sim.advance_period(1e-3, u=v)
+
+
+#: (the argument's name in the message, how many numbers it takes, a call that gives it v)
+ENTRY_POINTS = [
+    ("q0", 5, lambda v: bs.simulate(MODEL, v, DQ0, 0.01)),
+    ("dq0", 5, lambda v: bs.HybridSimulator(MODEL, Q0, v)),
+    ("joints", 3, lambda v: bs.stance_state(MODEL, v, [0.0, 0.0, 0.0])),
+    ("joint_rates", 3, lambda v: bs.stance_state(MODEL, [3.0, 3.2, 0.1], v)),
+    ("foot", 2, lambda v: bs.stance_state(MODEL, [3.0, 3.2, 0.1], [0.0, 0.0, 0.0], foot=v)),
+    ("pushes[0] impulse", 2, lambda v: bs.simulate(MODEL, Q0, DQ0, 0.01, pushes=[(0.005, v)])),
+    ("impulse", 2, _pushed_sim),
+    ("u", 2, lambda v: _held(v, "advance")),
+    ("u", 2, lambda v: _held(v, "advance_period")),
+    ("q", 5, lambda v: bs.stance_dynamics(MODEL, v, DQ0)),
+    ("u", 2, lambda v: bs.stance_dynamics(MODEL, Q0, DQ0, v)),
+    ("dq", 5, lambda v: bs.flight_dynamics(MODEL, Q0, v)),
+    ("dq_minus", 5, lambda v: bs.impact_map(MODEL, Q0, v)),
+    ("q", 5, lambda v: bs.relabel(v, DQ0)),
+    ("q", 5, lambda v: MODEL.mass_matrix(v)),
+]
+
+
+@st.composite
+def not_real_numbers(draw, n):
+    """n "numbers" that numpy or float() would convert without a word (or a NaN, an infinity among them)."""
+    whole = ["12345"[:n], b"12345"[:n], {i: 0.0 for i in range(1, n + 1)}, set(range(1, n + 1)), None,
+             np.ones(n, bool), np.zeros(n, complex), np.array(["1"] * n), np.zeros((n, 1))]
+    entries = [True, np.bool_(False), 1j, 2 + 0j, "1", b"1", None, [0.5], {0.5}, math.nan, -math.inf]
+    if draw(st.booleans()):
+        return draw(st.sampled_from(whole))
+    v = [0.1 * i for i in range(n)]
+    v[draw(st.integers(0, n - 1))] = draw(st.sampled_from(entries))
+    return draw(st.sampled_from([list, tuple]))(v)
+
+
+@pytest.mark.parametrize("name, n, call", ENTRY_POINTS, ids=[f"{e[0]}-{i}" for i, e in enumerate(ENTRY_POINTS)])
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())   # (the loop fixture holds for every example)
+def test_arguments_that_are_not_finite_real_numbers_are_refused_by_name(loop, name, n, call, data):
+    bad = data.draw(not_real_numbers(n))
+    assume(not (name == "u" and bad is None))     # (u=None: the torque held stays)
+    with pytest.raises(ValueError) as exc:
+        call(bad)
+    message = str(exc.value)
+    assert message.startswith(name + " ")
+    shown = repr(bad)[:40]
+    assert shown in message or "non-finite entries" in message or f"must have shape ({n},)" in message
+
+
+@pytest.mark.parametrize("good", [[1, 2], (np.float32(1.0), np.int64(2)), np.array([1, 2]), np.array([1.0, 2.0]),
+                                  [np.array(1.0), 2.0], (1.0, 2.0)], ids=repr)
+def test_a_torque_of_real_numbers_of_any_type_is_held_as_floats(loop, good):
+    runs = []
+    for u in (good, [1.0, 2.0]):
+        sim = bs.HybridSimulator(MODEL, Q0, DQ0)
+        for _ in range(3):
+            sim.advance_period(1e-3, u)
+        assert sim.u == [1.0, 2.0] and all(type(v) is float for v in sim.u)
+        runs.append(sim.result())
+    np.testing.assert_array_equal(runs[0].q, runs[1].q)
+
+
+@pytest.mark.parametrize("bad", [[True, False], (0.5, True), [0.5, 1j], [np.float64(0.5), False]], ids=repr)
+def test_a_held_torque_of_bools_or_complex_numbers_begins_no_period_on_either_loop(loop, bad):
+    sim = bs.HybridSimulator(MODEL, Q0, DQ0)
+    for _ in range(2):
+        sim.advance_period(1e-3, [0.5, -0.5])
+    quiet = sim._q is None    # the second period ran in one C call (Loop.period), which sees the next one first
+    assert quiet == (loop == "compiled loop")
+    with pytest.raises(ValueError, match=r"u must be two finite torques .*got " + re.escape(repr(bad))):
+        sim.advance_period(1e-3, bad)
+    assert sim.control_periods == 2 and sim.u == [0.5, -0.5] and sim.t == 2e-3
 
 
 @pytest.mark.parametrize("control_period", [None, 0.01])

@@ -152,7 +152,9 @@ def test_fixed_base_push_equals_floating_base():
 
 @pytest.mark.parametrize("bad, what", [
     ([float("nan"), 0.0], "non-finite"), ([0.0, float("inf")], "non-finite"), ([1.0, 2.0, 0.0], "shape"),
-    ([PUSH_IMPULSE_LIMIT, 1.0], "above the limit"), ("12", "2 numbers"), (None, "impulse")])
+    ([PUSH_IMPULSE_LIMIT, 1.0], "above the limit"), ("12", "2 real numbers"), (None, "impulse"),
+    ({1: 0.0, 2: 0.0}, "2 real numbers"), ([True, False], "[True, False]"), (np.array([1 + 0j, 0j]), "complex"),
+    ([0.5, None], "[0.5, None]")])
 def test_bad_pushes_raise_naming_the_argument(bad, what):
     q, dq = walk_state()
     sim = bs.HybridSimulator(MODEL, q, dq, 1)
