@@ -79,6 +79,26 @@ def standing_v_pushed_up(model, push, max_step=math.inf):
                      phases=frozenset({"stance", "impact", "flight"}))
 
 
+def landing_outside_the_cone():
+    """(q, dq, mu) of a landing from flight whose impulse on foot 1 is outside the friction cone
+    (|Lambda_t|/Lambda_n 0.575 > mu 0.338), the second touchdown at 63 ms."""
+    return (np.array([-0.198669330795062, 1.030066577841242, 2.791592653589793, 3.191592653589794, 0.15]),
+            np.array([1.489, -1.672, -1.744, 2.43, -0.966]), 0.338)
+
+
+def on_both_loops(run):
+    """run() on the compiled loop and on the Python loop: (compiled, python)."""
+    from biped_sim.engine import compiled_loop
+    out = []
+    for enabled in (True, False):
+        compiled_loop.enabled = enabled
+        try:
+            out.append(run())
+        finally:
+            compiled_loop.enabled = True
+    return out
+
+
 def edge_verdicts(quick, verdict):
     """The rows of group "edge": ``verdict(name, ok, figures, seconds)`` builds each. A row passes only
     if every sample of every run in it keeps the invariants (``verify.result_violations``)."""
@@ -170,10 +190,101 @@ def edge_verdicts(quick, verdict):
         return ok, (f"pushed up 0.125 N s: lands at {land[0].time * 1e3:.4f} ms ({land[0].kind}); with steps of "
                     f"0.1 ms at {land[1].time * 1e3:.4f} ms")
 
+    def torque_change_is_an_event():    # R1: the guards under the new torque at the instant it changes
+        from biped_sim.control.walking import WalkingController
+        from biped_sim.engine.hybrid import HybridSimulator
+        ctrl = WalkingController(m)
+
+        def run():
+            sim = HybridSimulator(m, *ctrl.initial_state())
+            sim.advance_periods(1e-3, ctrl, 0.1)
+            t_change = sim.t
+            events = sim.advance_period(1e-3, u=[-300.0, -300.0])   # the ground would pull with -489 N
+            runs.append(sim.result())
+            return t_change, [(e.kind, e.time) for e in events]
+        (t_c, ev_c), (t_p, ev_p) = on_both_loops(run)
+        ok = ev_c == ev_p and bool(ev_c) and ev_c[0] == ("liftoff", t_c)
+        return ok, (f"walk at t={t_c:.3f} s, then u = (-300, -300) N m: {ev_c[0][0] if ev_c else 'no event'} at "
+                    f"{ev_c[0][1] if ev_c else math.nan:.6f} s on the compiled loop, {ev_p[0][0] if ev_p else 'none'} "
+                    f"at {ev_p[0][1] if ev_p else math.nan:.6f} s on the Python loop")
+
+    def compiled_law_is_own():       # R2: a law runs compiled only where its torques are the controller's
+        from biped_sim.control.walking import WalkingController
+        other = WalkingController(BipedModel(m_leg=4.0))    # a controller built on another model
+        q0, dq0 = WalkingController(m).initial_state()
+        r = simulate(m, q0, dq0, 0.3, controller=other)
+        off = max(float(np.max(np.abs(np.asarray(other(t, q, dq, int(leg))) - u)))
+                  for t, q, dq, leg, u in zip(r.t, r.q, r.dq, r.stance_leg, r.u))
+        return off < 1e-9, (f"a law built on m_leg = 4 kg driving the 5 kg robot: its torques at every sample within "
+                            f"{off:.1g} N m of its own ({r.stats['steps']} steps)")
+
+    def impact_outside_the_cone():   # R4: the cone holds at impacts as in stance and at pushes
+        q, dq, mu = landing_outside_the_cone()
+        stopped = simulate(m, q, dq, 0.08, stance_leg=0, mu=mu)
+        kept = simulate(m, q, dq, 0.08, stance_leg=0, mu=mu, stop_on_slip=False)
+        ok = stopped.status == "stopped" and "outside the friction cone" in stopped.message \
+            and kept.status == "completed"
+        return ok, (f"landing at |Lambda_t|/Lambda_n 0.575, mu {mu}: {stopped.status} at {stopped.t[-1]:.6f} s; "
+                    f"stop_on_slip=False: {kept.status}")
+
+    def bounces_on_both_loops():     # R5: no cache outlives its state (a stale one hid a crossing)
+        rng = np.random.default_rng(7)
+        qb, dqb = bouncing_landing()
+        same = 0
+        n = 4 if quick else 12
+        for _ in range(n):
+            dq1 = dqb.copy()
+            dq1[0], dq1[1], dq1[3] = rng.uniform(2.0, 6.0), rng.uniform(-1.5, -0.1), rng.uniform(-3.0, 3.0)
+            a, b = on_both_loops(lambda dq1=dq1: _simulate(
+                m, qb, dq1, 0.2, stance_leg=0, control_period=1e-3, controller=lambda t, q, dq, leg: [0.0, 0.0],
+                phases=frozenset({"stance", "impact", "flight"})))
+            runs.extend([a, b])
+            same += (a.status, [(e.kind, e.time) for e in a.events]) == (b.status, [(e.kind, e.time) for e in b.events])
+        return same == n, f"landings from flight that lift off at once, held 1 ms: {same} of {n} the same on both loops"
+
+    def late_start_periods():        # R6: the first period from a late t0 is computed, not counted
+        from biped_sim.control.walking import WalkingController
+        from biped_sim.engine.hybrid import HybridSimulator
+        t0w = time.perf_counter()
+        sim = HybridSimulator(m, *WalkingController(m).initial_state(), t0=1e5 + 2.5e-4)
+        sim.advance_period(1e-3, u=[0.0, 0.0])
+        wall = time.perf_counter() - t0w
+        k = sim.control_periods
+        ok = sim.status == "running" and sim.t == k * 1e-3 and (k - 1) * 1e-3 <= 1e5 + 2.5e-4 < k * 1e-3
+        return ok, f"from t0 = 100000.00025 s: the period ends at {sim.t:.6f} s (period {k}), in {wall * 1e3:.1f} ms"
+
+    def inputs_not_cast():           # R7: anything but finite real numbers is refused by name
+        q0, dq0 = stance_state(m, [math.pi - 0.1, math.pi + 0.1, 0.0], [0.0, 0.0, 0.0])
+        named = 0
+        for argument, fn in (("q0", lambda: _simulate(m, "12345", dq0, 0.01)),     # a string, bools, a complex
+                             ("dq0", lambda: _simulate(m, q0, [True, False, False, False, False], 0.01)),
+                             ("pushes[0]", lambda: _simulate(m, q0, dq0, 0.01, pushes=[(0.0, [1j, 0.0])]))):
+            try:
+                fn()
+            except ValueError as exc:
+                named += str(exc).startswith(argument)
+        r = simulate(m, q0, dq0, 0.01, controller=lambda t, q, dq, leg: "12")
+        failed = r.status == "failed" and "'12'" in r.message
+        return named == 3 and failed, (f"{named} of 3 bad arguments refused naming the argument; a controller "
+                                       f"returning '12': {r.status}")
+
+    def projection_reaches_scipy():  # R8: the projection reaches scipy's steppers
+        from biped_sim.control.walking import WalkingController
+        ctrl = WalkingController(m)
+        q0, dq0 = ctrl.initial_state()
+        kw = dict(controller=ctrl, method="scipy_rk45", rtol=1e-6, atol=1e-6, max_step=1e-2)
+        on, off = (simulate(m, q0, dq0, 1.0, project_constraints=p, **kw) for p in (True, False))
+        d_on, d_off = (r.stats["max_constraint_drift_velocity"] for r in (on, off))
+        return d_on < 0.5 * d_off, f"scipy_rk45, walk 1 s: velocity drift {d_on:.2g} projected, {d_off:.2g} not"
+
     for name, fn in (("scuffs_bounded", scuffs), ("liftoff_at_start", liftoff_at_start),
                      ("grazing_dip_20um", grazing_dip), ("crossing_at_stance_x", coincident),
                      ("foot_just_above_ground", just_above), ("scuff_is_a_swing", scuff_is_a_swing),
-                     ("zeno_rocking_v", zeno_rocking_v), ("relanding_in_a_step", relanding_in_a_step)):
+                     ("zeno_rocking_v", zeno_rocking_v), ("relanding_in_a_step", relanding_in_a_step),
+                     ("torque_change_is_an_event", torque_change_is_an_event),
+                     ("compiled_law_is_own", compiled_law_is_own), ("impact_outside_the_cone", impact_outside_the_cone),
+                     ("bounces_on_both_loops", bounces_on_both_loops), ("late_start_periods", late_start_periods),
+                     ("inputs_not_cast", inputs_not_cast), ("projection_reaches_scipy", projection_reaches_scipy)):
         row(name, fn)
     return rows
 
