@@ -15,7 +15,7 @@ import pytest
 from hypothesis import event, example, given, settings, strategies as st
 
 import biped_sim as bs
-from biped_sim.analysis.edge_cases import rocking_v, walk_that_scuffs
+from biped_sim.analysis.edge_cases import on_both_loops, rocking_v, walk_that_scuffs
 from biped_sim.control.walking import PDWalkingController, WalkingController
 from biped_sim.engine import compiled_loop, guards as G, hybrid
 from biped_sim.engine.model import BipedModel
@@ -26,17 +26,8 @@ MODEL = BipedModel()
 pytestmark = pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=f"no compiled loop: {compiled_loop.WHY_NOT}")
 
 
-def both_loops(run):
-    """run() on the compiled loop and on the Python loop; (compiled, python) results and the count of
-    control periods the compiled loop took (it must have taken some)."""
-    out = []
-    for enabled in (True, False):
-        compiled_loop.enabled = enabled
-        try:
-            out.append(run())
-        finally:
-            compiled_loop.enabled = True
-    return out
+#: run() on the compiled loop and on the Python loop: (compiled, python)
+both_loops = on_both_loops
 
 
 def assert_same_run(a, b, what=""):
