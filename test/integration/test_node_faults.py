@@ -577,3 +577,43 @@ def test_a_reset_with_little_disk_says_recording_is_off_and_a_later_one_records_
     assert sorted(p.name for p in saved.iterdir()) == [first.name, f"{first.name}-reset2"]   # no empty -reset1
     times = bag_joint_state_times(saved / f"{first.name}-reset2")
     assert times and times[0] == 0.0 and times == sorted(times)
+
+
+# -- issue 34 (round 3), item 1: a realtime node that stalls -----------------------------------------------
+def test_a_stalled_realtime_node_resynchronises_instead_of_catching_up():
+    """SIGSTOP for 2 s then SIGCONT (a laptop's sleep, a debugger, a starved machine). The pacer used
+    to hold the simulated time to the wall clock of before the stall, so it replayed the 2 s as fast
+    as it could (about 6x here). Now it resynchronises, says so in one line, and leaves the stall out
+    of its real-time factor. The standing robot falls at about 3 s: rate_factor 0.5 keeps well before."""
+    rate_factor, stall = 0.5, 2.0
+    params = dict(record=False, time_mode="realtime", rate_factor=rate_factor, publish_rate=50.0,
+                  command_timeout=0.0, outputs=["joint_states", "clock"], phases=["stance", "impact"])
+    arrivals = []                       # (wall clock at arrival, stamp in s) of each state
+    with ros_domain() as dom, start_node(params, dom) as proc, Client(dom) as c:
+        c.collect("/joint_states", JointState, transient_local=False,
+                  callback=lambda m: arrivals.append((time.monotonic(), t_of(m))))
+        c.wait_subscribed("/joint_states", proc=proc)
+        c.spin_until(lambda: len(arrivals) > 25, 20, "0.5 s of states", proc)
+        os.kill(proc.proc.pid, signal.SIGSTOP)
+        try:
+            end = time.monotonic() + stall
+            while time.monotonic() < end:        # take what was in flight
+                c.spin_once(0.05)
+            stopped_at = arrivals[-1][1]
+        finally:
+            os.kill(proc.proc.pid, signal.SIGCONT)
+        resumed = time.monotonic()
+        c.spin_until(lambda: arrivals[-1][0] > resumed + 1.5, 20, "1.5 s of states after the resume", proc)
+        assert proc.stop(signal.SIGTERM) == 0, proc.output()
+    after = [(w, t) for w, t in arrivals if w > resumed]
+    # from the resume on, the simulated time goes on at rate_factor: no burst replaying the stall
+    advanced = [(round(w - resumed, 3), round(t - stopped_at, 3)) for w, t in after
+                if t - stopped_at > 1.5 * rate_factor * (w - resumed) + 0.1]
+    assert not advanced, f"a catch-up burst after the resume (wall s since it, simulated s since the stop): " \
+                         f"{advanced[:5]}\n{proc.output()}"
+    line = one_line(proc.output(), "stalled")
+    assert "[WARN]" in line and "resynchronised" in line, line
+    figures = one_line(proc.output(), "realtime figures")
+    assert "(1 stall, " in figures, figures
+    rtf = float(figures.split("real-time factor ", 1)[1].split()[0])
+    assert rtf == pytest.approx(rate_factor, rel=0.1), figures      # the stall left out
