@@ -3,6 +3,7 @@ a full disk and a killed bag writer, a parameters file that applies to no node, 
 second controller, two simulations on one domain, a silent lockstep controller."""
 import contextlib
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -617,3 +618,48 @@ def test_a_stalled_realtime_node_resynchronises_instead_of_catching_up():
     assert "(1 stall, " in figures, figures
     rtf = float(figures.split("real-time factor ", 1)[1].split()[0])
     assert rtf == pytest.approx(rate_factor, rel=0.1), figures      # the stall left out
+
+
+# -- issue 34 (round 3), item 2: one params file, read the same by the node (rcl) and the headless tools --
+#: the same cases as test/unit/test_scenes.py (READ_AS_RCL_DOES, REFUSED_AS_BY_THE_NODE), on the node's side:
+#: (file lines, exit code, what its log says)
+NODE_READS = {
+    "exponents and n": ("    time_mode: fast\n    duration: 1e-2\n    control_period: 2e-3\n    record: n\n", 0,
+                        r"control_period=0\.002 s, duration=0\.01 s"),
+    "09 and y": ("    duration: 09\n    start_paused: y\n    record: false\n", None, r"duration=9 s"),
+    "a key twice": ("    duration: 1.0\n    duration: 2.0\n", 2,
+                    r"'biped_sim\.ros__parameters\.duration' is given twice \(lines 5 and 6\)"),
+    "a section twice": ("    duration: 1.0\nbiped_sim:\n  ros__parameters:\n    control_period: 0.002\n", 2,
+                        r"'biped_sim' is given twice \(lines 1 and 6\); the node \(rcl\) would merge the two"),
+    "1_000": ("    duration: 1_000\n", 2, r"parameter 'duration' must be a number, got '1_000'"),
+    "scene n": ("    scene: n\n", 2, r"parameter 'scene' must be a string, got False \(unquoted, y, n, .*quote"),
+    "a mixed list": ("    initial_dq: [0, 0.5, 0.0, 0.0, 0.0]\n", 2,
+                     r"parameter 'initial_dq' mixes integers and floats \(rcl refuses a list of mixed types\)"),
+    "no value": ("    duration:\n", 2, r"Couldn't parse params file.*No value at line 5"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(NODE_READS))
+def test_a_parameters_file_is_read_by_the_node_as_by_the_headless_tools(case, tmp_path):
+    """The node's reading of each file (its startup line, its refusal) is the scene loader's."""
+    lines, code, words = NODE_READS[case]
+    path = tmp_path / "params.yaml"
+    path.write_text("biped_sim:\n  ros__parameters:\n    phases: [stance, impact]\n    outputs: [joint_states]\n"
+                    + lines)
+    argv = [str(BIN / "sim_node"), "--ros-args", "--params-file", str(path)]
+    with ros_domain() as dom:
+        if code is None:            # starts paused (start_paused: y): it waits, at t = 0, until stopped
+            with NodeProcess(argv, dom, tmp_path / "node.log") as proc:
+                wait_for(lambda: "duration=" in proc.output(), 20, "the startup line", [proc])
+                assert proc.stop(signal.SIGTERM) == 0
+            log = proc.output()
+            assert "shutting down at t=0.000000 s" in log, log
+        else:
+            done = subprocess.run(argv, env=ros_env(dom), cwd=tmp_path, capture_output=True, text=True, timeout=30,
+                                  stdin=subprocess.DEVNULL)
+            log = done.stdout + done.stderr
+            assert done.returncode == code, log
+            if code == 2:
+                assert len([ln for ln in done.stderr.splitlines() if ln.startswith("sim_node: error:")]) == 1, log
+    assert re.search(words, log), log
+    assert "Traceback" not in log and not (tmp_path / "bags").exists(), log       # nothing recorded
