@@ -126,11 +126,12 @@ def _value(node, path, source):
                 first, again = lines[key], key_node.start_mark.line + 1
                 dotted = ".".join(path + [key])
                 if isinstance(value_node, yaml.MappingNode):
-                    what = (f"the node (rcl) would merge the two, other YAML readers (the headless tools) keep "
-                            f"only the second: write '{key}:' once, with everything under it")
+                    what = (f"rcl (the node) would merge the two and a YAML reader keep only the second, each "
+                            f"silently: write '{key}:' once, with everything under it")
                 else:
-                    what = (f"the node (rcl) and PyYAML keep the second, which is likely not what was meant: "
-                            f"keep the one value '{key}' should have")
+                    values = f"{out[key]!r} and {_value(value_node, path + [key], source)!r}"
+                    what = (f"rcl (the node) would take the second silently: write '{key}' once, with the value "
+                            f"it should have ({values} given)")
                 raise ParamsFileError(f"{source}: '{dotted}' is given twice (lines {first} and {again}); {what}")
             lines[key] = key_node.start_mark.line + 1
             out[key] = _value(value_node, path + [key], source)

@@ -630,7 +630,7 @@ NODE_READS = {
     "a key twice": ("    duration: 1.0\n    duration: 2.0\n", 2,
                     r"'biped_sim\.ros__parameters\.duration' is given twice \(lines 5 and 6\)"),
     "a section twice": ("    duration: 1.0\nbiped_sim:\n  ros__parameters:\n    control_period: 0.002\n", 2,
-                        r"'biped_sim' is given twice \(lines 1 and 6\); the node \(rcl\) would merge the two"),
+                        r"'biped_sim' is given twice \(lines 1 and 6\); rcl \(the node\) would merge the two"),
     "1_000": ("    duration: 1_000\n", 2, r"parameter 'duration' must be a number, got '1_000'"),
     "scene n": ("    scene: n\n", 2, r"parameter 'scene' must be a string, got False \(unquoted, y, n, .*quote"),
     "a mixed list": ("    initial_dq: [0, 0.5, 0.0, 0.0, 0.0]\n", 2,

@@ -201,9 +201,10 @@ REFUSED_AS_BY_THE_NODE = [
     # (file lines, the one line's words); PyYAML took the last of two keys or sections, 1_000 as 1000, and
     # the mixed list as floats, where rcl keeps the string '1_000', merges the sections, refuses the list
     ("    duration: 1.0\n    duration: 2.0\n",
-     r"'biped_sim\.ros__parameters\.duration' is given twice \(lines 5 and 6\).*keep the one value"),
+     r"'biped_sim\.ros__parameters\.duration' is given twice \(lines 5 and 6\); rcl \(the node\) would take the "
+     r"second.*\(1\.0 and 2\.0 given\)"),
     ("    duration: 1.0\nbiped_sim:\n  ros__parameters:\n    control_period: 0.002\n",
-     r"'biped_sim' is given twice \(lines 1 and 6\); the node \(rcl\) would merge the two.*write 'biped_sim:' once"),
+     r"'biped_sim' is given twice \(lines 1 and 6\); rcl \(the node\) would merge the two.*write 'biped_sim:' once"),
     ("    duration: 1_000\n", r"parameter 'duration' must be a number, got '1_000'"),
     ("    scene: n\n", r"parameter 'scene' must be a string, got False \(unquoted, y, n, .*quote the string"),
     ("    initial_dq: [0, 0.5, 0.0, 0.0, 0.0]\n",
