@@ -612,12 +612,16 @@ def test_a_stalled_realtime_node_resynchronises_instead_of_catching_up():
                 if t - stopped_at > 1.5 * rate_factor * (w - resumed) + 0.1]
     assert not advanced, f"a catch-up burst after the resume (wall s since it, simulated s since the stop): " \
                          f"{advanced[:5]}\n{proc.output()}"
-    line = one_line(proc.output(), "stalled")
-    assert "[WARN]" in line and "resynchronised" in line, line
-    figures = one_line(proc.output(), "realtime figures")
-    assert "(1 stall, " in figures, figures
+    log = proc.output()
+    # (a loaded machine may starve the node more than 0.5 s once more: a second stall, said as well)
+    stalls = [ln for ln in log.splitlines() if "realtime: the node stalled for" in ln]
+    assert stalls and all("[WARN]" in ln and "resynchronised" in ln for ln in stalls), log
+    longest = max(float(ln.split("stalled for ", 1)[1].split()[0]) for ln in stalls)
+    assert stall - 0.5 < longest < stall + 2.0, stalls                # the SIGSTOP's, measured
+    figures = one_line(log, "realtime figures")
+    assert re.search(rf"\({len(stalls)} stalls?, [0-9.]+ s of wall time, left out\)", figures), figures
     rtf = float(figures.split("real-time factor ", 1)[1].split()[0])
-    assert rtf == pytest.approx(rate_factor, rel=0.1), figures      # the stall left out
+    assert rtf == pytest.approx(rate_factor, rel=0.2), figures      # the stall left out (else about 0.3)
 
 
 # -- issue 34 (round 3), item 2: one params file, read the same by the node (rcl) and the headless tools --
