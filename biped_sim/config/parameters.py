@@ -59,6 +59,9 @@ class Param:
                 raise ValueError(f"{where} must be true or false, got {value!r}")
             return value
         if self.type is str:
+            if isinstance(value, bool):     # rcl reads y/n/yes/no/on/off/true/false unquoted as a bool
+                raise ValueError(f"{where} must be a string, got {value!r} (unquoted, y, n, yes, no, on, off, "
+                                 "true and false are read as true/false: quote the string, e.g. 'n')")
             if not isinstance(value, str):
                 raise ValueError(f"{where} must be a string, got {value!r}")
             if self.choices and value not in self.choices:

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import yaml
 
-from biped_sim.config import parameters as P
+from biped_sim.config import parameters as P, params_yaml
 
 NODE_SECTION = "biped_sim"
 CONTROLLER_SECTION = "walk_controller"
@@ -157,8 +157,8 @@ def load_scene(name_or_path, overrides=None) -> Scene:
     :func:`apply_overrides` for the names); the result is checked exactly as if the file said them.
     """
     path = scene_path(name_or_path)
-    try:
-        doc = yaml.safe_load(path.read_text())
+    try:        # as the node reads it (rcl's rules, not YAML 1.1's): see params_yaml
+        doc = params_yaml.load(path.read_text(), f"scene {path}")
     except yaml.YAMLError as exc:
         raise ValueError(f"scene {path}: not valid YAML: {exc}") from None
     if not isinstance(doc, dict):

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import re
 
+from biped_sim.config import params_yaml
 from biped_sim.ros.startup import StartupError
 
 PARAMETERS_KEY = "ros__parameters"
@@ -64,13 +65,17 @@ def matches(section: str, fqn: str) -> bool:
 
 
 def check_applies(node, argv: list):
-    """StartupError naming a ``--params-file`` of ``argv`` none of whose sections applies to ``node``."""
+    """StartupError naming a ``--params-file`` of ``argv`` none of whose sections applies to ``node``,
+    or one that rcl and the headless tools would read differently (a key given twice: rcl merges two
+    sections of a node and keeps the last of two values, silently; see params_yaml)."""
     import yaml
     fqn = node.get_fully_qualified_name()
     for path in params_files(argv):
         try:
             with open(path) as f:
-                document = yaml.safe_load(f)
+                document = params_yaml.load(f.read(), f"the parameters file {path}")
+        except params_yaml.ParamsFileError as exc:
+            raise StartupError(str(exc)) from None
         except (OSError, yaml.YAMLError):
             continue            # rcl has read it already: it says what is wrong with it, not us
         names = sections(document)

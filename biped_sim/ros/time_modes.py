@@ -3,8 +3,8 @@
 Owns when the node steps and publishes: ``lockstep`` (each command steps once: the loop only
 spins), ``fast`` (step as fast as possible) and ``realtime`` (simulated time t is due at wall time
 ``start + t / rate_factor``: :class:`RealtimePacer` sleeps until then, says when the loop falls
-behind, and measures the achieved rate). Both publish at ``publish_rate`` in simulated time,
-whatever the control period (:class:`PublishSchedule`). The loops drive a
+behind, resynchronises after a stall, and measures the achieved rate). Both publish at
+``publish_rate`` in simulated time, whatever the control period (:class:`PublishSchedule`). The loops drive a
 :class:`biped_sim.ros.sim_node.SimNode` through its ``check_timeout``, ``step`` and
 ``publish_state``; the pacing and the schedule are plain Python.
 """
@@ -20,6 +20,9 @@ LAG_REPORT_INTERVAL = 2.0
 #: time.sleep overshoots by ~0.1 ms here: sleep until this much before the deadline, then spin
 SLEEP_MARGIN = 1.5e-4
 MAX_PUBLICATION_TIMES = 1_000_000
+#: a control period that takes this much wall time more than it should is a stall (the process was
+#: stopped, SIGSTOP or a suspended machine, or starved): the clock resynchronises instead of replaying it
+STALL_BOUND = 0.5
 
 
 class PublishSchedule:
@@ -47,10 +50,13 @@ class RealtimePacer:
     The figures count the stretches the loop ran paced (a segment: from a start or a
     :meth:`restart` to the last period waited for), not the pauses, ``~/step`` s and resets between
     them: after a reset to t = 0 the simulated time of the whole run is not ``t``, and a pause is
-    neither jitter nor a slow real-time factor."""
+    neither jitter nor a slow real-time factor. A stall ends a segment too (see :meth:`wait_until`)."""
 
-    def __init__(self, rate_factor: float, control_period: float, publish_period: float):
+    def __init__(self, rate_factor: float, control_period: float, publish_period: float,
+                 stall_bound: float = STALL_BOUND):
         self.rate = rate_factor
+        self.stall_bound = stall_bound
+        self.stalls, self.stalled_wall = 0, 0.0                 # the stalls left out of the figures
         self.lag_tolerance = max(control_period / rate_factor, 0.005)
         self.publish_period = publish_period / rate_factor      # wall s between publications
         self.start = time.monotonic()
@@ -65,11 +71,17 @@ class RealtimePacer:
 
     def wait_until(self, t: float) -> str | None:
         """Sleep until simulated time ``t`` is due; a warning if it is already late by more than a
-        control period (at most one every LAG_REPORT_INTERVAL s)."""
+        control period (at most one every LAG_REPORT_INTERVAL s), or if the loop stalled.
+
+        A stall: the wall time since the last period waited for exceeds what the simulated time
+        between them needs by more than ``stall_bound``, at once (a loop that falls behind a little
+        each period is not one). Holding to the old clock would replay the stall as fast as the loop
+        goes; instead ``t`` is due now: the simulated time goes on from where it was, and the stall
+        is left out of the figures."""
+        warning = self._resync_if_stalled(t, time.monotonic())
         deadline = self.start + t / self.rate
         now = time.monotonic()
-        warning = None
-        if now > deadline + self.lag_tolerance and now - self.last_lag_report > LAG_REPORT_INTERVAL:
+        if warning is None and now > deadline + self.lag_tolerance and now - self.last_lag_report > LAG_REPORT_INTERVAL:
             self.last_lag_report = now
             self.lag_reports += 1
             warning = (f"realtime: cannot keep up: simulated time {t:.3f} s is {(now - deadline) * self.rate:.3f} s "
@@ -81,8 +93,30 @@ class RealtimePacer:
             time.sleep(left - SLEEP_MARGIN)
         while time.monotonic() < deadline:
             pass
+        # stopped during the sleep: the period is published late, the next ones must not catch up
+        warning = self._resync_if_stalled(t, time.monotonic()) or warning
         self.last_t, self.last_wall = t, time.monotonic()
         return warning
+
+    def _resync_if_stalled(self, t: float, now: float) -> str | None:
+        """If the loop stalled since the last period waited for: ``t`` is due at ``now``, the
+        current segment ends at the last period, a new one begins; the warning line."""
+        stalled = now - self.last_wall - (t - self.last_t) / self.rate
+        if stalled <= self.stall_bound:
+            return None
+        self.stalls += 1
+        self.stalled_wall += stalled
+        self.earlier_t += self.last_t - self.segment_t
+        self.earlier_wall += self.last_wall - self.segment_wall
+        self.segment_t, self.segment_wall = self.last_t, now - (t - self.last_t) / self.rate
+        self.last_t, self.last_wall = t, now
+        self.start = now - t / self.rate
+        if self.publication_times[-1]:
+            self.publication_times.append([])
+        return (f"realtime: the node stalled for {stalled:.3f} s of wall time before simulated time {t:.3f} s "
+                f"(the process was stopped, e.g. SIGSTOP or a suspended machine, or starved of CPU); the clock is "
+                f"resynchronised to now: the simulated time goes on from {t:.3f} s at rate_factor {self.rate:g} "
+                f"without catching up (stall {self.stalls}, left out of the real-time factor)")
 
     def restart(self, t: float):
         """Simulated time ``t`` is due now (after a pause, a step or a reset: time stood still or went
@@ -114,17 +148,22 @@ class RealtimePacer:
         paced_wall = self.earlier_wall + self.last_wall - self.segment_wall
         return dict(publications=self.publications, rate=len(d) / sum(w[-1] - w[0] for w in segments),
                     jitter_p50=pick(0.5), jitter_p99=pick(0.99), rtf=paced_t / paced_wall if paced_wall > 0 else 0.0,
-                    cpu=(time.process_time() - self.cpu_start) / max(1, control_periods))
+                    cpu=(time.process_time() - self.cpu_start) / max(1, control_periods),
+                    stalls=self.stalls, stalled_wall=self.stalled_wall)
 
     def report(self, t: float, control_periods: int) -> str | None:
         """The figures in one line (``benchmarks/bench_node.py`` reads it after "realtime figures: ")."""
         f = self.figures(t, control_periods)
         if f is None:
             return None
+        stalls = ""
+        if f["stalls"]:
+            stalls = (f" ({f['stalls']} stall{'s' if f['stalls'] > 1 else ''}, {f['stalled_wall']:.3f} s of wall "
+                      "time, left out)")
         return (f"realtime figures: {f['publications']} states published at {f['rate']:.1f} Hz (wall; target "
                 f"{1 / self.publish_period:.1f} Hz), period jitter p50 {f['jitter_p50'] * 1e6:.0f} us, "
-                f"p99 {f['jitter_p99'] * 1e6:.0f} us, real-time factor {f['rtf']:.3f}; CPU time of this process "
-                f"{f['cpu'] * 1e3:.3f} ms per control period")
+                f"p99 {f['jitter_p99'] * 1e6:.0f} us, real-time factor {f['rtf']:.3f}{stalls}; CPU time of this "
+                f"process {f['cpu'] * 1e3:.3f} ms per control period")
 
 
 def run_lockstep(node, should_stop, spin):

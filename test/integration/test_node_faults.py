@@ -3,6 +3,7 @@ a full disk and a killed bag writer, a parameters file that applies to no node, 
 second controller, two simulations on one domain, a silent lockstep controller."""
 import contextlib
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -577,3 +578,92 @@ def test_a_reset_with_little_disk_says_recording_is_off_and_a_later_one_records_
     assert sorted(p.name for p in saved.iterdir()) == [first.name, f"{first.name}-reset2"]   # no empty -reset1
     times = bag_joint_state_times(saved / f"{first.name}-reset2")
     assert times and times[0] == 0.0 and times == sorted(times)
+
+
+# -- issue 34 (round 3), item 1: a realtime node that stalls -----------------------------------------------
+def test_a_stalled_realtime_node_resynchronises_instead_of_catching_up():
+    """SIGSTOP for 2 s then SIGCONT (a laptop's sleep, a debugger, a starved machine). The pacer used
+    to hold the simulated time to the wall clock of before the stall, so it replayed the 2 s as fast
+    as it could (about 6x here). Now it resynchronises, says so in one line, and leaves the stall out
+    of its real-time factor. The standing robot falls at about 3 s: rate_factor 0.5 keeps well before."""
+    rate_factor, stall = 0.5, 2.0
+    params = dict(record=False, time_mode="realtime", rate_factor=rate_factor, publish_rate=50.0,
+                  command_timeout=0.0, outputs=["joint_states", "clock"], phases=["stance", "impact"])
+    arrivals = []                       # (wall clock at arrival, stamp in s) of each state
+    with ros_domain() as dom, start_node(params, dom) as proc, Client(dom) as c:
+        c.collect("/joint_states", JointState, transient_local=False,
+                  callback=lambda m: arrivals.append((time.monotonic(), t_of(m))))
+        c.wait_subscribed("/joint_states", proc=proc)
+        c.spin_until(lambda: len(arrivals) > 25, 20, "0.5 s of states", proc)
+        os.kill(proc.proc.pid, signal.SIGSTOP)
+        try:
+            end = time.monotonic() + stall
+            while time.monotonic() < end:        # take what was in flight
+                c.spin_once(0.05)
+            stopped_at = arrivals[-1][1]
+        finally:
+            os.kill(proc.proc.pid, signal.SIGCONT)
+        resumed = time.monotonic()
+        c.spin_until(lambda: arrivals[-1][0] > resumed + 1.5, 20, "1.5 s of states after the resume", proc)
+        assert proc.stop(signal.SIGTERM) == 0, proc.output()
+    after = [(w, t) for w, t in arrivals if w > resumed]
+    # from the resume on, the simulated time goes on at rate_factor: no burst replaying the stall
+    advanced = [(round(w - resumed, 3), round(t - stopped_at, 3)) for w, t in after
+                if t - stopped_at > 1.5 * rate_factor * (w - resumed) + 0.1]
+    assert not advanced, f"a catch-up burst after the resume (wall s since it, simulated s since the stop): " \
+                         f"{advanced[:5]}\n{proc.output()}"
+    log = proc.output()
+    # (a loaded machine may starve the node more than 0.5 s once more: a second stall, said as well)
+    stalls = [ln for ln in log.splitlines() if "realtime: the node stalled for" in ln]
+    assert stalls and all("[WARN]" in ln and "resynchronised" in ln for ln in stalls), log
+    longest = max(float(ln.split("stalled for ", 1)[1].split()[0]) for ln in stalls)
+    assert stall - 0.5 < longest < stall + 2.0, stalls                # the SIGSTOP's, measured
+    figures = one_line(log, "realtime figures")
+    assert re.search(rf"\({len(stalls)} stalls?, [0-9.]+ s of wall time, left out\)", figures), figures
+    rtf = float(figures.split("real-time factor ", 1)[1].split()[0])
+    assert rtf == pytest.approx(rate_factor, rel=0.2), figures      # the stall left out (else about 0.3)
+
+
+# -- issue 34 (round 3), item 2: one params file, read the same by the node (rcl) and the headless tools --
+#: the same cases as test/unit/test_scenes.py (READ_AS_RCL_DOES, REFUSED_AS_BY_THE_NODE), on the node's side:
+#: (file lines, exit code, what its log says)
+NODE_READS = {
+    "exponents and n": ("    time_mode: fast\n    duration: 1e-2\n    control_period: 2e-3\n    record: n\n", 0,
+                        r"control_period=0\.002 s, duration=0\.01 s"),
+    "09 and y": ("    duration: 09\n    start_paused: y\n    record: false\n", None, r"duration=9 s"),
+    "a key twice": ("    duration: 1.0\n    duration: 2.0\n", 2,
+                    r"'biped_sim\.ros__parameters\.duration' is given twice \(lines 5 and 6\)"),
+    "a section twice": ("    duration: 1.0\nbiped_sim:\n  ros__parameters:\n    control_period: 0.002\n", 2,
+                        r"'biped_sim' is given twice \(lines 1 and 6\); rcl \(the node\) would merge the two"),
+    "1_000": ("    duration: 1_000\n", 2, r"parameter 'duration' must be a number, got '1_000'"),
+    "scene n": ("    scene: n\n", 2, r"parameter 'scene' must be a string, got False \(unquoted, y, n, .*quote"),
+    "a mixed list": ("    initial_dq: [0, 0.5, 0.0, 0.0, 0.0]\n", 2,
+                     r"parameter 'initial_dq' mixes integers and floats \(rcl refuses a list of mixed types\)"),
+    "no value": ("    duration:\n", 2, r"Couldn't parse params file.*No value at line 5"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(NODE_READS))
+def test_a_parameters_file_is_read_by_the_node_as_by_the_headless_tools(case, tmp_path):
+    """The node's reading of each file (its startup line, its refusal) is the scene loader's."""
+    lines, code, words = NODE_READS[case]
+    path = tmp_path / "params.yaml"
+    path.write_text("biped_sim:\n  ros__parameters:\n    phases: [stance, impact]\n    outputs: [joint_states]\n"
+                    + lines)
+    argv = [str(BIN / "sim_node"), "--ros-args", "--params-file", str(path)]
+    with ros_domain() as dom:
+        if code is None:            # starts paused (start_paused: y): it waits, at t = 0, until stopped
+            with NodeProcess(argv, dom, tmp_path / "node.log") as proc:
+                wait_for(lambda: "duration=" in proc.output(), 20, "the startup line", [proc])
+                assert proc.stop(signal.SIGTERM) == 0
+            log = proc.output()
+            assert "shutting down at t=0.000000 s" in log, log
+        else:
+            done = subprocess.run(argv, env=ros_env(dom), cwd=tmp_path, capture_output=True, text=True, timeout=30,
+                                  stdin=subprocess.DEVNULL)
+            log = done.stdout + done.stderr
+            assert done.returncode == code, log
+            if code == 2:
+                assert len([ln for ln in done.stderr.splitlines() if ln.startswith("sim_node: error:")]) == 1, log
+    assert re.search(words, log), log
+    assert "Traceback" not in log and not (tmp_path / "bags").exists(), log       # nothing recorded

@@ -179,3 +179,73 @@ def test_cli_simulate_scene(capsys):
 def test_touchdown_in_a_scene_without_impact_stops_and_names_the_phase():
     r = load_scene("stance_fixed").simulate(hold=False, t_final=1.0)
     assert r.status == "stopped" and "add 'impact'" in r.message and r.t[-1] < 0.6
+
+
+# -- issue 34 (round 3), item 2: one params file, read the same by the node (rcl) and the headless tools --
+def _params_text(tmp_path, lines: str):
+    path = tmp_path / "scene.yaml"
+    path.write_text("biped_sim:\n  ros__parameters:\n    phases: [stance, impact]\n    outputs: [joint_states]\n"
+                    + lines)
+    return path
+
+
+#: each case's reading by the node was measured by starting sim_node with the file
+#: (test_node_faults.py::test_a_parameters_file_is_read_by_the_node_as_by_the_headless_tools)
+READ_AS_RCL_DOES = [
+    # (file lines, {parameter: the value rcl gives the node}); PyYAML read 1e-2, 2e-3, 09 as strings, n as 'n'
+    ("    duration: 1e-2\n    control_period: 2e-3\n    record: n\n",
+     {"duration": 0.01, "control_period": 0.002, "record": False}),
+    ("    duration: 09\n    start_paused: y\n", {"duration": 9.0, "start_paused": True}),
+]
+REFUSED_AS_BY_THE_NODE = [
+    # (file lines, the one line's words); PyYAML took the last of two keys or sections, 1_000 as 1000, and
+    # the mixed list as floats, where rcl keeps the string '1_000', merges the sections, refuses the list
+    ("    duration: 1.0\n    duration: 2.0\n",
+     r"'biped_sim\.ros__parameters\.duration' is given twice \(lines 5 and 6\); rcl \(the node\) would take the "
+     r"second.*\(1\.0 and 2\.0 given\)"),
+    ("    duration: 1.0\nbiped_sim:\n  ros__parameters:\n    control_period: 0.002\n",
+     r"'biped_sim' is given twice \(lines 1 and 6\); rcl \(the node\) would merge the two.*write 'biped_sim:' once"),
+    ("    duration: 1_000\n", r"parameter 'duration' must be a number, got '1_000'"),
+    ("    scene: n\n", r"parameter 'scene' must be a string, got False \(unquoted, y, n, .*quote the string"),
+    ("    initial_dq: [0, 0.5, 0.0, 0.0, 0.0]\n",
+     r"the list 'biped_sim\.ros__parameters\.initial_dq' \(line 5\) mixes float and integer entries.*rcl refuses"
+     r".*write every number with a decimal point"),
+    ("    duration:\n", r"'biped_sim\.ros__parameters\.duration' \(line 5\) has no value, which rcl refuses"),
+]
+
+
+@pytest.mark.parametrize("lines,expected", READ_AS_RCL_DOES)
+def test_a_scene_file_is_read_as_the_node_reads_it(lines, expected, tmp_path):
+    params = load_scene(_params_text(tmp_path, lines)).params
+    assert {name: params[name] for name in expected} == expected
+
+
+@pytest.mark.parametrize("lines,words", REFUSED_AS_BY_THE_NODE)
+def test_a_scene_file_the_node_reads_otherwise_or_refuses_is_refused_in_one_line(lines, words, tmp_path):
+    with pytest.raises(ValueError, match=words) as refused:
+        load_scene(_params_text(tmp_path, lines))
+    assert "\n" not in str(refused.value) and str(tmp_path / "scene.yaml") in str(refused.value)
+
+
+#: unquoted scalars as rcl (Jazzy) read them, measured: rclpy's parameter overrides from a params file
+RCL_SCALARS = [("yes", True), ("Off", False), ("y", True), ("N", False), ("1e3", 1000.0), ("1.0e3", 1000.0),
+               ("1E-3", 0.001), ("09", 9.0), ("010", 8), ("-010", -8), ("0x10", 16), ("0X1F", 31), ("+5", 5),
+               ("+1.5", 1.5), ("5.", 5.0), (".5", 0.5), ("0x1p3", 8.0), ("-0", 0), ("1_000", "1_000"),
+               ("0b101", "0b101"), ("0o10", "0o10"), ("1:30", "1:30"), ("~", "~"), ("null", "null"),
+               ("1e999", "1e999"), ("1e-400", "1e-400"), ("5e", "5e"), ("0x", "0x"), ("1.5.2", "1.5.2"),
+               ("9223372036854775808", 9.223372036854776e18), ("-9223372036854775808", -9223372036854775808)]
+
+
+@pytest.mark.parametrize("text,value", RCL_SCALARS)
+def test_unquoted_scalars_are_read_by_rcl_rules(text, value):
+    from biped_sim.config.params_yaml import rcl_scalar
+    got = rcl_scalar(text)
+    assert type(got) is type(value) and got == value
+
+
+def test_infinities_nan_quotes_and_tags_as_rcl_reads_them():
+    from biped_sim.config.params_yaml import load
+    doc = load("a: .inf\nb: -.Inf\nc: inf\nd: .nan\ne: '1e3'\nf: \"y\"\ng: !!str 12\nh: !!float 1\ni: [y, n]\n", "t")
+    assert doc["a"] == math.inf and doc["b"] == -math.inf and doc["c"] == math.inf and math.isnan(doc["d"])
+    assert doc["e"] == "1e3" and doc["f"] == "y" and doc["g"] == "12"      # quoted, !!str: strings
+    assert type(doc["h"]) is int and doc["i"] == [True, False]               # rcl ignores other tags
