@@ -13,9 +13,14 @@ lines to log, and :func:`stale_command`, the lockstep rule for a command tagged 
   last command's simulated time and wall age, repeated after 2, 4, ... times as long (at most
   every :data:`MAX_REPEAT` s); the node keeps waiting (lockstep is deterministic) unless
   ``lockstep_timeout`` says to end the run.
+
+And :class:`WarningBurst`, one warning that can come in bursts (refused pushes): the first said in
+full, the rest summed up in one line per :data:`BURST_SUMMARY_INTERVAL` s (the watch timer says the
+last summary of a burst).
 """
 from __future__ import annotations
 
+import threading
 import time
 
 from rclpy.clock import Clock, ClockType
@@ -24,6 +29,8 @@ from rclpy.clock import Clock, ClockType
 WATCH_PERIOD = 0.5
 #: the longest interval (wall s) between two warnings about a silent controller
 MAX_REPEAT = 60.0
+#: wall seconds between two lines about one kind of refusal that comes in a burst
+BURST_SUMMARY_INTERVAL = 2.0
 
 
 def endpoint_name(info) -> str:
@@ -119,6 +126,44 @@ def stale_command(answers_ns: int | None, newest_ns: int) -> str | None:
     return f"it answers {where}"
 
 
+class WarningBurst:
+    """A warning that can come many times a second (a publisher of bad pushes): the first is said in
+    full; the ones after it, within :data:`BURST_SUMMARY_INTERVAL` s of the last line, are counted and
+    said in one summary line (with the last one's text) once the interval is over -- by the next one
+    or by :meth:`flush`, which the watch timer calls and the node calls before its final status."""
+
+    def __init__(self, warn, what: str, interval: float = BURST_SUMMARY_INTERVAL):
+        self.warn, self.what, self.interval = warn, what, interval
+        self.total = 0          # all of them, said or not
+        self.unsaid = 0         # since the last line
+        self.last_text = None
+        self.last_line = -float("inf")
+        self.lock = threading.Lock()    # added to by the executor, flushed also by the run's thread
+
+    def add(self, text: str, now: float | None = None):
+        """One more; ``text`` says what and why (without the count)."""
+        now = time.monotonic() if now is None else now
+        with self.lock:
+            self.total += 1
+            if self.unsaid == 0 and now - self.last_line >= self.interval:
+                self.last_line = now
+                self.warn(f"{text} ({self.total} {self.what} so far)")
+                return
+            self.unsaid += 1
+            self.last_text = text
+        self.flush(now)
+
+    def flush(self, now: float | None = None, final: bool = False):
+        """Say the ones not said yet, if the interval since the last line is over (or ``final``)."""
+        now = time.monotonic() if now is None else now
+        with self.lock:
+            if not self.unsaid or (not final and now - self.last_line < self.interval):
+                return
+            self.warn(f"{self.unsaid} more {self.what} in the last {now - self.last_line:.1f} s, the last: "
+                      f"{self.last_text} ({self.total} {self.what} so far)")
+            self.unsaid, self.last_line = 0, now
+
+
 class RunWatch:
     """The node's watch timer: logs what :class:`GraphWatch` finds; in lockstep, what
     :class:`SilenceWatch` finds, and ends the run (``node.fault``) after ``lockstep_timeout``."""
@@ -139,6 +184,7 @@ class RunWatch:
         log = node.get_logger()
         for line in self.graph.check():
             log.warning(line)
+        node.control.refused_pushes.flush()
         if self.silence is None or node.finished or node.stopped or node.fault:
             return
         control = getattr(node, "control", None)

@@ -323,6 +323,8 @@ class SimNode(Node):
                       message=message, control_periods=str(sim.control_periods), events=str(len(sim.events)),
                       impacts=str(sim.stats["impacts"]), engine_wall_time=repr(float(sim.stats["wall_time"])))
         values.update({f"commands_{k}": str(v) for k, v in self.counts.items()})
+        values.update({k: str(v) for k, v in self.control.counts.items()})    # pushes, ~/step, ~/reset
+        self.control.refused_pushes.flush(final=True)     # the end of a burst is said before the status
         st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         self._publish(self.pub_diag, diagnostic_array(sim.t, [st]), sim.t)
 
@@ -395,7 +397,7 @@ class SimNode(Node):
             f"CPU {1e3 * cpu / k:.3f} ms per period; wall {wall:.4f} s from the first control period "
             f"({n / running if running > 0 else 0.0:.1f} periods/s" + (f" over the {running:.4f} s not paused"
                                                                        if paused > 0 else "")
-            + f"); commands {self.counts}")
+            + f"); commands {self.counts}; pushes and requests {self.control.counts}")
 
     def flush(self, timeout=5.0):
         """Wait (at most ``timeout`` s in all) until subscribers acknowledged what was published: a
