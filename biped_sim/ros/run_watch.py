@@ -114,11 +114,17 @@ class SilenceWatch:
         return None, None
 
 
-def stale_command(answers_ns: int | None, newest_ns: int) -> str | None:
+def stale_command(answers_ns: int | None, newest_ns: int, before_reset_ns: int | None = None) -> str | None:
     """Why a lockstep command tagged as the answer to the state ``answers_ns`` is not taken when the
-    newest state is ``newest_ns``, or None (untagged, or the answer to the newest state)."""
+    newest state is ``newest_ns``, or None (untagged, or the answer to the newest state).
+    ``before_reset_ns``: the latest state the runs before a ``~/reset`` reached (None: no reset), so
+    that a late answer to one of them is called what it is, not blamed on another simulation."""
     if answers_ns is None or answers_ns == newest_ns:
         return None
+    if before_reset_ns is not None and newest_ns < answers_ns <= before_reset_ns:
+        return (f"it answers the state at t={answers_ns * 1e-9:.6f} s of the run before the ~/reset (which "
+                f"reached t={before_reset_ns * 1e-9:.6f} s): a late answer to the old run; the run restarted "
+                "at t = 0 and takes the answer to its newest state")
     where = (f"the state at t={answers_ns * 1e-9:.6f} s, an older one: a restarted or a second controller "
              "answers states the run has gone past" if answers_ns < newest_ns else
              f"the state at t={answers_ns * 1e-9:.6f} s, which this node has not published: another "

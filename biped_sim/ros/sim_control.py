@@ -51,6 +51,7 @@ class SimControl:
         self.requests = deque()           # step and reset requests for the loop thread
         self.lockstep_command_held = False   # lockstep: a command came while paused
         self.resets = 0
+        self.before_reset_ns = None       # the latest state a run before a ~/reset reached (stale answers)
         self.first_bag = None
         self.recording_off = None         # why the last ~/reset could not open its bag (recording wanted)
         # in the run's final status and the closing summary (a refusal is otherwise only a log line)
@@ -223,6 +224,7 @@ class SimControl:
         untouched = node.sim.control_periods == 0 and t_old == 0.0 and node.sim.status == "running"
         keep_held = self.lockstep and untouched
         self.resets += 1
+        self.before_reset_ns = max(self.before_reset_ns or 0, to_ns(t_old))
         self.counts["resets"] = self.resets
         old_bag = node.bag_path if node.recorder is not None else None
         new_recorder, new_bag, not_recorded = self._next_recorder()

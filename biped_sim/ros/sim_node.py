@@ -227,7 +227,7 @@ class SimNode(Node):
 
     def _stale(self, msg, t) -> bool:
         """A command tagged as the answer to a state other than the newest: ignored (counted, warned)."""
-        why = run_watch.stale_command(answered_ns(msg), to_ns(t))
+        why = run_watch.stale_command(answered_ns(msg), to_ns(t), self.control.before_reset_ns)
         if why is None or self.finished or self.stopped:
             return False
         self.counts["stale"] += 1

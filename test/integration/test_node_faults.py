@@ -127,6 +127,37 @@ def test_lockstep_ignores_a_command_that_answers_another_state_than_the_newest(t
     assert rep["identical"] and rep["commands"] == 6 and rep["states"] == 5, format_report(rep)
 
 
+def test_a_late_answer_to_the_run_before_a_reset_is_called_stale_not_another_simulation():
+    """Issue 34, round 3, item 2: after a ~/reset (the run back at t = 0) a controller's late answer to
+    a state of the run before it was warned as coming from "another simulation on this ROS domain"."""
+    params = dict(time_mode="lockstep", record=False)
+    with ros_domain() as dom, start_node(params, dom) as proc, Client(dom) as c:
+        js = c.collect("/joint_states", JointState)
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        pub = c.publisher("/hip_torque", Float64MultiArray)
+        srv = Control(c, proc)
+        c.wait_matched(pub, proc=proc)
+        c.spin_until(lambda: js, what="the state at t = 0", proc=proc)
+        for n in (2, 3, 4):         # to t = 3 ms, each command the answer to the newest state
+            pub.publish(M.torque_msg([1.0, -1.0], M.stamp_ns(js[-1].header.stamp)))
+            c.spin_until(lambda: len(js) >= n, 10, f"state {n}", proc)
+        old_state = M.stamp_ns(js[-1].header.stamp)
+        assert srv.reset().success
+        c.spin_until(lambda: len(js) >= 5, 10, "the state at t = 0 after the reset", proc)
+        pub.publish(M.torque_msg([50.0, 50.0], old_state))             # late: answers the old run's t = 3 ms
+        pub.publish(M.torque_msg([2.0, -2.0], 0))                      # the new run's t = 0: taken
+        c.spin_until(lambda: len(js) >= 6, 10, "the new run's first period", proc)
+        assert proc.stop() == 0
+        status = run_status(c, diag, proc)
+    assert [round(t_of(m), 9) for m in js] == [0.0, 0.001, 0.002, 0.003, 0.0, 0.001]
+    assert list(js[-1].effort)[2:4] == [2.0, -2.0]
+    assert status["commands_stale"] == "1" and status["resets"] == "1", status
+    line = one_line(proc.output(), "hip_torque ignored")
+    assert "[WARN]" in line and "another simulation" not in line, line
+    assert ("it answers the state at t=0.003000 s of the run before the ~/reset (which reached t=0.003000 s): "
+            "a late answer to the old run") in line, line
+
+
 def test_a_tagged_command_is_recorded_as_rclpy_and_rosbags_read_it():
     """The recorder's fast CDR of a labelled layout (the tag) decodes to the message it encodes."""
     from rclpy.serialization import deserialize_message
