@@ -4,7 +4,8 @@ Owns :class:`RunWatch`, a timer of the node that runs two checks every :data:`WA
 wall time (a steady clock, whatever the simulated time does), each a plain class that returns the
 lines to log, and :func:`stale_command`, the lockstep rule for a command tagged with the state it answers:
 
-* :class:`GraphWatch`: another node on the node's topics -- a second publisher of ``hip_torque``
+* :class:`GraphWatch`: another node of the same name (a call to its ``~/reset`` resets both), or
+  another node on the node's topics -- a second publisher of ``hip_torque``
   (two controllers: in lockstep each command advances the run one period) or another publisher of
   ``joint_states`` (a second simulation on this domain: its controller answers both). Said once per
   new set of publishers, naming them (``get_publishers_info_by_topic``): such runs used to end
@@ -47,6 +48,7 @@ class GraphWatch:
         self.own = node.get_fully_qualified_name()
         self.command_topic, self.state_topic = command_topic, state_topic
         self.said = {command_topic: (), state_topic: ()}
+        self.said_same_name = 1
 
     def others(self, topic: str, own_publishers: int) -> list:
         """Names of the publishers of ``topic`` other than this node's ``own_publishers``."""
@@ -56,9 +58,23 @@ class GraphWatch:
                 names.remove(self.own)
         return names
 
+    def namesakes(self) -> int:
+        """How many nodes (this one included) are named as this one. The graph's list of node names
+        holds each name once, so they are counted by their publishers on the topics every node has."""
+        return max(sum(1 for i in self.node.get_publishers_info_by_topic(topic) if endpoint_name(i) == self.own)
+                   for topic in ("/rosout", "/parameter_events"))
+
     def check(self) -> list:
-        """The warnings about a set of publishers not said before."""
+        """The warnings about a set of publishers (or of nodes of this name) not said before."""
         lines = []
+        same = self.namesakes()
+        if same > 1 and same != self.said_same_name:
+            lines.append(
+                f"{same} nodes are named {self.own} on this ROS domain: a call to {self.own}/reset, "
+                f"{self.own}/pause or {self.own}/step reaches each of them (one call resets, pauses or steps "
+                "every run), and their parameters and logs cannot be told apart. Give each node its own name: "
+                "sim_node --ros-args -r __node:=NAME (its services are then /NAME/reset, /NAME/pause, /NAME/step)")
+        self.said_same_name = max(same, 1)
         commanders = self.others(self.command_topic, 0)
         if len(commanders) > 1 and tuple(commanders) != self.said[self.command_topic]:
             lines.append(

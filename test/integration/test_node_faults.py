@@ -249,6 +249,24 @@ def test_two_simulations_on_one_domain_name_each_other():
         assert "ROS_DOMAIN_ID" in line and "[WARN]" in line
 
 
+def test_two_nodes_of_one_name_are_told_to_rename_and_a_renamed_node_alone_takes_its_reset():
+    """Issue 34, round 3, item 3: two sim_nodes of one name on one domain serve the same /biped_sim/reset
+    (one call resets both runs) and nothing said so; a node renamed with -r __node:=NAME has its own."""
+    params = {"start_paused": True, "record": False, "outputs": ["clock"]}
+    with ros_domain() as dom, start_node(params, dom) as a, start_node(params, dom) as b, \
+            start_node(params, dom, extra_args=["--ros-args", "-r", "__node:=sim_a"]) as renamed, Client(dom) as c:
+        wait_for(lambda: all("2 nodes are named /biped_sim" in p.output() for p in (a, b)), 60,
+                 "both namesakes warned", [a, b, renamed])
+        answer = Control(c, renamed, "/sim_a").reset()
+        assert answer.success, answer.message
+        assert all(p.stop() == 0 for p in (a, b, renamed))
+    for p in (a, b):
+        line = one_line(p.output(), "nodes are named")
+        assert "[WARN]" in line and "a call to /biped_sim/reset" in line and "-r __node:=NAME" in line, line
+        assert "~/reset" not in p.output(), p.output()             # the renamed node's reset reached it alone
+    assert "~/reset: reset to t = 0" in renamed.output() and "nodes are named" not in renamed.output()
+
+
 # -- item 8: a silent lockstep controller --------------------------------------------------------------
 def test_a_silent_lockstep_controller_is_reported_then_the_run_ends_on_lockstep_timeout(tmp_path):
     params = dict(time_mode="lockstep", scene="silent", bag_dir=str(tmp_path), lockstep_warn_after=0.5,
