@@ -15,12 +15,18 @@ lines to log, and :func:`stale_command`, the lockstep rule for a command tagged 
   every :data:`MAX_REPEAT` s); the node keeps waiting (lockstep is deterministic) unless
   ``lockstep_timeout`` says to end the run.
 
+* :class:`MarkerLoad`: the wall time the node spends drawing the robot (``markers``): beyond
+  :data:`MARKER_SHARE_WARN` of the wall time, one warning naming ``marker_rate`` and a value this
+  machine draws within :data:`MARKER_SHARE_ADVISED` (the lag warning of a realtime run names the
+  loop's knobs; the markers, at a wall-time rate, are the cost none of those lowers).
+
 And :class:`WarningBurst`, one warning that can come in bursts (refused pushes): the first said in
 full, the rest summed up in one line per :data:`BURST_SUMMARY_INTERVAL` s (the watch timer says the
 last summary of a burst).
 """
 from __future__ import annotations
 
+import math
 import threading
 import time
 
@@ -30,6 +36,12 @@ from rclpy.clock import Clock, ClockType
 WATCH_PERIOD = 0.5
 #: the longest interval (wall s) between two warnings about a silent controller
 MAX_REPEAT = 60.0
+#: drawing the markers (build, serialise, record, publish) above this share of the wall time is warned
+MARKER_SHARE_WARN = 0.10
+#: the share of the wall time the advised marker_rate costs (the default 30 Hz costs 1-2 % here)
+MARKER_SHARE_ADVISED = 0.05
+#: the shortest stretch of wall time (s) over which the markers' share is measured
+MARKER_WINDOW = 1.0
 #: wall seconds between two lines about one kind of refusal that comes in a burst
 BURST_SUMMARY_INTERVAL = 2.0
 
@@ -148,6 +160,58 @@ def stale_command(answers_ns: int | None, newest_ns: int, before_reset_ns: int |
     return f"it answers {where}"
 
 
+def round_down_125(x: float) -> float:
+    """The largest 1, 2 or 5 times a power of ten that is at most ``x`` (x > 0): a rate to type."""
+    power = 10.0 ** math.floor(math.log10(x))
+    return next(m * power for m in (5, 2, 1) if m * power <= x * (1 + 1e-9))
+
+
+class MarkerLoad:
+    """The wall time spent drawing markers, measured over stretches of at least MARKER_WINDOW s of a
+    running (not paused) run; said once, with a ``marker_rate`` this machine draws within
+    MARKER_SHARE_ADVISED of the wall time, when a stretch (or the last, shorter one of a run that
+    ends) went above MARKER_SHARE_WARN."""
+
+    def __init__(self, rate: float):
+        self.rate = rate
+        self.lock = threading.Lock()      # drawn in the run's thread, checked in the watch timer's
+        self.begin = None                 # the stretch begins at its first array: not at a start or a pause
+        self.drawn = 0
+        self.busy = 0.0
+        self.said = False
+
+    def drew(self, seconds: float):
+        """One MarkerArray drawn (built, serialised, published, recorded) in ``seconds`` of wall time."""
+        with self.lock:
+            if self.begin is None:
+                self.begin = time.monotonic() - seconds
+            self.drawn += 1
+            self.busy += seconds
+
+    def check(self, now: float | None = None, final: bool = False, paused: bool = False) -> str | None:
+        """The warning, once per run, if the stretch that ends now (at least MARKER_WINDOW s long, or
+        any length if ``final``) took more than MARKER_SHARE_WARN of the wall time drawing markers.
+        ``paused``: the run draws nothing, the stretch is dropped (a pause is not a cheap marker)."""
+        now = time.monotonic() if now is None else now
+        with self.lock:
+            if self.begin is None:
+                return None
+            span, drawn, busy = now - self.begin, self.drawn, self.busy
+            if span < MARKER_WINDOW and not (final or paused):
+                return None
+            self.begin, self.drawn, self.busy = None, 0, 0.0
+        if paused or self.said or drawn < 10 or span <= 0 or busy / span < MARKER_SHARE_WARN:
+            return None
+        self.said = True
+        share, each = busy / span, busy / drawn
+        advised = max(0.1, round_down_125(min(MARKER_SHARE_ADVISED / each, 0.999 * self.rate)))
+        return (f"markers: drawing the robot at marker_rate={self.rate:g} Hz took {share:.0%} of the wall time "
+                f"({drawn} MarkerArrays in {span:.1f} s, {each * 1e3:.2f} ms each, built, serialised, sent "
+                "and recorded), time the simulation loop needs (a realtime run falls behind, fast and lockstep runs "
+                f"slow down; lowering publish_rate or rate_factor does not lower it). Set marker_rate:={advised:g} "
+                f"(about {advised * each:.0%} of the wall time here), or leave markers out of outputs")
+
+
 class WarningBurst:
     """A warning that can come many times a second (a publisher of bad pushes): the first is said in
     full; the ones after it, within :data:`BURST_SUMMARY_INTERVAL` s of the last line, are counted and
@@ -195,7 +259,17 @@ class RunWatch:
         self.graph = GraphWatch(node, node.sub.topic_name, node.pub_js.topic_name if node.pub_js else None)
         self.silence = (SilenceWatch(node.params["lockstep_warn_after"], node.params["lockstep_timeout"])
                         if node.mode == "lockstep" else None)
+        self.markers = MarkerLoad(node.params["marker_rate"]) if node.markers is not None else None
         node.create_timer(WATCH_PERIOD, self.check, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def check_markers(self, final: bool = False):
+        """The markers' share of the wall time (``final``: at the end of the run, before its figures)."""
+        if self.markers is None:
+            return
+        control = getattr(self.node, "control", None)
+        warning = self.markers.check(final=final, paused=control is not None and control.paused)
+        if warning:
+            self.node.get_logger().warning(warning)
 
     def commanded(self, t: float):
         if self.silence is not None:
@@ -207,6 +281,7 @@ class RunWatch:
         for line in self.graph.check():
             log.warning(line)
         node.control.refused_pushes.flush()
+        self.check_markers()
         if self.silence is None or node.finished or node.stopped or node.fault:
             return
         control = getattr(node, "control", None)

@@ -343,9 +343,11 @@ class SimNode(Node):
         if self.recorder is not None and state:
             self.recorder.write_messages(t_ns, state)
         if self.markers is not None:   # the last state of a run is always drawn
-            msg = self.markers.poll(time.monotonic(), sim, force=self.finished or self.stopped)
+            begin = time.monotonic()
+            msg = self.markers.poll(begin, sim, force=self.finished or self.stopped)
             if msg is not None:   # serialised once for the topic and the bag (1.2 ms a MarkerArray)
                 self._publish(self.pub_markers, serialize_message(msg), sim.t)
+                self.watch.markers.drew(time.monotonic() - begin)     # its share of the wall time (run_watch)
 
     # -- time modes ---------------------------------------------------------------------------
     def run(self, should_stop, executor):
@@ -380,6 +382,7 @@ class SimNode(Node):
         """The run's cost: control periods, engine time and this process's CPU time per period, and the
         wall time from the first control period (in lockstep: the first command) to the end of the run
         (``benchmarks/bench_node.py`` and ``bench_record.py`` read this line)."""
+        self.watch.check_markers(final=True)     # a run too short for the watch's stretches
         earlier = self.earlier_runs      # the runs before each ~/reset count too
         n = earlier["periods"] + self.sim.control_periods
         k = max(1, n)
