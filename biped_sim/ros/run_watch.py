@@ -4,7 +4,8 @@ Owns :class:`RunWatch`, a timer of the node that runs two checks every :data:`WA
 wall time (a steady clock, whatever the simulated time does), each a plain class that returns the
 lines to log, and :func:`stale_command`, the lockstep rule for a command tagged with the state it answers:
 
-* :class:`GraphWatch`: another node on the node's topics -- a second publisher of ``hip_torque``
+* :class:`GraphWatch`: another node of the same name (a call to its ``~/reset`` resets both), or
+  another node on the node's topics -- a second publisher of ``hip_torque``
   (two controllers: in lockstep each command advances the run one period) or another publisher of
   ``joint_states`` (a second simulation on this domain: its controller answers both). Said once per
   new set of publishers, naming them (``get_publishers_info_by_topic``): such runs used to end
@@ -13,9 +14,20 @@ lines to log, and :func:`stale_command`, the lockstep rule for a command tagged 
   last command's simulated time and wall age, repeated after 2, 4, ... times as long (at most
   every :data:`MAX_REPEAT` s); the node keeps waiting (lockstep is deterministic) unless
   ``lockstep_timeout`` says to end the run.
+
+* :class:`MarkerLoad`: the wall time the node spends drawing the robot (``markers``): beyond
+  :data:`MARKER_SHARE_WARN` of the wall time, one warning naming ``marker_rate`` and a value this
+  machine draws within :data:`MARKER_SHARE_ADVISED` (the lag warning of a realtime run names the
+  loop's knobs; the markers, at a wall-time rate, are the cost none of those lowers).
+
+And :class:`WarningBurst`, one warning that can come in bursts (refused pushes): the first said in
+full, the rest summed up in one line per :data:`BURST_SUMMARY_INTERVAL` s (the watch timer says the
+last summary of a burst).
 """
 from __future__ import annotations
 
+import math
+import threading
 import time
 
 from rclpy.clock import Clock, ClockType
@@ -24,6 +36,14 @@ from rclpy.clock import Clock, ClockType
 WATCH_PERIOD = 0.5
 #: the longest interval (wall s) between two warnings about a silent controller
 MAX_REPEAT = 60.0
+#: drawing the markers (build, serialise, record, publish) above this share of the wall time is warned
+MARKER_SHARE_WARN = 0.10
+#: the share of the wall time the advised marker_rate costs (the default 30 Hz costs 1-2 % here)
+MARKER_SHARE_ADVISED = 0.05
+#: the shortest stretch of wall time (s) over which the markers' share is measured
+MARKER_WINDOW = 1.0
+#: wall seconds between two lines about one kind of refusal that comes in a burst
+BURST_SUMMARY_INTERVAL = 2.0
 
 
 def endpoint_name(info) -> str:
@@ -40,6 +60,7 @@ class GraphWatch:
         self.own = node.get_fully_qualified_name()
         self.command_topic, self.state_topic = command_topic, state_topic
         self.said = {command_topic: (), state_topic: ()}
+        self.said_same_name = 1
 
     def others(self, topic: str, own_publishers: int) -> list:
         """Names of the publishers of ``topic`` other than this node's ``own_publishers``."""
@@ -49,9 +70,23 @@ class GraphWatch:
                 names.remove(self.own)
         return names
 
+    def namesakes(self) -> int:
+        """How many nodes (this one included) are named as this one. The graph's list of node names
+        holds each name once, so they are counted by their publishers on the topics every node has."""
+        return max(sum(1 for i in self.node.get_publishers_info_by_topic(topic) if endpoint_name(i) == self.own)
+                   for topic in ("/rosout", "/parameter_events"))
+
     def check(self) -> list:
-        """The warnings about a set of publishers not said before."""
+        """The warnings about a set of publishers (or of nodes of this name) not said before."""
         lines = []
+        same = self.namesakes()
+        if same > 1 and same != self.said_same_name:
+            lines.append(
+                f"{same} nodes are named {self.own} on this ROS domain: a call to {self.own}/reset, "
+                f"{self.own}/pause or {self.own}/step reaches each of them (one call resets, pauses or steps "
+                "every run), and their parameters and logs cannot be told apart. Give each node its own name: "
+                "sim_node --ros-args -r __node:=NAME (its services are then /NAME/reset, /NAME/pause, /NAME/step)")
+        self.said_same_name = max(same, 1)
         commanders = self.others(self.command_topic, 0)
         if len(commanders) > 1 and tuple(commanders) != self.said[self.command_topic]:
             lines.append(
@@ -107,16 +142,112 @@ class SilenceWatch:
         return None, None
 
 
-def stale_command(answers_ns: int | None, newest_ns: int) -> str | None:
+def stale_command(answers_ns: int | None, newest_ns: int, before_reset_ns: int | None = None) -> str | None:
     """Why a lockstep command tagged as the answer to the state ``answers_ns`` is not taken when the
-    newest state is ``newest_ns``, or None (untagged, or the answer to the newest state)."""
+    newest state is ``newest_ns``, or None (untagged, or the answer to the newest state).
+    ``before_reset_ns``: the latest state the runs before a ``~/reset`` reached (None: no reset), so
+    that a late answer to one of them is called what it is, not blamed on another simulation."""
     if answers_ns is None or answers_ns == newest_ns:
         return None
+    if before_reset_ns is not None and newest_ns < answers_ns <= before_reset_ns:
+        return (f"it answers the state at t={answers_ns * 1e-9:.6f} s of the run before the ~/reset (which "
+                f"reached t={before_reset_ns * 1e-9:.6f} s): a late answer to the old run; the run restarted "
+                "at t = 0 and takes the answer to its newest state")
     where = (f"the state at t={answers_ns * 1e-9:.6f} s, an older one: a restarted or a second controller "
              "answers states the run has gone past" if answers_ns < newest_ns else
              f"the state at t={answers_ns * 1e-9:.6f} s, which this node has not published: another "
              "simulation on this ROS domain?")
     return f"it answers {where}"
+
+
+def round_down_125(x: float) -> float:
+    """The largest 1, 2 or 5 times a power of ten that is at most ``x`` (x > 0): a rate to type."""
+    power = 10.0 ** math.floor(math.log10(x))
+    return next(m * power for m in (5, 2, 1) if m * power <= x * (1 + 1e-9))
+
+
+class MarkerLoad:
+    """The wall time spent drawing markers, measured over stretches of at least MARKER_WINDOW s of a
+    running (not paused) run; said once, with a ``marker_rate`` this machine draws within
+    MARKER_SHARE_ADVISED of the wall time, when a stretch (or the last, shorter one of a run that
+    ends) went above MARKER_SHARE_WARN."""
+
+    def __init__(self, rate: float):
+        self.rate = rate
+        self.lock = threading.Lock()      # drawn in the run's thread, checked in the watch timer's
+        self.begin = None                 # the stretch begins at its first array: not at a start or a pause
+        self.drawn = 0
+        self.busy = 0.0
+        self.said = False
+
+    def drew(self, seconds: float):
+        """One MarkerArray drawn (built, serialised, published, recorded) in ``seconds`` of wall time."""
+        with self.lock:
+            if self.begin is None:
+                self.begin = time.monotonic() - seconds
+            self.drawn += 1
+            self.busy += seconds
+
+    def check(self, now: float | None = None, final: bool = False, paused: bool = False) -> str | None:
+        """The warning, once per run, if the stretch that ends now (at least MARKER_WINDOW s long, or
+        any length if ``final``) took more than MARKER_SHARE_WARN of the wall time drawing markers.
+        ``paused``: the run draws nothing, the stretch is dropped (a pause is not a cheap marker)."""
+        now = time.monotonic() if now is None else now
+        with self.lock:
+            if self.begin is None:
+                return None
+            span, drawn, busy = now - self.begin, self.drawn, self.busy
+            if span < MARKER_WINDOW and not (final or paused):
+                return None
+            self.begin, self.drawn, self.busy = None, 0, 0.0
+        if paused or self.said or drawn < 10 or span <= 0 or busy / span < MARKER_SHARE_WARN:
+            return None
+        self.said = True
+        share, each = busy / span, busy / drawn
+        advised = max(0.1, round_down_125(min(MARKER_SHARE_ADVISED / each, 0.999 * self.rate)))
+        return (f"markers: drawing the robot at marker_rate={self.rate:g} Hz took {share:.0%} of the wall time "
+                f"({drawn} MarkerArrays in {span:.1f} s, {each * 1e3:.2f} ms each, built, serialised, sent "
+                "and recorded), time the simulation loop needs (a realtime run falls behind, fast and lockstep runs "
+                f"slow down; lowering publish_rate or rate_factor does not lower it). Set marker_rate:={advised:g} "
+                f"(about {advised * each:.0%} of the wall time here), or leave markers out of outputs")
+
+
+class WarningBurst:
+    """A warning that can come many times a second (a publisher of bad pushes): the first is said in
+    full; the ones after it, within :data:`BURST_SUMMARY_INTERVAL` s of the last line, are counted and
+    said in one summary line (with the last one's text) once the interval is over -- by the next one
+    or by :meth:`flush`, which the watch timer calls and the node calls before its final status."""
+
+    def __init__(self, warn, what: str, interval: float = BURST_SUMMARY_INTERVAL):
+        self.warn, self.what, self.interval = warn, what, interval
+        self.total = 0          # all of them, said or not
+        self.unsaid = 0         # since the last line
+        self.last_text = None
+        self.last_line = -float("inf")
+        self.lock = threading.Lock()    # added to by the executor, flushed also by the run's thread
+
+    def add(self, text: str, now: float | None = None):
+        """One more; ``text`` says what and why (without the count)."""
+        now = time.monotonic() if now is None else now
+        with self.lock:
+            self.total += 1
+            if self.unsaid == 0 and now - self.last_line >= self.interval:
+                self.last_line = now
+                self.warn(f"{text} ({self.total} {self.what} so far)")
+                return
+            self.unsaid += 1
+            self.last_text = text
+        self.flush(now)
+
+    def flush(self, now: float | None = None, final: bool = False):
+        """Say the ones not said yet, if the interval since the last line is over (or ``final``)."""
+        now = time.monotonic() if now is None else now
+        with self.lock:
+            if not self.unsaid or (not final and now - self.last_line < self.interval):
+                return
+            self.warn(f"{self.unsaid} more {self.what} in the last {now - self.last_line:.1f} s, the last: "
+                      f"{self.last_text} ({self.total} {self.what} so far)")
+            self.unsaid, self.last_line = 0, now
 
 
 class RunWatch:
@@ -128,7 +259,17 @@ class RunWatch:
         self.graph = GraphWatch(node, node.sub.topic_name, node.pub_js.topic_name if node.pub_js else None)
         self.silence = (SilenceWatch(node.params["lockstep_warn_after"], node.params["lockstep_timeout"])
                         if node.mode == "lockstep" else None)
+        self.markers = MarkerLoad(node.params["marker_rate"]) if node.markers is not None else None
         node.create_timer(WATCH_PERIOD, self.check, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def check_markers(self, final: bool = False):
+        """The markers' share of the wall time (``final``: at the end of the run, before its figures)."""
+        if self.markers is None:
+            return
+        control = getattr(self.node, "control", None)
+        warning = self.markers.check(final=final, paused=control is not None and control.paused)
+        if warning:
+            self.node.get_logger().warning(warning)
 
     def commanded(self, t: float):
         if self.silence is not None:
@@ -139,6 +280,8 @@ class RunWatch:
         log = node.get_logger()
         for line in self.graph.check():
             log.warning(line)
+        node.control.refused_pushes.flush()
+        self.check_markers()
         if self.silence is None or node.finished or node.stopped or node.fault:
             return
         control = getattr(node, "control", None)

@@ -24,6 +24,7 @@ from biped_sim.config import parameters as P
 from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.engine.resets import check_push
 from biped_sim.recording.messages import TOPIC_TYPES, diagnostic_array, to_ns
+from biped_sim.ros.run_watch import WarningBurst
 from biped_sim.ros.startup import StartupError
 
 #: a ~/step or ~/reset callback waits this long (wall s) for the loop to do it, then answers failure
@@ -50,9 +51,13 @@ class SimControl:
         self.requests = deque()           # step and reset requests for the loop thread
         self.lockstep_command_held = False   # lockstep: a command came while paused
         self.resets = 0
+        self.before_reset_ns = None       # the latest state a run before a ~/reset reached (stale answers)
         self.first_bag = None
         self.recording_off = None         # why the last ~/reset could not open its bag (recording wanted)
-        self.counts = dict(pushes_received=0, pushes_refused=0)
+        # in the run's final status and the closing summary (a refusal is otherwise only a log line)
+        self.counts = dict(pushes_received=0, pushes_refused=0, steps=0, resets=0, requests_refused=0)
+        # a publisher of bad pushes can send hundreds a second: one line, then a summary per interval
+        self.refused_pushes = WarningBurst(node.get_logger().warning, "pushes refused")
         node.create_service(SetBool, "~/pause", self._on_pause)
         node.create_service(Trigger, "~/step", self._on_step)
         node.create_service(Trigger, "~/reset", self._on_reset)
@@ -74,8 +79,7 @@ class SimControl:
             impulse = check_push([v.x, v.y], "the push (vector.x, vector.y)")
         except ValueError as exc:
             self.counts["pushes_refused"] += 1
-            node.get_logger().warning(f"push refused at t={t:.6f} s: {exc}; the run goes on "
-                                      f"({self.counts['pushes_refused']} refused so far)")
+            self.refused_pushes.add(f"push refused at t={t:.6f} s: {exc}; the run goes on")
             return
         with self.cond:
             self.pushes.append(impulse)
@@ -130,6 +134,7 @@ class SimControl:
             why = (f"refused: the run has {'ended' if node.finished else 'stopped'} at t={node.sim.t:.6f} s"
                    + ("" if node.finished else "; ~/reset restarts it"))
         if why is not None:
+            self.counts["requests_refused"] += 1
             response.success, response.message = False, why
             return response
         return self._through_loop(_Request("step"), response)
@@ -138,6 +143,7 @@ class SimControl:
     def _on_reset(self, request, response):
         node = self.node
         if node.finished:
+            self.counts["requests_refused"] += 1
             response.success = False
             response.message = f"refused: the run has ended at t={node.sim.t:.6f} s (duration); restart the node"
             return response
@@ -190,6 +196,7 @@ class SimControl:
         try:
             if req.kind == "step":
                 t0 = node.sim.t
+                self.counts["steps"] += 1
                 node.step()
                 node.publish_state()
                 sim = node.sim
@@ -217,6 +224,8 @@ class SimControl:
         untouched = node.sim.control_periods == 0 and t_old == 0.0 and node.sim.status == "running"
         keep_held = self.lockstep and untouched
         self.resets += 1
+        self.before_reset_ns = max(self.before_reset_ns or 0, to_ns(t_old))
+        self.counts["resets"] = self.resets
         old_bag = node.bag_path if node.recorder is not None else None
         new_recorder, new_bag, not_recorded = self._next_recorder()
         self._publish_marker(t_old, dict(time=repr(float(t_old)), resets=str(self.resets),

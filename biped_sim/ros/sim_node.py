@@ -227,7 +227,7 @@ class SimNode(Node):
 
     def _stale(self, msg, t) -> bool:
         """A command tagged as the answer to a state other than the newest: ignored (counted, warned)."""
-        why = run_watch.stale_command(answered_ns(msg), to_ns(t))
+        why = run_watch.stale_command(answered_ns(msg), to_ns(t), self.control.before_reset_ns)
         if why is None or self.finished or self.stopped:
             return False
         self.counts["stale"] += 1
@@ -323,6 +323,8 @@ class SimNode(Node):
                       message=message, control_periods=str(sim.control_periods), events=str(len(sim.events)),
                       impacts=str(sim.stats["impacts"]), engine_wall_time=repr(float(sim.stats["wall_time"])))
         values.update({f"commands_{k}": str(v) for k, v in self.counts.items()})
+        values.update({k: str(v) for k, v in self.control.counts.items()})    # pushes, ~/step, ~/reset
+        self.control.refused_pushes.flush(final=True)     # the end of a burst is said before the status
         st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         self._publish(self.pub_diag, diagnostic_array(sim.t, [st]), sim.t)
 
@@ -341,9 +343,11 @@ class SimNode(Node):
         if self.recorder is not None and state:
             self.recorder.write_messages(t_ns, state)
         if self.markers is not None:   # the last state of a run is always drawn
-            msg = self.markers.poll(time.monotonic(), sim, force=self.finished or self.stopped)
+            begin = time.monotonic()
+            msg = self.markers.poll(begin, sim, force=self.finished or self.stopped)
             if msg is not None:   # serialised once for the topic and the bag (1.2 ms a MarkerArray)
                 self._publish(self.pub_markers, serialize_message(msg), sim.t)
+                self.watch.markers.drew(time.monotonic() - begin)     # its share of the wall time (run_watch)
 
     # -- time modes ---------------------------------------------------------------------------
     def run(self, should_stop, executor):
@@ -378,6 +382,7 @@ class SimNode(Node):
         """The run's cost: control periods, engine time and this process's CPU time per period, and the
         wall time from the first control period (in lockstep: the first command) to the end of the run
         (``benchmarks/bench_node.py`` and ``bench_record.py`` read this line)."""
+        self.watch.check_markers(final=True)     # a run too short for the watch's stretches
         earlier = self.earlier_runs      # the runs before each ~/reset count too
         n = earlier["periods"] + self.sim.control_periods
         k = max(1, n)
@@ -395,7 +400,7 @@ class SimNode(Node):
             f"CPU {1e3 * cpu / k:.3f} ms per period; wall {wall:.4f} s from the first control period "
             f"({n / running if running > 0 else 0.0:.1f} periods/s" + (f" over the {running:.4f} s not paused"
                                                                        if paused > 0 else "")
-            + f"); commands {self.counts}")
+            + f"); commands {self.counts}; pushes and requests {self.control.counts}")
 
     def flush(self, timeout=5.0):
         """Wait (at most ``timeout`` s in all) until subscribers acknowledged what was published: a

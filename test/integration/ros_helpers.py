@@ -254,15 +254,15 @@ def complete_messages(paths) -> int:
 
 
 class Control:
-    """Service clients of the node's ~/pause, ~/step, ~/reset."""
+    """Service clients of the node's ~/pause, ~/step, ~/reset (``node``: its fully qualified name)."""
 
-    def __init__(self, client, proc):
+    def __init__(self, client, proc, node="/biped_sim"):
         from std_srvs.srv import SetBool, Trigger
         self.SetBool, self.Trigger = SetBool, Trigger
         self.c, self.proc = client, proc
-        self.pause_cli = client.node.create_client(SetBool, "/biped_sim/pause")
-        self.step_cli = client.node.create_client(Trigger, "/biped_sim/step")
-        self.reset_cli = client.node.create_client(Trigger, "/biped_sim/reset")
+        self.pause_cli = client.node.create_client(SetBool, f"{node}/pause")
+        self.step_cli = client.node.create_client(Trigger, f"{node}/step")
+        self.reset_cli = client.node.create_client(Trigger, f"{node}/reset")
         for cli in (self.pause_cli, self.step_cli, self.reset_cli):
             client.spin_until(cli.service_is_ready, what=f"the service {cli.srv_name}", proc=proc)
 

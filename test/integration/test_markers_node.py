@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from ros_helpers import BIN, Client, ros_domain, start_node  # noqa: E402
+from ros_helpers import BIN, Client, Control, ros_domain, start_node  # noqa: E402
 
 pytest.importorskip("rclpy")
 from mcap.reader import make_reader  # noqa: E402
@@ -153,3 +153,27 @@ def test_a_scene_without_markers_has_no_markers_publisher():
                                              proc=sim)
         assert "/markers" not in pubs
         assert c.node.count_publishers("/markers") == 0
+
+
+def test_markers_beyond_what_the_machine_draws_get_advice_naming_marker_rate(tmp_path):
+    """Issue 34, round 3, item 4: a realtime run at the highest marker_rate fell behind and the advice
+    ("lower publish_rate or rate_factor, raise control_period, or use time_mode fast") named every knob
+    but marker_rate, the one whose cost (at a rate of wall time) none of those lowers."""
+    outputs = ["joint_states", "clock", "markers"]
+    params = dict(time_mode="realtime", rate_factor=5.0, duration=5.0, marker_rate=1000.0, outputs=outputs,
+                  bag_dir=str(tmp_path))
+    with ros_domain() as dom, Client(dom) as c:
+        arrays = c.collect("/markers", MarkerArray)       # a viewer on the markers, as RViz would be
+        with start_node(dict(params, start_paused=True), dom) as sim:   # runs once the viewer is there
+            c.wait_subscribed("/markers", proc=sim)
+            assert Control(c, sim).pause(False).success
+            _spin(c, lambda: sim.proc.poll() is not None, 60, "the end of the run", (sim,))
+        assert sim.wait() == 0 and arrays, sim.output()
+        advice = [ln for ln in sim.output().splitlines() if "markers: drawing the robot" in ln]
+        assert len(advice) == 1 and "[WARN]" in advice[0] and "at marker_rate=1000 Hz took" in advice[0], sim.output()
+        advised = float(advice[0].split("Set marker_rate:=")[1].split(" ")[0])
+        assert 0.1 <= advised < 1000.0, advice[0]
+        # the advised rate is one this machine draws: the same run says nothing about the markers
+        with start_node(dict(params, marker_rate=advised, duration=2.5, record=False), dom) as again:
+            assert again.wait(60) == 0, again.output()
+        assert "markers: drawing the robot" not in again.output(), again.output()

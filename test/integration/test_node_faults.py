@@ -128,6 +128,37 @@ def test_lockstep_ignores_a_command_that_answers_another_state_than_the_newest(t
     assert rep["identical"] and rep["commands"] == 6 and rep["states"] == 5, format_report(rep)
 
 
+def test_a_late_answer_to_the_run_before_a_reset_is_called_stale_not_another_simulation():
+    """Issue 34, round 3, item 2: after a ~/reset (the run back at t = 0) a controller's late answer to
+    a state of the run before it was warned as coming from "another simulation on this ROS domain"."""
+    params = dict(time_mode="lockstep", record=False)
+    with ros_domain() as dom, start_node(params, dom) as proc, Client(dom) as c:
+        js = c.collect("/joint_states", JointState)
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        pub = c.publisher("/hip_torque", Float64MultiArray)
+        srv = Control(c, proc)
+        c.wait_matched(pub, proc=proc)
+        c.spin_until(lambda: js, what="the state at t = 0", proc=proc)
+        for n in (2, 3, 4):         # to t = 3 ms, each command the answer to the newest state
+            pub.publish(M.torque_msg([1.0, -1.0], M.stamp_ns(js[-1].header.stamp)))
+            c.spin_until(lambda: len(js) >= n, 10, f"state {n}", proc)
+        old_state = M.stamp_ns(js[-1].header.stamp)
+        assert srv.reset().success
+        c.spin_until(lambda: len(js) >= 5, 10, "the state at t = 0 after the reset", proc)
+        pub.publish(M.torque_msg([50.0, 50.0], old_state))             # late: answers the old run's t = 3 ms
+        pub.publish(M.torque_msg([2.0, -2.0], 0))                      # the new run's t = 0: taken
+        c.spin_until(lambda: len(js) >= 6, 10, "the new run's first period", proc)
+        assert proc.stop() == 0
+        status = run_status(c, diag, proc)
+    assert [round(t_of(m), 9) for m in js] == [0.0, 0.001, 0.002, 0.003, 0.0, 0.001]
+    assert list(js[-1].effort)[2:4] == [2.0, -2.0]
+    assert status["commands_stale"] == "1" and status["resets"] == "1", status
+    line = one_line(proc.output(), "hip_torque ignored")
+    assert "[WARN]" in line and "another simulation" not in line, line
+    assert ("it answers the state at t=0.003000 s of the run before the ~/reset (which reached t=0.003000 s): "
+            "a late answer to the old run") in line, line
+
+
 def test_a_tagged_command_is_recorded_as_rclpy_and_rosbags_read_it():
     """The recorder's fast CDR of a labelled layout (the tag) decodes to the message it encodes."""
     from rclpy.serialization import deserialize_message
@@ -217,6 +248,24 @@ def test_two_simulations_on_one_domain_name_each_other():
     for p in (a, b):
         line = one_line(p.output(), "another node also publishes")
         assert "ROS_DOMAIN_ID" in line and "[WARN]" in line
+
+
+def test_two_nodes_of_one_name_are_told_to_rename_and_a_renamed_node_alone_takes_its_reset():
+    """Issue 34, round 3, item 3: two sim_nodes of one name on one domain serve the same /biped_sim/reset
+    (one call resets both runs) and nothing said so; a node renamed with -r __node:=NAME has its own."""
+    params = {"start_paused": True, "record": False, "outputs": ["clock"]}
+    with ros_domain() as dom, start_node(params, dom) as a, start_node(params, dom) as b, \
+            start_node(params, dom, extra_args=["--ros-args", "-r", "__node:=sim_a"]) as renamed, Client(dom) as c:
+        wait_for(lambda: all("2 nodes are named /biped_sim" in p.output() for p in (a, b)), 60,
+                 "both namesakes warned", [a, b, renamed])
+        answer = Control(c, renamed, "/sim_a").reset()
+        assert answer.success, answer.message
+        assert all(p.stop() == 0 for p in (a, b, renamed))
+    for p in (a, b):
+        line = one_line(p.output(), "nodes are named")
+        assert "[WARN]" in line and "a call to /biped_sim/reset" in line and "-r __node:=NAME" in line, line
+        assert "~/reset" not in p.output(), p.output()             # the renamed node's reset reached it alone
+    assert "~/reset: reset to t = 0" in renamed.output() and "nodes are named" not in renamed.output()
 
 
 # -- item 8: a silent lockstep controller --------------------------------------------------------------

@@ -280,3 +280,39 @@ def test_answers_and_figures_say_what_happened_around_a_failed_step_and_a_reset(
     assert " in 2 runs (1 ~/reset), the last to t=0.000000 s" in summary and periods >= round(t_pause * 1e3), summary
     cpu_ms = float(summary.split("process CPU ")[1].split(" ms")[0])
     assert cpu_ms < 5.0, summary                 # the process's CPU over all the periods, not over the last run's
+
+
+def test_a_burst_of_refused_pushes_is_said_once_and_counted_in_the_final_status(tmp_path):
+    """Issue 34, round 3, item 1: each refused push was a warning line of its own (a publisher of bad
+    pushes flooded the log) and no count reached the run's final status or the closing summary."""
+    burst = 40
+    params = dict(time_mode="lockstep", record=True, bag_dir=str(tmp_path))
+    with ros_domain() as dom, start_node(params, dom) as proc, Client(dom) as c:
+        js = c.collect("/joint_states", JointState)
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        push_pub = c.publisher("/push", Vector3Stamped)
+        srv = Control(c, proc)
+        c.wait_matched(push_pub, proc=proc)
+        c.spin_until(lambda: js, what="the state at t = 0", proc=proc)
+        for i in range(burst):                          # out of the plane: each one refused
+            push_pub.publish(Vector3Stamped(vector=rclpy_vector(1.0, 0.0, 0.5 + i)))
+        assert not srv.step().success                  # a refused request is counted too
+        c.spin_until(lambda: f"({burst} pushes refused so far)" in proc.output(), timeout=20,
+                     what="the summary of the burst", proc=proc)
+        assert proc.stop() == 0
+        c.spin_until(lambda: any(s.name == "biped_sim/run" for a in diag for s in a.status), timeout=10,
+                     what="the final status")
+    log = proc.output()
+    lines = [ln for ln in log.splitlines() if "push refused" in ln]
+    assert len(lines) == 2 and all("[WARN]" in ln for ln in lines), log      # the first, then one summary
+    assert lines[0].endswith("the run goes on (1 pushes refused so far)"), lines[0]
+    assert f"{burst - 1} more pushes refused in the last " in lines[1] and "vector.z must be 0" in lines[1]
+    final, = [{kv.key: kv.value for kv in s.values} for a in diag for s in a.status if s.name == "biped_sim/run"]
+    assert final["pushes_received"] == str(burst) and final["pushes_refused"] == str(burst), final
+    assert final["requests_refused"] == "1" and final["resets"] == "0", final
+    summary, = [ln for ln in log.splitlines() if " control periods" in ln and "per period" in ln]
+    assert f"'pushes_refused': {burst}" in summary and "'requests_refused': 1" in summary, summary
+    bag, = [p for p in tmp_path.iterdir() if p.is_dir()]           # the bag holds the same status
+    recorded = [{kv.key: kv.value for kv in s.values} for _t, m in bag_messages(bag)["/diagnostics"]
+                for s in m.status if s.name == "biped_sim/run"]
+    assert recorded[-1]["pushes_refused"] == str(burst), recorded
