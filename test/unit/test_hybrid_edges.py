@@ -423,12 +423,16 @@ def test_a_dip_of_micrometres_inside_one_step_is_a_touchdown(method, tol):
 
 # -- round 3 (R3): a foot that lifts off and lands again inside one step lands moving down ------------
 @settings(max_examples=25, deadline=None)
-@given(push_x=st.floats(-0.5, 0.5), push_y=st.floats(0.1, 1.0))
-def test_a_foot_that_lifts_off_and_lands_inside_one_step_lands_moving_down(push_x, push_y):
+@given(push_x=st.floats(-0.5, 0.5), push_y=st.floats(0.1, 1.0), compiled=st.booleans())
+def test_a_foot_that_lifts_off_and_lands_inside_one_step_lands_moving_down(push_x, push_y, compiled):
     """A robot standing at rest on both feet, pushed up a little: its feet leave the ground and land
     again within the first integration step. The landing is where a foot comes down (the same as with
-    steps of at most 0.1 ms), never the liftoff instant."""
-    runs = [standing_v_pushed_up(MODEL, (push_x, push_y), max_step) for max_step in (math.inf, 1e-4)]
+    steps of at most 0.1 ms), never the liftoff instant; on both loops."""
+    compiled_loop.enabled = compiled
+    try:
+        runs = [standing_v_pushed_up(MODEL, (push_x, push_y), max_step) for max_step in (math.inf, 1e-4)]
+    finally:
+        compiled_loop.enabled = True
     landings = [next((e for e in r.events if e.kind in ("touchdown", "double_touchdown")), None) for r in runs]
     assert (landings[0] is None) == (landings[1] is None)
     if landings[0] is None:
