@@ -157,3 +157,56 @@ def test_the_node_page_lists_every_key_of_the_impact_message():
     section = text[text.index("\n### The `impact` message"):text.index("\n### The `diagnostics` topic")]
     listed = re.findall(r'`values\["(\w+)"\]`', section)
     assert sorted(set(listed)) == sorted(keys), "docs/node.md's impact table differs from event_status's keys"
+
+
+# A ```console block right under the line CHECKED quotes what its "$ " commands print: the test runs
+# each command and compares the lines. In the quote "..." stands for any text (a line cut short);
+# wall times and UTC stamps differ from run to run, so both sides are compared with them masked.
+CHECKED = "<!-- test_docs: the output below is checked -->"
+MASKS = [(re.compile(r"\d{8}T\d{6}Z"), "<UTC time>"), (re.compile(r"\[\d+\.\d+ s\]"), "[<wall s>]"),
+         (re.compile(r" in \d+\.\d+ s$"), " in <wall s>")]
+
+
+def _masked(line: str) -> str:
+    for pattern, stand_in in MASKS:
+        line = pattern.sub(stand_in, line)
+    return line.rstrip()
+
+
+def checked_quotes(page: Path):
+    """(line number, [(command, [quoted lines])]) of each checked console block of the page."""
+    text = page.read_text()
+    for match in re.finditer(re.escape(CHECKED) + r"\n```console\n(?P<body>.*?)^```$", text, re.M | re.S):
+        commands = []
+        for line in match["body"].splitlines():
+            if line.startswith("$ "):
+                commands.append((line[2:].split("  #")[0].strip(), []))
+            else:
+                commands[-1][1].append(line)
+        yield text.count("\n", 0, match.start()) + 2, commands
+
+
+def _quote_cases():
+    for page in PAGES:
+        for line, commands in checked_quotes(page):
+            yield pytest.param(commands, id=f"{page.relative_to(ROOT)}:{line}")
+
+
+def test_some_quotes_are_checked():
+    assert len(list(_quote_cases())) >= 2
+
+
+@pytest.mark.parametrize("commands", list(_quote_cases()))
+def test_a_quoted_output_is_what_the_command_prints(commands):
+    import shlex
+    for command, quoted in commands:
+        argv = shlex.split(command)
+        assert argv[0].startswith(".venv/bin/"), f"{command}: a checked command is one of .venv/bin"
+        argv[0] = str(Path(sys.executable).parent / Path(argv[0]).name)
+        proc = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=TIMEOUT_S,
+                              env=dict(os.environ, MPLBACKEND="Agg"))
+        printed = [_masked(line) for line in (proc.stdout + proc.stderr).splitlines()]
+        assert len(printed) == len(quoted), f"{command} printed {len(printed)} lines, the page quotes {len(quoted)}"
+        for got, want in zip(printed, quoted):
+            pattern = ".*".join(re.escape(part) for part in _masked(want).split("..."))
+            assert re.fullmatch(pattern, got), f"{command}:\n the page quotes {want!r}\n the command prints {got!r}"
