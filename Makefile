@@ -4,7 +4,7 @@ PY      := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed
 PYTHON  ?= $(shell command -v python3.11 || command -v python3)
 
-.PHONY: venv demo test bench generate clean-venv
+.PHONY: venv demo test bench generate docs-figures clean-venv
 
 venv: $(STAMP)
 
@@ -32,6 +32,14 @@ test: $(STAMP)
 bench: $(STAMP)
 	@$(PY) -c "import mujoco" 2>/dev/null || $(VENV)/bin/uv pip install -q --python $(PY) mujoco==4.0.0
 	$(PY) -m benchmarks.bench
+
+# Regenerate every figure of docs/ from the command its page names (tools/docs_figures.py; a few minutes,
+# not part of `make test`): work_precision.png and accuracy.md's tables (biped-sim accuracy), the table of
+# stability.md (the stability suite), walk.gif (biped-sim animate), sweep_gain_map.png and sweep_basin.png
+# (biped-sim sweep, basin), scaling.md's figures (benchmarks.bench_sweep --scaling). The prose that reads
+# the figures is the writer's job: read the diff. docs/demo_walk.png is `make demo`'s (it runs the nodes).
+docs-figures: $(STAMP)
+	$(PY) tools/docs_figures.py
 
 # Regenerate biped_sim/engine/_gen/closed_forms.py from the energies (needs sympy, installed here only),
 # biped_sim/engine/_gen/rk_steps.py (the unrolled Runge-Kutta steps) from scipy's tableaux, and from both

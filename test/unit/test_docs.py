@@ -91,3 +91,122 @@ def test_the_node_page_lists_every_parameter():
     section = text[text.index("\n## Parameters"):text.index("\n## Topics")]
     listed = re.findall(r"^\| `([\w.]+)` \|", section, re.M)
     assert listed == [p.name for p in PARAMETERS], "docs/node.md's parameter table differs from PARAMETERS"
+
+
+def _rendering_problems(text: str) -> list:
+    """What a CommonMark renderer (GitHub's is one) would do wrong with the page's fences.
+
+    A fence closes only on a line of its own marker with nothing after it: a closing line with an
+    info string (```` ```console ````) is code, and the block runs on to the next bare marker or to
+    the end of the page, swallowing the headings and tables between. markdown-it-py parses the
+    page as CommonMark does (with GitHub's tables); a code block then holds a line that starts with
+    its own marker, or a table's delimiter row, and the page shows one long code block.
+    """
+    from markdown_it import MarkdownIt
+
+    problems = []
+    lines = text.splitlines()
+    for token in MarkdownIt("commonmark").enable("table").parse(text):
+        if token.type == "tr_open" and not lines[token.map[0]].lstrip().startswith("|"):
+            # GitHub's table goes on until a blank line: a paragraph right under it becomes a row
+            problems.append(f"line {token.map[0] + 1} ({lines[token.map[0]][:40]!r}...) is a row of the "
+                            "table above it: leave a blank line after a table")
+        if token.type != "fence":
+            continue
+        first, end = token.map
+        where = f"the code block opened at line {first + 1} ({lines[first].strip()!r})"
+        for offset, line in enumerate(token.content.splitlines()):
+            if line.lstrip().startswith(token.markup):
+                problems.append(f"{where} holds the fence line {first + 2 + offset} ({line.strip()!r}): "
+                                "a closing fence has nothing after its marker")
+        if re.search(r"^ *\|? *:?-{3,}:? *\|", token.content, re.M):
+            problems.append(f"{where} holds a table (its delimiter row): a fence before it is not closed")
+        if end >= len(lines) and lines[-1].strip() != token.markup:
+            problems.append(f"{where} is never closed: it runs to the end of the page")
+    return problems
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_the_page_renders_as_written(page):
+    assert _rendering_problems(page.read_text()) == []
+
+
+def test_a_fence_closed_with_an_info_string_is_found():
+    page = "# A\n\n```console\n$ ls\n```console\n\n## B\n\n| a | b |\n| --- | --- |\n| 1 | 2 |\n"
+    problems = _rendering_problems(page)
+    assert len(problems) == 3 and "line 5" in problems[0], problems
+    assert _rendering_problems(page.replace("```console\n\n", "```\n\n")) == []
+
+
+def test_a_paragraph_glued_to_a_table_is_found():
+    page = "| a | b |\n| --- | --- |\n| 1 | 2 |\nThe text under it.\n"
+    assert "line 4" in " ".join(_rendering_problems(page))
+    assert _rendering_problems(page.replace("|\nThe", "|\n\nThe")) == []
+
+
+def test_the_node_page_lists_every_key_of_the_impact_message():
+    import numpy as np
+
+    from biped_sim.engine.results import Event
+    from biped_sim.recording.messages import event_status
+    zeros = np.zeros(5)
+    touchdown = Event(time=0.5, kind="touchdown", leg=2, q=zeros, dq_minus=zeros, dq_plus=zeros,
+                      impulse=np.zeros(2), stance_leg_before=1, stance_leg_after=2, energy_loss=1.0)
+    keys = [kv.key for kv in event_status(touchdown).values]
+    text = (ROOT / "docs" / "node.md").read_text()
+    section = text[text.index("\n### The `impact` message"):text.index("\n### The `diagnostics` topic")]
+    listed = re.findall(r'`values\["(\w+)"\]`', section)
+    assert sorted(set(listed)) == sorted(keys), "docs/node.md's impact table differs from event_status's keys"
+
+
+# A ```console block right under the line CHECKED quotes what its "$ " commands print: the test runs
+# each command and compares the lines. In the quote "..." stands for any text (a line cut short);
+# wall times and UTC stamps differ from run to run, so both sides are compared with them masked.
+CHECKED = "<!-- test_docs: the output below is checked -->"
+MASKS = [(re.compile(r"\d{8}T\d{6}Z"), "<UTC time>"), (re.compile(r"\[\d+\.\d+ s\]"), "[<wall s>]"),
+         (re.compile(r" in \d+\.\d+ s$"), " in <wall s>")]
+
+
+def _masked(line: str) -> str:
+    for pattern, stand_in in MASKS:
+        line = pattern.sub(stand_in, line)
+    return line.rstrip()
+
+
+def checked_quotes(page: Path):
+    """(line number, [(command, [quoted lines])]) of each checked console block of the page."""
+    text = page.read_text()
+    for match in re.finditer(re.escape(CHECKED) + r"\n```console\n(?P<body>.*?)^```$", text, re.M | re.S):
+        commands = []
+        for line in match["body"].splitlines():
+            if line.startswith("$ "):
+                commands.append((line[2:].split("  #")[0].strip(), []))
+            else:
+                commands[-1][1].append(line)
+        yield text.count("\n", 0, match.start()) + 2, commands
+
+
+def _quote_cases():
+    for page in PAGES:
+        for line, commands in checked_quotes(page):
+            yield pytest.param(commands, id=f"{page.relative_to(ROOT)}:{line}")
+
+
+def test_some_quotes_are_checked():
+    assert len(list(_quote_cases())) >= 2
+
+
+@pytest.mark.parametrize("commands", list(_quote_cases()))
+def test_a_quoted_output_is_what_the_command_prints(commands):
+    import shlex
+    for command, quoted in commands:
+        argv = shlex.split(command)
+        assert argv[0].startswith(".venv/bin/"), f"{command}: a checked command is one of .venv/bin"
+        argv[0] = str(Path(sys.executable).parent / Path(argv[0]).name)
+        proc = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=TIMEOUT_S,
+                              env=dict(os.environ, MPLBACKEND="Agg"))
+        printed = [_masked(line) for line in (proc.stdout + proc.stderr).splitlines()]
+        assert len(printed) == len(quoted), f"{command} printed {len(printed)} lines, the page quotes {len(quoted)}"
+        for got, want in zip(printed, quoted):
+            pattern = ".*".join(re.escape(part) for part in _masked(want).split("..."))
+            assert re.fullmatch(pattern, got), f"{command}:\n the page quotes {want!r}\n the command prints {got!r}"

@@ -1,0 +1,83 @@
+"""`make docs-figures`: regenerate the figures and the measured tables of docs/ from the commands the
+pages name. Takes a few minutes; not part of `make test`.
+
+A measured table sits in its page between ``<!-- docs-figures: NAME -->`` and ``<!-- /docs-figures -->``
+and is replaced whole; the PNGs and the GIF are written over. Wall times vary from run to run (the
+pages say on which machine theirs were taken); errors, steps and event times are deterministic.
+"""
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+BIN = Path(sys.executable).parent
+OUT = ROOT / "bench_out" / "docs_figures"
+
+
+def run(*argv: str) -> str:
+    print("$", " ".join(argv), flush=True)
+    proc = subprocess.run([str(BIN / argv[0]), *argv[1:]], cwd=ROOT, capture_output=True, text=True)
+    if proc.returncode not in (0, 1):   # 1: a sweep or a suite that reports failures, still a result
+        sys.exit(f"{' '.join(argv)} failed (exit code {proc.returncode}):\n{proc.stderr[-3000:]}")
+    return proc.stdout
+
+
+def splice(page: Path, name: str, body: str):
+    text = page.read_text()
+    pattern = re.compile(rf"(<!-- docs-figures: {re.escape(name)} -->\n).*?(<!-- /docs-figures -->)", re.S)
+    if not pattern.search(text):
+        sys.exit(f"{page}: no <!-- docs-figures: {name} --> block")
+    page.write_text(pattern.sub(lambda m: m[1] + body.rstrip("\n") + "\n" + m[2], text))
+    print(f"  {page.relative_to(ROOT)}: {name} replaced")
+
+
+def accuracy():
+    out = OUT / "accuracy"
+    run("biped-sim", "accuracy", "--repeats", "5", "--out", str(out), "--no-progress")
+    shutil.copy(out / "work_precision.png", DOCS / "work_precision.png")
+    splice(DOCS / "accuracy.md", "accuracy", (out / "accuracy.md").read_text())
+
+
+def stability():
+    from biped_sim.analysis import stability as suite
+    t0 = time.perf_counter()
+    verdicts = suite.run_suite()
+    wall = time.perf_counter() - t0
+    n = {w: sum(v.word == w for v in verdicts) for w in ("PASS", "FAIL", "SKIP")}
+    rows = ["| verdict | group | case | figures | s |", "| --- | --- | --- | --- | --- |"]
+    rows += [f"| {v.word} | {v.group} | {v.name} | {v.figures.replace('|', '/')} | {v.seconds:.2f} |"
+             for v in verdicts]
+    rows.append("")
+    rows.append(f"`biped-sim stability`: {n['PASS']} passed, {n['FAIL']} failed, {n['SKIP']} not applicable "
+                f"in {wall:.1f} s.")
+    splice(DOCS / "stability.md", "stability", "\n".join(rows))
+
+
+def pictures():
+    run("biped-sim", "animate", "--scene", "walk", "-o", "docs/walk.gif")
+    csv = OUT / "gains.csv"
+    run("biped-sim", "sweep", "walk", "--set", "kp=0:150:16", "--set", "kd=0:45:16", "--duration", "5",
+        "-o", str(csv), "--plot", "docs/sweep_gain_map.png", "--no-progress")
+    run("biped-sim", "basin", "walk", "--span", "0.4,1.0", "--num", "21", "--duration", "5",
+        "-o", str(OUT / "basin.csv"), "--plot", "docs/sweep_basin.png", "--no-progress")
+
+
+def scaling():
+    out = subprocess.run([sys.executable, "-m", "benchmarks.bench_sweep", "--scaling"], cwd=ROOT,
+                         capture_output=True, text=True, check=True).stdout
+    figures = "\n".join(line for line in out.splitlines() if not re.match(r"\d{4}-\d\d-\d\d ", line))
+    splice(DOCS / "scaling.md", "scaling", "```text\n" + figures + "\n```")
+
+
+STEPS = {"accuracy": accuracy, "stability": stability, "pictures": pictures, "scaling": scaling}
+
+if __name__ == "__main__":
+    OUT.mkdir(parents=True, exist_ok=True)
+    for name in sys.argv[1:] or STEPS:
+        STEPS[name]()
