@@ -30,7 +30,7 @@ setup(
     # ament_index_python) come from a ROS installation and are declared in package.xml instead
     # zstandard and lz4 (chunk compression of the bag writer, recording/mcapfile.py) come with mcap;
     # named here since the writer imports them itself
-    install_requires=["numpy", "scipy", "PyYAML", "mcap", "zstandard", "lz4"],
+    install_requires=["numpy", "scipy", "PyYAML", "mcap", "zstandard", "lz4", "tqdm"],
     extras_require={
         # imported only where a figure is drawn (biped-sim inspect, biped-sim accuracy, biped-sim animate)
         "plot": ["matplotlib", "pillow"],

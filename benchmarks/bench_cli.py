@@ -24,7 +24,8 @@ from pathlib import Path
 def _cli():
     """The console script of this interpreter's environment (a process as the user starts it)."""
     script = Path(sys.executable).with_name("biped-sim")
-    return [str(script)] if script.exists() else [sys.executable, "-m", "biped_sim.cli"]
+    main = "import sys; from biped_sim.cli import main; sys.exit(main())"
+    return [str(script)] if script.exists() else [sys.executable, "-c", main]
 
 
 def wall_seconds(argv, repeat):

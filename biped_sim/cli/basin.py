@@ -38,7 +38,7 @@ def run(args):
     sw.check_writable(args.output, "-o")   # before any run: found after them, it lost them all
     if args.plot:
         sw.check_writable(args.plot, "--plot")
-    progress = None if args.no_progress else ProgressLine(args.num ** 2)
+    progress = None if args.no_progress else ProgressLine(args.num ** 2, label="basin")
     t0 = time.perf_counter()
     gait, rows = bn.basin(args.scene, span=span, num=args.num, duration=args.duration, workers=args.workers,
                           backend=args.backend, progress=progress)
