@@ -5,7 +5,6 @@ line, the CSV, the exit status; the sweep, its rows and its figure are biped_sim
 """
 from __future__ import annotations
 
-import argparse
 import contextlib
 import math
 import signal
@@ -14,6 +13,7 @@ import time
 from pathlib import Path
 
 from biped_sim.analysis import sweep as sw
+from biped_sim.config.help_format import HelpFormatter
 from biped_sim.config.progress import Progress
 
 #: from this many runs on, the command says how many and about how long before it starts them
@@ -32,7 +32,7 @@ def register(sub):
                     "Names are those of the scene file: kp, step_angle, duration, initial_q[0], "
                     "walk_controller.torque_limit, ... (docs/sweeps.md). A failed run is a row; Ctrl-C, SIGTERM "
                     "or SIGHUP writes the runs done.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("scene", help="a scene name in msg_configs/ (walk, slope, ...) or a path to a .yaml file")
     p.add_argument("--set", dest="grid", action="append", required=True, metavar="NAME=VALUES",
                    help="a swept parameter: NAME=START:STOP:NUM (NUM values evenly spaced, both ends included) or "

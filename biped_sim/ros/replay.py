@@ -14,6 +14,7 @@ import argparse
 import sys
 import time
 
+from biped_sim.config.help_format import HelpFormatter
 from biped_sim.config.progress import Progress
 from biped_sim.recording import bagio
 
@@ -23,7 +24,7 @@ def build_parser():
         prog="biped-sim replay",
         description="Publish a recorded bag's messages on their topics with their original timing "
                     "(like 'ros2 bag play'). Times are the bag's simulation times; --rate scales them.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
         epilog="examples:\n"
                "  biped-sim replay bags/walk-20261122T025314059Z\n"
                "  biped-sim replay BAG --rate 0.5 --loop --topics /joint_states /impact\n"

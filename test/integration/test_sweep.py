@@ -50,7 +50,8 @@ def test_overrides_land_where_the_scene_file_would_put_them():
 
 
 @pytest.mark.parametrize("overrides, message", [
-    ({"kpp": 1.0}, r"unknown override 'kpp'.*allowed: scene, time_mode.*torso_pitch, step_angle.*initial_q\[i\]"),
+    ({"kpp": 1.0}, r"unknown override 'kpp'.*\(did you mean 'kp'\?\); allowed: control_period, duration"
+                   r".*torso_pitch, step_angle.*initial_q\[i\]"),
     ({"walk_controller.duration": 1.0}, r"unknown override 'walk_controller.duration': no parameter 'duration' in "
                                         "section walk_controller"),
     ({"kp": "stiff"}, r"override 'kp': parameter 'kp' must be a number, got 'stiff'"),
