@@ -39,7 +39,7 @@ setup(
         # backend="ray" of biped_sim.sweep / biped-sim sweep --backend ray (biped_sim/analysis/sweep.py)
         "ray": ["ray"],
     },
-    # the test environment (pytest, the independent bag readers, colcon, ruff) is pinned in requirements.txt
+    # the test environment (pytest, the independent bag readers, colcon, ruff, Ray) is pinned in requirements-dev.txt
     zip_safe=True,
     maintainer="biped_sim team",
     maintainer_email="biped_sim@example.com",

@@ -30,7 +30,7 @@ def test_ruff_is_clean():
     try:
         import ruff  # noqa: F401
     except ImportError:
-        pytest.fail("ruff is not installed: `make venv` installs it (requirements.txt)")
+        pytest.fail("ruff is not installed: `make test` installs it (requirements-dev.txt)")
     argv = [sys.executable, "-m", "ruff", "check", "--no-cache", "--output-format", "concise", "."]
     done = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, stdin=subprocess.DEVNULL, timeout=120)
     assert done.returncode == 0, f"{' '.join(argv[2:])} in {ROOT}:\n{done.stdout}{done.stderr}"
