@@ -2,13 +2,20 @@
 VENV    ?= .venv
 PY      := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed
+DEV_STAMP := $(VENV)/.installed-dev
 PYTHON  ?= $(shell command -v python3.11 || command -v python3)
 
-.PHONY: venv demo test bench generate docs-figures clean-venv
+.PHONY: venv venv-dev demo test bench generate docs-figures clean-venv
 
+# venv: what a run needs (requirements.txt); venv-dev adds the tests, ruff, colcon and Ray
+# (requirements-dev.txt), which `make test` installs and `make demo` does not
 venv: $(STAMP)
+venv-dev: $(DEV_STAMP)
 
 # uv installs the stack in ~8 s here (pip: ~45 s); pip stays as the fallback.
+# compileall: uv writes no .pyc (pip does), and where Python does not write them
+# either (PYTHONDONTWRITEBYTECODE, a read-only install) every biped-sim process compiled its imports
+# from source: `biped-sim simulate --duration 0.1` took 0.86 s instead of 0.48 s (docs/performance.md).
 # --reinstall-package: uv would keep an installed editable biped_sim and not rebuild the compiled
 # twin (biped_sim/engine/_gen/_cmodel.c), the compiled loop (biped_sim/engine/_core.c) or the recorder's
 # frame buffer (biped_sim/recording/_frames.c) after a change.
@@ -20,16 +27,26 @@ $(STAMP): requirements.txt setup.py setup.cfg biped_sim/engine/_gen/_cmodel.c bi
 	else \
 	    $(PY) -m pip install -q -r requirements.txt -e . ; \
 	fi
+	@$(PY) -m compileall -q -j 0 "$$($(PY) -c 'import sysconfig; print(sysconfig.get_path("purelib"))')" biped_sim >/dev/null
 	@touch $(STAMP)
 
 demo: $(STAMP)
 	$(PY) -m biped_sim.cli.demo
 
-test: $(STAMP)
+$(DEV_STAMP): $(STAMP) requirements-dev.txt
+	@if test -x $(VENV)/bin/uv; then \
+	    $(VENV)/bin/uv pip install -q --python $(PY) -r requirements-dev.txt ; \
+	else \
+	    $(PY) -m pip install -q -r requirements-dev.txt ; \
+	fi
+	@$(PY) -m compileall -q -j 0 "$$($(PY) -c 'import sysconfig; print(sysconfig.get_path("purelib"))')" >/dev/null
+	@touch $(DEV_STAMP)
+
+test: $(DEV_STAMP)
 	$(PY) -m pytest -q test
 
 # mujoco: for benchmarks/bench_mujoco.py only (MuJoCo side by side), installed here and nowhere else.
-bench: $(STAMP)
+bench: $(DEV_STAMP)
 	@$(PY) -c "import mujoco" 2>/dev/null || $(VENV)/bin/uv pip install -q --python $(PY) mujoco==4.0.0
 	$(PY) -m benchmarks.bench
 

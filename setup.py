@@ -30,7 +30,7 @@ setup(
     # ament_index_python) come from a ROS installation and are declared in package.xml instead
     # zstandard and lz4 (chunk compression of the bag writer, recording/mcapfile.py) come with mcap;
     # named here since the writer imports them itself
-    install_requires=["numpy", "scipy", "PyYAML", "mcap", "zstandard", "lz4"],
+    install_requires=["numpy", "scipy", "PyYAML", "mcap", "zstandard", "lz4", "tqdm"],
     extras_require={
         # imported only where a figure is drawn (biped-sim inspect, biped-sim accuracy, biped-sim animate)
         "plot": ["matplotlib", "pillow"],
@@ -39,7 +39,7 @@ setup(
         # backend="ray" of biped_sim.sweep / biped-sim sweep --backend ray (biped_sim/analysis/sweep.py)
         "ray": ["ray"],
     },
-    # the test environment (pytest, the independent bag readers, colcon, ruff) is pinned in requirements.txt
+    # the test environment (pytest, the independent bag readers, colcon, ruff, Ray) is pinned in requirements-dev.txt
     zip_safe=True,
     maintainer="biped_sim team",
     maintainer_email="biped_sim@example.com",

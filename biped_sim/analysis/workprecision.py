@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from biped_sim.config.progress import Progress as _Display
 from biped_sim.control.walking import WalkingController
 from biped_sim.engine.dynamics import stance_floating_fast
 from biped_sim.engine.hybrid import HybridSimulator
@@ -230,22 +231,17 @@ def solve_ivp_fall(model, case, tol):
 
 # -- the benchmark ------------------------------------------------------------------------------
 class Progress:
+    """``progress(text)``: one more run of ``total`` done, ``text`` saying which (config.progress)."""
+
     def __init__(self, total, stream=sys.stderr):
-        self.total, self.n, self.stream, self.t0 = total, 0, stream, time.perf_counter()
-        self.tty = hasattr(stream, "isatty") and stream.isatty()
+        self.n, self.display = 0, _Display(total, "accuracy", unit="runs", stream=stream)
 
     def __call__(self, text):
         self.n += 1
-        line = f"[{self.n}/{self.total} {time.perf_counter() - self.t0:5.1f} s] {text}"
-        if self.tty:
-            self.stream.write("\r" + line[:110].ljust(110))
-        else:
-            self.stream.write("\r" + line)
-        self.stream.flush()
+        self.display.update(self.n, text)
 
     def done(self):
-        self.stream.write("\n")
-        self.stream.flush()
+        self.display.close()
 
 
 def run_benchmark(quick=False, repeats=None, progress=True, cases_filter=None):

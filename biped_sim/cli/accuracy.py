@@ -1,11 +1,11 @@
 """``biped-sim accuracy``: error against run time of every integrator (work-precision; workprecision.py)."""
 from __future__ import annotations
 
-import argparse
 import os
 import time
 
 from biped_sim.analysis import workprecision as wp
+from biped_sim.config.help_format import HelpFormatter
 
 
 def register(sub):
@@ -16,7 +16,7 @@ def register(sub):
                     "error against a tight reference (whose own error a second method estimates), the "
                     "event-time error, the constraint drift, the energy-balance residual and the median wall "
                     "time. Writes accuracy.md, accuracy.csv and work_precision.png to --out.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("--quick", action="store_true", help="short ladder, one repeat (what the tests run)")
     p.add_argument("--repeats", type=int, default=None, help="timed repeats per setting (default 3, quick 1)")
     p.add_argument("--case", action="append", choices=("passive_fall", "walking", "drop"),

@@ -1,11 +1,11 @@
 """``biped-sim basin``: the basin of attraction of a scene's periodic gait on a 2-D slice (a sweep)."""
 from __future__ import annotations
 
-import argparse
 import time
 
 from biped_sim.analysis import basin as bn, sweep as sw
 from biped_sim.cli.sweep import ProgressLine
+from biped_sim.config.help_format import HelpFormatter
 
 
 def register(sub):
@@ -16,14 +16,15 @@ def register(sub):
                     "stance-leg rate and the torso rate moved by up to +-SPAN rad/s (angles at z*, the hip "
                     "velocity consistent with the stance foot at rest), continuous feedback. Writes one CSV row "
                     "per run (biped-sim sweep's columns) and a map of the steps walked, failures marked.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("scene", help="a scene with a walk_controller section (walk, slope, ...)")
     p.add_argument("--span", default="1.0,2.0", help="largest offsets of the stance-leg rate and the torso rate "
                                                      "(rad/s), as DQ_STANCE,DQ_TORSO")
     p.add_argument("--num", type=int, default=11, help="points along each axis")
     p.add_argument("--duration", type=float, default=5.0, help="simulated seconds per run")
     p.add_argument("--workers", type=int, default=None, help="parallel runs (default: every core)")
-    p.add_argument("--backend", choices=sw.BACKENDS, default="process")
+    p.add_argument("--backend", choices=sw.BACKENDS, default="process",
+                   help="where the runs go: a process pool on this machine, or a Ray cluster (biped_sim[ray])")
     p.add_argument("-o", "--output", required=True, help="the CSV to write")
     p.add_argument("--plot", default=None, help="the PNG of the basin")
     p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
@@ -38,7 +39,7 @@ def run(args):
     sw.check_writable(args.output, "-o")   # before any run: found after them, it lost them all
     if args.plot:
         sw.check_writable(args.plot, "--plot")
-    progress = None if args.no_progress else ProgressLine(args.num ** 2)
+    progress = None if args.no_progress else ProgressLine(args.num ** 2, label="basin")
     t0 = time.perf_counter()
     gait, rows = bn.basin(args.scene, span=span, num=args.num, duration=args.duration, workers=args.workers,
                           backend=args.backend, progress=progress)

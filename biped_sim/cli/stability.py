@@ -1,11 +1,11 @@
 """``biped-sim stability``: the stability suite of stiff and extreme cases (stability.py)."""
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 
 from biped_sim.analysis import stability
+from biped_sim.config.help_format import HelpFormatter
 
 
 def register(sub):
@@ -17,7 +17,7 @@ def register(sub):
                     "the cause. Exit status 1 when a case fails.",
         epilog="--break SETTING: " + "; ".join(f"{k}: {v[1]} (case {v[0]} must FAIL)"
                                               for k, v in stability.BREAKS.items()),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("--quick", action="store_true", help="smaller suite (40-step walk, fewer gains and ratios)")
     p.add_argument("--break", dest="broken", choices=sorted(stability.BREAKS),
                    help="run with a deliberately broken setting that must make one case fail")

@@ -5,7 +5,6 @@ line, the CSV, the exit status; the sweep, its rows and its figure are biped_sim
 """
 from __future__ import annotations
 
-import argparse
 import contextlib
 import math
 import signal
@@ -14,6 +13,8 @@ import time
 from pathlib import Path
 
 from biped_sim.analysis import sweep as sw
+from biped_sim.config.help_format import HelpFormatter
+from biped_sim.config.progress import Progress
 
 #: from this many runs on, the command says how many and about how long before it starts them
 ANNOUNCED_GRID = 1_000
@@ -31,7 +32,7 @@ def register(sub):
                     "Names are those of the scene file: kp, step_angle, duration, initial_q[0], "
                     "walk_controller.torque_limit, ... (docs/sweeps.md). A failed run is a row; Ctrl-C, SIGTERM "
                     "or SIGHUP writes the runs done.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("scene", help="a scene name in msg_configs/ (walk, slope, ...) or a path to a .yaml file")
     p.add_argument("--set", dest="grid", action="append", required=True, metavar="NAME=VALUES",
                    help="a swept parameter: NAME=START:STOP:NUM (NUM values evenly spaced, both ends included) or "
@@ -198,25 +199,16 @@ def _say(line):
 
 
 class ProgressLine:
-    """``[done/total] failures  elapsed  left`` on one stderr line, rewritten in place."""
+    """A sweep's (or basin's) progress, ``progress(done, total, row)``: runs done, those not completed,
+    the time left (config.progress: a bar on a terminal, a line every 10 % or 10 s elsewhere)."""
 
-    def __init__(self, total, stream=None):
-        self.total, self.t0, self.failures = total, time.perf_counter(), 0
-        self.stream = sys.stderr if stream is None else stream
+    def __init__(self, total, label="sweep", stream=None):
+        self.failures = 0
+        self.display = Progress(total, label, unit="runs", stream=stream)
 
     def __call__(self, done, total, row):
         self.failures += row["status"] != "completed"
-        elapsed = time.perf_counter() - self.t0
-        left = elapsed / done * (total - done)
-        self._write(f"\r[{done}/{total}] {self.failures} not completed, {elapsed:.0f} s elapsed, ~{left:.0f} s left   ")
+        self.display.update(done, f"{self.failures} not completed")
 
     def end(self):
-        self._write("\n")
-
-    def _write(self, text):
-        # a terminal that has gone (SIGHUP, EIO) does not stop the sweep: its rows still reach the CSV
-        try:
-            self.stream.write(text)
-            self.stream.flush()
-        except OSError:
-            pass
+        self.display.close()

@@ -16,6 +16,7 @@ install), then in ``share/biped_sim/msg_configs`` of an ament index if one is pr
 """
 from __future__ import annotations
 
+import difflib
 import math
 import re
 from dataclasses import dataclass, field
@@ -193,6 +194,11 @@ def load_scene(name_or_path, overrides=None) -> Scene:
     return Scene(name=name, path=path, params=params, controller_params=cparams, given=given)
 
 
+#: node parameters that only the node reads (its clock, topics, timeouts, bag): a headless run (a
+#: sweep, Scene.simulate) accepts them and ignores them, so an error message does not offer them
+NODE_ONLY = frozenset({"scene", "time_mode", "rate_factor", "publish_rate", "marker_rate", "command_timeout",
+                       "lockstep_warn_after", "lockstep_timeout", "start_paused", "record", "bag_dir"})
+
 _OVERRIDE_NAME = re.compile(r"(?:(?P<section>biped_sim|walk_controller)\.)?(?P<name>[A-Za-z_][\w.]*?)"
                             r"(?:\[(?P<index>\d+)\])?")
 
@@ -219,8 +225,11 @@ def override_targets(key, has_controller: bool) -> list[tuple[str, str, int | No
     if not sections:
         where = f"in section {section}" if section else "in this scene's sections"
         lists = [p.name for p in P.PARAMETERS if p.type is list and p.item is float]
-        raise ValueError(f"unknown override {key!r}: no parameter {name!r} {where}; allowed: "
-                         f"{', '.join(P.BY_NAME)} ({NODE_SECTION}); {', '.join(CONTROLLER_BY_NAME)} "
+        node_names = [n for n in P.BY_NAME if n not in NODE_ONLY]
+        close = difflib.get_close_matches(name, node_names + list(CONTROLLER_BY_NAME), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ValueError(f"unknown override {key!r}: no parameter {name!r} {where}{hint}; allowed: "
+                         f"{', '.join(node_names)} ({NODE_SECTION}); {', '.join(CONTROLLER_BY_NAME)} "
                          f"({CONTROLLER_SECTION}); an element of a list as {lists[0]}[i] ({', '.join(lists)}); "
                          f"a name of both sections as {NODE_SECTION}.NAME or {CONTROLLER_SECTION}.NAME")
     if len(sections) == 2 and name not in _SHARED_WITH_SIM:

@@ -115,8 +115,10 @@ class HybridSimulator:
         stance_leg = check_run_arguments(self.opt, method, rtol, atol, mu, stance_leg)
         check_number("t0", t0, -math.inf, math.inf, "s")
         self.method, self.rtol, self.atol, self.mu = method, rtol, atol, mu
-        prepare_stepper(method)          # the imports a run needs, paid here and not inside its first step
-        G.prepare_event_location()
+        # the stepper's imports, paid here and not inside its first step; the root finder (scipy.optimize,
+        # ~0.4 s) is imported by the first event located in Python, or by a realtime caller up front
+        # (sim_node: prepare_event_location), so that a short batch run does not pay for it
+        prepare_stepper(method)
         q0 = as_state_vector(q0, "q0")
         dq0 = as_state_vector(dq0, "dq0")
         self.p = model.p

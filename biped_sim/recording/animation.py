@@ -9,11 +9,11 @@ scale, colours and impact flash those of the markers (:mod:`biped_sim.recording.
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass
 
 import numpy as np
 
+from biped_sim.config.progress import Progress
 from biped_sim.recording import markers as MK
 
 WIDTH, HEIGHT = 560, 320          # pixels (multiples of 16: an MP4 encoder takes them as they are)
@@ -360,19 +360,15 @@ class BagStates:
 
 
 class ProgressBar:
-    """``[####....] 45 %  90/200 frames`` on stderr, redrawn in place at most every 2 %."""
+    """``progress(done, total)`` of the frames drawn (config.progress: a bar on a terminal, a line every
+    10 % or 10 s elsewhere); it ends itself at the last frame."""
 
-    def __init__(self, label="animate", stream=None, width=30):
-        self.label, self.stream, self.width, self.shown = label, stream or sys.stderr, width, -1
+    def __init__(self, label="animate", stream=None):
+        self.label, self.stream, self.display = label, stream, None
 
     def __call__(self, done, total):
-        pct = int(100 * done / max(total, 1))
-        if pct < self.shown + 2 and done < total:
-            return
-        self.shown = pct
-        fill = int(self.width * done / max(total, 1))
-        self.stream.write(f"\r[{self.label}] [{'#' * fill}{'.' * (self.width - fill)}] {pct:3d} %  "
-                          f"{done}/{total} frames")
+        if self.display is None:
+            self.display = Progress(total, self.label, unit="frames", stream=self.stream)
+        self.display.update(done)
         if done >= total:
-            self.stream.write("\n")
-        self.stream.flush()
+            self.display.close()

@@ -14,6 +14,8 @@ import argparse
 import sys
 import time
 
+from biped_sim.config.help_format import HelpFormatter
+from biped_sim.config.progress import Progress
 from biped_sim.recording import bagio
 
 
@@ -22,7 +24,7 @@ def build_parser():
         prog="biped-sim replay",
         description="Publish a recorded bag's messages on their topics with their original timing "
                     "(like 'ros2 bag play'). Times are the bag's simulation times; --rate scales them.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
         epilog="examples:\n"
                "  biped-sim replay bags/walk-20261122T025314059Z\n"
                "  biped-sim replay BAG --rate 0.5 --loop --topics /joint_states /impact\n"
@@ -67,22 +69,26 @@ def _qos(bag, topic):
 
 
 class _Progress:
+    """The messages published of each pass over the bag, with its bag time (config.progress: a bar on a
+    terminal, a line every 10 % or 10 s elsewhere); a new display for each loop."""
+
     def __init__(self, quiet, total, t_first, t_last):
         self.quiet, self.total, self.t_first, self.t_last = quiet, total, t_first, t_last
-        self.last = 0.0
+        self.display, self.loop = None, None
 
     def show(self, t_ns, n, loop, rate, force=False):
         if self.quiet:
             return
-        now = time.monotonic()
-        if not force and now - self.last < 0.25:
-            return
-        self.last = now
+        if self.display is None or loop != self.loop:
+            if self.display is not None:
+                self.display.close()
+            label = f"replay, loop {loop}" if loop else "replay"
+            self.display, self.loop = Progress(self.total, label, unit="messages"), loop
         span = (self.t_last - self.t_first) / 1e9
-        sys.stderr.write(f"\r[replay] bag time {t_ns / 1e9:10.4f} s  ({(t_ns - self.t_first) / 1e9:7.3f} / "
-                         f"{span:.3f} s)  messages {n}/{self.total}  rate {rate:g}x" +
-                         (f"  loop {loop}" if loop else "") + "   ")
-        sys.stderr.flush()
+        self.display.update(n, f"bag time {(t_ns - self.t_first) / 1e9:.3f} / {span:.3f} s, rate {rate:g}x")
+        if force:
+            self.display.close()
+            self.display = None
 
 
 def main(argv=None):
@@ -201,7 +207,7 @@ def main(argv=None):
             except Exception:  # noqa: BLE001
                 pass
         if not args.quiet:
-            sys.stderr.write(f"\n[replay] published {sent} messages on {len(pubs)} topics"
+            sys.stderr.write(f"[replay] published {sent} messages on {len(pubs)} topics"
                              + (" and /clock" if clock_pub else "") + ("" if not stop else " (stopped)") + "\n")
         node.destroy_node()
         rclpy.shutdown()

@@ -34,6 +34,7 @@ from visualization_msgs.msg import MarkerArray
 from biped_sim.config import parameters as P
 from biped_sim.engine import compiled_loop
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, WHY_PYTHON
+from biped_sim.engine.guards import prepare_event_location
 from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.recording.cdr import StateSerializer
 from biped_sim.recording.markers import MarkerStream
@@ -78,6 +79,9 @@ class SimNode(Node):
             self.sim = HybridSimulator(**P.engine_arguments(prm), keep_samples=False)
         except ValueError as exc:
             raise StartupError(f"cannot start the engine with these parameters: {exc}") from None
+        # the root finder now, not at the first event: its import (~0.4 s) inside a control period stalls
+        # a realtime run long enough for its command timeout to fire
+        prepare_event_location()
         self.mode = prm["time_mode"]
         self.period = prm["control_period"]
         self.duration = prm["duration"]

@@ -33,7 +33,7 @@ BUILD_TIMEOUT = 300.0
 def install(tmp_path_factory) -> Path:
     """``install/`` of a fresh workspace in which colcon built this package."""
     colcon = BIN / "colcon"
-    assert colcon.exists(), f"{colcon} is missing: `make venv` installs colcon (requirements.txt)"
+    assert colcon.exists(), f"{colcon} is missing: `make test` installs colcon (requirements-dev.txt)"
     ws = tmp_path_factory.mktemp("colcon_ws")
     (ws / "src").mkdir()
     (ws / "src" / PACKAGE).symlink_to(ROOT, target_is_directory=True)

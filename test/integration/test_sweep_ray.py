@@ -1,7 +1,7 @@
 """The Ray backend of biped_sim.sweep gives the process pool's rows (issue 17).
 
 A local Ray (``ray.init`` with 2 CPUs, started and stopped by the sweep); a cluster is the same
-code with ``ray_address``. Ray is pinned in requirements.txt; without it the test skips saying so.
+code with ``ray_address``. Ray is pinned in requirements-dev.txt; without it the test skips saying so.
 """
 import contextlib
 import socket
@@ -22,7 +22,7 @@ def _outcome(rows):
 
 
 def test_ray_rows_equal_the_process_pool_rows():
-    pytest.importorskip("ray", reason="Ray is not installed: pip install 'biped_sim[ray]' (requirements.txt pins it)")
+    pytest.importorskip("ray", reason="Ray is not installed: pip install 'biped_sim[ray]' (make test installs it)")
     ray_rows = bs.sweep("walk", GRID, duration=0.6, workers=2, backend="ray")
     pool_rows = bs.sweep("walk", GRID, duration=0.6, workers=2)
     assert _outcome(ray_rows) == _outcome(pool_rows)
@@ -30,7 +30,7 @@ def test_ray_rows_equal_the_process_pool_rows():
 
 
 def test_ray_keeps_failed_runs_as_rows():
-    pytest.importorskip("ray", reason="Ray is not installed: pip install 'biped_sim[ray]' (requirements.txt pins it)")
+    pytest.importorskip("ray", reason="Ray is not installed: pip install 'biped_sim[ray]' (make test installs it)")
     rows = bs.sweep("passive", {"initial_dq[0]": [0.0, 0.3]}, duration=2.0, workers=2, backend="ray")
     # the passive robot falls back onto its rear foot and rocks until the impacts accumulate: it stops as Zeno
     assert rows[0]["status"] == "stopped" and "the impacts accumulate (Zeno behaviour)" in rows[0]["message"]
@@ -38,7 +38,7 @@ def test_ray_keeps_failed_runs_as_rows():
 
 
 def test_no_cluster_at_the_address_is_one_value_error():
-    pytest.importorskip("ray", reason="Ray is not installed: pip install 'biped_sim[ray]' (requirements.txt pins it)")
+    pytest.importorskip("ray", reason="Ray is not installed: pip install 'biped_sim[ray]' (make test installs it)")
     with pytest.raises(ValueError, match="no Ray cluster at 127.0.0.1:1"):
         bs.sweep("walk", {"kp": [100.0]}, duration=0.1, backend="ray", ray_address="127.0.0.1:1")
 
@@ -46,7 +46,7 @@ def test_no_cluster_at_the_address_is_one_value_error():
 def test_something_else_at_the_address_is_one_value_error_at_once(tmp_path):
     """A web server where the Ray head should be: one line within seconds (ray.init retried it for
     minutes). Run in a process of its own, bounded, so that a hang fails the test instead of holding it."""
-    pytest.importorskip("ray", reason="Ray is not installed: pip install 'biped_sim[ray]' (requirements.txt pins it)")
+    pytest.importorskip("ray", reason="Ray is not installed: pip install 'biped_sim[ray]' (make test installs it)")
     with socket.socket() as server:
         server.bind(("127.0.0.1", 0))
         server.listen()

@@ -3,6 +3,7 @@ import contextlib
 import csv
 import io
 import math
+import re
 
 import pytest
 
@@ -30,7 +31,8 @@ def test_outputs_written(bench):
     for name in ("accuracy.md", "accuracy.csv", "work_precision.png"):
         assert (bench["out"] / name).stat().st_size > 1000
     assert (bench["out"] / "work_precision.png").read_bytes()[:4] == b"\x89PNG"
-    assert "\r[" in bench["stderr"] and "walking: dop853" in bench["stderr"]   # the progress line
+    # the progress to a non-terminal: a line every 10 % (config.progress), no carriage return
+    assert "\r" not in bench["stderr"] and re.search(r"^\[accuracy\] (\d+)/\1 runs \(100 %\)", bench["stderr"], re.M)
     md = (bench["out"] / "accuracy.md").read_text()
     assert "| walking | **dop853** | **tol=1e-09** (default)" in md
 

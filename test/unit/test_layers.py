@@ -98,7 +98,8 @@ def test_a_command_that_integrates_nothing_does_not_import_scipy_integrate():
     checking its arguments (2.7 s to refuse a bad bag). A simulator imports it (and the root finder)
     when it is built, not inside its first step: a realtime node stalled 1.6 s in its first control
     period, long enough for its command timeout to fire (a fresh-clone run of test_node). Since the
-    dense output of dop853 and dopri5 is generated too, their simulators need only the root finder."""
+    dense output of dop853 and dopri5 is generated too, their simulators need neither: the root finder
+    is imported by the first event located in Python, or up front by the realtime node."""
     code = ("import sys\nfrom biped_sim.cli import main\n"
             "code = main(['resim', '/etc/passwd'])\n"
             "import biped_sim.engine.hybrid, biped_sim.ros.sim_node\n"
@@ -108,4 +109,27 @@ def test_a_command_that_integrates_nothing_does_not_import_scipy_integrate():
             "print(sorted(m for m in ('scipy.integrate', 'scipy.optimize') if m in sys.modules))\n")
     out = run_python(code, timeout=120)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.splitlines() == ["2 []", "['scipy.optimize']"], out.stdout + out.stderr
+    assert out.stdout.splitlines() == ["2 []", "[]"], out.stdout + out.stderr
+
+
+HEAVY_MODULES = ("scipy.optimize", "scipy.integrate", "matplotlib", "rclpy")
+
+
+def test_import_help_and_a_short_simulate_import_no_heavy_module():
+    """Each biped-sim process pays its imports: scipy.optimize alone ~0.4-0.6 s here, matplotlib ~0.4 s,
+    rclpy ~0.2 s. ``import biped_sim``, ``biped-sim --help`` and a short ``simulate`` (whose events the
+    compiled loop locates) import none of them (the speed itself is timed in make bench, cli_start)."""
+    code = ("import sys, contextlib, io\n"
+            f"heavy = {HEAVY_MODULES!r}\n"
+            "def loaded(): return sorted(m for m in heavy if m in sys.modules)\n"
+            "import biped_sim\nprint('import', loaded())\n"
+            "from biped_sim.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n"
+            "    code = main(['--help'])\n"
+            "print('help', code, loaded())\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n"
+            "    code = main(['simulate', '--duration', '0.5'])\n"
+            "print('simulate', code, loaded())\n")
+    out = run_python(code, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines() == ["import []", "help 0 []", "simulate 0 []"], out.stdout + out.stderr

@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[2]
 # alone; mcap-ros2-support's key installs it)
 ROSDEP_KEY = {"numpy": "python3-numpy", "scipy": "python3-scipy", "PyYAML": "python3-yaml",
               "mcap": "mcap-ros2-support", "matplotlib": "python3-matplotlib", "zstandard": "python3-zstandard",
-              "lz4": "python3-lz4", "pillow": "python3-pil"}
+              "lz4": "python3-lz4", "pillow": "python3-pil", "tqdm": "python3-tqdm"}
 # optional extras that rosdep has no key for: declared in setup.py's extras_require only (a ROS user
 # installs them with pip when wanted); package.xml cannot say "optional"
 NO_ROSDEP_KEY = {"ray", "imageio-ffmpeg"}   # biped_sim[ray]: the Ray backend of biped_sim.sweep; [video]: MP4
@@ -30,7 +30,7 @@ def test_ruff_is_clean():
     try:
         import ruff  # noqa: F401
     except ImportError:
-        pytest.fail("ruff is not installed: `make venv` installs it (requirements.txt)")
+        pytest.fail("ruff is not installed: `make test` installs it (requirements-dev.txt)")
     argv = [sys.executable, "-m", "ruff", "check", "--no-cache", "--output-format", "concise", "."]
     done = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, stdin=subprocess.DEVNULL, timeout=120)
     assert done.returncode == 0, f"{' '.join(argv[2:])} in {ROOT}:\n{done.stdout}{done.stderr}"
