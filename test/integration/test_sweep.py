@@ -172,7 +172,7 @@ def test_the_command_writes_a_row_per_run_and_the_map(tmp_path, capsys):
         assert t["status"] == "completed" and float(t["x_end"]) == r["x_end"]
     assert png.stat().st_size > 10_000
     err = capsys.readouterr().err
-    assert "[4/4] 0 not completed" in err
+    assert "[sweep] 4/4 runs (100 %), " in err and "; 0 not completed" in err
 
 
 def test_a_users_mistake_is_one_line_and_exit_2(tmp_path):
@@ -199,7 +199,7 @@ def test_ctrl_c_stops_the_sweep_and_writes_the_runs_done(tmp_path):
                           "--duration", "100", "--workers", "2", "-o", str(out)], stderr=subprocess.PIPE, text=True,
                          env=env, start_new_session=True, preexec_fn=_ctrl_c_as_in_a_terminal)
     seen = ""
-    while "[2/40]" not in seen:            # two runs done: the pool is running
+    while "[sweep] 4/40 runs" not in seen:    # the first progress line (4 runs done): the pool is running
         ch = p.stderr.read(1)
         assert ch, seen
         seen += ch
@@ -359,7 +359,7 @@ def test_a_sweep_ended_by_a_signal_keeps_its_rows_and_leaves_no_process(tmp_path
                           "-o", str(out)], stderr=subprocess.PIPE, text=True,
                          env=dict(os.environ, PYTHONUNBUFFERED="1"), start_new_session=True)
     seen = ""
-    while "[2/40]" not in seen:            # two runs done: the pool is running
+    while "[sweep] 4/40 runs" not in seen:    # the first progress line (4 runs done): the pool is running
         ch = p.stderr.read(1)
         assert ch, seen
         seen += ch
