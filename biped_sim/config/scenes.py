@@ -162,7 +162,8 @@ def yaml_error_line(exc: yaml.YAMLError) -> str:
         f"not valid YAML: {problem}"
     context, start = getattr(exc, "context", None), getattr(exc, "context_mark", None)
     if context:
-        line += f" ({context}" + (f" started at line {start.line + 1}, column {start.column + 1}" if start else "") + ")"
+        since = f" started at line {start.line + 1}, column {start.column + 1}" if start else ""
+        line += f" ({context}{since})"
     return line + "; fix the file there (msg_configs/walk.yaml shows the form)"
 
 
