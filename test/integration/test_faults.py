@@ -1,5 +1,6 @@
 """Bad input and faults around the nodes and the small tools (issue 18): one clear line or a quiet
 exit, never a Python traceback, never a node started that was not asked for. Real processes over DDS."""
+import signal
 import subprocess
 import sys
 import time
@@ -129,3 +130,24 @@ def test_echo_into_head_ends_quietly(tmp_path):
     assert len(done.stdout.splitlines()) == 3 and "joint_states" in done.stdout, done.stdout
     assert "Traceback" not in done.stderr and "BrokenPipe" not in done.stderr, done.stderr
     assert done.stderr == "", done.stderr
+
+
+@pytest.mark.parametrize("program", sorted(NODES))
+def test_a_stop_signal_during_start_up_is_one_line(program, tmp_path):
+    """Ctrl-C in the node's first half second (its imports) printed a KeyboardInterrupt traceback, and
+    SIGTERM or SIGHUP killed it without a word (exit -15). Now one line and 128 + the signal."""
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        with ros_domain() as dom:
+            proc = subprocess.Popen([str(BIN / program), "--ros-args", "-p", "record:=false"], env=ros_env(dom),
+                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                    text=True)
+            time.sleep(0.15)        # inside the imports (0.3-0.6 s here)
+            proc.send_signal(sig)
+            out, _ = proc.communicate(timeout=20)
+        assert "Traceback" not in out, out
+        if f"{sig.name}: shutting down" in out:     # a fast machine: the node was up already; it said so
+            assert proc.returncode == 0, out
+            continue
+        assert proc.returncode == 128 + sig, (sig.name, proc.returncode, out)
+        assert out.strip() == (f"{program}: {sig.name} during start-up: stopped before it ran anything (nothing was "
+                               "simulated, sent or recorded)"), out
