@@ -364,11 +364,14 @@ class SimNode(Node):
                 if should_stop() or self.finished or self.stopped:
                     return              # else a ~/reset restarted a stopped run
         with spinning_in_background(executor):
-            while True:
-                (run_fast if self.mode == "fast" else run_realtime)(self, should_stop)
-                self._end_run(should_stop, lambda: self.control.between_periods(should_stop) or time.sleep(0.05))
-                if should_stop() or self.finished or self.stopped:
-                    return
+            try:
+                while True:
+                    (run_fast if self.mode == "fast" else run_realtime)(self, should_stop)
+                    self._end_run(should_stop, lambda: self.control.between_periods(should_stop) or time.sleep(0.05))
+                    if should_stop() or self.finished or self.stopped:
+                        return
+            finally:
+                self.control.close_requests(f"the node is shutting down at t={self.sim.t:.6f} s")
 
     def _end_run(self, should_stop, wait):
         self._cpu_end = time.process_time()
