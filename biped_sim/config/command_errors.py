@@ -14,6 +14,7 @@ CommandError           its code   its text (a refusal that is not bad input: "no
 ValueError             2          its text (the user's input is wrong: the text says which)
 OSError                1          the path and the system's reason, and what to do about it
 ImportError            2          the missing package and how to install it
+StoppedAtStart         128 + sig  one line: the signal came before the command started its work
 KeyboardInterrupt      130        nothing (Ctrl-C is the user's own stop)
 BrokenPipeError        1          nothing (the reader of our output has gone: ``... | head``)
 SystemExit             its code   argparse's usage line has been printed already
@@ -49,6 +50,29 @@ _WHAT_TO_DO = {
 }
 
 
+class StoppedAtStart(KeyboardInterrupt):
+    """A stop signal (SIGINT, SIGTERM, SIGHUP) that came while a command was starting, before it
+    installed its own handlers (a node's imports take about half a second): ``signum`` says which."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def raise_on_stop_signals():
+    """Until the command installs its own handlers, SIGINT, SIGTERM and SIGHUP raise
+    :class:`StoppedAtStart`: Ctrl-C printed a KeyboardInterrupt traceback from deep in an import, and
+    SIGTERM or SIGHUP killed the process without a word. A SIGHUP ignored on entry (``nohup``) stays so."""
+    import signal
+
+    def stop(signum, _frame):
+        raise StoppedAtStart(signum)
+    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        if signum == signal.SIGHUP and signal.getsignal(signum) is signal.SIG_IGN:
+            continue
+        signal.signal(signum, stop)
+
+
 class CommandError(Exception):
     """A command refuses or stops for a reason that is not bad input; ``code`` is its exit code."""
 
@@ -78,6 +102,10 @@ def explain(program: str, exc: BaseException) -> tuple[int, str | None]:
         if code is None or isinstance(code, int):
             return int(code or 0), None
         return EXIT_ERROR, f"{program}: error: {code}"
+    if isinstance(exc, StoppedAtStart):
+        import signal
+        return 128 + exc.signum, (f"{program}: {signal.Signals(exc.signum).name} during start-up: stopped before "
+                                  "it ran anything (nothing was simulated, sent or recorded)")
     if isinstance(exc, KeyboardInterrupt):
         return EXIT_SIGINT, None
     if isinstance(exc, BrokenPipeError):

@@ -91,8 +91,11 @@ def scene_path(name_or_path) -> Path:
     text = str(name_or_path)
     p = Path(text)
     if text.endswith((".yaml", ".yml")) or p.parent != Path("."):
+        if p.is_dir():
+            raise ValueError(f"scene file {text!r} is a folder: give a .yaml file, e.g. {text.rstrip('/')}/walk.yaml")
         if not p.is_file():
-            raise ValueError(f"scene file {text!r} does not exist")
+            raise ValueError(f"scene file {text!r} does not exist: check the path ({Path.cwd()} is the current "
+                             f"folder), or give a scene by name: {', '.join(available_scenes()) or 'none'}")
         return p
     for d in scene_dirs():
         cand = d / f"{text}.yaml"
@@ -151,6 +154,20 @@ class Scene:
         return simulate(**kw)
 
 
+def yaml_error_line(exc: yaml.YAMLError) -> str:
+    """PyYAML's error (five lines: what it was parsing, a copy of the line with a caret, the problem,
+    another copy) as one line: the problem, where, and what it was parsing since where."""
+    mark = getattr(exc, "problem_mark", None)
+    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+    line = f"not valid YAML at line {mark.line + 1}, column {mark.column + 1}: {problem}" if mark else \
+        f"not valid YAML: {problem}"
+    context, start = getattr(exc, "context", None), getattr(exc, "context_mark", None)
+    if context:
+        since = f" started at line {start.line + 1}, column {start.column + 1}" if start else ""
+        line += f" ({context}{since})"
+    return line + "; fix the file there (msg_configs/walk.yaml shows the form)"
+
+
 def load_scene(name_or_path, overrides=None) -> Scene:
     """Read, check and return a scene (a name in msg_configs/ or a path to a YAML file).
 
@@ -161,7 +178,7 @@ def load_scene(name_or_path, overrides=None) -> Scene:
     try:        # as the node reads it (rcl's rules, not YAML 1.1's): see params_yaml
         doc = params_yaml.load(path.read_text(), f"scene {path}")
     except yaml.YAMLError as exc:
-        raise ValueError(f"scene {path}: not valid YAML: {exc}") from None
+        raise ValueError(f"scene {path}: {yaml_error_line(exc)}") from None
     if not isinstance(doc, dict):
         raise ValueError(f"scene {path}: expected a mapping with a '{NODE_SECTION}' section")
     unknown = sorted(set(doc) - {NODE_SECTION, CONTROLLER_SECTION})

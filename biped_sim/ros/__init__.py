@@ -8,14 +8,19 @@ closed pipe on stdout, ``biped_echo | head``, ends the command quietly).
 import importlib
 import sys
 
-from biped_sim.config.command_errors import run_command
+from biped_sim.config.command_errors import StoppedAtStart, explain, raise_on_stop_signals, run_command
 
 
 def entry_point(command, module):
     """The ``main`` of ``biped_sim.ros.<module>``, imported only when the command runs."""
     def main():
+        raise_on_stop_signals()     # until startup.init catches them for the node's loop
         try:
             target = importlib.import_module(f"biped_sim.ros.{module}")
+        except StoppedAtStart as exc:
+            code, line = explain(command, exc)
+            print(line, file=sys.stderr)
+            return code
         except ImportError as exc:
             print(f"{command}: error: cannot import the ROS 2 Python packages ({exc}); install ROS 2 Jazzy's "
                   "rclpy and message packages (make venv does, from PyPI) or source a ROS 2 Jazzy install",

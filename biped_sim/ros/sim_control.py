@@ -49,6 +49,7 @@ class SimControl:
         self.pauses = [[time.monotonic(), None]] if self.paused else []   # [begin, end] (wall), the figures
         self.pushes = []                  # impulses to apply at the start of the next control period
         self.requests = deque()           # step and reset requests for the loop thread
+        self.closed = None                # why the loop takes no more requests (the node is ending)
         self.lockstep_command_held = False   # lockstep: a command came while paused
         self.resets = 0
         self.before_reset_ns = None       # the latest state a run before a ~/reset reached (stale answers)
@@ -163,12 +164,29 @@ class SimControl:
 
     def _through_loop(self, req, response):
         with self.cond:
-            self.requests.append(req)
-            self.cond.notify_all()
+            if self.closed is None:
+                self.requests.append(req)
+                self.cond.notify_all()
+            else:
+                self._refuse(req, self.closed)
         if not req.done.wait(REQUEST_TIMEOUT):
             req.message = f"the simulation loop did not take the {req.kind} within {REQUEST_TIMEOUT:g} s"
         response.success, response.message = req.success, req.message
         return response
+
+    def _refuse(self, req, why):
+        self.counts["requests_refused"] += 1
+        req.success, req.message = False, f"refused: {why}; the {req.kind} was not done"
+        req.done.set()
+
+    def close_requests(self, why: str):
+        """The loop has ended: refuse the step and reset requests it will not take (and any later one)
+        at once. Their callbacks waited REQUEST_TIMEOUT s for it, the caller got no answer, and the
+        node's end waited on the executor thread they held."""
+        with self.cond:
+            self.closed = why
+            while self.requests:
+                self._refuse(self.requests.popleft(), why)
 
     # -- the loop's side ------------------------------------------------------------------------
     def between_periods(self, should_stop) -> bool:

@@ -166,12 +166,21 @@ class SimNode(Node):
             self.get_logger().warning("record is true but biped_sim.recording.recorder is not available: "
                                       "this run is not recorded")
             return
-        when = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-        self.bag_path = path or os.path.join(self.params["bag_dir"], f"{self.params['scene']}-{when}")
+        claimed = None
+        if path is None:
+            when = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+            self.bag_path = claimed = self._claim_bag_dir(f"{self.params['scene']}-{when}")
+        else:
+            self.bag_path = path
         try:
             self.recorder = GuardedRecorder(BagRecorder(self.bag_path, parameters=dict(self.params)),
                                             self._recording_failed)
         except (OSError, ValueError) as exc:
+            if claimed is not None:
+                try:
+                    os.rmdir(claimed)       # leave no empty bag directory behind
+                except OSError:
+                    pass
             raise StartupError(f"cannot record to '{self.bag_path}': {exc} (set bag_dir to a writable "
                                "folder, or record:=false)") from None
         for output, pub in self.publishers_by_output().items():
@@ -180,6 +189,24 @@ class SimNode(Node):
         # the writer process starts now rather than during the run's first periods (on 2 cores it took
         # the CPU from them: about 0.15 s of imports)
         self.recorder.wait_ready()
+
+    def _claim_bag_dir(self, name: str) -> str:
+        """``<bag_dir>/<name>``, or ``<name>-2``, ``-3``, ... if taken, created here so that it is this
+        node's alone: two nodes started in one second with one ``bag_dir`` (a launch file) chose the
+        same name, and the second refused to start ("exists and is not an empty directory"), or both
+        wrote into it. A folder that cannot be made is left for the recorder to report."""
+        base = os.path.join(self.params["bag_dir"], name)
+        for n in range(1, 1000):
+            candidate = base if n == 1 else f"{base}-{n}"
+            try:
+                os.makedirs(self.params["bag_dir"], exist_ok=True)
+                os.mkdir(candidate)
+                return candidate
+            except FileExistsError:
+                continue
+            except OSError:
+                return base
+        return base
 
     def _publish(self, pub, msg, t):
         pub.publish(msg)
@@ -368,11 +395,14 @@ class SimNode(Node):
                 if should_stop() or self.finished or self.stopped:
                     return              # else a ~/reset restarted a stopped run
         with spinning_in_background(executor):
-            while True:
-                (run_fast if self.mode == "fast" else run_realtime)(self, should_stop)
-                self._end_run(should_stop, lambda: self.control.between_periods(should_stop) or time.sleep(0.05))
-                if should_stop() or self.finished or self.stopped:
-                    return
+            try:
+                while True:
+                    (run_fast if self.mode == "fast" else run_realtime)(self, should_stop)
+                    self._end_run(should_stop, lambda: self.control.between_periods(should_stop) or time.sleep(0.05))
+                    if should_stop() or self.finished or self.stopped:
+                        return
+            finally:
+                self.control.close_requests(f"the node is shutting down at t={self.sim.t:.6f} s")
 
     def _end_run(self, should_stop, wait):
         self._cpu_end = time.process_time()

@@ -9,9 +9,12 @@ cleanly (final status, bag closed) instead of being interrupted inside a callbac
 """
 from __future__ import annotations
 
+import contextlib
+import os
 import re
 import signal
 import sys
+import tempfile
 from pathlib import Path
 
 import rclpy
@@ -96,15 +99,77 @@ def catch_stop_signals(stop: list) -> list:
     return stop
 
 
+def missing_params_file(argv: list) -> str | None:
+    """Why a ``--params-file`` of ``argv`` cannot be read (it does not exist, is a folder, is not
+    readable), or None. rcl's own words for it were "Error opening YAML file, at .../parser.c:271"."""
+    from biped_sim.ros.params_files import params_files  # it imports this module
+    for name in params_files(argv):
+        path = Path(name)
+        if not path.exists():
+            return (f"the parameters file {name} does not exist ({Path.cwd()} is the current folder): check the "
+                    "path, e.g. --params-file msg_configs/walk.yaml from the repository's root")
+        if path.is_dir():
+            return f"the parameters file {name} is a folder: give a .yaml file in it, e.g. {name}/walk.yaml"
+        try:
+            with open(path, "rb"):
+                pass
+        except OSError as exc:
+            return f"the parameters file {name} cannot be read ({exc.strerror}): check its permissions"
+    return None
+
+
+def ros_arguments_message(text: str) -> str:
+    """rcl's refusal of the ROS arguments as one line that says what to fix: without the C source
+    locations (", at /project/src/rcl/arguments.c:415") and the lexer's internals."""
+    text = re.sub(r",? at /\S+?:\d+", "", text).strip()
+    text = re.sub(r"^failed to initialize rcl: ", "", text)
+    text = re.sub(r"\s*Error: Expected lexeme type \(\d+\) not found, search ended at index \d+", "", text)
+    params = re.match(r"Couldn't parse params file: '--params-file (.+?)'\. Error: (.*)$", text)
+    if params:
+        return (f"the parameters file {params.group(1)} is not one rcl can read: {params.group(2).rstrip('.')}; fix "
+                "it there (its form, as in msg_configs/walk.yaml: the node's name, under it 'ros__parameters:', "
+                "under that 'NAME: VALUE' a line)")
+    return (f"cannot read the ROS arguments: {text.rstrip('.')}; write them after --ros-args as -p NAME:=VALUE, "
+            "--params-file FILE or -r __node:=NAME")
+
+
+@contextlib.contextmanager
+def stderr_held():
+    """File descriptor 2 into a temporary file while the body runs; yields a callable that returns
+    what was written. rcl logs its own ERROR line ("Failed to parse global arguments") before it
+    raises: the refusal says the same in one line, so a refusal drops it; a start writes it out."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as held:
+        os.dup2(held.fileno(), 2)
+        try:
+            yield lambda: (held.seek(0), held.read())[1].decode(errors="replace")
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
 def init(program: str, args: list) -> list | None:
     """``rclpy.init`` with ``args`` and the stop signals caught: returns the list each stop signal
     (:data:`STOP_SIGNALS`) is appended to, or None (after :func:`refuse`) if the ROS arguments cannot
     be read."""
-    try:
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    except Exception as exc:  # a bad --ros-args or params file; rcl says which, e.g. a list of mixed types
-        refuse(program, mixed_list_message(str(exc)) or f"cannot read the ROS arguments: {exc}")
+    missing = missing_params_file(sys.argv if args is None else args)
+    if missing:
+        refuse(program, missing)
         return None
+    with stderr_held() as rcl_said:
+        try:
+            rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+            failure = None
+        except Exception as exc:  # a bad --ros-args or params file; rcl says which, e.g. a list of mixed types
+            failure = exc
+        said = rcl_said()
+    if failure is not None:
+        refuse(program, mixed_list_message(str(failure)) or ros_arguments_message(str(failure)))
+        return None
+    if said:
+        sys.stderr.write(said)
     return catch_stop_signals([])
 
 

@@ -19,6 +19,8 @@ import time
 LAG_REPORT_INTERVAL = 2.0
 #: time.sleep overshoots by ~0.1 ms here: sleep until this much before the deadline, then spin
 SLEEP_MARGIN = 1.5e-4
+#: a realtime wait looks at the stop signals at least this often (wall s)
+STOP_CHECK_INTERVAL = 0.1
 MAX_PUBLICATION_TIMES = 1_000_000
 #: a control period that takes this much wall time more than it should is a stall (the process was
 #: stopped, SIGSTOP or a suspended machine, or starved): the clock resynchronises instead of replaying it
@@ -69,7 +71,7 @@ class RealtimePacer:
         self.last_t, self.last_wall = 0.0, self.start           # the last period waited for
         self.earlier_t, self.earlier_wall = 0.0, 0.0            # the segments before it, summed
 
-    def wait_until(self, t: float) -> str | None:
+    def wait_until(self, t: float, should_stop=lambda: False) -> str | None:
         """Sleep until simulated time ``t`` is due; a warning if it is already late by more than a
         control period (at most one every LAG_REPORT_INTERVAL s), or if the loop stalled.
 
@@ -77,7 +79,7 @@ class RealtimePacer:
         between them needs by more than ``stall_bound``, at once (a loop that falls behind a little
         each period is not one). Holding to the old clock would replay the stall as fast as the loop
         goes; instead ``t`` is due now: the simulated time goes on from where it was, and the stall
-        is left out of the figures."""
+        is left out of the figures. Returns early, ``t`` not yet due, once ``should_stop()``."""
         warning = self._resync_if_stalled(t, time.monotonic())
         deadline = self.start + t / self.rate
         now = time.monotonic()
@@ -88,11 +90,15 @@ class RealtimePacer:
                        f"behind the wall clock x rate_factor {self.rate:g} (achieved real-time factor "
                        f"{t / (now - self.start):.3g}); lower publish_rate or rate_factor, raise control_period, "
                        "or use time_mode fast")
-        left = deadline - time.monotonic()
-        if left > 2e-4:                  # shorter sleeps are not worth their overshoot
-            time.sleep(left - SLEEP_MARGIN)
-        while time.monotonic() < deadline:
-            pass
+        while not should_stop():
+            left = deadline - time.monotonic()
+            if left <= 2e-4:             # shorter sleeps are not worth their overshoot
+                while time.monotonic() < deadline:
+                    pass
+                break
+            # in slices: a period can be long (control_period 1 s at rate_factor 0.01 is 100 s of wall
+            # time), and a stop signal only appends to a list, so one sleep held the node's end that long
+            time.sleep(min(left - SLEEP_MARGIN, STOP_CHECK_INTERVAL))
         # stopped during the sleep: the period is published late, the next ones must not catch up
         warning = self._resync_if_stalled(t, time.monotonic()) or warning
         self.last_t, self.last_wall = t, time.monotonic()
@@ -197,7 +203,7 @@ def run_realtime(node, should_stop):
         node.check_timeout()
         node.step()                      # compute ahead: the state at the end of this period
         periods += 1
-        late = pacer.wait_until(node.sim.t)
+        late = pacer.wait_until(node.sim.t, should_stop)
         if late:
             node.get_logger().warning(late)
         if schedule.due(node.sim.t) or node.finished or node.stopped:

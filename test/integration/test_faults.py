@@ -1,5 +1,6 @@
 """Bad input and faults around the nodes and the small tools (issue 18): one clear line or a quiet
 exit, never a Python traceback, never a node started that was not asked for. Real processes over DDS."""
+import signal
 import subprocess
 import sys
 import time
@@ -75,8 +76,34 @@ def test_integers_in_a_list_parameter_are_refused_with_what_to_write(how, tmp_pa
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr
     ours = [ln for ln in done.stderr.splitlines() if ln.startswith("sim_node: error:")]
-    assert len(ours) == 1, done.stderr          # (rcl's own "[ERROR] ... Failed to parse" line comes before)
+    assert len(ours) == 1 and len(done.stderr.strip().splitlines()) == 1, done.stderr   # (rcl's ERROR line too, before)
     assert "'initial_q'" in ours[0] and "0.0" in ours[0] and "float" in ours[0], ours[0]
+
+
+#: ROS arguments rcl refuses: (the arguments after --ros-args, a file's text, what the line must name)
+UNREADABLE_ROS_ARGS = {
+    "missing_params_file": (["--params-file", "{tmp}/nope.yaml"], None, "does not exist"),
+    "params_file_a_folder": (["--params-file", "{tmp}"], None, "is a folder"),
+    "params_file_bad_yaml": (["--params-file", "{tmp}/bad.yaml"],
+                             "biped_sim:\n  ros__parameters:\n    duration: [1.0\n", "near line"),
+    "override_without_value": (["-p", "duration"], None, "'-p duration'"),
+}
+
+
+@pytest.mark.parametrize("program", sorted(NODES))
+def test_ros_arguments_rcl_cannot_read_are_refused_in_one_line(program, tmp_path):
+    """rcl's own ERROR line came first, then ours with rcl's C source locations (", at
+    /project/src/rcl/arguments.c:415"); a missing file was "Error opening YAML file". Now one line each."""
+    with ros_domain() as dom:
+        for case, (ros_args, text, names) in UNREADABLE_ROS_ARGS.items():
+            if text is not None:
+                (tmp_path / "bad.yaml").write_text(text)
+            args = [a.format(tmp=tmp_path) for a in ros_args]
+            done, _took = run([str(BIN / program), "--ros-args", *args], dom, tmp_path)
+            lines = done.stderr.strip().splitlines()
+            assert done.returncode == 2 and len(lines) == 1, (case, done.stderr)
+            assert lines[0].startswith(f"{program}: error: ") and names in lines[0], (case, lines[0])
+            assert "/project/src" not in lines[0] and "lexeme" not in lines[0], (case, lines[0])
 
 
 @pytest.mark.parametrize("tool", [["biped_echo"], ["torque_pub", "1", "2", "--rate", "10", "--wait", "60"]],
@@ -103,3 +130,24 @@ def test_echo_into_head_ends_quietly(tmp_path):
     assert len(done.stdout.splitlines()) == 3 and "joint_states" in done.stdout, done.stdout
     assert "Traceback" not in done.stderr and "BrokenPipe" not in done.stderr, done.stderr
     assert done.stderr == "", done.stderr
+
+
+@pytest.mark.parametrize("program", sorted(NODES))
+def test_a_stop_signal_during_start_up_is_one_line(program, tmp_path):
+    """Ctrl-C in the node's first half second (its imports) printed a KeyboardInterrupt traceback, and
+    SIGTERM or SIGHUP killed it without a word (exit -15). Now one line and 128 + the signal."""
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        with ros_domain() as dom:
+            proc = subprocess.Popen([str(BIN / program), "--ros-args", "-p", "record:=false"], env=ros_env(dom),
+                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                    text=True)
+            time.sleep(0.15)        # inside the imports (0.3-0.6 s here)
+            proc.send_signal(sig)
+            out, _ = proc.communicate(timeout=20)
+        assert "Traceback" not in out, out
+        if f"{sig.name}: shutting down" in out:     # a fast machine: the node was up already; it said so
+            assert proc.returncode == 0, out
+            continue
+        assert proc.returncode == 128 + sig, (sig.name, proc.returncode, out)
+        assert out.strip() == (f"{program}: {sig.name} during start-up: stopped before it ran anything (nothing was "
+                               "simulated, sent or recorded)"), out

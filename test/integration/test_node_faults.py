@@ -717,3 +717,25 @@ def test_a_parameters_file_is_read_by_the_node_as_by_the_headless_tools(case, tm
                 assert len([ln for ln in done.stderr.splitlines() if ln.startswith("sim_node: error:")]) == 1, log
     assert re.search(words, log), log
     assert "Traceback" not in log and not (tmp_path / "bags").exists(), log       # nothing recorded
+
+
+def test_a_bag_name_taken_in_the_same_second_gets_a_suffix_and_the_run_records(tmp_path):
+    """Two nodes started in one second with one bag_dir (a launch file) chose one bag name: the second
+    refused to start ("exists and is not an empty directory ... set bag_dir to a writable folder"), or
+    both wrote into it. The names of the next seconds are taken here, as the first node would."""
+    from datetime import datetime, timedelta, timezone
+    bags = tmp_path / "bags"
+    now = datetime.now(timezone.utc)
+    taken = [bags / f"custom-{(now + timedelta(seconds=s)).strftime('%Y%m%dT%H%M%SZ')}" for s in range(0, 30)]
+    for d in taken:
+        d.mkdir(parents=True)
+        (d / "other_0.mcap").write_bytes(b"the first node's bag")
+    with ros_domain() as dom:
+        proc = start_node({"time_mode": "fast", "duration": 0.5, "bag_dir": str(bags)}, dom,
+                          log_path=tmp_path / "node.log")
+        code = proc.wait(60)
+    assert code == 0, proc.output()
+    ours = sorted(set(bags.iterdir()) - set(taken))
+    assert len(ours) == 1 and ours[0].name.endswith("Z-2"), (ours, proc.output())
+    assert len(bag_messages(ours[0])["/joint_states"]) == 501
+    assert all((d / "other_0.mcap").read_bytes() == b"the first node's bag" for d in taken)

@@ -321,3 +321,34 @@ def test_a_burst_of_refused_pushes_is_said_once_and_counted_in_the_final_status(
     recorded = [{kv.key: kv.value for kv in s.values} for _t, m in bag_messages(bag)["/diagnostics"]
                 for s in m.status if s.name == "biped_sim/run"]
     assert recorded[-1]["pushes_refused"] == str(burst), recorded
+
+
+def test_a_stop_signal_during_a_long_realtime_period_ends_the_node_and_answers_a_waiting_reset(tmp_path):
+    """A realtime period of 20 s of wall time (control_period 1 s at rate_factor 0.05): the loop slept
+    through it, so SIGTERM ended the node only when the period did, and a ~/reset waiting for the loop
+    was never answered (its callback held the executor 10 s while the node closed). Now the node ends
+    within a second of the signal and the waiting reset is refused, counted in the final status."""
+    import time
+    params = {"time_mode": "realtime", "control_period": 1.0, "rate_factor": 0.05, "record": True,
+              "bag_dir": str(tmp_path / "bags"), "command_timeout": 0.0}
+    with ros_domain() as dom, start_node(params, dom, log_path=tmp_path / "node.log") as proc, \
+            Client(dom) as c:
+        diag = c.collect("/diagnostics", DiagnosticArray)
+        ctl = Control(c, proc)
+        c.wait_subscribed("/diagnostics", proc=proc)
+        reset = ctl.reset_cli.call_async(ctl.Trigger.Request())
+        time.sleep(0.5)                  # the request reached the loop's queue (the loop sleeps in its period)
+        signalled = time.monotonic()
+        proc.proc.send_signal(signal.SIGTERM)
+        c.spin_until(reset.done, timeout=5, what="the answer of the waiting ~/reset", proc=proc)
+        code = proc.wait(5)
+        took = time.monotonic() - signalled
+        c.spin_until(lambda: any(s.name == "biped_sim/run" for a in diag for s in a.status), timeout=5)
+    assert code == 0 and took < 3.0, (code, took, proc.output())
+    answer = reset.result()
+    assert not answer.success and answer.message == ("refused: the node is shutting down at t=1.000000 s; the "
+                                                     "reset was not done"), answer.message
+    run = next(s for a in diag for s in a.status if s.name == "biped_sim/run")
+    assert {kv.key: kv.value for kv in run.values}["requests_refused"] == "1", run
+    bags = list((tmp_path / "bags").iterdir())
+    assert len(bags) == 1 and "/joint_states" in bag_messages(bags[0]), bags      # one bag (no reset), readable

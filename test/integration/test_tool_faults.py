@@ -341,3 +341,15 @@ def test_a_bag_folder_made_read_only_before_the_close_leaves_a_bag_recover_compl
         in_file = make_reader(f).get_summary().statistics.message_count
     with Reader(bag) as reader:
         assert reader.message_count == in_file == sum(1 for _ in reader.messages()) > 1000
+
+
+def test_a_scene_file_that_is_bad_yaml_or_a_folder_is_one_line(tmp_path):
+    """PyYAML's five-line error (what it parsed, the line copied with a caret, the problem) came through
+    as five lines; a folder given as the scene was said not to exist."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("biped_sim:\n  ros__parameters:\n    duration: [1.0\n")
+    line = one_error_line(biped_sim("simulate", "--scene", bad), "biped-sim simulate")
+    assert f"scene {bad}: not valid YAML at line 4, column 1: expected ',' or ']'" in line, line
+    assert "started at line 3, column 15" in line, line
+    line = one_error_line(biped_sim("simulate", "--scene", tmp_path), "biped-sim simulate")
+    assert "is a folder: give a .yaml file" in line, line
