@@ -59,6 +59,11 @@ class StoppedAtStart(KeyboardInterrupt):
         self.signum = signum
 
 
+#: the stop signals that came while a command was starting (an import may turn the StoppedAtStart raised
+#: inside a C extension's initialisation into an ImportError: "initialization failed")
+STOPPED_AT_START: list = []
+
+
 def raise_on_stop_signals():
     """Until the command installs its own handlers, SIGINT, SIGTERM and SIGHUP raise
     :class:`StoppedAtStart`: Ctrl-C printed a KeyboardInterrupt traceback from deep in an import, and
@@ -66,6 +71,7 @@ def raise_on_stop_signals():
     import signal
 
     def stop(signum, _frame):
+        STOPPED_AT_START.append(signum)
         raise StoppedAtStart(signum)
     for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         if signum == signal.SIGHUP and signal.getsignal(signum) is signal.SIG_IGN:

@@ -8,7 +8,13 @@ closed pipe on stdout, ``biped_echo | head``, ends the command quietly).
 import importlib
 import sys
 
-from biped_sim.config.command_errors import StoppedAtStart, explain, raise_on_stop_signals, run_command
+from biped_sim.config.command_errors import (
+    STOPPED_AT_START,
+    StoppedAtStart,
+    explain,
+    raise_on_stop_signals,
+    run_command,
+)
 
 
 def entry_point(command, module):
@@ -22,6 +28,10 @@ def entry_point(command, module):
             print(line, file=sys.stderr)
             return code
         except ImportError as exc:
+            if STOPPED_AT_START:    # the signal's exception, raised inside an extension's initialisation
+                code, line = explain(command, StoppedAtStart(STOPPED_AT_START[0]))
+                print(line, file=sys.stderr)
+                return code
             print(f"{command}: error: cannot import the ROS 2 Python packages ({exc}); install ROS 2 Jazzy's "
                   "rclpy and message packages (make venv does, from PyPI) or source a ROS 2 Jazzy install",
                   file=sys.stderr)

@@ -137,17 +137,24 @@ def ros_arguments_message(text: str) -> str:
 def stderr_held():
     """File descriptor 2 into a temporary file while the body runs; yields a callable that returns
     what was written. rcl logs its own ERROR line ("Failed to parse global arguments") before it
-    raises: the refusal says the same in one line, so a refusal drops it; a start writes it out."""
+    raises: the refusal says the same in one line, so a refusal drops it; a start writes it out.
+    The stop signals wait (blocked) until descriptor 2 is back: a signal whose handler raised between
+    the two dup2 calls left it in the temporary file, and the line that said the signal was lost (an
+    exit code 129 with no output, once in a loaded make test)."""
     sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile() as held:
-        os.dup2(held.fileno(), 2)
-        try:
-            yield lambda: (held.seek(0), held.read())[1].decode(errors="replace")
-        finally:
-            sys.stderr.flush()
-            os.dup2(saved, 2)
-            os.close(saved)
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    try:
+        saved = os.dup(2)
+        with tempfile.TemporaryFile() as held:
+            os.dup2(held.fileno(), 2)
+            try:
+                yield lambda: (held.seek(0), held.read())[1].decode(errors="replace")
+            finally:
+                sys.stderr.flush()
+                os.dup2(saved, 2)
+                os.close(saved)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
 def init(program: str, args: list) -> list | None:

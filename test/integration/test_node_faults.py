@@ -689,7 +689,7 @@ NODE_READS = {
     "scene n": ("    scene: n\n", 2, r"parameter 'scene' must be a string, got False \(unquoted, y, n, .*quote"),
     "a mixed list": ("    initial_dq: [0, 0.5, 0.0, 0.0, 0.0]\n", 2,
                      r"parameter 'initial_dq' mixes integers and floats \(rcl refuses a list of mixed types\)"),
-    "no value": ("    duration:\n", 2, r"Couldn't parse params file.*No value at line 5"),
+    "no value": ("    duration:\n", 2, r"is not one rcl can read: No value at line 5"),
 }
 
 
