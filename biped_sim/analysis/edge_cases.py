@@ -63,6 +63,16 @@ def walk_that_scuffs(model, lag=-0.15, clearance=0.5, control_period=1e-3, t_fin
                      control_period=control_period, **options)
 
 
+def pd_walk_without_clearance(model, control_period=1e-3, t_final=10.0, **options):
+    """The PD walking law (``PDWalkingController``) with no swing-foot clearance (``clearance=0``) from the
+    walk scene's state: its swing foot scuffs 2.2 mm deep and, late in some steps, under the ground into
+    the front of the stance foot, which round 2's rule stopped at 3.948 s."""
+    from biped_sim.control.walking import PDWalkingController
+    walk = load_scene("walk").engine_arguments()
+    return _simulate(model, np.asarray(walk["q0"]), np.asarray(walk["dq0"]), t_final,
+                     controller=PDWalkingController(model, clearance=0.0), control_period=control_period, **options)
+
+
 def rocking_v(model, touchdown_rule="front", **options):
     """A V whose hips a stiff PD holds, rocking from foot to foot until its impacts accumulate (Zeno)."""
     from biped_sim.analysis.stability import HipPD
@@ -168,13 +178,16 @@ def edge_verdicts(quick, verdict):
         t_final = 3.0 if quick else 10.0
         deep = walk_that_scuffs(m, lag=-0.15, t_final=t_final)
         front = walk_that_scuffs(m, lag=-0.01, clearance=0.3, t_final=t_final)
+        pd = pd_walk_without_clearance(m, t_final=t_final)
         old = [walk_that_scuffs(m, lag=lag, clearance=c, t_final=1.0, scuff_rule="behind", scuff_depth=3e-3)
                for lag, c in ((-0.15, 0.5), (-0.01, 0.3))]
-        runs.extend([deep, front, *old])
-        ok = deep.status == front.status == "completed" and all(r.status == "stopped" for r in old)
+        old.append(pd_walk_without_clearance(m, t_final=5.0, scuff_rule="behind", scuff_depth=3e-3))
+        runs.extend([deep, front, pd, *old])
+        ok = deep.status == front.status == pd.status == "completed" and all(r.status == "stopped" for r in old)
         return ok, (f"scuffing 3.8 mm deep: {deep.status} {deep.t[-1]:g} s, {len(deep.impacts)} impacts, deepest "
                     f"{deep.stats['deepest_scuff'] * 1e3:.2f} mm; into the front: {front.status} {front.t[-1]:g} s; "
-                    f"round 2's rule stopped them at {old[0].t[-1]:.3f} and {old[1].t[-1]:.3f} s")
+                    f"the PD law without clearance: {pd.status} {pd.t[-1]:g} s, {len(pd.impacts)} impacts; round 2's "
+                    f"rule stopped them at {old[0].t[-1]:.3f}, {old[1].t[-1]:.3f} and {old[2].t[-1]:.3f} s")
 
     def zeno_rocking_v():       # issue 28, D7l: the Zeno limit under the default rule
         r = rocking_v(m)

@@ -63,7 +63,7 @@ class EventLocator:
             # a free foot below the ground
             raise SceneAssumptionError(
                 f"the stance foot (leg {event.stance_leg_before}) {event.kind} at t={event.time:.9g} s while foot "
-                f"{leg} is still below the ground behind it (a scuff since t={self.active_scuffs[leg][0]:.9g} s): "
+                f"{leg} is still below the ground, passing through it (a scuff since t={self.active_scuffs[leg][0]:.9g} s): "
                 "the model has no contact there")
         if event.kind == "double_touchdown":
             self.armed = [False, False]

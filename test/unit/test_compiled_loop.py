@@ -15,7 +15,7 @@ import pytest
 from hypothesis import event, example, given, settings, strategies as st
 
 import biped_sim as bs
-from biped_sim.analysis.edge_cases import on_both_loops, rocking_v, walk_that_scuffs
+from biped_sim.analysis.edge_cases import on_both_loops, pd_walk_without_clearance, rocking_v, walk_that_scuffs
 from biped_sim.control.walking import PDWalkingController, WalkingController
 from biped_sim.engine import compiled_loop, guards as G, hybrid
 from biped_sim.engine.model import BipedModel
@@ -99,6 +99,7 @@ SCUFF_RULE_RUNS = {     # (edge_cases' builders)
     "a deep scuff, continuous": lambda: walk_that_scuffs(MODEL, lag=-0.15, control_period=None, t_final=3.0),
     "a deep scuff, held 2 ms": lambda: walk_that_scuffs(MODEL, lag=-0.15, control_period=2e-3, t_final=3.0),
     "a scuff into the front": lambda: walk_that_scuffs(MODEL, lag=-0.01, clearance=0.3, t_final=3.0),
+    "the PD law without clearance": lambda: pd_walk_without_clearance(MODEL, t_final=5.0),
     "a fall back onto the rear foot": lambda: bs.load_scene("passive").simulate(t_final=2.0),
     "the rocking V's Zeno limit": lambda: rocking_v(MODEL),
 }

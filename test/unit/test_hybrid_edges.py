@@ -12,6 +12,7 @@ from biped_sim.analysis.edge_cases import (
     bouncing_landing,
     coincident_crossing,
     grazing_flight,
+    pd_walk_without_clearance,
     rocking_v,
     spinning_stance,
     standing_v_pushed_up,
@@ -351,6 +352,17 @@ def test_a_walk_whose_swing_foot_scuffs_runs_to_its_end_with_default_options(law
     scuffs = [e for e in r.events if e.kind == "scuff"]
     assert len(scuffs) >= 20 and "scuff_rule='forward'" in scuffs[0].message
     assert r.stats["deepest_scuff"] > (3e-3 if law["lag"] == -0.15 else 0.0)
+
+
+@pytest.mark.parametrize("period", [1e-3, 2e-3, None])
+def test_the_pd_walking_law_without_swing_clearance_walks_to_its_end(period):
+    """A plain PD law on the virtual constraints with no swing-foot clearance (PDWalkingController,
+    clearance 0), from the walk scene's state: round 2's rule stopped it at 3.9-4.6 s."""
+    round2 = pd_walk_without_clearance(MODEL, control_period=period, scuff_rule="behind", scuff_depth=3e-3)
+    assert round2.status == "stopped" and round2.t[-1] < 5.0, round2.message
+    r = pd_walk_without_clearance(MODEL, control_period=period)
+    assert r.status == "completed" and len(r.impacts) >= 25, r.message
+    assert not violations(MODEL, r), violations(MODEL, r)
 
 
 def test_the_scuff_options_are_checked_by_name():
