@@ -59,12 +59,12 @@ class EventLocator:
         kept of the last step's end: the reset changed the state they were computed from."""
         self._feet_end = self._force_end = (None, None)
         for leg in self.active_scuffs:
-            # a liftoff with the other foot still under the ground behind: no mode of the model has
+            # a liftoff with the other foot still under the ground in a scuff: no mode of the model has
             # a free foot below the ground
             raise SceneAssumptionError(
                 f"the stance foot (leg {event.stance_leg_before}) {event.kind} at t={event.time:.9g} s while foot "
-                f"{leg} is still below the ground, passing through it (a scuff since t={self.active_scuffs[leg][0]:.9g} s): "
-                "the model has no contact there")
+                f"{leg} is still below the ground, passing through it (a scuff since "
+                f"t={self.active_scuffs[leg][0]:.9g} s): the model has no contact there")
         if event.kind == "double_touchdown":
             self.armed = [False, False]
         for leg in (event.stance_leg_after, event.stance_leg_before):
