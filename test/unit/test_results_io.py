@@ -1,0 +1,38 @@
+"""A run's results seen and loaded: ``SimulationResult.plot()`` and ``simulate --plot`` (the figure
+``biped-sim inspect`` draws), ``biped_sim.load_run`` (a bag read back into named arrays) and the
+typed values of its impact and event fields."""
+from __future__ import annotations
+
+import numpy as np
+from PIL import Image
+
+import biped_sim as bs
+from biped_sim.cli import main as biped_sim
+
+PANEL_TITLES = ("joint angles", "ground reaction force", "hip torques", "gait")
+
+
+def distinct_colours(png):
+    with Image.open(png) as im:
+        pixels = np.asarray(im.convert("RGB")).reshape(-1, 3)
+    return len(np.unique(pixels, axis=0))
+
+
+def test_a_result_plots_the_figure_inspect_draws(tmp_path):
+    result = bs.load_scene("walk").simulate(t_final=1.0)
+    png = tmp_path / "walk.png"
+    fig = result.plot(path=png)
+    titles = [ax.get_title(loc="left") for ax in fig.axes]
+    assert [any(t.startswith(p) for t in titles) for p in PANEL_TITLES] == [True] * 4, titles
+    assert len(fig.axes[0].lines) >= 3 + len(result.impacts)           # q1, q2, q3 and an impact line each
+    with Image.open(png) as im:
+        assert im.size == (1080, 1080)
+    assert distinct_colours(png) > 100                                  # lines drawn, not an empty canvas
+
+
+def test_simulate_plot_writes_scene_png_in_the_current_folder(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert biped_sim(["simulate", "--scene", "walk", "--duration", "0.6", "--plot"]) == 0
+    out = capsys.readouterr().out
+    assert f"figure  {tmp_path / 'walk.png'}" in out, out
+    assert (tmp_path / "walk.png").stat().st_size > 20_000 and distinct_colours(tmp_path / "walk.png") > 100
