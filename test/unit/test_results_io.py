@@ -36,3 +36,29 @@ def test_simulate_plot_writes_scene_png_in_the_current_folder(tmp_path, monkeypa
     out = capsys.readouterr().out
     assert f"figure  {tmp_path / 'walk.png'}" in out, out
     assert (tmp_path / "walk.png").stat().st_size > 20_000 and distinct_colours(tmp_path / "walk.png") > 100
+
+
+def recorded_walk(tmp_path, duration="1"):
+    """A real bag on disk: ``biped-sim simulate --scene walk --record`` (lockstep, torques held 1 ms)."""
+    assert biped_sim(["simulate", "--scene", "walk", "--duration", duration, "--record", str(tmp_path)]) == 0
+    (bag,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    return bag
+
+
+def test_load_run_reads_a_bag_back_into_the_arrays_of_a_result(tmp_path, monkeypatch):
+    bag = recorded_walk(tmp_path)
+    run = bs.load_run(bag)
+    assert isinstance(run, bs.RecordedRun)
+    result = bs.load_scene("walk").simulate(t_final=1.0)      # the same run, held torques as recorded
+    assert run.t.shape == (1001,) and run.q.shape == run.dq.shape == (1001, 5) and run.u.shape == (1001, 2)
+    assert run.grf.shape == (len(run.grf_t), 2) and set(run.stance_leg) <= {0, 1, 2}
+    assert np.all(np.diff(run.t) > 0) and run.t[-1] == 1.0
+    np.testing.assert_allclose(run.q[0], result.q[0], atol=1e-12)
+    assert [e["time"] for e in run.impacts] == [e.time for e in result.impacts]
+    assert [e["kind"] for e in run.events] == [e.kind for e in result.events]
+    monkeypatch.setitem(__import__("sys").modules, "pandas", None)       # pandas absent: one clear line
+    try:
+        run.to_dataframe()
+        raise AssertionError("to_dataframe without pandas did not raise")
+    except ImportError as exc:
+        assert "pip install pandas" in str(exc)
