@@ -24,6 +24,8 @@ class Thinned:
     ``capacity``; when full, every second kept row is let go and the stride doubles."""
 
     def __init__(self, width, capacity=MAX_POINTS):
+        self.grows = capacity is None     # None: every row, the array doubled when full (biped_sim.load_run)
+        capacity = 1024 if capacity is None else capacity
         self.rows = np.full((max(2, int(capacity)), width), np.nan)   # all of it at once: the same for any bag
         self.n = 0              # rows kept
         self.seen = 0           # rows offered
@@ -31,7 +33,9 @@ class Thinned:
 
     def add(self, row):
         if self.seen % self.stride == 0:
-            if self.n == len(self.rows):
+            if self.n == len(self.rows) and self.grows:
+                self.rows = np.concatenate([self.rows, np.full_like(self.rows, np.nan)])
+            elif self.n == len(self.rows):
                 half = self.rows[:self.n:2].copy()
                 self.n = len(half)
                 self.rows[:self.n] = half
@@ -51,7 +55,8 @@ def load_run(bag, max_points=MAX_POINTS) -> dict:
     """A bag read as a stream, in memory that does not grow with it: the figures of the summary over
     every state (``stats``), and for the figure at most ``max_points`` samples of each series: t, q,
     dq, u, leg (joint_states), grf (t, F), then impacts and events (diagnostics) and the commands'
-    count."""
+    count. ``max_points=None`` keeps every sample; ``all_events`` lists every engine event (those
+    with a ``kind``) of the impact and diagnostics topics in their order."""
     topics = bagio.channels(bag)
     t_js = bagio.find_topic(topics, "joint_states")
     t_grf = bagio.find_topic(topics, "ground_reaction")
@@ -59,7 +64,7 @@ def load_run(bag, max_points=MAX_POINTS) -> dict:
     t_diag = bagio.find_topic(topics, "diagnostics")
     t_cmd = bagio.find_topic(topics, "hip_torque")
     js, grf = Thinned(1 + 5 + 5 + 2 + 1, max_points), Thinned(3, max_points)
-    impacts, events, commands = [], [], 0
+    impacts, events, all_events, commands = [], [], [], 0
     counts, first, last = {}, {}, {}
     st = dict(n=0, q_first=None, q_last=None, t_first=None, t_last=None, hip_min=math.inf, hip_max=-math.inf,
               u1=0.0, u2=0.0, u_sq=0.0, fn_min=math.inf, fn_max=-math.inf, ratio=0.0, n_grf=0)
@@ -89,10 +94,15 @@ def load_run(bag, max_points=MAX_POINTS) -> dict:
             st["fn_min"], st["fn_max"] = min(st["fn_min"], fy), max(st["fn_max"], fy)
             st["ratio"] = max(st["ratio"], abs(fx) / max(abs(fy), 1e-12))
         elif topic == t_imp:
-            impacts.extend(M.event_values(msg))
+            values = M.event_values(msg)
+            impacts.extend(values)
+            all_events.extend(e for e in values if "kind" in e)
         else:
-            events.extend(e for e in M.event_values(msg) if _kept_event(e))
+            values = M.event_values(msg)
+            events.extend(e for e in values if _kept_event(e))
+            all_events.extend(e for e in values if "kind" in e)
     run = dict(topics=topics, counts=counts, first=first, last=last, impacts=impacts, events=events,
+               all_events=all_events,
                commands=commands, stats=st, cut=bagio.cut_short(bag), being_written=bagio.being_written(bag))
     rows = js.array()
     run["t"], run["q"], run["dq"], run["u"] = rows[:, 0], rows[:, 1:6], rows[:, 6:11], rows[:, 11:13]
