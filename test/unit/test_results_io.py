@@ -62,3 +62,22 @@ def test_load_run_reads_a_bag_back_into_the_arrays_of_a_result(tmp_path, monkeyp
         raise AssertionError("to_dataframe without pandas did not raise")
     except ImportError as exc:
         assert "pip install pandas" in str(exc)
+
+
+STRING_KEYS = {"kind", "warnings", "name", "message"}
+
+
+def test_a_bags_impact_and_event_fields_are_typed_with_no_nan_strings(tmp_path):
+    run = bs.load_run(recorded_walk(tmp_path))
+    touchdown = run.impacts[0]
+    assert isinstance(touchdown["time"], float) and isinstance(touchdown["foot"], int)
+    assert isinstance(touchdown["energy_loss"], float) and touchdown["energy_loss"] > 0
+    for key in ("q", "dq_minus", "dq_plus", "impulse"):
+        assert isinstance(touchdown[key], list) and all(isinstance(v, float) for v in touchdown[key]), key
+    scuffs = [e for e in run.events if e["kind"] == "scuff"]
+    assert scuffs, [e["kind"] for e in run.events]             # the walk's swing foot scuffs (forward rule)
+    for e in run.events:
+        strings = {k: v for k, v in e.items() if isinstance(v, str) and k not in STRING_KEYS}
+        assert not strings, (e["kind"], strings)                 # every number parsed, no "[nan, ...]"
+        assert "nan" not in repr({k: v for k, v in e.items() if k not in STRING_KEYS}), e
+    assert all(e["q"] == [] or len(e["q"]) == 5 for e in scuffs)
