@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -85,10 +86,26 @@ def register(sub):
                    help="record the run to a rosbag2/MCAP bag DIR/<scene>-<UTC time>/ (DIR default: bags), run in "
                         "lockstep as the node runs it (control period: --control-period or the scene's, 1 ms "
                         "without); see docs/recording.md")
+    p.add_argument("--plot", nargs="?", const="", default=None, metavar="FILE.png",
+                   help="write the run's figure (the one biped-sim inspect draws for a bag) to FILE.png "
+                        "[default: <scene>.png in the current folder; simulate.png without --scene]")
     p.set_defaults(func=run)
 
 
+def plot_path(args):
+    """Where ``--plot`` writes the figure (checked before the run, not after it)."""
+    if args.plot:
+        png = Path(args.plot)
+    else:
+        png = Path((Path(args.scene).stem if args.scene else "simulate") + ".png")
+    if not png.parent.is_dir():
+        raise ValueError(f"cannot write the figure {png}: the folder {png.parent} does not exist; "
+                         "create it or give another --plot path")
+    return png
+
+
 def run(args):
+    args.plot_png = plot_path(args) if getattr(args, "plot", None) is not None else None
     if args.scene:
         args.scene_overrides = scene_overrides(args)
     else:
@@ -126,6 +143,10 @@ def run(args):
 
 def _report(result, args):
     print_summary(result)
+    if getattr(args, "plot_png", None) is not None:
+        title = f"{Path(args.scene).stem if args.scene else 'simulate'}: {result.status}, {len(result.impacts)} impacts"
+        result.plot(path=args.plot_png, title=title)
+        print(f"{'figure':>23}  {args.plot_png.resolve()}")
     if args.events:
         for e in result.events:
             extra = f" impulse={np.round(e.impulse, 6).tolist()}" if e.impulse is not None else ""

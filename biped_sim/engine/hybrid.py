@@ -632,4 +632,4 @@ class HybridSimulator:
         stats["generated_code"] = GENERATED_CODE   # "C" (the compiled twin) or "Python": same results
         return SimulationResult.from_samples(s, list(self.events), stats,
                                              "completed" if self.status == "running" else self.status,
-                                             self.message, self.opt)
+                                             self.message, self.opt, model=self.model)

@@ -62,14 +62,31 @@ class SimulationResult:
     energy_balance: np.ndarray | None = None
     #: the run's Options (slope, scuff_depth and the tolerances its invariants were checked with)
     options: object = None
+    #: the run's BipedModel (the stick figures of :meth:`plot`; None: the default model)
+    model: object = None
 
     @classmethod
-    def from_samples(cls, samples, events, stats, status, message, options):
+    def from_samples(cls, samples, events, stats, status, message, options, model=None):
         """From the simulator's :class:`Samples`."""
         d = samples.rows()
         return cls(t=d[:, 0].copy(), q=d[:, 1:6].copy(), dq=d[:, 6:11].copy(), stance_leg=d[:, 11].astype(int),
                    grf=d[:, 12:14].copy(), u=d[:, 14:16].copy(), events=events, stats=stats, status=status,
-                   message=message, energy_balance=d[:, 16].copy(), options=options)
+                   message=message, energy_balance=d[:, 16].copy(), options=options, model=model)
+
+    def plot(self, path=None, title=None, frames=14):
+        """The figure ``biped-sim inspect`` draws for a bag (joint angles, ground forces, hip torques,
+        impacts, a stick-figure strip of the gait), as a matplotlib Figure; ``path``: also written
+        there as a PNG. Needs matplotlib (the ``plot`` extra), imported here only."""
+        from biped_sim.engine.figure import run_figure
+        from biped_sim.engine.model import BipedModel
+        grf = self.grf.astype(float)
+        grf[self.stance_leg == 0] = np.nan          # no stance foot in flight: the lines break there
+        impacts = [(e.time, e.leg, e.q) for e in self.impacts]
+        slope = float(getattr(self.options, "slope", 0.0) or 0.0)
+        if title is None:
+            title = f"simulated run ({self.status}): {len(impacts)} impacts"
+        return run_figure(self.t, self.q, self.u, self.t, grf, impacts, self.model or BipedModel(), title,
+                          slope=slope, path=path, frames=frames)
 
     @property
     def impacts(self):

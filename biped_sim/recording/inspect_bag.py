@@ -24,6 +24,8 @@ class Thinned:
     ``capacity``; when full, every second kept row is let go and the stride doubles."""
 
     def __init__(self, width, capacity=MAX_POINTS):
+        self.grows = capacity is None     # None: every row, the array doubled when full (biped_sim.load_run)
+        capacity = 1024 if capacity is None else capacity
         self.rows = np.full((max(2, int(capacity)), width), np.nan)   # all of it at once: the same for any bag
         self.n = 0              # rows kept
         self.seen = 0           # rows offered
@@ -31,7 +33,9 @@ class Thinned:
 
     def add(self, row):
         if self.seen % self.stride == 0:
-            if self.n == len(self.rows):
+            if self.n == len(self.rows) and self.grows:
+                self.rows = np.concatenate([self.rows, np.full_like(self.rows, np.nan)])
+            elif self.n == len(self.rows):
                 half = self.rows[:self.n:2].copy()
                 self.n = len(half)
                 self.rows[:self.n] = half
@@ -51,7 +55,8 @@ def load_run(bag, max_points=MAX_POINTS) -> dict:
     """A bag read as a stream, in memory that does not grow with it: the figures of the summary over
     every state (``stats``), and for the figure at most ``max_points`` samples of each series: t, q,
     dq, u, leg (joint_states), grf (t, F), then impacts and events (diagnostics) and the commands'
-    count."""
+    count. ``max_points=None`` keeps every sample; ``all_events`` lists every engine event (those
+    with a ``kind``) of the impact and diagnostics topics in their order."""
     topics = bagio.channels(bag)
     t_js = bagio.find_topic(topics, "joint_states")
     t_grf = bagio.find_topic(topics, "ground_reaction")
@@ -59,7 +64,7 @@ def load_run(bag, max_points=MAX_POINTS) -> dict:
     t_diag = bagio.find_topic(topics, "diagnostics")
     t_cmd = bagio.find_topic(topics, "hip_torque")
     js, grf = Thinned(1 + 5 + 5 + 2 + 1, max_points), Thinned(3, max_points)
-    impacts, events, commands = [], [], 0
+    impacts, events, all_events, commands = [], [], [], 0
     counts, first, last = {}, {}, {}
     st = dict(n=0, q_first=None, q_last=None, t_first=None, t_last=None, hip_min=math.inf, hip_max=-math.inf,
               u1=0.0, u2=0.0, u_sq=0.0, fn_min=math.inf, fn_max=-math.inf, ratio=0.0, n_grf=0)
@@ -89,10 +94,15 @@ def load_run(bag, max_points=MAX_POINTS) -> dict:
             st["fn_min"], st["fn_max"] = min(st["fn_min"], fy), max(st["fn_max"], fy)
             st["ratio"] = max(st["ratio"], abs(fx) / max(abs(fy), 1e-12))
         elif topic == t_imp:
-            impacts.extend(M.event_values(msg))
+            values = M.event_values(msg)
+            impacts.extend(values)
+            all_events.extend(e for e in values if "kind" in e)
         else:
-            events.extend(e for e in M.event_values(msg) if _kept_event(e))
+            values = M.event_values(msg)
+            events.extend(e for e in values if _kept_event(e))
+            all_events.extend(e for e in values if "kind" in e)
     run = dict(topics=topics, counts=counts, first=first, last=last, impacts=impacts, events=events,
+               all_events=all_events,
                commands=commands, stats=st, cut=bagio.cut_short(bag), being_written=bagio.being_written(bag))
     rows = js.array()
     run["t"], run["q"], run["dq"], run["u"] = rows[:, 0], rows[:, 1:6], rows[:, 6:11], rows[:, 11:13]
@@ -182,93 +192,20 @@ def summary(bag, run=None) -> str:
 
 
 def _foot_x(e, params):
-    q = e.get("q")
-    if not isinstance(q, list) or len(q) != 5:
-        return float("nan")
-    foot = int(e["foot"]) if e.get("foot") in (1, 2, "1", "2") else 1
-    return float(run_model(params).foot_position(np.array(q), foot)[0])
+    from biped_sim.engine.figure import impact_foot_x
+    return impact_foot_x(run_model(params), e.get("foot"), e.get("q"))
 
 
 def plot(bag, png, run=None, frames=14):
-    """Write the figure of a run to ``png``."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """Write the figure of a run to ``png`` (:func:`biped_sim.engine.figure.run_figure`, fed the bag's arrays)."""
+    from biped_sim.engine.figure import run_figure
     run = run or load_run(bag)
-    t, q, u = run["t"], run["q"], run["u"]
     p = run["params"] or {}
-    model = run_model(p)
-    imp_t = [e["time"] for e in run["impacts"]]
-    fig = plt.figure(figsize=(12, 12), constrained_layout=True)
-    gs = fig.add_gridspec(4, 1, height_ratios=[1.1, 1, 0.8, 1.6])
-    title = f"{p.get('scene', bag)}: {p.get('time_mode', '')} run, {len(imp_t)} impacts"
-    fig.suptitle(title, fontsize=13)
-
-    ax = fig.add_subplot(gs[0])
-    if len(t):
-        for i, (name, c) in enumerate([("hip_1 (q1)", "C0"), ("hip_2 (q2)", "C1")]):
-            ax.plot(t, q[:, 2 + i] - math.pi, color=c, label=f"{name} - pi")
-        ax.plot(t, q[:, 4], color="C2", label="torso_pitch (q3)")
-    ax.set_ylabel("angle (rad)")
-    ax.set_title("joint angles (relative hip angles shown as q - pi)", fontsize=10, loc="left")
-
-    ax2 = fig.add_subplot(gs[1], sharex=ax)
-    if len(run["grf_t"]):
-        gt, F = run["grf_t"], run["grf"]
-        gap = np.concatenate([[False], np.diff(gt) > 1.5 * np.median(np.diff(gt))]) if len(gt) > 2 else None
-        Fx, Fy = F[:, 0].copy(), F[:, 1].copy()
-        if gap is not None:   # break the lines across flight phases (no message in flight)
-            Fx[gap], Fy[gap] = np.nan, np.nan
-        ax2.plot(gt, Fy, color="C3", label="F_y (normal)")
-        ax2.plot(gt, Fx, color="C4", label="F_x (tangential)")
-    ax2.set_ylabel("force (N)")
-    ax2.set_title("ground reaction force on the stance foot", fontsize=10, loc="left")
-
-    ax3 = fig.add_subplot(gs[2], sharex=ax)
-    if len(t):
-        ax3.step(t, u[:, 0], where="post", color="C0", label="u1 (hip 1)")
-        ax3.step(t, u[:, 1], where="post", color="C1", label="u2 (hip 2)")
-    ax3.set_ylabel("torque (N m)")
-    ax3.set_xlabel("simulated time (s)")
-    ax3.set_title("hip torques (held over each control period)", fontsize=10, loc="left")
-    for a in (ax, ax2, ax3):
-        for i, ti in enumerate(imp_t):
-            a.axvline(ti, color="0.5", lw=0.8, ls="--", label="impact" if i == 0 else None)
-        a.grid(alpha=0.3)
-        a.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), fontsize=8, ncol=4, frameon=False)
-
-    ax4 = fig.add_subplot(gs[3])
-    ax4.set_title("gait (stick figures at even times; leg 1 blue, leg 2 orange, torso green; x marks impacts)",
-                  fontsize=10, loc="left")
-    if len(t):
-        idx = np.unique(np.linspace(0, len(t) - 1, frames).round().astype(int))
-        slope = float(p.get("slope", 0.0) or 0.0)
-        xs = []
-        for j, i in enumerate(idx):
-            qi = q[i]
-            hip = qi[:2]
-            shade = 0.35 + 0.65 * j / max(len(idx) - 1, 1)
-            for leg, c in ((1, "C0"), (2, "C1")):
-                foot = model.foot_position(qi, leg)
-                ax4.plot([hip[0], foot[0]], [hip[1], foot[1]], color=c, lw=2, alpha=shade)
-                xs += [foot[0]]
-            top = model.stick_figure(qi).torso_tip
-            ax4.plot([hip[0], top[0]], [hip[1], top[1]], color="C2", lw=2.5, alpha=shade)
-            ax4.plot(*hip, "o", color="k", ms=3, alpha=shade)
-            ax4.text(top[0], 1.62 if j % 2 == 0 else 1.76, f"{t[i]:.2f} s", ha="center", fontsize=7)
-            xs += [hip[0], top[0]]
-        for e in run["impacts"]:
-            x = _foot_x(e, p)
-            if math.isfinite(x):
-                ax4.plot(x, -math.tan(slope) * x, "x", color="C3", ms=7)
-        lo, hi = min(xs) - 0.2, max(xs) + 0.2
-        gx = np.array([lo, hi])
-        ax4.plot(gx, -math.tan(slope) * gx, color="0.3", lw=1)
-        ax4.set_xlim(lo, hi)
-        ax4.set_ylim(-0.12, 1.88)
-        ax4.set_aspect("equal", adjustable="box")
-        ax4.set_xlabel("x (m)")
-        ax4.set_ylabel("y (m)")
-    fig.savefig(png, dpi=90)
-    plt.close(fig)
+    gt, F = run["grf_t"], run["grf"].copy()
+    if len(gt) > 2:    # break the lines across flight phases (no message in flight)
+        F[np.concatenate([[False], np.diff(gt) > 1.5 * np.median(np.diff(gt))])] = np.nan
+    impacts = [(e["time"], e.get("foot"), e.get("q")) for e in run["impacts"]]
+    title = f"{p.get('scene', bag)}: {p.get('time_mode', '')} run, {len(impacts)} impacts"
+    run_figure(run["t"], run["q"], run["u"], gt, F, impacts, run_model(p), title,
+               slope=float(p.get("slope", 0.0) or 0.0), path=png, frames=frames)
     return png

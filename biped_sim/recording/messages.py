@@ -21,7 +21,6 @@ Times are integer nanoseconds of simulation time: :func:`to_ns` rounds as the no
 """
 from __future__ import annotations
 
-import ast
 import math
 
 JOINT_NAMES = ("base_x", "base_y", "hip_1", "hip_2", "torso_pitch")
@@ -92,6 +91,12 @@ def _floats(values):
     return "[" + ", ".join(repr(float(v)) for v in values) + "]"
 
 
+def _state(values):
+    """A state's value: ``[]`` when it is unknown (a scuff whose deepest point was not inside the last
+    step carries an all-NaN state): a reader gets no ``nan`` strings to take for numbers."""
+    return _floats(values) if values is not None and all(math.isfinite(float(v)) for v in values) else "[]"
+
+
 def event_status(event, prefix="biped_sim"):
     """diagnostic_msgs/DiagnosticStatus of an engine Event (docs/node.md lists every key)."""
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
@@ -118,7 +123,7 @@ def event_status(event, prefix="biped_sim"):
     st.hardware_id = f"foot_{event.leg}" if event.leg else ""
     kv = [("kind", event.kind), ("time", repr(float(event.time))), ("foot", str(event.leg)),
           ("stance_leg_before", str(event.stance_leg_before)), ("stance_leg_after", str(event.stance_leg_after)),
-          ("q", _floats(event.q)), ("dq_minus", _floats(event.dq_minus)), ("dq_plus", _floats(event.dq_plus)),
+          ("q", _state(event.q)), ("dq_minus", _state(event.dq_minus)), ("dq_plus", _state(event.dq_plus)),
           ("impulse", _floats(event.impulse) if event.impulse is not None else "[]"),
           ("energy_loss", repr(float(event.energy_loss))), ("warnings", "; ".join(event.warnings))]
     if event.push is not None:
@@ -191,20 +196,30 @@ def wrench_values(m):
     return stamp_ns(m.header.stamp), [m.wrench.force.x, m.wrench.force.y], leg
 
 
-def _value(text):
-    if text in ("", "[]"):
-        return [] if text == "[]" else ""
-    try:
-        return ast.literal_eval(text)
-    except (ValueError, SyntaxError):
-        return text
+def typed_value(text: str):
+    """A DiagnosticStatus value (a string by its message type) as what it says: an int (``"2"``), a
+    float (``"0.4715595367472371"``, as written by ``repr``), a list of floats (``"[0.1, 2.0]"``,
+    ``"[]"``), else the string itself (kinds, messages, warnings)."""
+    text = text.strip()
+    if text.startswith("[") and text.endswith("]"):
+        inner = text[1:-1].strip()
+        try:
+            return [float(v) for v in inner.split(",")] if inner else []
+        except ValueError:
+            return text
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
 
 
 def event_values(m):
     """Events of a DiagnosticArray (``impact``/``diagnostics``): list of dicts, values parsed."""
     out = []
     for st in m.status:
-        d = {kv.key: _value(kv.value) for kv in st.values}
+        d = {kv.key: typed_value(kv.value) for kv in st.values}
         lvl = st.level
         d["name"], d["message"] = st.name, st.message
         d["level"] = lvl[0] if isinstance(lvl, (bytes, bytearray)) else int(lvl)

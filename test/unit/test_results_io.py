@@ -1,0 +1,83 @@
+"""A run's results seen and loaded: ``SimulationResult.plot()`` and ``simulate --plot`` (the figure
+``biped-sim inspect`` draws), ``biped_sim.load_run`` (a bag read back into named arrays) and the
+typed values of its impact and event fields."""
+from __future__ import annotations
+
+import numpy as np
+from PIL import Image
+
+import biped_sim as bs
+from biped_sim.cli import main as biped_sim
+
+PANEL_TITLES = ("joint angles", "ground reaction force", "hip torques", "gait")
+
+
+def distinct_colours(png):
+    with Image.open(png) as im:
+        pixels = np.asarray(im.convert("RGB")).reshape(-1, 3)
+    return len(np.unique(pixels, axis=0))
+
+
+def test_a_result_plots_the_figure_inspect_draws(tmp_path):
+    result = bs.load_scene("walk").simulate(t_final=1.0)
+    png = tmp_path / "walk.png"
+    fig = result.plot(path=png)
+    titles = [ax.get_title(loc="left") for ax in fig.axes]
+    assert [any(t.startswith(p) for t in titles) for p in PANEL_TITLES] == [True] * 4, titles
+    assert len(fig.axes[0].lines) >= 3 + len(result.impacts)           # q1, q2, q3 and an impact line each
+    with Image.open(png) as im:
+        assert im.size == (1080, 1080)
+    assert distinct_colours(png) > 100                                  # lines drawn, not an empty canvas
+
+
+def test_simulate_plot_writes_scene_png_in_the_current_folder(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert biped_sim(["simulate", "--scene", "walk", "--duration", "0.6", "--plot"]) == 0
+    out = capsys.readouterr().out
+    assert f"figure  {tmp_path / 'walk.png'}" in out, out
+    assert (tmp_path / "walk.png").stat().st_size > 20_000 and distinct_colours(tmp_path / "walk.png") > 100
+
+
+def recorded_walk(tmp_path, duration="1"):
+    """A real bag on disk: ``biped-sim simulate --scene walk --record`` (lockstep, torques held 1 ms)."""
+    assert biped_sim(["simulate", "--scene", "walk", "--duration", duration, "--record", str(tmp_path)]) == 0
+    (bag,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    return bag
+
+
+def test_load_run_reads_a_bag_back_into_the_arrays_of_a_result(tmp_path, monkeypatch):
+    bag = recorded_walk(tmp_path)
+    run = bs.load_run(bag)
+    assert isinstance(run, bs.RecordedRun)
+    result = bs.load_scene("walk").simulate(t_final=1.0)      # the same run, held torques as recorded
+    assert run.t.shape == (1001,) and run.q.shape == run.dq.shape == (1001, 5) and run.u.shape == (1001, 2)
+    assert run.grf.shape == (len(run.grf_t), 2) and set(run.stance_leg) <= {0, 1, 2}
+    assert np.all(np.diff(run.t) > 0) and run.t[-1] == 1.0
+    np.testing.assert_allclose(run.q[0], result.q[0], atol=1e-12)
+    assert [e["time"] for e in run.impacts] == [e.time for e in result.impacts]
+    assert [e["kind"] for e in run.events] == [e.kind for e in result.events]
+    monkeypatch.setitem(__import__("sys").modules, "pandas", None)       # pandas absent: one clear line
+    try:
+        run.to_dataframe()
+        raise AssertionError("to_dataframe without pandas did not raise")
+    except ImportError as exc:
+        assert "pip install pandas" in str(exc)
+
+
+STRING_KEYS = {"kind", "warnings", "name", "message"}
+
+
+def test_a_bags_impact_and_event_fields_are_typed_with_no_nan_strings(tmp_path):
+    run = bs.load_run(recorded_walk(tmp_path))
+    touchdown = run.impacts[0]
+    assert isinstance(touchdown["time"], float) and isinstance(touchdown["foot"], int)
+    assert isinstance(touchdown["energy_loss"], float) and touchdown["energy_loss"] > 0
+    for key in ("q", "dq_minus", "dq_plus", "impulse"):
+        assert isinstance(touchdown[key], list) and all(isinstance(v, float) for v in touchdown[key]), key
+    scuffs = [e for e in run.events if e["kind"] == "scuff"]
+    assert scuffs, [e["kind"] for e in run.events]             # the walk's swing foot scuffs (forward rule)
+    for e in run.events:
+        strings = {k: v for k, v in e.items() if isinstance(v, str) and k not in STRING_KEYS}
+        assert not strings, (e["kind"], strings)                 # every number parsed, no "[nan, ...]"
+        assert "nan" not in repr({k: v for k, v in e.items() if k not in STRING_KEYS}), e
+    assert all(e["q"] == [] or len(e["q"]) == 5 for e in scuffs)
