@@ -38,6 +38,8 @@ setup(
         "video": ["imageio-ffmpeg"],
         # backend="ray" of biped_sim.sweep / biped-sim sweep --backend ray (biped_sim/analysis/sweep.py)
         "ray": ["ray"],
+        # RecordedRun.to_dataframe of biped_sim.load_run (biped_sim/recording/loaded_run.py)
+        "pandas": ["pandas"],
     },
     # the test environment (pytest, the independent bag readers, colcon, ruff, Ray) is pinned in requirements-dev.txt
     zip_safe=True,

@@ -23,7 +23,8 @@ ROSDEP_KEY = {"numpy": "python3-numpy", "scipy": "python3-scipy", "PyYAML": "pyt
 # installs them with pip when wanted); package.xml cannot say "optional"
 NO_ROSDEP_KEY = {"ray", "imageio-ffmpeg"}   # biped_sim[ray]: the Ray backend of biped_sim.sweep; [video]: MP4
 # optional extras that need not be installed here: {module: distribution}, checked against extras_require
-OPTIONAL_MAY_BE_ABSENT = {"imageio_ffmpeg": "imageio-ffmpeg"}   # biped-sim animate -o x.mp4
+OPTIONAL_MAY_BE_ABSENT = {"imageio_ffmpeg": "imageio-ffmpeg",   # biped-sim animate -o x.mp4
+                          "pandas": "pandas"}                    # RecordedRun.to_dataframe
 
 
 def test_ruff_is_clean():
