@@ -4,8 +4,8 @@ Owns the demo's orchestration only. It starts ``sim_node`` with ``msg_configs/wa
 recording on) and the ``walk_controller`` node in a second process, on the exported ``ROS_DOMAIN_ID``
 (else a free ROS domain), limited to this machine; the sim node advances one control period per command
 and ends at ``--duration`` s of simulated time, closing its bag; then ``biped-sim inspect BAG`` prints
-the run's summary and writes the PNG. Without rclpy (or if the nodes cannot run here) it falls back to the same run headless:
-``biped-sim simulate --scene walk --record`` (or, without the recorder, the summary only).
+the run's summary and writes the PNG. Without rclpy (or if the nodes cannot run here) it falls back to
+the same run headless: ``biped-sim simulate --scene walk --record`` (or, without the recorder, the summary only).
 """
 from __future__ import annotations
 
