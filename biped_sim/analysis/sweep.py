@@ -677,38 +677,57 @@ def _write_rows(f, rows, names):
                     *r["q_end"], *r["dq_end"]])
 
 
-def plot(rows, names, path, title="sweep"):
-    """Steps walked (impacts) over the first two swept names as a heat map, the runs that did not
-    complete marked with a cross; along the one swept name as a line. With more than two names the
-    map is the slice at the first value of the others (the title says so)."""
+#: the quantity the maps colour by: the distance walked (m), a measure of the gait; the step count
+#: rewarded cadence (short quick steps counted more than long ones over the same ground)
+MAP_QUANTITY = ("x_end", "distance walked (m)")
+
+
+def figure(rows, names, title="sweep", fixed_point=None):
+    """The matplotlib Figure of :func:`plot`: the distance walked (``x_end``, m) over the first two
+    swept names as a heat map (along the one swept name as a line). Runs that stopped or failed (a
+    fall) are red crosses; runs the engine refused to start (status ``error``: no run was made) are
+    grey squares with their cell left empty; ``fixed_point`` ({name: value}, e.g. the basin's z*
+    at offsets 0) is a white star. With more than two names the map is the slice at the first value
+    of the others (the title says so)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    key, label = MAP_QUANTITY
     rest = {n: rows[0][n] for n in names[2:]}
     sl = [r for r in rows if all(r[n] == v for n, v in rest.items())]
     if rest:
         title += " (at " + ", ".join(f"{n}={v}" for n, v in rest.items()) + ")"
-    fig, ax = plt.subplots(figsize=(7.5, 5.5) if len(names) > 1 else (7, 4))
+    fell = [r for r in sl if r["status"] not in ("completed", "error")]
+    refused = [r for r in sl if r["status"] == "error"]
+    fig, ax = plt.subplots(figsize=(7.5, 6.0) if len(names) > 1 else (7, 4))
     if len(names) == 1:
-        x = [r[names[0]] for r in sl]
-        ax.plot(x, [r["impacts"] for r in sl], "o-", color="tab:blue", label="steps (impacts)")
-        bad = [r for r in sl if r["status"] != "completed"]
-        ax.plot([r[names[0]] for r in bad], [r["impacts"] for r in bad], "x", color="tab:red", ms=10, mew=2,
-                label="did not complete")
+        ran = [r for r in sl if r["status"] != "error"]
+        ax.plot([r[names[0]] for r in ran], [r[key] for r in ran], "o-", color="tab:blue", label=label)
+        ax.plot([r[names[0]] for r in fell], [r[key] for r in fell], "x", color="tab:red", ms=10, mew=2,
+                label="fell or stopped")
+        ax.plot([r[names[0]] for r in refused], [0.0] * len(refused), "s", color="0.45", ms=7,
+                label="refused start (no run)")
         ax.set_xlabel(names[0])
-        ax.set_ylabel("steps walked (impacts)")
-        ax.legend()
+        ax.set_ylabel(label)
+        ax.legend(fontsize=8)
     else:
         ys = list(dict.fromkeys(r[names[0]] for r in sl))
         xs = list(dict.fromkeys(r[names[1]] for r in sl))
         grid = [[math.nan] * len(xs) for _ in ys]
         for r in sl:
-            grid[ys.index(r[names[0]])][xs.index(r[names[1]])] = r["impacts"]
+            if r["status"] != "error":
+                grid[ys.index(r[names[0]])][xs.index(r[names[1]])] = r[key]
         im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis", interpolation="nearest")
-        fig.colorbar(im, ax=ax, label="steps walked (impacts)")
-        bad = [r for r in sl if r["status"] != "completed"]
-        ax.plot([xs.index(r[names[1]]) for r in bad], [ys.index(r[names[0]]) for r in bad], "x", color="tab:red",
-                ms=7, mew=1.5, label="did not complete (fell, stopped or error)")
+        fig.colorbar(im, ax=ax, label=label)
+        if fell:      # a legend entry only for what the map shows
+            ax.plot([xs.index(r[names[1]]) for r in fell], [ys.index(r[names[0]]) for r in fell], "x",
+                    color="tab:red", ms=7, mew=1.5, label="fell or stopped (its distance until then)")
+        if refused:
+            ax.plot([xs.index(r[names[1]]) for r in refused], [ys.index(r[names[0]]) for r in refused], "s",
+                    color="0.45", ms=5, label="refused start: the engine rejects the state (no run)")
+        if fixed_point is not None:
+            ax.plot(_index_of(xs, fixed_point[names[1]]), _index_of(ys, fixed_point[names[0]]), "*",
+                    color="white", mec="black", ms=16, label="fixed point z*")
         for values, setter, labels in ((xs, ax.set_xticks, ax.set_xticklabels),
                                        (ys, ax.set_yticks, ax.set_yticklabels)):
             every = max(1, len(values) // 8)
@@ -717,9 +736,29 @@ def plot(rows, names, path, title="sweep"):
             labels([f"{values[i]:.4g}" if isinstance(values[i], float) else str(values[i]) for i in ticks])
         ax.set_xlabel(names[1])
         ax.set_ylabel(names[0])
-        if bad:
-            ax.legend(loc="upper right", fontsize=8)
+        if fell or refused or fixed_point is not None:
+            # below the map: inside, it hid a corner of it
+            ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8, frameon=False)
     ax.set_title(title, fontsize=10)
     fig.tight_layout()
+    return fig
+
+
+def _index_of(values, v) -> float:
+    """Where ``v`` falls on the image's index axis of the sorted grid ``values`` (between two cells
+    when it is not a grid value: z* of a basin with an even number of points)."""
+    if v in values:
+        return float(values.index(v))
+    for i in range(len(values) - 1):
+        a, b = values[i], values[i + 1]
+        if min(a, b) <= v <= max(a, b):
+            return i + (v - a) / (b - a)
+    return math.nan
+
+
+def plot(rows, names, path, title="sweep", fixed_point=None):
+    """Write :func:`figure` to ``path`` (a PNG)."""
+    import matplotlib.pyplot as plt
+    fig = figure(rows, names, title, fixed_point)
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -15,7 +15,8 @@ def register(sub):
                     "start a run from each point of a NUM x NUM grid of post-impact states around it: the "
                     "stance-leg rate and the torso rate moved by up to +-SPAN rad/s (angles at z*, the hip "
                     "velocity consistent with the stance foot at rest), continuous feedback. Writes one CSV row "
-                    "per run (biped-sim sweep's columns) and a map of the steps walked, failures marked.",
+                    "per run (biped-sim sweep's columns) and a map of the distance walked, z*, falls and refused "
+                    "starts marked.",
         formatter_class=HelpFormatter)
     p.add_argument("scene", help="a scene with a walk_controller section (walk, slope, ...)")
     p.add_argument("--span", default="1.0,2.0", help="largest offsets of the stance-leg rate and the torso rate "
@@ -51,6 +52,7 @@ def run(args):
           f"{ok} completed {args.duration:g} s; wrote {args.output}")
     if args.plot:
         sw.plot(rows, list(bn.AXES), args.plot,
-                title=f"biped-sim basin {args.scene}: steps in {args.duration:g} s from z* + offsets (rad/s)")
+                title=f"biped-sim basin {args.scene}: distance walked in {args.duration:g} s from z* + offsets (rad/s)",
+                fixed_point={axis: 0.0 for axis in bn.AXES})
         print(f"wrote {args.plot}")
     return 0

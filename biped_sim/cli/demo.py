@@ -1,11 +1,11 @@
 """``make demo``: the ``walk`` scene with the controller in the loop, recorded, summarised and plotted.
 
 Owns the demo's orchestration only. It starts ``sim_node`` with ``msg_configs/walk.yaml`` (lockstep,
-recording on) and the ``walk_controller`` node in a second process, on a free ROS domain limited to
-this machine; the sim node advances one control period per command and ends at ``--duration`` s of
-simulated time, closing its bag; then ``biped-sim inspect BAG`` prints the run's summary and writes
-the PNG. Without rclpy (or if the nodes cannot run here) it falls back to the same run headless:
-``biped-sim simulate --scene walk --record`` (or, without the recorder, the summary only).
+recording on) and the ``walk_controller`` node in a second process, on the exported ``ROS_DOMAIN_ID``
+(else a free ROS domain), limited to this machine; the sim node advances one control period per command
+and ends at ``--duration`` s of simulated time, closing its bag; then ``biped-sim inspect BAG`` prints
+the run's summary and writes the PNG. Without rclpy (or if the nodes cannot run here) it falls back to
+the same run headless: ``biped-sim simulate --scene walk --record`` (or, without the recorder, the summary only).
 """
 from __future__ import annotations
 
@@ -25,17 +25,30 @@ from biped_sim.config.scenes import load_scene
 BIN = Path(sys.executable).parent
 
 
+#: the largest ROS_DOMAIN_ID ROS 2 accepts (its ports must fit below 65535 with the default DDS layout)
+MAX_DOMAIN_ID = 232
+
+
 @contextlib.contextmanager
-def _domain():
+def _domain(environ=None):
+    """(domain, where it came from): an exported ``ROS_DOMAIN_ID`` as it is (labs assign each seat a
+    domain, and a demo on another one is invisible to their tools), else a free domain reserved with
+    ``domain_coordinator`` (else a random one in 100-200)."""
+    given = (os.environ if environ is None else environ).get("ROS_DOMAIN_ID", "").strip()
+    if given:
+        if not given.isdigit() or int(given) > MAX_DOMAIN_ID:
+            raise ValueError(f"ROS_DOMAIN_ID={given!r}: expected an integer from 0 to {MAX_DOMAIN_ID}")
+        yield int(given), "ROS_DOMAIN_ID"
+        return
     try:
         import domain_coordinator
     except ImportError:
-        yield random.randint(100, 200)
+        yield random.randint(100, 200), "a random one in 100-200: ROS_DOMAIN_ID unset"
         return
     reserved = domain_coordinator.domain_id()
     dom = reserved.__enter__()
     try:
-        yield int(dom)
+        yield int(dom), "a free one: ROS_DOMAIN_ID unset"
     finally:
         # released without the exception: domain_id's generator takes an OSError thrown into it for a
         # taken port and tries the next domain, which hid every OSError of the run ("generator didn't
@@ -65,14 +78,15 @@ def run_nodes(scene, duration, bag_dir: Path, timeout: float):
     before = {p for p in bag_dir.iterdir() if p.is_dir()}
     logs = bag_dir / "demo-logs"
     logs.mkdir(exist_ok=True)
-    with _domain() as dom:
+    with _domain() as (dom, source):
         env = dict(os.environ, ROS_DOMAIN_ID=str(dom), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                    PYTHONUNBUFFERED="1", RCUTILS_COLORIZED_OUTPUT="0")
         params = ["--ros-args", "--params-file", str(scene.path)]
         sim_argv = [str(BIN / "sim_node"), *params, "-p", f"duration:={float(duration)!r}", "-p", "time_mode:=lockstep",
                     "-p", "record:=true", "-p", f"bag_dir:={bag_dir}"]
         ctl_argv = [str(BIN / "walk_controller"), *params]
-        print(f"ROS domain {dom}: sim_node ({scene.name} scene, lockstep, {duration:g} s) + walk_controller; "
+        print(f"ROS domain {dom} ({source}): sim_node ({scene.name} scene, lockstep, {duration:g} s) "
+              "+ walk_controller; "
               f"logs in {logs}/", flush=True)
         with open(logs / "sim_node.log", "wb") as sim_log, open(logs / "walk_controller.log", "wb") as ctl_log:
             t0 = time.monotonic()

@@ -46,8 +46,8 @@ def register(sub):
     p.add_argument("--continuous", action="store_true",
                    help="continuous feedback instead of torques held over control_period (the node's run)")
     p.add_argument("-o", "--output", required=True, help="the CSV to write (one row per run)")
-    p.add_argument("--plot", default=None, help="a PNG: steps walked over the first two swept names (a heat map, "
-                                                "failures marked) or along the one swept name")
+    p.add_argument("--plot", default=None, help="a PNG: distance walked over the first two swept names (a heat map, "
+                                                "falls and refused starts marked) or along the one swept name")
     p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
     p.add_argument("--yes", action="store_true",
                    help=f"start a grid of more than {LARGE_GRID:,} runs (without it such a grid is refused, "

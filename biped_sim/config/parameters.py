@@ -172,6 +172,12 @@ PARAMETERS = [
     Param(f"model.{name}", float, float(getattr(_defaults, name)), f"model parameter {name} (SI)",
           0.0 if name == "g" else 1e-9, 1e9)
     for name in ("m_torso", "I_torso", "l_torso", "m_leg", "I_leg", "l_leg", "g")
+] + [
+    # 0 stands for "half the link" (a ROS parameter has one type and no None), so that a scene that
+    # changes model.l_leg alone keeps a uniform leg, as BipedModel(l_leg=...) does
+    Param(f"model.c_{link}", float, 0.0, f"model parameter c_{link} (SI): the {link}'s centre of mass from the "
+          f"hip; 0 = half of model.l_{link} (a uniform link)", 0.0, 1e9)
+    for link in ("torso", "leg")
 ]
 BY_NAME = {p.name: p for p in PARAMETERS}
 
@@ -212,10 +218,17 @@ def method_label(params: dict) -> str:
     return f"auto ({resolve_method(params)})" if m == "auto" and "control_period" in params else str(m)
 
 
+def model_arguments(params: dict) -> dict:
+    """``BipedModel`` keyword arguments from the ``model.*`` values of ``params``; a ``model.c_*`` of 0
+    is left out (the model's default: half the link's length)."""
+    return {n.split(".", 1)[1]: v for n, v in params.items()
+            if n.startswith("model.") and not (n.startswith("model.c_") and v == 0.0)}
+
+
 def engine_arguments(params: dict) -> dict:
     """Keyword arguments of ``HybridSimulator`` / ``simulate`` (and the model's) from checked values."""
     from biped_sim.engine.model import BipedModel
-    model = BipedModel(**{n.split(".", 1)[1]: params[n] for n in params if n.startswith("model.")})
+    model = BipedModel(**model_arguments(params))
     phases = frozenset(params["phases"])
     kwargs = dict(model=model, q0=params["initial_q"], dq0=params["initial_dq"],
                   stance_leg=params["initial_stance_leg"], rtol=params["rtol"], atol=params["atol"],

@@ -64,7 +64,7 @@ def make_controller(cparams: dict):
     """A :class:`WalkingController` from checked controller parameters."""
     from biped_sim.control.walking import WalkingController
     from biped_sim.engine.model import BipedModel
-    model = BipedModel(**{n.split(".", 1)[1]: cparams[n] for n in cparams if n.startswith("model.")})
+    model = BipedModel(**P.model_arguments(cparams))
     return WalkingController(model, **{k: cparams[k] for k in _GAINS})
 
 
