@@ -14,41 +14,35 @@ import math
 
 import numpy as np
 
+from biped_sim.engine.guards import foot_states, passes_through
+from biped_sim.engine.options import Options
+
 
 def violations(model, result, upto=None, most=5) -> list[str]:
     """The samples (the first ``upto``, all by default) at which an invariant fails, in words; at most
     ``most`` of them."""
-    opt = result.options
-    slope = opt.slope if opt is not None else 0.0
-    ground_tol = opt.ground_tol if opt is not None else 1e-9
-    force_tol = opt.force_tol if opt is not None else 1e-6
-    scuff_depth = opt.scuff_depth if opt is not None else math.inf
-    front_tol = opt.front_tol if opt is not None else 1e-5
-    behind_allowed = opt is None or opt.touchdown_rule == "front"
-    forward_rule = opt is None or opt.scuff_rule == "forward"
-    s, c, tn = math.sin(slope), math.cos(slope), math.tan(slope)
+    opt = result.options if result.options is not None else Options()
+    behind_allowed = opt.touchdown_rule == "front"
+    s, c, tn = math.sin(opt.slope), math.cos(opt.slope), math.tan(opt.slope)
     out = []
     n = len(result.t) if upto is None else min(upto, len(result.t))
     for k in range(n):
         t, q, dq, leg = result.t[k], result.q[k], result.dq[k], int(result.stance_leg[k])
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(dq))):
             out.append(f"t={t:.9g} s: the state is not finite")
-        feet = [model.foot_position(q, j) for j in (1, 2)]
+        feet = foot_states(model, q.tolist(), dq.tolist(), tn)
         for j in (1, 2):
             if j == leg:
                 continue
-            height = feet[j - 1][1] + tn * feet[j - 1][0]
-            if forward_rule:    # the foot passes through while it moves forward more than it sinks
-                v = model.foot_velocity(q, dq, j)
-                passing = leg and behind_allowed and v[0] > 0.0 and v[0] + v[1] + tn * v[0] >= 0.0
-            else:
-                passing = leg and behind_allowed and feet[j - 1][0] <= feet[leg - 1][0] + front_tol
-            if height < (-scuff_depth if passing else -ground_tol):
+            height = feet[j - 1].height
+            # the scuff rule's own test (guards.passes_through), from the sample alone
+            passing = leg and behind_allowed and passes_through(feet[j - 1], feet[leg - 1], opt)
+            if height < (-opt.scuff_depth if passing else -opt.ground_tol):
                 out.append(f"t={t:.9g} s: foot {j} is {-height:.3g} m below the ground"
                            + (" passing through it, deeper than scuff_depth" if passing else ""))
         if leg:
             normal = result.grf[k][0] * s + result.grf[k][1] * c
-            if normal < -force_tol:
+            if normal < -opt.force_tol:
                 out.append(f"t={t:.9g} s: the ground pulls on the stance foot (normal force {normal:.6g} N)")
         if len(out) >= most:
             break
