@@ -358,3 +358,50 @@ PARAMETER_NAMES = ("m_torso", "I_torso", "l_torso", "c_torso", "m_leg", "I_leg",
 footer = "\n\nCONSTANTS = {" + ", ".join(f"{n!r}: {n}_constants" for n in NAMES) + "}\n"
 OUT.write_text(header + "\n\n" + "\n\n\n".join(chunks) + footer)
 print(f"wrote {OUT}")
+
+# ---- derivatives for the linearisation (engine/sensitivity.py) ----------------------------------------
+# The partial derivatives of the terms of the KKT system [D -J^T; J 0][ddq; F] = [-h + B u; -Jdot dq]
+# (h = C dq + G), of the fixed-base chain's D_s ddq_s = B_s u - h_s, and of the feet, with respect to
+# q, dq and the parameters; engine/sensitivity.py differentiates the KKT solutions with them. A separate
+# file: the compiled twin (tools/generate_c.py) covers closed_forms.py only, and none of these is on the
+# compiled loop's path.
+NAMES.clear()
+jdq = [(Jdot[i] * DQ).applyfunc(sp.simplify) for i in range(2)]
+PARAMETER_AXES = sp.Matrix(PARAMS)
+
+
+def by_coordinate(M, coords):
+    """dM/dc for each c of coords, stacked (c-major, each row-major)."""
+    return [M.diff(c) for c in coords]
+
+
+deriv_chunks = [
+    fn("mass_matrix_jacobian", [UQ], by_coordinate(D, q),
+       "dD/dq_k for k = 0..4 (x, y, q1, q2, q3), each 5x5 row-major (125 values)."),
+    fn("bias_forces_jacobian", [UQ, UDQ], [h.jacobian(Q), h.jacobian(DQ)],
+       "dh/dq (5x5), then dh/ddq (5x5), row-major, h = C dq + G (50 values)."),
+    fn("foot_jacobian_jacobian_1", [UQ], by_coordinate(J[0], q), "dJ_1/dq_k for k = 0..4, each 2x5 row-major."),
+    fn("foot_jacobian_jacobian_2", [UQ], by_coordinate(J[1], q), "dJ_2/dq_k for k = 0..4, each 2x5 row-major."),
+    fn("foot_bias_jacobian_1", [UQ, UDQ], [jdq[0], jdq[0].jacobian(Q), jdq[0].jacobian(DQ)],
+       "Jdot_1 dq (2), d(Jdot_1 dq)/dq (2x5), d(Jdot_1 dq)/ddq (2x5), row-major."),
+    fn("foot_bias_jacobian_2", [UQ, UDQ], [jdq[1], jdq[1].jacobian(Q), jdq[1].jacobian(DQ)],
+       "Jdot_2 dq (2), d(Jdot_2 dq)/dq (2x5), d(Jdot_2 dq)/ddq (2x5), row-major."),
+    fn("fixed_base_jacobian_1", ["q1, q2, q3 = qs", "dq1, dq2, dq3 = dqs"],
+       [Ds, hs] + by_coordinate(Ds, qs) + [hs.jacobian(qs), hs.jacobian(dqs)],
+       "Fixed-base chain pinned at the foot of leg 1: D_s (3x3), h_s = C_s dq_s + G_s (3), dD_s/dq_s,k for "
+       "k = 0..2 (each 3x3), dh_s/dq_s (3x3), dh_s/ddq_s (3x3), row-major."),
+    fn("parameter_jacobian", [UQ, UDQ],
+       by_coordinate(D, PARAMS) + [h.jacobian(PARAMETER_AXES)]
+       + [J[i].diff(p_) for i in range(2) for p_ in PARAMS]
+       + [jdq[i].jacobian(PARAMETER_AXES) for i in range(2)]
+       + [sp.Matrix.vstack(feet[0], feet[1]).jacobian(PARAMETER_AXES)],
+       "Derivatives with respect to the parameters p (PARAMETER_NAMES order, 9): dD/dp_j (9 x 25), dh/dp (5x9), "
+       "dJ_1/dp_j (9 x 10), dJ_2/dp_j (9 x 10), d(Jdot_1 dq)/dp (2x9), d(Jdot_2 dq)/dp (2x9), d(p_1, p_2)/dp (4x9); "
+       "row-major."),
+]
+OUT_DERIVATIVES = OUT.with_name("derivatives.py")
+deriv_header = header.replace("Straight-line scalar closed forms.", "Partial derivatives of the closed forms\n"
+                              "(engine/sensitivity.py assembles the phases' Jacobians from them).")
+deriv_footer = "\n\nCONSTANTS = {" + ", ".join(f"{n!r}: {n}_constants" for n in NAMES) + "}\n"
+OUT_DERIVATIVES.write_text(deriv_header + "\n\n" + "\n\n\n".join(deriv_chunks) + deriv_footer)
+print(f"wrote {OUT_DERIVATIVES}")

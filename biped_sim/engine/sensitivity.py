@@ -1,0 +1,456 @@
+"""Exact linearisation of the hybrid dynamics: the Jacobians of the phases' flows, guards and resets, and the
+state transition matrix of a run through its events.
+
+Owns the sensitivities of a run (docs/gait.md "How the Jacobian is computed"). The state is
+x = (q, dq) in physical coordinates (10 numbers, leg 1 stays leg 1) in every mode; w = (u, p) are the
+inputs a run may depend on besides x: a held torque u and the model parameters p (``PARAMETER_NAMES``).
+
+* Stance on foot i: f(x) = (dq, ddq) with the KKT system of docs/model.md, K s = r,
+  K = [D -J_i^T; J_i 0], s = [ddq; F], r = [-h + B u; -Jdot_i dq] (h = C dq + G). For each variable v
+  (a coordinate, a rate, a torque, a parameter) K ds/dv = dr/dv - (dK/dv) s, with
+  (dK/dq_k) s = [dD/dq_k ddq - (dJ_i/dq_k)^T F; dJ_i/dq_k ddq]: one factorisation of K serves every
+  column, and the rows of F give the derivative of the ground force (the liftoff guard's).
+* Flight: D ddq = -h + B u, the same without the J rows.
+* Fixed base: D_s ddq_s = B_s u - h_s on the chain (``fixed_base_jacobian``). Its motion is the floating
+  base's on the pin, so a run is linearised in the floating-base coordinates whatever its ``base``.
+* An event with guard g (positive while the mode holds), reset R and flows F- before and F+ after:
+  the saltation matrix Xi = DR + (F+ - DR F-) g_x / (g_x F-) (Kong, Payne, Zhu, Johnson, "The saltation
+  matrix", Proc. IEEE 2024; here dR/dt = 0 and dg/dt = 0: no guard or reset depends on time). With the
+  sensitivity W of the inputs w: S+ = DR S + R_w W + (F+ - DR F-) (g_x S + g_w W) / (g_x F-).
+  Touchdown of foot i: g = p_iy + tan(slope) p_ix, R = (q, dq+) of the impact map (solved as stance's
+  KKT system, [D -J_i^T; J_i 0][dq+; L] = [D dq-; 0]); liftoff: g = F_n (the normal ground force),
+  R = identity. The relabeling of the step map (swap the legs) is a permutation of the result.
+* Variational equations along each phase: dS/dt = A S + f_w W, A = f_x + f_u u_x under continuous
+  feedback (the controller at every evaluation); under a zero-order hold the torque of a period is
+  u_k = law(x(t_k)), so at t_k the torque's sensitivity becomes u_x S and stays over the period.
+
+The derivatives of D, h, J, Jdot dq come from the generator (``_gen/derivatives.py``, tools/generate_model.py);
+a controller's from its ``jacobian(t, q, dq, stance_leg)`` (a 2 x 10 array, d u / d(q, dq)) where it has one,
+else from central differences of the law alone (``law_jacobian`` says which).
+
+The run itself is the engine's (``HybridSimulator``: it decides which events happen); the augmented
+system (x, S) is integrated again here with scipy's ``solve_ivp`` (DOP853, tight tolerances: its error
+control covers S as well as x, and its dense output locates each of the engine's events on this
+trajectory), independently of the engine's two loops.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.linalg import lu_factor, lu_solve
+
+from biped_sim.engine._gen import derivatives as dgen
+from biped_sim.engine.compiled import gen
+from biped_sim.engine.dynamics import stance_floating_fast
+from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.engine.model import B
+
+#: the model parameters a run can be differentiated by, in the order of BipedModel.p
+PARAMETER_NAMES = dgen.PARAMETER_NAMES
+LAW_EXACT = "exact"
+LAW_FD = "finite differences of the law"
+LAW_NONE = "none (torque held constant)"
+#: the event kinds a run is linearised through (a scuff is a report, not a change of mode)
+LINEARISED_EVENTS = ("touchdown", "liftoff")
+
+
+def law_jacobian(controller, t, q, dq, stance_leg):
+    """(u, d u / d(q, dq) as a 2 x 10 array, how): the law's own ``jacobian`` (``LAW_EXACT``) where it has
+    one, else central differences of the law alone (``LAW_FD``), steps 1e-6 (1 + |x_k|)."""
+    q, dq = np.asarray(q, float), np.asarray(dq, float)
+    u = np.asarray(controller(t, q, dq, stance_leg), float)
+    jac = getattr(controller, "jacobian", None)
+    if jac is not None:
+        return u, np.asarray(jac(t, q, dq, stance_leg), float), LAW_EXACT
+    x = np.concatenate([q, dq])
+    cols = []
+    for k in range(10):
+        e = 1e-6 * (1.0 + abs(x[k]))
+        xp, xm = x.copy(), x.copy()
+        xp[k] += e
+        xm[k] -= e
+        up = np.asarray(controller(t, xp[:5], xp[5:], stance_leg), float)
+        um = np.asarray(controller(t, xm[:5], xm[5:], stance_leg), float)
+        cols.append((up - um) / (2 * e))
+    return u, np.column_stack(cols), LAW_FD
+
+
+class Linearization:
+    """The Jacobians of one model's phases, guards and resets (``model``: a BipedModel; ``slope``: the
+    ground's, rad)."""
+
+    def __init__(self, model, slope=0.0):
+        self.model = model
+        self.k = {name: constants(model.p) for name, constants in dgen.CONSTANTS.items()}
+        self.slope = float(slope)
+        self.sin, self.cos, self.tan = math.sin(self.slope), math.cos(self.slope), math.tan(self.slope)
+
+    # -- the terms of the equations and their partial derivatives --------------------------------
+    def _mass_and_bias(self, q, dq):
+        m = self.model
+        D = np.array(gen.mass_matrix(q, m.k["mass_matrix"])).reshape(5, 5)
+        h = np.array(gen.bias_forces(q, dq, m.k["bias_forces"]))
+        dD = np.array(dgen.mass_matrix_jacobian(q, self.k["mass_matrix_jacobian"])).reshape(5, 5, 5)  # [k, i, j]
+        dh = np.array(dgen.bias_forces_jacobian(q, dq, self.k["bias_forces_jacobian"])).reshape(2, 5, 5)
+        return D, h, dD, dh[0], dh[1]
+
+    def _foot(self, q, dq, leg):
+        """J_i (2x5), dJ_i/dq_k ([k, a, j]), Jdot_i dq (2), d(Jdot_i dq)/dq (2x5), d(Jdot_i dq)/ddq (2x5)."""
+        m = self.model
+        J = np.array((gen.foot_jacobian_1 if leg == 1 else gen.foot_jacobian_2)(q, m.k[f"foot_jacobian_{leg}"]))
+        dJf = dgen.foot_jacobian_jacobian_1 if leg == 1 else dgen.foot_jacobian_jacobian_2
+        dJ = np.array(dJf(q, self.k[f"foot_jacobian_jacobian_{leg}"])).reshape(5, 2, 5)
+        jbf = dgen.foot_bias_jacobian_1 if leg == 1 else dgen.foot_bias_jacobian_2
+        jb = np.array(jbf(q, dq, self.k[f"foot_bias_jacobian_{leg}"]))
+        return J.reshape(2, 5), dJ, jb[0:2], jb[2:12].reshape(2, 5), jb[12:22].reshape(2, 5)
+
+    def _parameters(self, q, dq):
+        """d/dp of D ([j, i, l]), h (5x9), J_1, J_2 ([j, a, l]), Jdot_1 dq, Jdot_2 dq (2x9), (p_1, p_2) (4x9)."""
+        v = np.array(dgen.parameter_jacobian(q, dq, self.k["parameter_jacobian"]))
+        n = len(PARAMETER_NAMES)
+        o = 0
+        out = []
+        for shape in ((n, 5, 5), (5, n), (n, 2, 5), (n, 2, 5), (2, n), (2, n), (4, n)):
+            size = int(np.prod(shape))
+            out.append(v[o:o + size].reshape(shape))
+            o += size
+        return out
+
+    # -- the phases ----------------------------------------------------------------------------
+    def accelerations(self, q, dq, u, stance_leg, parameters=False):
+        """The phase's solution s and its derivatives: (s, ds/dq, ds/ddq, ds/du, ds/dp or None).
+
+        In stance on ``stance_leg`` (1, 2) s = [ddq (5); F (2)] of the KKT system (F the force of the ground
+        on the foot, world axes); in flight (``stance_leg`` 0) s = ddq. q, dq, u: sequences."""
+        q, dq = [float(v) for v in q], [float(v) for v in dq]
+        u = np.asarray(u, float)
+        D, h, dD, dhq, dhv = self._mass_and_bias(q, dq)
+        Bu = B @ u
+        if stance_leg:
+            J, dJ, jb, djbq, djbv = self._foot(q, dq, stance_leg)
+            K = np.zeros((7, 7))
+            K[:5, :5], K[:5, 5:], K[5:, :5] = D, -J.T, J
+            lu = lu_factor(K)
+            s = lu_solve(lu, np.concatenate([Bu - h, -jb]))
+            ddq, F = s[:5], s[5:]
+            # (dK/dq_k) s, column k
+            dKs = np.vstack([np.einsum("kij,j->ik", dD, ddq) - np.einsum("kaj,a->jk", dJ, F),
+                             np.einsum("kaj,j->ak", dJ, ddq)])
+            cols = [np.vstack([-dhq, -djbq]) - dKs, np.vstack([-dhv, -djbv]), np.vstack([B, np.zeros((2, 2))])]
+            if parameters:
+                dDp, dhp, dJ1p, dJ2p, djb1p, djb2p, _feet = self._parameters(q, dq)
+                dJp, djbp = (dJ1p, djb1p) if stance_leg == 1 else (dJ2p, djb2p)
+                dKsp = np.vstack([np.einsum("pij,j->ip", dDp, ddq) - np.einsum("paj,a->jp", dJp, F),
+                                  np.einsum("paj,j->ap", dJp, ddq)])
+                cols.append(np.vstack([-dhp, -djbp]) - dKsp)
+        else:
+            lu = lu_factor(D)
+            s = lu_solve(lu, Bu - h)
+            cols = [-dhq - np.einsum("kij,j->ik", dD, s), -dhv, B]
+            if parameters:
+                dDp, dhp = self._parameters(q, dq)[:2]
+                cols.append(-dhp - np.einsum("pij,j->ip", dDp, s))
+        sizes = [c.shape[1] for c in cols]
+        ds = np.split(lu_solve(lu, np.hstack(cols)), np.cumsum(sizes)[:-1], axis=1)
+        return s, ds[0], ds[1], ds[2], (ds[3] if parameters else None)
+
+    def flow(self, q, dq, u, stance_leg, u_x=None, parameters=False):
+        """f = (dq, ddq) of the mode, A = df/dx (10x10; with the law's u_x (2x10) the torque's dependence
+        on the state is in it), f_u (10x2), f_p (10x9 or None), and the ground force F with dF/dx, dF/du,
+        dF/dp (stance; None in flight)."""
+        s, dsq, dsv, dsu, dsp = self.accelerations(q, dq, u, stance_leg, parameters)
+        dsx = np.hstack([dsq, dsv])
+        if u_x is not None:
+            dsx = dsx + dsu @ u_x
+        A = np.zeros((10, 10))
+        A[:5, 5:] = np.eye(5)
+        A[5:] = dsx[:5]
+        f = np.concatenate([np.asarray(dq, float), s[:5]])
+        fu = np.vstack([np.zeros((5, 2)), dsu[:5]])
+        fp = None if dsp is None else np.vstack([np.zeros((5, dsp.shape[1])), dsp[:5]])
+        force = None
+        if stance_leg:
+            force = (s[5:], dsx[5:], dsu[5:], None if dsp is None else dsp[5:])
+        return f, A, fu, fp, force
+
+    def fixed_base_jacobian(self, qs, dqs, u, stance_leg=1):
+        """The fixed-base chain (q_s = (q1, q2, q3) pinned at the stance foot): (ddq_s, d ddq_s/dq_s,
+        d ddq_s/ddq_s, d ddq_s/du), from D_s ddq_s = B_s u - h_s differentiated."""
+        if stance_leg == 2:     # the chain of leg 2 is leg 1's of the relabeled state
+            P = np.array([[0.0, 1, 0], [1, 0, 0], [0, 0, 1]])
+            a, aq, av, au = self.fixed_base_jacobian(P @ qs, P @ dqs, np.asarray(u)[::-1], 1)
+            return P @ a, P @ aq @ P, P @ av @ P, P @ au[:, ::-1]
+        v = np.array(dgen.fixed_base_jacobian_1(list(map(float, qs)), list(map(float, dqs)),
+                                               self.k["fixed_base_jacobian_1"]))
+        Ds, hs = v[0:9].reshape(3, 3), v[9:12]
+        dDs = v[12:39].reshape(3, 3, 3)
+        dhq, dhv = v[39:48].reshape(3, 3), v[48:57].reshape(3, 3)
+        Bs = np.array([[1.0, 0], [0, 1], [0, 0]])
+        lu = lu_factor(Ds)
+        a = lu_solve(lu, Bs @ np.asarray(u, float) - hs)
+        d = lu_solve(lu, np.hstack([-dhq - np.einsum("kij,j->ik", dDs, a), -dhv, Bs]))
+        return a, d[:, 0:3], d[:, 3:6], d[:, 6:8]
+
+    # -- the guards and the resets ---------------------------------------------------------------
+    def touchdown_guard(self, q, leg, parameters=False):
+        """(g, g_x (10), g_p (9 or None)): foot ``leg``'s height above the ground, g = p_y + tan(slope) p_x."""
+        m = self.model
+        p = gen.foot_positions(list(map(float, q)), m.k["foot_positions"])
+        J = np.array((gen.foot_jacobian_1 if leg == 1 else gen.foot_jacobian_2)(
+            list(map(float, q)), m.k[f"foot_jacobian_{leg}"])).reshape(2, 5)
+        g = p[2 * leg - 1] + self.tan * p[2 * leg - 2]
+        gx = np.concatenate([J[1] + self.tan * J[0], np.zeros(5)])
+        gp = None
+        if parameters:
+            feet = self._parameters(list(map(float, q)), [0.0] * 5)[6]
+            gp = feet[2 * leg - 1] + self.tan * feet[2 * leg - 2]
+        return g, gx, gp
+
+    def normal_force(self, force):
+        """(F_n, dF_n/dx, dF_n/du, dF_n/dp) of ``flow``'s ground force: the liftoff guard."""
+        F, Fx, Fu, Fp = force
+        n = np.array([self.sin, self.cos])
+        return float(n @ F), n @ Fx, n @ Fu, None if Fp is None else n @ Fp
+
+    def impact(self, q, dq_minus, leg, parameters=False):
+        """(dq+, impulse, d dq+/dq (5x5), d dq+/d dq- (5x5), d dq+/dp (5x9 or None)) of the rigid impact of foot
+        ``leg``: [D -J^T; J 0][dq+; L] = [D dq-; 0] differentiated as the stance system is."""
+        q, dqm = list(map(float, q)), np.asarray(dq_minus, float)
+        D, _h, dD, _a, _b = self._mass_and_bias(q, dqm.tolist())
+        J, dJ = self._foot(q, dqm.tolist(), leg)[:2]
+        K = np.zeros((7, 7))
+        K[:5, :5], K[:5, 5:], K[5:, :5] = D, -J.T, J
+        lu = lu_factor(K)
+        s = lu_solve(lu, np.concatenate([D @ dqm, np.zeros(2)]))
+        dqp, L = s[:5], s[5:]
+        cols = [np.vstack([np.einsum("kij,j->ik", dD, dqm - dqp) + np.einsum("kaj,a->jk", dJ, L),
+                           -np.einsum("kaj,j->ak", dJ, dqp)]),
+                np.vstack([D, np.zeros((2, 5))])]
+        if parameters:
+            dDp, _hp, dJ1p, dJ2p = self._parameters(q, dqm.tolist())[:4]
+            dJp = dJ1p if leg == 1 else dJ2p
+            cols.append(np.vstack([np.einsum("pij,j->ip", dDp, dqm - dqp) + np.einsum("paj,a->jp", dJp, L),
+                                   -np.einsum("paj,j->ap", dJp, dqp)]))
+        d = lu_solve(lu, np.hstack(cols))
+        return dqp, L, d[:5, 0:5], d[:5, 5:10], (d[:5, 10:] if parameters else None)
+
+    def stance_tangent(self, q, dq, stance_leg):
+        """The 10 x 6 derivative of the stance state (``stance_state``: the hip placed so that the stance foot
+        stays where it is, at rest) by the joint coordinates (q1, q2, q3, dq1, dq2, dq3): with J = [I2 | A]
+        the base moves as -A dq_r, so d(x, y)/dq_r = -A and d(dx, dy)/dq_r,k = -(dA/dq_k) dq_r."""
+        q, dq = list(map(float, q)), np.asarray(dq, float)
+        J, dJ = self._foot(q, dq.tolist(), stance_leg)[:2]
+        A = J[:, 2:]
+        T = np.zeros((10, 6))
+        T[0:2, 0:3] = -A
+        T[2:5, 0:3] = np.eye(3)
+        T[5:7, 0:3] = -np.column_stack([dJ[k][:, 2:] @ dq[2:] for k in (2, 3, 4)])
+        T[5:7, 3:6] = -A
+        T[7:10, 3:6] = np.eye(3)
+        return T
+
+
+@dataclass
+class RunSensitivity:
+    """A run's final state and its derivatives (``run_jacobian``)."""
+    t: float                    # s, where the run ends (t_final, or its last event's time with ``end_at_event``)
+    q: np.ndarray               # the end state of the integration of (x, S) (physical; after the last event's reset)
+    dq: np.ndarray
+    jacobian: np.ndarray        # d(q, dq)(t) / d(inputs): 10 x (directions + parameters)
+    time_derivative: np.ndarray | None   # d(end time)/d(inputs) with ``end_at_event``, else None
+    events: list                # (t, kind, leg) of the engine's run, each linearised through
+    law_derivative: str         # LAW_EXACT, LAW_FD or LAW_NONE
+    parameters: tuple           # the names of the parameter columns (the last columns of ``jacobian``)
+    simulator: object = field(repr=False, default=None)   # the engine's run (HybridSimulator)
+
+
+def run_jacobian(model, q0, dq0, t_final, controller=None, u=None, stance_leg=1, control_period=None,
+                 directions=None, parameters=(), rtol=1e-12, atol=1e-12, end_at_event=False, method="dop853",
+                 **options) -> RunSensitivity:
+    """The state transition matrix of a run: d(q, dq)(t_final) / d(initial state, parameters).
+
+    The run is the engine's (``HybridSimulator`` with ``options``, the same arguments as ``simulate``): under
+    ``controller`` at every evaluation (continuous feedback), or once per ``control_period`` and held, or under
+    the constant torque ``u``. ``directions`` (10 x m) are the initial perturbations; by default the joint
+    coordinates of the stance state (``Linearization.stance_tangent``: the stance foot stays where it is), or
+    the identity in flight. ``parameters``: names of ``PARAMETER_NAMES`` (the plant's; the controller keeps its
+    own model). ``end_at_event``: the run ends at its last event, after the reset (a step map): the
+    Jacobian is of the state just after it, and ``time_derivative`` that of its time. Events other than
+    touchdowns of one foot and liftoffs (slips, both feet at once, pushes) have no linearisation here: a
+    ValueError says so."""
+    parameters = tuple(parameters)
+    bad = [p for p in parameters if p not in PARAMETER_NAMES]
+    if bad:
+        raise ValueError(f"unknown parameters {bad}: they are among {list(PARAMETER_NAMES)}")
+    if controller is None and u is None:
+        u = (0.0, 0.0)
+    q0, dq0 = np.asarray(q0, float), np.asarray(dq0, float)
+    sim = HybridSimulator(model, q0, dq0, stance_leg=stance_leg, rtol=rtol, atol=atol, method=method, **options)
+    if control_period is not None:
+        sim.advance_periods(control_period, controller, t_final)
+    elif controller is not None:
+        sim.advance(t_final, controller=controller)
+    else:
+        sim.advance(t_final, u=u)
+    events = [(e.time, e.kind, e.leg) for e in sim.events if e.kind != "scuff"]
+    for t, kind, _leg in events:
+        if kind not in LINEARISED_EVENTS:
+            raise ValueError(f"the run has a {kind} event at t={t:.9g} s ({sim.message or 'no message'}): "
+                             "a run is linearised through touchdowns of one foot and liftoffs only")
+    if sim.status == "failed":
+        raise ValueError(f"the run failed: {sim.message}")
+    if end_at_event and not events:
+        raise ValueError(f"end_at_event: the run has no event before t={t_final} s")
+    t_end = events[-1][0] if end_at_event else sim.t
+    lin = Linearization(model, options.get("slope", 0.0))
+    integ = _Integration(lin, controller, u, control_period, parameters, rtol, atol)
+    x = np.concatenate([q0, dq0])
+    if directions is None:
+        directions = lin.stance_tangent(q0, dq0, stance_leg) if stance_leg else np.eye(10)
+    directions = np.asarray(directions, float)
+    m0 = directions.shape[1]
+    m = m0 + len(parameters)
+    S = np.zeros((10, m))
+    S[:, :m0] = directions
+    Sp = np.zeros((len(PARAMETER_NAMES), m))
+    for j, name in enumerate(parameters):
+        Sp[PARAMETER_NAMES.index(name), m0 + j] = 1.0
+    x, S, dtau = integ.run(sim.t0, x, S, Sp, stance_leg, events, t_end, end_at_event)
+    return RunSensitivity(t=t_end, q=x[:5], dq=x[5:], jacobian=S, time_derivative=dtau, events=events,
+                          law_derivative=integ.law_derivative, parameters=parameters, simulator=sim)
+
+
+class _Integration:
+    """The augmented system (x, S) along the engine's sequence of modes (``run_jacobian``)."""
+
+    def __init__(self, lin, controller, u, control_period, parameters, rtol, atol):
+        self.lin, self.controller, self.period = lin, controller, control_period
+        self.parameters = bool(parameters)
+        self.rtol, self.atol = rtol, atol
+        self.u_held = None if u is None else np.asarray(u, float)
+        self.law_derivative = LAW_NONE
+
+    def _torque(self, t, x, leg, Su):
+        """(u, u_x or None, the torque's sensitivity W_u (2 x m)): the law's at every evaluation (continuous
+        feedback: u_x folded into A, W_u = 0), or the held one with its sensitivity."""
+        if self.controller is not None and self.period is None:
+            u, ux, how = law_jacobian(self.controller, t, x[:5], x[5:], leg)
+            self.law_derivative = how
+            return u, ux, None
+        return self.u_held, None, Su
+
+    def _flow(self, t, x, leg, S, Su, Sp):
+        u, ux, Wu = self._torque(t, x, leg, Su)
+        f, A, fu, fp, force = self.lin.flow(x[:5], x[5:], u, leg, ux, self.parameters)
+        dS = A @ S
+        if Wu is not None:
+            dS += fu @ Wu
+        if fp is not None:
+            dS += fp @ Sp
+        return f, dS, (u, ux, Wu, fu, fp, force)
+
+    def _piece(self, t0, t1, x, S, Su, Sp, leg, guard=None):
+        """Integrate (x, S) from t0 to t1 in one mode; with ``guard`` (kind, leg), on to its crossing nearest
+        to t1 (the engine's event time) and return that time too."""
+        n, m = 10, S.shape[1]
+
+        def rhs(t, y):
+            f, dS, _ = self._flow(t, y[:n], leg, y[n:].reshape(n, m), Su, Sp)
+            return np.concatenate([f, dS.ravel()])
+
+        y0 = np.concatenate([x, S.ravel()])
+        if guard is None:
+            if t1 <= t0:
+                return t0, x, S
+            sol = solve_ivp(rhs, (t0, t1), y0, method="DOP853", rtol=self.rtol, atol=self.atol)
+            if not sol.success:
+                raise ValueError(f"the variational equations failed between t={t0} and {t1} s: {sol.message}")
+            y = sol.y[:, -1]
+            return t1, y[:n], y[n:].reshape(n, m)
+        kind, gleg = guard
+
+        def g(t, y):
+            if kind == "touchdown":
+                return self.lin.touchdown_guard(y[:5], gleg)[0]
+            u = self._torque(t, y[:n], leg, Su)[0]
+            return self.lin.sin * self._force(y[:n], u, leg)[0] + self.lin.cos * self._force(y[:n], u, leg)[1]
+
+        g.direction = -1
+        margin = max(1e-6, 1e-3 * (t1 - t0))
+        sol = solve_ivp(rhs, (t0, t1 + margin), y0, method="DOP853", rtol=self.rtol, atol=self.atol,
+                        events=g, dense_output=True)
+        roots = sol.t_events[0]
+        if not sol.success or len(roots) == 0:
+            raise ValueError(f"the {kind} of leg {gleg} near t={t1:.9g} s is not found on the variational "
+                             f"equations' trajectory ({sol.message})")
+        te = roots[np.argmin(np.abs(roots - t1))]
+        y = sol.sol(te)
+        return te, y[:n], y[n:].reshape(n, m)
+
+    def _force(self, x, u, leg):
+        return stance_floating_fast(self.lin.model, x[:5].tolist(), x[5:].tolist(), list(map(float, u)), leg)[1]
+
+    def _hold(self, t, x, leg, S):
+        """A control period starts: u_k = law(x(t_k)), its sensitivity u_x S."""
+        u, ux, how = law_jacobian(self.controller, t, x[:5], x[5:], leg)
+        self.law_derivative = how
+        self.u_held = u
+        return ux @ S
+
+    def run(self, t, x, S, Sp, leg, events, t_end, end_at_event):
+        m = S.shape[1]
+        Su = np.zeros((2, m))
+        breaks = []
+        if self.period is not None:
+            k = 0
+            while k * self.period < t_end - 1e-9 * self.period:
+                breaks.append((k * self.period, "period", None))
+                k += 1
+        breaks += list(events)
+        breaks.sort(key=lambda b: (b[0], b[1] != "period"))
+        dtau = None
+        for tb, kind, lg in breaks:
+            if kind == "period":
+                t, x, S = self._piece(t, tb, x, S, Su, Sp, leg)
+                Su = self._hold(tb, x, leg, S)
+                continue
+            t, x, S = self._piece(t, tb, x, S, Su, Sp, leg, guard=(kind, lg))
+            x, S, leg, dtau = self._event(t, x, S, Su, Sp, leg, kind, lg, end_at_event and tb == events[-1][0])
+            if dtau is not None:
+                return x, S, dtau
+        t, x, S = self._piece(t, t_end, x, S, Su, Sp, leg)
+        return x, S, None
+
+    def _event(self, t, x, S, Su, Sp, leg, kind, gleg, last):
+        """The saltation matrix at an event: S+ = DR S + R_w W + (F+ - DR F-) (g_x S + g_w W) / (g_x F-); for the
+        last event of an ``end_at_event`` run the state just after it, DR (S + F- dtau) + R_w W, and dtau."""
+        lin = self.lin
+        f_minus, _dS, (u, ux, Wu, _fu, _fp, force) = self._flow(t, x, leg, S, Su, Sp)
+        n_par = Sp.shape[0]
+        if kind == "touchdown":
+            g, gx, gp = lin.touchdown_guard(x[:5], gleg, self.parameters)
+            gu = np.zeros(2)
+            dqp, _L, Rq, Rv, Rp = lin.impact(x[:5], x[5:], gleg, self.parameters)
+            DR = np.eye(10)
+            DR[5:, :5], DR[5:, 5:] = Rq, Rv
+            Rw = np.zeros((10, n_par)) if Rp is None else np.vstack([np.zeros((5, n_par)), Rp])
+            x_plus = np.concatenate([x[:5], dqp])
+            new_leg = gleg
+        else:   # liftoff: the normal force reaches zero; the state goes on unchanged, in flight
+            g, gx, gu, gp = lin.normal_force(force)   # (gx has u_x folded in under continuous feedback)
+            DR, Rw, x_plus, new_leg = np.eye(10), np.zeros((10, n_par)), x.copy(), 0
+        dg = gx @ S
+        if Wu is not None:
+            dg = dg + gu @ Wu
+        if gp is not None:
+            dg = dg + gp @ Sp
+        rate = gx @ f_minus
+        dtau = -dg / rate
+        if last:
+            return x_plus, DR @ (S + np.outer(f_minus, dtau)) + Rw @ Sp, new_leg, dtau
+        f_plus = self._flow(t, x_plus, new_leg, S, Su, Sp)[0]
+        S_plus = DR @ S + Rw @ Sp - np.outer(f_plus - DR @ f_minus, dtau)
+        return x_plus, S_plus, new_leg, None
