@@ -40,7 +40,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.integrate import solve_ivp
-from scipy.linalg import lu_factor, lu_solve
 
 from biped_sim.engine._gen import derivatives as dgen
 from biped_sim.engine.compiled import gen
@@ -133,8 +132,7 @@ class Linearization:
             J, dJ, jb, djbq, djbv = self._foot(q, dq, stance_leg)
             K = np.zeros((7, 7))
             K[:5, :5], K[:5, 5:], K[5:, :5] = D, -J.T, J
-            lu = lu_factor(K)
-            s = lu_solve(lu, np.concatenate([Bu - h, -jb]))
+            s = np.linalg.solve(K, np.concatenate([Bu - h, -jb]))
             ddq, F = s[:5], s[5:]
             # (dK/dq_k) s, column k
             dKs = np.vstack([np.einsum("kij,j->ik", dD, ddq) - np.einsum("kaj,a->jk", dJ, F),
@@ -147,14 +145,13 @@ class Linearization:
                                   np.einsum("paj,j->ap", dJp, ddq)])
                 cols.append(np.vstack([-dhp, -djbp]) - dKsp)
         else:
-            lu = lu_factor(D)
-            s = lu_solve(lu, Bu - h)
+            s = np.linalg.solve(D, Bu - h)
             cols = [-dhq - np.einsum("kij,j->ik", dD, s), -dhv, B]
             if parameters:
                 dDp, dhp = self._parameters(q, dq)[:2]
                 cols.append(-dhp - np.einsum("pij,j->ip", dDp, s))
         sizes = [c.shape[1] for c in cols]
-        ds = np.split(lu_solve(lu, np.hstack(cols)), np.cumsum(sizes)[:-1], axis=1)
+        ds = np.split(np.linalg.solve(K if stance_leg else D, np.hstack(cols)), np.cumsum(sizes)[:-1], axis=1)
         return s, ds[0], ds[1], ds[2], (ds[3] if parameters else None)
 
     def flow(self, q, dq, u, stance_leg, u_x=None, parameters=False):
@@ -189,9 +186,8 @@ class Linearization:
         dDs = v[12:39].reshape(3, 3, 3)
         dhq, dhv = v[39:48].reshape(3, 3), v[48:57].reshape(3, 3)
         Bs = np.array([[1.0, 0], [0, 1], [0, 0]])
-        lu = lu_factor(Ds)
-        a = lu_solve(lu, Bs @ np.asarray(u, float) - hs)
-        d = lu_solve(lu, np.hstack([-dhq - np.einsum("kij,j->ik", dDs, a), -dhv, Bs]))
+        a = np.linalg.solve(Ds, Bs @ np.asarray(u, float) - hs)
+        d = np.linalg.solve(Ds, np.hstack([-dhq - np.einsum("kij,j->ik", dDs, a), -dhv, Bs]))
         return a, d[:, 0:3], d[:, 3:6], d[:, 6:8]
 
     # -- the guards and the resets ---------------------------------------------------------------
@@ -223,8 +219,7 @@ class Linearization:
         J, dJ = self._foot(q, dqm.tolist(), leg)[:2]
         K = np.zeros((7, 7))
         K[:5, :5], K[:5, 5:], K[5:, :5] = D, -J.T, J
-        lu = lu_factor(K)
-        s = lu_solve(lu, np.concatenate([D @ dqm, np.zeros(2)]))
+        s = np.linalg.solve(K, np.concatenate([D @ dqm, np.zeros(2)]))
         dqp, L = s[:5], s[5:]
         cols = [np.vstack([np.einsum("kij,j->ik", dD, dqm - dqp) + np.einsum("kaj,a->jk", dJ, L),
                            -np.einsum("kaj,j->ak", dJ, dqp)]),
@@ -234,7 +229,7 @@ class Linearization:
             dJp = dJ1p if leg == 1 else dJ2p
             cols.append(np.vstack([np.einsum("pij,j->ip", dDp, dqm - dqp) + np.einsum("paj,a->jp", dJp, L),
                                    -np.einsum("paj,j->ap", dJp, dqp)]))
-        d = lu_solve(lu, np.hstack(cols))
+        d = np.linalg.solve(K, np.hstack(cols))
         return dqp, L, d[:5, 0:5], d[:5, 5:10], (d[:5, 10:] if parameters else None)
 
     def stance_tangent(self, q, dq, stance_leg):
@@ -411,20 +406,34 @@ class _Integration:
                 k += 1
         breaks += list(events)
         breaks.sort(key=lambda b: (b[0], b[1] != "period"))
-        dtau = None
-        for tb, kind, lg in breaks:
+        i = 0
+        while i < len(breaks):
+            tb, kind, lg = breaks[i]
+            i += 1
             if kind == "period":
                 t, x, S = self._piece(t, tb, x, S, Su, Sp, leg)
                 Su = self._hold(tb, x, leg, S)
                 continue
+            if kind == "liftoff" and tb - t <= 1e-12 * max(1.0, abs(t)):
+                # the stance starts with the ground pulling (the engine's _check_stance_start): flight from
+                # this instant, a time fixed by the last event, so the state and S go on unchanged
+                leg = 0
+                continue
+            # a liftoff at the same instant as this touchdown (the new stance cannot hold): the mode after the
+            # event is flight, and F+ is flight's
+            leg_after = None
+            while i < len(breaks) and breaks[i][1] == "liftoff" and breaks[i][0] - tb <= 1e-12 * max(1.0, abs(tb)):
+                leg_after = 0
+                i += 1
+            last = end_at_event and i == len(breaks)
             t, x, S = self._piece(t, tb, x, S, Su, Sp, leg, guard=(kind, lg))
-            x, S, leg, dtau = self._event(t, x, S, Su, Sp, leg, kind, lg, end_at_event and tb == events[-1][0])
-            if dtau is not None:
+            x, S, leg, dtau = self._event(t, x, S, Su, Sp, leg, kind, lg, last, leg_after)
+            if last:
                 return x, S, dtau
         t, x, S = self._piece(t, t_end, x, S, Su, Sp, leg)
         return x, S, None
 
-    def _event(self, t, x, S, Su, Sp, leg, kind, gleg, last):
+    def _event(self, t, x, S, Su, Sp, leg, kind, gleg, last, leg_after=None):
         """The saltation matrix at an event: S+ = DR S + R_w W + (F+ - DR F-) (g_x S + g_w W) / (g_x F-); for the
         last event of an ``end_at_event`` run the state just after it, DR (S + F- dtau) + R_w W, and dtau."""
         lin = self.lin
@@ -449,6 +458,8 @@ class _Integration:
             dg = dg + gp @ Sp
         rate = gx @ f_minus
         dtau = -dg / rate
+        if leg_after is not None:
+            new_leg = leg_after
         if last:
             return x_plus, DR @ (S + np.outer(f_minus, dtau)) + Rw @ Sp, new_leg, dtau
         f_plus = self._flow(t, x_plus, new_leg, S, Su, Sp)[0]

@@ -1,11 +1,17 @@
 """Exact linearisation (engine/sensitivity.py, issue 32): the phases' Jacobians against central differences
 of the engine's own functions, and a run's state transition matrix against central differences of the run."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
+from biped_sim.analysis.edge_cases import bouncing_landing
+from biped_sim.control.walking import WalkingController
 from biped_sim.engine.dynamics import flight_fast, impact_map, stance_fixed_accel_fast, stance_floating_fast
+from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.engine.model import BipedModel, BipedParameters
-from biped_sim.engine.sensitivity import Linearization
+from biped_sim.engine.sensitivity import LAW_EXACT, LAW_FD, LAW_NONE, Linearization, run_jacobian
 from biped_sim.engine.simulate import stance_state
 
 MODEL = BipedModel()
@@ -83,3 +89,94 @@ def test_the_impact_map_guard_fixed_base_and_stance_state_derivatives(leg):
     z = np.concatenate([qs, dqs])
     T = lin.stance_tangent(*stance_state(MODEL, qs, dqs, leg, foot=(0.2, 0.0)), leg)
     assert rel(T, central(lambda v: np.concatenate(stance_state(MODEL, v[:3], v[3:], leg, foot=(0.2, 0.0))), z)) < 1e-8
+
+
+# -- a run's state transition matrix against central differences of the same run ------------------------------
+RUN_PARAMETERS = ("m_torso", "I_leg", "c_leg", "g")   # (parameters that leave the initial state where it is)
+FLIGHT = frozenset({"stance", "impact", "flight"})
+
+
+def model_with(scale):
+    p = BipedParameters()
+    return BipedModel(BipedParameters(m_torso=p.m_torso * scale[0], I_leg=p.I_leg * scale[1],
+                                      c_leg=p.c_leg * scale[2], g=p.g * scale[3]))
+
+
+def engine_end(model, x0, t_final, stance_leg, controller, u, control_period, **options):
+    """(q, dq) at t_final of the engine's run at 1e-12 (the run the Jacobian is of)."""
+    sim = HybridSimulator(model, x0[:5], x0[5:], stance_leg=stance_leg, rtol=1e-12, atol=1e-12, **options)
+    if control_period:
+        sim.advance_periods(control_period, controller, t_final)
+    elif controller is not None:
+        sim.advance(t_final, controller=controller)
+    else:
+        sim.advance(t_final, u=u)
+    assert sim.status == "running", sim.message
+    return np.concatenate([sim.q, sim.dq])
+
+
+def check_run_jacobian(model, z_or_x, t_final, stance_leg=1, foot=(0.0, 0.0), controller=None, u=None,
+                       control_period=None, **options):
+    """run_jacobian against central differences of the engine's run (the initial state by its joint coordinates
+    in stance, with the foot kept where it is; by all ten numbers in flight; and the parameters RUN_PARAMETERS
+    of the plant, the controller keeping its own model): agree to 1e-7 relative. Returns the run's events."""
+    def start(v, m=model):
+        return np.concatenate(stance_state(m, v[:3], v[3:], stance_leg, foot=foot)) if stance_leg else v
+
+    x0 = start(np.asarray(z_or_x, float))
+    r = run_jacobian(model, x0[:5], x0[5:], t_final, controller=controller, u=u, stance_leg=stance_leg,
+                     control_period=control_period, parameters=RUN_PARAMETERS, **options)
+    run = dict(stance_leg=stance_leg, controller=controller, u=u, control_period=control_period, **options)
+    fd = central(lambda v: engine_end(model, start(v), t_final, **run), z_or_x, eps=1e-6)
+    p0 = np.array([getattr(model.parameters, n) for n in RUN_PARAMETERS])
+
+    def with_p(p):
+        m = BipedModel(replace(model.parameters, **dict(zip(RUN_PARAMETERS, p))))
+        return engine_end(m, x0, t_final, **run)
+
+    fd = np.hstack([fd, central(with_p, p0, eps=1e-6)])
+    assert np.allclose(np.concatenate([r.q, r.dq]), engine_end(model, x0, t_final, **run), rtol=0, atol=1e-9)
+    assert rel(r.jacobian, fd) < 1e-7
+    return r
+
+
+SCALES = st.tuples(*[st.floats(0.8, 1.2)] * 4)
+
+
+@settings(max_examples=4, deadline=None, derandomize=True)
+@given(SCALES, st.tuples(*[st.floats(-0.02, 0.02)] * 6))
+def test_run_jacobian_of_a_stance_stretch(scale, dz):
+    """(a) 0.1 s of stance under the walking law (continuous feedback), no event."""
+    model = model_with(scale)
+    ctrl = WalkingController(model)
+    q0, dq0 = ctrl.initial_state()
+    r = check_run_jacobian(model, np.concatenate([q0[2:], dq0[2:]]) + np.array(dz), 0.1, controller=ctrl)
+    assert r.events == [] and r.law_derivative in (LAW_EXACT, LAW_FD)
+
+
+@settings(max_examples=4, deadline=None, derandomize=True)
+@given(SCALES, st.tuples(*[st.floats(-0.01, 0.01)] * 6), st.sampled_from([None, 1e-3]))
+def test_run_jacobian_through_a_touchdown(scale, dz, period):
+    """(b) the last 80 ms of a step and the first of the next: the touchdown of leg 2, its impact map and the
+    stance on leg 2, under the walking law at every evaluation or held 1 ms (zero-order hold)."""
+    model = model_with(scale)
+    ctrl = WalkingController(model)
+    q0, dq0 = ctrl.initial_state()
+    sim = HybridSimulator(model, q0, dq0, rtol=1e-12, atol=1e-12)
+    sim.advance(0.4, controller=ctrl)
+    z = np.concatenate([sim.q[2:], sim.dq[2:]]) + np.array(dz)
+    foot = tuple(model.foot_position(sim.q, 1))
+    r = check_run_jacobian(model, z, 0.12, foot=foot, controller=ctrl, control_period=period)
+    assert [(kind, leg) for _t, kind, leg in r.events] == [("touchdown", 2)]
+
+
+@settings(max_examples=4, deadline=None, derandomize=True)
+@given(SCALES, st.tuples(*[st.floats(-0.01, 0.01)] * 10))
+def test_run_jacobian_through_flight_landings_and_liftoffs(scale, dx):
+    """(c) from flight: a landing on foot 1 that the ground cannot hold (stance ends at once: liftoff, flight
+    again), then the same on foot 2 (edge_cases.bouncing_landing), no torque."""
+    q, dq = bouncing_landing()
+    r = check_run_jacobian(model_with(scale), np.concatenate([q, dq]) + np.array(dx), 0.1, stance_leg=0,
+                           u=(0.0, 0.0), phases=FLIGHT)
+    assert [kind for _t, kind, _leg in r.events] == ["touchdown", "liftoff", "touchdown", "liftoff"]
+    assert r.law_derivative == LAW_NONE
