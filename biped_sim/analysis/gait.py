@@ -10,23 +10,35 @@ stance/swing labels (after the relabeling the new stance leg is called "stance" 
   origin: the hip follows from the joints (``stance_state``);
 * the section constraint -- both feet on the ground: h(q_st, q_sw, q3) = 0 -- leaves a
   5-dimensional section. The map is linearised on it: with U (6 x 5) an orthonormal basis of the
-  section's tangent space (velocities free, configuration tangent to h = 0),
-  A = U^T dP/dz U (5 x 5) by central finite differences. (The full 6 x 6 Jacobian has one more,
+  section's tangent space (velocities free, configuration tangent to h = 0), A = U^T dP/dz U (5 x 5),
+  whose eigenvalues are the gait's Floquet multipliers. (The full 6 x 6 Jacobian has one more,
   zero, eigenvalue: a shift along the flow lands on the same next impact.)
 
-The fixed point is found by Newton's method on U^T (P(z) - z) = 0 with the same Jacobian, each
+dP/dz is exact by default (``StepMap.jacobian``): the state transition matrix of the step through its
+touchdown (engine/sensitivity.py: the variational equations and the saltation matrix of the impact,
+then the relabeling), at the cost of about one run; ``StepMap.jacobian_fd`` takes central differences
+of the same map (2 x 5 runs), kept as a check.
+
+The fixed point is found by Newton's method on U^T (P(z) - z) = 0 with the exact Jacobian, each
 iterate projected back onto h = 0. The step map P integrates one stance phase with the controller
 until the swing foot touches down (the engine's touchdown guard and impact map).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.engine.sensitivity import run_jacobian
 from biped_sim.engine.simulate import stance_state
+
+#: the rows of the physical state (q, dq) after a touchdown of leg 2 that make the next section point: leg 2
+#: is the new stance leg, so z = (q2, q1, q3, dq2, dq1, dq3) (the relabeling R)
+RELABELED_ROWS = [3, 2, 4, 8, 7, 9]
+EXACT = "exact"
+FINITE_DIFFERENCES = "central differences"
 
 
 @dataclass
@@ -37,15 +49,39 @@ class Gait:
     speed: float                  # m/s, step_length / step_period
     cost_of_transport: float      # sum over the hips of |u dq| integrated over a step / (m g step_length)
     motor_work: float             # J per step, signed (u . dq integrated)
-    eigenvalues: np.ndarray       # of the 5 x 5 linearised Poincare map, largest modulus first
+    eigenvalues: np.ndarray       # of the 5 x 5 linearised Poincare map, largest modulus first (the multipliers)
     residual: float               # |P(z) - z| at the fixed point
     newton_iterations: int
     max_torque: float             # N m, largest |u| over the step
     slope: float
+    jacobian: np.ndarray | None = None    # A = U^T dP/dz U (5 x 5) at the fixed point
+    jacobian_method: str = EXACT          # EXACT or FINITE_DIFFERENCES
+    law_derivative: str = ""              # the controller's derivative in the exact Jacobian (sensitivity.LAW_*)
+    step_map: "StepMap | None" = field(default=None, repr=False, compare=False)
 
     @property
     def stable(self) -> bool:
         return bool(np.all(np.abs(self.eigenvalues) < 1.0))
+
+    @property
+    def period(self) -> float:
+        """The step period (s)."""
+        return self.step_period
+
+    @property
+    def fixed_point(self) -> np.ndarray:
+        """z*, the post-impact state of the gait on the section."""
+        return self.z
+
+    @property
+    def multipliers(self) -> np.ndarray:
+        """The Floquet multipliers: the eigenvalues of ``jacobian``, largest modulus first."""
+        return self.eigenvalues
+
+    def jacobian_fd(self, eps=1e-6) -> np.ndarray:
+        """A by central differences of the same step map (a check of ``jacobian``)."""
+        U, _ = self.step_map.basis(self.z)
+        return self.step_map.jacobian_fd(self.z, U, eps)
 
 
 class StepMap:
@@ -104,15 +140,48 @@ class StepMap:
             z[0:3] -= h * grad / (grad @ grad)
         return z
 
-    def jacobian(self, z, U, eps=1e-6):
+    def full_jacobian(self, z, max_time=5.0):
+        """(dP/dz (6 x 6), the law's derivative): exact, from the step's state transition matrix
+        (``engine.sensitivity.run_jacobian`` to the touchdown and through its impact map; the initial
+        perturbations are z's own coordinates, the stance foot held at the origin)."""
+        q, dq = self.state(np.asarray(z, float))
+        r = run_jacobian(self.model, q, dq, max_time, controller=self.controller, stance_leg=1, end_at_event=True,
+                         **self.kw)
+        kind, leg = r.events[-1][1:] if r.events else (None, None)
+        if kind != "touchdown" or leg != 2:
+            raise RuntimeError(f"the step from z={np.round(z, 6).tolist()} does not end in a touchdown of leg 2 "
+                               f"(events {r.events})")
+        return r.jacobian[RELABELED_ROWS], r.law_derivative
+
+    def jacobian(self, z, U):
+        """A = U^T dP/dz U, exact (``full_jacobian``)."""
+        return U.T @ self.full_jacobian(z)[0] @ U
+
+    def jacobian_fd(self, z, U, eps=1e-6):
+        """A = U^T dP/dz U by central differences of the map along U's columns (2 x 5 steps)."""
         cols = []
         for i in range(U.shape[1]):
             cols.append((self(z + eps * U[:, i]) - self(z - eps * U[:, i])) / (2 * eps))
         return U.T @ np.column_stack(cols)
 
 
-def find_gait(model, controller, z0=None, slope=0.0, warmup_steps=2, tol=1e-9, max_iter=12, **options) -> Gait:
-    """Fixed point of the step map, its figures and the eigenvalues of the linearised map."""
+def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e-9, max_iter=12,
+              jacobian=EXACT, **options) -> Gait:
+    """The periodic gait: the fixed point of the step map, its figures and the Floquet multipliers.
+
+    ``scene``: a scene name or a Scene (``load_scene``; its model, controller, slope and touchdown rule), or a
+    BipedModel with ``controller`` (and ``z0``, the initial guess on the section; by default the controller's
+    ``initial_state``, and ``slope``). ``jacobian``: ``EXACT`` (default) or ``FINITE_DIFFERENCES``, the one
+    Newton's method and the multipliers use; ``Gait.jacobian_fd()`` is always at hand as a check."""
+    if isinstance(scene, str) or hasattr(scene, "engine_arguments"):
+        if controller is not None:
+            raise ValueError("find_gait(scene) takes the scene's controller; give a model for another controller")
+        return scene_gait(scene, jacobian=jacobian, z0=z0, warmup_steps=warmup_steps, tol=tol, max_iter=max_iter)
+    if controller is None:
+        raise ValueError("find_gait(model, controller, z0): a model needs a controller")
+    if jacobian not in (EXACT, FINITE_DIFFERENCES):
+        raise ValueError(f"jacobian must be {EXACT!r} or {FINITE_DIFFERENCES!r}, got {jacobian!r}")
+    model = scene
     smap = StepMap(model, controller, slope=slope, **options)
     if z0 is None:
         q, dq = controller.initial_state()
@@ -122,6 +191,13 @@ def find_gait(model, controller, z0=None, slope=0.0, warmup_steps=2, tol=1e-9, m
     z = np.asarray(z0, float)
     for _ in range(warmup_steps):
         z = smap(z)
+
+    def linearised(z, U):
+        if jacobian == EXACT:
+            J6, how = smap.full_jacobian(z)
+            return U.T @ J6 @ U, how
+        return smap.jacobian_fd(z, U), ""
+
     it, A = 0, None
     for it in range(1, max_iter + 1):
         U, grad = smap.basis(z)
@@ -129,17 +205,19 @@ def find_gait(model, controller, z0=None, slope=0.0, warmup_steps=2, tol=1e-9, m
         r = Pz - z
         if np.linalg.norm(r) < tol:
             break
-        if A is None or it % 4 == 0:     # chord Newton: one Jacobian serves a few iterations
-            A = smap.jacobian(z, U)
+        if A is None or jacobian == EXACT or it % 4 == 0:   # (chord Newton for the costlier differences)
+            A = linearised(z, U)[0]
         delta = np.linalg.solve(A - np.eye(U.shape[1]), -(U.T @ r))
         z = smap.project(z + U @ delta, grad)
     U, _ = smap.basis(z)
     z_next, _sim = smap.run(z)
     residual = float(np.linalg.norm(z_next - z))
-    A = smap.jacobian(z, U)
+    A, how = linearised(z, U)
     eig = np.linalg.eigvals(A)
     eig = eig[np.argsort(-np.abs(eig))]
-    return _figures(smap, z, eig, residual, it)
+    g = _figures(smap, z, eig, residual, it)
+    g.jacobian, g.jacobian_method, g.law_derivative, g.step_map = A, jacobian, how, smap
+    return g
 
 
 def _figures(smap, z, eig, residual, iterations) -> Gait:
@@ -163,8 +241,11 @@ def _figures(smap, z, eig, residual, iterations) -> Gait:
                 max_torque=float(np.max(np.abs(u))), slope=smap.slope)
 
 
-def scene_gait(scene) -> Gait:
-    """The periodic gait of a scene with a controller (``load_scene(...)``)."""
+def scene_gait(scene, jacobian=EXACT, **newton) -> Gait:
+    """The periodic gait of a scene with a controller (a Scene of ``load_scene(...)``, or its name)."""
+    if isinstance(scene, str):
+        from biped_sim.config.scenes import load_scene
+        scene = load_scene(scene)
     ctrl = scene.controller()
     if ctrl is None:
         raise ValueError(f"scene {scene.name!r} has no walk_controller section: there is no gait to find")
@@ -172,7 +253,8 @@ def scene_gait(scene) -> Gait:
         raise ValueError(f"scene {scene.name!r} has no impacts (phases {sorted(scene.phases)}): a gait needs "
                          "the 'impact' phase")
     kw = scene.engine_arguments()
-    return find_gait(kw["model"], ctrl, slope=kw["slope"], touchdown_rule=kw["touchdown_rule"])
+    return find_gait(kw["model"], ctrl, slope=kw["slope"], touchdown_rule=kw["touchdown_rule"], jacobian=jacobian,
+                     **newton)
 
 
 def format_gait(g: Gait) -> str:
@@ -187,12 +269,19 @@ def format_gait(g: Gait) -> str:
         ("motor work per step", f"{g.motor_work:.3f} J (signed)"),
         ("max |u|", f"{g.max_torque:.1f} N m"),
         ("eigenvalues", ", ".join(_c(e) for e in g.eigenvalues)),
+        ("Jacobian", _method(g)),
         ("|eigenvalues|", ", ".join(f"{abs(e):.4g}" for e in g.eigenvalues)),
         ("stable", f"{'yes' if g.stable else 'NO'} (all inside the unit circle: max |lambda| = "
                    f"{np.max(np.abs(g.eigenvalues)):.4f})"),
     ]
     w = max(len(k) for k, _ in rows)
     return "\n".join(f"{k:>{w}}  {v}" for k, v in rows)
+
+
+def _method(g):
+    if g.jacobian_method == EXACT:
+        return f"exact (variational equations and saltation matrix; law derivative: {g.law_derivative})"
+    return "central differences of the step map"
 
 
 def _c(e):

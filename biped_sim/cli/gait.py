@@ -9,21 +9,25 @@ def register(sub):
         "gait", help="find the periodic gait of a scene and the eigenvalues of its Poincare map",
         description="With the engine headless (continuous feedback of the scene's walking controller), find "
                     "the fixed point of the step-to-step Poincare map on the post-impact section (Newton's "
-                    "method, finite-difference Jacobian on the 5-dimensional section: the x translation and "
-                    "the section constraint removed) and print the step length, speed, step period, cost of "
-                    "transport and the eigenvalues of the linearised map (all inside the unit circle: the "
-                    "gait is locally stable).")
+                    "method on the 5-dimensional section: the x translation and the section constraint removed) and "
+                    "print the step length, speed, step period, cost of transport and the eigenvalues of the "
+                    "linearised map, its Floquet multipliers (all inside the unit circle: the gait is locally "
+                    "stable). The Jacobian is exact by default: the variational equations of the step and the "
+                    "saltation matrix of its impact (docs/gait.md).")
     p.add_argument("--scene", default="walk", metavar="NAME|PATH", help="scene with a walk_controller section "
                    "(default: walk)")
+    p.add_argument("--jacobian", choices=("exact", "fd"), default="exact",
+                   help="the Jacobian of the step map for Newton's method and the eigenvalues: exact (default; "
+                        "variational equations and saltation matrix) or fd (central differences of the map)")
     p.set_defaults(func=run)
 
 
 def run(args):
-    from biped_sim.analysis.gait import format_gait, scene_gait
+    from biped_sim.analysis.gait import EXACT, FINITE_DIFFERENCES, format_gait, scene_gait
     from biped_sim.config.scenes import load_scene
     scene = load_scene(args.scene)
     t0 = time.perf_counter()
-    g = scene_gait(scene)
+    g = scene_gait(scene, jacobian=EXACT if args.jacobian == "exact" else FINITE_DIFFERENCES)
     print(f"scene {scene.name}: periodic gait (slope {g.slope:g} rad), found in {time.perf_counter() - t0:.2f} s")
     print(format_gait(g))
     return 0 if g.stable else 1

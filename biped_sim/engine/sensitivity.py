@@ -39,7 +39,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from biped_sim.engine._gen import derivatives as dgen
 from biped_sim.engine.compiled import gen
@@ -350,6 +349,8 @@ class _Integration:
     def _piece(self, t0, t1, x, S, Su, Sp, leg, guard=None):
         """Integrate (x, S) from t0 to t1 in one mode; with ``guard`` (kind, leg), on to its crossing nearest
         to t1 (the engine's event time) and return that time too."""
+        from scipy.integrate import solve_ivp  # (here: its import costs ~1.5 s, which no command pays unused)
+
         n, m = 10, S.shape[1]
 
         def rhs(t, y):

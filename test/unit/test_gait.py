@@ -55,6 +55,31 @@ def test_the_section_removes_the_flow_direction(walk_gait):
     assert np.allclose(full[1:], np.sort(np.abs(walk_gait.eigenvalues)), rtol=1e-3, atol=1e-5)
 
 
+def test_the_exact_multipliers_agree_with_finite_differences(walk_gait):
+    """The walk scene's gait: the exact Jacobian (variational equations, saltation matrix of the impact) and
+    central differences of the same step map give the same multipliers to 1e-6 (issue 32)."""
+    g = walk_gait
+    assert g.jacobian_method == "exact" and g.jacobian.shape == (5, 5)
+    assert np.array_equal(g.multipliers, g.eigenvalues) and g.period == g.step_period and g.fixed_point is g.z
+    A_fd = g.jacobian_fd()
+    assert np.max(np.abs(g.jacobian - A_fd)) < 1e-6
+    fd = np.linalg.eigvals(A_fd)
+    assert np.max(np.abs(np.sort_complex(g.multipliers) - np.sort_complex(fd))) < 1e-6
+
+
+def test_find_gait_takes_a_scene_name_or_a_model_and_controller(walk_gait):
+    import biped_sim as bs
+    s = load_scene("walk")
+    kw = s.engine_arguments()
+    g = bs.find_gait(kw["model"], s.controller(), z0=walk_gait.z, touchdown_rule=kw["touchdown_rule"],
+                     jacobian="central differences")
+    assert g.jacobian_method == "central differences"
+    assert np.allclose(g.fixed_point, walk_gait.fixed_point, atol=1e-8)
+    assert np.allclose(g.multipliers, walk_gait.multipliers, atol=1e-6)
+    with pytest.raises(ValueError, match="needs a controller"):
+        bs.find_gait(kw["model"])
+
+
 def test_scene_without_controller_or_impacts_is_refused():
     with pytest.raises(ValueError, match="no walk_controller"):
         scene_gait(load_scene("passive"))
@@ -65,5 +90,8 @@ def test_scene_without_controller_or_impacts_is_refused():
 def test_cli_gait(capsys):
     assert cli_main(["gait", "--scene", "slope"]) == 0
     out = capsys.readouterr().out
-    for word in ("step length", "speed", "step period", "cost of transport", "eigenvalues", "stable  yes"):
+    for word in ("step length", "speed", "step period", "cost of transport", "eigenvalues", "stable  yes",
+                 "Jacobian  exact"):
         assert word in out
+    assert cli_main(["gait", "--scene", "slope", "--jacobian", "fd"]) == 0
+    assert "Jacobian  central differences" in capsys.readouterr().out
