@@ -112,6 +112,55 @@ class WalkingController:
         u1 = min(lim, max(-lim, (m00 * r1 - m10 * r0) / det))
         return np.array([u0, u1])
 
+    def jacobian(self, t, q, dq, stance_leg):
+        """d u / d(q, dq) (2 x 10) of this law, exact (engine/sensitivity.py's run Jacobians use it).
+
+        The torque u* solves Phi(x, u) = H ddq_r(x, u) + bias + kp y + kd dy = 0 (ddy = -kp y - kd dy), so
+        u*_x = -(H Bu)^-1 Phi_x, with ddq_r and its derivatives from the stance KKT system differentiated
+        (``Linearization.accelerations``, on this law's model) at u*; a torque at its limit has derivative 0."""
+        J = np.zeros((2, 10))
+        if stance_leg == 0:     # flight: u = -kd (dq1, dq2)
+            J[0, 7] = J[1, 8] = -self.kd
+            return J
+        from biped_sim.engine.sensitivity import Linearization
+        lin = getattr(self, "_linearization", None)
+        if lin is None or lin.model is not self.model:
+            lin = self._linearization = Linearization(self.model)
+        q = [float(v) for v in q]
+        dq = [float(v) for v in dq]
+        s, w = (2, 3) if stance_leg == 1 else (3, 2)
+        y, dy, (H1, H2), bias = self.outputs(q, dq, stance_leg)
+        H = np.array([H1, H2])
+        a0, _dq0, _dv0, dsu, _ = lin.accelerations(q, dq, (0.0, 0.0), stance_leg)
+        HB = H @ dsu[2:5]           # H Bu: ddq_r = a + Bu u
+        u_star = np.linalg.solve(HB, -self.kp * np.array(y) - self.kd * np.array(dy) - H @ a0[2:5] - np.array(bias))
+        acc, dsq, dsv, _dsu, _ = lin.accelerations(q, dq, u_star, stance_leg)
+        ddq_r = acc[2:5]
+        phi, dphi = q[s] + q[4] - math.pi, dq[s] + dq[4]
+        _f, df, ddf = self.swing_target(phi)
+        d3f = 6.0 * self.clearance / self._a2      # the third derivative of f: -3 c b'' with b'' = -2 / step_angle^2
+        dphi_x = np.zeros(10)
+        dphi_x[s] = dphi_x[4] = 1.0
+        drate_x = np.zeros(10)
+        drate_x[5 + s] = drate_x[9] = 1.0
+        Phi_x = H @ np.hstack([dsq[2:5], dsv[2:5]])
+        # row 2: H2 depends on phi through f' (its entries s and q3 are -f'), the bias -f'' dphi^2 on phi and dphi
+        Phi_x[1] += -ddf * (ddq_r[s - 2] + ddq_r[2]) * dphi_x
+        Phi_x[1] += -d3f * dphi * dphi * dphi_x - 2.0 * ddf * dphi * drate_x
+        # kp y + kd dy: y1 = q3 - pitch, dy1 = dq3; y2 = q_w + q3 - pi - f(phi), dy2 = dq_w + dq3 - f' dphi
+        kp, kd = self.kp, self.kd
+        Phi_x[0, 4] += kp
+        Phi_x[0, 9] += kd
+        Phi_x[1, w] += kp
+        Phi_x[1, 4] += kp
+        Phi_x[1] += -kp * df * dphi_x - kd * ddf * dphi * dphi_x
+        Phi_x[1, 5 + w] += kd
+        Phi_x[1, 9] += kd
+        Phi_x[1] += -kd * df * drate_x
+        J = -np.linalg.solve(HB, Phi_x)
+        J[np.abs(u_star) >= self.torque_limit] = 0.0
+        return J
+
     def initial_state(self, speed=1.0):
         """A state on the virtual constraints at the start of a step (stance leg 1 in front).
 
@@ -162,6 +211,36 @@ class PDWalkingController(WalkingController):
         u_stance = u_stance if u_stance > -lim else -lim
         u_stance = u_stance if u_stance < lim else lim
         return (u_stance, u_swing) if stance_leg == 1 else (u_swing, u_stance)
+
+
+def _pd_jacobian(self, t, q, dq, stance_leg):
+    """d u / d(q, dq) (2 x 10) of PDWalkingController's law, exact; a torque at its limit has derivative 0."""
+    if stance_leg == 0:
+        return WalkingController.jacobian(self, t, q, dq, 0)
+    q = [float(v) for v in q]
+    dq = [float(v) for v in dq]
+    s, w = (2, 3) if stance_leg == 1 else (3, 2)
+    phi, dphi = q[s] + q[4] - math.pi, dq[s] + dq[4]
+    _f, df, ddf = self.swing_target(phi)
+    kp, kd, lim = self.kp, self.kd, self.torque_limit
+    y2_x = np.zeros(10)     # y2 = q_w + q3 - pi - f(phi)
+    y2_x[w], y2_x[4], y2_x[s] = 1.0, 1.0 - df, -df
+    dy2_x = np.zeros(10)    # dy2 = dq_w + dq3 - f'(phi) dphi
+    dy2_x[s] = dy2_x[4] = -ddf * dphi
+    dy2_x[5 + w], dy2_x[9], dy2_x[5 + s] = 1.0, 1.0 - df, -df
+    u = self(t, q, dq, stance_leg)
+    u_stance, u_swing = (u[0], u[1]) if stance_leg == 1 else (u[1], u[0])
+    swing_x = np.zeros(10) if abs(u_swing) >= lim else -kp * y2_x - kd * dy2_x
+    stance_x = -swing_x
+    stance_x[4] += 2.0 * kp
+    stance_x[9] += 2.0 * kd
+    if abs(u_stance) >= lim:
+        stance_x[:] = 0.0
+    return np.array([stance_x, swing_x] if stance_leg == 1 else [swing_x, stance_x])
+
+
+#: (set here, not in the class body: compiled_law's _runs_as lists the methods the C law replaces)
+PDWalkingController.jacobian = _pd_jacobian
 
 
 def _runs_as(controller, cls, methods):
