@@ -311,8 +311,8 @@ def bench_compiled_loop(model, repeats=5):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench", description=__doc__.split("\n")[0])
-    parser.add_argument("--only", choices=("engine", "node", "record", "scenes", "sweep", "cli", "mujoco"),
-                        help="run one group only")
+    parser.add_argument("--only", help="run one group only",
+                        choices=("engine", "node", "record", "scenes", "sweep", "cli", "sensitivity", "mujoco"))
     parser.add_argument("--repeats", type=int, default=7, help="timed repeats of each walk (alternating)")
     args = parser.parse_args(argv)
     model = BipedModel()
@@ -325,7 +325,8 @@ def main(argv=None):
         bench_compiled_loop(model)
         sys.stdout.flush()
     for group, module in (("node", "bench_node"), ("record", "bench_record"), ("scenes", "bench_scenes"),
-                          ("sweep", "bench_sweep"), ("cli", "bench_cli"), ("mujoco", "bench_mujoco")):
+                          ("sweep", "bench_sweep"), ("cli", "bench_cli"), ("sensitivity", "bench_sensitivity"),
+                          ("mujoco", "bench_mujoco")):
         if args.only in (None, group):
             try:
                 mod = importlib.import_module(f"benchmarks.{module}")

@@ -75,7 +75,49 @@ def scaling():
     splice(DOCS / "scaling.md", "scaling", "```text\n" + figures + "\n```")
 
 
-STEPS = {"accuracy": accuracy, "stability": stability, "pictures": pictures, "scaling": scaling}
+def gait():
+    """docs/gait.md: the multipliers of every scene's gait (exact, and the largest difference from central
+    differences of the same map), and docs/gait_multipliers.png, the walk scene's multipliers along its slope."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from biped_sim.analysis.gait import gaits_along, scene_gait
+    from biped_sim.config.scenes import available_scenes, load_scene
+
+    rows = ["| scene | multipliers (exact) | max \\|exact - central differences\\| | period (s) |",
+            "| --- | --- | --- | --- |"]
+    for name in available_scenes():
+        try:
+            g = scene_gait(load_scene(name))
+        except ValueError as exc:       # no controller, or no impacts: no gait
+            print(f"  {name}: {exc}")
+            continue
+        fd = np.linalg.eigvals(g.jacobian_fd())
+        diff = np.max(np.abs(np.sort_complex(g.multipliers) - np.sort_complex(fd)))
+        mults = ", ".join(f"{m.real:.7f}" if abs(m.imag) < 1e-12 else f"{m.real:.7f} {m.imag:+.7f}j"
+                          for m in g.multipliers)
+        rows.append(f"| {name} | {mults} | {diff:.1e} | {g.period:.6f} |")
+    splice(DOCS / "gait.md", "multipliers", "\n".join(rows))
+    slopes = np.round(np.arange(0.0, 0.0501, 0.0025), 4)
+    found = [(v, g) for v, g, _why in gaits_along("walk", "slope", slopes) if g is not None]
+    v = np.array([s for s, _ in found])
+    m = np.array([np.abs(g.multipliers) for _, g in found])
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for i in range(m.shape[1]):
+        ax.semilogy(v, m[:, i], "o-", ms=3, label=f"|multiplier {i + 1}|")
+    ax.axhline(1.0, color="k", lw=0.8, ls="--")
+    ax.set_xlabel("slope of the walk scene (rad, downhill)")
+    ax.set_ylabel("|Floquet multiplier|")
+    ax.set_title("walk scene: multipliers of the gait along the slope (exact Jacobian)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(DOCS / "gait_multipliers.png", dpi=100)
+    print(f"  docs/gait_multipliers.png: {len(found)} of {len(slopes)} slopes with a gait")
+
+
+STEPS = {"accuracy": accuracy, "stability": stability, "pictures": pictures, "scaling": scaling, "gait": gait}
 
 if __name__ == "__main__":
     OUT.mkdir(parents=True, exist_ok=True)

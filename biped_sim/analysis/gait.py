@@ -286,3 +286,27 @@ def _method(g):
 
 def _c(e):
     return f"{e.real:.4g}" if abs(e.imag) < 1e-12 else f"{e.real:.4g}{e.imag:+.4g}j"
+
+
+def gaits_along(scene, parameter, values, jacobian=EXACT):
+    """The gait of a scene (a name or a path) as one of its parameters (``load_scene``'s override names: the
+    node's, e.g. ``slope``, or the controller's, e.g. ``kp``) takes ``values`` in turn: a list of
+    (value, Gait or None, why not). Continuation: each Newton's method starts from the last fixed point
+    found (after its warm-up steps from there)."""
+    from biped_sim.config.scenes import load_scene
+    out, z = [], None
+    for v in values:
+        s = load_scene(scene, {parameter: v})
+        kw = s.engine_arguments()
+        try:
+            g = find_gait(kw["model"], s.controller(), z0=z, slope=kw["slope"], touchdown_rule=kw["touchdown_rule"],
+                          jacobian=jacobian)
+        except (RuntimeError, ValueError, np.linalg.LinAlgError) as exc:
+            out.append((v, None, str(exc).splitlines()[0]))
+            continue
+        if g.residual > 1e-8:
+            out.append((v, None, f"Newton's method did not converge (|P(z) - z| = {g.residual:.1e})"))
+            continue
+        z = g.fixed_point
+        out.append((v, g, ""))
+    return out
