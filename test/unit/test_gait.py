@@ -95,3 +95,16 @@ def test_cli_gait(capsys):
         assert word in out
     assert cli_main(["gait", "--scene", "slope", "--jacobian", "fd"]) == 0
     assert "Jacobian  central differences" in capsys.readouterr().out
+
+
+def test_the_compass_gait_has_the_reference_multipliers():
+    """The passive compass gait (Drake's CompassGait defaults) as a special case of the model: its multipliers
+    -0.2022161 +- 0.5434150j and 0.1313867 (issue 32's reference, 7 digits), and the torso rotor's two at 1."""
+    from biped_sim.analysis.gait import compass_gait
+    g = compass_gait()
+    assert g.residual < 1e-9 and g.law_derivative == "finite differences of the law"
+    legs = sorted(g.multipliers, key=lambda m: abs(m - 1.0))[2:]
+    reference = [-0.2022161 + 0.5434150j, -0.2022161 - 0.5434150j, 0.1313867]
+    for r in reference:
+        assert min(abs(m - r) for m in legs) < 1e-7
+    assert np.allclose(sorted(g.multipliers, key=lambda m: abs(m - 1.0))[:2], 1.0, atol=1e-5)
