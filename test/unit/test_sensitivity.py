@@ -4,7 +4,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 
 from biped_sim.analysis.edge_cases import bouncing_landing
 from biped_sim.control.walking import PDWalkingController, WalkingController
@@ -154,11 +154,15 @@ def test_run_jacobian_of_a_stance_stretch(scale, dz):
     assert r.events == [] and r.law_derivative == LAW_EXACT
 
 
-@settings(max_examples=4, deadline=None, derandomize=True)
-@given(SCALES, st.tuples(*[st.floats(-0.01, 0.01)] * 6), st.sampled_from([None, 1e-3]))
-def test_run_jacobian_through_a_touchdown(scale, dz, period):
+@settings(max_examples=6, deadline=None, derandomize=True)
+@given(SCALES, st.tuples(*[st.floats(-0.01, 0.01)] * 6), st.sampled_from([None, 1e-3]),
+       st.sampled_from(["floating", "fixed"]))
+@example((1.0,) * 4, (0.0,) * 6, None, "floating")
+@example((1.0,) * 4, (0.0,) * 6, 1e-3, "fixed")
+def test_run_jacobian_through_a_touchdown(scale, dz, period, base):
     """(b) the last 80 ms of a step and the first of the next: the touchdown of leg 2, its impact map and the
-    stance on leg 2, under the walking law at every evaluation or held 1 ms (zero-order hold)."""
+    stance on leg 2, under the walking law at every evaluation or held 1 ms (zero-order hold), the engine's
+    stance on the floating or the fixed base (the same motion, linearised in floating-base coordinates)."""
     model = model_with(scale)
     ctrl = WalkingController(model)
     q0, dq0 = ctrl.initial_state()
@@ -166,7 +170,8 @@ def test_run_jacobian_through_a_touchdown(scale, dz, period):
     sim.advance(0.4, controller=ctrl)
     z = np.concatenate([sim.q[2:], sim.dq[2:]]) + np.array(dz)
     foot = tuple(model.foot_position(sim.q, 1))
-    r = check_run_jacobian(model, z, 0.12, foot=foot, controller=ctrl, control_period=period)
+    r = check_run_jacobian(model, z, 0.12, foot=foot, controller=ctrl, control_period=period, base=base,
+                           phases=frozenset({"stance", "impact"}))
     assert [(kind, leg) for _t, kind, leg in r.events] == [("touchdown", 2)]
 
 
