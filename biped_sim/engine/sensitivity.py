@@ -53,6 +53,9 @@ LAW_FD = "finite differences of the law"
 LAW_NONE = "none (torque held constant)"
 #: the event kinds a run is linearised through (a scuff is a report, not a change of mode)
 LINEARISED_EVENTS = ("touchdown", "liftoff")
+#: (the last model parameters and state asked, Linearization._affine's terms there): shared by every
+#: Linearization, so that a law's ``jacobian`` on its own model of the same parameters and the flow share it
+_AFFINE = [None, None]
 
 
 def law_jacobian(controller, t, q, dq, stance_leg):
@@ -122,36 +125,67 @@ class Linearization:
         """The phase's solution s and its derivatives: (s, ds/dq, ds/ddq, ds/du, ds/dp or None).
 
         In stance on ``stance_leg`` (1, 2) s = [ddq (5); F (2)] of the KKT system (F the force of the ground
-        on the foot, world axes); in flight (``stance_leg`` 0) s = ddq. q, dq, u: sequences."""
+        on the foot, world axes); in flight (``stance_leg`` 0) s = ddq. q, dq, u: sequences.
+
+        s is affine in u, s = s0 + s_u u, and so is ds/dq: K ds/dq_k = dr/dq_k - (dK/dq_k) s with r - B u and K
+        free of u. The part at u = 0 (``_affine``) is kept for the last state asked, which a controller's
+        ``jacobian`` and the flow ask for in turn; the part of u costs one more solve."""
         q, dq = [float(v) for v in q], [float(v) for v in dq]
         u = np.asarray(u, float)
+        M, s0, su, dsq0, dsv, dsp0, dKs, dKsp = self._affine(q, dq, stance_leg, parameters)
+        delta = su @ u
+        s = s0 + delta
+        if not delta.any():
+            return s, dsq0, dsv, su, dsp0
+        cols = [dKs(delta)] + ([dKsp(delta)] if parameters else [])
+        corr = -np.linalg.solve(M, np.hstack(cols))
+        dsq = dsq0 + corr[:, :5]
+        return s, dsq, dsv, su, (dsp0 + corr[:, 5:] if parameters else None)
+
+    def _affine(self, q, dq, stance_leg, parameters):
+        """(K or D, s0, s_u, ds0/dq, ds/ddq, ds0/dp, v -> (dK/dq) v, v -> (dK/dp) v) at u = 0."""
+        key = (self.model.p, tuple(q), tuple(dq), stance_leg, parameters)
+        if _AFFINE[0] == key:
+            return _AFFINE[1]
         D, h, dD, dhq, dhv = self._mass_and_bias(q, dq)
-        Bu = B @ u
+        pj = self._parameters(q, dq) if parameters else None
         if stance_leg:
             J, dJ, jb, djbq, djbv = self._foot(q, dq, stance_leg)
-            K = np.zeros((7, 7))
-            K[:5, :5], K[:5, 5:], K[5:, :5] = D, -J.T, J
-            s = np.linalg.solve(K, np.concatenate([Bu - h, -jb]))
-            ddq, F = s[:5], s[5:]
-            # (dK/dq_k) s, column k
-            dKs = np.vstack([np.einsum("kij,j->ik", dD, ddq) - np.einsum("kaj,a->jk", dJ, F),
-                             np.einsum("kaj,j->ak", dJ, ddq)])
-            cols = [np.vstack([-dhq, -djbq]) - dKs, np.vstack([-dhv, -djbv]), np.vstack([B, np.zeros((2, 2))])]
+            M = np.zeros((7, 7))
+            M[:5, :5], M[:5, 5:], M[5:, :5] = D, -J.T, J
+            rhs0, Bw = np.concatenate([-h, -jb]), np.vstack([B, np.zeros((2, 2))])
+            rq, rv = np.vstack([-dhq, -djbq]), np.vstack([-dhv, -djbv])
+
+            def dKs(s):     # column k: (dK/dq_k) s = [dD/dq_k ddq - (dJ/dq_k)^T F; dJ/dq_k ddq]
+                return np.vstack([np.einsum("kij,j->ik", dD, s[:5]) - np.einsum("kaj,a->jk", dJ, s[5:]),
+                                  np.einsum("kaj,j->ak", dJ, s[:5])])
+            dKsp = rp = None
             if parameters:
-                dDp, dhp, dJ1p, dJ2p, djb1p, djb2p, _feet = self._parameters(q, dq)
+                dDp, dhp, dJ1p, dJ2p, djb1p, djb2p, _feet = pj
                 dJp, djbp = (dJ1p, djb1p) if stance_leg == 1 else (dJ2p, djb2p)
-                dKsp = np.vstack([np.einsum("pij,j->ip", dDp, ddq) - np.einsum("paj,a->jp", dJp, F),
-                                  np.einsum("paj,j->ap", dJp, ddq)])
-                cols.append(np.vstack([-dhp, -djbp]) - dKsp)
+                rp = np.vstack([-dhp, -djbp])
+
+                def dKsp(s):
+                    return np.vstack([np.einsum("pij,j->ip", dDp, s[:5]) - np.einsum("paj,a->jp", dJp, s[5:]),
+                                      np.einsum("paj,j->ap", dJp, s[:5])])
         else:
-            s = np.linalg.solve(D, Bu - h)
-            cols = [-dhq - np.einsum("kij,j->ik", dD, s), -dhv, B]
+            M, rhs0, Bw, rq, rv = D, -h, B, -dhq, -dhv
+
+            def dKs(s):
+                return np.einsum("kij,j->ik", dD, s)
+            dKsp = rp = None
             if parameters:
-                dDp, dhp = self._parameters(q, dq)[:2]
-                cols.append(-dhp - np.einsum("pij,j->ip", dDp, s))
-        sizes = [c.shape[1] for c in cols]
-        ds = np.split(np.linalg.solve(K if stance_leg else D, np.hstack(cols)), np.cumsum(sizes)[:-1], axis=1)
-        return s, ds[0], ds[1], ds[2], (ds[3] if parameters else None)
+                dDp, dhp = pj[:2]
+                rp = -dhp
+
+                def dKsp(s):
+                    return np.einsum("pij,j->ip", dDp, s)
+        s0 = np.linalg.solve(M, rhs0)
+        cols = [rq - dKs(s0), rv, Bw] + ([rp - dKsp(s0)] if parameters else [])
+        sol = np.linalg.solve(M, np.hstack(cols))
+        data = (M, s0, sol[:, 10:12], sol[:, 0:5], sol[:, 5:10], sol[:, 12:] if parameters else None, dKs, dKsp)
+        _AFFINE[:] = key, data
+        return data
 
     def flow(self, q, dq, u, stance_leg, u_x=None, parameters=False):
         """f = (dq, ddq) of the mode, A = df/dx (10x10; with the law's u_x (2x10) the torque's dependence
