@@ -8,7 +8,7 @@ inputs a run may depend on besides x: a held torque u and the model parameters p
 * Stance on foot i: f(x) = (dq, ddq) with the KKT system of docs/model.md, K s = r,
   K = [D -J_i^T; J_i 0], s = [ddq; F], r = [-h + B u; -Jdot_i dq] (h = C dq + G). For each variable v
   (a coordinate, a rate, a torque, a parameter) K ds/dv = dr/dv - (dK/dv) s, with
-  (dK/dq_k) s = [dD/dq_k ddq - (dJ_i/dq_k)^T F; dJ_i/dq_k ddq]: one factorisation of K serves every
+  (dK/dq_k) s = [dD/dq_k ddq - (dJ_i/dq_k)^T F; dJ_i/dq_k ddq]: one solve with K takes every
   column, and the rows of F give the derivative of the ground force (the liftoff guard's).
 * Flight: D ddq = -h + B u, the same without the J rows.
 * Fixed base: D_s ddq_s = B_s u - h_s on the chain (``fixed_base_jacobian``). Its motion is the floating
