@@ -300,7 +300,7 @@ class HybridSimulator:
             t_next = t_final          # the last period ends exactly at the run's end
         self.control_periods = k + 1
         if controller is not None:
-            # a reference law on the compiled loop: its torque computed in C, the same bits
+            # a compiled law on the compiled loop: its torque computed in C, the same bits
             u = self._compiled.command(controller) if self._compiled is not None else None
             if u is None:
                 u = self.command(controller)
@@ -315,7 +315,7 @@ class HybridSimulator:
     def advance_periods(self, period, controller, t_final, t_stop=math.inf):
         """``advance_period(period, controller=controller, t_final=t_final)`` repeated until ``t_final``, or
         until a period starts at or after ``t_stop`` (within 1e-9 period: a push due then). The same run;
-        on the compiled loop a reference law's periods run in C, their commands computed there."""
+        on the compiled loop a compiled law's periods run in C, their commands computed there."""
         check_number("period", period, 0.0, math.inf, "s", open_low=True)
         tol = 1e-9 * period
         while self.status == "running" and self.t < t_final and t_stop > self.t + tol:
