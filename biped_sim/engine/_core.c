@@ -559,6 +559,14 @@ locate_crossing(Loop *L, int leg, double ta, double tb, double *root)
 
 /* -- the quiet steps ----------------------------------------------------------------------------- */
 
+/* witnesses.triggered: a witness with value w0 at a step's start and w1 at its end fired in the step (the
+ * one direction of the model's witnesses, "positive then non-positive") */
+static inline int
+triggered(double w0, double w1)
+{
+    return w0 > 0 && w1 <= 0;
+}
+
 /* guards.swinging_through of a foot (x, height, dx, dheight): moving forward more than it sinks */
 static int
 swinging_through(const double *foot)
@@ -736,10 +744,10 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     long scuffs = L->scuffs;
     int touching = 0;
     double t_touch = 0.0;
-    /* EventLocator.locate: the guards of stance, in active_guards' order */
+    /* EventLocator.locate: the witnesses of stance, in witnesses.witnesses' order (touchdown, liftoff, slip) */
     if (L->impact_phase && L->armed[sw - 1]) {
         double g1 = ft1[4 * (sw - 1) + 1], g0 = ft0[4 * (sw - 1) + 1], bracket[2] = {L->t_old, L->t}, t_root;
-        int crossing = g0 > 0 && g1 <= 0;
+        int crossing = triggered(g0, g1);
         if (crossing || (g0 > 0 && g1 > 0 && may_dip(L, sw, g0, g1, bracket))) {
             if (locate_crossing(L, sw, bracket[0], bracket[1], &t_root) < 0 || !L->front_rule) { L->why = 2; return 0; }
             /* _is_scuff (guards.starts_scuff): at or behind the stance foot, and under scuff_rule "forward"
@@ -765,12 +773,10 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         }
     }
     {
-        double g1 = normal(L, F1), g0 = normal(L, F0);
-        if (g0 > 0 && g1 <= 0) { L->why = 4; return 0; }
+        if (triggered(normal(L, F0), normal(L, F1))) { L->why = 4; return 0; }
     }
     if (L->has_mu) {
-        double g1 = slip_margin(L, F1), g0 = slip_margin(L, F0);
-        if (g0 > 0 && g1 <= 0) { L->why = 5; return 0; }
+        if (triggered(slip_margin(L, F0), slip_margin(L, F1))) { L->why = 5; return 0; }
     }
     if (touching) {
         if (scuffing) { L->why = 3; return 0; }

@@ -1,8 +1,9 @@
 """The compiled hybrid loop (``_core.c``) as the hybrid simulator steps with it.
 
 Owns one choice and one hand-over. The choice: a mode runs on the compiled loop when it is
-floating-base stance, stepped by dop853 or dopri5, with no ``on_step`` observer, and the extension
-was built from the current generated kernels; its torque is held, a compiled law that the controller
+floating-base stance, stepped by dop853 or dopri5, with no ``on_step`` observer, every witness of the
+model one that the loop decides (``witnesses.all_compiled``), and the extension was built from the current
+generated kernels; its torque is held, a compiled law that the controller
 offers through the torque-law hook (``controller.compiled_law(model)``, :mod:`~biped_sim.engine.torque_hook`),
 or any other Python controller, called back. Else, and always with
 ``BIPED_SIM_PURE_PYTHON=1``, the Python loop of ``hybrid.py`` runs, the readable reference. Both give
@@ -27,6 +28,7 @@ from biped_sim.engine.guards import FootState
 from biped_sim.engine.locator import scuff_event
 from biped_sim.engine.modes import bind_controller
 from biped_sim.engine.results import Event, SimulationError
+from biped_sim.engine.witnesses import all_compiled
 
 DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED, TOUCHDOWN, TORQUE_CHANGE = range(9)
 # (SCUFF_ENDED and TOUCHDOWN: the kinds of take_events' records; TORQUE_CHANGE: periods() stopped before a
@@ -94,7 +96,7 @@ def _hook_argument(law):
 def covers(sim, controller):
     """The torque law when the compiled loop can run the simulator's current mode, else None."""
     if (_core is None or not enabled or not sim.stance_leg or sim.opt.base != "floating"
-            or sim.method not in METHOD_CODES or sim.on_step is not None):
+            or sim.method not in METHOD_CODES or sim.on_step is not None or not all_compiled()):
         return None
     return _torque_in_mode(controller, sim.stance_leg, sim.model)
 
