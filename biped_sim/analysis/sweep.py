@@ -302,7 +302,7 @@ def _new_pool(workers):
 
 def _start_method():
     """The fork server where there is one (POSIX): a clean single-threaded process that imports the
-    engine once (numpy, scipy: ~2 s on a loaded machine) and forks the workers of every pool this
+    engine once (numpy, scipy: seconds on a loaded machine) and forks the workers of every pool this
     process starts, so that a pool costs that import once and not once per worker or per sweep.
     Its workers do not run the caller's ``__main__`` (:class:`_WorkerPopen`).
     Elsewhere spawned processes. Never a fork of this process, which may hold threads."""

@@ -149,9 +149,9 @@ class PDWalkingController(WalkingController):
     """The same virtual constraints held by a PD law, without inverting the model.
 
     The swing hip drives y2; both hips together hold the torso (the torso feels the reaction of
-    both hip torques). About ten times cheaper per call than the computed torque of
-    :class:`WalkingController`, so a run's cost is the integrator's; it converges to a periodic
-    gait too (step period 0.551 s with the defaults), more slowly.
+    both hip torques). Cheaper per call than the computed torque of :class:`WalkingController`
+    (docs/scenes.md), so a run's cost is the integrator's; it converges to a periodic gait too, more
+    slowly.
     """
 
     def compiled_law(self, model):

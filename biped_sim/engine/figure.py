@@ -1,8 +1,8 @@
 """The figure of a run (``SimulationResult.plot()`` and ``biped-sim inspect``): joint angles, ground
 reaction forces, hip torques, impact markers and a stick-figure strip of the gait, drawn from arrays.
 
-matplotlib is imported inside :func:`run_figure` only: a run that plots nothing does not pay for it
-(~0.4 s), and the engine stays usable without it (it is the ``plot`` extra). The figure is a
+matplotlib is imported inside :func:`run_figure` only: a run that plots nothing does not pay for its
+import, and the engine stays usable without it (it is the ``plot`` extra). The figure is a
 ``matplotlib.figure.Figure`` made without pyplot: no global backend or figure registry is touched.
 """
 from __future__ import annotations

@@ -133,7 +133,7 @@ def locate_crossing(guard_at, ta, tb, event_tol) -> float:
 
 # -- the ground as a constraint on states ----------------------------------------------------------
 def prepare_event_location():
-    """Import the root finder now (``locate_crossing`` imports it where it is used, ~0.4 s): a
+    """Import the root finder now (``locate_crossing`` imports it where it is used, a slow import): a
     realtime run must not stall at its first event for it."""
     import scipy.optimize  # noqa: F401
 
