@@ -2,7 +2,8 @@
 
 Owns :class:`RunWatch`, a timer of the node that runs two checks every :data:`WATCH_PERIOD` s of
 wall time (a steady clock, whatever the simulated time does), each a plain class that returns the
-lines to log, and :func:`stale_command`, the lockstep rule for a command tagged with the state it answers:
+lines to log (the lockstep rule for a command tagged with the state it answers is
+:func:`biped_sim.recording.node_run.stale_command`):
 
 * :class:`GraphWatch`: another node of the same name (a call to its ``~/reset`` resets both), or
   another node on the node's topics -- a second publisher of ``hip_torque``
@@ -140,24 +141,6 @@ class SilenceWatch:
                     "command and keeps waiting" + (f" (lockstep_timeout={self.timeout:g} s)" if self.timeout else
                                                    " (set lockstep_timeout to end it)")), None
         return None, None
-
-
-def stale_command(answers_ns: int | None, newest_ns: int, before_reset_ns: int | None = None) -> str | None:
-    """Why a lockstep command tagged as the answer to the state ``answers_ns`` is not taken when the
-    newest state is ``newest_ns``, or None (untagged, or the answer to the newest state).
-    ``before_reset_ns``: the latest state the runs before a ``~/reset`` reached (None: no reset), so
-    that a late answer to one of them is called what it is, not blamed on another simulation."""
-    if answers_ns is None or answers_ns == newest_ns:
-        return None
-    if before_reset_ns is not None and newest_ns < answers_ns <= before_reset_ns:
-        return (f"it answers the state at t={answers_ns * 1e-9:.6f} s of the run before the ~/reset (which "
-                f"reached t={before_reset_ns * 1e-9:.6f} s): a late answer to the old run; the run restarted "
-                "at t = 0 and takes the answer to its newest state")
-    where = (f"the state at t={answers_ns * 1e-9:.6f} s, an older one: a restarted or a second controller "
-             "answers states the run has gone past" if answers_ns < newest_ns else
-             f"the state at t={answers_ns * 1e-9:.6f} s, which this node has not published: another "
-             "simulation on this ROS domain?")
-    return f"it answers {where}"
 
 
 def round_down_125(x: float) -> float:

@@ -48,6 +48,7 @@ from biped_sim.recording.messages import (
     foot_frame,
     to_ns,
 )
+from biped_sim.recording.node_run import stale_command
 from biped_sim.ros import params_files, run_watch, startup
 from biped_sim.ros.one_topic_spin import OneTopicSpin
 from biped_sim.ros.parameters import declare_from_table, usage_text, value_less_override_message
@@ -258,7 +259,7 @@ class SimNode(Node):
 
     def _stale(self, msg, t) -> bool:
         """A command tagged as the answer to a state other than the newest: ignored (counted, warned)."""
-        why = run_watch.stale_command(answered_ns(msg), to_ns(t), self.control.before_reset_ns)
+        why = stale_command(answered_ns(msg), to_ns(t), self.control.before_reset_ns)
         if why is None or self.finished or self.stopped:
             return False
         self.counts["stale"] += 1
