@@ -73,6 +73,11 @@ class NodeRun:
         self.stopped = False            # the engine stopped (an error, a fall, a refused start)
         return self.sim
 
+    def label_states(self, labels):
+        """Name the state messages of :meth:`state_messages` by ``labels`` ({output name: label}, e.g.
+        the node's topic names) instead of the output names."""
+        self.serializer = StateSerializer(JOINT_NAMES, labels=labels)
+
     @property
     def running(self) -> bool:
         return not (self.finished or self.stopped)
