@@ -103,19 +103,22 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
 def params_from_args(args):
     """(checked parameters, controller) of a ``biped-sim simulate`` command line (with or without --scene)."""
     from biped_sim.config import parameters as P
+    from biped_sim.config.controllers import chosen_controller
     if args.scene:
         from biped_sim.config.scenes import load_scene
         scene = load_scene(args.scene, overrides=getattr(args, "scene_overrides", None))
         params = dict(scene.params)
         params["time_mode"] = "lockstep"
-        return P.validate(params), scene.controller()
+        return P.validate(params), chosen_controller(getattr(args, "controller", None), scene)
     from biped_sim.control.walking import WalkingController
     from biped_sim.engine.integrators import FIXED_STEP_METHODS
     from biped_sim.engine.model import BipedModel
-    ctrl = WalkingController(BipedModel())
+    walk = WalkingController(BipedModel())
+    controller = chosen_controller(args.controller, model=walk.model)
     if (args.q0 is None) != (args.dq0 is None):
         raise ValueError("give both --q0 and --dq0, or neither")
-    q0, dq0 = (args.q0, args.dq0) if args.q0 is not None else ctrl.initial_state()
+    # without --q0/--dq0: your controller's initial_state() if it has one, else the reference gait's
+    q0, dq0 = (args.q0, args.dq0) if args.q0 is not None else getattr(controller, "initial_state", walk.initial_state)()
     values = dict(scene="simulate", time_mode="lockstep", duration=10.0 if args.duration is None else args.duration,
                   initial_q=[float(v) for v in q0], initial_dq=[float(v) for v in dq0],
                   initial_stance_leg=args.stance_leg, method=args.method, rtol=args.rtol, atol=args.atol,
@@ -126,7 +129,7 @@ def params_from_args(args):
         values["step"] = args.step
     if args.base == "fixed":
         values["phases"] = ["stance", "impact"]
-    return P.validate(values), (ctrl if args.controller == "walk" else None)
+    return P.validate(values), controller
 
 
 def simulate_recorded(args):
