@@ -32,6 +32,7 @@ import threading
 import time
 
 from rclpy.clock import Clock, ClockType
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
 #: wall seconds between two checks (the graph query costs about 0.1 ms)
 WATCH_PERIOD = 0.5
@@ -45,6 +46,10 @@ MARKER_SHARE_ADVISED = 0.05
 MARKER_WINDOW = 1.0
 #: wall seconds between two lines about one kind of refusal that comes in a burst
 BURST_SUMMARY_INTERVAL = 2.0
+#: lockstep: a run that has waited this long (wall s) for a command offers its newest state again to a
+#: ``joint_states`` subscriber that appears with volatile durability (a controller with rclpy's default
+#: QoS started after the node: it never received the state it must answer)
+REOFFER_AFTER = 0.5
 
 
 def endpoint_name(info) -> str:
@@ -76,6 +81,12 @@ class GraphWatch:
         holds each name once, so they are counted by their publishers on the topics every node has."""
         return max(sum(1 for i in self.node.get_publishers_info_by_topic(topic) if endpoint_name(i) == self.own)
                    for topic in ("/rosout", "/parameter_events"))
+
+    def endpoints(self, topic: str, publishers: bool) -> list:
+        """(node name, QoS profile) of the publishers (or subscribers) of ``topic`` other than this node."""
+        infos = (self.node.get_publishers_info_by_topic if publishers else
+                 self.node.get_subscriptions_info_by_topic)(topic)
+        return [(endpoint_name(i), i.qos_profile) for i in infos if endpoint_name(i) != self.own]
 
     def check(self) -> list:
         """The warnings about a set of publishers (or of nodes of this name) not said before."""
@@ -125,9 +136,13 @@ class SilenceWatch:
             self.last_t = t
         self.next_warning = self.warn_after
 
-    def check(self, t: float, now: float | None = None) -> tuple:
-        """(warning or None, end-of-run message or None) at simulated time ``t``."""
-        silent = (time.monotonic() if now is None else now) - self.last_wall
+    def silent_for(self, now: float | None = None) -> float:
+        return (time.monotonic() if now is None else now) - self.last_wall
+
+    def check(self, t: float, now: float | None = None, why=lambda: None) -> tuple:
+        """(warning or None, end-of-run message or None) at simulated time ``t``; ``why()``: what the ROS
+        graph says of the silence (or None), asked only when there is a warning to give."""
+        silent = self.silent_for(now)
         last = ("no command since the start" if self.last_t is None else
                 f"the last command answered the state at t={self.last_t:.6f} s")
         if self.timeout and silent >= self.timeout:
@@ -136,10 +151,11 @@ class SilenceWatch:
         if self.warn_after and silent >= self.next_warning:
             self.warnings += 1
             self.next_warning = min(2 * self.next_warning, self.next_warning + MAX_REPEAT)
+            cause = why() or "Is the controller running, on this ROS_DOMAIN_ID?"
             return (f"lockstep: waiting for a hip_torque command at t={t:.6f} s: {last}, {silent:.1f} s ago (wall). "
-                    "Is the controller running, on this ROS_DOMAIN_ID? The run advances one control period per "
-                    "command and keeps waiting" + (f" (lockstep_timeout={self.timeout:g} s)" if self.timeout else
-                                                   " (set lockstep_timeout to end it)")), None
+                    f"{cause} The run advances one control period per command and keeps waiting"
+                    + (f" (lockstep_timeout={self.timeout:g} s)" if self.timeout else
+                       " (set lockstep_timeout to end it)")), None
         return None, None
 
 
@@ -243,6 +259,7 @@ class RunWatch:
         self.silence = (SilenceWatch(node.params["lockstep_warn_after"], node.params["lockstep_timeout"])
                         if node.mode == "lockstep" else None)
         self.markers = MarkerLoad(node.params["marker_rate"]) if node.markers is not None else None
+        self.offered = set()    # the volatile joint_states subscribers seen (lockstep: offered the state)
         node.create_timer(WATCH_PERIOD, self.check, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def check_markers(self, final: bool = False):
@@ -258,6 +275,46 @@ class RunWatch:
         if self.silence is not None:
             self.silence.commanded(t)
 
+    def offer_state_to_late_subscribers(self):
+        """Lockstep: the newest state published again (not recorded) when a volatile ``joint_states``
+        subscriber appeared while the run waits for a command: it could not have received it."""
+        node = self.node
+        if node.pub_js is None:
+            return
+        volatile = {name for name, qos in self.graph.endpoints(node.pub_js.topic_name, publishers=False)
+                    if qos.durability == DurabilityPolicy.VOLATILE}
+        new, self.offered = volatile - self.offered, volatile
+        if new and self.silence.silent_for() >= REOFFER_AFTER:
+            node.offer_state_again()
+            node.get_logger().info(
+                f"lockstep: {', '.join(sorted(new))} subscribed to {node.pub_js.topic_name} (volatile) after the "
+                f"state at t={node.sim.t:.6f} s was published: offered it again (the run waits for its answer)")
+
+    def silence_cause(self):
+        """What the graph says of a silent lockstep controller: a ``joint_states`` subscriber is there (the
+        controller runs on this domain) but no ``hip_torque`` publisher, or one whose QoS cannot reach the
+        node's reliable subscription."""
+        node = self.node
+        if node.pub_js is None:
+            return None
+        listeners = sorted({name for name, _ in self.graph.endpoints(node.pub_js.topic_name, publishers=False)})
+        if not listeners:
+            return None
+        topic = node.sub.topic_name
+        commanders = self.graph.endpoints(topic, publishers=True)
+        here = (f"{', '.join(listeners)} subscribe{'s' if len(listeners) == 1 else ''} to "
+                f"{node.pub_js.topic_name} (so the controller runs on this ROS domain)")
+        if not commanders:
+            return (f"{here}, but no node publishes {topic}: does the controller publish its command there "
+                    "(std_msgs/Float64MultiArray, data [u1, u2])? Check the topic name and remappings.")
+        best_effort = sorted(name for name, qos in commanders if qos.reliability == ReliabilityPolicy.BEST_EFFORT)
+        if best_effort:
+            return (f"{here}; {', '.join(best_effort)} publish{'es' if len(best_effort) == 1 else ''} {topic} best "
+                    "effort, which this node's reliable subscription does not match: publish it reliable "
+                    "(rclpy's default QoS).")
+        return (f"{here}, and {', '.join(sorted({n for n, _ in commanders}))} publish {topic}, but no command has "
+                "come: a lockstep controller publishes one command for each joint_states message it receives.")
+
     def check(self):
         node = self.node
         log = node.get_logger()
@@ -271,7 +328,8 @@ class RunWatch:
         if control is not None and control.paused:     # ~/pause holds the run: the controller is not silent
             self.silence.commanded(None)
             return
-        warning, end = self.silence.check(node.sim.t)
+        self.offer_state_to_late_subscribers()
+        warning, end = self.silence.check(node.sim.t, why=self.silence_cause)
         if warning:
             log.warning(warning)
         if end:

@@ -362,6 +362,12 @@ class SimNode(Node):
                 self._publish(self.pub_markers, serialize_message(msg), sim.t)
                 self.watch.markers.drew(time.monotonic() - begin)     # its share of the wall time (run_watch)
 
+    def offer_state_again(self):
+        """The newest state's messages published again to the subscribers, not recorded (a lockstep
+        controller that subscribed after it was published: :class:`~biped_sim.ros.run_watch.RunWatch`)."""
+        for topic, data in self.run_rules.state_messages():
+            self._state_pubs[topic].publish(data)
+
     # -- time modes ---------------------------------------------------------------------------
     def run(self, should_stop, executor):
         """The run in the chosen time mode, until the duration, an engine error or ``should_stop()``;

@@ -118,3 +118,10 @@ def test_the_example_module_is_the_one_docs_controllers_shows():
     page = (root / "docs" / "controllers.md").read_text()
     shown = page.split("```py\n", 1)[1].split("```", 1)[0]
     assert shown == (root / "examples" / "my_controllers.py").read_text()
+
+
+def test_the_minimal_controller_node_is_the_one_docs_node_shows():
+    root = Path(__file__).resolve().parents[2]
+    page = (root / "docs" / "node.md").read_text()
+    shown = page.split("### A controller node of your own", 1)[1].split("```py\n", 1)[1].split("```", 1)[0]
+    assert shown == (root / "examples" / "minimal_controller.py").read_text()
