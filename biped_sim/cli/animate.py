@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import sys
 
+from biped_sim.config.controllers import CLI_HELP, chosen_controller, cli_controller
+
 
 def register(sub):
     p = sub.add_parser(
@@ -20,6 +22,8 @@ def register(sub):
     p.add_argument("bag", metavar="BAG", nargs="?", help="a bag directory (or its .mcap) recorded by biped_sim")
     p.add_argument("--scene", metavar="NAME", help="instead of a bag: run this scene headless "
                    "(msg_configs/NAME.yaml, or a path to a .yaml) and draw it")
+    p.add_argument("--controller", metavar="MODULE:ATTR|walk|none",
+                   help="with --scene: " + CLI_HELP + " [default: the scene's]")
     p.add_argument("-o", "--output", required=True, metavar="FILE", help="the file to write: .gif or .mp4")
     p.add_argument("--speed", type=float, default=1.0,
                    help="simulated seconds per second of the animation (default 1: real time)")
@@ -35,6 +39,8 @@ def register(sub):
 def _check(args):
     if (args.bag is None) == (args.scene is None):
         raise ValueError("give a BAG or --scene NAME (one of them)")
+    if args.controller is not None and args.scene is None:
+        raise ValueError("--controller goes with --scene (a bag's run has its controller already)")
     for name in ("speed", "fps"):
         v = getattr(args, name)
         if not v > 0 or v == float("inf"):
@@ -56,10 +62,11 @@ def run(args):
     if args.scene is not None:
         from biped_sim.config.scenes import load_scene
         scene = load_scene(args.scene)
+        controller = chosen_controller(cli_controller(args.controller), scene)
         t_final = scene.duration if args.duration is None else (args.start or 0.0) + args.duration
         if not t_final > 0:
             raise ValueError(f"scene {scene.name} has no duration: give --duration")
-        result = scene.simulate(t_final=t_final, compute_grf=True)
+        result = scene.simulate(t_final=t_final, compute_grf=True, controller=controller)
         if result.status != "completed":
             print(f"biped-sim animate: the run {result.status} at t={result.t[-1]:.6g} s: {result.message} "
                   "(drawn up to there)", file=sys.stderr)
