@@ -193,6 +193,8 @@ class SimControl:
         loop's clocks must start again from the simulated time (it paused, stepped or reset)."""
         restart = False
         while True:
+            if restart:     # the commands received while paused: the last one holds, as in a period
+                self.node.take_commands()
             with self.cond:
                 req = self.requests.popleft() if self.requests else None
                 if req is None:
@@ -213,6 +215,7 @@ class SimControl:
             if req.kind == "step":
                 t0 = node.sim.t
                 self.counts["steps"] += 1
+                node.take_commands()
                 node.step()
                 node.publish_state()
                 sim = node.sim
