@@ -67,6 +67,7 @@ class GraphWatch:
         self.command_topic, self.state_topic = command_topic, state_topic
         self.said = {command_topic: (), state_topic: ()}
         self.said_same_name = 1
+        self.said_best_effort = ()
 
     def others(self, topic: str, own_publishers: int) -> list:
         """Names of the publishers of ``topic`` other than this node's ``own_publishers``."""
@@ -106,6 +107,16 @@ class GraphWatch:
                 "drive one run: in lockstep a command tagged with the state it answers is taken once (a second "
                 "answer is stale and ignored), an untagged one advances the run every time; stop all but one")
         self.said[self.command_topic] = tuple(commanders) if len(commanders) > 1 else ()
+        # rclpy's own warning of an incompatible QoS needs event handlers on the subscription, which the
+        # realtime loop's command subscription does without (they kept the executor awake): said here
+        unmatched = sorted(name for name, qos in self.endpoints(self.command_topic, publishers=True)
+                           if qos.reliability == ReliabilityPolicy.BEST_EFFORT)
+        if unmatched and tuple(unmatched) != self.said_best_effort:
+            lines.append(
+                f"{', '.join(unmatched)} publish{'es' if len(unmatched) == 1 else ''} {self.command_topic} best "
+                "effort; this node's subscription is reliable, and DDS does not match the two: none of its commands "
+                "arrive. Publish hip_torque reliable (rclpy's default QoS)")
+        self.said_best_effort = tuple(unmatched)
         if self.state_topic is not None:
             sims = self.others(self.state_topic, 1)
             if sims and tuple(sims) != self.said[self.state_topic]:

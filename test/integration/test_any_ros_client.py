@@ -48,3 +48,19 @@ def test_a_controller_that_listens_but_commands_elsewhere_is_named():
     assert ("/minimal_controller subscribes to /joint_states (so the controller runs on this ROS domain), but "
             "no node publishes /hip_torque") in warning, warning
     assert "Is the controller running" not in warning
+
+
+def test_a_best_effort_command_publisher_is_named_in_any_time_mode():
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import Float64MultiArray
+    params = dict(time_mode="realtime", duration=0.0, record=False, command_timeout=0.0)
+    with ros_domain() as dom, Client(dom, name="best_effort_controller") as c:
+        with start_node(params, dom, extra_args=WALK) as sim:
+            c.node.create_publisher(Float64MultiArray, "hip_torque",
+                                    QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
+            c.spin_until(lambda: "publishes /hip_torque best effort" in sim.output(), 30,
+                         "the warning about a best-effort publisher", proc=sim)
+            sim.stop()
+    line = next(ln for ln in sim.output().splitlines() if "best effort" in ln)
+    assert "[WARN]" in line and "/best_effort_controller publishes /hip_torque best effort" in line, line
+    assert "Publish hip_torque reliable" in line
