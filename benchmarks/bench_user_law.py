@@ -101,7 +101,7 @@ def bench(repeats=5, t_final=10.0, plain_t_final=2.0):
         for name, law in (("walking_law", user_walking), ("hzd_bezier", hzd)):
             runs[f"MuJoCo mj_step 1 ms, {name} as plain Python"] = (
                 lambda law=law: bench_mujoco.walk_mujoco(mj, law, q0, dq0, t_final), t_final)
-    walls, outcome = {name: [] for name in runs}, {}
+    walls, outcome, bits = {name: [] for name in runs}, {}, {}
     for _ in range(repeats):
         for name, (ctrl, T) in runs.items():
             t0 = time.perf_counter()
@@ -110,6 +110,7 @@ def bench(repeats=5, t_final=10.0, plain_t_final=2.0):
                 outcome[name] = f"{n} touchdowns, hip x {q_end[0]:.3f} m"
             else:
                 r = scene.simulate(controller=ctrl, t_final=T)
+                bits[name] = r.q.tobytes() + r.u.tobytes()
                 outcome[name] = f"{r.status}, {len(r.impacts)} impacts, hip x {r.q[-1, 0]:.3f} m"
             walls[name].append((time.perf_counter() - t0) / T)
     rtf = {name: 1.0 / statistics.median(w) for name, w in walls.items()}
@@ -118,6 +119,8 @@ def bench(repeats=5, t_final=10.0, plain_t_final=2.0):
     print("  first compile in this process: " + ", ".join(f"{n} {s:.2f} s" for n, s in compile_s.items()))
     for name in runs:
         print(f"  {name:52s} RTF {rtf[name]:7.1f}  ({outcome[name]})")
+    same = bits["walking_law in Python, compiled by numba"] == bits["built-in WalkingController (C, through the hook)"]
+    print(f"  walking_law compiled gives the built-in law's run bit for bit (q and u): {same}")
     base = rtf["built-in WalkingController (C, through the hook)"]
     for name in ("walking_law", "hzd_bezier"):
         ratio = rtf[f"{name} in Python, compiled by numba"] / base
