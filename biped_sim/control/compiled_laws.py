@@ -87,6 +87,7 @@ class TorqueLaw:
     accepts_lists = True
 
     def __init__(self, fn, params=(), name=None):
+        fn = getattr(fn, "py_func", fn)         # a function already under numba's @njit: its Python function
         if not callable(fn) or not isinstance(getattr(fn, "__code__", None), types.CodeType):
             raise ValueError(f"a torque law must be a Python function, got {fn!r}")
         if fn.__code__.co_argcount != 6:

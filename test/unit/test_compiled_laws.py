@@ -164,3 +164,10 @@ def test_a_law_of_the_wrong_form_is_refused_when_made():
         bs.torque_law(lambda t, q, dq, stance_leg: 0)
     with pytest.raises(ValueError, match="params must be at most 128 finite real numbers"):
         bs.torque_law(failing_law, [math.nan])
+
+
+@needs_numba
+def test_a_law_already_under_njit_is_taken_as_its_python_function():
+    import numba
+    law = bs.torque_law(numba.njit(failing_law), [2.0])
+    assert law.fn is failing_law and law(0.0, [0.0] * 5, [0.0, 0.0, 1.0, -1.0, 0.0], 1) == [-2.0, 2.0]
