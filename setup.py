@@ -44,6 +44,9 @@ setup(
         "ray": ["ray"],
         # RecordedRun.to_dataframe of biped_sim.load_run (biped_sim/recording/loaded_run.py)
         "pandas": ["pandas"],
+        # torque laws written in Python run compiled in the loop (biped_sim/control/compiled_laws.py): numba
+        # and llvmlite, about 210 MB installed; without them such a law runs as plain Python (docs/controllers.md)
+        "numba": ["numba"],
     },
     # the test environment (pytest, the independent bag readers, colcon, ruff, Ray) is pinned in requirements-dev.txt
     zip_safe=True,
