@@ -374,6 +374,10 @@ def hook_speed(n=20000):
     return rows
 
 
+def _cell(v):
+    return f"{v:,.1f} ns" if isinstance(v, float) else str(v)
+
+
 def _raises(fn):
     try:
         fn()
@@ -499,7 +503,11 @@ def main(argv=None):
     print("|---" * (len(rows) + 1) + "|")
     for p in parts:
         print(f"| {p} | " + " | ".join(f"{r[p]:,.0f}" if p in r else "-" for r in rows.values()) + " |")
-    print("\ntorque-law hook, ns per call:", json.dumps(hook_speed(), default=str))
+    hooks = hook_speed()
+    print("\n| torque-law hook | " + " | ".join(hooks) + " |")
+    print("|---" * (len(hooks) + 1) + "|")
+    for what in ("compiled law", "Python law", "exception reaches the caller"):
+        print(f"| {what} | " + " | ".join(_cell(h.get(what, h.get("skipped"))) for h in hooks.values()) + " |")
     if "numba" in impls:
         print(f"numba: math.pow(float, int) differs from Python's in {numba_pow_differs()} of 20000 calls")
     if args.no_costs:
