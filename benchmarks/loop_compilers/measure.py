@@ -255,13 +255,15 @@ def _median_ns(fn, number, repeat=7, setup=None):
 
 def speed(impls, n_steps=100):
     """ns per call of each part of the slice, called from Python (the compiled candidates' steps also inside
-    compiled code, ``steps(S, n)``), on one case of the walk with a crossing in its first step."""
+    compiled code, ``steps(S, n)``), on one case of the walk with a crossing in its first step; and of a call
+    that does nothing (``steps(S, 0)``; the hand C's ``Loop.counts()``): the price of the entry alone."""
     case = crossing_case()
     rows = {}
     for name, impl in list(impls.items()) + [("hand C", None)]:
         r = rows[name] = {}
         if impl is None:
             loop = hand_loop(case)
+            r["a call doing nothing"] = _median_ns(loop.counts, 20000)
             r["step (from Python)"] = _median_ns(lambda: [loop.step() for _ in range(n_steps)], 1,
                                                  setup=lambda: begin_hand(loop, case)) / n_steps
             begin_hand(loop, case)
@@ -286,6 +288,7 @@ def speed(impls, n_steps=100):
         S = S0.copy()
         def reset(S=S, S0=S0):
             np.copyto(S, S0)
+        r["a call doing nothing"] = _median_ns(lambda: impl.steps(S, 0), 20 if name == "python" else 20000)
         r["step (from Python)"] = _median_ns(lambda: [impl.step(S) for _ in range(n_steps)], 1,
                                              setup=reset) / n_steps
         if name != "python":
@@ -300,6 +303,24 @@ def speed(impls, n_steps=100):
         r["locate_crossing"] = _median_ns(lambda: impl.locate_crossing(S, swing, t_old, t), k // 10)
         h0, h1 = impl.height_at(S, swing, t_old), impl.height_at(S, swing, t)
         r["may_dip"] = _median_ns(lambda: impl.may_dip(S, swing, h0, h1), k // 10)
+    return rows
+
+
+def python_state_kinds():
+    """us per call of rules.py run as Python on the state as a numpy array and as a list (the fallback without a
+    compiler may keep its state in either: indexing a list is several times cheaper in the interpreter)."""
+    case = crossing_case()
+    S0 = new_state(case)
+    R.begin(S0)
+    rows = {}
+    for kind in ("numpy array", "list"):
+        S = S0.copy() if kind == "numpy array" else S0.tolist()
+        row = rows[kind] = {"step": _median_ns(lambda: R.step(S), 20, repeat=5) / 1e3}
+        S = S0.copy() if kind == "numpy array" else S0.tolist()
+        R.step(S)
+        t_old, t = S[R.T_OLD], S[R.T]
+        row["dense state (11)"] = _median_ns(lambda: R.dense_state(S, 0.5 * (t_old + t)), 100, repeat=5) / 1e3
+        row["locate_crossing"] = _median_ns(lambda: R.locate_crossing(S, 3 - case["leg"], t_old, t), 10, repeat=5) / 1e3
     return rows
 
 
@@ -466,9 +487,10 @@ def installed_mb(*dists):
 
 
 def build_costs():
-    """Build seconds and sizes: Cython (translate + cc), the glue library, and today's _core.c with the same
-    flags."""
+    """Build seconds and sizes: Cython (translate + cc), the translator (translate + cc), the glue library, and
+    today's _core.c with the same flags."""
     _, cy_times, cy_lines = build.build_cython(reuse=False)
+    _, tr_times, tr_lines = build.build_translated()
     _, glue_s = build.build_glue_so()
     hand_s = []
     for _ in range(3):
@@ -478,7 +500,9 @@ def build_costs():
         hand_s.append(time.perf_counter() - t0)
     so = next(build.BUILD.glob("rules_cy.*.so"))
     return {"cython translate s": cy_times["cython"], "cython cc s": cy_times["cc"], "cython C lines": cy_lines,
-            "cython .so kB": so.stat().st_size / 1e3, "glue .so s": glue_s,
+            "cython .so kB": so.stat().st_size / 1e3, "translator s": tr_times["translate"],
+            "translator cc s": tr_times["cc"], "translator C lines": tr_lines,
+            "translator .so kB": next(build.BUILD.glob("rules_tr.*.so")).stat().st_size / 1e3, "glue .so s": glue_s,
             "hand _core.c cc s": statistics.median(hand_s),
             "hand .so kB": (build.BUILD / "hand_core.so").stat().st_size / 1e3}
 
@@ -503,6 +527,8 @@ def main(argv=None):
     print("|---" * (len(rows) + 1) + "|")
     for p in parts:
         print(f"| {p} | " + " | ".join(f"{r[p]:,.0f}" if p in r else "-" for r in rows.values()) + " |")
+    print("\nrules.py as Python, us per call:", json.dumps(
+        {k: {kk: round(vv, 1) for kk, vv in v.items()} for k, v in python_state_kinds().items()}))
     hooks = hook_speed()
     print("\n| torque-law hook | " + " | ".join(hooks) + " |")
     print("|---" * (len(hooks) + 1) + "|")
