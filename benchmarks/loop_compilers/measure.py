@@ -464,8 +464,9 @@ def first_call_latency():
 
 
 def _clear_numba_cache():
-    for p in (Path(__file__).parent / "__pycache__").glob("rules*.nb[ic]"):
-        p.unlink()
+    for pattern in ("rules*.nb[ic]", "numba_binding*.nb[ic]"):
+        for p in (Path(__file__).parent / "__pycache__").glob(pattern):
+            p.unlink()
 
 
 def import_seconds(module, repeat=5):
