@@ -144,8 +144,13 @@ def run(args):
 def _report(result, args):
     print_summary(result)
     if getattr(args, "plot_png", None) is not None:
-        title = f"{Path(args.scene).stem if args.scene else 'simulate'}: {result.status}, {len(result.impacts)} impacts"
-        result.plot(path=args.plot_png, title=title)
+        bag = result.stats.get("bag")
+        if bag is not None:     # a recorded run keeps no samples in memory: its bag has every one
+            from biped_sim.recording.inspect_bag import plot
+            plot(bag, args.plot_png)
+        else:
+            result.plot(path=args.plot_png,
+                        title=f"{Path(args.scene).stem if args.scene else 'simulate'}: {len(result.impacts)} impacts")
         print(f"{'figure':>23}  {args.plot_png.resolve()}")
     if args.events:
         for e in result.events:

@@ -197,7 +197,8 @@ def _foot_x(e, params):
 
 
 def plot(bag, png, run=None, frames=14):
-    """Write the figure of a run to ``png`` (:func:`biped_sim.engine.figure.run_figure`, fed the bag's arrays)."""
+    """Write the figure of a run to ``png`` (:func:`biped_sim.engine.figure.run_figure`, fed the bag's arrays);
+    returns the matplotlib Figure."""
     from biped_sim.engine.figure import run_figure
     run = run or load_run(bag)
     p = run["params"] or {}
@@ -206,6 +207,26 @@ def plot(bag, png, run=None, frames=14):
         F[np.concatenate([[False], np.diff(gt) > 1.5 * np.median(np.diff(gt))])] = np.nan
     impacts = [(e["time"], e.get("foot"), e.get("q")) for e in run["impacts"]]
     title = f"{p.get('scene', bag)}: {p.get('time_mode', '')} run, {len(impacts)} impacts"
-    run_figure(run["t"], run["q"], run["u"], gt, F, impacts, run_model(p), title,
-               slope=float(p.get("slope", 0.0) or 0.0), path=png, frames=frames)
-    return png
+    return run_figure(run["t"], run["q"], run["u"], gt, F, impacts, run_model(p), title,
+                      slope=float(p.get("slope", 0.0) or 0.0), path=png, frames=frames, outcome=run_end(run))
+
+
+def run_end(run):
+    """(status, time, reason) of a bag's run: its final ``biped_sim/run`` status (the node's), else the
+    last error it recorded (an engine stop: ``error``, ``zeno``), else completed or cut short by its
+    last state against the run's ``duration``."""
+    ends = [e for e in run["events"] if e.get("name", "").endswith("/run") or e.get("level", 0) >= 2]
+    t_last = float(run["t"][-1]) if len(run["t"]) else math.nan
+    if ends:
+        e = ends[-1]
+        status = e.get("status") if isinstance(e.get("status"), str) else "stopped"
+        time = e.get("time")
+        time = float(time) if isinstance(time, (int, float)) else e.get("t_ns", math.nan) / 1e9
+        reason = str(e.get("message", ""))
+        return status, time, reason.removeprefix(f"{status}: ")
+    duration = (run["params"] or {}).get("duration")
+    if run.get("cut"):
+        return "cut short", t_last, str(run["cut"])
+    if isinstance(duration, (int, float)) and duration > 0 and t_last < duration - 1e-9:
+        return "ended", t_last, f"the bag ends before the run's duration {duration:g} s"
+    return "completed", t_last, ""

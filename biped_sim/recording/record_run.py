@@ -151,6 +151,7 @@ def simulate_recorded(args):
     print(f"recorded {sum(rec.message_counts.values())} messages: "
           + ", ".join(f"{k} {v}" for k, v in rec.message_counts.items()))
     result = sim.result()
+    result.stats["bag"] = str(path)     # its samples (the simulator kept none): simulate --plot draws them
     if stop and sim.status == "running" and sim.t < params["duration"]:
         # a run cut short by a signal is not "completed": say so (the bag is closed and readable)
         name = signal.Signals(stop[0]).name

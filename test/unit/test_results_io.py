@@ -81,3 +81,46 @@ def test_a_bags_impact_and_event_fields_are_typed_with_no_nan_strings(tmp_path):
         assert not strings, (e["kind"], strings)                 # every number parsed, no "[nan, ...]"
         assert "nan" not in repr({k: v for k, v in e.items() if k not in STRING_KEYS}), e
     assert all(e["q"] == [] or len(e["q"]) == 5 for e in scuffs)
+
+
+def stopped_run(duration=3.0):
+    """The passive scene run past its 0.5 s: the robot falls and its impacts accumulate (Zeno, stopped
+    at t ~ 1.56 s), its stick figures piled up where it fell."""
+    return bs.load_scene("passive").simulate(t_final=duration)
+
+
+def visible_label_boxes(fig):
+    """The window boxes of the gait panel's time labels that are drawn (Agg renderer, after a draw)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    gait = [ax for ax in fig.axes if ax.get_title(loc="left").startswith("gait")][0]
+    return [(txt.get_text(), txt.get_window_extent(renderer)) for txt in gait.texts if txt.get_visible()]
+
+
+def test_the_figure_of_a_stopped_run_says_why_and_when_and_its_time_labels_do_not_overprint(tmp_path):
+    result = stopped_run()
+    assert result.status == "stopped" and result.events[-1].kind == "zeno"
+    fig = result.plot(path=tmp_path / "passive.png")
+    title = " ".join(fig.get_suptitle().split())
+    assert f"stopped at t = {result.events[-1].time:.6g} s" in title, title
+    assert "the impacts accumulate (Zeno behaviour)" in title, title
+    boxes = visible_label_boxes(fig)
+    assert len(boxes) >= 2 and f"{result.t[-1]:.2f} s" in [text for text, _box in boxes], boxes   # the end's time
+    overprinted = [(a, b) for i, (a, box_a) in enumerate(boxes) for b, box_b in boxes[i + 1:] if box_a.overlaps(box_b)]
+    assert not overprinted, overprinted
+
+
+def test_simulate_plot_of_a_recorded_stopped_run_draws_its_samples_and_its_end(tmp_path):
+    png = tmp_path / "passive.png"
+    assert biped_sim(["simulate", "--scene", "passive", "--duration", "3", "--record", str(tmp_path),
+                      "--plot", str(png)]) == 1                               # stopped: exit code 1
+    (bag,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    with Image.open(png) as im:       # the time panels (the top 60 %) hold lines of hip 1's colour C0
+        top = np.asarray(im.convert("RGB"))[: int(0.6 * im.size[1])].reshape(-1, 3)
+    assert np.sum(np.all(top == (31, 119, 180), axis=1)) > 300          # an empty panel: the legend's, ~0
+    from biped_sim.recording import inspect_bag
+    fig = inspect_bag.plot(bag, tmp_path / "again.png")
+    title = " ".join(fig.get_suptitle().split())
+    assert "stopped at t = 1.5598" in title and "the impacts accumulate (Zeno behaviour)" in title, title
