@@ -200,6 +200,27 @@ class StateSerializer:
         return out
 
 
+def tf_message(sec: int, nanosec: int, transforms) -> bytes:
+    """The CDR of a ``tf2_msgs/msg/TFMessage``: ``transforms`` a list of (parent frame, child frame,
+    translation (x, y, z), rotation quaternion (x, y, z, w)), each stamped (sec, nanosec). Written here
+    from values: tf2_msgs has no Python package outside a ROS install (not on PyPI)."""
+    buf = bytearray(struct.pack("<I", len(transforms)))
+    off = 4
+    for parent, child, translation, rotation in transforms:
+        p = _pad(off, 4)
+        buf += b"\x00" * p + _II.pack(sec, nanosec)
+        off = _string(buf, off + p + 8, parent)
+        off = _string(buf, off, child)
+        p = _pad(off, 8)
+        buf += b"\x00" * p + struct.pack("<7d", *translation, *rotation)
+        off += p + 56
+    return ENCAPSULATION_HEADER + bytes(buf)
+
+
+#: types without an rclpy message class here, whose CDR this module writes from values (tf_message):
+#: the recorder takes their bytes only
+BYTES_ONLY = {"tf2_msgs/msg/TFMessage"}
+
 #: encoders that return None for shapes they do not handle (then rclpy serialises)
 MAY_DECLINE = {"std_msgs/msg/Float64MultiArray"}
 
@@ -213,6 +234,11 @@ ENCODERS = {
 
 def serializer(type_name):
     """A function msg -> CDR bytes for ``type_name`` (the fast one if there is one, else rclpy's)."""
+    if type_name in BYTES_ONLY:
+        def refuse(msg):
+            raise TypeError(f"{type_name} is recorded from its CDR bytes only (no Python message class here), "
+                            f"got {type(msg).__name__}")
+        return refuse
     from rclpy.serialization import serialize_message
     fast = ENCODERS.get(type_name)
     if fast is None:

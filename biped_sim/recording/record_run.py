@@ -8,7 +8,7 @@ the node would publish is written with the node's message functions (:mod:`biped
 time), ``/diagnostics`` (other events), then ``/joint_states``, ``/ground_reaction`` (in stance)
 and ``/clock`` at the end of the period. The state at t = 0 is written first. ``/markers`` (with
 "markers" in ``outputs``) at ``marker_rate`` of simulated time (a headless run has no wall clock to
-follow), and at the end.
+follow), and at the end, each with the transform world -> hip on ``/tf`` (a 3D view follows the robot).
 """
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ import signal
 from biped_sim.config.parameters import engine_arguments
 from biped_sim.recording import messages as M
 from biped_sim.recording.cdr import StateSerializer, float64_multi_array_data
-from biped_sim.recording.markers import MarkerStream
+from biped_sim.recording.markers import TF_TOPIC, TF_TYPE, MarkerStream, hip_transform
 
 
 def topics_for(params) -> dict:
@@ -28,6 +28,8 @@ def topics_for(params) -> dict:
         if name == "impact" and "impact" not in params["phases"]:
             continue
         out["/" + name] = M.TOPIC_TYPES[name]
+        if name == "markers":
+            out[TF_TOPIC] = TF_TYPE      # the frame that moves with the drawn robot
     out["/diagnostics"] = M.TOPIC_TYPES["diagnostics"]
     out["/hip_torque"] = M.TOPIC_TYPES["hip_torque"]
     return out
@@ -72,6 +74,7 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
             msg = markers.poll(sim.t, sim, force=last)
             if msg is not None:
                 rec("/markers", msg, t_ns)
+                rec(TF_TOPIC, hip_transform(t_ns, markers.hip), t_ns)
 
     stop = [] if stop is None else stop
     old = {}

@@ -137,7 +137,18 @@ def main(argv=None):
     rclpy.init(args=["replay"] + ros_args, signal_handler_options=SignalHandlerOptions.NO)
     stop = catch_stop_signals([])     # SIGINT, SIGTERM, SIGHUP: stop playing, say so, close cleanly
     node = rclpy.create_node("biped_sim_replay")
-    pubs = {t: node.create_publisher(message_class(channels[t]), t, _qos(args.bag, t)) for t in topics}
+    classes = {}
+    for t in topics:
+        try:
+            classes[t] = message_class(channels[t])
+        except (ImportError, AttributeError):      # e.g. /tf of our bags: tf2_msgs is not on PyPI
+            pass
+    skipped = [t for t in topics if t not in classes]
+    if skipped:
+        print("biped-sim replay: not playing " + ", ".join(f"{t} ({channels[t]})" for t in skipped)
+              + ": its message package is not installed here", file=sys.stderr)
+        topics = [t for t in topics if t in classes]
+    pubs = {t: node.create_publisher(classes[t], t, _qos(args.bag, t)) for t in topics}
     clock_pub = None
     if args.clock is not None:
         from rclpy.qos import QoSProfile
