@@ -124,3 +124,49 @@ def test_simulate_plot_of_a_recorded_stopped_run_draws_its_samples_and_its_end(t
     fig = inspect_bag.plot(bag, tmp_path / "again.png")
     title = " ".join(fig.get_suptitle().split())
     assert "stopped at t = 1.5598" in title and "the impacts accumulate (Zeno behaviour)" in title, title
+
+
+def test_inspects_readers_give_what_rclpy_gives_in_log_time_order(tmp_path):
+    """load_run reads the file in its own order with the CDR readers of recording/cdr.py (no rclpy):
+    every state, force and event field is the value rclpy's deserialiser gives, and the run is the
+    one read in log-time order (a stopped run: impacts, a scuff, the Zeno stop on /diagnostics)."""
+    from biped_sim.recording import bagio, inspect_bag, messages as M
+    assert biped_sim(["simulate", "--scene", "passive", "--duration", "3", "--record", str(tmp_path)]) == 1
+    (bag,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    readers = {"sensor_msgs/msg/JointState": (M.joint_state_values_cdr, M.joint_state_values),
+               "geometry_msgs/msg/WrenchStamped": (M.wrench_values_cdr, M.wrench_values),
+               "diagnostic_msgs/msg/DiagnosticArray": (M.event_values_cdr, M.event_values)}
+    seen = dict.fromkeys(readers, 0)
+    for _topic, typ, _t, data in bagio.messages(bag):
+        if typ in readers:
+            own, rclpy_values = readers[typ]
+            assert own(typ, data) == rclpy_values(bagio.decode(typ, data))
+            seen[typ] += 1
+    assert seen["sensor_msgs/msg/JointState"] > 1000 and seen["diagnostic_msgs/msg/DiagnosticArray"] >= 7, seen
+    in_file_order = inspect_bag.load_run(bag, max_points=None)
+    in_log_order = inspect_bag._read_run(bag, None, log_time_order=True)
+    for key in ("t", "q", "dq", "u", "leg", "grf_t", "grf"):
+        np.testing.assert_array_equal(in_file_order[key], in_log_order[key], err_msg=key)
+    for key in ("impacts", "events", "all_events", "counts", "first", "last", "stats", "commands", "params"):
+        assert in_file_order[key] == in_log_order[key], key
+    assert [e["kind"] for e in in_file_order["all_events"]][-2:] == ["touchdown", "zeno"]
+
+
+def test_a_bag_whose_states_go_back_in_file_order_is_read_in_log_time_order(tmp_path):
+    """A bag of another writer may store a topic's messages out of time order: load_run then reads it
+    again in log-time order (the file's order would draw the time series back and forth)."""
+    from biped_sim.recording import inspect_bag
+    from biped_sim.recording.cdr import StateSerializer
+    from biped_sim.recording.messages import JOINT_NAMES
+    from biped_sim.recording.recorder import BagRecorder
+    serializer = StateSerializer(JOINT_NAMES)
+    rec = BagRecorder(tmp_path / "bag")
+    rec.add_topic("/joint_states", "sensor_msgs/msg/JointState")
+    for t_ns in (2_000_000, 1_000_000, 3_000_000):
+        x = t_ns * 1e-9
+        rec.write("/joint_states", serializer.joint_state(0, t_ns, "foot_1", [x, 1.0, 3.0, 3.0, 0.0], [0.0] * 5,
+                                                         [0.0] * 5), t_ns)
+    rec.close()
+    run = inspect_bag.load_run(tmp_path / "bag")
+    np.testing.assert_array_equal(run["t"], [0.001, 0.002, 0.003])
+    assert run["stats"]["q_first"][0] == 0.001 and run["stats"]["q_last"][0] == 0.003
