@@ -20,7 +20,7 @@ def build_parser(only=None) -> argparse.ArgumentParser:
     module only, not the analysis modules of the others: ~0.1 s of a short command)."""
     parser = argparse.ArgumentParser(
         prog="biped-sim",
-        description="Headless hybrid-dynamics simulation of the planar three-link biped (docs/model.md).",
+        description="Headless hybrid-dynamics simulation of the planar three-link biped\n(docs/model.md).",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="Run 'biped-sim COMMAND --help' for the options of a command.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)

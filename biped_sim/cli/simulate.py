@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from biped_sim.config.help_format import HelpFormatter
 from biped_sim.control.walking import WalkingController
 from biped_sim.engine import compiled_loop
 from biped_sim.engine.compiled import WHY_PYTHON
@@ -30,7 +31,8 @@ def _floats(n):
 #: the engine options: flag -> (the scene parameter it sets, argparse keywords). The defaults (in the
 #: help) apply without --scene; with --scene only the options given replace the scene's values.
 OPTIONS = {
-    "--method": ("method", dict(choices=METHODS, help="integrator [default: dop853]")),
+    "--method": ("method", dict(choices=METHODS, metavar="METHOD",
+                                help=f"integrator: {', '.join(METHODS)} [default: dop853]")),
     "--rtol": ("rtol", dict(type=float, help="relative tolerance (adaptive methods) [default: 1e-9]")),
     "--atol": ("atol", dict(type=float, help="absolute tolerance (adaptive methods) [default: 1e-9]")),
     "--step": ("step", dict(type=float, help=f"step size (s) of {', '.join(FIXED_STEP_METHODS)} [default: 1e-3]")),
@@ -63,7 +65,7 @@ def register(sub):
                     "real-time factor, steps, right-hand-side evaluations, events, constraint drift "
                     "and energy-balance residual. Without --q0/--dq0 it starts on the reference "
                     "walking gait.",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("--scene", metavar="NAME|PATH",
                    help="run a scene (msg_configs/NAME.yaml or a YAML path): its initial state, phases, options "
                         "and controller, torques held over its control_period as the node does; --duration, the "
