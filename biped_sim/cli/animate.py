@@ -9,12 +9,13 @@ from biped_sim.config.controllers import CLI_HELP, chosen_controller, cli_contro
 def register(sub):
     p = sub.add_parser(
         "animate", help="a recorded run (BAG) or a scene run headless (--scene) as a GIF or MP4",
-        description="Draw a run as a moving stick figure (leg 1 blue, leg 2 orange, torso green, the\n"
-                    "stance foot red) with the ground reaction force as an arrow (400 N per m), a flash at\n"
-                    "each touchdown and the simulated time; at real-time speed unless --speed says otherwise.\n"
-                    "GIF through Pillow (its frame delays are whole hundredths of a second: --fps is rounded\n"
-                    "to one, 30 to 33.3, at most 50); MP4 needs imageio-ffmpeg (pip install imageio-ffmpeg).\n"
-                    "A progress bar goes to stderr.",
+        description="Draw a run as a moving stick figure (leg 1 blue, leg 2 orange, torso green,\n"
+                    "the stance foot red) with the ground reaction force as an arrow (400 N per m),\n"
+                    "a flash at each touchdown and the simulated time; at real-time speed unless\n"
+                    "--speed says otherwise. GIF through Pillow (its frame delays are whole\n"
+                    "hundredths of a second: --fps is rounded to one, 30 to 33.3, at most 50); MP4\n"
+                    "needs imageio-ffmpeg (pip install imageio-ffmpeg). A progress bar goes to\n"
+                    "stderr.",
         epilog="examples:\n  biped-sim animate bags/walk-20261123T230501832Z -o walk.gif\n"
                "  biped-sim animate --scene walk --duration 5 -o walk.mp4 --fps 30\n"
                "  biped-sim animate --scene slope --speed 0.5 -o slow.gif",

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from biped_sim.config.controllers import CLI_HELP, chosen_controller, cli_controller
+from biped_sim.config.help_format import HelpFormatter
 from biped_sim.control.walking import WalkingController
 from biped_sim.engine import compiled_loop
 from biped_sim.engine.compiled import WHY_PYTHON
@@ -31,7 +32,8 @@ def _floats(n):
 #: the engine options: flag -> (the scene parameter it sets, argparse keywords). The defaults (in the
 #: help) apply without --scene; with --scene only the options given replace the scene's values.
 OPTIONS = {
-    "--method": ("method", dict(choices=METHODS, help="integrator [default: dop853]")),
+    "--method": ("method", dict(choices=METHODS, metavar="METHOD",
+                                help=f"integrator: {', '.join(METHODS)} [default: dop853]")),
     "--rtol": ("rtol", dict(type=float, help="relative tolerance (adaptive methods) [default: 1e-9]")),
     "--atol": ("atol", dict(type=float, help="absolute tolerance (adaptive methods) [default: 1e-9]")),
     "--step": ("step", dict(type=float, help=f"step size (s) of {', '.join(FIXED_STEP_METHODS)} [default: 1e-3]")),
@@ -61,7 +63,7 @@ def register(sub):
                     "real-time factor, steps, right-hand-side evaluations, events, constraint drift "
                     "and energy-balance residual. Without --q0/--dq0 it starts on the reference "
                     "walking gait.",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("--scene", metavar="NAME|PATH",
                    help="run a scene (msg_configs/NAME.yaml or a YAML path): its initial state, phases, options "
                         "and controller, torques held over its control_period as the node does; --duration, the "
@@ -154,8 +156,13 @@ def run(args):
 def _report(result, args):
     print_summary(result)
     if getattr(args, "plot_png", None) is not None:
-        title = f"{Path(args.scene).stem if args.scene else 'simulate'}: {result.status}, {len(result.impacts)} impacts"
-        result.plot(path=args.plot_png, title=title)
+        bag = result.stats.get("bag")
+        if bag is not None:     # a recorded run keeps no samples in memory: its bag has every one
+            from biped_sim.recording.inspect_bag import plot
+            plot(bag, args.plot_png)
+        else:
+            result.plot(path=args.plot_png,
+                        title=f"{Path(args.scene).stem if args.scene else 'simulate'}: {len(result.impacts)} impacts")
         print(f"{'figure':>23}  {args.plot_png.resolve()}")
     if args.events:
         for e in result.events:

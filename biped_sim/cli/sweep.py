@@ -66,6 +66,10 @@ def parse_set(text: str) -> tuple[str, list]:
     name, spec = name.strip(), spec.strip()
     if not eq or not name or not spec:
         raise ValueError(f"--set {text!r}: expected NAME=START:STOP:NUM or NAME=v1,v2,...")
+    if "[" in spec or "]" in spec:       # a YAML list: it was split at its commas into '[1.0' and '2.0]'
+        values = spec.strip("[] ")
+        raise ValueError(f"--set {text!r}: give the values without brackets, separated by commas: "
+                         f"--set {name}={values} (a list parameter is swept by element, e.g. initial_q[0]=...)")
     if ":" in spec:
         parts = spec.split(":")
         try:

@@ -8,7 +8,7 @@ the node would publish is written with the node's message functions (:mod:`biped
 time), ``/diagnostics`` (other events), then ``/joint_states``, ``/ground_reaction`` (in stance)
 and ``/clock`` at the end of the period. The state at t = 0 is written first. ``/markers`` (with
 "markers" in ``outputs``) at ``marker_rate`` of simulated time (a headless run has no wall clock to
-follow), and at the end.
+follow), and at the end, each with the transform world -> hip on ``/tf`` (a 3D view follows the robot).
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import signal
 
 from biped_sim.recording import messages as M
 from biped_sim.recording.cdr import float64_multi_array_data
-from biped_sim.recording.markers import MarkerStream
+from biped_sim.recording.markers import TF_TOPIC, TF_TYPE, MarkerStream, hip_transform
 from biped_sim.recording.node_run import NodeRun, event_output
 
 
@@ -28,6 +28,8 @@ def topics_for(params) -> dict:
         if name == "impact" and "impact" not in params["phases"]:
             continue
         out["/" + name] = M.TOPIC_TYPES[name]
+        if name == "markers":
+            out[TF_TOPIC] = TF_TYPE      # the frame that moves with the drawn robot
     out["/diagnostics"] = M.TOPIC_TYPES["diagnostics"]
     out["/hip_torque"] = M.TOPIC_TYPES["hip_torque"]
     return out
@@ -65,7 +67,9 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
         if markers is not None:
             msg = markers.poll(sim.t, sim, force=not run.running)
             if msg is not None:
-                rec("/markers", msg, M.to_ns(sim.t))
+                t_ns = M.to_ns(sim.t)
+                rec("/markers", msg, t_ns)
+                rec(TF_TOPIC, hip_transform(t_ns, markers.hip), t_ns)
 
     stop = [] if stop is None else stop
     old = {}
@@ -149,6 +153,7 @@ def simulate_recorded(args):
     print(f"recorded {sum(rec.message_counts.values())} messages: "
           + ", ".join(f"{k} {v}" for k, v in rec.message_counts.items()))
     result = sim.result()
+    result.stats["bag"] = str(path)     # its samples (the simulator kept none): simulate --plot draws them
     if stop and sim.status == "running" and sim.t < params["duration"]:
         # a run cut short by a signal is not "completed": say so (the bag is closed and readable)
         name = signal.Signals(stop[0]).name

@@ -36,7 +36,7 @@ from biped_sim.config import parameters as P
 from biped_sim.engine import compiled_loop
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, WHY_PYTHON
 from biped_sim.engine.guards import prepare_event_location
-from biped_sim.recording.markers import MarkerStream
+from biped_sim.recording.markers import TF_TOPIC, TF_TYPE, MarkerStream, hip_transform
 from biped_sim.recording.messages import (
     TOPIC_TYPES,
     answered_ns,
@@ -205,6 +205,8 @@ class SimNode(Node):
                                "folder, or record:=false)") from None
         for output, pub in self.publishers_by_output().items():
             self.recorder.add_topic(pub.topic_name, TOPIC_TYPES[output], qos=STATE_QOS)
+        if self.markers is not None:    # recorded, not published: no tf2_msgs type support here
+            self.recorder.add_topic(TF_TOPIC, TF_TYPE, qos=STATE_QOS)
         self.recorder.add_topic(self.sub.topic_name, TOPIC_TYPES["hip_torque"], qos=COMMAND_QOS)
         # the writer process starts now rather than during the run's first periods (on 2 cores it took
         # the CPU from them: about 0.15 s of imports)
@@ -394,6 +396,8 @@ class SimNode(Node):
             msg = self.markers.poll(begin, sim, force=self.finished or self.stopped)
             if msg is not None:   # serialised once for the topic and the bag (1.2 ms a MarkerArray)
                 self._publish(self.pub_markers, serialize_message(msg), sim.t)
+                if self.recorder is not None:     # the frame a 3D view of the bag follows
+                    self.recorder.write(TF_TOPIC, hip_transform(to_ns(sim.t), self.markers.hip), to_ns(sim.t))
                 self.watch.markers.drew(time.monotonic() - begin)     # its share of the wall time (run_watch)
 
     def offer_state_again(self):
