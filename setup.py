@@ -23,6 +23,10 @@ setup(
                  Extension("biped_sim.engine._core", ["biped_sim/engine/_core.c"],
                            depends=["biped_sim/engine/_gen/_kernels.h"],
                            extra_compile_args=["-O2", "-ffp-contract=off"], optional=True),
+                 # the walking laws as compiled torque laws of the loop's hook (biped_sim/control/walking.py)
+                 Extension("biped_sim.control._laws", ["biped_sim/control/_laws.c"],
+                           depends=["biped_sim/engine/_gen/_kernels.h"],
+                           extra_compile_args=["-O2", "-ffp-contract=off"], optional=True),
                  # the recorder's frame buffer (biped_sim/recording/frames.py: its Python twin is the fallback)
                  Extension("biped_sim.recording._frames", ["biped_sim/recording/_frames.c"],
                            extra_compile_args=["-O2"], optional=True)],
@@ -40,6 +44,9 @@ setup(
         "ray": ["ray"],
         # RecordedRun.to_dataframe of biped_sim.load_run (biped_sim/recording/loaded_run.py)
         "pandas": ["pandas"],
+        # torque laws written in Python run compiled in the loop (biped_sim/control/compiled_laws.py): numba
+        # and llvmlite, about 210 MB installed; without them such a law runs as plain Python (docs/controllers.md)
+        "numba": ["numba"],
     },
     # the test environment (pytest, the independent bag readers, colcon, ruff, Ray) is pinned in requirements-dev.txt
     zip_safe=True,

@@ -1,5 +1,5 @@
-"""``make bench``: speed figures of the engine (issue 2), then the node, recorder, scene, sweep, command-line
-and MuJoCo benchmarks.
+"""``make bench``: speed figures of the engine (issue 2), then the node, recorder, scene, sweep, command-line,
+MuJoCo and user-law (benchmarks/bench_user_law.py) benchmarks.
 
 Owns measurement only (no assertions: these machines are shared and noisy). Every figure is a
 median over repeats measured in this one process, and comparisons are made side by side.
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import math
 import statistics
 import sys
@@ -312,7 +313,8 @@ def bench_compiled_loop(model, repeats=5):
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench", description=__doc__.split("\n")[0])
     parser.add_argument("--only", help="run one group only",
-                        choices=("engine", "node", "record", "scenes", "sweep", "cli", "sensitivity", "mujoco"))
+                        choices=("engine", "node", "record", "scenes", "sweep", "cli", "sensitivity", "mujoco",
+                                 "userlaw", "loop_compilers"))
     parser.add_argument("--repeats", type=int, default=7, help="timed repeats of each walk (alternating)")
     args = parser.parse_args(argv)
     model = BipedModel()
@@ -326,7 +328,7 @@ def main(argv=None):
         sys.stdout.flush()
     for group, module in (("node", "bench_node"), ("record", "bench_record"), ("scenes", "bench_scenes"),
                           ("sweep", "bench_sweep"), ("cli", "bench_cli"), ("sensitivity", "bench_sensitivity"),
-                          ("mujoco", "bench_mujoco")):
+                          ("mujoco", "bench_mujoco"), ("userlaw", "bench_user_law")):
         if args.only in (None, group):
             try:
                 mod = importlib.import_module(f"benchmarks.{module}")
@@ -338,7 +340,23 @@ def main(argv=None):
             print(f"\n==== benchmarks.{module} ====")
             sys.stdout.flush()
             mod.main([]) if _takes_argv(mod.main) else mod.main()
+    if args.only in (None, "loop_compilers"):
+        bench_loop_compilers()
     return 0
+
+
+def bench_loop_compilers():
+    """Issue 29's probe (benchmarks/loop_compilers, docs/engine.md "How the compiled loop is made: the choice"):
+    the single-source slice against the hand C, bits and ns per call, without the build and first-call costs
+    (``python -m benchmarks.loop_compilers.measure`` has them). Optional: it needs Cython (numba too for its
+    column)."""
+    print("\n==== benchmarks.loop_compilers.measure --cases 60 --no-costs ====")
+    if importlib.util.find_spec("Cython") is None:
+        print("(skipped: Cython is not installed; uv pip install cython numba)")
+        return
+    from benchmarks.loop_compilers import measure
+    sys.stdout.flush()
+    measure.main(["--cases", "60", "--no-costs"])
 
 
 def _takes_argv(fn):

@@ -1,7 +1,9 @@
 """What a researcher waits for at the command line: ``python -m benchmarks.bench_cli``.
 
 Owns one measurement: the wall time of whole ``biped-sim`` processes (interpreter start, imports,
-work, exit), the minimum of ``repeat`` runs each (the least disturbed run on a shared machine):
+work, exit), the minimum of ``repeat`` runs each (the least disturbed run on a shared machine), and
+their CPU time (user + system of the process and its children), which another job on the machine
+moves less than the wall time:
 
 * ``biped-sim --help``;
 * ``biped-sim simulate --duration 0.1`` (a run of milliseconds: the rest is the process's imports);
@@ -13,6 +15,7 @@ inspect.
 from __future__ import annotations
 
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -28,14 +31,21 @@ def _cli():
     return [str(script)] if script.exists() else [sys.executable, "-c", main]
 
 
+def _children_cpu():
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def wall_seconds(argv, repeat):
-    """The minimum wall time of ``repeat`` runs of ``argv`` (output discarded; a failure raises)."""
-    best = float("inf")
+    """(minimum wall time, minimum CPU time) of ``repeat`` runs of ``argv`` (output discarded; a
+    failure raises)."""
+    best, best_cpu = float("inf"), float("inf")
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        cpu0, t0 = _children_cpu(), time.perf_counter()
         subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         best = min(best, time.perf_counter() - t0)
-    return best
+        best_cpu = min(best_cpu, _children_cpu() - cpu0)
+    return best, best_cpu
 
 
 def main(argv=None, repeat=5):
@@ -52,11 +62,11 @@ def main(argv=None, repeat=5):
              cli + ["inspect", str(bag), "--png", os.path.join(folder, "f.png")]),
             ("biped-sim inspect --no-png (10 s walk bag)", cli + ["inspect", str(bag), "--no-png"]),
         ]
-        print(f"\n== command-line processes, wall time, min of {repeat} runs ==")
+        print(f"\n== command-line processes, min of {repeat} runs: wall time, CPU time (user + system) ==")
         out = {}
         for label, args in rows:
-            out[label] = wall_seconds(args, repeat)
-            print(f"  {label:44s} {out[label]:6.2f} s")
+            out[label], cpu = wall_seconds(args, repeat)
+            print(f"  {label:44s} {out[label]:6.2f} s  cpu {cpu:5.2f} s")
         return out
     finally:
         shutil.rmtree(folder, ignore_errors=True)

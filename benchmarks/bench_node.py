@@ -7,6 +7,11 @@ Owns the node's speed figures (issue 3):
     wall second, beside a bare rclpy round trip between two processes with the same message types and
     QoS (no physics, no control law), alternating in the same run; the median of the back-to-back
     pairs' ratios (target >= 0.8). ``--lockstep-only`` runs just that.
+  * the walk scene with the walk_controller node (issue 35's rows): the node process's CPU per 1 ms
+    control period in realtime (no recording) and in lockstep with recording, the realtime period
+    jitter p99 (the node's own figures line), and a realtime walk of ``--walk-seconds`` s with a
+    CPU-bound process (``python3 -c "while True: pass"``) running beside: its jitter, and whether
+    it runs to the end. ``--walk-only`` runs just these.
 Every process runs on a free ROS domain (domain_coordinator) with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST.
 """
 from __future__ import annotations
@@ -261,6 +266,84 @@ def _engine_cost(control_period=0.001, steps=2000):
     return 1e3 * sim.stats["wall_time"] / steps
 
 
+def walk_run(mode, seconds, record=False, hog=False):
+    """sim_node on the walk scene (msg_configs/walk.yaml: markers, ground reaction, impact, /clock; a
+    1 ms control and publish period) in ``mode`` for ``seconds`` of simulated time, driven by the
+    walk_controller node; with ``hog``, a CPU-bound process beside them. Returns the node's figures:
+    periods, cpu_ms (process CPU per period), t (simulated time reached), completed (the duration
+    reached), jitter_p50/jitter_p99 (s) and rtf (realtime), lag_warnings; or error."""
+    import re
+    import tempfile
+    hog_proc = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if hog else None
+    try:
+        with tempfile.TemporaryDirectory(prefix="bench-walk-") as bags, _domain() as dom:
+            sim_argv = [str(BIN / "sim_node"), "--ros-args", "--params-file", str(WALK_PARAMS),
+                        *_params(dict(time_mode=mode, duration=float(seconds), record=record, bag_dir=bags))[1:]]
+            ctl_argv = [str(BIN / "walk_controller"), "--ros-args", "--params-file", str(WALK_PARAMS)]
+            sim = subprocess.Popen(sim_argv, env=_env(dom), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                   text=True)
+            ctl = subprocess.Popen(ctl_argv, env=_env(dom), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            try:
+                log, _ = sim.communicate(timeout=seconds * 3 + 120)
+            except subprocess.TimeoutExpired:
+                _stop(sim)
+                log = sim.stdout.read()
+            finally:
+                _stop(ctl)
+    finally:
+        if hog_proc is not None:
+            hog_proc.kill()
+            hog_proc.wait()
+    f = _figures(log)
+    if f is None:
+        return dict(error=f"no figures line (exit code {sim.returncode}):\n{log[-3000:]}")
+    t = re.search(r"control periods.*? to t=([\d.]+) s", log)
+    f.update(t=float(t.group(1)) if t else float("nan"), completed=f"duration {float(seconds):g} s reached" in log,
+             lag_warnings=log.count("cannot keep up"))
+    stop = re.search(r"the engine (\w+) at t=([\d.]+) s: ([^.]*)", log)
+    f["stop"] = f"the engine {stop.group(1)} at t={float(stop.group(2)):.3f} s: {stop.group(3)[:90]}" if stop else ""
+    rt = re.search(r"period jitter p50 (\d+) us, p99 (\d+) us, real-time factor ([\d.]+)", log)
+    if rt:
+        f.update(jitter_p50=int(rt.group(1)) * 1e-6, jitter_p99=int(rt.group(2)) * 1e-6, rtf=float(rt.group(3)))
+    return f
+
+
+def print_walk(seconds=8.0, hog_seconds=60.0):
+    """Issue 35's rows (goals: CPU <= 0.15 ms realtime, <= 0.2 ms lockstep with recording; jitter
+    p99 <= 0.5 ms quiet, <= 1 ms beside a CPU-bound process; the walk beside it runs to the end)."""
+    def verdict(ok):
+        return "met" if ok else "not met"
+    print(f"load average before the walk rows: {os.getloadavg()[0]:.2f}")
+    rt = walk_run("realtime", seconds)
+    if "error" in rt:
+        print(f"realtime walk: {rt['error']}")
+    else:
+        print(f"realtime walk with walk_controller, {seconds:g} s, no recording: node process CPU "
+              f"{rt['cpu_ms']:.3f} ms per 1 ms period (goal <= 0.15: {verdict(rt['cpu_ms'] <= 0.15)}); period "
+              f"jitter p50 {rt.get('jitter_p50', float('nan')) * 1e6:.0f} us, p99 "
+              f"{rt.get('jitter_p99', float('nan')) * 1e6:.0f} us (goal <= 500 us: "
+              f"{verdict(rt.get('jitter_p99', 1.0) <= 5e-4)}); real-time factor {rt.get('rtf', float('nan')):.3f}; "
+              f"'cannot keep up' warnings: {rt['lag_warnings']}; "
+              + ("ran to the end" if rt["completed"] else f"stopped: {rt['stop']}"))
+    ls = walk_run("lockstep", seconds, record=True)
+    if "error" in ls:
+        print(f"lockstep walk: {ls['error']}")
+    else:
+        print(f"lockstep walk with walk_controller, {seconds:g} s, recording: node process CPU {ls['cpu_ms']:.3f} ms "
+              f"per period (goal <= 0.2: {verdict(ls['cpu_ms'] <= 0.2)})")
+    load = os.getloadavg()[0]
+    hog = walk_run("realtime", hog_seconds, hog=True)
+    if "error" in hog:
+        print(f"realtime walk beside a CPU-bound process: {hog['error']}")
+    else:
+        print(f"realtime walk with walk_controller, {hog_seconds:g} s, a CPU-bound process beside (load average "
+              f"{load:.2f} before): period jitter p50 {hog.get('jitter_p50', float('nan')) * 1e6:.0f} us, p99 "
+              f"{hog.get('jitter_p99', float('nan')) * 1e6:.0f} us (goal <= 1000 us: "
+              f"{verdict(hog.get('jitter_p99', 1.0) <= 1e-3)}); node process CPU {hog['cpu_ms']:.3f} ms per period; "
+              f"'cannot keep up' warnings: {hog['lag_warnings']}; "
+              + ("ran to the end (goal: met)" if hog["completed"] else f"stopped (goal: not met): {hog['stop']}"))
+
+
 def print_lockstep(runs, steps):
     for name, what in (("bare", "bare rclpy round trip (two processes, the same message types, no physics)"),
                        ("sim", "lockstep sim_node (walk scene, record:=false) with the walk_controller node")):
@@ -287,6 +370,9 @@ def main(argv=None):
     p.add_argument("--rounds", type=int, default=6, help="lockstep runs of each (alternating)")
     p.add_argument("--lockstep-only", action="store_true", help="only the lockstep ratio (issue 15's row)")
     p.add_argument("--seconds", type=float, default=5.0, help="wall seconds of the realtime measurement")
+    p.add_argument("--walk-only", action="store_true", help="only the walk rows (issue 35's)")
+    p.add_argument("--walk-seconds", type=float, default=60.0,
+                   help="simulated seconds of the realtime walk beside a CPU-bound process")
     args = p.parse_args(argv)
     if args.role == "bare_sim":
         return role_bare_sim(args.steps)
@@ -294,6 +380,9 @@ def main(argv=None):
         return role_bare_controller()
     if args.lockstep_only:
         print_lockstep(bench_lockstep(args.steps, args.rounds), args.steps)
+        return 0
+    if args.walk_only:
+        print_walk(hog_seconds=args.walk_seconds)
         return 0
     print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
     print(f"engine alone (walking, DOP853 rtol=atol=1e-9): {_engine_cost():.3f} ms per 1 ms control period")
@@ -309,6 +398,7 @@ def main(argv=None):
               f"{rt['jitter_p50'] * 1e6:.0f} us, p99 {rt['jitter_p99'] * 1e6:.0f} us; "
               f"'cannot keep up' warnings: {rt['lag_warnings']}")
     print_lockstep(bench_lockstep(args.steps, args.rounds), args.steps)
+    print_walk(hog_seconds=args.walk_seconds)
     print(f"load average after: {os.getloadavg()[0]:.2f}")
     return 0
 

@@ -29,6 +29,7 @@ _PUBLIC = {
     "WalkingController": "biped_sim.control.walking", "PDWalkingController": "biped_sim.control.walking",
     "Scene": "biped_sim.config.scenes", "load_scene": "biped_sim.config.scenes",
     "available_scenes": "biped_sim.config.scenes", "sweep": "biped_sim.analysis.sweep",
+    "torque_law": "biped_sim.control.compiled_laws", "TorqueLaw": "biped_sim.control.compiled_laws",
     "find_gait": "biped_sim.analysis.gait",
     "load_run": "biped_sim.recording.loaded_run", "RecordedRun": "biped_sim.recording.loaded_run",
 }

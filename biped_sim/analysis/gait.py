@@ -269,8 +269,8 @@ def format_gait(g: Gait) -> str:
         ("motor work per step", f"{g.motor_work:.3f} J (signed)"),
         ("max |u|", f"{g.max_torque:.1f} N m"),
         ("eigenvalues", ", ".join(_c(e) for e in g.eigenvalues)),
-        ("Jacobian", _method(g)),
         ("|eigenvalues|", ", ".join(f"{abs(e):.4g}" for e in g.eigenvalues)),
+        ("Jacobian", _method(g)),
         ("stable", f"{'yes' if g.stable else 'NO'} (all inside the unit circle: max |lambda| = "
                    f"{np.max(np.abs(g.eigenvalues)):.4f})"),
     ]

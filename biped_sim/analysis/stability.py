@@ -1,4 +1,4 @@
-"""The stability suite behind ``biped-sim stability`` (issue 5): stiff and extreme cases.
+"""The stability suite behind ``biped-sim stability``: stiff and extreme cases.
 
 Owns the suite's cases and their verdicts. Every case runs the engine (``hybrid.simulate``) and
 checks that the outcome is either a result that keeps its invariants (finite numbers, bounded

@@ -32,6 +32,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import fields
 from pathlib import Path
 
+from biped_sim.config.controllers import controller_arguments, make_controller, portable
 from biped_sim.config.scenes import load_scene, scene_path
 from biped_sim.engine.options import Options
 from biped_sim.engine.simulate import simulate
@@ -95,14 +96,21 @@ def check_sweep(scene, grid, duration=None, run_options=None) -> list[dict]:
     raises ValueError."""
     scene = _scene_argument(scene)
     names, columns, runs = grid_runs(grid)
-    first = runs[0]
+    run_options = dict(run_options or {})
+    first_scene, first_ctrl = controller_arguments(runs[0])
     for name, values in zip(names, columns):
         for value in values:
-            load_scene(scene, overrides=dict(first, **{name: value}))
+            point_scene, point_ctrl = controller_arguments(dict(runs[0], **{name: value}))
+            loaded = load_scene(scene, overrides=point_scene)
+            if point_ctrl:
+                if run_options.get("controller") is None:
+                    raise ValueError(f"grid name {name!r} sets an argument of the controller: give the controller "
+                                     "as controller=... (a class, a factory or 'MODULE:ATTR'; --controller on the "
+                                     "command line)")
+                make_controller(run_options["controller"], loaded.engine_arguments()["model"], **point_ctrl)
     if duration is not None and (isinstance(duration, bool) or not isinstance(duration, (int, float))
                                  or not math.isfinite(duration) or duration <= 0):
         raise ValueError(f"duration must be a positive number of seconds (or None: the scene's), got {duration!r}")
-    run_options = dict(run_options or {})
     if "t_final" in run_options:
         raise ValueError("give the run's length as duration=..., not t_final")
     try:
@@ -125,10 +133,13 @@ def run_one(scene, overrides: dict, duration=None, run_options=None) -> dict:
     t0 = time.perf_counter()
     row = dict(overrides)
     try:
-        s = load_scene(scene, overrides=overrides)
+        point_scene, point_ctrl = controller_arguments(overrides)
+        s = load_scene(scene, overrides=point_scene)
         kwargs = dict(run_options or {})
         if duration is not None:
             kwargs["t_final"] = duration
+        if point_ctrl:
+            kwargs["controller_args"] = point_ctrl
         row.update(summary(s.simulate(**kwargs), s.params["initial_q"][0]))
     except Exception as exc:   # a sweep's rows say what failed; the sweep goes on
         row.update(_empty_outcome("error", f"{type(exc).__name__}: {exc}"))
@@ -160,6 +171,10 @@ def sweep(scene, grid, duration=None, workers=None, backend="process", *, ray_ad
     runs are its product, row-major over the names in the order given. A row holds the parameter
     values, then :data:`OUTCOME`; it equals, bit for bit, the single run
     ``load_scene(scene, overrides=point).simulate(t_final=duration, **run_options)``.
+    ``controller=`` (a run option): your controller instead of the scene's: a controller, a class or
+    factory, or ``"MODULE:ATTR"`` (:mod:`biped_sim.config.controllers`); grid names ``controller.NAME``
+    are arguments of its class or factory (the row then equals ``...simulate(controller=...,
+    controller_args={NAME: value})``).
     ``workers=None``: every core (Ray: the cluster's CPUs); ``backend`` "process" or "ray"
     (``ray_address`` for a running cluster, else a local one). ``progress(done, total, row)`` is
     called after each run. A failed run is a row with its status and message; a bad name, value or
@@ -172,6 +187,8 @@ def sweep(scene, grid, duration=None, workers=None, backend="process", *, ray_ad
     if ray_address is not None and backend != "ray":
         raise ValueError("ray_address needs backend='ray'")
     scene = _scene_argument(scene)
+    if run_options.get("controller") is not None:
+        run_options["controller"] = portable(run_options["controller"])
     runs = check_sweep(scene, grid, duration, run_options)
     if backend == "process":   # (Ray pickles such a function by value)
         _check_not_from_main(run_options)
@@ -302,7 +319,7 @@ def _new_pool(workers):
 
 def _start_method():
     """The fork server where there is one (POSIX): a clean single-threaded process that imports the
-    engine once (numpy, scipy: ~2 s on a loaded machine) and forks the workers of every pool this
+    engine once (numpy, scipy: seconds on a loaded machine) and forks the workers of every pool this
     process starts, so that a pool costs that import once and not once per worker or per sweep.
     Its workers do not run the caller's ``__main__`` (:class:`_WorkerPopen`).
     Elsewhere spawned processes. Never a fork of this process, which may hold threads."""

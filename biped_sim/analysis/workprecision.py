@@ -1,6 +1,6 @@
 """Error against run time (work-precision) of the integrators, on three hybrid cases.
 
-Owns the accuracy benchmark behind ``biped-sim accuracy`` (issue 5). Every integrator of
+Owns the accuracy benchmark behind ``biped-sim accuracy``. Every integrator of
 ``integrators.py`` runs through the same engine (``hybrid.simulate``) over a ladder of tolerances
 (adaptive methods) or step sizes (fixed-step methods) on:
 

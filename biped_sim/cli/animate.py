@@ -3,16 +3,19 @@ from __future__ import annotations
 
 import sys
 
+from biped_sim.config.controllers import CLI_HELP, chosen_controller, cli_controller
+
 
 def register(sub):
     p = sub.add_parser(
         "animate", help="a recorded run (BAG) or a scene run headless (--scene) as a GIF or MP4",
-        description="Draw a run as a moving stick figure (leg 1 blue, leg 2 orange, torso green, the\n"
-                    "stance foot red) with the ground reaction force as an arrow (400 N per m), a flash at\n"
-                    "each touchdown and the simulated time; at real-time speed unless --speed says otherwise.\n"
-                    "GIF through Pillow (its frame delays are whole hundredths of a second: --fps is rounded\n"
-                    "to one, 30 to 33.3, at most 50); MP4 needs imageio-ffmpeg (pip install imageio-ffmpeg).\n"
-                    "A progress bar goes to stderr.",
+        description="Draw a run as a moving stick figure (leg 1 blue, leg 2 orange, torso green,\n"
+                    "the stance foot red) with the ground reaction force as an arrow (400 N per m),\n"
+                    "a flash at each touchdown and the simulated time; at real-time speed unless\n"
+                    "--speed says otherwise. GIF through Pillow (its frame delays are whole\n"
+                    "hundredths of a second: --fps is rounded to one, 30 to 33.3, at most 50); MP4\n"
+                    "needs imageio-ffmpeg (pip install imageio-ffmpeg). A progress bar goes to\n"
+                    "stderr.",
         epilog="examples:\n  biped-sim animate bags/walk-20261123T230501832Z -o walk.gif\n"
                "  biped-sim animate --scene walk --duration 5 -o walk.mp4 --fps 30\n"
                "  biped-sim animate --scene slope --speed 0.5 -o slow.gif",
@@ -20,6 +23,8 @@ def register(sub):
     p.add_argument("bag", metavar="BAG", nargs="?", help="a bag directory (or its .mcap) recorded by biped_sim")
     p.add_argument("--scene", metavar="NAME", help="instead of a bag: run this scene headless "
                    "(msg_configs/NAME.yaml, or a path to a .yaml) and draw it")
+    p.add_argument("--controller", metavar="MODULE:ATTR|walk|none",
+                   help="with --scene: " + CLI_HELP + " [default: the scene's]")
     p.add_argument("-o", "--output", required=True, metavar="FILE", help="the file to write: .gif or .mp4")
     p.add_argument("--speed", type=float, default=1.0,
                    help="simulated seconds per second of the animation (default 1: real time)")
@@ -35,6 +40,8 @@ def register(sub):
 def _check(args):
     if (args.bag is None) == (args.scene is None):
         raise ValueError("give a BAG or --scene NAME (one of them)")
+    if args.controller is not None and args.scene is None:
+        raise ValueError("--controller goes with --scene (a bag's run has its controller already)")
     for name in ("speed", "fps"):
         v = getattr(args, name)
         if not v > 0 or v == float("inf"):
@@ -56,10 +63,11 @@ def run(args):
     if args.scene is not None:
         from biped_sim.config.scenes import load_scene
         scene = load_scene(args.scene)
+        controller = chosen_controller(cli_controller(args.controller), scene)
         t_final = scene.duration if args.duration is None else (args.start or 0.0) + args.duration
         if not t_final > 0:
             raise ValueError(f"scene {scene.name} has no duration: give --duration")
-        result = scene.simulate(t_final=t_final, compute_grf=True)
+        result = scene.simulate(t_final=t_final, compute_grf=True, controller=controller)
         if result.status != "completed":
             print(f"biped-sim animate: the run {result.status} at t={result.t[-1]:.6g} s: {result.message} "
                   "(drawn up to there)", file=sys.stderr)

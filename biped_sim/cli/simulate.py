@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from biped_sim.config.controllers import CLI_HELP, chosen_controller, cli_controller
+from biped_sim.config.help_format import HelpFormatter
 from biped_sim.control.walking import WalkingController
 from biped_sim.engine import compiled_loop
 from biped_sim.engine.compiled import WHY_PYTHON
@@ -30,7 +32,8 @@ def _floats(n):
 #: the engine options: flag -> (the scene parameter it sets, argparse keywords). The defaults (in the
 #: help) apply without --scene; with --scene only the options given replace the scene's values.
 OPTIONS = {
-    "--method": ("method", dict(choices=METHODS, help="integrator [default: dop853]")),
+    "--method": ("method", dict(choices=METHODS, metavar="METHOD",
+                                help=f"integrator: {', '.join(METHODS)} [default: dop853]")),
     "--rtol": ("rtol", dict(type=float, help="relative tolerance (adaptive methods) [default: 1e-9]")),
     "--atol": ("atol", dict(type=float, help="absolute tolerance (adaptive methods) [default: 1e-9]")),
     "--step": ("step", dict(type=float, help=f"step size (s) of {', '.join(FIXED_STEP_METHODS)} [default: 1e-3]")),
@@ -44,9 +47,6 @@ DEFAULTS = dict(method="dop853", rtol=1e-9, atol=1e-9, step=1e-3, base="floating
 
 def scene_overrides(args) -> dict:
     """The scene parameters that the options given with ``--scene`` replace (load_scene's overrides)."""
-    if args.controller is not None:
-        raise ValueError("--controller applies without --scene only: a scene's controller comes from its file "
-                         "(a scene without a walk_controller section runs with u = 0)")
     out = {name: getattr(args, name) for name, _kw in OPTIONS.values() if getattr(args, name) is not None}
     for option, name in (("q0", "initial_q"), ("dq0", "initial_dq"), ("stance_leg", "initial_stance_leg")):
         if getattr(args, option) is not None:
@@ -63,7 +63,7 @@ def register(sub):
                     "real-time factor, steps, right-hand-side evaluations, events, constraint drift "
                     "and energy-balance residual. Without --q0/--dq0 it starts on the reference "
                     "walking gait.",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("--scene", metavar="NAME|PATH",
                    help="run a scene (msg_configs/NAME.yaml or a YAML path): its initial state, phases, options "
                         "and controller, torques held over its control_period as the node does; --duration, the "
@@ -76,9 +76,8 @@ def register(sub):
     p.add_argument("--q0", type=_floats(5), help="initial q = 'x y q1 q2 q3' (m, rad), physical coordinates")
     p.add_argument("--dq0", type=_floats(5), help="initial dq (m/s, rad/s)")
     p.add_argument("--stance-leg", type=int, choices=(0, 1, 2), help="initial stance leg (0: flight) [default: 1]")
-    p.add_argument("--controller", choices=("walk", "none"),
-                   help="'walk': the reference walking controller; 'none': u = 0 (passive) [default: walk; a "
-                        "scene's controller comes from its file]")
+    p.add_argument("--controller", metavar="MODULE:ATTR|walk|none",
+                   help=CLI_HELP + " [default: walk; with --scene, the scene's]")
     for flag, (name, kw) in OPTIONS.items():
         p.add_argument(flag, dest=name, **kw)
     p.add_argument("--events", action="store_true", help="list every event")
@@ -104,7 +103,16 @@ def plot_path(args):
     return png
 
 
+def controller_name(choice, scene=None) -> str:
+    if choice not in (None, "walk", "none"):
+        return choice
+    if choice == "none" or (scene is not None and scene.controller_params is None):
+        return "none (u = 0)"
+    return "walk"
+
+
 def run(args):
+    args.controller = cli_controller(args.controller)
     args.plot_png = plot_path(args) if getattr(args, "plot", None) is not None else None
     if args.scene:
         args.scene_overrides = scene_overrides(args)
@@ -119,23 +127,27 @@ def run(args):
         from biped_sim.config.scenes import load_scene
         scene = load_scene(args.scene, overrides=args.scene_overrides)
         given = ", ".join(f"{k} {v}" for k, v in args.scene_overrides.items())
+        controller = chosen_controller(args.controller, scene)
         print(f"scene {scene.name} ({scene.path}): phases {sorted(scene.phases)}, base {scene.params['base']}, "
-              f"controller {'walk' if scene.controller_params else 'none (u = 0)'}"
+              f"controller {controller_name(args.controller, scene)}"
               + (f"; given on the command line: {given}" if given else ""))
-        return _report(scene.simulate(hold=not args.continuous), args)
+        return _report(scene.simulate(hold=not args.continuous, controller=controller), args)
     if args.duration is None:
         args.duration = 10.0
     model = BipedModel()
-    ctrl = WalkingController(model)
+    walk = WalkingController(model)
+    ctrl = chosen_controller(args.controller, model=model)
     if (args.q0 is None) != (args.dq0 is None):
         raise ValueError("give both --q0 and --dq0, or neither")
-    q0, dq0 = (args.q0, args.dq0) if args.q0 is not None else ctrl.initial_state()
+    # without --q0/--dq0: your controller's initial_state() if it has one, else the reference gait's
+    start = getattr(ctrl, "initial_state", walk.initial_state)
+    q0, dq0 = (args.q0, args.dq0) if args.q0 is not None else start()
     options = dict(base=args.base)
     if args.method in FIXED_STEP_METHODS:
         options["step"] = args.step
     if args.base == "fixed":
         options["phases"] = frozenset({"stance", "impact"})
-    result = simulate(model, q0, dq0, args.duration, controller=ctrl if args.controller == "walk" else None,
+    result = simulate(model, q0, dq0, args.duration, controller=ctrl,
                       stance_leg=args.stance_leg, rtol=args.rtol, atol=args.atol, method=args.method,
                       control_period=args.control_period, mu=args.mu, **options)
     return _report(result, args)
@@ -144,8 +156,13 @@ def run(args):
 def _report(result, args):
     print_summary(result)
     if getattr(args, "plot_png", None) is not None:
-        title = f"{Path(args.scene).stem if args.scene else 'simulate'}: {result.status}, {len(result.impacts)} impacts"
-        result.plot(path=args.plot_png, title=title)
+        bag = result.stats.get("bag")
+        if bag is not None:     # a recorded run keeps no samples in memory: its bag has every one
+            from biped_sim.recording.inspect_bag import plot
+            plot(bag, args.plot_png)
+        else:
+            result.plot(path=args.plot_png,
+                        title=f"{Path(args.scene).stem if args.scene else 'simulate'}: {len(result.impacts)} impacts")
         print(f"{'figure':>23}  {args.plot_png.resolve()}")
     if args.events:
         for e in result.events:

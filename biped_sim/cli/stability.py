@@ -21,7 +21,8 @@ def register(sub):
     p.add_argument("--quick", action="store_true", help="smaller suite (40-step walk, fewer gains and ratios)")
     p.add_argument("--break", dest="broken", choices=sorted(stability.BREAKS),
                    help="run with a deliberately broken setting that must make one case fail")
-    p.add_argument("--case", action="append", help="run only this case (function name without 'case_'; repeatable)")
+    p.add_argument("--case", action="append", metavar="NAME",
+                   help="run only this case (repeatable): " + ", ".join(c.__name__[5:] for c in stability.CASES))
     p.set_defaults(func=run)
 
 

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 from biped_sim.analysis import sweep as sw
+from biped_sim.config.controllers import CLI_HELP, cli_controller
 from biped_sim.config.help_format import HelpFormatter
 from biped_sim.config.progress import Progress
 
@@ -30,7 +31,8 @@ def register(sub):
                     "message, impacts (steps walked), t_end, x_end (distance the hip travelled), mean_speed, "
                     "energy_residual and drift (the run's own error estimate), wall_time, q_end and dq_end. "
                     "Names are those of the scene file: kp, step_angle, duration, initial_q[0], "
-                    "walk_controller.torque_limit, ... (docs/sweeps.md). A failed run is a row; Ctrl-C, SIGTERM "
+                    "walk_controller.torque_limit, ..., and controller.NAME for an argument of --controller's class "
+                    "(docs/sweeps.md). A failed run is a row; Ctrl-C, SIGTERM "
                     "or SIGHUP writes the runs done.",
         formatter_class=HelpFormatter)
     p.add_argument("scene", help="a scene name in msg_configs/ (walk, slope, ...) or a path to a .yaml file")
@@ -45,6 +47,9 @@ def register(sub):
                                                       "default: a local Ray started for this sweep")
     p.add_argument("--continuous", action="store_true",
                    help="continuous feedback instead of torques held over control_period (the node's run)")
+    p.add_argument("--controller", metavar="MODULE:ATTR|walk|none",
+                   help=CLI_HELP + "; --set controller.NAME=... sweeps an argument of your class or factory "
+                                   "[default: the scene's]")
     p.add_argument("-o", "--output", required=True, help="the CSV to write (one row per run)")
     p.add_argument("--plot", default=None, help="a PNG: distance walked over the first two swept names (a heat map, "
                                                 "falls and refused starts marked) or along the one swept name")
@@ -61,6 +66,10 @@ def parse_set(text: str) -> tuple[str, list]:
     name, spec = name.strip(), spec.strip()
     if not eq or not name or not spec:
         raise ValueError(f"--set {text!r}: expected NAME=START:STOP:NUM or NAME=v1,v2,...")
+    if "[" in spec or "]" in spec:       # a YAML list: it was split at its commas into '[1.0' and '2.0]'
+        values = spec.strip("[] ")
+        raise ValueError(f"--set {text!r}: give the values without brackets, separated by commas: "
+                         f"--set {name}={values} (a list parameter is swept by element, e.g. initial_q[0]=...)")
     if ":" in spec:
         parts = spec.split(":")
         try:
@@ -102,6 +111,9 @@ def run(args):
         sw.check_writable(args.plot, "--plot")
     total = math.prod(len(v) for v in grid.values())
     options = {"hold": False} if args.continuous else {}
+    choice = cli_controller(args.controller)
+    if choice not in (None, "walk"):
+        options["controller"] = None if choice == "none" else choice
     if total >= ANNOUNCED_GRID:   # a large grid said nothing for minutes (building its runs, starting its pool)
         plan = _plan(args, grid, total, options)
         if total > LARGE_GRID and not args.yes:

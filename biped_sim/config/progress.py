@@ -43,7 +43,9 @@ class Progress:
                 self.bar.update(done - self.bar.n)
                 return
             now = time.perf_counter()
-            if done >= self.total or done / self.total >= self.next_fraction or now - self.last_line >= LINE_SECONDS:
+            # the last count once (a caller may report it again, e.g. as it closes), a line every 10 %, or 10 s
+            if (done >= self.total > self.shown or done / self.total >= self.next_fraction
+                    or now - self.last_line >= LINE_SECONDS):
                 while self.next_fraction <= done / self.total:
                     self.next_fraction += LINE_FRACTION
                 self.last_line = now

@@ -105,6 +105,10 @@ def scene_path(name_or_path) -> Path:
                      f"(looked in {', '.join(str(d) for d in scene_dirs())}), or give a path to a .yaml file")
 
 
+#: ``Scene.simulate(controller=...)``'s default: the controller of the scene's file
+SCENE_CONTROLLER = type("SceneController", (), {"__repr__": lambda self: "the scene's controller"})()
+
+
 @dataclass
 class Scene:
     """A loaded scene: checked node parameters and (optionally) controller parameters."""
@@ -134,22 +138,35 @@ class Scene:
         """A fresh WalkingController with the scene's parameters, or None (u = 0)."""
         return None if self.controller_params is None else make_controller(self.controller_params)
 
-    def simulate_kwargs(self, hold=True) -> dict:
+    def simulate_kwargs(self, hold=True, controller=SCENE_CONTROLLER, controller_args=None) -> dict:
         """Keyword arguments of :func:`biped_sim.engine.simulate.simulate`, ``t_final`` and ``controller`` included.
 
         ``hold=True`` holds each torque over ``control_period`` as the node does (the node in lockstep
         with the walk_controller gives this same run); ``hold=False``: continuous feedback.
+        ``controller``: the scene's (default), None (u = 0), or a controller, a class or factory, or
+        ``"MODULE:ATTR"`` (:mod:`biped_sim.config.controllers`), made with ``controller_args`` and the
+        scene's model.
         """
         kw = self.engine_arguments()
         kw["t_final"] = self.duration
-        kw["controller"] = self.controller()
+        if controller is SCENE_CONTROLLER:
+            if controller_args:
+                raise ValueError("controller arguments need a controller=... (a class or factory) to make")
+            kw["controller"] = self.controller()
+        elif controller is None:
+            kw["controller"] = None
+        else:
+            from biped_sim.config.controllers import make_controller as make_users
+            kw["controller"] = make_users(controller, kw["model"], **(controller_args or {}))
         if kw["controller"] is not None and hold:
             kw["control_period"] = self.params["control_period"]
         return kw
 
-    def simulate(self, hold=True, **overrides):
+    def simulate(self, hold=True, controller=SCENE_CONTROLLER, controller_args=None, **overrides):
+        """The scene's run (:meth:`simulate_kwargs`), with ``overrides`` of
+        :func:`~biped_sim.engine.simulate.simulate`'s arguments."""
         from biped_sim.engine.simulate import simulate
-        kw = self.simulate_kwargs(hold)
+        kw = self.simulate_kwargs(hold, controller, controller_args)
         kw.update(overrides)
         return simulate(**kw)
 

@@ -19,8 +19,27 @@ import math
 
 import numpy as np
 
+from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.dynamics import stance_joint_affine_fast
 from biped_sim.engine.model import BipedModel
+from biped_sim.engine.torque_hook import CompiledLaw
+
+
+def _compiled_laws():
+    """The compiled laws (control/_laws.c: the C functions of the torque-law hook), or None: not built, built
+    on other generated kernels than the engine's, or BIPED_SIM_PURE_PYTHON set (then the controller is
+    called back, and the Python loop calls it anyway)."""
+    twin, _ = _compiled_twin()
+    if twin is None:
+        return None
+    try:
+        from biped_sim.control import _laws
+    except ImportError:
+        return None
+    return _laws if _laws.KERNELS_SHA256 == twin.SOURCE_SHA256 else None
+
+
+_laws = _compiled_laws()
 
 
 class WalkingController:
@@ -54,16 +73,19 @@ class WalkingController:
         return (self.torso_pitch, self._a2, self._ddb, self.clearance, self.lag, self.kp, self.kd, self.torque_limit)
 
     def compiled_law(self, model):
-        """("walking", parameters) when the engine's compiled loop, computing this law in C
-        (biped_sim/engine/_core.c) on ``model``'s constants (the simulator's), gives this controller's
-        own torques bit for bit; else None, and the loop calls the controller back: a subclass or an
-        instance that replaces a method the law runs, or a controller on a model whose closed form
-        (``stance_terms_1``: the mass matrix and bias of ``stance_joint_affine_fast``) is not ``model``'s."""
-        if not _runs_as(self, WalkingController, ("__call__", "outputs", "swing_target", "_law_parameters")):
+        """This law as the engine's torque-law hook takes it (a
+        :class:`~biped_sim.engine.torque_hook.CompiledLaw`: control/_laws.c's ``walking``, the parameters of
+        ``_law_parameters`` and then the constants of ``stance_terms_1``) when it gives this controller's
+        own torques bit for bit on ``model`` (the simulator's); else None, and the loop calls the controller
+        back: a subclass or an instance that replaces a method the law runs, a controller on a model whose
+        closed form (``stance_terms_1``: the mass matrix and bias of ``stance_joint_affine_fast``) is not
+        ``model``'s, or the compiled laws not built."""
+        if _laws is None or not _runs_as(self, WalkingController,
+                                         ("__call__", "outputs", "swing_target", "_law_parameters")):
             return None
         if self.model is not model and self.model.k["stance_terms_1"] != model.k["stance_terms_1"]:
             return None
-        return "walking", self._law_parameters()
+        return CompiledLaw("walking", self._law_parameters() + self.model.k["stance_terms_1"], _laws.WALKING_LAW)
 
     def swing_target(self, phi_s):
         """f(phi_s) and its first two derivatives."""
@@ -176,17 +198,18 @@ class PDWalkingController(WalkingController):
     """The same virtual constraints held by a PD law, without inverting the model.
 
     The swing hip drives y2; both hips together hold the torso (the torso feels the reaction of
-    both hip torques). About ten times cheaper per call than the computed torque of
-    :class:`WalkingController`, so a run's cost is the integrator's; it converges to a periodic
-    gait too (step period 0.551 s with the defaults), more slowly.
+    both hip torques). Cheaper per call than the computed torque of :class:`WalkingController`
+    (docs/scenes.md), so a run's cost is the integrator's; it converges to a periodic gait too, more
+    slowly.
     """
 
     def compiled_law(self, model):
-        """("pd_walking", parameters), as :meth:`WalkingController.compiled_law`; the PD law in stance uses
-        no model constant, so it runs compiled on any ``model``."""
-        if not _runs_as(self, PDWalkingController, ("__call__", "swing_target", "_law_parameters")):
+        """control/_laws.c's ``pd_walking`` on the parameters of ``_law_parameters``, as
+        :meth:`WalkingController.compiled_law`; the PD law uses no model constant, so it runs compiled on
+        any ``model``."""
+        if _laws is None or not _runs_as(self, PDWalkingController, ("__call__", "swing_target", "_law_parameters")):
             return None
-        return "pd_walking", self._law_parameters()
+        return CompiledLaw("pd_walking", self._law_parameters(), _laws.PD_WALKING_LAW)
 
     def __call__(self, t, q, dq, stance_leg):
         """(u1, u2), a tuple: this runs at every right-hand-side evaluation, so only y and dy of

@@ -1,6 +1,6 @@
 /* The compiled hybrid loop: floating-base stance, stepped by dop853 or dopri5, under a held torque,
- * a reference walking law compiled here, or a Python controller called back (biped_sim/engine/
- * compiled_loop.py drives it).
+ * a compiled torque law plugged in through the hook, or a Python controller called back
+ * (biped_sim/engine/compiled_loop.py drives it; biped_sim/engine/torque_hook.py describes the hook).
  *
  * It runs biped_sim/engine/hybrid.py's loop for the steps whose outcome it can decide exactly as the
  * Python code would: the step with its error control, the guards of the locator (touchdown of the
@@ -17,7 +17,7 @@
  * Every formula comes from the generated kernels (_gen/_kernels.h: the closed forms, the unrolled
  * steps and their dense output), which perform the Python code's operations in the same order; the
  * few lines written here (the step control, the guard values, the projection, the dip bound, brentq,
- * the two walking laws) follow their Python lines operation for operation (named beside each), so
+ * the hook's glue) follow their Python lines operation for operation (named beside each), so
  * that a run gives the same bits on both paths (test/unit/test_compiled_loop.py).
  */
 #define PY_SSIZE_T_CLEAN
@@ -34,7 +34,7 @@
 #define KMAX 32              /* room for any closed form's constants */
 
 enum { DOP853 = 0, DOPRI5 = 1 };
-enum { HELD = 0, PD_WALKING = 1, WALKING = 2, CALLBACK = 3 };
+enum { HELD = 0, COMPILED = 1, CALLBACK = 2 };   /* the kinds of torque law */
 enum { DONE = 0, PENDING = 1, GROW = 2, FAILED = 3, PYTHON_STEPS = 4, SCUFF_ENDED = 5, RAISED = 6, TOUCHDOWN = 7,
        TORQUE_CHANGE = 8 };
 enum { FAIL_NONE = 0, FAIL_STEP_SIZE = 1, FAIL_NON_FINITE = 2, FAIL_CALLBACK = 3 };
@@ -47,6 +47,17 @@ typedef struct { double x, height, dx, dheight; } Foot;
  * full: a step makes at most one. */
 #define EVENT_ROOM 32
 typedef struct { int kind, a, b; double v[22]; } EventRecord;
+
+/* A compiled torque law (biped_sim/engine/torque_hook.py's SIGNATURE): u from t, q, dq, the stance leg and
+ * its parameters; nonzero: it failed */
+typedef int (*TorqueLaw)(double t, const double *q, const double *dq, int stance_leg, const double *params,
+                         double *u);
+#define MAX_LAW_PARAMETERS 128
+typedef struct {
+    TorqueLaw fn;
+    double params[MAX_LAW_PARAMETERS];
+    char name[64];     /* for the message of a failure */
+} CompiledLaw;
 
 typedef struct {
     PyObject_HEAD
@@ -71,10 +82,12 @@ typedef struct {
     int has_mu, stop_on_slip, project, check_invariants, impact_phase;
     double to_power_basis[64];
     /* mode and torque */
-    int method, leg, controller;
-    double pin[2], u_hold[2], ctrl[8];
-    /* a Python controller, called back as f(t, q, dq) -> [u1, u2] (modes.bind_controller's checked call);
-     * its first exception is kept and the computation it spoiled is thrown away (callback_failed) */
+    int method, leg, law_kind;     /* law_kind: HELD (u_hold), COMPILED (law) or CALLBACK (callback) */
+    double pin[2], u_hold[2];
+    CompiledLaw law;
+    /* a Python controller, called back as f(t, q, dq) -> [u1, u2] (modes.bind_controller's checked call).
+     * The first failure of the law (the controller raised, a compiled law returned nonzero) is kept as an
+     * exception and the computation it spoiled is thrown away (callback_failed) */
     PyObject *callback;
     int callback_failed;
     PyObject *exc_type, *exc_value, *exc_tb;
@@ -109,104 +122,10 @@ typedef struct {
     double state_now[10];    /* q and dq as the last quiet period() left them (state_arrays) */
 } Loop;
 
-/* -- controllers (biped_sim/control/walking.py) ------------------------------------------------- */
-/* ctrl: torso_pitch, a2 (step_angle ** 2), ddb (-2 / a2), clearance, lag, kp, kd, torque_limit */
+/* -- the torque law: held, compiled (the hook) or called back ------------------------------------- */
 
-static void
-swing_target(const double *c, double phi_s, double *f, double *df, double *ddf)
-{   /* WalkingController.swing_target */
-    double a2 = c[1], ddb = c[2], cl = c[3], l = c[4];
-    double b = 1.0 - phi_s * phi_s / a2;
-    double db = -2.0 * phi_s / a2;
-    *f = -phi_s * (1.0 + cl * b) + l * b;
-    *df = -(1.0 + cl * b) - phi_s * cl * db + l * db;
-    *ddf = -2.0 * cl * db - phi_s * cl * ddb + l * ddb;
-}
-
-static double
-clip(double v, double lim)
-{   /* min(lim, max(-lim, v)), as Python's min and max compare (a NaN becomes -lim) */
-    v = v > -lim ? v : -lim;
-    return v < lim ? v : lim;
-}
-
-static void
-pd_walking(const Loop *L, const double *q, const double *dq, double *u)
-{   /* PDWalkingController.__call__ in stance */
-    const double *c = L->ctrl;
-    int s = L->leg == 1 ? 2 : 3, w = L->leg == 1 ? 3 : 2;
-    double q3 = q[4], dq3 = dq[4], f, df, ddf;
-    swing_target(c, q[s] + q3 - M_PI, &f, &df, &ddf);
-    double y2 = q[w] + q3 - M_PI - f;
-    double dy2 = dq[w] + dq3 - df * (dq[s] + dq3);
-    double kp = c[5], kd = c[6], lim = c[7];
-    double u_swing = -kp * y2 - kd * dy2;
-    u_swing = u_swing > -lim ? u_swing : -lim;
-    u_swing = u_swing < lim ? u_swing : lim;
-    double u_stance = 2.0 * (kp * (q3 - c[0]) + kd * dq3) - u_swing;
-    u_stance = u_stance > -lim ? u_stance : -lim;
-    u_stance = u_stance < lim ? u_stance : lim;
-    u[0] = L->leg == 1 ? u_stance : u_swing;
-    u[1] = L->leg == 1 ? u_swing : u_stance;
-}
-
-static void
-joint_affine(const Loop *L, const double *q, const double *dq, int leg, double *a, double Bu[3][2])
-{   /* dynamics.stance_joint_affine_fast (leg 2 through the relabeling R, as there) */
-    if (leg == 2) {
-        double qs[5] = {q[0], q[1], q[3], q[2], q[4]}, dqs[5] = {dq[0], dq[1], dq[3], dq[2], dq[4]};
-        double a1[3], B1[3][2];
-        joint_affine(L, qs, dqs, 1, a1, B1);
-        a[0] = a1[1]; a[1] = a1[0]; a[2] = a1[2];
-        Bu[0][0] = B1[1][1]; Bu[0][1] = B1[1][0];
-        Bu[1][0] = B1[0][1]; Bu[1][1] = B1[0][0];
-        Bu[2][0] = B1[2][1]; Bu[2][1] = B1[2][0];
-        return;
-    }
-    double out[26];
-    const double zero[2] = {0.0, 0.0};
-    k_stance_terms_1(q, dq, zero, L->k_terms, out);
-    double M00 = out[0], M01 = out[1], M02 = out[2], M11 = out[3], M12 = out[4], M22 = out[5];
-    double b0 = out[6], b1 = out[7], b2 = out[8];
-    /* _inverse_sym3 */
-    double A11 = M11 * M22 - M12 * M12, A12 = M02 * M12 - M01 * M22, A13 = M01 * M12 - M02 * M11;
-    double inv_det = 1.0 / (M00 * A11 + M01 * A12 + M02 * A13);
-    double i00 = A11 * inv_det, i01 = A12 * inv_det, i02 = A13 * inv_det;
-    double i11 = (M00 * M22 - M02 * M02) * inv_det, i12 = (M01 * M02 - M00 * M12) * inv_det;
-    double i22 = (M00 * M11 - M01 * M01) * inv_det;
-    a[0] = i00 * b0 + i01 * b1 + i02 * b2;
-    a[1] = i01 * b0 + i11 * b1 + i12 * b2;
-    a[2] = i02 * b0 + i12 * b1 + i22 * b2;
-    Bu[0][0] = i00; Bu[0][1] = i01;
-    Bu[1][0] = i01; Bu[1][1] = i11;
-    Bu[2][0] = i02; Bu[2][1] = i12;
-}
-
-static void
-walking(const Loop *L, const double *q, const double *dq, double *u)
-{   /* WalkingController.__call__ in stance: outputs(), then the computed torque */
-    const double *c = L->ctrl;
-    int s = L->leg == 1 ? 2 : 3, w = L->leg == 1 ? 3 : 2;
-    double phi_s = q[s] + q[4] - M_PI, dphi_s = dq[s] + dq[4], f, df, ddf;
-    swing_target(c, phi_s, &f, &df, &ddf);
-    double y0 = q[4] - c[0], y1 = q[w] + q[4] - M_PI - f;
-    double H2[3] = {0.0, 0.0, 1.0 - df};
-    H2[s - 2] = -df;
-    H2[w - 2] = 1.0;
-    double dy0 = dq[4], dy1 = H2[0] * dq[2] + H2[1] * dq[3] + H2[2] * dq[4];
-    double bias1 = -ddf * dphi_s * dphi_s;
-    double a[3], Bu[3][2];
-    joint_affine(L, q, dq, L->leg, a, Bu);
-    double kp = c[5], kd = c[6], lim = c[7];
-    double r0 = -kp * y0 - kd * dy0 - a[2] - 0.0;
-    double r1 = -kp * y1 - kd * dy1 - (H2[0] * a[0] + H2[1] * a[1] + H2[2] * a[2]) - bias1;
-    double m00 = Bu[2][0], m01 = Bu[2][1];
-    double m10 = H2[0] * Bu[0][0] + H2[1] * Bu[1][0] + H2[2] * Bu[2][0];
-    double m11 = H2[0] * Bu[0][1] + H2[1] * Bu[1][1] + H2[2] * Bu[2][1];
-    double det = m00 * m11 - m01 * m10;
-    u[0] = clip((m11 * r0 - m01 * r1) / det, lim);
-    u[1] = clip((m00 * r1 - m10 * r0) / det, lim);
-}
+/* the type of the exception a compiled law's failure raises (set_failure_type: the engine's SimulationError) */
+static PyObject *law_failure_type;
 
 static PyObject *list_of(const double *v, Py_ssize_t n);
 static int doubles(PyObject *seq, double *out, Py_ssize_t lo, Py_ssize_t hi, const char *what, Py_ssize_t *n_out);
@@ -235,13 +154,53 @@ call_back(Loop *L, double t, const double *q, const double *dq, double *u)
     }
 }
 
+/* u = law(t, q, dq) in stance on L->leg; a failure kept as call_back keeps an exception */
+static void
+apply_law(Loop *L, const CompiledLaw *law, double t, const double *q, const double *dq, double *u)
+{
+    u[0] = u[1] = 0.0;
+    if (L->callback_failed) return;
+    int code = law->fn(t, q, dq, L->leg, law->params, u);
+    if (code != 0) {
+        char when[32];
+        snprintf(when, sizeof when, "%.9g", t);      /* (as Python's f"{t:.9g}") */
+        PyErr_Format(law_failure_type ? law_failure_type : PyExc_RuntimeError,
+                     "the torque law %s returned %d at t=%s s", law->name, code, when);
+        L->callback_failed = 1;
+        PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
+        u[0] = u[1] = 0.0;
+    }
+}
+
 static void
 torque(Loop *L, double t, const double *q, const double *dq, double *u)
 {
-    if (L->controller == PD_WALKING) pd_walking(L, q, dq, u);
-    else if (L->controller == WALKING) walking(L, q, dq, u);
-    else if (L->controller == CALLBACK) call_back(L, t, q, dq, u);
+    if (L->law_kind == COMPILED) apply_law(L, &L->law, t, q, dq, u);
+    else if (L->law_kind == CALLBACK) call_back(L, t, q, dq, u);
     else { u[0] = L->u_hold[0]; u[1] = L->u_hold[1]; }
+}
+
+/* A compiled law from its description (address, parameters, name) (compiled_loop._hook_argument);
+ * 0, or -1 with an exception */
+static int
+compiled_law_from(PyObject *spec, CompiledLaw *law)
+{
+    PyObject *address, *params;
+    const char *name;
+    if (!PyTuple_Check(spec) || !PyArg_ParseTuple(spec, "OOs", &address, &params, &name)) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_TypeError, "a compiled law is (address, parameters, name)");
+        return -1;
+    }
+    void *fn = PyLong_AsVoidPtr(address);
+    if (fn == NULL) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "a compiled law's address must not be 0");
+        return -1;
+    }
+    if (doubles(params, law->params, 0, MAX_LAW_PARAMETERS, "a compiled law's parameters", NULL)) return -1;
+    law->fn = (TorqueLaw)fn;
+    snprintf(law->name, sizeof law->name, "%s", name);
+    return 0;
 }
 
 /* the kept exception of the callback, raised (NULL), after the spoiled computation was thrown away */
@@ -600,6 +559,14 @@ locate_crossing(Loop *L, int leg, double ta, double tb, double *root)
 
 /* -- the quiet steps ----------------------------------------------------------------------------- */
 
+/* witnesses.triggered: a witness with value w0 at a step's start and w1 at its end fired in the step (the
+ * one direction of the model's witnesses, "positive then non-positive") */
+static inline int
+triggered(double w0, double w1)
+{
+    return w0 > 0 && w1 <= 0;
+}
+
 /* guards.swinging_through of a foot (x, height, dx, dheight): moving forward more than it sinks */
 static int
 swinging_through(const double *foot)
@@ -646,7 +613,7 @@ static int
 touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, double energy_lost, double *residual_out)
 {
     int old = L->leg, nw = 3 - L->leg;
-    if (L->controller == CALLBACK) { L->why = 13; return 0; }
+    if (L->law_kind == CALLBACK) { L->why = 13; return 0; }
     if (L->n_impacts > 0 && t_ev - L->last_impact < L->zeno_interval) { L->why = 14; return 0; }
     if (L->mode_events + 1 >= L->max_events) { L->why = 15; return 0; }
     if (L->mode_events >= 49 && t_ev - L->ring[L->mode_events % 49] < 1e-9) { L->why = 16; return 0; }
@@ -777,10 +744,10 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     long scuffs = L->scuffs;
     int touching = 0;
     double t_touch = 0.0;
-    /* EventLocator.locate: the guards of stance, in active_guards' order */
+    /* EventLocator.locate: the witnesses of stance, in witnesses.witnesses' order (touchdown, liftoff, slip) */
     if (L->impact_phase && L->armed[sw - 1]) {
         double g1 = ft1[4 * (sw - 1) + 1], g0 = ft0[4 * (sw - 1) + 1], bracket[2] = {L->t_old, L->t}, t_root;
-        int crossing = g0 > 0 && g1 <= 0;
+        int crossing = triggered(g0, g1);
         if (crossing || (g0 > 0 && g1 > 0 && may_dip(L, sw, g0, g1, bracket))) {
             if (locate_crossing(L, sw, bracket[0], bracket[1], &t_root) < 0 || !L->front_rule) { L->why = 2; return 0; }
             /* _is_scuff (guards.starts_scuff): at or behind the stance foot, and under scuff_rule "forward"
@@ -806,12 +773,10 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         }
     }
     {
-        double g1 = normal(L, F1), g0 = normal(L, F0);
-        if (g0 > 0 && g1 <= 0) { L->why = 4; return 0; }
+        if (triggered(normal(L, F0), normal(L, F1))) { L->why = 4; return 0; }
     }
     if (L->has_mu) {
-        double g1 = slip_margin(L, F1), g0 = slip_margin(L, F0);
-        if (g0 > 0 && g1 <= 0) { L->why = 5; return 0; }
+        if (triggered(slip_margin(L, F0), slip_margin(L, F1))) { L->why = 5; return 0; }
     }
     if (touching) {
         if (scuffing) { L->why = 3; return 0; }
@@ -1215,7 +1180,7 @@ run_quiet(Loop *L, PyObject *t_end_arg, PyObject *sim)
 static void
 hold(Loop *L, double u0, double u1, double t_bound)
 {
-    L->controller = HELD;
+    L->law_kind = HELD;
     L->u_hold[0] = u0;
     L->u_hold[1] = u1;
     restart(L, L->t, t_bound);
@@ -1263,7 +1228,7 @@ period_end(double t, double period, double t_final, long *k)
     return t_next;
 }
 
-/* periods(kind, ctrl, period, control_periods, t_final, t_stop, sim)
+/* periods(law, period, control_periods, t_final, t_stop, sim)
  * -> (<run's result>, control_periods, t_next, u1, u2): control periods of a compiled law held (as
  * HybridSimulator.advance_period computes them, the command at each period's start) until t_final, or
  * the first period boundary at or after t_stop - 1e-9 period (a push due), or a run outcome the Python
@@ -1273,24 +1238,19 @@ period_end(double t, double period, double t_final, long *k)
 static PyObject *
 Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 7) {
-        PyErr_SetString(PyExc_TypeError, "periods() takes 7 arguments");
+    if (nargs != 6) {
+        PyErr_SetString(PyExc_TypeError, "periods() takes 6 arguments");
         return NULL;
     }
-    int kind = (int)PyLong_AsLong(args[0]);
-    double period = PyFloat_AsDouble(args[2]), t_final = PyFloat_AsDouble(args[4]), t_stop = PyFloat_AsDouble(args[5]);
-    long k0 = PyLong_AsLong(args[3]);
+    double period = PyFloat_AsDouble(args[1]), t_final = PyFloat_AsDouble(args[3]), t_stop = PyFloat_AsDouble(args[4]);
+    long k0 = PyLong_AsLong(args[2]);
     if (PyErr_Occurred()) return NULL;
-    if (kind != PD_WALKING && kind != WALKING) {
-        PyErr_SetString(PyExc_ValueError, "periods(): a compiled law (1 or 2)");
-        return NULL;
-    }
     if (!(period > 0.0 && period < INFINITY)) {
         PyErr_SetString(PyExc_ValueError, "periods(): period must be a positive finite number");
         return NULL;
     }
-    double ctrl[8];
-    if (doubles(args[1], ctrl, 8, 8, "ctrl", NULL)) return NULL;
+    CompiledLaw law;
+    if (compiled_law_from(args[0], &law) < 0) return NULL;
     long k_first = k0;
     if (isnan(period_end(L->t, period, t_final, &k_first))) {   /* (the first period's index only can be late) */
         PyErr_SetString(PyExc_ValueError, "periods(): more than 2**53 control periods before t");
@@ -1298,15 +1258,14 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     }
     RunState rs;
     Py_buffer buf;
-    if (run_state(L, args[6], &rs, &buf) < 0) return NULL;
+    if (run_state(L, args[5], &rs, &buf) < 0) return NULL;
     int outcome = DONE;
     double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, tol = 1e-9 * period;
     while (L->t < t_final && t_stop > L->t + tol) {
         long k = k0;
         double t_end = period_end(L->t, period, t_final, &k), command[2];
-        memcpy(L->ctrl, ctrl, sizeof ctrl);
-        L->controller = kind;
-        torque(L, L->t, L->y, L->y + 5, command);
+        apply_law(L, &law, L->t, L->y, L->y + 5, command);
+        if (L->callback_failed) break;      /* (run_result: RAISED) */
         carry_step(L, L->h_abs);     /* as begin() carries it over */
         hold(L, command[0], command[1], t_end);
         if (refused_at_start(L)) {
@@ -1585,42 +1544,40 @@ Loop_counts(Loop *L, PyObject *unused)
     return Py_BuildValue("(ll)", L->nfev, L->nrejected);
 }
 
-/* begin(method, stance_leg, pin_x, pin_y, torque kind, u1, u2, ctrl or None, t, y, t_bound, h_abs or None,
- *       reset_counters): a mode's start, as make_stepper builds a stepper (integrators._ListRungeKutta
+/* begin(method, stance_leg, pin_x, pin_y, law, u1, u2, t, y, t_bound, h_abs or None, reset_counters), law
+ *       None (u1, u2 held), a Python callable (called back) or a compiled law (address, parameters, name): a mode's start, as make_stepper builds a stepper (integrators._ListRungeKutta
  *       restart: f = rhs(t, y), the carried-over step size capped by max_step) */
 static PyObject *
 Loop_begin(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 13) {
-        PyErr_SetString(PyExc_TypeError, "begin() takes 13 arguments");
+    if (nargs != 12) {
+        PyErr_SetString(PyExc_TypeError, "begin() takes 12 arguments");
         return NULL;
     }
-    long method = PyLong_AsLong(args[0]), leg = PyLong_AsLong(args[1]), kind = PyLong_AsLong(args[4]);
+    long method = PyLong_AsLong(args[0]), leg = PyLong_AsLong(args[1]);
     double pin0 = PyFloat_AsDouble(args[2]), pin1 = PyFloat_AsDouble(args[3]);
     double u0 = PyFloat_AsDouble(args[5]), u1 = PyFloat_AsDouble(args[6]);
-    double t = PyFloat_AsDouble(args[8]), t_bound = PyFloat_AsDouble(args[10]);
-    int reset = PyObject_IsTrue(args[12]);
+    double t = PyFloat_AsDouble(args[7]), t_bound = PyFloat_AsDouble(args[9]);
+    int reset = PyObject_IsTrue(args[11]);
     if (PyErr_Occurred()) return NULL;
-    if ((method != DOP853 && method != DOPRI5) || (leg != 1 && leg != 2) || kind < HELD || kind > CALLBACK) {
+    if ((method != DOP853 && method != DOPRI5) || (leg != 1 && leg != 2)) {
         PyErr_SetString(PyExc_ValueError, "begin(): the loop steps dop853 (0) or dopri5 (1) in stance on leg 1 or 2");
         return NULL;
     }
+    PyObject *law = args[4];
+    int kind = law == Py_None ? HELD : PyCallable_Check(law) ? CALLBACK : COMPILED;
     if (kind == CALLBACK) {
-        if (!PyCallable_Check(args[7])) {
-            PyErr_SetString(PyExc_TypeError, "begin(): a callback controller must be callable");
-            return NULL;
-        }
-        Py_INCREF(args[7]);
-        Py_XSETREF(L->callback, args[7]);
-    } else if (kind != HELD && doubles(args[7], L->ctrl, 8, 8, "ctrl", NULL)) {
+        Py_INCREF(law);
+        Py_XSETREF(L->callback, law);
+    } else if (kind == COMPILED && compiled_law_from(law, &L->law) < 0) {
         return NULL;
     }
-    if (doubles(args[9], L->y, N, N, "y", NULL) || carry_step_arg(L, args[11]) < 0) return NULL;
+    if (doubles(args[8], L->y, N, N, "y", NULL) || carry_step_arg(L, args[10]) < 0) return NULL;
     L->method = (int)method;
     L->leg = (int)leg;
     L->pin[0] = pin0;
     L->pin[1] = pin1;
-    L->controller = (int)kind;
+    L->law_kind = kind;
     L->u_hold[0] = u0;
     L->u_hold[1] = u1;
     if (reset) L->nfev = L->nrejected = L->naccepted = 0;
@@ -1724,28 +1681,37 @@ Loop_counters(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* law_torque(kind, ctrl) -> (u1, u2): a compiled law's torque at the loop's current state and stance leg
- * (the command of a control period); the law is not kept (a held period follows) */
+/* law_torque(law) -> [u1, u2]: a compiled law's (address, parameters, name) torque at the loop's current
+ * state and stance leg (the command of a control period); the law is not kept (a held period follows) */
 static PyObject *
-Loop_law_torque(Loop *L, PyObject *args)
+Loop_law_torque(Loop *L, PyObject *spec)
 {
-    int kind;
-    PyObject *ctrl;
-    double u[2], keep[8];
-    if (!PyArg_ParseTuple(args, "iO", &kind, &ctrl)) return NULL;
-    if (kind != PD_WALKING && kind != WALKING) {
-        PyErr_SetString(PyExc_ValueError, "law_torque(): a compiled law (1 or 2)");
-        return NULL;
-    }
-    int was = L->controller;
-    memcpy(keep, L->ctrl, sizeof keep);
-    if (doubles(ctrl, L->ctrl, 8, 8, "ctrl", NULL)) return NULL;
-    L->controller = kind;
-    torque(L, L->t, L->y, L->y + 5, u);
-    L->controller = was;
-    memcpy(L->ctrl, keep, sizeof keep);
+    CompiledLaw law;
+    double u[2];
+    if (compiled_law_from(spec, &law) < 0) return NULL;
+    apply_law(L, &law, L->t, L->y, L->y + 5, u);
+    if (L->callback_failed) return raise_callback_error(L);
     return Py_BuildValue("[dd]", u[0], u[1]);
 }
+
+/* set_failure_type(cls): the exception type a compiled law's failure raises (a subclass of Exception) */
+static PyObject *
+set_failure_type(PyObject *module, PyObject *cls)
+{
+    (void)module;
+    if (!PyExceptionClass_Check(cls)) {
+        PyErr_SetString(PyExc_TypeError, "set_failure_type(): an exception class");
+        return NULL;
+    }
+    Py_INCREF(cls);
+    Py_XSETREF(law_failure_type, cls);
+    Py_RETURN_NONE;
+}
+
+static PyMethodDef module_methods[] = {
+    {"set_failure_type", set_failure_type, METH_O, NULL},
+    {NULL, NULL, 0, NULL},
+};
 
 
 static PyMethodDef Loop_methods[] = {
@@ -1777,7 +1743,7 @@ static PyMethodDef Loop_methods[] = {
     {"handed", (PyCFunction)Loop_handed, METH_NOARGS, NULL},
     {"armed", (PyCFunction)Loop_armed, METH_NOARGS, NULL},
     {"set_counters", (PyCFunction)Loop_counters, METH_VARARGS, NULL},
-    {"law_torque", (PyCFunction)Loop_law_torque, METH_VARARGS, NULL},
+    {"law_torque", (PyCFunction)Loop_law_torque, METH_O, NULL},
     {NULL, NULL, 0, NULL},
 };
 
@@ -1812,7 +1778,7 @@ static PyTypeObject LoopType = {
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "_core",
     "The compiled hybrid loop (biped_sim/engine/_core.c; driven by biped_sim/engine/compiled_loop.py).",
-    -1, NULL, NULL, NULL, NULL, NULL,
+    -1, module_methods, NULL, NULL, NULL, NULL,
 };
 
 PyMODINIT_FUNC

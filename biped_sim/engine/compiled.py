@@ -5,9 +5,9 @@ Owns one choice. ``_gen/closed_forms.py`` (generated from the energies by tools/
 ``_gen/rk_steps.py`` (generated from scipy's tableaux by tools/generate_rk.py) are the definitions;
 ``_gen/_cmodel`` is their compiled twin (C, generated from both by tools/generate_c.py and built by
 setup.py as an optional extension), which performs the same IEEE operations in the same order and
-so returns the same bits, several times faster. ``gen`` and ``rk`` use the twin when it was built
+so returns the same bits, faster (docs/performance.md). ``gen`` and ``rk`` use the twin when it was built
 from the current sources, else the Python code; results do not depend on which
-(test/test_compiled.py). ``BIPED_SIM_PURE_PYTHON=1`` forces the Python code.
+(test/unit/test_compiled.py). ``BIPED_SIM_PURE_PYTHON=1`` forces the Python code.
 """
 from __future__ import annotations
 

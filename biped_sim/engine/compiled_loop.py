@@ -1,10 +1,10 @@
 """The compiled hybrid loop (``_core.c``) as the hybrid simulator steps with it.
 
 Owns one choice and one hand-over. The choice: a mode runs on the compiled loop when it is
-floating-base stance, stepped by dop853 or dopri5, with no ``on_step`` observer, and the extension
-was built from the current generated kernels; its torque is held, a reference law that the loop
-compiles (``controller.compiled_law(model)``: :class:`~biped_sim.control.walking.WalkingController` and
-``PDWalkingController`` when the result is bit for bit the controller's own on the simulator's model),
+floating-base stance, stepped by dop853 or dopri5, with no ``on_step`` observer, every witness of the
+model one that the loop decides (``witnesses.all_compiled``), and the extension was built from the current
+generated kernels; its torque is held, a compiled law that the controller
+offers through the torque-law hook (``controller.compiled_law(model)``, :mod:`~biped_sim.engine.torque_hook`),
 or any other Python controller, called back. Else, and always with
 ``BIPED_SIM_PURE_PYTHON=1``, the Python loop of ``hybrid.py`` runs, the readable reference. Both give
 the same run (test/unit/test_compiled_loop.py).
@@ -27,12 +27,12 @@ from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.guards import FootState
 from biped_sim.engine.locator import scuff_event
 from biped_sim.engine.modes import bind_controller
-from biped_sim.engine.results import Event
+from biped_sim.engine.results import Event, SimulationError
+from biped_sim.engine.witnesses import all_compiled
 
 DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED, TOUCHDOWN, TORQUE_CHANGE = range(9)
 # (SCUFF_ENDED and TOUCHDOWN: the kinds of take_events' records; TORQUE_CHANGE: periods() stopped before a
 # period whose command the stance guards refuse at its start, for the Python code to run)
-TORQUE_KINDS = {"held": 0, "pd_walking": 1, "walking": 2, "callback": 3}
 
 
 def _compiled_core():
@@ -47,6 +47,7 @@ def _compiled_core():
                       "then make venv")
     if _core.KERNELS_SHA256 != twin.SOURCE_SHA256:
         return None, "the compiled loop is older than the generated code; rebuild it: make venv"
+    _core.set_failure_type(SimulationError)     # a compiled law's failure ends the run "failed"
     return _core, ""
 
 
@@ -60,9 +61,8 @@ METHOD_CODES = {"dop853": 0, "dopri5": 1}
 
 
 def torque_law(controller, model):
-    """("held", None) for no controller, (kind, parameters) for a controller whose law the loop computes
-    on ``model``'s constants (the simulator's) with the controller's own result
-    (``controller.compiled_law(model)``), else None."""
+    """("held", None) for no controller, the :class:`~biped_sim.engine.torque_hook.CompiledLaw` a controller
+    offers on ``model`` (the simulator's: ``controller.compiled_law(model)``), else None."""
     if controller is None:
         return "held", None
     law = getattr(controller, "compiled_law", None)
@@ -70,23 +70,33 @@ def torque_law(controller, model):
 
 
 def reference_law(controller, model):
-    """(kind, parameters) of a controller whose law the loop computes itself on ``model``'s constants (a
-    reference walking law), else None (no controller: a held torque; or one called back)."""
+    """The :class:`~biped_sim.engine.torque_hook.CompiledLaw` a controller offers on ``model``, else None (no
+    controller: a held torque; or one called back)."""
     law = torque_law(controller, model)
     return law if law is not None and law[0] != "held" else None
 
 
 def _torque_in_mode(controller, stance_leg, model):
-    """The loop's torque law in a mode: compiled, or the controller called back from C through the same
-    checked call as the Python loop's (``modes.bind_controller``)."""
+    """The loop's torque law in a mode: held, compiled, or the controller called back from C through the
+    same checked call as the Python loop's (``modes.bind_controller``)."""
     law = torque_law(controller, model)
     return law if law is not None else ("callback", bind_controller(controller, stance_leg))
+
+
+def _hook_argument(law):
+    """What the C loop takes for a law: None (held), the Python callable (called back), or a compiled law's
+    (address, parameters, name)."""
+    if law[0] == "held":
+        return None
+    if law[0] == "callback":
+        return law[1]
+    return law.address, law.params, law.name
 
 
 def covers(sim, controller):
     """The torque law when the compiled loop can run the simulator's current mode, else None."""
     if (_core is None or not enabled or not sim.stance_leg or sim.opt.base != "floating"
-            or sim.method not in METHOD_CODES or sim.on_step is not None):
+            or sim.method not in METHOD_CODES or sim.on_step is not None or not all_compiled()):
         return None
     return _torque_in_mode(controller, sim.stance_leg, sim.model)
 
@@ -146,9 +156,9 @@ class CompiledStepper(integrators._ListRungeKutta):
     def start(self, t_bound, law, reset_counters):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
         torque law, f at the start, the carried-over step size (or the initial one)."""
-        sim, (kind, params) = self.sim, law
-        self.loop.begin(self.method_code, sim.stance_leg, sim.pin[0], sim.pin[1], TORQUE_KINDS[kind], sim._u[0],
-                        sim._u[1], params, sim.t, sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound, sim._h,
+        sim = self.sim
+        self.loop.begin(self.method_code, sim.stance_leg, sim.pin[0], sim.pin[1], _hook_argument(law), sim._u[0],
+                        sim._u[1], sim.t, sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound, sim._h,
                         reset_counters)
         self.t_bound = t_bound
         self.loop.state_stale = False
@@ -222,7 +232,7 @@ class CompiledStepper(integrators._ListRungeKutta):
         law = reference_law(controller, self.sim.model)
         if law is None or self.loop.state_stale or self.sim._stepper is not self:
             return None
-        return self.loop.law_torque(TORQUE_KINDS[law[0]], law[1])
+        return self.loop.law_torque(_hook_argument(law))
 
     def can_run_periods(self):
         """Whether ``periods`` can run now: the simulator's state is the loop's, and the locator holds
@@ -235,12 +245,12 @@ class CompiledStepper(integrators._ListRungeKutta):
         all ran, TORQUE_CHANGE before a period whose command the stance guards refuse at its start (not
         begun: ``advance_period`` runs it), else the outcome of the step handed back in the period ending
         at ``t_next`` (``can_run_periods`` first)."""
-        sim, (kind, params) = self.sim, law
+        sim = self.sim
         if self.loop.locator_stale:
             self._push_locator()
         _make_room(sim._samples)
         result, sim.control_periods, t_next, u = self.loop.periods(
-            TORQUE_KINDS[kind], params, period, sim.control_periods, t_final, t_stop, sim)
+            _hook_argument(law), period, sim.control_periods, t_final, t_stop, sim)
         sim._u = list(u)
         outcome = self._after_run(*result)
         if outcome == GROW:      # the period in progress goes on in run(), which makes room
@@ -335,6 +345,6 @@ def compiled_torque(controller, stance_leg, q, dq, model):
     if _core is None or law is None:
         return None
     loop = _new_loop(model)
-    loop.begin(METHOD_CODES["dop853"], stance_leg, 0.0, 0.0, TORQUE_KINDS["held"], 0.0, 0.0, None, 0.0,
-               list(q) + list(dq) + [0.0], 0.0, None, True)
-    return np.array(loop.law_torque(TORQUE_KINDS[law[0]], law[1]))
+    loop.begin(METHOD_CODES["dop853"], stance_leg, 0.0, 0.0, None, 0.0, 0.0, 0.0, list(q) + list(dq) + [0.0], 0.0,
+               None, True)
+    return np.array(loop.law_torque(_hook_argument(law)))

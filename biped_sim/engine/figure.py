@@ -1,15 +1,24 @@
 """The figure of a run (``SimulationResult.plot()`` and ``biped-sim inspect``): joint angles, ground
-reaction forces, hip torques, impact markers and a stick-figure strip of the gait, drawn from arrays.
+reaction forces, hip torques, impact markers and a stick-figure strip of the gait, drawn from arrays;
+its title says how and when the run ended and, for a run that stopped, why.
 
-matplotlib is imported inside :func:`run_figure` only: a run that plots nothing does not pay for it
-(~0.4 s), and the engine stays usable without it (it is the ``plot`` extra). The figure is a
+matplotlib is imported inside :func:`run_figure` only: a run that plots nothing does not pay for its
+import, and the engine stays usable without it (it is the ``plot`` extra). The figure is a
 ``matplotlib.figure.Figure`` made without pyplot: no global backend or figure registry is touched.
 """
 from __future__ import annotations
 
 import math
+import textwrap
 
 import numpy as np
+
+#: characters a line of the reason under the title holds (the figure is 12 in wide, 12 pt text)
+REASON_WIDTH = 110
+#: lines of the reason shown at most (the rest is in the summary, the events and the log)
+REASON_LINES = 3
+#: the height of a line of the title, as a fraction of the figure's (12 pt in a 12 in figure, spaced)
+TITLE_LINE = 0.0205
 
 
 def impact_foot_x(model, foot, q) -> float:
@@ -20,18 +29,68 @@ def impact_foot_x(model, foot, q) -> float:
     return float(model.foot_position(np.asarray(q, dtype=float), foot)[0])
 
 
-def run_figure(t, q, u, grf_t, grf, impacts, model, title, slope=0.0, path=None, frames=14):
+def outcome_text(status, time, reason=""):
+    """How and when a run ended, and why if it did not complete: "stopped at t = 1.5598 s: <the
+    reason's first line, wrapped>" (``time`` nan: no time)."""
+    when = f" at t = {time:.6g} s" if time is not None and math.isfinite(time) else ""
+    first = (reason or "").strip().splitlines()[0] if (reason or "").strip() else ""
+    if status == "completed" or not first:
+        return f"{status}{when}"
+    lines = textwrap.wrap(f"{status}{when}: {first}", REASON_WIDTH)
+    if len(lines) > REASON_LINES:
+        lines = lines[:REASON_LINES]
+        lines[-1] = lines[-1][:REASON_WIDTH - 4] + " ..."
+    return "\n".join(lines)
+
+
+def thin_labels(ax, labels, pad=2.0):
+    """Show only labels that do not overprint: ``labels`` (matplotlib Text, in order of preference) are
+    checked when ``ax`` is drawn, once the layout is final, and each one whose box (grown by ``pad``
+    pixels) overlaps one shown before it is hidden. Stick figures of a robot that stays in place (a
+    fall, a stop) stand on one another and their time labels would."""
+    from matplotlib.artist import Artist
+
+    class LabelThinner(Artist):
+        def draw(self, renderer):
+            shown = []
+            for label in labels:
+                label.set_visible(True)
+                box = label.get_window_extent(renderer).padded(pad)
+                if any(box.overlaps(other) for other in shown):
+                    label.set_visible(False)
+                else:
+                    shown.append(box)
+
+    thinner = LabelThinner()
+    thinner.set_zorder(-1e9)     # drawn before the labels (an Axes draws its artists by zorder)
+    ax.add_artist(thinner)
+    return thinner
+
+
+def run_figure(t, q, u, grf_t, grf, impacts, model, title, slope=0.0, path=None, frames=14, outcome=None):
     """The figure of a run as a matplotlib Figure; written to ``path`` (PNG) if given.
 
     t (n,), q (n, 5), u (n, 2): the samples; grf_t (m,), grf (m, 2): the ground's force on the stance
-    foot (nan where a line should break, e.g. in flight); impacts: (time, foot, q) of each touchdown.
+    foot (nan where a line should break, e.g. in flight); impacts: (time, foot, q) of each touchdown;
+    outcome: (status, time, reason) of the run's end, said under the title (:func:`outcome_text`) and,
+    for a run that did not complete, marked at its time on the time panels.
     """
     from matplotlib.figure import Figure
     t, q, u = np.asarray(t, dtype=float), np.asarray(q, dtype=float), np.asarray(u, dtype=float)
     imp_t = [float(ti) for ti, _foot, _q in impacts]
-    fig = Figure(figsize=(12, 12), layout="constrained")
-    gs = fig.add_gridspec(4, 1, height_ratios=[1.1, 1, 0.8, 1.6])
-    fig.suptitle(title, fontsize=13)
+    stop = None
+    if outcome is not None:
+        status, end_time, reason = outcome
+        title = f"{title}\n{outcome_text(status, end_time, reason)}"
+        if status != "completed" and end_time is not None and math.isfinite(end_time):
+            stop = (status, float(end_time))
+    # fixed margins, the top one for the title's lines: a constrained layout measured every tick
+    # label for ~40 % of the drawing time of `biped-sim inspect`
+    fig = Figure(figsize=(12, 12))
+    top = 1.0 - (0.012 + TITLE_LINE * (title.count("\n") + 1)) - 0.03
+    gs = fig.add_gridspec(4, 1, height_ratios=[1.1, 1, 0.8, 1.6], left=0.07, right=0.985, bottom=0.045, top=top,
+                          hspace=0.42)
+    fig.suptitle(title, fontsize=12, y=0.994, va="top")
 
     ax = fig.add_subplot(gs[0])
     if len(t):
@@ -58,6 +117,8 @@ def run_figure(t, q, u, grf_t, grf, impacts, model, title, slope=0.0, path=None,
     for a in (ax, ax2, ax3):
         for i, ti in enumerate(imp_t):
             a.axvline(ti, color="0.5", lw=0.8, ls="--", label="impact" if i == 0 else None)
+        if stop is not None:
+            a.axvline(stop[1], color="C3", lw=1.5, label=stop[0])
         a.grid(alpha=0.3)
         if a.get_legend_handles_labels()[0]:
             a.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), fontsize=8, ncol=4, frameon=False)
@@ -67,7 +128,7 @@ def run_figure(t, q, u, grf_t, grf, impacts, model, title, slope=0.0, path=None,
                   fontsize=10, loc="left")
     if len(t):
         idx = np.unique(np.linspace(0, len(t) - 1, frames).round().astype(int))
-        xs = []
+        xs, labels = [], []
         for j, i in enumerate(idx):
             qi = q[i]
             hip = qi[:2]
@@ -79,7 +140,7 @@ def run_figure(t, q, u, grf_t, grf, impacts, model, title, slope=0.0, path=None,
             top = model.stick_figure(qi).torso_tip
             ax4.plot([hip[0], top[0]], [hip[1], top[1]], color="C2", lw=2.5, alpha=shade)
             ax4.plot(*hip, "o", color="k", ms=3, alpha=shade)
-            ax4.text(top[0], 1.62 if j % 2 == 0 else 1.76, f"{t[i]:.2f} s", ha="center", fontsize=7)
+            labels.append(ax4.text(top[0], 1.62 if j % 2 == 0 else 1.76, f"{t[i]:.2f} s", ha="center", fontsize=7))
             xs += [hip[0], top[0]]
         for _ti, foot, qi in impacts:
             x = impact_foot_x(model, foot, qi)
@@ -93,6 +154,8 @@ def run_figure(t, q, u, grf_t, grf, impacts, model, title, slope=0.0, path=None,
         ax4.set_aspect("equal", adjustable="box")
         ax4.set_xlabel("x (m)")
         ax4.set_ylabel("y (m)")
+        # the last frame's time first (where the run ended), then the first, then the rest in order
+        thin_labels(ax4, labels[-1:] + labels[:-1])
     if path is not None:
         fig.savefig(path, dpi=90)
     return fig

@@ -1,5 +1,7 @@
 """The guards (witness functions) of the hybrid system, and how a crossing is located.
 
+(``witnesses.py`` makes each guard one row: its value from here, its direction, its reset.)
+
 A guard is a scalar function of the state that is positive while the current mode holds; the mode
 ends where it crosses zero going down (every guard here has that one direction, as Drake's witness
 functions ``FootCollision`` and the liftoff witness do):
@@ -89,28 +91,6 @@ def slip_guard(normal, tangential, mu) -> float:
     return mu * normal - abs(tangential)
 
 
-class Guard(NamedTuple):
-    """An active guard: its kind ("touchdown", "liftoff", "slip") and the foot it watches."""
-    kind: str
-    leg: int
-
-
-def active_guards(stance_leg, armed, phases, mu) -> list[Guard]:
-    """The guards of the current mode: the armed swing foot's touchdown (both feet's in flight), and
-    in stance the liftoff and, with a friction coefficient, the slip of the stance foot."""
-    guards = []
-    if stance_leg:
-        swing = 3 - stance_leg
-        if "impact" in phases and armed[swing - 1]:
-            guards.append(Guard("touchdown", swing))
-        guards.append(Guard("liftoff", stance_leg))
-        if mu is not None:
-            guards.append(Guard("slip", stance_leg))
-    elif "impact" in phases:
-        guards.extend(Guard("touchdown", leg) for leg in (1, 2) if armed[leg - 1])
-    return guards
-
-
 # -- the scuff assumption of touchdown_rule "front" --------------------------------------------------
 def swinging_through(foot: FootState) -> bool:
     """A foot moving forward more than it sinks (a crossing at most 45 degrees steep): a leg swinging
@@ -153,7 +133,7 @@ def locate_crossing(guard_at, ta, tb, event_tol) -> float:
 
 # -- the ground as a constraint on states ----------------------------------------------------------
 def prepare_event_location():
-    """Import the root finder now (``locate_crossing`` imports it where it is used, ~0.4 s): a
+    """Import the root finder now (``locate_crossing`` imports it where it is used, a slow import): a
     realtime run must not stall at its first event for it."""
     import scipy.optimize  # noqa: F401
 

@@ -43,13 +43,7 @@ from biped_sim.engine.modes import (
 )
 from biped_sim.engine.options import Options, check_number, check_run_arguments
 from biped_sim.engine.pushes import apply_push
-from biped_sim.engine.resets import (
-    double_touchdown_reset,
-    friction_cone_stop,
-    liftoff_reset,
-    slip_event,
-    touchdown_reset,
-)
+from biped_sim.engine.resets import friction_cone_stop
 from biped_sim.engine.results import (
     IMPACT_KINDS,
     Event,
@@ -58,6 +52,7 @@ from biped_sim.engine.results import (
     SimulationError,
     SimulationResult,
 )
+from biped_sim.engine.witnesses import ResetContext, witness
 
 
 def held_torque(u):
@@ -162,8 +157,8 @@ class HybridSimulator:
         return G.foot_states(self.model, q, dq, self.ground.tan)
 
     def active_guards(self):
-        """The guards of the current mode (:func:`~biped_sim.engine.guards.active_guards`)."""
-        return self.locator.guards(self.stance_leg)
+        """The guards of the current mode as (name, leg) pairs (:func:`~biped_sim.engine.witnesses.witnesses`)."""
+        return [(w.name, w.leg) for w in self.locator.witnesses(self.stance_leg)]
 
     @property
     def integrated_size(self):
@@ -300,7 +295,7 @@ class HybridSimulator:
             t_next = t_final          # the last period ends exactly at the run's end
         self.control_periods = k + 1
         if controller is not None:
-            # a reference law on the compiled loop: its torque computed in C, the same bits
+            # a compiled law on the compiled loop: its torque computed in C, the same bits
             u = self._compiled.command(controller) if self._compiled is not None else None
             if u is None:
                 u = self.command(controller)
@@ -315,7 +310,7 @@ class HybridSimulator:
     def advance_periods(self, period, controller, t_final, t_stop=math.inf):
         """``advance_period(period, controller=controller, t_final=t_final)`` repeated until ``t_final``, or
         until a period starts at or after ``t_stop`` (within 1e-9 period: a push due then). The same run;
-        on the compiled loop a reference law's periods run in C, their commands computed there."""
+        on the compiled loop a compiled law's periods run in C, their commands computed there."""
         check_number("period", period, 0.0, math.inf, "s", open_low=True)
         tol = 1e-9 * period
         while self.status == "running" and self.t < t_final and t_stop > self.t + tol:
@@ -440,10 +435,10 @@ class HybridSimulator:
                 if self.opt.project_constraints and self.stance_leg and self.opt.base == "floating":
                     st.replace_y(q + dq + [w])  # continue from the projected state
                 continue
-            t_ev, guard, legs = event
+            t_ev, fired, legs = event
             qe, dqe, we = self._to_phys(st.dense_at(t_ev))
             self._accept(t_ev, qe, dqe, we)
-            self._reset(guard, legs, t_ev, qe, dqe)
+            self._reset(fired, legs, t_ev, qe, dqe)
             if self.status != "running":
                 break
             self._new_stepper(t_end)
@@ -489,54 +484,52 @@ class HybridSimulator:
         self._samples.append(self.t, q, dq, leg, F, u, residual)
 
     # -- resets -------------------------------------------------------------------------------
-    def _reset(self, guard, legs, t, q, dq):
-        """Apply the reset of the guard that fired, take the new mode from its event."""
+    def _reset(self, fired, legs, t, q, dq):
+        """Apply the reset of the witness that fired (for the feet ``legs``) at the state (q, dq: lists) at t,
+        take the new mode from its event."""
         self._samples.keep_last()       # the sample at the event, before its reset
         if self._compiled is not None:
             self._compiled.python_changed()
-        qa, dqa = np.array(q), np.array(dq)
         old = self.stance_leg
-        if guard.kind == "touchdown":
-            ev = (double_touchdown_reset(self.model, t, qa, dqa, old, self.ground, self.mu) if len(legs) == 2
-                  else touchdown_reset(self.model, t, qa, dqa, legs, old, self.ground, self.mu))
-            self.energy_lost += ev.energy_loss
+        ev, stop = fired.reset(ResetContext(self.model, self.ground, self.mu, self.opt, self._force_at), t, q, dq,
+                               legs, old)
+        if ev.kind in IMPACT_KINDS:
+            self._take_impact(ev, t, q)
+            return
+        if ev.stance_leg_after != ev.stance_leg_before:    # the foot left the ground: flight
             self.stance_leg = ev.stance_leg_after
-            self.pin = list(G.foot_xy(self.model, list(q), ev.stance_leg_after))
-            self.locator.after_reset(ev)
-            self.dq = ev.dq_plus
-            u = self._torque_at(t, list(q), ev.dq_plus.tolist())
-            self._record(self.q, self.dq, self.stance_leg, self._force_at(t, list(q), ev.dq_plus.tolist(), u), u)
-            self._stats["impacts"] += 1
-            self._push_event(ev)
-            zeno = self.impacts.record(t)
-            if zeno is None and self.status == "running" and self.opt.check_invariants:
-                zeno = check_impact(ev, self.feet(list(q), ev.dq_plus.tolist()), self.ground, self.impacts.gaps(),
-                                    self.opt.impulse_tol, self.opt.contact_tol)
-            if zeno is not None:
-                self.events.append(Event(t, "zeno", self.stance_leg, self.q.copy(), self.dq.copy(), self.dq.copy(),
-                                         message=zeno))
-                self._stop("stopped", zeno)
-            elif self.status == "running" and (slip := friction_cone_stop(ev, self.ground, self.mu, self.opt)):
-                self._stop("stopped", slip)    # the impulse slips: as a push's, or a stance force's (slip)
-            if self.status == "running":
-                self._check_stance_start(t)
-        elif guard.kind == "liftoff":
-            ev = liftoff_reset(t, qa, dqa, old, "flight" in self.opt.phases)
-            if ev.kind == "error":
-                self._push_event(ev)
-                self._stop("stopped", ev.message)
-                return
-            self.stance_leg = 0
             self.pin = None
             self.locator.after_reset(ev)
-            self._push_event(ev)
-        else:
-            ev = slip_event(t, qa, dqa, old, self._force_at(t, list(q), list(dq)), self.ground, self.mu)
-            self._push_event(ev)
-            self.locator.latched.add(guard)   # off until it is positive again: it must not fire at once
-            if self.opt.stop_on_slip:
-                self._stop("stopped", ev.message + "; the model has no sliding phase (raise mu, or "
-                           "set stop_on_slip=False to keep the foot pinned)")
+        self._push_event(ev)
+        if fired.kind.latches:
+            self.locator.latched.add(fired)   # off until it is positive again: it must not fire at once
+        if stop is not None:
+            self._stop("stopped", stop)
+
+    def _take_impact(self, ev, t, q):
+        """The new stance of an impact's Event at the state (q, dq+), its sample, and the checks of the
+        impact: a Zeno stop, its invariants, an impulse outside the friction cone, the new stance's start."""
+        self.energy_lost += ev.energy_loss
+        self.stance_leg = ev.stance_leg_after
+        self.pin = list(G.foot_xy(self.model, list(q), ev.stance_leg_after))
+        self.locator.after_reset(ev)
+        self.dq = ev.dq_plus
+        u = self._torque_at(t, list(q), ev.dq_plus.tolist())
+        self._record(self.q, self.dq, self.stance_leg, self._force_at(t, list(q), ev.dq_plus.tolist(), u), u)
+        self._stats["impacts"] += 1
+        self._push_event(ev)
+        zeno = self.impacts.record(t)
+        if zeno is None and self.status == "running" and self.opt.check_invariants:
+            zeno = check_impact(ev, self.feet(list(q), ev.dq_plus.tolist()), self.ground, self.impacts.gaps(),
+                                self.opt.impulse_tol, self.opt.contact_tol)
+        if zeno is not None:
+            self.events.append(Event(t, "zeno", self.stance_leg, self.q.copy(), self.dq.copy(), self.dq.copy(),
+                                     message=zeno))
+            self._stop("stopped", zeno)
+        elif self.status == "running" and (slip := friction_cone_stop(ev, self.ground, self.mu, self.opt)):
+            self._stop("stopped", slip)    # the impulse slips: as a push's, or a stance force's (slip)
+        if self.status == "running":
+            self._check_stance_start(t)
 
     def _check_torque_change(self):
         """The held torque may change at this instant (``advance(u=...)``, a control period's start): the
@@ -558,9 +551,9 @@ class HybridSimulator:
             return
         t0, q, dq, leg, F_sample, u, residual = self._samples.last()
         n, tg = G.normal_tangent(F_sample if F is None else F, self.ground)
-        slip = G.Guard("slip", leg)
+        slip = witness("slip", leg)
         if n < 0.0:
-            guard = G.Guard("liftoff", leg)
+            guard = witness("liftoff", leg)
         elif self.mu is not None and slip not in self.locator.latched and G.slip_guard(n, tg, self.mu) < 0.0:
             guard = slip
         else:
@@ -570,7 +563,7 @@ class HybridSimulator:
             # the next step starts here under the new torque, not from the last step's end under the old one
             self.locator.restart(t, self.feet(q, dq), F)
         self._reset(guard, [leg], t, q, dq)
-        if guard.kind == "liftoff" and self.stance_leg == 0 and F is None:
+        if guard.name == "liftoff" and self.stance_leg == 0 and F is None:
             self._samples.set_last_in_flight()   # in flight from this very instant: so is the sample just taken
 
     def _push_event(self, ev):

@@ -23,6 +23,7 @@ import numpy as np
 from biped_sim.engine import guards as G
 from biped_sim.engine.grazing import dip_bracket
 from biped_sim.engine.results import Event, SceneAssumptionError
+from biped_sim.engine.witnesses import triggered, witness, witnesses
 
 
 class EventLocator:
@@ -51,8 +52,9 @@ class EventLocator:
         self.scuff_events: list = []    # finished scuffs, for the simulator to report
         self._feet_end = self._force_end = (None, None)   # (t, value) at the last step's end
 
-    def guards(self, stance_leg):
-        return G.active_guards(stance_leg, self.armed, self.opt.phases, self.mu)
+    def witnesses(self, stance_leg):
+        """The witnesses of the mode (:func:`~biped_sim.engine.witnesses.witnesses`) with the feet armed now."""
+        return witnesses(stance_leg, self.armed, self.opt.phases, self.mu)
 
     def after_reset(self, event):
         """Disarm the feet the reset put on the ground (or that just left it); forget the feet and force
@@ -76,21 +78,13 @@ class EventLocator:
         and stance force (under the torque held until then) are these, not the last step end's."""
         self._feet_end, self._force_end = (t, feet), (t, F)
 
-    def _value(self, guard, t, q, dq, force_at, feet=None, F=None):
-        if guard.kind == "touchdown":
-            if feet is None:   # the height only (root finding evaluates this many times)
-                return G.foot_height(self.model, q, guard.leg, self.ground.tan)
-            return G.touchdown_guard(feet, guard.leg)
-        n, tg = G.normal_tangent(F if F is not None else force_at(t, q, dq), self.ground)
-        return G.liftoff_guard(n, tg) if guard.kind == "liftoff" else G.slip_guard(n, tg, self.mu)
-
     def locate(self, st, to_phys, stance_leg, q1, dq1, feet1, force_at, F_end=None):
-        """((time, guard, legs) of the earliest crossing, or None; the force at the step's end).
+        """((time, witness, legs) of the earliest crossing, or None; the force at the step's end).
 
         ``F_end``: the stance force at the step's end if the caller has it (the stepper's last
         evaluation), else it is computed here."""
-        guards = self.guards(stance_leg)
-        if not guards and not self._resting_feet_pushed_in(feet1, stance_leg):
+        rows = self.witnesses(stance_leg)
+        if not rows and not self._resting_feet_pushed_in(feet1, stance_leg):
             self._arm(feet1, stance_leg)
             # the step's end is the next step's start: what is kept of the step before is no longer its state
             self._feet_end, self._force_end = (st.t, feet1), (None, None)
@@ -112,19 +106,21 @@ class EventLocator:
                 F0 = force_at(st.t_old, q0, dq0)
             F1 = F_end if F_end is not None else force_at(st.t, q1, dq1)
             self._force_end = (st.t, F1)
+        if q0 is None and any(w.kind.reads == "state" for w in rows):
+            q0, dq0, _ = to_phys(st.y_old)
         roots = []
-        for guard in guards:
-            g1 = self._value(guard, st.t, q1, dq1, force_at, feet1, F1)
+        for guard in rows:
+            g1 = guard.value(self, st.t, q1, dq1, force_at, feet1, F1)
             if guard in self.latched:
                 if g1 > 0:
                     self.latched.discard(guard)
                 continue
-            g0 = self._value(guard, st.t_old, q0, dq0, force_at, feet0, F0)
+            g0 = guard.value(self, st.t_old, q0, dq0, force_at, feet0, F0)
             guard_at = self._on_dense_output(st, to_phys, guard, force_at)
             bracket = None
-            if g0 > 0 and g1 <= 0:
+            if triggered(g0, g1, guard.direction):
                 bracket = (st.t_old, st.t)
-            elif guard.kind == "touchdown" and g0 > 0 and g1 > 0:
+            elif guard.name == "touchdown" and g0 > 0 and g1 > 0:
                 # both ends above the ground: a dip in between is found with its guarantee
                 bracket = dip_bracket(st, to_phys, guard_at, guard.leg, stance_leg, self.opt.base == "fixed",
                                       self.model.parameters.l_leg, self.ground.tan, g0, g1, self.opt.graze_tol)
@@ -136,7 +132,7 @@ class EventLocator:
         for leg in self._resting_feet_pushed_in(feet1, stance_leg):
             # a free foot on the ground that is not armed (it just lifted off, or started there at rest)
             # and that the dynamics push into it: a touchdown from where it rests, not a crossing
-            guard = G.Guard("touchdown", leg)
+            guard = witness("touchdown", leg)
             guard_at = self._on_dense_output(st, to_phys, guard, force_at)
             t_root = self._crossing(st, guard, guard_at, landing_bracket(guard_at, st.t_old, st.t))
             if not self._is_scuff(st, to_phys, guard, stance_leg, t_root):
@@ -150,8 +146,8 @@ class EventLocator:
         roots.sort()
         t_first, guard = roots[0]
         legs = [guard.leg]
-        if guard.kind == "touchdown" and not stance_leg:
-            legs += [g.leg for t, g in roots[1:] if g.kind == "touchdown" and t - t_first <= self.opt.simultaneous_tol]
+        if guard.name == "touchdown" and not stance_leg:
+            legs += [g.leg for t, g in roots[1:] if g.name == "touchdown" and t - t_first <= self.opt.simultaneous_tol]
             other = 3 - guard.leg
             if len(legs) == 1 and self.armed[other - 1]:
                 # the other foot may be within the tolerance without having crossed yet
@@ -163,7 +159,7 @@ class EventLocator:
     def _crossing(self, st, guard, guard_at, bracket):
         """The guard's crossing in the bracket (``guards.locate_crossing``); a touchdown's by the compiled
         loop's stepper where it has one (the same algorithm on the same values)."""
-        crossing = getattr(st, "height_crossing", None) if guard.kind == "touchdown" else None
+        crossing = getattr(st, "height_crossing", None) if guard.name == "touchdown" else None
         t_root = crossing(guard.leg, *bracket) if crossing is not None else None
         return t_root if t_root is not None else G.locate_crossing(guard_at, *bracket, self.opt.event_tol)
 
@@ -171,13 +167,13 @@ class EventLocator:
         """The guard as a function of time along the last step's dense output (for root finding)."""
         def guard_at(t):
             q, dq, _ = to_phys(st.dense_at(t))
-            return self._value(guard, t, q, dq, force_at)
+            return guard.value(self, t, q, dq, force_at)
         return guard_at
 
     def _is_scuff(self, st, to_phys, guard, stance_leg, t_root):
         """Under touchdown_rule "front", a crossing that passes through the ground (``guards.starts_scuff``)
         is a scuff: start following it."""
-        if guard.kind != "touchdown" or not stance_leg or self.opt.touchdown_rule != "front":
+        if guard.name != "touchdown" or not stance_leg or self.opt.touchdown_rule != "front":
             return False
         fr = self._feet_at(st, to_phys, t_root)
         if not G.starts_scuff(fr[guard.leg - 1], fr[stance_leg - 1], self.opt) or self.impacts.accumulating(t_root):

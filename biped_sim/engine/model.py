@@ -1,6 +1,6 @@
 """The three-link biped of docs/model.md: parameters, D(q), C(q, dq), G(q), B, feet, J, Jdot, energy.
 
-Owns the model's parameters and the evaluation of the closed forms in ``_generated.py`` (which
+Owns the model's parameters and the evaluation of the closed forms in ``_gen/closed_forms.py`` (which
 ``tools/generate_model.py`` derives from the energies; docs/model.md "Configuration and conventions").
 Coordinates are ``q = [x, y, q1, q2, q3]``: hip position, leg angles relative to the torso, absolute
 torso angle; angle 0 points up. Plain numpy, no ROS.

@@ -75,8 +75,9 @@ class SimulationResult:
 
     def plot(self, path=None, title=None, frames=14):
         """The figure ``biped-sim inspect`` draws for a bag (joint angles, ground forces, hip torques,
-        impacts, a stick-figure strip of the gait), as a matplotlib Figure; ``path``: also written
-        there as a PNG. Needs matplotlib (the ``plot`` extra), imported here only."""
+        impacts, a stick-figure strip of the gait; the title says how and when the run ended and why
+        it stopped), as a matplotlib Figure; ``path``: also written there as a PNG. Needs matplotlib
+        (the ``plot`` extra), imported here only."""
         from biped_sim.engine.figure import run_figure
         from biped_sim.engine.model import BipedModel
         grf = self.grf.astype(float)
@@ -84,9 +85,17 @@ class SimulationResult:
         impacts = [(e.time, e.leg, e.q) for e in self.impacts]
         slope = float(getattr(self.options, "slope", 0.0) or 0.0)
         if title is None:
-            title = f"simulated run ({self.status}): {len(impacts)} impacts"
+            title = f"simulated run: {len(impacts)} impacts"
         return run_figure(self.t, self.q, self.u, self.t, grf, impacts, self.model or BipedModel(), title,
-                          slope=slope, path=path, frames=frames)
+                          slope=slope, path=path, frames=frames, outcome=(self.status, self.end_time, self.message))
+
+    @property
+    def end_time(self) -> float:
+        """When the run ended (s): the time of the event that stopped it, else of its last sample."""
+        stops = [e.time for e in self.events if e.kind in ("error", "zeno")]
+        if self.status != "completed" and stops:
+            return float(stops[-1])
+        return float(self.t[-1]) if len(self.t) else float("nan")
 
     @property
     def impacts(self):

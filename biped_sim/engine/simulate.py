@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 
+from biped_sim.engine.controller_check import check_controller
 from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.engine.model import BipedModel, as_state_vector, check_leg
 from biped_sim.engine.options import check_number
@@ -50,8 +51,8 @@ def simulate(model, q0, dq0, t_final, controller=None, stance_leg=1, rtol=1e-9, 
         if controller is None:
             raise ValueError("control_period needs a controller to hold once per period: give "
                              "controller=..., or leave control_period out for u = 0")
-    if controller is not None and not callable(controller):
-        raise ValueError("controller must be callable as controller(t, q, dq, stance_leg) -> u")
+    if controller is not None:
+        check_controller(controller)
     pushes = _checked_pushes(pushes, t_final)
     sim = HybridSimulator(model, q0, dq0, stance_leg, rtol, atol, method, mu, **options)
     if controller is None or control_period is None:

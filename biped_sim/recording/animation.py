@@ -1,7 +1,7 @@
 """A run as a moving picture: the stick figure, the ground force arrow, a time stamp (``biped-sim animate``).
 
-Owns the frames (drawn with Pillow's ImageDraw: 1.6 ms a frame here against 97 ms for the same figure in
-matplotlib, see docs/cli.md) and the files (GIF through Pillow, MP4 through imageio-ffmpeg
+Owns the frames (drawn with Pillow's ImageDraw, much faster than the same figure in matplotlib: the
+figures in docs/cli.md) and the files (GIF through Pillow, MP4 through imageio-ffmpeg
 when it is installed). A run comes from a bag (:func:`track_from_bag`) or from a headless
 ``simulate`` (:func:`track_from_result`); the points are ``BipedModel.stick_figure`` and the arrow
 scale, colours and impact flash those of the markers (:mod:`biped_sim.recording.markers`).

@@ -27,6 +27,14 @@ _PRIMITIVES = {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "i
 _FIELD_TYPE = re.compile(r"(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+")
 
 
+#: types recorded without their interface package (not on PyPI): (.msg text, RIHS01 hash of Jazzy's
+#: type description; test_foxglove_layout computes it again from geometry_msgs' description)
+UNINSTALLED_TYPES = {
+    "tf2_msgs/msg/TFMessage": ("geometry_msgs/TransformStamped[] transforms\n",
+                               "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087"),
+}
+
+
 # -- type information: definitions and hashes from the installed interface packages ----------------
 def _share_dir(package: str) -> Path:
     try:
@@ -54,10 +62,13 @@ def message_definition(type_name: str) -> str:
 
     def text_of(name):
         pkg, ns, typ = _split(name)
-        path = _share_dir(pkg) / ns / f"{typ}.msg"
-        if not path.is_file():
-            raise LookupError(f"no message definition {path} for {type_name}")
-        text = path.read_text()
+        if f"{pkg}/{ns}/{typ}" in UNINSTALLED_TYPES:
+            text = UNINSTALLED_TYPES[f"{pkg}/{ns}/{typ}"][0]
+        else:
+            path = _share_dir(pkg) / ns / f"{typ}.msg"
+            if not path.is_file():
+                raise LookupError(f"no message definition {path} for {type_name}")
+            text = path.read_text()
         deps = set()
         for m in _FIELD_TYPE.finditer(text):
             t = m.group(1)
@@ -76,8 +87,10 @@ def message_definition(type_name: str) -> str:
 def type_hash(type_name: str) -> str:
     """The RIHS01 type-description hash of a type (from its generated ``.json`` description)."""
     pkg, ns, typ = _split(type_name)
-    path = _share_dir(pkg) / ns / f"{typ}.json"
     full = f"{pkg}/{ns}/{typ}"
+    if full in UNINSTALLED_TYPES:
+        return UNINSTALLED_TYPES[full][1]
+    path = _share_dir(pkg) / ns / f"{typ}.json"
     try:
         for entry in json.loads(path.read_text())["type_hashes"]:
             if entry["type_name"] == full:

@@ -135,15 +135,39 @@ def channels(bag) -> dict:
     return out
 
 
-def messages(bag, topics=None, start_ns=None):
-    """Yield (topic, type, log_time_ns, data) in log-time order; a truncated file up to its last chunk."""
+def messages(bag, topics=None, start_ns=None, log_time_order=True):
+    """Yield (topic, type, log_time_ns, data) in log-time order; a truncated file up to its last chunk.
+    ``log_time_order=False``: a whole file in the order of its chunks and records, one chunk in memory
+    at a time (half the time: no merge of the chunks' messages by time; a truncated file is read in
+    log-time order still)."""
     with open(mcap_path(bag), "rb") as f:
         r, summary = _reader_and_summary(f)
         if summary is None:
             yield from _scan_messages(f, topics, start_ns)
             return
+        if not log_time_order and summary.chunk_indexes:
+            yield from _file_order_messages(f, summary, topics, start_ns)
+            return
         for schema, channel, msg in r.iter_messages(topics=topics, start_time=start_ns, log_time_order=True):
             yield channel.topic, schema.name, msg.log_time, msg.data
+
+
+def _file_order_messages(f, summary, topics, start_ns):
+    """The messages of a whole file in the order of its chunks (by offset) and of the records in each,
+    one chunk decompressed at a time (mcap's reader in insert order decompresses every chunk before it
+    yields a message)."""
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Chunk, Message
+    from mcap.stream_reader import breakup_chunk
+    channels = {cid: (c.topic, summary.schemas[c.schema_id].name if c.schema_id else "")
+                for cid, c in summary.channels.items()}
+    for index in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
+        f.seek(index.chunk_start_offset + 1 + 8)       # past the record's opcode and length
+        for rec in breakup_chunk(Chunk.read(ReadDataStream(f)), validate_crc=False):
+            if isinstance(rec, Message):
+                topic, type_name = channels[rec.channel_id]
+                if (topics is None or topic in topics) and (start_ns is None or rec.log_time >= start_ns):
+                    yield topic, type_name, rec.log_time, rec.data
 
 
 def _scan_messages(f, topics, start_ns):

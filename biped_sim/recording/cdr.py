@@ -200,6 +200,107 @@ class StateSerializer:
         return out
 
 
+def tf_message(sec: int, nanosec: int, transforms) -> bytes:
+    """The CDR of a ``tf2_msgs/msg/TFMessage``: ``transforms`` a list of (parent frame, child frame,
+    translation (x, y, z), rotation quaternion (x, y, z, w)), each stamped (sec, nanosec). Written here
+    from values: tf2_msgs has no Python package outside a ROS install (not on PyPI)."""
+    buf = bytearray(struct.pack("<I", len(transforms)))
+    off = 4
+    for parent, child, translation, rotation in transforms:
+        p = _pad(off, 4)
+        buf += b"\x00" * p + _II.pack(sec, nanosec)
+        off = _string(buf, off + p + 8, parent)
+        off = _string(buf, off, child)
+        p = _pad(off, 8)
+        buf += b"\x00" * p + struct.pack("<7d", *translation, *rotation)
+        off += p + 56
+    return ENCAPSULATION_HEADER + bytes(buf)
+
+
+# -- reading: the fields of the state messages from their CDR, without rclpy (inspect, load_run) ----
+_U32 = struct.Struct("<I")
+_WRENCH_VALUES = struct.Struct("<6d")
+
+
+def _read_string(b, off):
+    """(offset after it, the string) of a CDR string at ``off`` (aligned to 4 first)."""
+    off += _pad(off, 4)
+    (n,) = _U32.unpack_from(b, off)
+    return off + 4 + n, bytes(b[off + 4:off + 3 + n]).decode()
+
+
+def read_joint_state(data):
+    """(t_ns, frame_id, position, velocity, effort) of the CDR of a ``sensor_msgs/JointState``; None
+    where it is not little-endian plain CDR (a reader then takes rclpy's deserialiser)."""
+    if data[:2] != ENCAPSULATION_HEADER[:2]:
+        return None
+    b = memoryview(data)[4:]            # offsets count from the end of the encapsulation header
+    sec, nanosec = _II.unpack_from(b, 0)
+    off, frame_id = _read_string(b, 8)
+    off += _pad(off, 4)
+    (n_names,) = _U32.unpack_from(b, off)
+    off += 4
+    for _ in range(n_names):
+        off += _pad(off, 4)
+        off += 4 + _U32.unpack_from(b, off)[0]
+    seqs = []
+    for _ in range(3):                 # position, velocity, effort
+        off += _pad(off, 4)
+        (n,) = _U32.unpack_from(b, off)
+        off += 4
+        if n:
+            off += _pad(off, 8)
+            seqs.append(list(struct.unpack_from(f"<{n}d", b, off)))
+            off += 8 * n
+        else:
+            seqs.append([])
+    return sec * 1_000_000_000 + nanosec, frame_id, *seqs
+
+
+def read_wrench_stamped(data):
+    """(t_ns, frame_id, (fx, fy, fz, tx, ty, tz)) of the CDR of a ``geometry_msgs/WrenchStamped``; None
+    where it is not little-endian plain CDR."""
+    if data[:2] != ENCAPSULATION_HEADER[:2]:
+        return None
+    b = memoryview(data)[4:]
+    sec, nanosec = _II.unpack_from(b, 0)
+    off, frame_id = _read_string(b, 8)
+    return sec * 1_000_000_000 + nanosec, frame_id, _WRENCH_VALUES.unpack_from(b, off + _pad(off, 8))
+
+
+def read_diagnostic_array(data):
+    """(t_ns, [(level, name, message, hardware_id, [(key, value)])]) of the CDR of a
+    ``diagnostic_msgs/DiagnosticArray``; None where it is not little-endian plain CDR."""
+    if data[:2] != ENCAPSULATION_HEADER[:2]:
+        return None
+    b = memoryview(data)[4:]
+    sec, nanosec = _II.unpack_from(b, 0)
+    off, _frame_id = _read_string(b, 8)
+    off += _pad(off, 4)
+    (n_status,) = _U32.unpack_from(b, off)
+    off += 4
+    statuses = []
+    for _ in range(n_status):
+        level = b[off]
+        off, name = _read_string(b, off + 1)
+        off, message = _read_string(b, off)
+        off, hardware_id = _read_string(b, off)
+        off += _pad(off, 4)
+        (n_values,) = _U32.unpack_from(b, off)
+        off += 4
+        values = []
+        for _ in range(n_values):
+            off, key = _read_string(b, off)
+            off, value = _read_string(b, off)
+            values.append((key, value))
+        statuses.append((level, name, message, hardware_id, values))
+    return sec * 1_000_000_000 + nanosec, statuses
+
+
+#: types without an rclpy message class here, whose CDR this module writes from values (tf_message):
+#: the recorder takes their bytes only
+BYTES_ONLY = {"tf2_msgs/msg/TFMessage"}
+
 #: encoders that return None for shapes they do not handle (then rclpy serialises)
 MAY_DECLINE = {"std_msgs/msg/Float64MultiArray"}
 
@@ -213,6 +314,11 @@ ENCODERS = {
 
 def serializer(type_name):
     """A function msg -> CDR bytes for ``type_name`` (the fast one if there is one, else rclpy's)."""
+    if type_name in BYTES_ONLY:
+        def refuse(msg):
+            raise TypeError(f"{type_name} is recorded from its CDR bytes only (no Python message class here), "
+                            f"got {type(msg).__name__}")
+        return refuse
     from rclpy.serialization import serialize_message
     fast = ENCODERS.get(type_name)
     if fast is None:

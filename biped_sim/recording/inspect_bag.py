@@ -57,6 +57,14 @@ def load_run(bag, max_points=MAX_POINTS) -> dict:
     dq, u, leg (joint_states), grf (t, F), then impacts and events (diagnostics) and the commands'
     count. ``max_points=None`` keeps every sample; ``all_events`` lists every engine event (those
     with a ``kind``) of the impact and diagnostics topics in their order."""
+    # the file in its own order (no merge of its chunks by time): the same run wherever each topic's
+    # messages come in time order, as a recorder writes them; else read again in log-time order
+    return _read_run(bag, max_points, log_time_order=False) or _read_run(bag, max_points, log_time_order=True)
+
+
+def _read_run(bag, max_points, log_time_order):
+    """:func:`load_run`, reading the messages in log-time order or in the file's order; None if, in the
+    file's order, a topic's messages go back in time."""
     topics = bagio.channels(bag)
     t_js = bagio.find_topic(topics, "joint_states")
     t_grf = bagio.find_topic(topics, "ground_reaction")
@@ -68,17 +76,20 @@ def load_run(bag, max_points=MAX_POINTS) -> dict:
     counts, first, last = {}, {}, {}
     st = dict(n=0, q_first=None, q_last=None, t_first=None, t_last=None, hip_min=math.inf, hip_max=-math.inf,
               u1=0.0, u2=0.0, u_sq=0.0, fn_min=math.inf, fn_max=-math.inf, ratio=0.0, n_grf=0)
-    for topic, typ, t_ns, data in bagio.messages(bag):
-        counts[topic] = counts.get(topic, 0) + 1
-        first.setdefault(topic, t_ns)
+    for topic, typ, t_ns, data in bagio.messages(bag, log_time_order=log_time_order):
+        if topic in last:
+            if t_ns < last[topic]:
+                return None
+            counts[topic] += 1
+        else:
+            counts[topic], first[topic] = 1, t_ns
         last[topic] = t_ns
         if topic not in (t_js, t_grf, t_imp, t_diag):
             if topic == t_cmd:
                 commands += 1
             continue
-        msg = bagio.decode(typ, data)
         if topic == t_js:
-            ts, q, dq, u, leg = M.joint_state_values(msg)
+            ts, q, dq, u, leg = M.joint_state_values_cdr(typ, data)
             q, dq, u = (q + [math.nan] * 5)[:5], (dq + [math.nan] * 5)[:5], (u + [0.0, 0.0])[:2]
             js.add([ts / 1e9, *q, *dq, *u, leg])
             if st["n"] == 0:
@@ -88,19 +99,21 @@ def load_run(bag, max_points=MAX_POINTS) -> dict:
             st["u1"], st["u2"] = max(st["u1"], abs(u[0])), max(st["u2"], abs(u[1]))
             st["u_sq"] += u[0] * u[0] + u[1] * u[1]
         elif topic == t_grf:
-            ts, (fx, fy), _leg = M.wrench_values(msg)
+            ts, (fx, fy), _leg = M.wrench_values_cdr(typ, data)
             grf.add([ts / 1e9, fx, fy])
             st["n_grf"] += 1
             st["fn_min"], st["fn_max"] = min(st["fn_min"], fy), max(st["fn_max"], fy)
             st["ratio"] = max(st["ratio"], abs(fx) / max(abs(fy), 1e-12))
         elif topic == t_imp:
-            values = M.event_values(msg)
+            values = M.event_values_cdr(typ, data)
             impacts.extend(values)
-            all_events.extend(e for e in values if "kind" in e)
+            all_events.extend((t_ns, e) for e in values if "kind" in e)
         else:
-            values = M.event_values(msg)
+            values = M.event_values_cdr(typ, data)
             events.extend(e for e in values if _kept_event(e))
-            all_events.extend(e for e in values if "kind" in e)
+            all_events.extend((t_ns, e) for e in values if "kind" in e)
+    all_events.sort(key=lambda item: item[0])       # stable: log-time order, ties in the file's order
+    all_events = [e for _t, e in all_events]
     run = dict(topics=topics, counts=counts, first=first, last=last, impacts=impacts, events=events,
                all_events=all_events,
                commands=commands, stats=st, cut=bagio.cut_short(bag), being_written=bagio.being_written(bag))
@@ -125,10 +138,9 @@ def _kept_event(e) -> bool:
 
 def run_model(params):
     """The BipedModel of a run's parameters (the defaults without them)."""
+    from biped_sim.config.parameters import model_arguments
     from biped_sim.engine.model import BipedModel
-    if not params:
-        return BipedModel()
-    return BipedModel(**{k.split(".", 1)[1]: v for k, v in params.items() if k.startswith("model.")})
+    return BipedModel(**model_arguments(params)) if params else BipedModel()
 
 
 def summary(bag, run=None) -> str:
@@ -197,7 +209,8 @@ def _foot_x(e, params):
 
 
 def plot(bag, png, run=None, frames=14):
-    """Write the figure of a run to ``png`` (:func:`biped_sim.engine.figure.run_figure`, fed the bag's arrays)."""
+    """Write the figure of a run to ``png`` (:func:`biped_sim.engine.figure.run_figure`, fed the bag's arrays);
+    returns the matplotlib Figure."""
     from biped_sim.engine.figure import run_figure
     run = run or load_run(bag)
     p = run["params"] or {}
@@ -206,6 +219,26 @@ def plot(bag, png, run=None, frames=14):
         F[np.concatenate([[False], np.diff(gt) > 1.5 * np.median(np.diff(gt))])] = np.nan
     impacts = [(e["time"], e.get("foot"), e.get("q")) for e in run["impacts"]]
     title = f"{p.get('scene', bag)}: {p.get('time_mode', '')} run, {len(impacts)} impacts"
-    run_figure(run["t"], run["q"], run["u"], gt, F, impacts, run_model(p), title,
-               slope=float(p.get("slope", 0.0) or 0.0), path=png, frames=frames)
-    return png
+    return run_figure(run["t"], run["q"], run["u"], gt, F, impacts, run_model(p), title,
+                      slope=float(p.get("slope", 0.0) or 0.0), path=png, frames=frames, outcome=run_end(run))
+
+
+def run_end(run):
+    """(status, time, reason) of a bag's run: its final ``biped_sim/run`` status (the node's), else the
+    last error it recorded (an engine stop: ``error``, ``zeno``), else completed or cut short by its
+    last state against the run's ``duration``."""
+    ends = [e for e in run["events"] if e.get("name", "").endswith("/run") or e.get("level", 0) >= 2]
+    t_last = float(run["t"][-1]) if len(run["t"]) else math.nan
+    if ends:
+        e = ends[-1]
+        status = e.get("status") if isinstance(e.get("status"), str) else "stopped"
+        time = e.get("time")
+        time = float(time) if isinstance(time, (int, float)) else e.get("t_ns", math.nan) / 1e9
+        reason = str(e.get("message", ""))
+        return status, time, reason.removeprefix(f"{status}: ")
+    duration = (run["params"] or {}).get("duration")
+    if run.get("cut"):
+        return "cut short", t_last, str(run["cut"])
+    if isinstance(duration, (int, float)) and duration > 0 and t_last < duration - 1e-9:
+        return "ended", t_last, f"the bag ends before the run's duration {duration:g} s"
+    return "completed", t_last, ""

@@ -8,6 +8,10 @@ Axes: ``frame_id`` ``world``; the model's sagittal plane (x forward, y up) is dr
 (x forward, z up, y = 0), as RViz and Foxglove expect a vertical z. Every marker is in namespace
 ``biped_sim`` with a fixed id (below); a part that is absent (the force arrow in flight, the flash
 between impacts) is sent with action DELETE, so each array holds the same nine ids.
+
+Also owns the frame that moves with the robot, ``hip`` (origin at the hip, axes parallel to
+``world``'s): a bag records the transform world -> hip on ``/tf`` with each MarkerArray, at its stamp
+(:func:`hip_transform`), and the Foxglove layout's 3D panel follows that frame.
 """
 from __future__ import annotations
 
@@ -25,6 +29,10 @@ FLASH_DURATION = 0.25
 GROUND_HALF_LENGTH = 3.0
 FRAME_ID = "world"
 NAMESPACE = "biped_sim"
+#: the frame that moves with the robot (origin at the hip); a 3D view follows it
+FOLLOW_FRAME = "hip"
+TF_TOPIC = "/tf"
+TF_TYPE = "tf2_msgs/msg/TFMessage"
 
 # marker ids
 LEG_1, LEG_2, TORSO, HIP, FOOT_1, FOOT_2, FORCE, GROUND, FLASH = range(1, 10)
@@ -116,6 +124,15 @@ def marker_array(t, figure, stance_leg, force, slope=0.0, flash_at=None):
     return MarkerArray(markers=out)
 
 
+def hip_transform(t_ns: int, hip) -> bytes:
+    """The CDR of the ``/tf`` message at stamp ``t_ns``: the transform world -> hip, the hip's (x, y)
+    in the plane drawn as (x, 0, y), no rotation (the view turns with nothing but follows the walk)."""
+    from biped_sim.recording.cdr import tf_message
+    sec, nanosec = divmod(int(t_ns), 1_000_000_000)
+    return tf_message(sec, nanosec, [(FRAME_ID, FOLLOW_FRAME, (float(hip[0]), 0.0, float(hip[1])),
+                                      (0.0, 0.0, 0.0, 1.0))])
+
+
 class MarkerStream:
     """When to send the next MarkerArray and what it shows, for a simulator advancing period by period.
 
@@ -132,6 +149,7 @@ class MarkerStream:
     def restart(self):
         """A new run (the node's ~/reset): its first state is drawn at once, its events counted from 0."""
         self.next_due = -math.inf
+        self.hip = None         # the hip (x, y) of the last array made
         self.n_events = 0
         self.flash_at, self.flash_until = None, -math.inf
 
@@ -154,5 +172,6 @@ class MarkerStream:
         if flash is None:
             self.flash_at = None
         leg = sim.stance_leg
-        return marker_array(sim.t, self.model.stick_figure(sim.q), leg, sim.ground_force if leg else (0.0, 0.0),
-                            self.slope, flash)
+        figure = self.model.stick_figure(sim.q)
+        self.hip = figure.hip       # the /tf of this array (hip_transform)
+        return marker_array(sim.t, figure, leg, sim.ground_force if leg else (0.0, 0.0), self.slope, flash)

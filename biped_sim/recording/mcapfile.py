@@ -9,8 +9,8 @@ read it (test/integration/test_recorder.py).
 
 Why not ``mcap.writer.Writer`` itself: its public ``add_message`` builds a ``Message`` dataclass and
 writes its fields one call at a time; the recorder's writer process, which spends its time adding
-messages, then needs 1.75 to 2.5 times the CPU per message it needs with this writer
-(``python -m benchmarks.bench_record``; the figures in docs/recording.md). Every record other than
+messages, then needs more CPU per message than with this writer (``python -m benchmarks.bench_record``;
+the figures in docs/recording.md). Every record other than
 Message is built by ``mcap.records`` (public API); the Message record (opcode 0x05: channel id u16,
 sequence u32, log time u64, publish time u64, data) is the one record packed here.
 
@@ -216,8 +216,8 @@ def _message_index_bytes(channel_id: int, pairs) -> bytes:
     """The MessageIndex record of a channel in a chunk from its (log time, offset) pairs already packed
     as ``<QQ`` (``pairs``, bytes-like, as ``add_message`` and the compiled ``append_messages`` keep them):
     the bytes of mcap's ``MessageIndex(channel_id, records).write`` (tested). Why packed as they come:
-    a (time, offset) tuple a message, flattened and packed at the end of each chunk, was about 0.4 us a
-    message of the writer process, and the writer's work slows a fast run on the other vCPU."""
+    a (time, offset) tuple a message, flattened and packed at the end of each chunk, costs the writer process
+    more per message, and the writer's work slows a fast run on the other vCPU."""
     return _MESSAGE_INDEX_HEAD.pack(Opcode.MESSAGE_INDEX, 6 + len(pairs), channel_id, len(pairs)) + pairs
 
 

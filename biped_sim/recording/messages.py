@@ -189,6 +189,33 @@ def joint_state_values(m):
     return stamp_ns(m.header.stamp), list(m.position), list(m.velocity), u, leg
 
 
+def _leg_of_frame(frame_id) -> int:
+    return int(frame_id.split("_")[1]) if frame_id.startswith("foot_") else 0
+
+
+def joint_state_values_cdr(type_name, data):
+    """:func:`joint_state_values` of a JointState's CDR bytes, read without building the message
+    (``cdr.read_joint_state``; rclpy's deserialiser for a form that reader does not take)."""
+    from biped_sim.recording.cdr import read_joint_state
+    fields = read_joint_state(data)
+    if fields is None:
+        from biped_sim.recording.bagio import decode
+        return joint_state_values(decode(type_name, data))
+    t_ns, frame_id, position, velocity, effort = fields
+    return t_ns, position, velocity, effort[2:4] if len(effort) >= 4 else [0.0, 0.0], _leg_of_frame(frame_id)
+
+
+def wrench_values_cdr(type_name, data):
+    """:func:`wrench_values` of a WrenchStamped's CDR bytes (``cdr.read_wrench_stamped``)."""
+    from biped_sim.recording.cdr import read_wrench_stamped
+    fields = read_wrench_stamped(data)
+    if fields is None:
+        from biped_sim.recording.bagio import decode
+        return wrench_values(decode(type_name, data))
+    t_ns, frame_id, wrench = fields
+    return t_ns, [wrench[0], wrench[1]], _leg_of_frame(frame_id)
+
+
 def wrench_values(m):
     """(t_ns, [Fx, Fy], stance_leg) of a WrenchStamped."""
     fid = m.header.frame_id
@@ -224,6 +251,23 @@ def event_values(m):
         d["name"], d["message"] = st.name, st.message
         d["level"] = lvl[0] if isinstance(lvl, (bytes, bytearray)) else int(lvl)
         d["t_ns"] = stamp_ns(m.header.stamp)
+        out.append(d)
+    return out
+
+
+def event_values_cdr(type_name, data):
+    """:func:`event_values` of a DiagnosticArray's CDR bytes, read without building the message
+    (``cdr.read_diagnostic_array``; rclpy's deserialiser for a form that reader does not take)."""
+    from biped_sim.recording.cdr import read_diagnostic_array
+    fields = read_diagnostic_array(data)
+    if fields is None:
+        from biped_sim.recording.bagio import decode
+        return event_values(decode(type_name, data))
+    t_ns, statuses = fields
+    out = []
+    for level, name, message, _hardware_id, values in statuses:
+        d = {key: typed_value(value) for key, value in values}
+        d["name"], d["message"], d["level"], d["t_ns"] = name, message, level, t_ns
         out.append(d)
     return out
 

@@ -8,17 +8,17 @@ the node would publish is written with the node's message functions (:mod:`biped
 time), ``/diagnostics`` (other events), then ``/joint_states``, ``/ground_reaction`` (in stance)
 and ``/clock`` at the end of the period. The state at t = 0 is written first. ``/markers`` (with
 "markers" in ``outputs``) at ``marker_rate`` of simulated time (a headless run has no wall clock to
-follow), and at the end.
+follow), and at the end, each with the transform world -> hip on ``/tf`` (a 3D view follows the robot).
 """
 from __future__ import annotations
 
 import dataclasses
 import signal
 
-from biped_sim.config.parameters import engine_arguments
 from biped_sim.recording import messages as M
-from biped_sim.recording.cdr import StateSerializer, float64_multi_array_data
-from biped_sim.recording.markers import MarkerStream
+from biped_sim.recording.cdr import float64_multi_array_data
+from biped_sim.recording.markers import TF_TOPIC, TF_TYPE, MarkerStream, hip_transform
+from biped_sim.recording.node_run import NodeRun, event_output
 
 
 def topics_for(params) -> dict:
@@ -28,6 +28,8 @@ def topics_for(params) -> dict:
         if name == "impact" and "impact" not in params["phases"]:
             continue
         out["/" + name] = M.TOPIC_TYPES[name]
+        if name == "markers":
+            out[TF_TOPIC] = TF_TYPE      # the frame that moves with the drawn robot
     out["/diagnostics"] = M.TOPIC_TYPES["diagnostics"]
     out["/hip_torque"] = M.TOPIC_TYPES["hip_torque"]
     return out
@@ -38,40 +40,36 @@ def topics_for(params) -> dict:
 def run_recorded(params, controller, recorder, progress=None, build_messages=False, stop=None):
     """Run ``params`` (checked, see parameters.validate) in lockstep; record to ``recorder``.
 
-    ``controller(t, q, dq, stance_leg) -> u`` or None (u = 0). ``recorder`` is a BagRecorder or None
-    (then nothing is written). ``build_messages``: serialise the state messages every period also
-    without a recorder, as the node does to publish them (the recording benchmark's loop).
-    SIGTERM and SIGINT end the run early (the signal's number is appended to ``stop``, a list the
-    caller may pass to tell); the caller closes the recorder. Returns the HybridSimulator at the end.
+    ``controller(t, q, dq, stance_leg) -> u`` or None (u = 0); each command goes through the node's
+    command check (:class:`~biped_sim.recording.node_run.NodeRun`), as a controller's message would.
+    ``recorder`` is a BagRecorder or None (then nothing is written). ``build_messages``: serialise the
+    state messages every period also without a recorder, as the node does to publish them (the
+    recording benchmark's loop). SIGTERM and SIGINT end the run early (the signal's number is appended
+    to ``stop``, a list the caller may pass to tell); the caller closes the recorder. Returns the
+    HybridSimulator at the end.
     """
-    from biped_sim.engine.hybrid import HybridSimulator
-    sim = HybridSimulator(**engine_arguments(params), keep_samples=False)
+    run = NodeRun(params, labels={name: "/" + name for name in M.TOPIC_TYPES})
+    sim = run.sim
     topics = topics_for(params)
     if recorder is not None:
         for name, typ in topics.items():
             recorder.add_topic(name, typ)
     rec = recorder.write if recorder is not None else (lambda *a: None)
-    js, grf, clock, imp = ("/joint_states" in topics, "/ground_reaction" in topics, "/clock" in topics,
-                           "/impact" in topics)
-    period, duration = params["control_period"], params["duration"]
-    u = [0.0, 0.0]
-
-    serializer = StateSerializer(M.JOINT_NAMES, labels={name: "/" + name for name in M.TOPIC_TYPES})
     markers = (MarkerStream(sim.model, params["slope"], params["marker_rate"])
                if recorder is not None and "/markers" in topics else None)
 
-    def publish_state(last=False):
+    def publish_state():
         # the state messages of the period as the node publishes them: serialised once, recorded in one call
-        t_ns = M.to_ns(sim.t)
         if build_messages or recorder is not None:
-            state = serializer.period(t_ns, M.foot_frame(sim.stance_leg), *sim.state_lists(), u,
-                                      sim.ground_force if sim.stance_leg else None, js, grf, clock)
+            state = run.state_messages()
             if recorder is not None and state:
-                recorder.write_messages(t_ns, state)
+                recorder.write_messages(M.to_ns(sim.t), state)
         if markers is not None:
-            msg = markers.poll(sim.t, sim, force=last)
+            msg = markers.poll(sim.t, sim, force=not run.running)
             if msg is not None:
+                t_ns = M.to_ns(sim.t)
                 rec("/markers", msg, t_ns)
+                rec(TF_TOPIC, hip_transform(t_ns, markers.hip), t_ns)
 
     stop = [] if stop is None else stop
     old = {}
@@ -82,21 +80,22 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
         pass
     try:
         publish_state()
-        while sim.status == "running" and sim.t < duration and not stop:
+        while run.running and sim.t < run.duration and not stop:
             if controller is not None:
                 u = sim.command(controller)
                 if u is None:       # the controller failed: the run ends "failed" with its message
                     break
-            if recorder is not None:   # the command's CDR (what M.torque_msg(u) serialises to)
-                rec("/hip_torque", float64_multi_array_data(u), M.to_ns(sim.t))
-            events = sim.advance_period(period, u=u, t_final=duration)
+                if recorder is not None:   # the command as sent (what M.torque_msg(u) serialises to)
+                    rec("/hip_torque", float64_multi_array_data(u), M.to_ns(sim.t))
+                run.take_command(u)
+            elif recorder is not None:
+                rec("/hip_torque", float64_multi_array_data(run.u), M.to_ns(sim.t))
+            events, _ended = run.advance()
             for ev in events:
-                if ev.kind in M.IMPACT_KINDS:
-                    if imp:
-                        rec("/impact", M.impact_msg(ev), M.to_ns(ev.time))
-                else:
-                    rec("/diagnostics", M.impact_msg(ev), M.to_ns(ev.time))
-            publish_state(last=sim.status != "running" or sim.t >= duration)
+                output = event_output(ev)
+                if "/" + output in topics:
+                    rec("/" + output, M.impact_msg(ev), M.to_ns(ev.time))
+            publish_state()
             if progress is not None:
                 progress(sim)
     finally:
@@ -108,19 +107,22 @@ def run_recorded(params, controller, recorder, progress=None, build_messages=Fal
 def params_from_args(args):
     """(checked parameters, controller) of a ``biped-sim simulate`` command line (with or without --scene)."""
     from biped_sim.config import parameters as P
+    from biped_sim.config.controllers import chosen_controller
     if args.scene:
         from biped_sim.config.scenes import load_scene
         scene = load_scene(args.scene, overrides=getattr(args, "scene_overrides", None))
         params = dict(scene.params)
         params["time_mode"] = "lockstep"
-        return P.validate(params), scene.controller()
+        return P.validate(params), chosen_controller(getattr(args, "controller", None), scene)
     from biped_sim.control.walking import WalkingController
     from biped_sim.engine.integrators import FIXED_STEP_METHODS
     from biped_sim.engine.model import BipedModel
-    ctrl = WalkingController(BipedModel())
+    walk = WalkingController(BipedModel())
+    controller = chosen_controller(args.controller, model=walk.model)
     if (args.q0 is None) != (args.dq0 is None):
         raise ValueError("give both --q0 and --dq0, or neither")
-    q0, dq0 = (args.q0, args.dq0) if args.q0 is not None else ctrl.initial_state()
+    # without --q0/--dq0: your controller's initial_state() if it has one, else the reference gait's
+    q0, dq0 = (args.q0, args.dq0) if args.q0 is not None else getattr(controller, "initial_state", walk.initial_state)()
     values = dict(scene="simulate", time_mode="lockstep", duration=10.0 if args.duration is None else args.duration,
                   initial_q=[float(v) for v in q0], initial_dq=[float(v) for v in dq0],
                   initial_stance_leg=args.stance_leg, method=args.method, rtol=args.rtol, atol=args.atol,
@@ -131,7 +133,7 @@ def params_from_args(args):
         values["step"] = args.step
     if args.base == "fixed":
         values["phases"] = ["stance", "impact"]
-    return P.validate(values), (ctrl if args.controller == "walk" else None)
+    return P.validate(values), controller
 
 
 def simulate_recorded(args):
@@ -151,6 +153,7 @@ def simulate_recorded(args):
     print(f"recorded {sum(rec.message_counts.values())} messages: "
           + ", ".join(f"{k} {v}" for k, v in rec.message_counts.items()))
     result = sim.result()
+    result.stats["bag"] = str(path)     # its samples (the simulator kept none): simulate --plot draws them
     if stop and sim.status == "running" and sim.t < params["duration"]:
         # a run cut short by a signal is not "completed": say so (the bag is closed and readable)
         name = signal.Signals(stop[0]).name

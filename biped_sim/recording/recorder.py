@@ -172,9 +172,10 @@ class BagRecorder:
             return
         from rclpy.serialization import serialize_message
 
-        from biped_sim.recording.cdr import serializer
+        from biped_sim.recording.cdr import BYTES_ONLY, serializer
         from biped_sim.recording.messages import message_class
-        serialize_message(message_class(type_name)())   # load the type support now, not in the run
+        if type_name not in BYTES_ONLY:
+            serialize_message(message_class(type_name)())   # load the type support now, not in the run
         info = dict(name=topic, type=type_name, qos=[qos_dict(qos)], hash=type_hash(type_name),
                     definition=message_definition(type_name), id=len(self._channel_ids) + 1)
         self._serializers[topic] = serializer(type_name)

@@ -18,24 +18,12 @@ import math
 
 from biped_sim.config.parameters import method_label
 from biped_sim.recording import bagio, messages as M
-
-
-def _checked_command(data, params, u_held):
-    """The node's command check: the torques to hold next."""
-    if len(data) != 2 or not all(math.isfinite(v) for v in data):
-        return u_held
-    limit = params["torque_limit"]
-    if max(abs(data[0]), abs(data[1])) > limit:
-        if params["torque_limit_action"] == "clip":
-            return [max(-limit, min(limit, v)) for v in data]
-        return u_held
-    return [float(data[0]), float(data[1])]
+from biped_sim.recording.node_run import NodeRun, stale_command
 
 
 def resim(bag, progress=None) -> dict:
     """Re-simulate ``bag``; returns a report dict (see :func:`format_report`)."""
-    from biped_sim.config.parameters import engine_arguments, validate
-    from biped_sim.engine.hybrid import HybridSimulator
+    from biped_sim.config.parameters import validate
     params = validate(bagio.run_parameters(bag))
     topics = bagio.channels(bag)
     t_js = bagio.find_topic(topics, "joint_states")
@@ -44,14 +32,10 @@ def resim(bag, progress=None) -> dict:
     t_diag = bagio.find_topic(topics, "diagnostics")
     if t_js is None:
         raise ValueError(f"{bag} has no joint_states topic to compare with")
-    sim = HybridSimulator(**engine_arguments(params), keep_samples=False)
-    period, duration = params["control_period"], params["duration"]
-    state = dict(u=[0.0, 0.0])
+    run = NodeRun(params)
+    sim = run.sim
     lockstep = params["time_mode"] == "lockstep"
-
-    def advance_to(t_ns):
-        while M.to_ns(sim.t) < t_ns and sim.status == "running":
-            sim.advance_period(period, u=state["u"], t_final=duration)
+    advance_to = run.advance_to
 
     rep = dict(bag=str(bag), params=params, commands=0, states=0, max_dq=0.0, max_q=0.0, first=None,
                pushes=0, impacts_recorded=[], status=None, message="", t_end=0.0, t_last_state=-math.inf,
@@ -61,9 +45,9 @@ def resim(bag, progress=None) -> dict:
         if topic == t_cmd:
             advance_to(t_ns)
             rep["commands"] += 1
-            if lockstep and M.answered_ns(msg) not in (None, t_ns):
+            if lockstep and stale_command(M.answered_ns(msg), t_ns) is not None:
                 continue        # the node ignored it: it answers another state than the newest (stale)
-            state["u"] = _checked_command(list(msg.data), params, state["u"])
+            run.take_command(list(msg.data))
         elif topic == t_diag:
             for e in M.event_values(msg):
                 if e.get("kind") in ("push", "error") and isinstance(e.get("push"), list):

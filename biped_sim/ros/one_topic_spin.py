@@ -3,10 +3,10 @@ and ``walk_controller`` (``joint_states``).
 
 Owns :class:`OneTopicSpin`. rclpy's ``SingleThreadedExecutor.spin_once`` builds a wait set of every
 entity of the node -- the six parameter services, the node's own services, its timers, the
-subscriptions' QoS event handlers -- and waits on it; here that costs 0.25-0.6 ms per call (rmw's
-wait grows with the entities), more than a control period of the engine, and a lockstep round trip
-pays it once in each process. :class:`OneTopicSpin` waits on the one subscription alone (about 0.03 ms
-a message, publish included) and runs its callback, and lets the executor serve everything else --
+subscriptions' QoS event handlers -- and waits on it; that costs more per call than a control period
+of the engine (rmw's wait grows with the entities; the figures in docs/node.md and docs/performance.md),
+and a lockstep round trip pays it once in each process. :class:`OneTopicSpin` waits on the one
+subscription alone and runs its callback, and lets the executor serve everything else --
 services, timers, the other subscriptions, and this one too -- at least every ``serve_period`` s of
 wall time, without waiting. All callbacks still run one at a time in the calling thread; a service
 call or a timer is served at most ``serve_period`` s late.

@@ -23,7 +23,9 @@ def build_parser():
     p = argparse.ArgumentParser(
         prog="biped-sim replay",
         description="Publish a recorded bag's messages on their topics with their original timing "
-                    "(like 'ros2 bag play'). Times are the bag's simulation times; --rate scales them.",
+                    "(like 'ros2 bag play'). Times are the bag's simulation times; --rate scales them. A topic "
+                    "whose message package is not installed here (the /tf of our bags: tf2_msgs is not on "
+                    "PyPI) is left out, and the first line says so.",
         formatter_class=HelpFormatter,
         epilog="examples:\n"
                "  biped-sim replay bags/walk-20261122T025314059Z\n"
@@ -35,7 +37,8 @@ def build_parser():
     p.add_argument("-r", "--rate", type=float, default=1.0, help="playback speed factor (2: twice as fast)")
     p.add_argument("-l", "--loop", action="store_true", help="play the bag again and again until stopped")
     p.add_argument("--topics", nargs="+", metavar="TOPIC", help="only these topics (all when not given)")
-    p.add_argument("--exclude", nargs="+", metavar="TOPIC", default=[], help="leave out these topics")
+    p.add_argument("--exclude", nargs="+", metavar="TOPIC", default=[], help="leave out these topics (default: "
+                   "none)")
     p.add_argument("-s", "--start-offset", type=float, default=0.0, metavar="S",
                    help="start this many seconds after the bag's first message")
     p.add_argument("--clock", type=float, nargs="?", const=100.0, default=None, metavar="HZ",
@@ -137,7 +140,18 @@ def main(argv=None):
     rclpy.init(args=["replay"] + ros_args, signal_handler_options=SignalHandlerOptions.NO)
     stop = catch_stop_signals([])     # SIGINT, SIGTERM, SIGHUP: stop playing, say so, close cleanly
     node = rclpy.create_node("biped_sim_replay")
-    pubs = {t: node.create_publisher(message_class(channels[t]), t, _qos(args.bag, t)) for t in topics}
+    classes = {}
+    for t in topics:
+        try:
+            classes[t] = message_class(channels[t])
+        except (ImportError, AttributeError):      # e.g. /tf of our bags: tf2_msgs is not on PyPI
+            pass
+    skipped = [t for t in topics if t not in classes]
+    if skipped:
+        print("biped-sim replay: not playing " + ", ".join(f"{t} ({channels[t]})" for t in skipped)
+              + ": its message package is not installed here", file=sys.stderr)
+        topics = [t for t in topics if t in classes]
+    pubs = {t: node.create_publisher(classes[t], t, _qos(args.bag, t)) for t in topics}
     clock_pub = None
     if args.clock is not None:
         from rclpy.qos import QoSProfile

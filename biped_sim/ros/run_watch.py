@@ -2,7 +2,8 @@
 
 Owns :class:`RunWatch`, a timer of the node that runs two checks every :data:`WATCH_PERIOD` s of
 wall time (a steady clock, whatever the simulated time does), each a plain class that returns the
-lines to log, and :func:`stale_command`, the lockstep rule for a command tagged with the state it answers:
+lines to log (the lockstep rule for a command tagged with the state it answers is
+:func:`biped_sim.recording.node_run.stale_command`):
 
 * :class:`GraphWatch`: another node of the same name (a call to its ``~/reset`` resets both), or
   another node on the node's topics -- a second publisher of ``hip_torque``
@@ -31,6 +32,7 @@ import threading
 import time
 
 from rclpy.clock import Clock, ClockType
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
 #: wall seconds between two checks (the graph query costs about 0.1 ms)
 WATCH_PERIOD = 0.5
@@ -44,6 +46,10 @@ MARKER_SHARE_ADVISED = 0.05
 MARKER_WINDOW = 1.0
 #: wall seconds between two lines about one kind of refusal that comes in a burst
 BURST_SUMMARY_INTERVAL = 2.0
+#: lockstep: a run that has waited this long (wall s) for a command offers its newest state again to a
+#: ``joint_states`` subscriber that appears with volatile durability (a controller with rclpy's default
+#: QoS started after the node: it never received the state it must answer)
+REOFFER_AFTER = 0.5
 
 
 def endpoint_name(info) -> str:
@@ -61,6 +67,7 @@ class GraphWatch:
         self.command_topic, self.state_topic = command_topic, state_topic
         self.said = {command_topic: (), state_topic: ()}
         self.said_same_name = 1
+        self.said_best_effort = ()
 
     def others(self, topic: str, own_publishers: int) -> list:
         """Names of the publishers of ``topic`` other than this node's ``own_publishers``."""
@@ -75,6 +82,12 @@ class GraphWatch:
         holds each name once, so they are counted by their publishers on the topics every node has."""
         return max(sum(1 for i in self.node.get_publishers_info_by_topic(topic) if endpoint_name(i) == self.own)
                    for topic in ("/rosout", "/parameter_events"))
+
+    def endpoints(self, topic: str, publishers: bool) -> list:
+        """(node name, QoS profile) of the publishers (or subscribers) of ``topic`` other than this node."""
+        infos = (self.node.get_publishers_info_by_topic if publishers else
+                 self.node.get_subscriptions_info_by_topic)(topic)
+        return [(endpoint_name(i), i.qos_profile) for i in infos if endpoint_name(i) != self.own]
 
     def check(self) -> list:
         """The warnings about a set of publishers (or of nodes of this name) not said before."""
@@ -94,6 +107,16 @@ class GraphWatch:
                 "drive one run: in lockstep a command tagged with the state it answers is taken once (a second "
                 "answer is stale and ignored), an untagged one advances the run every time; stop all but one")
         self.said[self.command_topic] = tuple(commanders) if len(commanders) > 1 else ()
+        # rclpy's own warning of an incompatible QoS needs event handlers on the subscription, which the
+        # realtime loop's command subscription does without (they kept the executor awake): said here
+        unmatched = sorted(name for name, qos in self.endpoints(self.command_topic, publishers=True)
+                           if qos.reliability == ReliabilityPolicy.BEST_EFFORT)
+        if unmatched and tuple(unmatched) != self.said_best_effort:
+            lines.append(
+                f"{', '.join(unmatched)} publish{'es' if len(unmatched) == 1 else ''} {self.command_topic} best "
+                "effort; this node's subscription is reliable, and DDS does not match the two: none of its commands "
+                "arrive. Publish hip_torque reliable (rclpy's default QoS)")
+        self.said_best_effort = tuple(unmatched)
         if self.state_topic is not None:
             sims = self.others(self.state_topic, 1)
             if sims and tuple(sims) != self.said[self.state_topic]:
@@ -124,9 +147,13 @@ class SilenceWatch:
             self.last_t = t
         self.next_warning = self.warn_after
 
-    def check(self, t: float, now: float | None = None) -> tuple:
-        """(warning or None, end-of-run message or None) at simulated time ``t``."""
-        silent = (time.monotonic() if now is None else now) - self.last_wall
+    def silent_for(self, now: float | None = None) -> float:
+        return (time.monotonic() if now is None else now) - self.last_wall
+
+    def check(self, t: float, now: float | None = None, why=lambda: None) -> tuple:
+        """(warning or None, end-of-run message or None) at simulated time ``t``; ``why()``: what the ROS
+        graph says of the silence (or None), asked only when there is a warning to give."""
+        silent = self.silent_for(now)
         last = ("no command since the start" if self.last_t is None else
                 f"the last command answered the state at t={self.last_t:.6f} s")
         if self.timeout and silent >= self.timeout:
@@ -135,29 +162,12 @@ class SilenceWatch:
         if self.warn_after and silent >= self.next_warning:
             self.warnings += 1
             self.next_warning = min(2 * self.next_warning, self.next_warning + MAX_REPEAT)
+            cause = why() or "Is the controller running, on this ROS_DOMAIN_ID?"
             return (f"lockstep: waiting for a hip_torque command at t={t:.6f} s: {last}, {silent:.1f} s ago (wall). "
-                    "Is the controller running, on this ROS_DOMAIN_ID? The run advances one control period per "
-                    "command and keeps waiting" + (f" (lockstep_timeout={self.timeout:g} s)" if self.timeout else
-                                                   " (set lockstep_timeout to end it)")), None
+                    f"{cause} The run advances one control period per command and keeps waiting"
+                    + (f" (lockstep_timeout={self.timeout:g} s)" if self.timeout else
+                       " (set lockstep_timeout to end it)")), None
         return None, None
-
-
-def stale_command(answers_ns: int | None, newest_ns: int, before_reset_ns: int | None = None) -> str | None:
-    """Why a lockstep command tagged as the answer to the state ``answers_ns`` is not taken when the
-    newest state is ``newest_ns``, or None (untagged, or the answer to the newest state).
-    ``before_reset_ns``: the latest state the runs before a ``~/reset`` reached (None: no reset), so
-    that a late answer to one of them is called what it is, not blamed on another simulation."""
-    if answers_ns is None or answers_ns == newest_ns:
-        return None
-    if before_reset_ns is not None and newest_ns < answers_ns <= before_reset_ns:
-        return (f"it answers the state at t={answers_ns * 1e-9:.6f} s of the run before the ~/reset (which "
-                f"reached t={before_reset_ns * 1e-9:.6f} s): a late answer to the old run; the run restarted "
-                "at t = 0 and takes the answer to its newest state")
-    where = (f"the state at t={answers_ns * 1e-9:.6f} s, an older one: a restarted or a second controller "
-             "answers states the run has gone past" if answers_ns < newest_ns else
-             f"the state at t={answers_ns * 1e-9:.6f} s, which this node has not published: another "
-             "simulation on this ROS domain?")
-    return f"it answers {where}"
 
 
 def round_down_125(x: float) -> float:
@@ -260,6 +270,7 @@ class RunWatch:
         self.silence = (SilenceWatch(node.params["lockstep_warn_after"], node.params["lockstep_timeout"])
                         if node.mode == "lockstep" else None)
         self.markers = MarkerLoad(node.params["marker_rate"]) if node.markers is not None else None
+        self.offered = set()    # the volatile joint_states subscribers seen (lockstep: offered the state)
         node.create_timer(WATCH_PERIOD, self.check, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def check_markers(self, final: bool = False):
@@ -275,6 +286,46 @@ class RunWatch:
         if self.silence is not None:
             self.silence.commanded(t)
 
+    def offer_state_to_late_subscribers(self):
+        """Lockstep: the newest state published again (not recorded) when a volatile ``joint_states``
+        subscriber appeared while the run waits for a command: it could not have received it."""
+        node = self.node
+        if node.pub_js is None:
+            return
+        volatile = {name for name, qos in self.graph.endpoints(node.pub_js.topic_name, publishers=False)
+                    if qos.durability == DurabilityPolicy.VOLATILE}
+        new, self.offered = volatile - self.offered, volatile
+        if new and self.silence.silent_for() >= REOFFER_AFTER:
+            node.offer_state_again()
+            node.get_logger().info(
+                f"lockstep: {', '.join(sorted(new))} subscribed to {node.pub_js.topic_name} (volatile) after the "
+                f"state at t={node.sim.t:.6f} s was published: offered it again (the run waits for its answer)")
+
+    def silence_cause(self):
+        """What the graph says of a silent lockstep controller: a ``joint_states`` subscriber is there (the
+        controller runs on this domain) but no ``hip_torque`` publisher, or one whose QoS cannot reach the
+        node's reliable subscription."""
+        node = self.node
+        if node.pub_js is None:
+            return None
+        listeners = sorted({name for name, _ in self.graph.endpoints(node.pub_js.topic_name, publishers=False)})
+        if not listeners:
+            return None
+        topic = node.sub.topic_name
+        commanders = self.graph.endpoints(topic, publishers=True)
+        here = (f"{', '.join(listeners)} subscribe{'s' if len(listeners) == 1 else ''} to "
+                f"{node.pub_js.topic_name} (so the controller runs on this ROS domain)")
+        if not commanders:
+            return (f"{here}, but no node publishes {topic}: does the controller publish its command there "
+                    "(std_msgs/Float64MultiArray, data [u1, u2])? Check the topic name and remappings.")
+        best_effort = sorted(name for name, qos in commanders if qos.reliability == ReliabilityPolicy.BEST_EFFORT)
+        if best_effort:
+            return (f"{here}; {', '.join(best_effort)} publish{'es' if len(best_effort) == 1 else ''} {topic} best "
+                    "effort, which this node's reliable subscription does not match: publish it reliable "
+                    "(rclpy's default QoS).")
+        return (f"{here}, and {', '.join(sorted({n for n, _ in commanders}))} publish {topic}, but no command has "
+                "come: a lockstep controller publishes one command for each joint_states message it receives.")
+
     def check(self):
         node = self.node
         log = node.get_logger()
@@ -288,7 +339,8 @@ class RunWatch:
         if control is not None and control.paused:     # ~/pause holds the run: the controller is not silent
             self.silence.commanded(None)
             return
-        warning, end = self.silence.check(node.sim.t)
+        self.offer_state_to_late_subscribers()
+        warning, end = self.silence.check(node.sim.t, why=self.silence_cause)
         if warning:
             log.warning(warning)
         if end:

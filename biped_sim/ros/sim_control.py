@@ -20,8 +20,6 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
 from std_srvs.srv import SetBool, Trigger
 
-from biped_sim.config import parameters as P
-from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.engine.resets import check_push
 from biped_sim.recording.messages import TOPIC_TYPES, diagnostic_array, to_ns
 from biped_sim.ros.run_watch import WarningBurst
@@ -195,6 +193,8 @@ class SimControl:
         loop's clocks must start again from the simulated time (it paused, stepped or reset)."""
         restart = False
         while True:
+            if restart:     # the commands received while paused: the last one holds, as in a period
+                self.node.take_commands()
             with self.cond:
                 req = self.requests.popleft() if self.requests else None
                 if req is None:
@@ -215,6 +215,7 @@ class SimControl:
             if req.kind == "step":
                 t0 = node.sim.t
                 self.counts["steps"] += 1
+                node.take_commands()
                 node.step()
                 node.publish_state()
                 sim = node.sim
@@ -254,13 +255,13 @@ class SimControl:
         if old_bag is not None or new_bag is not None:
             req.old_recorder, node.recorder = node.recorder, new_recorder
             node.bag_path = new_bag if new_bag is not None else node.bag_path
-        node.replace_engine(HybridSimulator(**P.engine_arguments(node.params), keep_samples=False))
+        node.restart_run()
         if node.markers is not None:      # the new run's events count from 0; its first state drawn at once
             node.markers.restart()
         if not keep_held:
             node.u = [0.0, 0.0]
             self.lockstep_command_held = False
-        node.finished = node.stopped = node.timed_out = False
+        node.timed_out = False
         node.last_command_wall = None
         self.take_pushes()                # a push aimed at the old run does not hit the new one
         self._publish_marker(0.0, dict(time="0.0", resets=str(self.resets), previous_time=repr(float(t_old)),

@@ -11,7 +11,6 @@ at a time; the messages are built by :mod:`biped_sim.recording.messages`.
 from __future__ import annotations
 
 import gc
-import math
 import os
 import sys
 import time
@@ -20,12 +19,14 @@ from datetime import datetime, timezone
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
+from rclpy.callback_groups import CallbackGroup
 from rclpy.duration import Duration
-from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
+from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -35,19 +36,15 @@ from biped_sim.config import parameters as P
 from biped_sim.engine import compiled_loop
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, WHY_PYTHON
 from biped_sim.engine.guards import prepare_event_location
-from biped_sim.engine.hybrid import HybridSimulator
-from biped_sim.recording.cdr import StateSerializer
-from biped_sim.recording.markers import MarkerStream
+from biped_sim.recording.markers import TF_TOPIC, TF_TYPE, MarkerStream, hip_transform
 from biped_sim.recording.messages import (
-    IMPACT_KINDS,
-    JOINT_NAMES,
     TOPIC_TYPES,
     answered_ns,
     diagnostic_array,
     event_status,
-    foot_frame,
     to_ns,
 )
+from biped_sim.recording.node_run import NodeRun, event_output, stale_command
 from biped_sim.ros import params_files, run_watch, startup
 from biped_sim.ros.one_topic_spin import OneTopicSpin
 from biped_sim.ros.parameters import declare_from_table, usage_text, value_less_override_message
@@ -64,6 +61,25 @@ STATE_QOS = QoSProfile(depth=QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
 COMMAND_QOS = QoSProfile(depth=QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
 
 
+class TakenByTheLoop(CallbackGroup):
+    """The callback group of ``hip_torque``: the executor never waits on the subscription itself, whose
+    messages the run loop takes (:meth:`SimNode.take_commands`, ``OneTopicSpin`` in lockstep); its QoS
+    event handlers are served by the executor as in a reentrant group.
+
+    A command that woke the executor's thread cost the realtime node about 0.2 ms of CPU a period
+    (the executor's wait set of every entity built and torn down at each command, 1 kHz), and the
+    command is needed only when the next period starts (docs/performance.md, "The node in realtime")."""
+
+    def can_execute(self, entity) -> bool:
+        return not isinstance(entity, Subscription)
+
+    def beginning_execution(self, entity) -> bool:
+        return self.can_execute(entity)
+
+    def ending_execution(self, entity) -> None:
+        pass
+
+
 class SimNode(Node):
     """The node; ``run(should_stop, executor)`` drives it in the chosen time mode."""
 
@@ -75,8 +91,9 @@ class SimNode(Node):
         params_files.check_applies(self, sys.argv if argv is None else argv)
         self.params = prm = declare_from_table(self, P.PARAMETERS)
         try:
-            # the node publishes as it goes: the engine keeps only the last sample
-            self.sim = HybridSimulator(**P.engine_arguments(prm), keep_samples=False)
+            # the run's rules (command check, period, events, state messages) are NodeRun's, shared with
+            # simulate --record and resim; the node publishes as it goes (the engine keeps the last sample)
+            self.run_rules = NodeRun(prm)
         except ValueError as exc:
             raise StartupError(f"cannot start the engine with these parameters: {exc}") from None
         # the root finder now, not at the first event: its import (~0.4 s) inside a control period stalls
@@ -85,16 +102,12 @@ class SimNode(Node):
         self.mode = prm["time_mode"]
         self.period = prm["control_period"]
         self.duration = prm["duration"]
-        self.limit = prm["torque_limit"]
-        self.clip = prm["torque_limit_action"] == "clip"
         self.timeout = 0.0 if self.mode == "lockstep" else prm["command_timeout"]
-        self.u = [0.0, 0.0]
-        self.finished = False           # duration reached
-        self.stopped = False            # the engine stopped (error)
         # a run without a duration is watched by someone: after an engine stop it stays up for
         # inspection (and ~/reset). A run with one is a batch run: nobody is there to press Ctrl-C
         self.stay_up_after_stop = self.duration == 0
         self.counts = dict(received=0, rejected=0, clipped=0, timeouts=0, ignored=0, stale=0)
+        self.run_rules.counts = self.counts     # the run's rules count the rejected and clipped commands here
         self.fault = None               # (status, message): the run ended by a fault (recording, lockstep_timeout)
         self.last_command_wall = None
         self.timed_out = False
@@ -117,13 +130,13 @@ class SimNode(Node):
         # the robot drawn, at marker_rate of wall time; a scene without "markers" computes nothing for it
         self.pub_markers = self._publisher(MarkerArray, "markers") if "markers" in out else None
         self.markers = MarkerStream(self.sim.model, prm["slope"], prm["marker_rate"]) if "markers" in out else None
-        self.sub = self.create_subscription(Float64MultiArray, "hip_torque", self._on_command, COMMAND_QOS)
+        self.sub = self.create_subscription(Float64MultiArray, "hip_torque", self._on_command, COMMAND_QOS,
+                                            callback_group=TakenByTheLoop(),
+                                            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
         self.control = SimControl(self, COMMAND_QOS)    # ~/pause, ~/step, ~/reset and the push topic
         state_pubs = dict(joint_states=self.pub_js, ground_reaction=self.pub_grf, clock=self.pub_clock)
-        self._state_outputs = tuple(pub is not None for pub in state_pubs.values())
         # the state messages come labelled with their topics: published by topic, recorded as they come
-        self._state_cdr = StateSerializer(JOINT_NAMES, labels={name: pub.topic_name for name, pub in
-                                                               state_pubs.items() if pub is not None})
+        self.run_rules.label_states({name: pub.topic_name for name, pub in state_pubs.items() if pub is not None})
         self._state_pubs = {pub.topic_name: pub for pub in state_pubs.values() if pub is not None}
         self.recorder = self.bag_path = None
         if prm["record"]:
@@ -138,6 +151,12 @@ class SimNode(Node):
                else f", hybrid loop in Python ({compiled_loop.WHY_NOT})")
             + (f", recording to {self.bag_path}" if self.recorder else ""))
 
+    # the run's state lives in its NodeRun; these names are the node's view of it
+    sim = property(lambda self: self.run_rules.sim)
+    u = property(lambda self: self.run_rules.u, lambda self, u: setattr(self.run_rules, "u", u))
+    finished = property(lambda self: self.run_rules.finished)
+    stopped = property(lambda self: self.run_rules.stopped)
+
     def _publisher(self, msg_type, topic):
         # no default event callbacks: the node does not act on QoS events
         return self.create_publisher(msg_type, topic, STATE_QOS,
@@ -150,12 +169,13 @@ class SimNode(Node):
         return {k: v for k, v in pubs.items() if v is not None}
 
     # -- recording ------------------------------------------------------------------------------
-    def replace_engine(self, sim):
-        """``sim`` (a new engine, ~/reset) replaces the current one, whose cost the figures keep."""
+    def restart_run(self):
+        """A new engine at the scene's initial state (~/reset) replaces the current one, whose cost the
+        figures keep."""
         self.earlier_runs["runs"] += 1
         self.earlier_runs["periods"] += self.sim.control_periods
         self.earlier_runs["engine_wall"] += self.sim.stats["wall_time"]
-        self.sim = sim
+        self.run_rules.restart()
 
     def _open_recorder(self, path=None):
         try:
@@ -185,6 +205,8 @@ class SimNode(Node):
                                "folder, or record:=false)") from None
         for output, pub in self.publishers_by_output().items():
             self.recorder.add_topic(pub.topic_name, TOPIC_TYPES[output], qos=STATE_QOS)
+        if self.markers is not None:    # recorded, not published: no tf2_msgs type support here
+            self.recorder.add_topic(TF_TOPIC, TF_TYPE, qos=STATE_QOS)
         self.recorder.add_topic(self.sub.topic_name, TOPIC_TYPES["hip_torque"], qos=COMMAND_QOS)
         # the writer process starts now rather than during the run's first periods (on 2 cores it took
         # the CPU from them: about 0.15 s of imports)
@@ -242,6 +264,17 @@ class SimNode(Node):
         if self.mode == "lockstep":
             self._lockstep(t)
 
+    def take_commands(self):
+        """Run the command callback for each ``hip_torque`` message received since the last call, in
+        order, without waiting (realtime and fast: at each period's start; the newest one holds)."""
+        sub = self.sub
+        with sub.handle:
+            while True:
+                taken = sub.handle.take_message(sub.msg_type, sub.raw)
+                if taken is None:
+                    return
+                self._on_command(taken[0])
+
     def _lockstep(self, t):
         """One control period per command, then its state."""
         if self.control.hold_in_lockstep():    # paused: this command steps once on resume
@@ -258,7 +291,7 @@ class SimNode(Node):
 
     def _stale(self, msg, t) -> bool:
         """A command tagged as the answer to a state other than the newest: ignored (counted, warned)."""
-        why = run_watch.stale_command(answered_ns(msg), to_ns(t), self.control.before_reset_ns)
+        why = stale_command(answered_ns(msg), to_ns(t), self.control.before_reset_ns)
         if why is None or self.finished or self.stopped:
             return False
         self.counts["stale"] += 1
@@ -268,22 +301,13 @@ class SimNode(Node):
 
     def _check_command(self, data, t):
         """The torques to use, or None (rejected: counted, throttled warning, last command held)."""
-        why = None
-        if len(data) != 2:
-            why = f"{len(data)} values instead of 2 (hip 1, hip 2)"
-        elif not all(math.isfinite(v) for v in data):
-            why = f"not finite: {data}"
-        elif max(abs(data[0]), abs(data[1])) > self.limit:
-            if self.clip:
-                self.counts["clipped"] += 1
-                self.get_logger().warning(
-                    f"hip_torque {data} beyond torque_limit {self.limit:g} N m at t={t:.6f} s: clipped "
-                    f"({self.counts['clipped']} clipped so far)", throttle_duration_sec=1.0)
-                return [max(-self.limit, min(self.limit, v)) for v in data]
-            why = f"{data} beyond torque_limit {self.limit:g} N m"
+        u, why = self.run_rules.check_command(data)
         if why is None:
-            return [float(data[0]), float(data[1])]
-        self.counts["rejected"] += 1
+            return u
+        if u is not None:
+            self.get_logger().warning(f"hip_torque {why} at t={t:.6f} s: clipped ({self.counts['clipped']} "
+                                      "clipped so far)", throttle_duration_sec=1.0)
+            return u
         self.get_logger().warning(
             f"hip_torque rejected at t={t:.6f} s: {why}; holding {self.u} ({self.counts['rejected']} rejected "
             "so far)", throttle_duration_sec=1.0)
@@ -306,22 +330,18 @@ class SimNode(Node):
         last one); publish its events."""
         if self._wall_first_period is None:
             self._wall_first_period = time.monotonic()
-        for impulse in self.control.take_pushes():
-            for ev in self.sim.push(impulse):
-                self._publish_event(ev)
-        events = self.sim.advance_period(self.period, u=self.u, t_final=self.duration)
+        events, ended = self.run_rules.advance(self.control.take_pushes())
         for ev in events:
             self._publish_event(ev)
-        if self.sim.status != "running" and not self.stopped:
+        if ended == "stopped":
             self._on_engine_stopped()
-        elif self.duration > 0 and self.sim.t >= self.duration and not self.finished:
-            self.finished = True
+        elif ended == "finished":
             self.get_logger().info(f"duration {self.duration:g} s reached: the run ends")
 
     def _publish_event(self, ev):
         st = event_status(ev)
         msg = diagnostic_array(ev.time, [st])
-        if ev.kind in IMPACT_KINDS:
+        if event_output(ev) == "impact":
             if self.pub_impact is not None:
                 self._publish(self.pub_impact, msg, ev.time)
             if ev.warnings:
@@ -330,7 +350,6 @@ class SimNode(Node):
             self._publish(self.pub_diag, msg, ev.time)
 
     def _on_engine_stopped(self):
-        self.stopped = True
         sim = self.sim
         then = ("The node stays up for inspection (the last state stays published; ~/reset restarts the run); "
                 "stop it with Ctrl-C" if self.stay_up_after_stop else
@@ -367,8 +386,7 @@ class SimNode(Node):
         recorder as they are."""
         sim = self.sim
         t_ns = to_ns(sim.t)
-        state = self._state_cdr.period(t_ns, foot_frame(sim.stance_leg), *sim.state_lists(), self.u,
-                                       sim.ground_force if sim.stance_leg else None, *self._state_outputs)
+        state = self.run_rules.state_messages()
         for topic, data in state:
             self._state_pubs[topic].publish(data)
         if self.recorder is not None and state:
@@ -378,7 +396,15 @@ class SimNode(Node):
             msg = self.markers.poll(begin, sim, force=self.finished or self.stopped)
             if msg is not None:   # serialised once for the topic and the bag (1.2 ms a MarkerArray)
                 self._publish(self.pub_markers, serialize_message(msg), sim.t)
+                if self.recorder is not None:     # the frame a 3D view of the bag follows
+                    self.recorder.write(TF_TOPIC, hip_transform(to_ns(sim.t), self.markers.hip), to_ns(sim.t))
                 self.watch.markers.drew(time.monotonic() - begin)     # its share of the wall time (run_watch)
+
+    def offer_state_again(self):
+        """The newest state's messages published again to the subscribers, not recorded (a lockstep
+        controller that subscribed after it was published: :class:`~biped_sim.ros.run_watch.RunWatch`)."""
+        for topic, data in self.run_rules.state_messages():
+            self._state_pubs[topic].publish(data)
 
     # -- time modes ---------------------------------------------------------------------------
     def run(self, should_stop, executor):
@@ -398,7 +424,8 @@ class SimNode(Node):
             try:
                 while True:
                     (run_fast if self.mode == "fast" else run_realtime)(self, should_stop)
-                    self._end_run(should_stop, lambda: self.control.between_periods(should_stop) or time.sleep(0.05))
+                    self._end_run(should_stop, lambda: self.take_commands() or
+                                  self.control.between_periods(should_stop) or time.sleep(0.05))
                     if should_stop() or self.finished or self.stopped:
                         return
             finally:

@@ -2,10 +2,10 @@
 
 Owns when the node steps and publishes: ``lockstep`` (each command steps once: the loop only
 spins), ``fast`` (step as fast as possible) and ``realtime`` (simulated time t is due at wall time
-``start + t / rate_factor``: :class:`RealtimePacer` sleeps until then, says when the loop falls
-behind, resynchronises after a stall, and measures the achieved rate). Both publish at
+``start + t / rate_factor``: :class:`RealtimePacer` sleeps until then, says when the loop is
+late, resynchronises after a stall, and measures the achieved rate). Both publish at
 ``publish_rate`` in simulated time, whatever the control period (:class:`PublishSchedule`). The loops drive a
-:class:`biped_sim.ros.sim_node.SimNode` through its ``check_timeout``, ``step`` and
+:class:`biped_sim.ros.sim_node.SimNode` through its ``take_commands``, ``check_timeout``, ``step`` and
 ``publish_state``; the pacing and the schedule are plain Python.
 """
 from __future__ import annotations
@@ -15,10 +15,11 @@ import math
 import threading
 import time
 
-#: a loop that is behind says so at most this often (wall s)
+#: a loop that is late says so at most this often (wall s)
 LAG_REPORT_INTERVAL = 2.0
-#: time.sleep overshoots by ~0.1 ms here: sleep until this much before the deadline, then spin
-SLEEP_MARGIN = 1.5e-4
+#: the loop "cannot keep up" once it has been late (see RealtimePacer.late_bound) at every control
+#: period for this long (wall s): a late period that the loop catches up within it is jitter
+LATE_FOR = 1.0
 #: a realtime wait looks at the stop signals at least this often (wall s)
 STOP_CHECK_INTERVAL = 0.1
 MAX_PUBLICATION_TIMES = 1_000_000
@@ -59,7 +60,9 @@ class RealtimePacer:
         self.rate = rate_factor
         self.stall_bound = stall_bound
         self.stalls, self.stalled_wall = 0, 0.0                 # the stalls left out of the figures
-        self.lag_tolerance = max(control_period / rate_factor, 0.005)
+        # a period is late when it is due more than this long ago (wall s) when the loop reaches it
+        self.late_bound = max(control_period / rate_factor, 0.005)
+        self.late_since = None                                  # (wall, t) at the first late period in a row
         self.publish_period = publish_period / rate_factor      # wall s between publications
         self.start = time.monotonic()
         self.cpu_start = time.process_time()
@@ -72,37 +75,59 @@ class RealtimePacer:
         self.earlier_t, self.earlier_wall = 0.0, 0.0            # the segments before it, summed
 
     def wait_until(self, t: float, should_stop=lambda: False) -> str | None:
-        """Sleep until simulated time ``t`` is due; a warning if it is already late by more than a
-        control period (at most one every LAG_REPORT_INTERVAL s), or if the loop stalled.
+        """Sleep until simulated time ``t`` is due; a warning if the loop cannot keep up (at most one
+        every LAG_REPORT_INTERVAL s, see :meth:`_late`), or if the loop stalled.
 
         A stall: the wall time since the last period waited for exceeds what the simulated time
         between them needs by more than ``stall_bound``, at once (a loop that falls behind a little
         each period is not one). Holding to the old clock would replay the stall as fast as the loop
         goes; instead ``t`` is due now: the simulated time goes on from where it was, and the stall
-        is left out of the figures. Returns early, ``t`` not yet due, once ``should_stop()``."""
-        warning = self._resync_if_stalled(t, time.monotonic())
-        deadline = self.start + t / self.rate
+        is left out of the figures. Returns early, ``t`` not yet due, once ``should_stop()``.
+
+        The wait is one sleep to the deadline (in slices of at most STOP_CHECK_INTERVAL): Python's
+        ``time.sleep`` sleeps with ``clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME)`` on the deadline
+        it computes at the call, the clock of ``time.monotonic``; no spinning before the deadline."""
         now = time.monotonic()
-        if warning is None and now > deadline + self.lag_tolerance and now - self.last_lag_report > LAG_REPORT_INTERVAL:
-            self.last_lag_report = now
-            self.lag_reports += 1
-            warning = (f"realtime: cannot keep up: simulated time {t:.3f} s is {(now - deadline) * self.rate:.3f} s "
-                       f"behind the wall clock x rate_factor {self.rate:g} (achieved real-time factor "
-                       f"{t / (now - self.start):.3g}); lower publish_rate or rate_factor, raise control_period, "
-                       "or use time_mode fast")
+        warning = self._resync_if_stalled(t, now)
+        deadline = self.start + t / self.rate
+        if warning is None:
+            warning = self._late(t, now, now - deadline)
         while not should_stop():
             left = deadline - time.monotonic()
-            if left <= 2e-4:             # shorter sleeps are not worth their overshoot
-                while time.monotonic() < deadline:
-                    pass
+            if left <= 0.0:
                 break
             # in slices: a period can be long (control_period 1 s at rate_factor 0.01 is 100 s of wall
             # time), and a stop signal only appends to a list, so one sleep held the node's end that long
-            time.sleep(min(left - SLEEP_MARGIN, STOP_CHECK_INTERVAL))
+            time.sleep(min(left, STOP_CHECK_INTERVAL))
         # stopped during the sleep: the period is published late, the next ones must not catch up
         warning = self._resync_if_stalled(t, time.monotonic()) or warning
         self.last_t, self.last_wall = t, time.monotonic()
         return warning
+
+    def _late(self, t: float, now: float, lag: float) -> str | None:
+        """The "cannot keep up" warning, if the loop has been late at every period for LATE_FOR s.
+
+        ``lag``: how long ago (wall s) ``t`` was due when the loop reached it. A period is late when
+        ``lag`` exceeds ``late_bound`` (a control period of wall time, at least 5 ms); one that is
+        not ends the run of late periods. A run of them that lasts LATE_FOR s is a loop that cannot
+        keep up; the warning gives the lag now and the real-time factor over that run."""
+        if lag <= self.late_bound:
+            self.late_since = None
+            return None
+        if self.late_since is None:
+            self.late_since = (now, t)
+            return None
+        since_wall, since_t = self.late_since
+        late_for = now - since_wall
+        if late_for < LATE_FOR or now - self.last_lag_report <= LAG_REPORT_INTERVAL:
+            return None
+        self.last_lag_report = now
+        self.lag_reports += 1
+        return (f"realtime: cannot keep up: simulated time {t:.3f} s is reached {lag:.3f} s (wall) after it was "
+                f"due, and every control period of the last {late_for:.1f} s was late by more than "
+                f"{self.late_bound * 1e3:.0f} ms; real-time factor over them {(t - since_t) / late_for:.3g} against "
+                f"rate_factor {self.rate:g}; lower "
+                "publish_rate or rate_factor, raise control_period, or use time_mode fast")
 
     def _resync_if_stalled(self, t: float, now: float) -> str | None:
         """If the loop stalled since the last period waited for: ``t`` is due at ``now``, the
@@ -112,6 +137,7 @@ class RealtimePacer:
             return None
         self.stalls += 1
         self.stalled_wall += stalled
+        self.late_since = None
         self.earlier_t += self.last_t - self.segment_t
         self.earlier_wall += self.last_wall - self.segment_wall
         self.segment_t, self.segment_wall = self.last_t, now - (t - self.last_t) / self.rate
@@ -128,6 +154,7 @@ class RealtimePacer:
         """Simulated time ``t`` is due now (after a pause, a step or a reset: time stood still or went
         back): the current segment ends at the last period waited for, a new one begins."""
         now = time.monotonic()
+        self.late_since = None
         self.earlier_t += self.last_t - self.segment_t
         self.earlier_wall += self.last_wall - self.segment_wall
         self.segment_t = self.last_t = t
@@ -185,6 +212,7 @@ def run_fast(node, should_stop):
         if node.control.between_periods(should_stop):      # paused, stepped or reset: go on from here
             schedule.restart(node.sim.t)
             continue
+        node.take_commands()
         node.check_timeout()
         node.step()
         if schedule.due(node.sim.t) or node.finished or node.stopped:
@@ -200,6 +228,7 @@ def run_realtime(node, should_stop):
             pacer.restart(node.sim.t)                        # starts again from the simulated time
             schedule.restart(node.sim.t)
             continue
+        node.take_commands()             # those received by the start of the period
         node.check_timeout()
         node.step()                      # compute ahead: the state at the end of this period
         periods += 1
@@ -216,8 +245,9 @@ def run_realtime(node, should_stop):
 
 @contextlib.contextmanager
 def spinning_in_background(executor):
-    """The executor spinning in a second thread while the body runs: in realtime and fast the
-    command callback only stores the command, so that waiting for commands costs the loop nothing."""
+    """The executor spinning in a second thread while the body runs (realtime and fast): the services,
+    the timers and ``push``. Not ``hip_torque``, which the loop takes at each period's start
+    (:class:`~biped_sim.ros.sim_node.TakenByTheLoop`): the thread sleeps in its wait set between them."""
     done = threading.Event()
 
     def spin():

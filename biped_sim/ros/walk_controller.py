@@ -56,7 +56,10 @@ STANCE_SOURCES = ("auto", "state", "frame_id")
 PARAMETERS = CONTROLLER_PARAMETERS + [Param(
     "stance_source", str, "auto", "where the stance leg comes from: auto (the joint_states frame_id if it "
     "names a foot, else the state), state (the foot on the ground and at rest), frame_id",
-    choices=STANCE_SOURCES)]
+    choices=STANCE_SOURCES), Param(
+    "controller", str, "walk", "the law that answers: walk (the reference walking controller, with the "
+    "parameters above) or MODULE:ATTR, your controller (a class or factory made on the model of the "
+    "model.* parameters, or a controller; docs/controllers.md)")]
 QOS_DEPTH = 100
 COMMAND_QOS = QoSProfile(depth=QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
 # transient_local: the state at t = 0 that a lockstep sim node published before we started
@@ -94,7 +97,18 @@ class WalkControllerNode(Node):
             raise StartupError(value_less_override_message(exc) or exc) from None
         params_files.check_applies(self, sys.argv if argv is None else argv)
         self.values = v = declare_from_table(self, PARAMETERS)
-        self.ctrl = make_controller(v)
+        if v["controller"] == "walk":
+            self.ctrl = make_controller(v)
+            self.model = self.ctrl.model
+        else:
+            from biped_sim.config.controllers import make_controller as make_users
+            from biped_sim.config.parameters import model_arguments
+            from biped_sim.engine.model import BipedModel
+            self.model = BipedModel(**model_arguments(v))
+            try:
+                self.ctrl = make_users(v["controller"], self.model)
+            except ValueError as exc:
+                raise StartupError(f"parameter controller: {exc}") from None
         self.source = v["stance_source"]
         self.answered = 0
         self.duplicates = 0
@@ -106,8 +120,11 @@ class WalkControllerNode(Node):
         self.sub = self.create_subscription(JointState, "joint_states", self._on_state, STATE_QOS)
         self.timer = self.create_timer(0.01, self._flush_pending)
         self.get_logger().info(
-            "walk_controller: " + ", ".join(f"{k}={v[k]!r}" for k in ("torso_pitch", "step_angle", "clearance",
-                                                                       "lag", "kp", "kd", "slope", "stance_source")))
+            "walk_controller: " + (", ".join(f"{k}={v[k]!r}" for k in ("torso_pitch", "step_angle", "clearance",
+                                                                        "lag", "kp", "kd", "slope", "stance_source"))
+                                   if v["controller"] == "walk" else
+                                   f"controller={v['controller']!r}, slope={v['slope']!r}, "
+                                   f"stance_source={v['stance_source']!r}"))
 
     def _matched(self):
         """Every hip_torque subscriber known to the graph (the sim node's among them) is matched."""
@@ -138,8 +155,9 @@ class WalkControllerNode(Node):
         self._last = key
         try:
             idx = [list(msg.name).index(n) for n in JOINT_NAMES]
-            q = np.array([msg.position[i] for i in idx])
-            dq = np.array([msg.velocity[i] for i in idx])
+            # lists of floats, as the engine calls a controller (headless and node runs get the same bits)
+            q = [msg.position[i] for i in idx]
+            dq = [msg.velocity[i] for i in idx]
         except (ValueError, IndexError):
             self.get_logger().error(f"joint_states without the joints {list(JOINT_NAMES)} (got names "
                                     f"{list(msg.name)}): not answered", throttle_duration_sec=1.0)
@@ -150,7 +168,7 @@ class WalkControllerNode(Node):
             u = self.ctrl(t, q, dq, leg)
             if not np.all(np.isfinite(u)):
                 raise FloatingPointError(f"torques {u}")
-        except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+        except Exception as exc:   # noqa: BLE001 -- any law's failure: said, and the run gets zero torque
             self.failures += 1
             self.get_logger().error(f"control law failed at t={t:.6f} s ({exc}): sending zero torque",
                                     throttle_duration_sec=1.0)
@@ -166,7 +184,7 @@ class WalkControllerNode(Node):
             if self.source == "frame_id":
                 raise ValueError(f"joint_states frame_id {frame_id!r} names no stance foot")
         v = self.values
-        return stance_from_state(self.ctrl.model, q, dq, v["slope"], v["contact_height_tol"],
+        return stance_from_state(self.model, q, dq, v["slope"], v["contact_height_tol"],
                                  v["contact_speed_tol"])
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from ros_helpers import BIN, Client, Control, ros_domain, start_node  # noqa: E402
+from ros_helpers import BIN, Client, Control, ros_domain, ros_env, start_node  # noqa: E402
 
 pytest.importorskip("rclpy")
 from mcap.reader import make_reader  # noqa: E402
@@ -126,6 +126,32 @@ def test_the_bag_holds_the_markers_readable_by_rosbags_and_mcap_ros2(walk_run):
                    .iter_decoded_messages(topics=["/markers"])]
     assert len(decoded) == len(arrays) and decoded[0][0] == "visualization_msgs/msg/MarkerArray"
     assert [m.id for m in decoded[-1][1].markers] == list(range(1, 10))
+
+
+def test_the_nodes_bag_records_the_hip_frame_on_tf_with_each_marker_array(walk_run):
+    """sim_node records (does not publish: no tf2_msgs here) world -> hip at each array's stamp."""
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    with Reader(walk_run["bag"]) as r:
+        conns = [c for c in r.connections if c.topic == "/tf"]
+        assert len(conns) == 1 and conns[0].msgtype == "tf2_msgs/msg/TFMessage"
+        got = [ts.deserialize_cdr(raw, c.msgtype).transforms for c, _t, raw in r.messages(connections=conns)]
+    arrays = walk_run["arrays"]
+    assert len(got) == len(arrays)
+    for (tf,), arr in zip(got, arrays):
+        hip = {m.id: m for m in arr.markers}[MK.HIP].pose.position
+        assert (tf.header.frame_id, tf.child_frame_id) == ("world", MK.FOLLOW_FRAME)
+        assert ns(tf.header.stamp) == ns(arr.markers[0].header.stamp)
+        assert (tf.transform.translation.x, tf.transform.translation.z) == (hip.x, hip.z)
+
+
+def test_replay_of_the_bag_plays_its_topics_and_says_it_leaves_out_tf(walk_run):
+    """tf2_msgs has no Python package here: replay plays the other topics and says so in one line."""
+    with ros_domain() as dom:
+        done = subprocess.run([str(BIN / "biped-sim"), "replay", str(walk_run["bag"]), "--rate", "100"],
+                              env=ros_env(dom), capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "not playing /tf (tf2_msgs/msg/TFMessage): its message package is not installed here" in done.stderr
+    assert "published" in done.stdout + done.stderr and "Traceback" not in done.stderr
 
 
 def test_animate_the_recorded_bag(walk_run, tmp_path):

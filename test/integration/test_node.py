@@ -258,3 +258,45 @@ def test_refuses_bad_parameters(tmp_path):
             assert "Traceback" not in err and err.startswith("sim_node: error:"), (k, err)
             for word in cases[k][1]:
                 assert word in err, (k, word, err)
+
+
+def test_in_realtime_the_loop_takes_the_commands_and_the_executor_sleeps_while_they_arrive():
+    """Issue 35: each command woke the executor's thread, which built a wait set of every entity of
+    the node to run the callback (0.2 ms of CPU a 1 kHz period). Now the realtime and fast loops take
+    the commands at each period's start (``take_commands``, in order, the newest holds) and the
+    executor, serving the services and timers, neither runs the callback nor wakes for a command:
+    with 50 commands waiting, it sleeps."""
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    from biped_sim.ros.sim_node import COMMAND_QOS, SimNode
+    with ros_domain() as dom:
+        ctx = Context()
+        rclpy.init(context=ctx, domain_id=dom, args=["sim_node", "--ros-args", "-p", "record:=false",
+                                                      "-p", "time_mode:=realtime", "-p", "torque_limit:=100.0"])
+        try:
+            node = SimNode(context=ctx, argv=["sim_node"])
+            executor = SingleThreadedExecutor(context=ctx)
+            executor.add_node(node)
+            controller = rclpy.create_node("controller", context=ctx)
+            pub = controller.create_publisher(Float64MultiArray, "hip_torque", COMMAND_QOS)
+            end = time.monotonic() + 30
+            while pub.get_subscription_count() == 0 and time.monotonic() < end:
+                time.sleep(0.01)
+            for k in range(50):
+                pub.publish(Float64MultiArray(data=[float(k), -float(k)]))
+            time.sleep(0.3)                     # delivered, waiting in the subscription
+            wall, cpu = time.monotonic(), time.thread_time()
+            while time.monotonic() - wall < 0.3:    # the executor serves what it has (the node's timers)
+                executor.spin_once(timeout_sec=0.05)
+            wall, cpu = time.monotonic() - wall, time.thread_time() - cpu
+            assert node.counts["received"] == 0, node.counts        # the executor ran no command
+            assert cpu < 0.5 * wall, (wall, cpu)    # and slept: no wake-up for the commands waiting
+            node.take_commands()
+            assert node.counts["received"] == 50 and node.u == [49.0, -49.0], (node.counts, node.u)
+            node.take_commands()                # none left
+            assert node.counts["received"] == 50
+            controller.destroy_node()
+            node.destroy_node()
+        finally:
+            ctx.try_shutdown()

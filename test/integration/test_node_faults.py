@@ -739,3 +739,44 @@ def test_a_bag_name_taken_in_the_same_second_gets_a_suffix_and_the_run_records(t
     assert len(ours) == 1 and ours[0].name.endswith("Z-2"), (ours, proc.output())
     assert len(bag_messages(ours[0])["/joint_states"]) == 501
     assert all((d / "other_0.mcap").read_bytes() == b"the first node's bag" for d in taken)
+
+
+# -- issue 35: "cannot keep up" only when the realtime node is really late -------------------------------
+def _wait_for_line(proc, text, timeout):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and proc.alive:
+        if text in proc.output():
+            return True
+        time.sleep(0.05)
+    return text in proc.output()
+
+
+def test_cannot_keep_up_is_said_of_a_slow_realtime_node_and_not_of_a_late_period_it_catches_up():
+    """A node held 0.15 s (SIGSTOP: shorter than a stall) at 1 kHz is late by 150 periods once and
+    catches them up within milliseconds: its real-time factor stays 1, and it used to say "cannot
+    keep up" all the same. A node asked for rate_factor 10 at a 10 us control period (1 us of wall
+    time a period) is late at every period: it says so, with its lag and real-time factor."""
+    base = dict(record=False, time_mode="realtime", control_period=0.001, publish_rate=1000.0, command_timeout=0.0,
+                outputs=["joint_states"])
+    slow_params = dict(base, rate_factor=10.0, control_period=1e-5)
+    with ros_domain() as d1, ros_domain() as d2, \
+            start_node(dict(base), d1) as caught_up, start_node(slow_params, d2) as slow:
+        assert _wait_for_line(caught_up, "time_mode=realtime", 60), caught_up.output()
+        time.sleep(3.0)                 # beyond the first LAG_REPORT_INTERVAL of the run
+        os.kill(caught_up.proc.pid, signal.SIGSTOP)
+        time.sleep(0.15)
+        os.kill(caught_up.proc.pid, signal.SIGCONT)
+        time.sleep(1.5)
+        assert caught_up.stop(signal.SIGTERM) == 0, caught_up.output()
+        assert _wait_for_line(slow, "cannot keep up", 30), slow.output()
+        assert slow.stop(signal.SIGTERM) == 0, slow.output()
+    log = caught_up.output()
+    assert "cannot keep up" not in log and "stalled" not in log, log
+    figures = re.search(r"realtime figures: .* real-time factor ([0-9.]+)", log)
+    assert figures and float(figures.group(1)) == pytest.approx(1.0, abs=0.01), log
+    said = re.search(r"cannot keep up: simulated time [0-9.]+ s is reached ([0-9.]+) s \(wall\) after it was due, "
+                     r"and every control period of the last ([0-9.]+) s was late by more than 5 ms; real-time "
+                     r"factor over them ([0-9.]+) against rate_factor 10;", slow.output())
+    assert said, slow.output()
+    lag, late_for, rtf = map(float, said.groups())
+    assert late_for >= 1.0 and lag > 0.005 and rtf < 5, said.group(0)

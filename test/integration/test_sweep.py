@@ -95,6 +95,16 @@ def test_the_command_line_values():
             parse_set(bad)
 
 
+def test_a_bracketed_list_of_values_is_one_line_that_shows_the_form_to_use(tmp_path, capsys):
+    """``--set duration=[1.0,2.0]`` was split at its comma: 'must be a number, got '[1.0''."""
+    out = tmp_path / "rows.csv"
+    assert main(["sweep", "walk", "--set", "duration=[1.0,2.0]", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "got '[1.0'" not in err, err
+    assert "give the values without brackets" in err and "--set duration=1.0,2.0" in err, err
+    assert not out.exists()
+
+
 # ---- bs.sweep ----
 
 def _outcome(rows):

@@ -41,3 +41,24 @@ def test_an_unknown_sweep_name_says_the_closest_one_and_no_node_only_name():
     assert "did you mean 'kp'?" in text, text
     allowed = text.split("allowed: ", 1)[1]
     assert not [n for n in NODE_ONLY if re.search(rf"\b{n}\b", allowed)], allowed
+
+
+COMMANDS = ["simulate", "accuracy", "stability", "gait", "sweep", "basin", "resim", "inspect", "recover", "replay",
+            "animate"]
+
+
+@pytest.mark.parametrize("command", [None, *COMMANDS])
+def test_every_help_fits_an_80_column_terminal(command, monkeypatch):
+    """simulate's description was one line of 242 characters, its usage listed the eight methods in
+    one 110-character line, animate's description ran to 88 columns."""
+    monkeypatch.setenv("COLUMNS", "80")
+    lines = help_text(*([command] if command else [])).splitlines()
+    assert [line for line in lines if len(line) > 80] == []
+
+
+def test_stability_help_names_the_cases_and_replay_help_says_what_it_leaves_out():
+    from biped_sim.analysis.stability import CASES
+    text = " ".join(help_text("stability").split())
+    assert all(case.__name__[5:] in text for case in CASES), text
+    text = " ".join(help_text("replay").split())
+    assert "/tf" in text and "left out" in text and "(default: [])" not in text, text

@@ -58,7 +58,9 @@ def test_simulate_scene_applies_the_engine_options_given(capsys):
 
 
 @pytest.mark.parametrize("args, expected", [
-    (["--controller", "none"], "--controller applies without --scene only"),
+    (["--controller", "my_missing_module:Law"], "cannot import 'my_missing_module'"),
+    (["--controller", "biped_sim.control.walking:WalkingController.swing_target"],
+     "cannot be called as controller(t, q, dq, stance_leg)"),
     (["--rtol", "5"], "override 'rtol': parameter 'rtol' must be in [1e-14, 0.1], got 5.0"),
     (["--mu", "-1"], "override 'mu': parameter 'mu' must be in [0.0, 100.0], got -1.0"),
 ])
@@ -66,6 +68,13 @@ def test_simulate_scene_refuses_an_option_it_cannot_apply(args, expected, capsys
     assert cli_main(["simulate", "--scene", "walk", "--duration", "0.2", *args]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("biped-sim simulate: error: ") and expected in err[0], err
+
+
+def test_simulate_controller_walk_needs_a_scene_with_its_parameters(capsys):
+    assert cli_main(["simulate", "--scene", "passive", "--duration", "0.1", "--controller", "walk"]) == 2
+    assert "scene passive has no walk_controller section" in capsys.readouterr().err
+    assert cli_main(["simulate", "--scene", "walk", "--duration", "0.1", "--controller", "none"]) == 0
+    assert "controller none (u = 0)" in capsys.readouterr().out
 
 
 def test_simulate_scene_record_records_the_options_given(tmp_path, capsys):

@@ -164,7 +164,10 @@ def test_the_node_page_lists_every_key_of_the_impact_message():
 # wall times and UTC stamps differ from run to run, so both sides are compared with them masked.
 CHECKED = "<!-- test_docs: the output below is checked -->"
 MASKS = [(re.compile(r"\d{8}T\d{6}Z"), "<UTC time>"), (re.compile(r"\[\d+\.\d+ s\]"), "[<wall s>]"),
-         (re.compile(r" in \d+\.\d+ s$"), " in <wall s>")]
+         (re.compile(r" in \d+\.\d+ s$"), " in <wall s>"),
+         # biped-sim simulate's rows of the machine's speed
+         (re.compile(r"^( +wall time  )\S+ s$"), r"\1<wall s>"),
+         (re.compile(r"^( +real-time factor  )\S+$"), r"\1<factor>")]
 
 
 def _masked(line: str) -> str:

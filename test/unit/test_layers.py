@@ -71,6 +71,18 @@ def test_the_engine_imports_only_the_standard_library_numpy_and_scipy():
     assert not wrong, "the engine imports outside numpy, scipy and the standard library:\n" + "\n".join(wrong)
 
 
+def test_the_engine_names_no_controller():
+    """A torque law enters the engine through the hook (engine/torque_hook.py); the walking laws live in
+    control/, and no engine source, Python or C, names them."""
+    engine = PACKAGE / "engine"
+    sources = sorted(p for p in engine.rglob("*") if p.suffix in (".py", ".c", ".h") and "__pycache__" not in p.parts)
+    assert any(p.name == "_core.c" for p in sources)
+    wrong = [f"{p.relative_to(PACKAGE)}:{i}: {line.strip()}" for p in sources
+             for i, line in enumerate(p.read_text().splitlines(), 1)
+             if "walking" in line.lower() or "WalkingController" in line]
+    assert not wrong, "the engine names a controller:\n" + "\n".join(wrong)
+
+
 def run_python(code, timeout):
     """``code`` run by a fresh interpreter (imports as a user's process makes them)."""
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout)

@@ -24,6 +24,17 @@ def test_progress_to_a_file_writes_a_line_every_tenth_and_no_carriage_return():
     assert lines[-1].startswith("[sweep] 256/256 runs (100 %)") and lines[-1].endswith("; 5 not completed"), text
 
 
+def test_the_last_count_reported_again_is_one_line():
+    """replay reports its last message again as it ends a pass: the 100 % line was written twice."""
+    log = io.StringIO()
+    display = Progress(10, "replay", unit="messages", stream=log)
+    for done in (5, 10, 10):
+        display.update(done, "bag time 3.000 / 3.000 s")
+    display.close()
+    assert [line.split(" (")[0] for line in log.getvalue().splitlines()] == ["[replay] 5/10 messages",
+                                                                           "[replay] 10/10 messages"]
+
+
 def test_a_sweep_with_stderr_to_a_file_logs_a_few_lines(tmp_path):
     err = tmp_path / "sweep.log"
     with open(err, "w") as stderr:

@@ -81,3 +81,92 @@ def test_a_bags_impact_and_event_fields_are_typed_with_no_nan_strings(tmp_path):
         assert not strings, (e["kind"], strings)                 # every number parsed, no "[nan, ...]"
         assert "nan" not in repr({k: v for k, v in e.items() if k not in STRING_KEYS}), e
     assert all(e["q"] == [] or len(e["q"]) == 5 for e in scuffs)
+
+
+def stopped_run(duration=3.0):
+    """The passive scene run past its 0.5 s: the robot falls and its impacts accumulate (Zeno, stopped
+    at t ~ 1.56 s), its stick figures piled up where it fell."""
+    return bs.load_scene("passive").simulate(t_final=duration)
+
+
+def visible_label_boxes(fig):
+    """The window boxes of the gait panel's time labels that are drawn (Agg renderer, after a draw)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    gait = [ax for ax in fig.axes if ax.get_title(loc="left").startswith("gait")][0]
+    return [(txt.get_text(), txt.get_window_extent(renderer)) for txt in gait.texts if txt.get_visible()]
+
+
+def test_the_figure_of_a_stopped_run_says_why_and_when_and_its_time_labels_do_not_overprint(tmp_path):
+    result = stopped_run()
+    assert result.status == "stopped" and result.events[-1].kind == "zeno"
+    fig = result.plot(path=tmp_path / "passive.png")
+    title = " ".join(fig.get_suptitle().split())
+    assert f"stopped at t = {result.events[-1].time:.6g} s" in title, title
+    assert "the impacts accumulate (Zeno behaviour)" in title, title
+    boxes = visible_label_boxes(fig)
+    assert len(boxes) >= 2 and f"{result.t[-1]:.2f} s" in [text for text, _box in boxes], boxes   # the end's time
+    overprinted = [(a, b) for i, (a, box_a) in enumerate(boxes) for b, box_b in boxes[i + 1:] if box_a.overlaps(box_b)]
+    assert not overprinted, overprinted
+
+
+def test_simulate_plot_of_a_recorded_stopped_run_draws_its_samples_and_its_end(tmp_path):
+    png = tmp_path / "passive.png"
+    assert biped_sim(["simulate", "--scene", "passive", "--duration", "3", "--record", str(tmp_path),
+                      "--plot", str(png)]) == 1                               # stopped: exit code 1
+    (bag,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    with Image.open(png) as im:       # the time panels (the top 60 %) hold lines of hip 1's colour C0
+        top = np.asarray(im.convert("RGB"))[: int(0.6 * im.size[1])].reshape(-1, 3)
+    assert np.sum(np.all(top == (31, 119, 180), axis=1)) > 300          # an empty panel: the legend's, ~0
+    from biped_sim.recording import inspect_bag
+    fig = inspect_bag.plot(bag, tmp_path / "again.png")
+    title = " ".join(fig.get_suptitle().split())
+    assert "stopped at t = 1.5598" in title and "the impacts accumulate (Zeno behaviour)" in title, title
+
+
+def test_inspects_readers_give_what_rclpy_gives_in_log_time_order(tmp_path):
+    """load_run reads the file in its own order with the CDR readers of recording/cdr.py (no rclpy):
+    every state, force and event field is the value rclpy's deserialiser gives, and the run is the
+    one read in log-time order (a stopped run: impacts, a scuff, the Zeno stop on /diagnostics)."""
+    from biped_sim.recording import bagio, inspect_bag, messages as M
+    assert biped_sim(["simulate", "--scene", "passive", "--duration", "3", "--record", str(tmp_path)]) == 1
+    (bag,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    readers = {"sensor_msgs/msg/JointState": (M.joint_state_values_cdr, M.joint_state_values),
+               "geometry_msgs/msg/WrenchStamped": (M.wrench_values_cdr, M.wrench_values),
+               "diagnostic_msgs/msg/DiagnosticArray": (M.event_values_cdr, M.event_values)}
+    seen = dict.fromkeys(readers, 0)
+    for _topic, typ, _t, data in bagio.messages(bag):
+        if typ in readers:
+            own, rclpy_values = readers[typ]
+            assert own(typ, data) == rclpy_values(bagio.decode(typ, data))
+            seen[typ] += 1
+    assert seen["sensor_msgs/msg/JointState"] > 1000 and seen["diagnostic_msgs/msg/DiagnosticArray"] >= 7, seen
+    in_file_order = inspect_bag.load_run(bag, max_points=None)
+    in_log_order = inspect_bag._read_run(bag, None, log_time_order=True)
+    for key in ("t", "q", "dq", "u", "leg", "grf_t", "grf"):
+        np.testing.assert_array_equal(in_file_order[key], in_log_order[key], err_msg=key)
+    for key in ("impacts", "events", "all_events", "counts", "first", "last", "stats", "commands", "params"):
+        assert in_file_order[key] == in_log_order[key], key
+    assert [e["kind"] for e in in_file_order["all_events"]][-2:] == ["touchdown", "zeno"]
+
+
+def test_a_bag_whose_states_go_back_in_file_order_is_read_in_log_time_order(tmp_path):
+    """A bag of another writer may store a topic's messages out of time order: load_run then reads it
+    again in log-time order (the file's order would draw the time series back and forth)."""
+    from biped_sim.recording import inspect_bag
+    from biped_sim.recording.cdr import StateSerializer
+    from biped_sim.recording.messages import JOINT_NAMES
+    from biped_sim.recording.recorder import BagRecorder
+    serializer = StateSerializer(JOINT_NAMES)
+    rec = BagRecorder(tmp_path / "bag")
+    rec.add_topic("/joint_states", "sensor_msgs/msg/JointState")
+    for t_ns in (2_000_000, 1_000_000, 3_000_000):
+        x = t_ns * 1e-9
+        rec.write("/joint_states", serializer.joint_state(0, t_ns, "foot_1", [x, 1.0, 3.0, 3.0, 0.0], [0.0] * 5,
+                                                         [0.0] * 5), t_ns)
+    rec.close()
+    run = inspect_bag.load_run(tmp_path / "bag")
+    np.testing.assert_array_equal(run["t"], [0.001, 0.002, 0.003])
+    assert run["stats"]["q_first"][0] == 0.001 and run["stats"]["q_last"][0] == 0.003

@@ -1,0 +1,127 @@
+"""A user's controller in every tool: simulate (API and CLI), sweep (API and CLI, controller.NAME grid
+names), animate --scene; given as an object, a class or "MODULE:ATTR"; a wrong signature refused before
+the run."""
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+import biped_sim as bs
+from biped_sim.config.controllers import make_controller
+from biped_sim.config.scenes import load_scene
+from biped_sim.engine.model import BipedModel
+
+BIN = Path(sys.executable).parent
+
+# a PD law on the hips that a user would write in a file of their own (not walking: a run of a few
+# tenths of a second that ends the same way every time is all these tests need)
+USER_MODULE = textwrap.dedent('''
+    class HipPD:
+        """u = -kp (q_hip - target) - kd dq_hip on each hip."""
+        def __init__(self, model, kp=20.0, kd=2.0, target=0.3):
+            self.model, self.kp, self.kd, self.target = model, kp, kd, target
+
+        def __call__(self, t, q, dq, stance_leg):
+            return [-self.kp * (q[2] - self.target) - self.kd * dq[2],
+                    -self.kp * (q[3] + self.target) - self.kd * dq[3]]
+
+    def make_pd(kp=20.0):
+        return HipPD(None, kp=kp)
+
+    def zero_law(t, q, dq, stance_leg):
+        return [0.0, 0.0]
+
+    def two_arguments(t, q):
+        return [0.0, 0.0]
+''')
+
+
+@pytest.fixture()
+def user_folder(tmp_path, monkeypatch):
+    (tmp_path / "my_controllers.py").write_text(USER_MODULE)
+    monkeypatch.chdir(tmp_path)
+    yield tmp_path
+    sys.modules.pop("my_controllers", None)
+    while str(tmp_path) in sys.path:
+        sys.path.remove(str(tmp_path))
+
+
+def test_module_attr_class_factory_and_law_are_made_alike(user_folder):
+    model = BipedModel()
+    pd = make_controller("my_controllers:HipPD", model, kp=5.0)
+    assert pd.kp == 5.0 and pd.model is model           # the class gets the scene's model
+    assert make_controller("my_controllers:make_pd", model, kp=7.0).kp == 7.0    # a factory
+    law = make_controller("my_controllers:zero_law", model)                        # a controller itself
+    assert law(0.0, [0] * 5, [0] * 5, 1) == [0.0, 0.0]
+    with pytest.raises(ValueError, match="takes no argument 'kq'; its parameters: model, kp, kd, target"):
+        make_controller("my_controllers:HipPD", model, kq=1.0)
+    with pytest.raises(ValueError, match="has no 'HipDP'; it has: HipPD, make_pd"):
+        make_controller("my_controllers:HipDP", model)
+    with pytest.raises(ValueError, match="cannot import 'no_such_module'"):
+        make_controller("no_such_module:X", model)
+    with pytest.raises(ValueError, match="expected MODULE:ATTR"):
+        make_controller("my_controllers.HipPD", model)
+
+
+def test_a_controller_with_the_wrong_signature_is_refused_before_the_run(user_folder):
+    scene = load_scene("walk")
+    for bad in ("my_controllers:two_arguments", lambda t, q: [0.0, 0.0]):
+        with pytest.raises(ValueError, match=r"cannot be called as controller\(t, q, dq, stance_leg\): its "
+                                             r"signature is .*\(t, q\)"):
+            scene.simulate(controller=bad, t_final=0.1)
+    with pytest.raises(ValueError, match="cannot be called as controller"):
+        bs.simulate(BipedModel(), *scene.controller().initial_state(), 0.1, controller=lambda t: [0.0, 0.0])
+
+
+def test_a_sweep_of_your_controllers_arguments_gives_the_single_runs(user_folder):
+    grid = {"controller.kp": [10.0, 30.0], "slope": [0.0, 0.05]}
+    rows = bs.sweep("walk", grid, duration=0.3, workers=2, controller="my_controllers:HipPD")
+    assert len(rows) == 4
+    for row in rows:
+        single = load_scene("walk", overrides={"slope": row["slope"]}).simulate(
+            t_final=0.3, controller="my_controllers:HipPD", controller_args={"kp": row["controller.kp"]})
+        assert row["status"] == single.status and row["t_end"] == float(single.t[-1])
+        assert row["q_end"] == [float(v) for v in single.q[-1]]
+    assert rows[0]["q_end"] != rows[2]["q_end"]      # kp reached the controller
+    with pytest.raises(ValueError, match="sets an argument of the controller: give the controller"):
+        bs.sweep("walk", {"controller.kp": [1.0]}, duration=0.1)
+    with pytest.raises(ValueError, match="takes no argument 'kq'"):
+        bs.sweep("walk", {"controller.kq": [1.0]}, duration=0.1, controller="my_controllers:HipPD")
+
+
+def cli(*args, cwd):
+    env = dict(os.environ, PYTHONPATH="")
+    return subprocess.run([str(BIN / "biped-sim"), *args], cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=120)
+
+
+def test_the_command_line_takes_your_controller_from_the_current_folder(user_folder):
+    run = cli("simulate", "--scene", "walk", "--duration", "0.2", "--controller", "my_controllers:HipPD",
+              cwd=user_folder)
+    assert "controller my_controllers:HipPD" in run.stdout, run.stdout + run.stderr
+    single = load_scene("walk").simulate(t_final=0.2, controller="my_controllers:HipPD")
+    assert f"status  {single.status}" in run.stdout
+    out = user_folder / "rows.csv"
+    run = cli("sweep", "walk", "--set", "controller.kp=10,30", "--duration", "0.2", "--controller",
+              "my_controllers:HipPD", "-o", str(out), "--workers", "1", "--no-progress", cwd=user_folder)
+    assert run.returncode == 0, run.stderr
+    assert out.read_text().splitlines()[0].startswith("index,controller.kp,status")
+    bad = cli("simulate", "--scene", "walk", "--controller", "my_controllers:Nope", cwd=user_folder)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "has no 'Nope'" in bad.stderr, bad.stderr
+
+
+def test_the_example_module_is_the_one_docs_controllers_shows():
+    root = Path(__file__).resolve().parents[2]
+    page = (root / "docs" / "controllers.md").read_text()
+    shown = page.split("```py\n", 1)[1].split("```", 1)[0]
+    assert shown == (root / "examples" / "my_controllers.py").read_text()
+
+
+def test_the_minimal_controller_node_is_the_one_docs_node_shows():
+    root = Path(__file__).resolve().parents[2]
+    page = (root / "docs" / "node.md").read_text()
+    shown = page.split("### A controller node of your own", 1)[1].split("```py\n", 1)[1].split("```", 1)[0]
+    assert shown == (root / "examples" / "minimal_controller.py").read_text()
