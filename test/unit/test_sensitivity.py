@@ -28,6 +28,12 @@ def central(fun, x, eps=EPS):
     return np.column_stack([(fun(x + eps * e) - fun(x - eps * e)) / (2 * eps) for e in np.eye(len(x))])
 
 
+def richardson(fun, x, eps=1e-4):
+    """Central differences at eps and eps / 2 combined (4 D(eps/2) - D(eps)) / 3: truncation ~eps^4, so a
+    step large enough that a run's own rounding (~1e-13, through event times) stays below 1e-8."""
+    return (4 * central(fun, x, eps / 2) - central(fun, x, eps)) / 3
+
+
 def with_parameters(p):
     return BipedModel(BipedParameters(*p))
 
@@ -116,7 +122,7 @@ def engine_end(model, x0, t_final, stance_leg, controller, u, control_period, **
 
 
 def check_run_jacobian(model, z_or_x, t_final, stance_leg=1, foot=(0.0, 0.0), controller=None, u=None,
-                       control_period=None, **options):
+                       control_period=None, differences=lambda fun, x: central(fun, x, eps=1e-6), **options):
     """run_jacobian against central differences of the engine's run (the initial state by its joint coordinates
     in stance, with the foot kept where it is; by all ten numbers in flight; and the parameters RUN_PARAMETERS
     of the plant, the controller keeping its own model): agree to 1e-7 relative. Returns the run's events."""
@@ -127,14 +133,14 @@ def check_run_jacobian(model, z_or_x, t_final, stance_leg=1, foot=(0.0, 0.0), co
     r = run_jacobian(model, x0[:5], x0[5:], t_final, controller=controller, u=u, stance_leg=stance_leg,
                      control_period=control_period, parameters=RUN_PARAMETERS, **options)
     run = dict(stance_leg=stance_leg, controller=controller, u=u, control_period=control_period, **options)
-    fd = central(lambda v: engine_end(model, start(v), t_final, **run), z_or_x, eps=1e-6)
+    fd = differences(lambda v: engine_end(model, start(v), t_final, **run), z_or_x)
     p0 = np.array([getattr(model.parameters, n) for n in RUN_PARAMETERS])
 
     def with_p(p):
         m = BipedModel(replace(model.parameters, **dict(zip(RUN_PARAMETERS, p))))
         return engine_end(m, x0, t_final, **run)
 
-    fd = np.hstack([fd, central(with_p, p0, eps=1e-6)])
+    fd = np.hstack([fd, differences(with_p, p0)])
     assert np.allclose(np.concatenate([r.q, r.dq]), engine_end(model, x0, t_final, **run), rtol=0, atol=1e-9)
     assert rel(r.jacobian, fd) < 1e-7
     return r
@@ -177,12 +183,16 @@ def test_run_jacobian_through_a_touchdown(scale, dz, period, base):
 
 @settings(max_examples=4, deadline=None, derandomize=True)
 @given(SCALES, st.tuples(*[st.floats(-0.01, 0.01)] * 10))
+@example((1.0, 1.0, 1.125, 1.0), (0.0, -0.0078125) + (0.0,) * 8)   # found by hypothesis: noisy at a step of 1e-6
 def test_run_jacobian_through_flight_landings_and_liftoffs(scale, dx):
     """(c) from flight: a landing on foot 1 that the ground cannot hold (stance ends at once: liftoff, flight
     again), then the same on foot 2 (edge_cases.bouncing_landing), no torque."""
     q, dq = bouncing_landing()
+    # differences at 1e-6 read the run's rounding here (2.6e-7 for a landing with an instant liftoff; the exact
+    # Jacobian agreed with them to 5e-8 at 1e-5 and 5e-6 at 1e-4: truncation), so a larger step, extrapolated
+    # (no control period here whose boundary a large step could move an event across)
     r = check_run_jacobian(model_with(scale), np.concatenate([q, dq]) + np.array(dx), 0.1, stance_leg=0,
-                           u=(0.0, 0.0), phases=FLIGHT)
+                           u=(0.0, 0.0), phases=FLIGHT, differences=richardson)
     assert [kind for _t, kind, _leg in r.events] == ["touchdown", "liftoff", "touchdown", "liftoff"]
     assert r.law_derivative == LAW_NONE
 
