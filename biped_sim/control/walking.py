@@ -45,9 +45,8 @@ _laws = _compiled_laws()
 class WalkingController:
     """``controller(t, q, dq, stance_leg) -> u`` for ``simulate`` and the ``walk_controller`` node.
 
-    q and dq may be numpy arrays or lists (``accepts_lists``: the engine then skips the conversion).
+    q and dq may be numpy arrays or lists (the engine gives lists).
     """
-    accepts_lists = True
 
     def __init__(self, model: BipedModel, torso_pitch=0.15, step_angle=0.2, clearance=0.5, lag=-0.04,
                  kp=200.0, kd=30.0, torque_limit=500.0):

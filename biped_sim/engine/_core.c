@@ -154,6 +154,33 @@ call_back(Loop *L, double t, const double *q, const double *dq, double *u)
     }
 }
 
+/* u = command(t, q, dq, stance_leg), a control period's command from a Python controller through its checked
+ * call (modes.checked_command: a list of two finite floats, or an exception), called once at the period's
+ * start; a failure kept as call_back keeps it */
+static void
+call_command(Loop *L, PyObject *command, double t, const double *q, const double *dq, double *u)
+{
+    u[0] = u[1] = 0.0;
+    if (L->callback_failed) return;
+    PyObject *args[4] = {PyFloat_FromDouble(t), list_of(q, 5), list_of(dq, 5), PyLong_FromLong(L->leg)}, *r = NULL;
+    if (args[0] && args[1] && args[2] && args[3]) r = PyObject_Vectorcall(command, args, 4, NULL);
+    for (int i = 0; i < 4; i++) Py_XDECREF(args[i]);
+    if (r != NULL) {
+        if (PyList_CheckExact(r) && PyList_GET_SIZE(r) == 2) {
+            u[0] = PyFloat_AsDouble(PyList_GET_ITEM(r, 0));
+            u[1] = PyFloat_AsDouble(PyList_GET_ITEM(r, 1));
+        } else {
+            PyErr_SetString(PyExc_TypeError, "the controller's checked call must return a list of two floats");
+        }
+        Py_DECREF(r);
+    }
+    if (PyErr_Occurred()) {
+        L->callback_failed = 1;
+        PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
+        u[0] = u[1] = 0.0;
+    }
+}
+
 /* u = law(t, q, dq) in stance on L->leg; a failure kept as call_back keeps an exception */
 static void
 apply_law(Loop *L, const CompiledLaw *law, double t, const double *q, const double *dq, double *u)
@@ -1229,12 +1256,15 @@ period_end(double t, double period, double t_final, long *k)
 }
 
 /* periods(law, period, control_periods, t_final, t_stop, sim)
- * -> (<run's result>, control_periods, t_next, u1, u2): control periods of a compiled law held (as
- * HybridSimulator.advance_period computes them, the command at each period's start) until t_final, or
- * the first period boundary at or after t_stop - 1e-9 period (a push due), or a run outcome the Python
- * code must see (then mid-period: its end t_next and its torque come back), or a period whose command the
- * stance guards refuse at its start (TORQUE_CHANGE: not begun, the count and torque of the periods before
- * it come back, and the Python code runs it) */
+ * -> (<run's result>, control_periods, t_next, (u1, u2), refused): control periods held (as
+ * HybridSimulator.advance_period computes them, the command at each period's start: a compiled law's
+ * (address, parameters, name), or a Python controller's checked call command(t, q, dq, stance_leg), called
+ * once a period) until t_final, or the first period boundary at or after t_stop - 1e-9 period (a push due),
+ * or a run outcome the Python code must see (then mid-period: its end t_next and its torque come back), or
+ * a period whose command the stance guards refuse at its start (TORQUE_CHANGE: not begun, the count and
+ * torque of the periods before it come back, and refused, its command (else None): the Python code runs the
+ * period with that command, so that a controller is called once a period on both loops). A command that fails (RAISED)
+ * counts its period as begun, as advance_period does. */
 static PyObject *
 Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -1250,7 +1280,8 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         return NULL;
     }
     CompiledLaw law;
-    if (compiled_law_from(args[0], &law) < 0) return NULL;
+    PyObject *command = PyCallable_Check(args[0]) ? args[0] : NULL;
+    if (command == NULL && compiled_law_from(args[0], &law) < 0) return NULL;
     long k_first = k0;
     if (isnan(period_end(L->t, period, t_final, &k_first))) {   /* (the first period's index only can be late) */
         PyErr_SetString(PyExc_ValueError, "periods(): more than 2**53 control periods before t");
@@ -1260,28 +1291,35 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     Py_buffer buf;
     if (run_state(L, args[5], &rs, &buf) < 0) return NULL;
     int outcome = DONE;
-    double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, tol = 1e-9 * period;
+    double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, refused[2] = {NAN, NAN}, tol = 1e-9 * period;
     while (L->t < t_final && t_stop > L->t + tol) {
         long k = k0;
-        double t_end = period_end(L->t, period, t_final, &k), command[2];
-        apply_law(L, &law, L->t, L->y, L->y + 5, command);
-        if (L->callback_failed) break;      /* (run_result: RAISED) */
+        double t_end = period_end(L->t, period, t_final, &k), u_now[2];
+        if (command != NULL) call_command(L, command, L->t, L->y, L->y + 5, u_now);
+        else apply_law(L, &law, L->t, L->y, L->y + 5, u_now);
+        if (L->callback_failed) {       /* (run_result: RAISED) */
+            k0 = k;
+            break;
+        }
         carry_step(L, L->h_abs);     /* as begin() carries it over */
-        hold(L, command[0], command[1], t_end);
+        hold(L, u_now[0], u_now[1], t_end);
         if (refused_at_start(L)) {
             outcome = TORQUE_CHANGE;
+            refused[0] = u_now[0];
+            refused[1] = u_now[1];
             break;
         }
         k0 = k;
         t_next = t_end;
-        u[0] = command[0];
-        u[1] = command[1];
+        u[0] = u_now[0];
+        u[1] = u_now[1];
         outcome = quiet_until(L, t_next, &rs);
         if (outcome != DONE) break;
     }
     PyObject *r = run_result(L, outcome, &rs, &buf);
     if (r == NULL) return NULL;
-    return Py_BuildValue("(Nld(dd))", r, k0, t_next, u[0], u[1]);
+    if (outcome != TORQUE_CHANGE) return Py_BuildValue("(Nld(dd)O)", r, k0, t_next, u[0], u[1], Py_None);
+    return Py_BuildValue("(Nld(dd)[dd])", r, k0, t_next, u[0], u[1], refused[0], refused[1]);
 }
 
 static PyObject *

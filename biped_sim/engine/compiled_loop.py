@@ -240,22 +240,24 @@ class CompiledStepper(integrators._ListRungeKutta):
         return not self.loop.state_stale and not _python_only(self.sim.locator)
 
     def periods(self, period, law, t_final, t_stop):
-        """Control periods of a compiled law, each command computed and held in C, as ``advance_period``
-        would run them, until ``t_final`` or a push due at ``t_stop``: (outcome, t_next), DONE when they
-        all ran, TORQUE_CHANGE before a period whose command the stance guards refuse at its start (not
-        begun: ``advance_period`` runs it), else the outcome of the step handed back in the period ending
-        at ``t_next`` (``can_run_periods`` first)."""
+        """Control periods held, as ``advance_period`` would run them, each command computed at its period's
+        start: by a compiled law in C (``law`` a CompiledLaw), or by a Python controller's checked call
+        (``law`` a callable, ``modes.checked_command``), called from C once a period; the periods run in C
+        until ``t_final`` or a push due at ``t_stop``: (outcome, t_next, refused), DONE when they all ran,
+        TORQUE_CHANGE before a period whose command (``refused``) the stance guards refuse at its start (not
+        begun: ``advance_period`` runs it with that command), else the outcome of the step handed back in the
+        period ending at ``t_next`` (``can_run_periods`` first)."""
         sim = self.sim
         if self.loop.locator_stale:
             self._push_locator()
         _make_room(sim._samples)
-        result, sim.control_periods, t_next, u = self.loop.periods(
-            _hook_argument(law), period, sim.control_periods, t_final, t_stop, sim)
+        result, sim.control_periods, t_next, u, refused = self.loop.periods(
+            law if callable(law) else _hook_argument(law), period, sim.control_periods, t_final, t_stop, sim)
         sim._u = list(u)
         outcome = self._after_run(*result)
         if outcome == GROW:      # the period in progress goes on in run(), which makes room
-            return self.run(t_next), t_next
-        return outcome, t_next
+            return self.run(t_next), t_next, None
+        return outcome, t_next, refused
 
     def held_period(self, t_end):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run

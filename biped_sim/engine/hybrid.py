@@ -36,6 +36,7 @@ from biped_sim.engine.locator import EventLocator
 from biped_sim.engine.model import BipedModel, as_state_vector, short_repr
 from biped_sim.engine.modes import (
     bind_controller,
+    checked_command,
     floating_to_phys,
     mode_functions,
     project_onto_pin,
@@ -213,8 +214,9 @@ class HybridSimulator:
 
     # -- controller and ground force -----------------------------------------------------------
     def _call_controller(self, t, q, dq, controller=None):
-        """u = controller(t, q, dq, stance_leg) as a list of two finite floats (lists q, dq)."""
-        return bind_controller(controller or self._controller, self.stance_leg)(t, q, dq)
+        """u = controller(t, q, dq, stance_leg) as a list of two finite floats (lists q, dq: the controller
+        gets copies, its own)."""
+        return checked_command(controller or self._controller)(t, list(q), list(dq), self.stance_leg)
 
     def _torque_at(self, t, q, dq):
         """The torque applied at a physical state (lists): the held one, or the controller's."""
@@ -313,23 +315,25 @@ class HybridSimulator:
         on the compiled loop a compiled law's periods run in C, their commands computed there."""
         check_number("period", period, 0.0, math.inf, "s", open_low=True)
         tol = 1e-9 * period
+        law = None      # the periods' law on the compiled loop, made once: a compiled law or the checked call
         while self.status == "running" and self.t < t_final and t_stop > self.t + tol:
             st = self._compiled
-            on_loop = st is not None and self._stepper is st
-            law = compiled_loop.reference_law(controller, self.model) if on_loop else None
-            if law is None or self._initial_sample_pending or not st.can_run_periods():
+            if st is None or self._stepper is not st or self._initial_sample_pending or not st.can_run_periods():
                 self.advance_period(period, controller=controller, t_final=t_final)
-            else:
-                self._periods_outcome = None
-                self.advance(t_final, _periods=(period, law, t_final, t_stop))
-                if self._periods_outcome == compiled_loop.TORQUE_CHANGE and self.status == "running":
-                    # the stance guards refuse the next period's command at its start: its events are the
-                    # Python code's (_check_torque_change)
-                    self.advance_period(period, controller=controller, t_final=t_final)
+                continue
+            if law is None:
+                law = compiled_loop.reference_law(controller, self.model) or checked_command(controller)
+            self._periods_outcome = None
+            self.advance(t_final, _periods=(period, law, t_final, t_stop))
+            if self._periods_outcome is not None and self._periods_outcome[0] == compiled_loop.TORQUE_CHANGE \
+                    and self.status == "running":
+                # the stance guards refuse the next period's command at its start: its events are the Python
+                # code's (_check_torque_change), under that command (the controller is not called again)
+                self.advance_period(period, u=self._periods_outcome[1], t_final=t_final)
 
     def _integrate_periods(self, period, law, t_final, t_stop):
-        outcome, t_next = self._compiled.periods(period, law, t_final, t_stop)
-        self._periods_outcome = outcome
+        outcome, t_next, refused = self._compiled.periods(period, law, t_final, t_stop)
+        self._periods_outcome = outcome, refused
         if outcome not in (compiled_loop.DONE, compiled_loop.TORQUE_CHANGE):    # the rest of the period in
             self._integrate(t_next, outcome)                                   # progress, as any
 
@@ -345,8 +349,9 @@ class HybridSimulator:
     def command(self, controller):
         """``controller(t, q, dq, stance_leg)`` at the current state as two finite floats, or None
         when it fails (raises, or returns anything else): the run then ends "failed", saying why."""
+        q, dq = self.state_lists()
         try:
-            return self._call_controller(self.t, self.q.tolist(), self.dq.tolist(), controller)
+            return checked_command(controller)(self.t, q, dq, self.stance_leg)
         except SimulationError as exc:
             self._fail(str(exc))
             return None

@@ -55,22 +55,41 @@ def checked_torques(u, t):
     return out
 
 
+def controller_raised(exc, t):
+    """The SimulationError that ends a run whose controller raised ``exc`` at t (``exc`` its cause, with
+    its traceback)."""
+    return SimulationError(f"the controller raised {type(exc).__name__} at t={t:.9g} s: {exc}")
+
+
 def bind_controller(controller, stance_leg):
-    """``controller(t, q, dq, stance_leg)`` as ``f(t, q, dq)`` on lists, with its torques checked; None
-    for no controller. A controller that sets ``accepts_lists = True`` takes q, dq as lists (no array
-    round trip)."""
+    """``controller(t, q, dq, stance_leg)`` as ``f(t, q, dq)``, with its torques checked; None for no
+    controller. q and dq are lists of floats (the controller's own: the engine does not use them after the
+    call)."""
     if controller is None:
         return None
-    lists = getattr(controller, "accepts_lists", False)
 
     def call(t, q, dq):   # at every right-hand-side evaluation: one check, the message only on failure
         try:
-            u = controller(t, q, dq, stance_leg) if lists else controller(t, np.array(q), np.array(dq), stance_leg)
+            u = controller(t, q, dq, stance_leg)
         except Exception as exc:   # a fault of the user's code ends the run "failed", with its message
-            raise SimulationError(f"the controller raised {type(exc).__name__} at t={t:.9g} s: {exc}") from exc
+            raise controller_raised(exc, t) from exc
         v = two_finite_floats(u)
         return v if v is not None else checked_torques(u, t)
     return call
+
+
+def checked_command(controller):
+    """``controller(t, q, dq, stance_leg)`` with its torques checked, as bound_controller's call but with the
+    stance leg given at each call: a control period's command (the compiled loop calls it once at each
+    period's start, the stance leg as it is then)."""
+    def command(t, q, dq, stance_leg):
+        try:
+            u = controller(t, q, dq, stance_leg)
+        except Exception as exc:
+            raise controller_raised(exc, t) from exc
+        v = two_finite_floats(u)
+        return v if v is not None else checked_torques(u, t)
+    return command
 
 
 def floating_to_phys(y):
@@ -97,14 +116,14 @@ def mode_functions(model, stance_leg, base, pin, u_hold, control, sink):
 
         def rhs(t, y):
             q, dq = y[0:5], y[5:10]
-            u = u_hold if control is None else control(t, q, dq)
+            u = u_hold if control is None else control(t, y[0:5], y[5:10])   # (lists of its own)
             ddq, F = stance(q, dq, u, k_stance)
             sink(F, u)
             return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
     else:
         def rhs(t, y):
             q, dq = y[0:5], y[5:10]
-            u = u_hold if control is None else control(t, q, dq)
+            u = u_hold if control is None else control(t, y[0:5], y[5:10])
             ddq = flight_fast(model, q, dq, u)
             sink(None, u)
             return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
