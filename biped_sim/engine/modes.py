@@ -22,7 +22,7 @@ import numpy as np
 from biped_sim.engine.compiled import gen
 from biped_sim.engine.dynamics import flight_fast, stance_fixed_accel_fast
 from biped_sim.engine.model import real_vector, short_repr
-from biped_sim.engine.results import SimulationError
+from biped_sim.engine.results import ControllerError
 
 
 def two_finite_floats(u):
@@ -47,18 +47,22 @@ def two_finite_floats(u):
 
 
 def checked_torques(u, t):
-    """The two torques a controller returned, as finite floats, or a SimulationError."""
+    """The two torques a controller returned, as finite floats, or a ControllerError."""
     out = two_finite_floats(u)
     if out is None:
-        raise SimulationError(f"the controller returned {short_repr(u)} at t={t:.9g} s: it must return two finite "
+        raise ControllerError(f"the controller returned {short_repr(u)} at t={t:.9g} s: it must return two finite "
                               "torques (real numbers: not bools, complex numbers or strings)")
     return out
 
 
 def controller_raised(exc, t):
-    """The SimulationError that ends a run whose controller raised ``exc`` at t (``exc`` its cause, with
-    its traceback)."""
-    return SimulationError(f"the controller raised {type(exc).__name__} at t={t:.9g} s: {exc}")
+    """The ControllerError that ends a run whose controller raised ``exc`` at t (raise it ``from exc``: the
+    cause keeps its traceback); its message names where: the file and line of the frame that raised."""
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    where = f" ({tb.tb_frame.f_code.co_filename}:{tb.tb_lineno} in {tb.tb_frame.f_code.co_name})" if tb else ""
+    return ControllerError(f"the controller raised {type(exc).__name__} at t={t:.9g} s: {exc}{where}")
 
 
 def bind_controller(controller, stance_leg):
