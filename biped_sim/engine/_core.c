@@ -85,7 +85,7 @@ typedef struct {
     int method, leg, law_kind;     /* law_kind: HELD (u_hold), COMPILED (law) or CALLBACK (callback) */
     double pin[2], u_hold[2];
     CompiledLaw law;
-    /* a Python controller, called back as f(t, q, dq) -> [u1, u2] (modes.bind_controller's checked call).
+    /* a Python controller, called back as controller(t, q, dq, stance_leg) and checked (call_controller).
      * The first failure of the law (the controller raised, a compiled law returned nonzero) is kept as an
      * exception and the computation it spoiled is thrown away (callback_failed) */
     PyObject *callback;
@@ -130,49 +130,53 @@ static PyObject *law_failure_type;
 static PyObject *list_of(const double *v, Py_ssize_t n);
 static int doubles(PyObject *seq, double *out, Py_ssize_t lo, Py_ssize_t hi, const char *what, Py_ssize_t *n_out);
 
-static void
-call_back(Loop *L, double t, const double *q, const double *dq, double *u)
-{
-    u[0] = u[1] = 0.0;
-    if (L->callback_failed) return;
-    PyObject *args[3] = {PyFloat_FromDouble(t), list_of(q, 5), list_of(dq, 5)}, *r = NULL;
-    if (args[0] && args[1] && args[2]) r = PyObject_Vectorcall(L->callback, args, 3, NULL);
-    for (int i = 0; i < 3; i++) Py_XDECREF(args[i]);
-    if (r != NULL) {     /* the checked call returns a list of two finite floats */
-        if (PyList_CheckExact(r) && PyList_GET_SIZE(r) == 2) {
-            u[0] = PyFloat_AsDouble(PyList_GET_ITEM(r, 0));
-            u[1] = PyFloat_AsDouble(PyList_GET_ITEM(r, 1));
-        } else {
-            PyErr_SetString(PyExc_TypeError, "the controller call must return a list of two floats");
-        }
-        Py_DECREF(r);
-    }
-    if (PyErr_Occurred()) {
-        L->callback_failed = 1;
-        PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
-        u[0] = u[1] = 0.0;
-    }
-}
+static int two_finite(PyObject *u, double *out);
 
-/* u = command(t, q, dq, stance_leg), a control period's command from a Python controller through its checked
- * call (modes.checked_command: a list of two finite floats, or an exception), called once at the period's
- * start; a failure kept as call_back keeps it */
+/* the engine's Python side of a controller's call (set_controller_checks: modes.controller_failure and
+ * modes.checked_torques), for what this file does not judge itself */
+static PyObject *controller_failure_fn, *checked_torques_fn;
+
+/* u = controller(t, q, dq, stance_leg), a Python controller called straight from here with lists q and dq and
+ * the stance leg the loop runs, its torques checked as modes.checked_command checks them: two finite floats
+ * taken here (two_finite), anything else judged by modes.checked_torques (which takes what it takes, or
+ * raises the ControllerError naming it); an exception of the controller becomes modes.controller_failure's
+ * ControllerError, the controller's exception its cause with its traceback. The first failure is kept
+ * (callback_failed) with its exception, and the computation it spoiled is thrown away. */
 static void
-call_command(Loop *L, PyObject *command, double t, const double *q, const double *dq, double *u)
+call_controller(Loop *L, PyObject *controller, double t, const double *q, const double *dq, double *u)
 {
     u[0] = u[1] = 0.0;
     if (L->callback_failed) return;
     PyObject *args[4] = {PyFloat_FromDouble(t), list_of(q, 5), list_of(dq, 5), PyLong_FromLong(L->leg)}, *r = NULL;
-    if (args[0] && args[1] && args[2] && args[3]) r = PyObject_Vectorcall(command, args, 4, NULL);
+    if (args[0] && args[1] && args[2] && args[3]) r = PyObject_Vectorcall(controller, args, 4, NULL);
     for (int i = 0; i < 4; i++) Py_XDECREF(args[i]);
     if (r != NULL) {
-        if (PyList_CheckExact(r) && PyList_GET_SIZE(r) == 2) {
-            u[0] = PyFloat_AsDouble(PyList_GET_ITEM(r, 0));
-            u[1] = PyFloat_AsDouble(PyList_GET_ITEM(r, 1));
-        } else {
-            PyErr_SetString(PyExc_TypeError, "the controller's checked call must return a list of two floats");
+        if (two_finite(r, u) < 0) {
+            PyObject *checked = PyObject_CallFunction(checked_torques_fn, "Od", r, t);
+            if (checked != NULL) {
+                if (PyList_CheckExact(checked) && PyList_GET_SIZE(checked) == 2) {
+                    u[0] = PyFloat_AsDouble(PyList_GET_ITEM(checked, 0));
+                    u[1] = PyFloat_AsDouble(PyList_GET_ITEM(checked, 1));
+                } else {
+                    PyErr_SetString(PyExc_TypeError, "checked_torques must return a list of two floats");
+                }
+                Py_DECREF(checked);
+            }
         }
         Py_DECREF(r);
+    } else if (PyErr_ExceptionMatches(PyExc_Exception)) {     /* (a KeyboardInterrupt goes on as it is) */
+        PyObject *type, *value, *tb;
+        PyErr_Fetch(&type, &value, &tb);
+        PyErr_NormalizeException(&type, &value, &tb);
+        if (tb != NULL) PyException_SetTraceback(value, tb);
+        PyObject *error = PyObject_CallFunction(controller_failure_fn, "Od", value, t);
+        Py_XDECREF(type);
+        Py_XDECREF(value);
+        Py_XDECREF(tb);
+        if (error != NULL) {
+            PyErr_SetObject((PyObject *)Py_TYPE(error), error);
+            Py_DECREF(error);
+        }
     }
     if (PyErr_Occurred()) {
         L->callback_failed = 1;
@@ -181,7 +185,7 @@ call_command(Loop *L, PyObject *command, double t, const double *q, const double
     }
 }
 
-/* u = law(t, q, dq) in stance on L->leg; a failure kept as call_back keeps an exception */
+/* u = law(t, q, dq) in stance on L->leg; a failure kept as call_controller keeps an exception */
 static void
 apply_law(Loop *L, const CompiledLaw *law, double t, const double *q, const double *dq, double *u)
 {
@@ -203,7 +207,7 @@ static void
 torque(Loop *L, double t, const double *q, const double *dq, double *u)
 {
     if (L->law_kind == COMPILED) apply_law(L, &L->law, t, q, dq, u);
-    else if (L->law_kind == CALLBACK) call_back(L, t, q, dq, u);
+    else if (L->law_kind == CALLBACK) call_controller(L, L->callback, t, q, dq, u);
     else { u[0] = L->u_hold[0]; u[1] = L->u_hold[1]; }
 }
 
@@ -1258,8 +1262,8 @@ period_end(double t, double period, double t_final, long *k)
 /* periods(law, period, control_periods, t_final, t_stop, sim)
  * -> (<run's result>, control_periods, t_next, (u1, u2), refused): control periods held (as
  * HybridSimulator.advance_period computes them, the command at each period's start: a compiled law's
- * (address, parameters, name), or a Python controller's checked call command(t, q, dq, stance_leg), called
- * once a period) until t_final, or the first period boundary at or after t_stop - 1e-9 period (a push due),
+ * (address, parameters, name), or a Python controller, called once a period and checked by
+ * call_controller) until t_final, or the first period boundary at or after t_stop - 1e-9 period (a push due),
  * or a run outcome the Python code must see (then mid-period: its end t_next and its torque come back), or
  * a period whose command the stance guards refuse at its start (TORQUE_CHANGE: not begun, the count and
  * torque of the periods before it come back, and refused, its command (else None): the Python code runs the
@@ -1295,7 +1299,7 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     while (L->t < t_final && t_stop > L->t + tol) {
         long k = k0;
         double t_end = period_end(L->t, period, t_final, &k), u_now[2];
-        if (command != NULL) call_command(L, command, L->t, L->y, L->y + 5, u_now);
+        if (command != NULL) call_controller(L, command, L->t, L->y, L->y + 5, u_now);
         else apply_law(L, &law, L->t, L->y, L->y + 5, u_now);
         if (L->callback_failed) {       /* (run_result: RAISED) */
             k0 = k;
@@ -1732,6 +1736,25 @@ Loop_law_torque(Loop *L, PyObject *spec)
     return Py_BuildValue("[dd]", u[0], u[1]);
 }
 
+/* set_controller_checks(controller_failure, checked_torques): modes.controller_failure(exc, t) -> the
+ * ControllerError of a controller that raised exc at t, and modes.checked_torques(u, t) -> [u1, u2] or raises */
+static PyObject *
+set_controller_checks(PyObject *module, PyObject *args)
+{
+    (void)module;
+    PyObject *failure, *checked;
+    if (!PyArg_ParseTuple(args, "OO", &failure, &checked)) return NULL;
+    if (!PyCallable_Check(failure) || !PyCallable_Check(checked)) {
+        PyErr_SetString(PyExc_TypeError, "set_controller_checks(): two callables");
+        return NULL;
+    }
+    Py_INCREF(failure);
+    Py_XSETREF(controller_failure_fn, failure);
+    Py_INCREF(checked);
+    Py_XSETREF(checked_torques_fn, checked);
+    Py_RETURN_NONE;
+}
+
 /* set_failure_type(cls): the exception type a compiled law's failure raises (a subclass of Exception) */
 static PyObject *
 set_failure_type(PyObject *module, PyObject *cls)
@@ -1748,6 +1771,7 @@ set_failure_type(PyObject *module, PyObject *cls)
 
 static PyMethodDef module_methods[] = {
     {"set_failure_type", set_failure_type, METH_O, NULL},
+    {"set_controller_checks", set_controller_checks, METH_VARARGS, NULL},
     {NULL, NULL, 0, NULL},
 };
 

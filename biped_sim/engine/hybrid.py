@@ -335,14 +335,14 @@ class HybridSimulator:
         check_number("period", period, 0.0, math.inf, "s", open_low=True)
         self._check_signature(controller)
         tol = 1e-9 * period
-        law = None      # the periods' law on the compiled loop, made once: a compiled law or the checked call
+        law = None      # the periods' law on the compiled loop, found once: a compiled law or the controller
         while self.status == "running" and self.t < t_final and t_stop > self.t + tol:
             st = self._compiled
             if st is None or self._stepper is not st or self._initial_sample_pending or not st.can_run_periods():
                 self.advance_period(period, controller=controller, t_final=t_final)
                 continue
             if law is None:
-                law = compiled_loop.reference_law(controller, self.model) or checked_command(controller)
+                law = compiled_loop.reference_law(controller, self.model) or controller
             self._periods_outcome = None
             self.advance(t_final, _periods=(period, law, t_final, t_stop))
             if self._periods_outcome is not None and self._periods_outcome[0] == compiled_loop.TORQUE_CHANGE \

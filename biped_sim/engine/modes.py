@@ -65,6 +65,14 @@ def controller_raised(exc, t):
     return ControllerError(f"the controller raised {type(exc).__name__} at t={t:.9g} s: {exc}{where}")
 
 
+def controller_failure(exc, t):
+    """``raise controller_raised(exc, t) from exc`` as an object: the ControllerError, ``exc`` its cause (the
+    compiled loop raises it where its direct call of the controller caught ``exc``)."""
+    error = controller_raised(exc, t)
+    error.__cause__ = exc
+    return error
+
+
 def bind_controller(controller, stance_leg):
     """``controller(t, q, dq, stance_leg)`` as ``f(t, q, dq)``, with its torques checked; None for no
     controller. q and dq are lists of floats (the controller's own: the engine does not use them after the
@@ -83,9 +91,9 @@ def bind_controller(controller, stance_leg):
 
 
 def checked_command(controller):
-    """``controller(t, q, dq, stance_leg)`` with its torques checked, as bound_controller's call but with the
-    stance leg given at each call: a control period's command (the compiled loop calls it once at each
-    period's start, the stance leg as it is then)."""
+    """``controller(t, q, dq, stance_leg)`` with its torques checked, as bind_controller's call but with the
+    stance leg given at each call: a control period's command. (The compiled loop calls a controller
+    directly and checks it the same way: ``_core.c`` call_controller.)"""
     def command(t, q, dq, stance_leg):
         try:
             u = controller(t, q, dq, stance_leg)
