@@ -116,8 +116,10 @@ class WalkingController:
     def __call__(self, t, q, dq, stance_leg):
         if stance_leg == 0:  # flight: damp the hips (no walking law in the air)
             return np.array([-self.kd * float(dq[2]), -self.kd * float(dq[3])])
-        q = q.tolist() if type(q) is np.ndarray else [float(v) for v in q]
-        dq = dq.tolist() if type(dq) is np.ndarray else [float(v) for v in dq]
+        if type(q) is not list:     # (the engine gives lists: no copy)
+            q = q.tolist() if type(q) is np.ndarray else [float(v) for v in q]
+        if type(dq) is not list:
+            dq = dq.tolist() if type(dq) is np.ndarray else [float(v) for v in dq]
         y, dy, (H1, H2), bias = self.outputs(q, dq, stance_leg)
         a, Bu = stance_joint_affine_fast(self.model, q, dq, stance_leg)  # ddq_r = a + Bu u
         kp, kd = self.kp, self.kd
