@@ -147,6 +147,12 @@ call_controller(Loop *L, PyObject *controller, double t, const double *q, const 
 {
     u[0] = u[1] = 0.0;
     if (L->callback_failed) return;
+    if (controller_failure_fn == NULL || checked_torques_fn == NULL) {     /* (compiled_loop sets them at import) */
+        PyErr_SetString(PyExc_RuntimeError, "a Python controller needs set_controller_checks() first");
+        L->callback_failed = 1;
+        PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
+        return;
+    }
     PyObject *args[4] = {PyFloat_FromDouble(t), list_of(q, 5), list_of(dq, 5), PyLong_FromLong(L->leg)}, *r = NULL;
     if (args[0] && args[1] && args[2] && args[3]) r = PyObject_Vectorcall(controller, args, 4, NULL);
     for (int i = 0; i < 4; i++) Py_XDECREF(args[i]);

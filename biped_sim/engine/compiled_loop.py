@@ -27,7 +27,7 @@ from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.guards import FootState
 from biped_sim.engine.locator import scuff_event
 from biped_sim.engine.modes import checked_torques, controller_failure
-from biped_sim.engine.results import Event, SimulationError
+from biped_sim.engine.results import ControllerError, Event
 from biped_sim.engine.witnesses import all_compiled
 
 DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED, TOUCHDOWN, TORQUE_CHANGE = range(9)
@@ -47,7 +47,7 @@ def _compiled_core():
                       "then make venv")
     if _core.KERNELS_SHA256 != twin.SOURCE_SHA256:
         return None, "the compiled loop is older than the generated code; rebuild it: make venv"
-    _core.set_failure_type(SimulationError)     # a compiled law's failure ends the run "failed"
+    _core.set_failure_type(ControllerError)     # a compiled law's failure ends the run "failed"
     _core.set_controller_checks(controller_failure, checked_torques)    # a Python controller's, alike
     return _core, ""
 

@@ -317,7 +317,11 @@ class HybridSimulator:
         self.control_periods = k + 1
         if controller is not None:
             # a compiled law on the compiled loop: its torque computed in C, the same bits
-            u = self._compiled.command(controller) if self._compiled is not None else None
+            try:
+                u = self._compiled.command(controller) if self._compiled is not None else None
+            except ControllerError as exc:      # the law failed: the run ends "failed", as in Loop.periods
+                self._fail(str(exc), error=exc)
+                return self.events[-1:]
             if u is None:
                 u = self.command(controller)
             if u is None:

@@ -145,3 +145,50 @@ def test_a_wrong_signature_never_runs_on_the_simulators_entry_points(entry, monk
     for _ in range(3):
         call(PD)
     assert checks == [PD] and sim.status == "running"
+
+
+class FailingCompiledLaw:
+    """A compiled law (a ctypes C function through the torque-law hook) that returns 7 from ``t_fail`` on, and
+    u = 0 before; its Python call, the same law, for the Python loop."""
+
+    def __init__(self, t_fail=0.01):
+        import ctypes
+
+        from biped_sim.engine.torque_hook import c_prototype
+        self.t_fail = t_fail
+
+        def law(t, q, dq, stance_leg, params, u):
+            if t >= self.t_fail:
+                return 7
+            u[0], u[1] = 0.0, 0.0
+            return 0
+        self._c_law = c_prototype()(law)
+        self.address = ctypes.cast(self._c_law, ctypes.c_void_p).value
+
+    def compiled_law(self, model):
+        from biped_sim.engine.torque_hook import CompiledLaw
+        return CompiledLaw("fails at t_fail", (), self.address)
+
+    def __call__(self, t, q, dq, stance_leg):
+        if t >= self.t_fail:
+            raise RuntimeError("the torque law returned 7")
+        return [0.0, 0.0]
+
+
+@pytest.mark.skipif(not hybrid.compiled_loop.AVAILABLE, reason="no compiled loop")
+def test_a_compiled_law_that_fails_ends_the_run_failed_on_every_entry_point():
+    """Its failure is a ControllerError on the result (and raised on request), also where advance_period
+    computes the command in C (it escaped the simulator)."""
+    law = FailingCompiledLaw()
+    sim = bs.HybridSimulator(MODEL, Q0, DQ0)
+    for _ in range(30):
+        sim.advance_period(1e-3, controller=law)
+    r = sim.result()
+    assert r.status == "failed" and r.message.endswith("the torque law fails at t_fail returned 7 at t=0.01 s")
+    assert isinstance(r.controller_error, ControllerError) and str(r.controller_error) in r.message
+    for period in (None, 1e-3):
+        r = bs.simulate(MODEL, Q0, DQ0, 0.05, controller=law, control_period=period)
+        assert r.status == "failed" and "the torque law fails at t_fail returned 7" in r.message, r.message
+        assert isinstance(r.controller_error, ControllerError)
+        with pytest.raises(ControllerError, match="returned 7"):
+            bs.simulate(MODEL, Q0, DQ0, 0.05, controller=law, control_period=period, on_controller_error="raise")
