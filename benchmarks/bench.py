@@ -358,14 +358,28 @@ def bench_python_controller(repeats=7, t_final=10.0):
         run(plain, True)
     finally:
         gen.stance_floating_1, gen.stance_floating_2 = originals
+    # the unit, one pure-Python right-hand-side call (python_rhs_us's, on the generated Python closed form),
+    # timed here in the same alternation, so that a busy spell of the machine moves it with the runs
+    from biped_sim.engine._gen import closed_forms
+    from biped_sim.engine.modes import mode_functions
+    twin_stance = gen.stance_floating_1
+    gen.stance_floating_1 = closed_forms.stance_floating_1
+    try:
+        rhs, _, _ = mode_functions(ctrl.model, 1, "floating", [0.0, 0.0], [1.0, -2.0], None, lambda F, u: None)
+    finally:
+        gen.stance_floating_1 = twin_stance
+    q0, dq0 = ctrl.initial_state()
+    y = q0.tolist() + dq0.tolist() + [0.0]
     walls = {(name, hold): [] for name in ("built-in", "plain", "own") for hold in (True, False)}
+    units = []
     for _ in range(repeats):
         for hold in (True, False):
             walls["built-in", hold].append(run(ctrl, hold)[0])
             walls["plain", hold].append(run(plain, hold)[0])
             walls["own", hold].append(replay(hold))
+        units.append(timeit.timeit(lambda: rhs(0.0, y), number=20000) / 20000 * 1e6)   # (as long as a run)
     med = {key: statistics.median(v) for key, v in walls.items()}
-    unit = python_rhs_us()
+    unit = statistics.median(units)
     periods = round(t_final / scene.params["control_period"])
     built_in, wall, own = med["built-in", True], med["plain", True], med["own", True]
     engine_us = (wall - own) / periods * 1e6

@@ -133,15 +133,35 @@ static int doubles(PyObject *seq, double *out, Py_ssize_t lo, Py_ssize_t hi, con
 static int two_finite(PyObject *u, double *out);
 
 /* the engine's Python side of a controller's call (set_controller_checks: modes.controller_failure and
- * modes.checked_torques), for what this file does not judge itself */
-static PyObject *controller_failure_fn, *checked_torques_fn;
+ * modes.checked_torques, for what this file does not judge itself, and numpy's ndarray type) */
+static PyObject *controller_failure_fn, *checked_torques_fn, *ndarray_type;
+
+/* u as two finite floats from a numpy float64 array of shape (2,) in native byte order (what
+ * modes.two_finite_floats takes from an array without the general check): 0, or -1 (no exception) for
+ * anything else, which the Python code judges */
+static int
+two_finite_array(PyObject *u, double *out)
+{
+    if (ndarray_type == NULL || (PyObject *)Py_TYPE(u) != ndarray_type) return -1;
+    Py_buffer b;
+    if (PyObject_GetBuffer(u, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+        PyErr_Clear();
+        return -1;
+    }
+    int ok = b.ndim == 1 && b.shape != NULL && b.shape[0] == 2 && b.itemsize == sizeof(double) && b.format != NULL
+             && strcmp(b.format, "d") == 0;
+    if (ok) memcpy(out, b.buf, 2 * sizeof(double));
+    PyBuffer_Release(&b);
+    return ok && isfinite(out[0] + out[1]) ? 0 : -1;
+}
 
 /* u = controller(t, q, dq, stance_leg), a Python controller called straight from here with lists q and dq and
  * the stance leg the loop runs, its torques checked as modes.checked_command checks them: two finite floats
- * taken here (two_finite), anything else judged by modes.checked_torques (which takes what it takes, or
- * raises the ControllerError naming it); an exception of the controller becomes modes.controller_failure's
- * ControllerError, the controller's exception its cause with its traceback. The first failure is kept
- * (callback_failed) with its exception, and the computation it spoiled is thrown away. */
+ * (or a float64 array of two) taken here (two_finite, two_finite_array), anything else judged by
+ * modes.checked_torques (which takes what it takes, or raises the ControllerError naming it); an exception
+ * of the controller becomes modes.controller_failure's ControllerError, the controller's exception its
+ * cause with its traceback. The first failure is kept (callback_failed) with its exception, and the
+ * computation it spoiled is thrown away. */
 static void
 call_controller(Loop *L, PyObject *controller, double t, const double *q, const double *dq, double *u)
 {
@@ -157,7 +177,7 @@ call_controller(Loop *L, PyObject *controller, double t, const double *q, const 
     if (args[0] && args[1] && args[2] && args[3]) r = PyObject_Vectorcall(controller, args, 4, NULL);
     for (int i = 0; i < 4; i++) Py_XDECREF(args[i]);
     if (r != NULL) {
-        if (two_finite(r, u) < 0) {
+        if (two_finite(r, u) < 0 && two_finite_array(r, u) < 0) {
             PyObject *checked = PyObject_CallFunction(checked_torques_fn, "Od", r, t);
             if (checked != NULL) {
                 if (PyList_CheckExact(checked) && PyList_GET_SIZE(checked) == 2) {
@@ -1742,18 +1762,21 @@ Loop_law_torque(Loop *L, PyObject *spec)
     return Py_BuildValue("[dd]", u[0], u[1]);
 }
 
-/* set_controller_checks(controller_failure, checked_torques): modes.controller_failure(exc, t) -> the
- * ControllerError of a controller that raised exc at t, and modes.checked_torques(u, t) -> [u1, u2] or raises */
+/* set_controller_checks(controller_failure, checked_torques, ndarray): modes.controller_failure(exc, t) -> the
+ * ControllerError of a controller that raised exc at t, modes.checked_torques(u, t) -> [u1, u2] or raises, and
+ * numpy.ndarray */
 static PyObject *
 set_controller_checks(PyObject *module, PyObject *args)
 {
     (void)module;
-    PyObject *failure, *checked;
-    if (!PyArg_ParseTuple(args, "OO", &failure, &checked)) return NULL;
-    if (!PyCallable_Check(failure) || !PyCallable_Check(checked)) {
-        PyErr_SetString(PyExc_TypeError, "set_controller_checks(): two callables");
+    PyObject *failure, *checked, *array_type;
+    if (!PyArg_ParseTuple(args, "OOO", &failure, &checked, &array_type)) return NULL;
+    if (!PyCallable_Check(failure) || !PyCallable_Check(checked) || !PyType_Check(array_type)) {
+        PyErr_SetString(PyExc_TypeError, "set_controller_checks(): two callables and a type");
         return NULL;
     }
+    Py_INCREF(array_type);
+    Py_XSETREF(ndarray_type, array_type);
     Py_INCREF(failure);
     Py_XSETREF(controller_failure_fn, failure);
     Py_INCREF(checked);

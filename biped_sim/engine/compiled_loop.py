@@ -48,7 +48,7 @@ def _compiled_core():
     if _core.KERNELS_SHA256 != twin.SOURCE_SHA256:
         return None, "the compiled loop is older than the generated code; rebuild it: make venv"
     _core.set_failure_type(ControllerError)     # a compiled law's failure ends the run "failed"
-    _core.set_controller_checks(controller_failure, checked_torques)    # a Python controller's, alike
+    _core.set_controller_checks(controller_failure, checked_torques, np.ndarray)    # a Python controller's, alike
     return _core, ""
 
 
