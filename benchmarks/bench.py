@@ -310,6 +310,97 @@ def bench_compiled_loop(model, repeats=5):
     return dict(held_us=c_held, held_units=c_held / unit, python_held_us=p_held, walk_s=c_walk, python_walk_s=p_walk)
 
 
+def bench_python_controller(repeats=7, t_final=10.0):
+    """A user's law as a plain Python function against the built-in law, same process, in alternation: the
+    walk scene, ``t_final`` s, torques held over its 1 ms control period (and under continuous feedback). The
+    plain function (``lambda t, q, dq, leg: ctrl(t, q, dq, leg)``) offers no compiled law, so the engine calls
+    it, once a period when held; the engine's time besides it is the run's wall time less the controller's
+    own (its calls of that run replayed alone, on the arguments the run gave it, timed in the same
+    alternation), in pure-Python right-hand-side calls."""
+    from biped_sim.config.scenes import load_scene
+    from biped_sim.engine import compiled_loop
+    from biped_sim.engine.compiled import gen
+    scene = load_scene("walk")
+    ctrl = scene.controller()
+
+    def plain(t, q, dq, leg):
+        return ctrl(t, q, dq, leg)
+
+    def run(controller, hold):
+        t0 = time.perf_counter()
+        r = scene.simulate(controller=controller, t_final=t_final, hold=hold)
+        return time.perf_counter() - t0, r
+
+    calls = {True: [], False: []}
+    status = {}
+    for hold in (True, False):
+        def recording(t, q, dq, leg, kept=calls[hold]):
+            kept.append((t, q, dq, leg))
+            return ctrl(t, q, dq, leg)
+        status[hold] = run(recording, hold)[1].status
+
+    def replay(hold):
+        t0 = time.perf_counter()
+        for t, q, dq, leg in calls[hold]:
+            plain(t, q, dq, leg)
+        return time.perf_counter() - t0
+    # the right-hand sides evaluated from Python (the stance closed form called outside the compiled loop;
+    # the controller's own model terms are another function), counted on one held run
+    counted = [0]
+    originals = gen.stance_floating_1, gen.stance_floating_2
+
+    def counting(f):
+        def call(*args):
+            counted[0] += 1
+            return f(*args)
+        return call
+    gen.stance_floating_1, gen.stance_floating_2 = map(counting, originals)
+    try:
+        run(plain, True)
+    finally:
+        gen.stance_floating_1, gen.stance_floating_2 = originals
+    # the unit, one pure-Python right-hand-side call (python_rhs_us's, on the generated Python closed form),
+    # timed here in the same alternation, so that a busy spell of the machine moves it with the runs
+    from biped_sim.engine._gen import closed_forms
+    from biped_sim.engine.modes import mode_functions
+    twin_stance = gen.stance_floating_1
+    gen.stance_floating_1 = closed_forms.stance_floating_1
+    try:
+        rhs, _, _ = mode_functions(ctrl.model, 1, "floating", [0.0, 0.0], [1.0, -2.0], None, lambda F, u: None)
+    finally:
+        gen.stance_floating_1 = twin_stance
+    q0, dq0 = ctrl.initial_state()
+    y = q0.tolist() + dq0.tolist() + [0.0]
+    walls = {(name, hold): [] for name in ("built-in", "plain", "own") for hold in (True, False)}
+    units = []
+    for _ in range(repeats):
+        for hold in (True, False):
+            walls["built-in", hold].append(run(ctrl, hold)[0])
+            walls["plain", hold].append(run(plain, hold)[0])
+            walls["own", hold].append(replay(hold))
+        units.append(timeit.timeit(lambda: rhs(0.0, y), number=20000) / 20000 * 1e6)   # (as long as a run)
+    med = {key: statistics.median(v) for key, v in walls.items()}
+    unit = statistics.median(units)
+    periods = round(t_final / scene.params["control_period"])
+    built_in, wall, own = med["built-in", True], med["plain", True], med["own", True]
+    engine_us = (wall - own) / periods * 1e6
+    print(f"\n== your own law as a plain Python function (walk scene {t_final:g} s, torques held 1 ms; median of "
+          f"{repeats}, alternating; compiled loop {'on' if compiled_loop.AVAILABLE else 'off'}) ==")
+    print(f"  built-in law (compiled in the loop): {built_in * 1e3:.1f} ms, real-time factor {t_final / built_in:.0f}")
+    print(f"  the same law as a plain Python function: {wall * 1e3:.1f} ms, real-time factor {t_final / wall:.0f} "
+          f"({built_in / wall:.3f} of the built-in law's); {len(calls[True])} controller calls in {periods} periods "
+          f"({status[True]})")
+    print(f"  the controller's own time {own / len(calls[True]) * 1e6:.2f} us a call; the engine's time besides it "
+          f"{engine_us:.2f} us a period = {engine_us / unit:.2f} pure-Python right-hand-side calls (unit "
+          f"{unit:.2f} us; goal <= 1); right-hand sides evaluated from Python: {counted[0] / periods:.2f} a period")
+    cb, cp, co = med["built-in", False], med["plain", False], med["own", False]
+    print(f"  continuous feedback ({len(calls[False])} calls, {status[False]}): built-in {cb * 1e3:.1f} ms, plain "
+          f"Python {cp * 1e3:.1f} ms, of which the controller's own {co * 1e3:.1f} ms; the engine besides it "
+          f"{(cp - co) * 1e3:.1f} ms ({(cp - co) / cb:.2f} x the built-in law's run)")
+    return dict(built_in_s=built_in, plain_s=wall, engine_us=engine_us, units=engine_us / unit,
+                python_rhs_per_period=counted[0] / periods)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench", description=__doc__.split("\n")[0])
     parser.add_argument("--only", help="run one group only",
@@ -325,6 +416,7 @@ def main(argv=None):
         bench_walk(model, repeats=args.repeats)
         bench_control_periods(model)
         bench_compiled_loop(model)
+        bench_python_controller()
         sys.stdout.flush()
     for group, module in (("node", "bench_node"), ("record", "bench_record"), ("scenes", "bench_scenes"),
                           ("sweep", "bench_sweep"), ("cli", "bench_cli"), ("sensitivity", "bench_sensitivity"),

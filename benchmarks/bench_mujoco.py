@@ -177,6 +177,17 @@ def bench_walk(repeats=5, t_final=10.0, timesteps=(1e-3, 1e-4)):
             return (*walk_mujoco(mj, controller, q0, dq0, t_final, period), "")
         runs[f"MuJoCo mj_step, timestep {dt * 1e3:g} ms ({round(period / dt)} a period)"] = run
 
+    # your own law as a plain Python function (the same law, no compiled form): called once a period by both
+    def plain(t, q, dq, leg):
+        return controller(t, q, dq, leg)
+
+    def run_plain():
+        r = simulate(model, q0, dq0, t_final, controller=plain, control_period=period, method="dopri5")
+        return len(r.impacts), float(np.min(r.q[:, 1])), r.q[-1], r.status
+    runs[PLAIN_SIMULATE] = run_plain
+    mj_plain = mujoco_model(model, timestep=timesteps[0])
+    runs[PLAIN_MUJOCO] = lambda: (*walk_mujoco(mj_plain, plain, q0, dq0, t_final, period), "")
+
     def controller_alone():
         q, dq = q0.tolist(), dq0.tolist()
         for k in range(round(t_final / period)):
@@ -205,10 +216,16 @@ def bench_walk(repeats=5, t_final=10.0, timesteps=(1e-3, 1e-4)):
           f"{statistics.median(walls[list(runs)[-1]]) / round(t_final / period) * 1e6:.1f} us per call")
     mj_name = next(n for n in runs if n.startswith("MuJoCo"))
     for name in runs:
-        if name.startswith("biped_sim"):
+        if name.startswith("biped_sim") and name != PLAIN_SIMULATE:
             print(f"  RTF ratio {name.split(',')[1].strip()} / MuJoCo 1 ms: {rtf[name] / rtf[mj_name]:.2f} "
                   f"(issue 15 goal >= 5)")
+    print(f"  the law as a plain Python function: RTF ratio simulate (dopri5) / MuJoCo 1 ms, both calling it: "
+          f"{rtf[PLAIN_SIMULATE] / rtf[PLAIN_MUJOCO]:.2f}")
     return rtf, outcome
+
+
+PLAIN_SIMULATE = "biped_sim simulate, dopri5, the law as plain Python"
+PLAIN_MUJOCO = "MuJoCo mj_step 1 ms, the law as plain Python"
 
 
 def mj_step_us(model, q0, dq0, steps=100, repeats=7):

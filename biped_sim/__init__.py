@@ -25,6 +25,7 @@ _PUBLIC = {
     "relabel": "biped_sim.engine.dynamics", "flight_dynamics": "biped_sim.engine.dynamics",
     "HybridSimulator": "biped_sim.engine.hybrid", "Options": "biped_sim.engine.options",
     "Event": "biped_sim.engine.results", "SimulationResult": "biped_sim.engine.results",
+    "ControllerError": "biped_sim.engine.results",
     "simulate": "biped_sim.engine.simulate", "stance_state": "biped_sim.engine.simulate",
     "WalkingController": "biped_sim.control.walking", "PDWalkingController": "biped_sim.control.walking",
     "Scene": "biped_sim.config.scenes", "load_scene": "biped_sim.config.scenes",

@@ -45,9 +45,8 @@ _laws = _compiled_laws()
 class WalkingController:
     """``controller(t, q, dq, stance_leg) -> u`` for ``simulate`` and the ``walk_controller`` node.
 
-    q and dq may be numpy arrays or lists (``accepts_lists``: the engine then skips the conversion).
+    q and dq may be numpy arrays or lists (the engine gives lists).
     """
-    accepts_lists = True
 
     def __init__(self, model: BipedModel, torso_pitch=0.15, step_angle=0.2, clearance=0.5, lag=-0.04,
                  kp=200.0, kd=30.0, torque_limit=500.0):
@@ -117,8 +116,10 @@ class WalkingController:
     def __call__(self, t, q, dq, stance_leg):
         if stance_leg == 0:  # flight: damp the hips (no walking law in the air)
             return np.array([-self.kd * float(dq[2]), -self.kd * float(dq[3])])
-        q = q.tolist() if type(q) is np.ndarray else [float(v) for v in q]
-        dq = dq.tolist() if type(dq) is np.ndarray else [float(v) for v in dq]
+        if type(q) is not list:     # (the engine gives lists: no copy)
+            q = q.tolist() if type(q) is np.ndarray else [float(v) for v in q]
+        if type(dq) is not list:
+            dq = dq.tolist() if type(dq) is np.ndarray else [float(v) for v in dq]
         y, dy, (H1, H2), bias = self.outputs(q, dq, stance_leg)
         a, Bu = stance_joint_affine_fast(self.model, q, dq, stance_leg)  # ddq_r = a + Bu u
         kp, kd = self.kp, self.kd

@@ -85,7 +85,7 @@ typedef struct {
     int method, leg, law_kind;     /* law_kind: HELD (u_hold), COMPILED (law) or CALLBACK (callback) */
     double pin[2], u_hold[2];
     CompiledLaw law;
-    /* a Python controller, called back as f(t, q, dq) -> [u1, u2] (modes.bind_controller's checked call).
+    /* a Python controller, called back as controller(t, q, dq, stance_leg) and checked (call_controller).
      * The first failure of the law (the controller raised, a compiled law returned nonzero) is kept as an
      * exception and the computation it spoiled is thrown away (callback_failed) */
     PyObject *callback;
@@ -130,22 +130,79 @@ static PyObject *law_failure_type;
 static PyObject *list_of(const double *v, Py_ssize_t n);
 static int doubles(PyObject *seq, double *out, Py_ssize_t lo, Py_ssize_t hi, const char *what, Py_ssize_t *n_out);
 
+static int two_finite(PyObject *u, double *out);
+
+/* the engine's Python side of a controller's call (set_controller_checks: modes.controller_failure and
+ * modes.checked_torques, for what this file does not judge itself, and numpy's ndarray type) */
+static PyObject *controller_failure_fn, *checked_torques_fn, *ndarray_type;
+
+/* u as two finite floats from a numpy float64 array of shape (2,) in native byte order (what
+ * modes.two_finite_floats takes from an array without the general check): 0, or -1 (no exception) for
+ * anything else, which the Python code judges */
+static int
+two_finite_array(PyObject *u, double *out)
+{
+    if (ndarray_type == NULL || (PyObject *)Py_TYPE(u) != ndarray_type) return -1;
+    Py_buffer b;
+    if (PyObject_GetBuffer(u, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+        PyErr_Clear();
+        return -1;
+    }
+    int ok = b.ndim == 1 && b.shape != NULL && b.shape[0] == 2 && b.itemsize == sizeof(double) && b.format != NULL
+             && strcmp(b.format, "d") == 0;
+    if (ok) memcpy(out, b.buf, 2 * sizeof(double));
+    PyBuffer_Release(&b);
+    return ok && isfinite(out[0] + out[1]) ? 0 : -1;
+}
+
+/* u = controller(t, q, dq, stance_leg), a Python controller called straight from here with lists q and dq and
+ * the stance leg the loop runs, its torques checked as modes.checked_command checks them: two finite floats
+ * (or a float64 array of two) taken here (two_finite, two_finite_array), anything else judged by
+ * modes.checked_torques (which takes what it takes, or raises the ControllerError naming it); an exception
+ * of the controller becomes modes.controller_failure's ControllerError, the controller's exception its
+ * cause with its traceback. The first failure is kept (callback_failed) with its exception, and the
+ * computation it spoiled is thrown away. */
 static void
-call_back(Loop *L, double t, const double *q, const double *dq, double *u)
+call_controller(Loop *L, PyObject *controller, double t, const double *q, const double *dq, double *u)
 {
     u[0] = u[1] = 0.0;
     if (L->callback_failed) return;
-    PyObject *args[3] = {PyFloat_FromDouble(t), list_of(q, 5), list_of(dq, 5)}, *r = NULL;
-    if (args[0] && args[1] && args[2]) r = PyObject_Vectorcall(L->callback, args, 3, NULL);
-    for (int i = 0; i < 3; i++) Py_XDECREF(args[i]);
-    if (r != NULL) {     /* the checked call returns a list of two finite floats */
-        if (PyList_CheckExact(r) && PyList_GET_SIZE(r) == 2) {
-            u[0] = PyFloat_AsDouble(PyList_GET_ITEM(r, 0));
-            u[1] = PyFloat_AsDouble(PyList_GET_ITEM(r, 1));
-        } else {
-            PyErr_SetString(PyExc_TypeError, "the controller call must return a list of two floats");
+    if (controller_failure_fn == NULL || checked_torques_fn == NULL) {     /* (compiled_loop sets them at import) */
+        PyErr_SetString(PyExc_RuntimeError, "a Python controller needs set_controller_checks() first");
+        L->callback_failed = 1;
+        PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
+        return;
+    }
+    PyObject *args[4] = {PyFloat_FromDouble(t), list_of(q, 5), list_of(dq, 5), PyLong_FromLong(L->leg)}, *r = NULL;
+    if (args[0] && args[1] && args[2] && args[3]) r = PyObject_Vectorcall(controller, args, 4, NULL);
+    for (int i = 0; i < 4; i++) Py_XDECREF(args[i]);
+    if (r != NULL) {
+        if (two_finite(r, u) < 0 && two_finite_array(r, u) < 0) {
+            PyObject *checked = PyObject_CallFunction(checked_torques_fn, "Od", r, t);
+            if (checked != NULL) {
+                if (PyList_CheckExact(checked) && PyList_GET_SIZE(checked) == 2) {
+                    u[0] = PyFloat_AsDouble(PyList_GET_ITEM(checked, 0));
+                    u[1] = PyFloat_AsDouble(PyList_GET_ITEM(checked, 1));
+                } else {
+                    PyErr_SetString(PyExc_TypeError, "checked_torques must return a list of two floats");
+                }
+                Py_DECREF(checked);
+            }
         }
         Py_DECREF(r);
+    } else if (PyErr_ExceptionMatches(PyExc_Exception)) {     /* (a KeyboardInterrupt goes on as it is) */
+        PyObject *type, *value, *tb;
+        PyErr_Fetch(&type, &value, &tb);
+        PyErr_NormalizeException(&type, &value, &tb);
+        if (tb != NULL) PyException_SetTraceback(value, tb);
+        PyObject *error = PyObject_CallFunction(controller_failure_fn, "Od", value, t);
+        Py_XDECREF(type);
+        Py_XDECREF(value);
+        Py_XDECREF(tb);
+        if (error != NULL) {
+            PyErr_SetObject((PyObject *)Py_TYPE(error), error);
+            Py_DECREF(error);
+        }
     }
     if (PyErr_Occurred()) {
         L->callback_failed = 1;
@@ -154,7 +211,7 @@ call_back(Loop *L, double t, const double *q, const double *dq, double *u)
     }
 }
 
-/* u = law(t, q, dq) in stance on L->leg; a failure kept as call_back keeps an exception */
+/* u = law(t, q, dq) in stance on L->leg; a failure kept as call_controller keeps an exception */
 static void
 apply_law(Loop *L, const CompiledLaw *law, double t, const double *q, const double *dq, double *u)
 {
@@ -176,7 +233,7 @@ static void
 torque(Loop *L, double t, const double *q, const double *dq, double *u)
 {
     if (L->law_kind == COMPILED) apply_law(L, &L->law, t, q, dq, u);
-    else if (L->law_kind == CALLBACK) call_back(L, t, q, dq, u);
+    else if (L->law_kind == CALLBACK) call_controller(L, L->callback, t, q, dq, u);
     else { u[0] = L->u_hold[0]; u[1] = L->u_hold[1]; }
 }
 
@@ -1229,12 +1286,15 @@ period_end(double t, double period, double t_final, long *k)
 }
 
 /* periods(law, period, control_periods, t_final, t_stop, sim)
- * -> (<run's result>, control_periods, t_next, u1, u2): control periods of a compiled law held (as
- * HybridSimulator.advance_period computes them, the command at each period's start) until t_final, or
- * the first period boundary at or after t_stop - 1e-9 period (a push due), or a run outcome the Python
- * code must see (then mid-period: its end t_next and its torque come back), or a period whose command the
- * stance guards refuse at its start (TORQUE_CHANGE: not begun, the count and torque of the periods before
- * it come back, and the Python code runs it) */
+ * -> (<run's result>, control_periods, t_next, (u1, u2), refused): control periods held (as
+ * HybridSimulator.advance_period computes them, the command at each period's start: a compiled law's
+ * (address, parameters, name), or a Python controller, called once a period and checked by
+ * call_controller) until t_final, or the first period boundary at or after t_stop - 1e-9 period (a push due),
+ * or a run outcome the Python code must see (then mid-period: its end t_next and its torque come back), or
+ * a period whose command the stance guards refuse at its start (TORQUE_CHANGE: not begun, the count and
+ * torque of the periods before it come back, and refused, its command (else None): the Python code runs the
+ * period with that command, so that a controller is called once a period on both loops). A command that fails (RAISED)
+ * counts its period as begun, as advance_period does. */
 static PyObject *
 Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -1250,7 +1310,8 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         return NULL;
     }
     CompiledLaw law;
-    if (compiled_law_from(args[0], &law) < 0) return NULL;
+    PyObject *command = PyCallable_Check(args[0]) ? args[0] : NULL;
+    if (command == NULL && compiled_law_from(args[0], &law) < 0) return NULL;
     long k_first = k0;
     if (isnan(period_end(L->t, period, t_final, &k_first))) {   /* (the first period's index only can be late) */
         PyErr_SetString(PyExc_ValueError, "periods(): more than 2**53 control periods before t");
@@ -1260,28 +1321,35 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     Py_buffer buf;
     if (run_state(L, args[5], &rs, &buf) < 0) return NULL;
     int outcome = DONE;
-    double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, tol = 1e-9 * period;
+    double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, refused[2] = {NAN, NAN}, tol = 1e-9 * period;
     while (L->t < t_final && t_stop > L->t + tol) {
         long k = k0;
-        double t_end = period_end(L->t, period, t_final, &k), command[2];
-        apply_law(L, &law, L->t, L->y, L->y + 5, command);
-        if (L->callback_failed) break;      /* (run_result: RAISED) */
+        double t_end = period_end(L->t, period, t_final, &k), u_now[2];
+        if (command != NULL) call_controller(L, command, L->t, L->y, L->y + 5, u_now);
+        else apply_law(L, &law, L->t, L->y, L->y + 5, u_now);
+        if (L->callback_failed) {       /* (run_result: RAISED) */
+            k0 = k;
+            break;
+        }
         carry_step(L, L->h_abs);     /* as begin() carries it over */
-        hold(L, command[0], command[1], t_end);
+        hold(L, u_now[0], u_now[1], t_end);
         if (refused_at_start(L)) {
             outcome = TORQUE_CHANGE;
+            refused[0] = u_now[0];
+            refused[1] = u_now[1];
             break;
         }
         k0 = k;
         t_next = t_end;
-        u[0] = command[0];
-        u[1] = command[1];
+        u[0] = u_now[0];
+        u[1] = u_now[1];
         outcome = quiet_until(L, t_next, &rs);
         if (outcome != DONE) break;
     }
     PyObject *r = run_result(L, outcome, &rs, &buf);
     if (r == NULL) return NULL;
-    return Py_BuildValue("(Nld(dd))", r, k0, t_next, u[0], u[1]);
+    if (outcome != TORQUE_CHANGE) return Py_BuildValue("(Nld(dd)O)", r, k0, t_next, u[0], u[1], Py_None);
+    return Py_BuildValue("(Nld(dd)[dd])", r, k0, t_next, u[0], u[1], refused[0], refused[1]);
 }
 
 static PyObject *
@@ -1694,6 +1762,28 @@ Loop_law_torque(Loop *L, PyObject *spec)
     return Py_BuildValue("[dd]", u[0], u[1]);
 }
 
+/* set_controller_checks(controller_failure, checked_torques, ndarray): modes.controller_failure(exc, t) -> the
+ * ControllerError of a controller that raised exc at t, modes.checked_torques(u, t) -> [u1, u2] or raises, and
+ * numpy.ndarray */
+static PyObject *
+set_controller_checks(PyObject *module, PyObject *args)
+{
+    (void)module;
+    PyObject *failure, *checked, *array_type;
+    if (!PyArg_ParseTuple(args, "OOO", &failure, &checked, &array_type)) return NULL;
+    if (!PyCallable_Check(failure) || !PyCallable_Check(checked) || !PyType_Check(array_type)) {
+        PyErr_SetString(PyExc_TypeError, "set_controller_checks(): two callables and a type");
+        return NULL;
+    }
+    Py_INCREF(array_type);
+    Py_XSETREF(ndarray_type, array_type);
+    Py_INCREF(failure);
+    Py_XSETREF(controller_failure_fn, failure);
+    Py_INCREF(checked);
+    Py_XSETREF(checked_torques_fn, checked);
+    Py_RETURN_NONE;
+}
+
 /* set_failure_type(cls): the exception type a compiled law's failure raises (a subclass of Exception) */
 static PyObject *
 set_failure_type(PyObject *module, PyObject *cls)
@@ -1710,6 +1800,7 @@ set_failure_type(PyObject *module, PyObject *cls)
 
 static PyMethodDef module_methods[] = {
     {"set_failure_type", set_failure_type, METH_O, NULL},
+    {"set_controller_checks", set_controller_checks, METH_VARARGS, NULL},
     {NULL, NULL, 0, NULL},
 };
 

@@ -26,8 +26,8 @@ from biped_sim.engine import integrators
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.guards import FootState
 from biped_sim.engine.locator import scuff_event
-from biped_sim.engine.modes import bind_controller
-from biped_sim.engine.results import Event, SimulationError
+from biped_sim.engine.modes import checked_torques, controller_failure
+from biped_sim.engine.results import ControllerError, Event
 from biped_sim.engine.witnesses import all_compiled
 
 DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED, TOUCHDOWN, TORQUE_CHANGE = range(9)
@@ -47,7 +47,8 @@ def _compiled_core():
                       "then make venv")
     if _core.KERNELS_SHA256 != twin.SOURCE_SHA256:
         return None, "the compiled loop is older than the generated code; rebuild it: make venv"
-    _core.set_failure_type(SimulationError)     # a compiled law's failure ends the run "failed"
+    _core.set_failure_type(ControllerError)     # a compiled law's failure ends the run "failed"
+    _core.set_controller_checks(controller_failure, checked_torques, np.ndarray)    # a Python controller's, alike
     return _core, ""
 
 
@@ -77,10 +78,11 @@ def reference_law(controller, model):
 
 
 def _torque_in_mode(controller, stance_leg, model):
-    """The loop's torque law in a mode: held, compiled, or the controller called back from C through the
-    same checked call as the Python loop's (``modes.bind_controller``)."""
+    """The loop's torque law in a mode: held, compiled, or the controller called back from C with the stance
+    leg the loop runs, checked as the Python loop's call checks it (``modes.bind_controller``; ``_core.c``
+    call_controller)."""
     law = torque_law(controller, model)
-    return law if law is not None else ("callback", bind_controller(controller, stance_leg))
+    return law if law is not None else ("callback", controller)
 
 
 def _hook_argument(law):
@@ -240,22 +242,25 @@ class CompiledStepper(integrators._ListRungeKutta):
         return not self.loop.state_stale and not _python_only(self.sim.locator)
 
     def periods(self, period, law, t_final, t_stop):
-        """Control periods of a compiled law, each command computed and held in C, as ``advance_period``
-        would run them, until ``t_final`` or a push due at ``t_stop``: (outcome, t_next), DONE when they
-        all ran, TORQUE_CHANGE before a period whose command the stance guards refuse at its start (not
-        begun: ``advance_period`` runs it), else the outcome of the step handed back in the period ending
-        at ``t_next`` (``can_run_periods`` first)."""
+        """Control periods held, as ``advance_period`` would run them, each command computed at its period's
+        start: by a compiled law in C (``law`` a CompiledLaw), or by a Python controller (``law`` the
+        controller), called from C once a period and checked as ``modes.checked_command`` checks it; the
+        periods run in C
+        until ``t_final`` or a push due at ``t_stop``: (outcome, t_next, refused), DONE when they all ran,
+        TORQUE_CHANGE before a period whose command (``refused``) the stance guards refuse at its start (not
+        begun: ``advance_period`` runs it with that command), else the outcome of the step handed back in the
+        period ending at ``t_next`` (``can_run_periods`` first)."""
         sim = self.sim
         if self.loop.locator_stale:
             self._push_locator()
         _make_room(sim._samples)
-        result, sim.control_periods, t_next, u = self.loop.periods(
-            _hook_argument(law), period, sim.control_periods, t_final, t_stop, sim)
+        result, sim.control_periods, t_next, u, refused = self.loop.periods(
+            law if callable(law) else _hook_argument(law), period, sim.control_periods, t_final, t_stop, sim)
         sim._u = list(u)
         outcome = self._after_run(*result)
         if outcome == GROW:      # the period in progress goes on in run(), which makes room
-            return self.run(t_next), t_next
-        return outcome, t_next
+            return self.run(t_next), t_next, None
+        return outcome, t_next, refused
 
     def held_period(self, t_end):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run

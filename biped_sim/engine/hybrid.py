@@ -29,6 +29,7 @@ import numpy as np
 
 from biped_sim.engine import compiled_loop, guards as G
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, gen
+from biped_sim.engine.controller_check import check_controller
 from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
 from biped_sim.engine.integrators import StepFailure, make_stepper, prepare as prepare_stepper
 from biped_sim.engine.invariants import ImpactHistory, check_impact, check_sample
@@ -36,6 +37,7 @@ from biped_sim.engine.locator import EventLocator
 from biped_sim.engine.model import BipedModel, as_state_vector, short_repr
 from biped_sim.engine.modes import (
     bind_controller,
+    checked_command,
     floating_to_phys,
     mode_functions,
     project_onto_pin,
@@ -46,6 +48,7 @@ from biped_sim.engine.pushes import apply_push
 from biped_sim.engine.resets import friction_cone_stop
 from biped_sim.engine.results import (
     IMPACT_KINDS,
+    ControllerError,
     Event,
     Samples,
     SceneAssumptionError,
@@ -132,6 +135,8 @@ class HybridSimulator:
         self.locator = EventLocator(model, self.ground, self.opt, mu, feet, stance_leg, self.impacts)
         self.pin = list(G.foot_xy(model, q0.tolist(), stance_leg)) if stance_leg else None
         self.status, self.message = "running", ""
+        self.controller_error = None        # what ended the run in the controller (SimulationResult's)
+        self._signatures_checked = {}       # id -> the controllers whose signature was checked (held: no id reused)
         self.control_periods = 0            # advance_period calls so far
         self.on_step = on_step
         self._u = [0.0, 0.0]
@@ -213,8 +218,19 @@ class HybridSimulator:
 
     # -- controller and ground force -----------------------------------------------------------
     def _call_controller(self, t, q, dq, controller=None):
-        """u = controller(t, q, dq, stance_leg) as a list of two finite floats (lists q, dq)."""
-        return bind_controller(controller or self._controller, self.stance_leg)(t, q, dq)
+        """u = controller(t, q, dq, stance_leg) as a list of two finite floats (lists q, dq: the controller
+        gets copies, its own)."""
+        return checked_command(controller or self._controller)(t, list(q), list(dq), self.stance_leg)
+
+    def _check_signature(self, controller):
+        """A ValueError before anything runs for a controller that cannot be called as controller(t, q, dq,
+        stance_leg) (``controller_check``); each controller object is checked once."""
+        if id(controller) in self._signatures_checked:
+            return
+        check_controller(controller)
+        if len(self._signatures_checked) >= 16:     # (a new controller every call: bounded)
+            self._signatures_checked.clear()
+        self._signatures_checked[id(controller)] = controller
 
     def _torque_at(self, t, q, dq):
         """The torque applied at a physical state (lists): the held one, or the controller's."""
@@ -238,6 +254,8 @@ class HybridSimulator:
         if not (type(t_end) is float or isinstance(t_end, numbers.Real) and not isinstance(t_end, bool)) \
                 or not math.isfinite(t_end):
             raise ValueError(f"t_end must be a finite number of seconds, got {t_end!r}")
+        if controller is not None:
+            self._check_signature(controller)
         if self.status != "running":
             return []
         return self._advance(float(t_end), u, controller, _periods)
@@ -266,7 +284,8 @@ class HybridSimulator:
             self._fail(str(exc), status="stopped")
         except (StepFailure, SimulationError, np.linalg.LinAlgError, FloatingPointError, OverflowError,
                 ValueError) as exc:
-            self._fail(f"{type(exc).__name__}: {exc}" if isinstance(exc, np.linalg.LinAlgError) else str(exc))
+            self._fail(f"{type(exc).__name__}: {exc}" if isinstance(exc, np.linalg.LinAlgError) else str(exc),
+                       error=exc)
         finally:
             self._stats["wall_time"] += time.perf_counter() - wall0
         return self.events[n_events:]
@@ -276,6 +295,8 @@ class HybridSimulator:
         inside the period): ``u``, or ``controller(t, q, dq, stance_leg)`` evaluated once at the
         period's start. Period k ends at (k + 1) ``period``, or at ``t_final`` (> 0) where that comes
         first or within 1e-9 of a period. Returns the events of the period."""
+        if controller is not None:
+            self._check_signature(controller)
         st = self._compiled
         if controller is None and st is not None:
             # the node's period in one C call while the loop holds the state (Loop.period, _core.c: these
@@ -296,7 +317,11 @@ class HybridSimulator:
         self.control_periods = k + 1
         if controller is not None:
             # a compiled law on the compiled loop: its torque computed in C, the same bits
-            u = self._compiled.command(controller) if self._compiled is not None else None
+            try:
+                u = self._compiled.command(controller) if self._compiled is not None else None
+            except ControllerError as exc:      # the law failed: the run ends "failed", as in Loop.periods
+                self._fail(str(exc), error=exc)
+                return self.events[-1:]
             if u is None:
                 u = self.command(controller)
             if u is None:
@@ -312,24 +337,27 @@ class HybridSimulator:
         until a period starts at or after ``t_stop`` (within 1e-9 period: a push due then). The same run;
         on the compiled loop a compiled law's periods run in C, their commands computed there."""
         check_number("period", period, 0.0, math.inf, "s", open_low=True)
+        self._check_signature(controller)
         tol = 1e-9 * period
+        law = None      # the periods' law on the compiled loop, found once: a compiled law or the controller
         while self.status == "running" and self.t < t_final and t_stop > self.t + tol:
             st = self._compiled
-            on_loop = st is not None and self._stepper is st
-            law = compiled_loop.reference_law(controller, self.model) if on_loop else None
-            if law is None or self._initial_sample_pending or not st.can_run_periods():
+            if st is None or self._stepper is not st or self._initial_sample_pending or not st.can_run_periods():
                 self.advance_period(period, controller=controller, t_final=t_final)
-            else:
-                self._periods_outcome = None
-                self.advance(t_final, _periods=(period, law, t_final, t_stop))
-                if self._periods_outcome == compiled_loop.TORQUE_CHANGE and self.status == "running":
-                    # the stance guards refuse the next period's command at its start: its events are the
-                    # Python code's (_check_torque_change)
-                    self.advance_period(period, controller=controller, t_final=t_final)
+                continue
+            if law is None:
+                law = compiled_loop.reference_law(controller, self.model) or controller
+            self._periods_outcome = None
+            self.advance(t_final, _periods=(period, law, t_final, t_stop))
+            if self._periods_outcome is not None and self._periods_outcome[0] == compiled_loop.TORQUE_CHANGE \
+                    and self.status == "running":
+                # the stance guards refuse the next period's command at its start: its events are the Python
+                # code's (_check_torque_change), under that command (the controller is not called again)
+                self.advance_period(period, u=self._periods_outcome[1], t_final=t_final)
 
     def _integrate_periods(self, period, law, t_final, t_stop):
-        outcome, t_next = self._compiled.periods(period, law, t_final, t_stop)
-        self._periods_outcome = outcome
+        outcome, t_next, refused = self._compiled.periods(period, law, t_final, t_stop)
+        self._periods_outcome = outcome, refused
         if outcome not in (compiled_loop.DONE, compiled_loop.TORQUE_CHANGE):    # the rest of the period in
             self._integrate(t_next, outcome)                                   # progress, as any
 
@@ -340,15 +368,22 @@ class HybridSimulator:
         (not two finite numbers, above ``PUSH_IMPULSE_LIMIT``) raises ValueError."""
         if self._compiled is not None:
             self._compiled.python_changed()
-        return apply_push(self, impulse)
+        n_events = len(self.events)
+        try:
+            return apply_push(self, impulse)
+        except ControllerError as exc:     # (the sample after the push calls a continuous controller)
+            self._fail(str(exc), error=exc)
+            return self.events[n_events:]
 
     def command(self, controller):
         """``controller(t, q, dq, stance_leg)`` at the current state as two finite floats, or None
         when it fails (raises, or returns anything else): the run then ends "failed", saying why."""
+        self._check_signature(controller)
+        q, dq = self.state_lists()
         try:
-            return self._call_controller(self.t, self.q.tolist(), self.dq.tolist(), controller)
-        except SimulationError as exc:
-            self._fail(str(exc))
+            return checked_command(controller)(self.t, q, dq, self.stance_leg)
+        except ControllerError as exc:
+            self._fail(str(exc), error=exc)
             return None
 
     def _new_stepper(self, t_bound):
@@ -586,7 +621,12 @@ class HybridSimulator:
     def _stop(self, status, message):
         self.status, self.message = status, message
 
-    def _fail(self, message, status="failed"):
+    def _fail(self, message, status="failed", error=None):
+        """The run ends (``status``) with an error event; ``error``: the exception that ended it (a
+        ControllerError keeps the controller's own exception, or itself for a bad return, as the result's
+        ``controller_error``)."""
+        if isinstance(error, ControllerError):
+            self.controller_error = error.__cause__ if error.__cause__ is not None else error
         msg = f"integration stopped at t={self.t:.9g} s: {message}"
         self.events.append(Event(self.t, "error", self.stance_leg, self.q.copy(), self.dq.copy(), self.dq.copy(),
                                  message=msg))
@@ -625,4 +665,5 @@ class HybridSimulator:
         stats["generated_code"] = GENERATED_CODE   # "C" (the compiled twin) or "Python": same results
         return SimulationResult.from_samples(s, list(self.events), stats,
                                              "completed" if self.status == "running" else self.status,
-                                             self.message, self.opt, model=self.model)
+                                             self.message, self.opt, model=self.model,
+                                             controller_error=self.controller_error)

@@ -22,7 +22,7 @@ import numpy as np
 from biped_sim.engine.compiled import gen
 from biped_sim.engine.dynamics import flight_fast, stance_fixed_accel_fast
 from biped_sim.engine.model import real_vector, short_repr
-from biped_sim.engine.results import SimulationError
+from biped_sim.engine.results import ControllerError
 
 
 def two_finite_floats(u):
@@ -47,30 +47,61 @@ def two_finite_floats(u):
 
 
 def checked_torques(u, t):
-    """The two torques a controller returned, as finite floats, or a SimulationError."""
+    """The two torques a controller returned, as finite floats, or a ControllerError."""
     out = two_finite_floats(u)
     if out is None:
-        raise SimulationError(f"the controller returned {short_repr(u)} at t={t:.9g} s: it must return two finite "
+        raise ControllerError(f"the controller returned {short_repr(u)} at t={t:.9g} s: it must return two finite "
                               "torques (real numbers: not bools, complex numbers or strings)")
     return out
 
 
+def controller_raised(exc, t):
+    """The ControllerError that ends a run whose controller raised ``exc`` at t (raise it ``from exc``: the
+    cause keeps its traceback); its message names where: the file and line of the frame that raised."""
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    where = f" ({tb.tb_frame.f_code.co_filename}:{tb.tb_lineno} in {tb.tb_frame.f_code.co_name})" if tb else ""
+    return ControllerError(f"the controller raised {type(exc).__name__} at t={t:.9g} s: {exc}{where}")
+
+
+def controller_failure(exc, t):
+    """``raise controller_raised(exc, t) from exc`` as an object: the ControllerError, ``exc`` its cause (the
+    compiled loop raises it where its direct call of the controller caught ``exc``)."""
+    error = controller_raised(exc, t)
+    error.__cause__ = exc
+    return error
+
+
 def bind_controller(controller, stance_leg):
-    """``controller(t, q, dq, stance_leg)`` as ``f(t, q, dq)`` on lists, with its torques checked; None
-    for no controller. A controller that sets ``accepts_lists = True`` takes q, dq as lists (no array
-    round trip)."""
+    """``controller(t, q, dq, stance_leg)`` as ``f(t, q, dq)``, with its torques checked; None for no
+    controller. q and dq are lists of floats (the controller's own: the engine does not use them after the
+    call)."""
     if controller is None:
         return None
-    lists = getattr(controller, "accepts_lists", False)
 
     def call(t, q, dq):   # at every right-hand-side evaluation: one check, the message only on failure
         try:
-            u = controller(t, q, dq, stance_leg) if lists else controller(t, np.array(q), np.array(dq), stance_leg)
+            u = controller(t, q, dq, stance_leg)
         except Exception as exc:   # a fault of the user's code ends the run "failed", with its message
-            raise SimulationError(f"the controller raised {type(exc).__name__} at t={t:.9g} s: {exc}") from exc
+            raise controller_raised(exc, t) from exc
         v = two_finite_floats(u)
         return v if v is not None else checked_torques(u, t)
     return call
+
+
+def checked_command(controller):
+    """``controller(t, q, dq, stance_leg)`` with its torques checked, as bind_controller's call but with the
+    stance leg given at each call: a control period's command. (The compiled loop calls a controller
+    directly and checks it the same way: ``_core.c`` call_controller.)"""
+    def command(t, q, dq, stance_leg):
+        try:
+            u = controller(t, q, dq, stance_leg)
+        except Exception as exc:
+            raise controller_raised(exc, t) from exc
+        v = two_finite_floats(u)
+        return v if v is not None else checked_torques(u, t)
+    return command
 
 
 def floating_to_phys(y):
@@ -97,14 +128,14 @@ def mode_functions(model, stance_leg, base, pin, u_hold, control, sink):
 
         def rhs(t, y):
             q, dq = y[0:5], y[5:10]
-            u = u_hold if control is None else control(t, q, dq)
+            u = u_hold if control is None else control(t, y[0:5], y[5:10])   # (lists of its own)
             ddq, F = stance(q, dq, u, k_stance)
             sink(F, u)
             return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
     else:
         def rhs(t, y):
             q, dq = y[0:5], y[5:10]
-            u = u_hold if control is None else control(t, q, dq)
+            u = u_hold if control is None else control(t, y[0:5], y[5:10])
             ddq = flight_fast(model, q, dq, u)
             sink(None, u)
             return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]

@@ -64,14 +64,19 @@ class SimulationResult:
     options: object = None
     #: the run's BipedModel (the stick figures of :meth:`plot`; None: the default model)
     model: object = None
+    #: what ended a run "failed" in its controller: the exception the controller raised (its
+    #: ``__traceback__`` reaches the raising line), or a :class:`ControllerError` naming what it returned;
+    #: None otherwise
+    controller_error: BaseException | None = None
 
     @classmethod
-    def from_samples(cls, samples, events, stats, status, message, options, model=None):
+    def from_samples(cls, samples, events, stats, status, message, options, model=None, controller_error=None):
         """From the simulator's :class:`Samples`."""
         d = samples.rows()
         return cls(t=d[:, 0].copy(), q=d[:, 1:6].copy(), dq=d[:, 6:11].copy(), stance_leg=d[:, 11].astype(int),
                    grf=d[:, 12:14].copy(), u=d[:, 14:16].copy(), events=events, stats=stats, status=status,
-                   message=message, energy_balance=d[:, 16].copy(), options=options, model=model)
+                   message=message, energy_balance=d[:, 16].copy(), options=options, model=model,
+                   controller_error=controller_error)
 
     def plot(self, path=None, title=None, frames=14):
         """The figure ``biped-sim inspect`` draws for a bag (joint angles, ground forces, hip torques,
@@ -108,6 +113,11 @@ class SimulationError(RuntimeError):
 
 class SceneAssumptionError(SimulationError):
     """The physics left the scene's declared phases: the run stops (status "stopped")."""
+
+
+class ControllerError(SimulationError):
+    """The controller failed: it raised (the exception is this one's ``__cause__``, with its traceback), or
+    returned anything but two finite real numbers. The run ends "failed"."""
 
 
 class Samples:

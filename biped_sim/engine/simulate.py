@@ -29,8 +29,14 @@ def stance_state(model: BipedModel, joints, joint_rates, stance_leg=1, foot=(0.0
     return np.concatenate([hip, qs]), np.concatenate([dhip, dqs])
 
 
+#: what ``simulate`` does when the controller fails: "fail" (the run ends "failed", its result returned) or
+#: "raise" (the controller's exception raised once the run is closed, the result on it as ``exc.result``)
+ON_CONTROLLER_ERROR = ("fail", "raise")
+
+
 def simulate(model, q0, dq0, t_final, controller=None, stance_leg=1, rtol=1e-9, atol=1e-9,
-             method="dop853", control_period=None, mu=None, pushes=(), **options) -> SimulationResult:
+             method="dop853", control_period=None, mu=None, pushes=(), on_controller_error="fail",
+             **options) -> SimulationResult:
     """Simulate the hybrid biped from (q0, dq0) to ``t_final`` seconds.
 
     ``controller(t, q, dq, stance_leg) -> u`` (u[0] on hip 1, u[1] on hip 2, physical legs) is called
@@ -43,8 +49,13 @@ def simulate(model, q0, dq0, t_final, controller=None, stance_leg=1, rtol=1e-9, 
     of the first period that starts at or after t, as the node applies its ``push`` topic. A run
     that leaves the scene's assumptions or whose integration fails ends with
     ``result.status`` "stopped" or "failed", a final event, and ``result.message``; bad arguments
-    raise ``ValueError``.
+    raise ``ValueError``. A controller that raises, or returns anything but two finite real numbers, ends
+    the run "failed" and is ``result.controller_error`` (the controller's exception, with its traceback);
+    ``on_controller_error="raise"`` raises it once the run is closed, with the result as its ``result``.
     """
+    if on_controller_error not in ON_CONTROLLER_ERROR:
+        raise ValueError(f"on_controller_error must be one of {', '.join(map(repr, ON_CONTROLLER_ERROR))}, got "
+                         f"{on_controller_error!r}")
     check_number("t_final", t_final, 0.0, math.inf, "s")
     if control_period is not None:
         check_number("control_period", control_period, 0.0, math.inf, "s", open_low=True)
@@ -66,7 +77,15 @@ def simulate(model, q0, dq0, t_final, controller=None, stance_leg=1, rtol=1e-9, 
             due = _push_due(sim, pushes, due, 1e-9 * control_period)
             sim.advance_periods(control_period, controller, t_final, pushes[due][0] if due < len(pushes) else math.inf)
         _push_due(sim, pushes, due, 1e-9 * control_period)
-    return sim.result()
+    result = sim.result()
+    error = result.controller_error
+    if error is not None and on_controller_error == "raise":
+        try:
+            error.result = result
+        except AttributeError:     # (an exception type that takes no attributes: the result is lost to it)
+            pass
+        raise error
+    return result
 
 
 def _checked_pushes(pushes, t_final):

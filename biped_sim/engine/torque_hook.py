@@ -7,8 +7,8 @@ comes from one of three laws:
 * a compiled law: a C function with the signature of :data:`SIGNATURE`, given by its address, and the
   parameter array it reads (:class:`CompiledLaw`); it runs in the loop without the interpreter. A
   controller offers one by a method ``compiled_law(model) -> CompiledLaw or None`` (None: call me);
-* any other controller, called back from C with the Python loop's checked call
-  (``modes.bind_controller``).
+* any other controller, called back from C and checked as the Python loop checks it
+  (``modes.bind_controller``; ``_core.c`` call_controller).
 
 The signature is plain scalars and ``double`` pointers, so a function made by ctypes
 (:func:`c_prototype`) or by numba's ``@cfunc`` (its ``.address``) plugs in as a C extension's does. A

@@ -136,7 +136,7 @@ def test_the_loop_steps_in_c():
 
 
 class UsersController:
-    """A user's own controller, in Python (numpy arrays in, a tuple out): the loop calls it back."""
+    """A user's own controller, in Python (lists in, a tuple out): the loop calls it back."""
 
     def __init__(self, fail_at=None, bad_at=None):
         self.pd = PDWalkingController(MODEL)
@@ -148,7 +148,7 @@ class UsersController:
             raise RuntimeError("my controller broke")
         if self.bad_at is not None and t > self.bad_at:
             return (float("nan"), 0.0)
-        u = self.pd(t, q.tolist(), dq.tolist(), stance_leg)
+        u = self.pd(t, q, dq, stance_leg)
         return (0.9 * u[0], 0.9 * u[1])
 
 
@@ -170,6 +170,86 @@ def test_a_users_python_controller_is_called_back_with_the_same_run(case):
         assert a.status == "failed" and "controller" in a.message, a.message
     else:
         assert a.status == "completed" and len(a.impacts) >= 2
+
+
+# -- issue 30: a plain Python controller costs its own time -------------------------------------------------
+def _stance_evaluations_from_python(monkeypatch):
+    """A counter of the stance right-hand side evaluated from Python (outside the compiled loop)."""
+    from biped_sim.engine.compiled import gen
+    count = [0]
+    for name in ("stance_floating_1", "stance_floating_2"):
+        f = getattr(gen, name)
+
+        def counted(*args, f=f):
+            count[0] += 1
+            return f(*args)
+        monkeypatch.setattr(gen, name, counted)
+    return count
+
+
+def _bits(r):
+    return [getattr(r, n).tobytes() for n in ("t", "q", "dq", "u", "grf", "stance_leg", "energy_balance")] + \
+        [(e.kind, e.leg, e.time) for e in r.events] + [r.status, r.message]
+
+
+def test_a_plain_python_controllers_held_periods_run_in_the_compiled_loop(monkeypatch):
+    """The scene's law wrapped in a plain function (no compiled law): called once a period, at its start, with
+    lists q and dq, and the rest of each period in C (no stance right-hand side evaluated from Python but
+    around a few events); the run is the built-in law's, bit for bit."""
+    scene = bs.load_scene("walk")
+    ctrl = scene.controller()
+    calls = []
+
+    def plain(t, q, dq, leg):
+        calls.append((type(q), type(dq)))
+        return ctrl(t, q, dq, leg)
+    built_in = scene.simulate(t_final=1.0)
+    evaluations = _stance_evaluations_from_python(monkeypatch)
+    r = scene.simulate(controller=plain, t_final=1.0)
+    periods = round(1.0 / scene.params["control_period"])
+    assert r.status == "completed" and len(r.impacts) >= 2
+    assert evaluations[0] <= periods / 50, evaluations[0]
+    assert _bits(r) == _bits(built_in)
+    assert len(calls) == periods and set(calls) == {(list, list)}
+    assert r.stats["compiled_loop_steps"] >= 0.9 * r.stats["steps"]
+
+
+@pytest.mark.parametrize("hold", [False, True])
+def test_a_controller_gets_lists_on_both_loops(hold):
+    """q and dq reach a controller as lists of floats, on both loops, held or under continuous feedback."""
+    pd = PDWalkingController(MODEL)
+    q0, dq0 = pd.initial_state()
+    seen = set()
+
+    def mine(t, q, dq, leg):
+        seen.add((type(q), type(dq), type(q[0]), type(dq[4])))
+        return pd(t, q, dq, leg)
+    a, b = both_loops(lambda: bs.simulate(MODEL, q0, dq0, 0.8, controller=mine, control_period=1e-3 if hold else None))
+    assert_same_run(a, b)
+    assert a.status == "completed" and seen == {(list, list, float, float)}
+
+
+def test_a_python_command_the_ground_refuses_is_a_liftoff_and_the_controller_is_called_once_a_period():
+    """The period whose command the stance guards refuse at its start (the ground would pull) is handed back to
+    the Python code with that command: a liftoff at the period's start, the controller not called again."""
+    harsh = PDWalkingController(MODEL, torso_pitch=1.0, torque_limit=300.0)
+    walker = WalkingController(MODEL)
+    calls = []
+
+    def late_harsh(t, q, dq, leg):      # the walk, then from 0.1 s a command that pulls the stance foot up
+        calls.append(t)
+        return (harsh if t >= 0.1 - 1e-12 else walker)(t, q, dq, leg)
+
+    def run():
+        calls.clear()
+        r = bs.simulate(MODEL, *walker.initial_state(), 0.2, controller=late_harsh, control_period=1e-3,
+                        phases=("stance", "impact", "flight"))
+        return r, list(calls)
+    (a, calls_a), (b, calls_b) = both_loops(run)
+    assert_same_run(a, b)
+    liftoffs = [e.time for e in a.events if e.kind == "liftoff"]
+    assert liftoffs and abs(liftoffs[0] - 0.1) < 1e-12, a.events
+    assert calls_a == calls_b and len(calls_a) == len(set(calls_a))   # once a period, on both loops
 
 
 def test_a_python_controller_runs_inside_the_compiled_loop():
