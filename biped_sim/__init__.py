@@ -31,6 +31,8 @@ _PUBLIC = {
     "available_scenes": "biped_sim.config.scenes", "sweep": "biped_sim.analysis.sweep",
     "torque_law": "biped_sim.control.compiled_laws", "TorqueLaw": "biped_sim.control.compiled_laws",
     "load_run": "biped_sim.recording.loaded_run", "RecordedRun": "biped_sim.recording.loaded_run",
+    "load_model": "biped_sim.config.models", "RobotDescription": "biped_sim.engine.description",
+    "GeneratedModel": "biped_sim.engine.generated_model",
 }
 __all__ = list(_PUBLIC)
 
