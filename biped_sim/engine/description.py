@@ -277,6 +277,27 @@ def _floats(source, field, text, count=3):
     return v
 
 
+def _attr_number(source, field, element, attr, default=None, minimum=None):
+    """A number attribute of an element (``default`` when the element or the attribute is absent)."""
+    text = element.get(attr) if element is not None else None
+    if text is None:
+        if default is None:
+            _fail(source, field, f"is missing (attribute {attr})")
+        return default
+    try:
+        v = float(text)
+    except ValueError:
+        _fail(source, field, f"must be a number, got {text!r}")
+    return _number(source, field, v, minimum)
+
+
+def _link_of(source, joint, element, tag):
+    el = element.find(tag)
+    if el is None or not el.get("link"):
+        _fail(source, f"joint {joint!r}", f"has no <{tag} link=...>")
+    return el.get("link")
+
+
 def _origin(source, field, element):
     """(x, z, pitch) of an <origin>; a roll or a yaw is a pose out of the plane: refused."""
     o = element.find("origin") if element is not None else None
@@ -321,19 +342,18 @@ def description_from_urdf(path_or_text, name: str | None = None) -> RobotDescrip
         lname = el.get("name")
         inertial = el.find("inertial")
         mass, com, iyy = 0.0, (0.0, 0.0), 0.0
+        if not lname:
+            _fail(source, "a <link>", "has no name")
         if inertial is not None:
-            m = inertial.find("mass")
-            mass = _number(source, f"link {lname!r} mass", float(m.get("value", "nan")) if m is not None else 0.0, 0.0)
+            mass = _attr_number(source, f"link {lname!r} mass value", inertial.find("mass"), "value", 0.0, 0.0)
             cx, cz, _ = _origin(source, f"link {lname!r} inertial", inertial)
             com = (cx, cz)
-            i = inertial.find("inertia")
-            if i is not None:
-                iyy = _number(source, f"link {lname!r} inertia iyy", float(i.get("iyy", "0")), 0.0)
+            iyy = _attr_number(source, f"link {lname!r} inertia iyy", inertial.find("inertia"), "iyy", 0.0, 0.0)
         raw_links[lname] = (mass, com, iyy)
     joints, children = [], {}
     for el in root.findall("joint"):
         jname, jtype = el.get("name"), el.get("type")
-        parent, child = el.find("parent").get("link"), el.find("child").get("link")
+        parent, child = _link_of(source, jname, el, "parent"), _link_of(source, jname, el, "child")
         for lk in (parent, child):
             if lk not in raw_links:
                 _fail(source, f"joint {jname!r}", f"names no link: {lk!r}")
@@ -345,8 +365,7 @@ def description_from_urdf(path_or_text, name: str | None = None) -> RobotDescrip
             if norm == 0 or abs(ax[0]) > PLANE_NORMAL_TOL * norm or abs(ax[2]) > PLANE_NORMAL_TOL * norm:
                 _fail(source, f"joint {jname!r}", f"is not planar: it turns about axis ({' '.join(map(str, ax))}), "
                       "not the plane's normal (0 1 0); every joint of a planar robot turns about parallel axes")
-            limit = el.find("limit")
-            effort = float(limit.get("effort", "0")) if limit is not None else 0.0
+            effort = _attr_number(source, f"joint {jname!r} limit effort", el.find("limit"), "effort", 0.0)
             joints.append(dict(name=jname, parent=parent, child=child, origin=(x, z), offset=pitch,
                                sign=1.0 if ax[1] > 0 else -1.0, effort=effort))
         elif jtype == "fixed":
@@ -401,7 +420,7 @@ def description_from_urdf(path_or_text, name: str | None = None) -> RobotDescrip
         actuated = [j["name"] for j in joints if not j.get("fixed") and j["effort"] > 0]
     g = 9.81
     if ext is not None and ext.find("gravity") is not None:
-        g = _number(source, "<biped_sim><gravity value>", float(ext.find("gravity").get("value", "nan")), 0.0)
+        g = _attr_number(source, "<biped_sim><gravity value>", ext.find("gravity"), "value", None, 0.0)
     return check(RobotDescription(name=name or root.get("name") or "robot", links=tuple(links),
                                   actuated=tuple(actuated), contacts=tuple(contacts), mirror=tuple(mirror),
                                   gravity=g, source=source))

@@ -90,6 +90,20 @@ def test_a_non_planar_urdf_is_refused_naming_the_joint():
         description_from_urdf(prismatic)
 
 
+def test_a_broken_urdf_is_refused_in_one_line_naming_the_element():
+    urdf = to_urdf(models.load_description("three_link"))
+    cases = {
+        urdf.replace('<mass value="5.0"/>', '<mass value="heavy"/>', 1): "link 'leg_1' mass value must be a number",
+        urdf.replace('<parent link="torso"/>', '', 1): "joint 'hip_1' has no <parent link=...>",
+        urdf.replace('<mirror left="leg_1" right="leg_2"/>', ''): "mirror is empty",
+        urdf[:200]: "not well-formed XML",
+    }
+    for text, match in cases.items():
+        with pytest.raises(DescriptionError) as e:
+            description_from_urdf(text)
+        assert match in str(e.value) and "\n" not in str(e.value)
+
+
 # ---- the generator -----------------------------------------------------------------------------------
 
 def test_the_generic_generators_three_link_agrees_with_the_engines_closed_forms():
@@ -251,3 +265,25 @@ def test_the_generated_dynamics_agree_with_pinocchio_from_the_same_urdf(name):
             assert np.allclose(ours.contact_jacobian(q, contact.name), J, rtol=0, atol=1e-12), name
             assert np.allclose(ours.contact_jacobian_dot(q, dq, contact.name) @ dq, a0, rtol=0, atol=1e-12), name
     assert math.isfinite(ours.energy(q, dq))
+
+
+# ---- Drake, side by side (benchmarks/bench_drake.py) -------------------------------------------------------
+
+DRAKE_PYTHON = models.ROBOTS_DIR.parents[2] / ".venv-drake" / "bin" / "python"
+
+
+@pytest.mark.skipif(not DRAKE_PYTHON.exists(), reason="no .venv-drake (make venv-drake installs drake 1.58)")
+def test_the_compass_gait_scene_meets_drakes_impacts():
+    import json
+    import subprocess
+    out = subprocess.run([str(DRAKE_PYTHON), str(models.ROBOTS_DIR.parents[2] / "benchmarks" / "drake_compass_gait.py"),
+                          "--accuracy", "1e-12", "--repeats", "1"], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    drake = np.array(json.loads(out.stdout)["impacts"])
+    from benchmarks.bench_drake import drake_angles
+    kw = bs.load_scene("compass_gait").simulate_kwargs()
+    kw.update(rtol=1e-12, atol=1e-12)
+    ours = np.array([drake_angles(e) for e in bs.simulate(**kw).impacts])
+    assert ours.shape == drake.shape == (14, 5)
+    assert np.abs(ours[:, 0] - drake[:, 0]).max() < 1e-9
+    assert np.abs(ours[:, 1:] - drake[:, 1:]).max() < 1e-9
