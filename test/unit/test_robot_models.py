@@ -132,6 +132,14 @@ def test_the_generic_generators_three_link_agrees_with_the_engines_closed_forms(
         assert np.array_equal(g.relabel(q, dq)[0], bs.relabel(q, dq)[0])
 
 
+def test_the_committed_three_link_module_is_what_the_generator_writes():
+    pytest.importorskip("sympy")
+    from biped_sim.config import codegen
+    committed = models.ROBOTS_DIR.parents[1] / "engine" / "_gen" / "models" / "three_link.py"
+    assert codegen.generate_source(models.load_description("three_link")) == committed.read_text(), \
+        "run make generate (tools/generate_models.py)"
+
+
 def test_a_users_description_is_generated_once_and_cached(tmp_path, monkeypatch):
     pytest.importorskip("sympy")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
