@@ -5,7 +5,7 @@ STAMP   := $(VENV)/.installed
 DEV_STAMP := $(VENV)/.installed-dev
 PYTHON  ?= $(shell command -v python3.11 || command -v python3)
 
-.PHONY: venv venv-dev demo test bench generate docs-figures clean-venv
+.PHONY: venv venv-dev venv-drake demo test bench generate docs-figures clean-venv
 
 # venv: what a run needs (requirements.txt); venv-dev adds the tests, ruff, colcon and Ray
 # (requirements-dev.txt), which `make test` installs and `make demo` does not
@@ -46,9 +46,23 @@ test: $(DEV_STAMP)
 	$(PY) -m pytest -q test
 
 # mujoco: for benchmarks/bench_mujoco.py only (MuJoCo side by side), installed here and nowhere else.
+# pin (Pinocchio, 382 MB installed, 0.3 s to import): test/unit/test_robot_models.py's cross-check of the
+# shipped robots' dynamics, which make test skips without it; make bench installs it and runs that check.
+# Drake side by side (benchmarks/bench_drake.py) runs when .venv-drake exists (make venv-drake).
 bench: $(DEV_STAMP)
 	@$(PY) -c "import mujoco" 2>/dev/null || $(VENV)/bin/uv pip install -q --python $(PY) mujoco==4.0.0
+	@$(PY) -c "import pinocchio" 2>/dev/null || $(VENV)/bin/uv pip install -q --python $(PY) pin==4.1.0
+	$(PY) -m pytest -q -p no:cacheprovider test/unit/test_robot_models.py -k pinocchio
 	$(PY) -m benchmarks.bench
+
+# drake 1.58 (pydrake.examples.CompassGait, for benchmarks/bench_drake.py) installs from PyPI for Python 3.12
+# only: a venv of its own, never part of make test
+DRAKE_PYTHON ?= $(shell command -v python3.12 || echo /root/.pyenv/versions/3.12.1/bin/python)
+venv-drake: .venv-drake/.installed
+.venv-drake/.installed:
+	@test -x .venv-drake/bin/python || $(DRAKE_PYTHON) -m venv .venv-drake
+	.venv-drake/bin/python -m pip install -q drake==1.58.0
+	@touch $@
 
 # Regenerate every figure of docs/ from the command its page names (tools/docs_figures.py; a few minutes,
 # not part of `make test`): work_precision.png and accuracy.md's tables (biped-sim accuracy), the table of
@@ -59,11 +73,13 @@ docs-figures: $(STAMP)
 	$(PY) tools/docs_figures.py
 
 # Regenerate biped_sim/engine/_gen/closed_forms.py from the energies (needs sympy, installed here only),
+# the shipped robots' modules biped_sim/engine/_gen/models/*.py and URDFs (tools/generate_models.py),
 # biped_sim/engine/_gen/rk_steps.py (the unrolled Runge-Kutta steps) from scipy's tableaux, and from both
 # their compiled twin biped_sim/engine/_gen/_cmodel.c; then rebuild the twin.
 generate: $(STAMP)
 	@$(PY) -c "import sympy" 2>/dev/null || $(VENV)/bin/uv pip install -q --python $(PY) sympy==1.14.0
 	$(PY) tools/generate_model.py
+	$(PY) tools/generate_models.py
 	$(PY) tools/generate_rk.py
 	$(PY) tools/generate_c.py
 	$(MAKE) --always-make venv

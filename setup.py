@@ -8,6 +8,8 @@ setup(
     name=package_name,
     version="0.1.0",
     packages=find_packages(exclude=["test", "test.*", "benchmarks", "benchmarks.*"]),
+    # the shipped robot descriptions (biped_sim/config/models.py)
+    package_data={"biped_sim.config": ["robots/*.yaml", "robots/*.urdf"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
@@ -47,6 +49,8 @@ setup(
         # torque laws written in Python run compiled in the loop (biped_sim/control/compiled_laws.py): numba
         # and llvmlite, about 210 MB installed; without them such a law runs as plain Python (docs/controllers.md)
         "numba": ["numba"],
+        # a user's robot description generated on first use (biped_sim/config/codegen.py; docs/models.md)
+        "models": ["sympy"],
     },
     # the test environment (pytest, the independent bag readers, colcon, ruff, Ray) is pinned in requirements-dev.txt
     zip_safe=True,

@@ -33,6 +33,8 @@ _PUBLIC = {
     "torque_law": "biped_sim.control.compiled_laws", "TorqueLaw": "biped_sim.control.compiled_laws",
     "find_gait": "biped_sim.analysis.gait",
     "load_run": "biped_sim.recording.loaded_run", "RecordedRun": "biped_sim.recording.loaded_run",
+    "load_model": "biped_sim.config.models", "RobotDescription": "biped_sim.engine.description",
+    "GeneratedModel": "biped_sim.engine.generated_model",
 }
 __all__ = list(_PUBLIC)
 

@@ -170,7 +170,7 @@ PARAMETERS = [
     Param("bag_dir", str, "bags", "folder for bags; each run records to <bag_dir>/<scene>-<UTC time>/"),
 ] + [
     Param(f"model.{name}", float, float(getattr(_defaults, name)), f"model parameter {name} (SI)",
-          0.0 if name == "g" else 1e-9, 1e9)
+          0.0 if name in ("g", "I_torso", "I_leg", "l_torso") else 1e-9, 1e9)
     for name in ("m_torso", "I_torso", "l_torso", "m_leg", "I_leg", "l_leg", "g")
 ] + [
     # 0 stands for "half the link" (a ROS parameter has one type and no None), so that a scene that

@@ -125,11 +125,17 @@ class BipedParameters:
             if f.name == "g":
                 if v < 0:
                     raise ValueError(f"parameter g must be >= 0, got {v}")
-            elif f.name in ("c_torso", "c_leg"):
+            elif f.name in ("c_torso", "c_leg", "I_torso", "I_leg", "l_torso"):
                 if v < 0:
                     raise ValueError(f"parameter {f.name} must be >= 0, got {v}")
             elif v <= 0:
                 raise ValueError(f"parameter {f.name} must be positive, got {v}")
+        # a point-mass link (I = 0) is fine while its angle still moves mass: D stays positive definite
+        # exactly when every link has I + m c^2 > 0 (the legs' and the torso's absolute angles each carry it)
+        for link in ("torso", "leg"):
+            if getattr(self, f"I_{link}") + getattr(self, f"m_{link}") * getattr(self, f"c_{link}") ** 2 <= 0:
+                raise ValueError(f"parameters I_{link} = 0 and c_{link} = 0: the {link}'s angle would move no mass "
+                                 f"and D would be singular; give I_{link} > 0 or c_{link} > 0")
 
     def as_tuple(self) -> tuple:
         return tuple(float(getattr(self, n)) for n in gen.PARAMETER_NAMES)

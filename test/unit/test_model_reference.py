@@ -196,7 +196,7 @@ def test_bad_input_is_a_clear_value_error(model, bad, match):
 
 
 @pytest.mark.parametrize("override, match", [
-    (dict(m_leg=0.0), "m_leg must be positive"), (dict(l_torso=-1.0), "l_torso must be positive"),
+    (dict(m_leg=0.0), "m_leg must be positive"), (dict(l_torso=-1.0), "l_torso must be >= 0"),
     (dict(I_torso=float("nan")), "I_torso must be a finite number"), (dict(leg_mass=1.0), "unknown model parameter"),
 ])
 def test_bad_model_parameters(override, match):

@@ -1,0 +1,130 @@
+"""Robots by name or file: ``load_model("compass_gait")``, ``load_model("my_robot.urdf")`` (docs/models.md).
+
+Owns the shipped robot descriptions (``biped_sim/config/robots/<name>.yaml`` and ``.urdf``), the reading
+of a description file (the compact YAML form or a planar URDF), and where a description's generated
+dynamics come from: a shipped model's module is generated at build time (``make generate``:
+``biped_sim/engine/_gen/models/<name>.py``); a user's is generated on first use with sympy (the optional
+extra ``biped_sim[models]``) and cached under ``$XDG_CACHE_HOME/biped_sim/models`` (default
+``~/.cache/biped_sim/models``), keyed by a hash of the description.
+"""
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import os
+from pathlib import Path
+
+import yaml
+
+from biped_sim.engine.description import (
+    DescriptionError,
+    RobotDescription,
+    description_from_dict,
+    description_from_urdf,
+)
+
+ROBOTS_DIR = Path(__file__).resolve().parent / "robots"
+SHIPPED = ("three_link", "compass_gait", "three_link_hip_mass", "rabbit")
+
+#: the shipped robots today's three-link engine runs, as ``BipedModel`` keyword arguments: the torso
+#: carries the hip mass. compass_gait: a 10 kg torso with its centre at the hip (c_torso = 0, so its angle
+#: never acts on the legs; its inertia only keeps D positive definite), point-mass legs (I_leg = 0).
+#: three_link_hip_mass: the hip mass (15 kg) and the torso's point mass (10 kg, 0.5 m up) as one body of
+#: 25 kg, centre 0.2 m up, inertia 1.5 kg m^2 about it; point-mass legs. The YAML files say the same.
+THREE_LINK_PARAMETERS = {
+    "three_link": {},
+    "compass_gait": dict(m_torso=10.0, I_torso=1.0, l_torso=0.0, c_torso=0.0,
+                         m_leg=5.0, I_leg=0.0, l_leg=1.0, c_leg=0.5, g=9.81),
+    "three_link_hip_mass": dict(m_torso=25.0, I_torso=1.5, l_torso=0.5, c_torso=0.2,
+                                m_leg=5.0, I_leg=0.0, l_leg=1.0, c_leg=0.5, g=9.81),
+}
+
+
+def _fail_line(text):
+    raise ValueError(text)
+
+
+def description_path(name_or_path) -> Path:
+    text = str(name_or_path)
+    if text in SHIPPED:
+        return ROBOTS_DIR / f"{text}.yaml"
+    p = Path(text)
+    if p.suffix.lower() in (".yaml", ".yml", ".urdf") or p.parent != Path("."):
+        if not p.is_file():
+            _fail_line(f"robot description {text!r} does not exist: give a .yaml or .urdf file, or a shipped "
+                       f"model: {', '.join(SHIPPED)}")
+        return p
+    _fail_line(f"unknown model {text!r}; shipped: {', '.join(SHIPPED)}, or give a path to a .yaml or .urdf file")
+
+
+def load_description(name_or_path) -> RobotDescription:
+    """The :class:`RobotDescription` of a shipped name or a description file (.yaml, .yml, .urdf)."""
+    p = description_path(name_or_path)
+    if p.suffix.lower() == ".urdf":
+        return description_from_urdf(str(p))
+    try:
+        data = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" (line {mark.line + 1})" if mark else ""
+        raise DescriptionError(f"robot description {p}: not valid YAML{where}: "
+                               f"{getattr(e, 'problem', None) or e}") from None
+    return description_from_dict(data, str(p))
+
+
+def cache_dir() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "biped_sim" / "models"
+
+
+def _import_file(name, path):
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def dynamics_module(desc: RobotDescription):
+    """The generated module of ``desc``: the shipped one when it matches, else the cached one, else generated
+    now (needs sympy; one ValueError line without it)."""
+    from biped_sim.config import codegen
+    try:
+        module = importlib.import_module(f"biped_sim.engine._gen.models.{desc.name}")
+        if module.DIGEST == desc.digest() and module.GENERATOR_VERSION == codegen.GENERATOR_VERSION:
+            return module
+    except ImportError:
+        pass
+    path = cache_dir() / f"{desc.name}-{desc.digest()}-g{codegen.GENERATOR_VERSION}.py"
+    if not path.is_file():
+        if codegen._sympy() is None:
+            _fail_line(f"robot description {desc.source or desc.name}: its dynamics are generated on first use "
+                       "with sympy, which is not installed: pip install 'biped_sim[models]' (or sympy)")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(codegen.generate_source(desc))
+        os.replace(tmp, path)          # another process may generate the same file: the last rename wins
+    return _import_file(f"biped_sim_model_{desc.name}_{desc.digest()}", path)
+
+
+def generated_model(name_or_path):
+    """The :class:`~biped_sim.engine.generated_model.GeneratedModel` of any description (shipped ones too)."""
+    from biped_sim.engine.generated_model import GeneratedModel
+    desc = load_description(name_or_path)
+    model = GeneratedModel(desc, dynamics_module(desc))
+    q = [0.0, 1.0] + [0.3 + 0.1 * i for i in range(desc.n - 2)]
+    model.check_positive_definite(q)
+    return model
+
+
+def load_model(name_or_path):
+    """The model of a shipped name or a description file, accepted wherever a model is today.
+
+    ``three_link``: ``BipedModel()``. ``compass_gait``, ``three_link_hip_mass``: a ``BipedModel`` with their
+    parameters (:data:`THREE_LINK_PARAMETERS`), which the engine runs. ``rabbit`` and a user's
+    description: a :class:`~biped_sim.engine.generated_model.GeneratedModel` (its dynamics; the engine
+    refuses it in one line until it runs chains other than three links).
+    """
+    if isinstance(name_or_path, str) and name_or_path in THREE_LINK_PARAMETERS:
+        from biped_sim.engine.model import BipedModel
+        return BipedModel(**THREE_LINK_PARAMETERS[name_or_path])
+    return generated_model(name_or_path)

@@ -1,0 +1,161 @@
+"""The dynamics of any described robot, from its generated module: D, C, G, B, contact points, J, Jdot, R.
+
+Owns :class:`GeneratedModel`, which evaluates a module written by :mod:`biped_sim.config.codegen` for a
+:class:`~biped_sim.engine.description.RobotDescription` and solves the phases of docs/model.md for N
+coordinates with numpy: stance on contact c, ``[D -J_c^T; J_c 0] [ddq; F] = [-C dq - G + B u; -Jdot_c dq]``;
+the impact of contact c, ``[D -J_c^T; J_c 0] [dq+; F_imp] = [D dq-; 0]``; the relabeling R (a permutation
+from the description's mirror, R R = I). The hybrid engine runs the three-link chain only (BipedModel):
+a GeneratedModel given to it is refused with one line (:data:`ENGINE_REFUSAL`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from biped_sim.engine.description import RobotDescription
+from biped_sim.engine.model import as_state_vector
+
+ENGINE_REFUSAL = ("model {name!r} ({n} coordinates) cannot be simulated yet: the hybrid engine runs the "
+                  "three-link chain only (BipedModel; bs.load_model gives one for three_link, compass_gait and "
+                  "three_link_hip_mass) until the generic engine lands; its dynamics are available: "
+                  "mass_matrix, bias_forces, contact_jacobian, stance_dynamics, impact_map (docs/models.md)")
+
+
+class EngineCannotRun(ValueError):
+    """A model the hybrid engine cannot simulate yet."""
+
+
+class GeneratedModel:
+    """A described robot's dynamics. ``contact`` arguments are a contact point's name or its 1-based index."""
+
+    def __init__(self, description: RobotDescription, module):
+        if module.DIGEST != description.digest():
+            raise ValueError(f"the generated module of {description.name!r} is of another description "
+                             f"({module.DIGEST} != {description.digest()}): regenerate it")
+        self.description = description
+        self.module = module
+        self.name = description.name
+        self.n = description.n
+        self.coordinates = description.coordinates
+        self.contacts = tuple(module.CONTACTS)
+        self.B = np.array(module.B, dtype=float).reshape(self.n, len(module.ACTUATED))
+        self.relabeling = tuple(module.RELABELING)
+        self.total_mass = module.TOTAL_MASS
+
+    def __repr__(self):
+        return f"GeneratedModel({self.name!r}, n={self.n}, contacts={self.contacts})"
+
+    @property
+    def engine_refusal(self) -> str:
+        """Why the hybrid engine cannot run this model (``simulate`` raises it)."""
+        return ENGINE_REFUSAL.format(name=self.name, n=self.n)
+
+    # what the engine reads of a model first: refuse there too, in one line, instead of deep inside a step
+    @property
+    def p(self):
+        raise EngineCannotRun(self.engine_refusal)
+
+    k = p
+
+    def _q(self, q):
+        return as_state_vector(q, "q", self.n).tolist()
+
+    def _qdq(self, q, dq):
+        return as_state_vector(q, "q", self.n).tolist(), as_state_vector(dq, "dq", self.n).tolist()
+
+    def contact_index(self, contact) -> int:
+        if isinstance(contact, str):
+            if contact not in self.contacts:
+                raise ValueError(f"{self.name} has no contact point {contact!r}; it has {', '.join(self.contacts)}")
+            return self.contacts.index(contact)
+        if isinstance(contact, bool) or contact not in range(1, len(self.contacts) + 1):
+            raise ValueError(f"contact must be a name ({', '.join(self.contacts)}) or 1..{len(self.contacts)}, "
+                             f"got {contact!r}")
+        return int(contact) - 1
+
+    # -- dynamics terms ------------------------------------------------------------------------------
+    def mass_matrix(self, q) -> np.ndarray:
+        return np.array(self.module.mass_matrix(self._q(q))).reshape(self.n, self.n)
+
+    def coriolis(self, q, dq) -> np.ndarray:
+        return np.array(self.module.coriolis_matrix(*self._qdq(q, dq))).reshape(self.n, self.n)
+
+    def gravity(self, q) -> np.ndarray:
+        return np.array(self.module.gravity_vector(self._q(q)))
+
+    def bias_forces(self, q, dq) -> np.ndarray:
+        return np.array(self.module.bias_forces(*self._qdq(q, dq)))
+
+    def contact_position(self, q, contact) -> np.ndarray:
+        i = self.contact_index(contact)
+        return np.array(self.module.contact_positions(self._q(q))[2 * i: 2 * i + 2])
+
+    def contact_jacobian(self, q, contact) -> np.ndarray:
+        i, w = self.contact_index(contact), 2 * self.n
+        return np.array(self.module.contact_jacobians(self._q(q))[w * i: w * i + w]).reshape(2, self.n)
+
+    def contact_jacobian_dot(self, q, dq, contact) -> np.ndarray:
+        i, w = self.contact_index(contact), 2 * self.n
+        return np.array(self.module.contact_jacobian_dots(*self._qdq(q, dq))[w * i: w * i + w]).reshape(2, self.n)
+
+    def contact_velocity(self, q, dq, contact) -> np.ndarray:
+        i = self.contact_index(contact)
+        return np.array(self.module.contact_velocities(*self._qdq(q, dq))[2 * i: 2 * i + 2])
+
+    def energy(self, q, dq) -> float:
+        T, V = self.module.energy(*self._qdq(q, dq))
+        return T + V
+
+    def kinetic_energy(self, q, dq) -> float:
+        return self.module.energy(*self._qdq(q, dq))[0]
+
+    def potential_energy(self, q) -> float:
+        return self.module.energy(self._q(q), [0.0] * self.n)[1]
+
+    def com_position(self, q) -> np.ndarray:
+        return np.array(self.module.com_position(self._q(q)))
+
+    def segments(self, q) -> np.ndarray:
+        """Each link's joint and tip: an array (links, 2 points, xy), the drawing of any chain."""
+        return np.array(self.module.segments(self._q(q))).reshape(-1, 2, 2)
+
+    # -- phases --------------------------------------------------------------------------------------
+    def relabel(self, q, dq):
+        """R q, R dq: the mirror's links swapped (R R = I)."""
+        q, dq = self._qdq(q, dq)
+        r = self.relabeling
+        return np.array([q[i] for i in r]), np.array([dq[i] for i in r])
+
+    def flight_dynamics(self, q, dq, u) -> np.ndarray:
+        """ddq of ``D ddq + C dq + G = B u``."""
+        u = as_state_vector(u, "u", self.B.shape[1])
+        return np.linalg.solve(self.mass_matrix(q), self.B @ u - self.bias_forces(q, dq))
+
+    def stance_dynamics(self, q, dq, u, contact=1):
+        """(ddq, F): the KKT system of stance on ``contact`` (its point pinned)."""
+        u = as_state_vector(u, "u", self.B.shape[1])
+        n = self.n
+        J = self.contact_jacobian(q, contact)
+        K = np.zeros((n + 2, n + 2))
+        K[:n, :n], K[:n, n:], K[n:, :n] = self.mass_matrix(q), -J.T, J
+        rhs = np.concatenate([self.B @ u - self.bias_forces(q, dq),
+                              -self.contact_jacobian_dot(q, dq, contact) @ np.asarray(dq, dtype=float)])
+        x = np.linalg.solve(K, rhs)
+        return x[:n], x[n:]
+
+    def impact_map(self, q, dq, contact=2):
+        """(dq+, F_imp): the rigid plastic impact of ``contact`` (before relabeling)."""
+        n = self.n
+        D = self.mass_matrix(q)
+        J = self.contact_jacobian(q, contact)
+        K = np.zeros((n + 2, n + 2))
+        K[:n, :n], K[:n, n:], K[n:, :n] = D, -J.T, J
+        x = np.linalg.solve(K, np.concatenate([D @ as_state_vector(dq, "dq", n), np.zeros(2)]))
+        return x[:n], x[n:]
+
+    def check_positive_definite(self, q) -> None:
+        """ValueError unless D(q) is positive definite (a link with no mass or inertia where it needs one)."""
+        w = np.linalg.eigvalsh(self.mass_matrix(q))
+        if not w[0] > 1e-12 * max(w[-1], 1.0):
+            raise ValueError(f"robot description {self.name}: D is not positive definite (smallest eigenvalue "
+                             f"{w[0]:.3g}): a link's angle moves no mass and no inertia; give it an inertia or "
+                             "move its centre of mass off its joint")

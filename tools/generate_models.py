@@ -1,0 +1,38 @@
+#!/usr/bin/env python3
+"""Generate the shipped robots' dynamics modules and URDFs from their YAML descriptions (docs/models.md).
+
+For each name of biped_sim.config.models.SHIPPED: biped_sim/engine/_gen/models/<name>.py (the generic
+generator, biped_sim/config/codegen.py; needs sympy) and biped_sim/config/robots/<name>.urdf (the same
+description as a planar URDF, biped_sim.engine.description.to_urdf, read back and checked equal).
+Run by ``make generate``; the package never generates a shipped model at run time.
+"""
+import pathlib
+import sys
+import time
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
+
+from biped_sim.config import codegen, models  # noqa: E402
+from biped_sim.engine.description import description_from_urdf, to_urdf  # noqa: E402
+
+OUT = pathlib.Path(__file__).resolve().parent.parent / "biped_sim" / "engine" / "_gen" / "models"
+
+
+def main(names):
+    OUT.mkdir(exist_ok=True)
+    init = OUT / "__init__.py"
+    if not init.exists():
+        init.write_text('"""Generated dynamics of the shipped robots (tools/generate_models.py); do not edit."""\n')
+    for name in names:
+        t = time.perf_counter()
+        desc = models.load_description(name)
+        urdf = to_urdf(desc)
+        back = description_from_urdf(urdf, name=desc.name)
+        assert back.structure() == desc.structure(), f"{name}: the URDF does not read back to the YAML's description"
+        (models.ROBOTS_DIR / f"{name}.urdf").write_text(urdf)
+        (OUT / f"{name}.py").write_text(codegen.generate_source(desc))
+        print(f"{name}: {desc.n} coordinates, {len(desc.contacts)} contacts, {time.perf_counter() - t:.1f} s")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:] or models.SHIPPED)
