@@ -21,8 +21,9 @@ ROSDEP_KEY = {"numpy": "python3-numpy", "scipy": "python3-scipy", "PyYAML": "pyt
               "lz4": "python3-lz4", "pillow": "python3-pil", "tqdm": "python3-tqdm"}
 # optional extras that rosdep has no key for: declared in setup.py's extras_require only (a ROS user
 # installs them with pip when wanted); package.xml cannot say "optional"
-# [ray]: the sweep's Ray backend; [video]: MP4; [numba]: torque laws compiled in the loop
-NO_ROSDEP_KEY = {"ray", "imageio-ffmpeg", "numba"}
+# [ray]: the sweep's Ray backend; [video]: MP4; [numba]: torque laws compiled in the loop; [models]: sympy
+# for a user's robot description
+NO_ROSDEP_KEY = {"ray", "imageio-ffmpeg", "numba", "sympy"}
 # optional extras that need not be installed here: {module: distribution}, checked against extras_require
 OPTIONAL_MAY_BE_ABSENT = {"imageio_ffmpeg": "imageio-ffmpeg",   # biped-sim animate -o x.mp4
                           "pandas": "pandas"}                    # RecordedRun.to_dataframe
