@@ -314,15 +314,13 @@ def gaits_along(scene, parameter, values, jacobian=EXACT):
 
 def compass_gait(**newton) -> Gait:
     """The passive compass gait (Drake's CompassGait defaults: hip mass 10 kg, legs of 1 m with 5 kg point
-    masses at 0.5 m, slope 0.0525 rad) as a special case of this model: the torso a 10 kg mass at the hip
-    (c_torso = 0; its inertia, 1 kg m^2, is a free rotor there, since no torque acts on it with u = 0),
-    the legs' inertia about their centres 1e-10 kg m^2 (the model takes none that is zero), no torque.
-    The swing foot passes under the ground behind the stance foot (scuff_rule "behind"), as the compass
-    gait's does. Its five multipliers are the compass gait's three and the torso rotor's two, at 1 (its
-    angle and rate are neutral)."""
-    from biped_sim.engine.model import BipedModel, BipedParameters
-    model = BipedModel(BipedParameters(m_torso=10.0, I_torso=1.0, l_torso=0.5, c_torso=0.0, m_leg=5.0,
-                                       I_leg=1e-10, l_leg=1.0, c_leg=0.5))
+    masses at 0.5 m, slope 0.0525 rad) on ``load_model("compass_gait")``, this model's special case: the
+    torso a 10 kg mass at the hip (c_torso = 0; its inertia, 1 kg m^2, a free rotor there, since no torque
+    acts on it with u = 0), point-mass legs, no torque. The swing foot passes under the ground behind the
+    stance foot (scuff_rule "behind"), as the compass gait's does. Its five multipliers are the compass
+    gait's three and the torso rotor's two, at 1 (its angle and rate are neutral)."""
+    from biped_sim.config.models import load_model
+    model = load_model("compass_gait")
 
     def no_torque(t, q, dq, stance_leg):
         return (0.0, 0.0)
