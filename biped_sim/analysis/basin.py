@@ -21,17 +21,19 @@ from biped_sim.engine.simulate import stance_state
 AXES = ("d_dq_stance", "d_dq_torso")
 
 
-def basin(scene, span=(1.0, 2.0), num=11, duration=None, workers=None, backend="process", progress=None, **run):
+def basin(scene, span=(1.0, 2.0), num=11, duration=None, workers=None, backend="process", progress=None,
+          controller=None, **run):
     """(gait, rows): the gait of ``scene`` and one sweep row per point of the slice, each with the
     point's offsets from z* as ``d_dq_stance`` and ``d_dq_torso`` (rad/s), in row-major order
-    (d_dq_stance slowest). ``span`` = the largest offsets (rad/s), ``num`` points along each axis."""
+    (d_dq_stance slowest). ``span`` = the largest offsets (rad/s), ``num`` points along each axis.
+    ``controller``: yours instead of the scene's (an object, a class or factory, or ``"MODULE:ATTR"``)."""
     if isinstance(num, bool) or not isinstance(num, int) or num < 2:
         raise ValueError(f"num must be an integer >= 2 (points along each axis), got {num!r}")
     spans = [float(s) for s in span]
     if len(spans) != 2 or any(not s > 0 for s in spans):
         raise ValueError(f"span must be two positive rates (rad/s), got {span!r}")
     s = load_scene(scene)
-    gait = scene_gait(s)
+    gait = scene_gait(s, controller=controller)
     z = gait.z
     offsets = [[a * (2 * i - (num - 1)) / (num - 1) for i in range(num)] for a in spans]
     q0, _ = stance_state(s.engine_arguments()["model"], z[0:3], z[3:6], stance_leg=1)
@@ -42,6 +44,8 @@ def basin(scene, span=(1.0, 2.0), num=11, duration=None, workers=None, backend="
             points.append((d_st, d_torso))
             initial_dq.append(dq.tolist())
     grid = {"initial_stance_leg": [1], "initial_q": [q0.tolist()], "initial_dq": initial_dq}
+    if controller is not None:
+        run = dict(run, controller=controller)
     rows = sweep(scene, grid, duration=duration, workers=workers, backend=backend, progress=progress,
                  **dict(dict(hold=False), **run))
     for row, (d_st, d_torso) in zip(rows, points):

@@ -84,6 +84,11 @@ class Gait:
         return self.step_map.jacobian_fd(self.z, U, eps)
 
 
+class NoGait(ValueError):
+    """A step of the map that does not end in the swing foot's touchdown (the controller does not walk from
+    there): there is no step-to-step map to iterate."""
+
+
 class StepMap:
     """The step-to-step map of a controller on the engine (stance leg called leg 1)."""
 
@@ -111,7 +116,7 @@ class StepMap:
         ev = sim.events[-1] if sim.events else None
         if ev is None or ev.kind != "touchdown" or ev.leg != 2:
             why = sim.message or (ev.message if ev else f"no touchdown within {max_time} s")
-            raise RuntimeError(f"the step from z={np.round(z, 6).tolist()} does not end in a touchdown: {why}")
+            raise NoGait(f"the step from z={np.round(z, 6).tolist()} does not end in a touchdown: {why}")
         qe, dqp = ev.q, ev.dq_plus          # leg 2 is the new stance leg: relabel
         return np.array([qe[3], qe[2], qe[4], dqp[3], dqp[2], dqp[4]]), sim
 
@@ -149,7 +154,7 @@ class StepMap:
                          **self.kw)
         kind, leg = r.events[-1][1:] if r.events else (None, None)
         if kind != "touchdown" or leg != 2:
-            raise RuntimeError(f"the step from z={np.round(z, 6).tolist()} does not end in a touchdown of leg 2 "
+            raise NoGait(f"the step from z={np.round(z, 6).tolist()} does not end in a touchdown of leg 2 "
                                f"(events {r.events})")
         return r.jacobian[RELABELED_ROWS], r.law_derivative
 
@@ -169,14 +174,14 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
               jacobian=EXACT, **options) -> Gait:
     """The periodic gait: the fixed point of the step map, its figures and the Floquet multipliers.
 
-    ``scene``: a scene name or a Scene (``load_scene``; its model, controller, slope and touchdown rule), or a
-    BipedModel with ``controller`` (and ``z0``, the initial guess on the section; by default the controller's
+    ``scene``: a scene name or a Scene (``load_scene``; its model, controller, slope and touchdown rule; with
+    ``controller``, yours instead: an object, a class or factory, or ``"MODULE:ATTR"``), or a BipedModel with
+    ``controller`` (and ``z0``, the initial guess on the section; by default the controller's
     ``initial_state``, and ``slope``). ``jacobian``: ``EXACT`` (default) or ``FINITE_DIFFERENCES``, the one
     Newton's method and the multipliers use; ``Gait.jacobian_fd()`` is always at hand as a check."""
     if isinstance(scene, str) or hasattr(scene, "engine_arguments"):
-        if controller is not None:
-            raise ValueError("find_gait(scene) takes the scene's controller; give a model for another controller")
-        return scene_gait(scene, jacobian=jacobian, z0=z0, warmup_steps=warmup_steps, tol=tol, max_iter=max_iter)
+        return scene_gait(scene, jacobian=jacobian, controller=controller, z0=z0, warmup_steps=warmup_steps,
+                          tol=tol, max_iter=max_iter)
     if controller is None:
         raise ValueError("find_gait(model, controller, z0): a model needs a controller")
     if jacobian not in (EXACT, FINITE_DIFFERENCES):
@@ -241,14 +246,24 @@ def _figures(smap, z, eig, residual, iterations) -> Gait:
                 max_torque=float(np.max(np.abs(u))), slope=smap.slope)
 
 
-def scene_gait(scene, jacobian=EXACT, **newton) -> Gait:
-    """The periodic gait of a scene with a controller (a Scene of ``load_scene(...)``, or its name)."""
+def scene_gait(scene, jacobian=EXACT, controller=None, **newton) -> Gait:
+    """The periodic gait of a scene with a controller (a Scene of ``load_scene(...)``, or its name): the
+    scene's, or ``controller`` (an object, a class or factory made on the scene's model, or
+    ``"MODULE:ATTR"``). Newton starts from the controller's ``initial_state()`` if it has one, else from
+    the scene's initial state."""
     if isinstance(scene, str):
         from biped_sim.config.scenes import load_scene
         scene = load_scene(scene)
-    ctrl = scene.controller()
-    if ctrl is None:
-        raise ValueError(f"scene {scene.name!r} has no walk_controller section: there is no gait to find")
+    if controller is None:
+        ctrl = scene.controller()
+        if ctrl is None:
+            raise ValueError(f"scene {scene.name!r} has no walk_controller section: there is no gait to find "
+                             "(give a controller)")
+    else:
+        from biped_sim.config.controllers import make_controller
+        ctrl = make_controller(controller, scene.engine_arguments()["model"])
+    if newton.get("z0") is None and not hasattr(ctrl, "initial_state"):
+        newton["z0"] = np.array(scene.params["initial_q"][2:] + scene.params["initial_dq"][2:], float)
     if scene.params["base"] != "floating" or "impact" not in scene.phases:
         raise ValueError(f"scene {scene.name!r} has no impacts (phases {sorted(scene.phases)}): a gait needs "
                          "the 'impact' phase")
@@ -301,7 +316,7 @@ def gaits_along(scene, parameter, values, jacobian=EXACT):
         try:
             g = find_gait(kw["model"], s.controller(), z0=z, slope=kw["slope"], touchdown_rule=kw["touchdown_rule"],
                           jacobian=jacobian)
-        except (RuntimeError, ValueError, np.linalg.LinAlgError) as exc:
+        except (ValueError, np.linalg.LinAlgError) as exc:     # NoGait among them
             out.append((v, None, str(exc).splitlines()[0]))
             continue
         if g.residual > 1e-8:

@@ -89,8 +89,14 @@ def portable(spec):
     and sent with the folder its module came from, so that a worker started elsewhere imports it too."""
     if isinstance(spec, str):
         obj = import_spec(spec)
-        module = sys.modules[spec.partition(":")[0]]
-        folder = str(Path(module.__file__).resolve().parent) if getattr(module, "__file__", None) else None
+        name = spec.partition(":")[0]
+        module = sys.modules[name]
+        folder = None
+        if getattr(module, "__file__", None):
+            # the folder the top-level package is found in: examples.hzd_bezier in <repo>/examples/ -> <repo>
+            path = Path(module.__file__).resolve()
+            levels = name.count(".") + (path.name == "__init__.py")
+            folder = str(path.parents[levels])
         return ImportedController(spec, folder, obj)
     return spec
 

@@ -7,6 +7,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import biped_sim as bs
@@ -125,3 +126,30 @@ def test_the_minimal_controller_node_is_the_one_docs_node_shows():
     page = (root / "docs" / "node.md").read_text()
     shown = page.split("### A controller node of your own", 1)[1].split("```py\n", 1)[1].split("```", 1)[0]
     assert shown == (root / "examples" / "minimal_controller.py").read_text()
+
+
+ROOT = Path(__file__).resolve().parents[2]
+HZD = "examples.hzd_bezier:hzd_controller"
+
+
+def test_gait_and_basin_take_your_controller(monkeypatch, tmp_path):
+    """find_gait(scene, controller=...) and basin(..., controller=...) with the HZD law of examples/ (its
+    Bezier coefficients are fitted to the reference law's outputs: the walk scene's own gait); the basin's
+    workers, started elsewhere, import examples.hzd_bezier from the folder it was found in."""
+    monkeypatch.syspath_prepend(str(ROOT))
+    monkeypatch.chdir(tmp_path)
+    from biped_sim.analysis.basin import basin
+    own = bs.find_gait("walk")
+    hzd = bs.find_gait("walk", controller=HZD)
+    assert hzd.stable and np.allclose(hzd.fixed_point, own.fixed_point, atol=1e-6)
+    gait, rows = basin("walk", span=(0.2, 0.2), num=2, duration=1.2, workers=1, controller=HZD)
+    assert np.allclose(gait.fixed_point, hzd.fixed_point, atol=1e-9)
+    assert [r["status"] for r in rows] == ["completed"] * 4 and all(r["impacts"] >= 1 for r in rows)
+    sys.modules.pop("examples.hzd_bezier", None)
+    sys.modules.pop("examples", None)
+
+
+def test_a_controller_that_does_not_walk_has_no_gait_in_one_line(user_folder):
+    run = cli("gait", "--scene", "walk", "--controller", "my_controllers:HipPD", cwd=user_folder)
+    assert run.returncode == 1 and run.stdout.startswith("scene walk: no periodic gait: the step from z="), run.stdout
+    assert run.stdout.count("\n") == 1 and not run.stderr
