@@ -110,7 +110,12 @@ def test_the_command_line_takes_your_controller_from_the_current_folder(user_fol
               "my_controllers:HipPD", "-o", str(out), "--workers", "1", "--no-progress", cwd=user_folder)
     assert run.returncode == 0, run.stderr
     assert out.read_text().splitlines()[0].startswith("index,controller.kp,status")
+    gif = user_folder / "pd.gif"
+    run = cli("animate", "--scene", "walk", "--controller", "my_controllers:HipPD", "--duration", "0.2", "-o", str(gif),
+              "-q", cwd=user_folder)
+    assert run.returncode == 0 and gif.stat().st_size > 0, run.stderr
     bad = cli("simulate", "--scene", "walk", "--controller", "my_controllers:Nope", cwd=user_folder)
+
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "has no 'Nope'" in bad.stderr, bad.stderr
 
 
