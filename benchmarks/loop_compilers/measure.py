@@ -118,7 +118,7 @@ def hand_loop(case):
 
 
 def begin_hand(loop, case):
-    loop.begin(0, case["leg"], 0.0, 0.0, 0, case["u"][0], case["u"][1], None, 0.0, case["q"] + case["dq"] + [0.0], 1e9,
+    loop.begin(0, case["leg"], 0.0, 0.0, None, case["u"][0], case["u"][1], 0.0, case["q"] + case["dq"] + [0.0], 1e9,
                case["h_abs"], True)
 
 

@@ -26,7 +26,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from biped_sim.engine import loop_rules as rules
 from biped_sim.engine.compiled import gen
+from biped_sim.engine.loop_state import RESULT, new_state
 
 
 class FootState(NamedTuple):
@@ -119,15 +121,20 @@ def passes_through(swing: FootState, stance: FootState, opt) -> bool:
 
 
 # -- locating a crossing -----------------------------------------------------------------------
+def _guard(S, guard_at, t):
+    """A Python function of t as the rules call a guard: g(S, ctx, t), ctx the function."""
+    return guard_at(t)
+
+
 def locate_crossing(guard_at, ta, tb, event_tol) -> float:
     """The time in [ta, tb] where ``guard_at`` (positive at ta, <= 0 at tb) crosses zero, to
-    ``event_tol`` seconds (an end of the bracket where the guard is already zero there)."""
-    ga, gb = guard_at(ta), guard_at(tb)
-    if gb == 0.0:
-        return tb
-    if ga <= 0:
-        return ta
-    from scipy.optimize import brentq  # here: its import (~0.4 s) is paid by runs that locate an event
+    ``event_tol`` seconds (an end of the bracket where the guard is already zero there): the rule
+    ``loop_rules.ev_locate_crossing`` (scipy's brentq, the same iterates), which the compiled loop runs
+    compiled. Where brentq gives up (no sign change, a NaN, no convergence) scipy's raises its error."""
+    S = new_state(event_tol=event_tol)
+    if rules.ev_locate_crossing(S, _guard, guard_at, ta, tb) == 0:
+        return float(S[RESULT])
+    from scipy.optimize import brentq  # here: its import (~0.4 s) is paid by a run whose root finder gives up
     return brentq(guard_at, ta, tb, xtol=event_tol, rtol=4 * np.finfo(float).eps, maxiter=200)
 
 
