@@ -3,13 +3,13 @@ requirements-dev.txt pins: nothing else needs it, setup.py builds the committed 
 
   * biped_sim/engine/_loop_state.h and _loop_state.pxd: the state's offsets and struct members, from the
     declaration in biped_sim/engine/loop_state.py;
-  * biped_sim/engine/_loop_rules.c and _loop_rules_api.h: biped_sim/engine/loop_rules.py (with its
-    augmenting loop_rules.pxd) compiled by Cython's pure-Python mode as the module
-    ``biped_sim.engine._loop_rules`` (a name apart from the .py, which stays the Python loop's code: a
-    compiled module beside it would hide it). Its first line carries SOURCES_SHA256, the digest of the
-    sources it was made from; test/unit/test_loop_rules.py recomputes it, so the committed C cannot go stale.
+  * biped_sim/engine/_loop_rules.c: biped_sim/engine/loop_rules.py (with its augmenting loop_rules.pxd)
+    compiled by Cython's pure-Python mode, under the module name ``biped_sim.engine._loop_rules`` (a name
+    apart from the .py, which stays the Python loop's code). The compiled loop's _core.c includes it and
+    calls its public functions. Its first line carries SOURCES_SHA256, the digest of the sources it was
+    made from; test/unit/test_loop_rules.py recomputes it, so the committed C cannot go stale.
 
-    python tools/generate_loop.py           # write the four files
+    python tools/generate_loop.py           # write the three files
     python tools/generate_loop.py --check   # exit 1 if a committed file is not what the sources give
 """
 from __future__ import annotations
@@ -54,7 +54,7 @@ def state_files() -> dict:
 
 
 def cythonize() -> dict:
-    """{path: text} of _loop_rules.c and _loop_rules_api.h, made by Cython in a scratch copy of the package
+    """{path: text} of _loop_rules.c, made by Cython in a scratch copy of the package
     (so that the module is biped_sim.engine._loop_rules and Cython finds its augmenting .pxd)."""
     with tempfile.TemporaryDirectory() as tmp:
         pkg = Path(tmp) / "biped_sim" / "engine"
@@ -66,8 +66,7 @@ def cythonize() -> dict:
         subprocess.run([sys.executable, "-m", "cython", "-3", "-I", str(ROOT), "biped_sim/engine/_loop_rules.py",
                         "-o", "_loop_rules.c"], cwd=tmp, check=True)
         digest = DIGEST_LINE.format(digest=sources_digest(), names=",".join(RULE_SOURCES))
-        return {ENGINE / "_loop_rules.c": digest + (Path(tmp) / "_loop_rules.c").read_text(),
-                ENGINE / "_loop_rules_api.h": (Path(tmp) / "_loop_rules_api.h").read_text()}
+        return {ENGINE / "_loop_rules.c": digest + (Path(tmp) / "_loop_rules.c").read_text()}
 
 
 def main(argv=None):

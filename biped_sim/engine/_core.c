@@ -20,6 +20,13 @@
  * the hook's glue) follow their Python lines operation for operation (named beside each), so
  * that a run gives the same bits on both paths (test/unit/test_compiled_loop.py).
  */
+/* The rules written once (loop_rules.py: the step with its error control, the dense output, a foot's height,
+ * the dip search, brentq), compiled by Cython into the committed _loop_rules.c (tools/generate_loop.py), are
+ * part of this translation unit: the loop calls them by name (rk_step, rk_dense_at, ev_may_dip...) on its
+ * state, and the compiler sees them with the loop's right-hand side (docs/engine.md, "The core"). They
+ * include _gen/_kernels.h and _loop_state.h. */
+#include "_loop_rules.c"
+
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <structmember.h>
@@ -27,9 +34,6 @@
 #include <time.h>
 #include <string.h>
 
-#include "_gen/_kernels.h"
-#include "_loop_state.h"
-#include "_loop_rules_api.h"   /* the rules (loop_rules.py, compiled: _loop_rules.c): step, dense output, dip, brentq */
 
 #define N 11                 /* the floating base's integrated state: q (5), dq (5), motor work */
 #define MAX_STAGES 13        /* dop853's k0..k12 */
@@ -1548,8 +1552,6 @@ PyMODINIT_FUNC
 PyInit__core(void)
 {
     if (PyType_Ready(&LoopType) < 0) return NULL;
-    /* the compiled rules (biped_sim.engine._loop_rules), imported for their C functions */
-    if (import_biped_sim__engine___loop_rules() < 0) return NULL;
     PyObject **names[] = {&a_E0, &a_push_work, &a_energy_lost, &a_samples, &a_data, &a_n, &a_appended, &a_provisional,
                           &a_every, &a_keep, &a_status, &a_running, &a_initial_sample_pending, &a_control_periods,
                           &a_h, &a_u, &a_t, &a_work, &a__q, &a__dq, &a_copy, &a_locator,

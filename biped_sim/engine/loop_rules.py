@@ -92,6 +92,7 @@ def rk_step(S, fun, ctx):
     dop853: cython.bint = S[METHOD] == 0.0
     exponent: cython.double = -1.0 / 8 if dop853 else -1.0 / 5     # -1 / (the error estimator's order + 1)
     evaluations: cython.double = 12.0 if dop853 else 6.0           # a step's (dopri5's last is the next f)
+    stages: cython.Py_ssize_t = 13 if dop853 else 7                 # k0..k12, k0..k6
     rejected: cython.bint = False
     h: cython.double
     err: cython.double
@@ -147,7 +148,7 @@ def rk_step(S, fun, ctx):
     S[H] = h
     S[T] = t + h if h < remaining else S[T_BOUND]
     k_copy(S, Y, OUT, 2 * NMAX)                             # y_new and f_new: Y and F are next to each other
-    k_copy(S, STAGES, OUT + 2 * NMAX + 1, 13 * NMAX)
+    k_copy(S, STAGES, OUT + 2 * NMAX + 1, stages * NMAX)
     S[DENSE_READY] = 0.0
     return 0
 
@@ -208,29 +209,27 @@ def ev_dip_coefficients(S, leg):
     c: cython.Py_ssize_t
     p: cython.Py_ssize_t
     j: cython.Py_ssize_t
-    col: cython.Py_ssize_t
     r: cython.Py_ssize_t
     s: cython.double
-    s0: cython.double = 0.0
     hi: cython.double = S[T] - S[T_OLD]
-    for p in range(8):
-        for c in range(4):
-            col = 1 + leg if c == 0 else 4 if c == 1 else c - 2
-            if S[METHOD] == 0.0:
-                r = DENSE + 8 * col
+    dop853: cython.bint = S[METHOD] == 0.0
+    for c in range(4):      # the entries of y: the leg's angle, the torso's, the hip's x, y
+        r = DENSE + (8 if dop853 else 5) * (1 + leg if c == 0 else 4 if c == 1 else c - 2)
+        for p in range(8):
+            if dop853:      # TO_POWER_BASIS @ the row
                 s = 0.0
                 for j in range(8):
                     s += S[TO_POWER_BASIS + 8 * p + j] * S[r + j]
-            elif p == 0:
-                s = S[DENSE + 5 * col]
+            elif p == 0:    # dopri5: y, then h q1 .. h q4
+                s = S[r]
             elif p < 5:
-                s = hi * S[DENSE + 5 * col + p]
+                s = hi * S[r + p]
             else:
                 s = 0.0
-            if c == 0:
-                s0 = s
+            if c == 0:      # (kept until the torso's is known)
+                S[COEF + 3 * p] = s
             elif c == 1:
-                S[COEF + 3 * p] = fabs(s0 + s)
+                S[COEF + 3 * p] = fabs(S[COEF + 3 * p] + s)
             else:
                 S[COEF + 3 * p + c - 1] = fabs(s)
 
