@@ -19,10 +19,19 @@ Python raises).
 """
 from __future__ import annotations
 
-try:
+import sys
+
+# As Python the rules ask Cython only whether they are compiled: unless Cython is imported already, the shim
+# answers, for this import only (Cython's shadow module takes 5 ms to import, and Cython is build-only)
+if "cython" in sys.modules:
     import cython
-except ImportError:     # Cython is needed only to generate _loop_rules.c: run as Python without it
-    from biped_sim.engine import _cython_shim as cython
+else:
+    from biped_sim.engine import _cython_shim
+    sys.modules["cython"] = _cython_shim
+    try:
+        import cython
+    finally:
+        del sys.modules["cython"]
 
 if not cython.compiled:
     from math import fabs, isfinite, isnan, pow
