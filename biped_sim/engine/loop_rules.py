@@ -23,15 +23,19 @@ import sys
 
 # As Python the rules ask Cython only whether they are compiled: unless Cython is imported already, the shim
 # answers, for this import only (Cython's shadow module takes 5 ms to import, and Cython is build-only)
-if "cython" in sys.modules:
+if sys.modules.get("cython") is not None:
     import cython
 else:
     from biped_sim.engine import _cython_shim
+    _entry = sys.modules.pop("cython", _cython_shim)     # (None: an import of Cython is refused)
     sys.modules["cython"] = _cython_shim
     try:
         import cython
     finally:
-        del sys.modules["cython"]
+        if _entry is _cython_shim:
+            del sys.modules["cython"]
+        else:
+            sys.modules["cython"] = _entry
 
 if not cython.compiled:
     from math import fabs, isfinite, isnan, pow
