@@ -217,34 +217,40 @@ def ev_height_guard(S, ctx, tt):
 
 
 def ev_dip_coefficients(S, leg):
-    """S[COEF]: |power-basis coefficients| of the floating base's swing leg angle (its entry plus the torso's),
-    the hip's x and y (rk_dense first): a row of 3 for each power 0 to 7."""
-    c: cython.Py_ssize_t
+    """S[COEF]: |power-basis coefficients| of the floating base's swing leg angle (its entry of y plus the
+    torso's), the hip's x and y (rk_dense first): a row of 3 for each power 0 to 7. dop853: TO_POWER_BASIS
+    times the dense row; dopri5: y, h q1 .. h q4, then zeros."""
     p: cython.Py_ssize_t
     j: cython.Py_ssize_t
-    r: cython.Py_ssize_t
-    s: cython.double
+    w: cython.Py_ssize_t = 8 if S[METHOD] == 0.0 else 5
+    ra: cython.Py_ssize_t = DENSE + w * (1 + leg)      # the rows of the leg's angle, the torso's, x and y
+    rt: cython.Py_ssize_t = DENSE + w * 4
+    rx: cython.Py_ssize_t = DENSE
+    ry: cython.Py_ssize_t = DENSE + w
+    a: cython.double
+    t: cython.double
+    x: cython.double
+    y: cython.double
+    b: cython.double
     hi: cython.double = S[T] - S[T_OLD]
-    dop853: cython.bint = S[METHOD] == 0.0
-    for c in range(4):      # the entries of y: the leg's angle, the torso's, the hip's x, y
-        r = DENSE + (8 if dop853 else 5) * (1 + leg if c == 0 else 4 if c == 1 else c - 2)
-        for p in range(8):
-            if dop853:      # TO_POWER_BASIS @ the row
-                s = 0.0
-                for j in range(8):
-                    s += S[TO_POWER_BASIS + 8 * p + j] * S[r + j]
-            elif p == 0:    # dopri5: y, then h q1 .. h q4
-                s = S[r]
-            elif p < 5:
-                s = hi * S[r + p]
-            else:
-                s = 0.0
-            if c == 0:      # (kept until the torso's is known)
-                S[COEF + 3 * p] = s
-            elif c == 1:
-                S[COEF + 3 * p] = fabs(S[COEF + 3 * p] + s)
-            else:
-                S[COEF + 3 * p + c - 1] = fabs(s)
+    for p in range(8):
+        if w == 8:
+            a = t = x = y = 0.0
+            for j in range(8):
+                b = S[TO_POWER_BASIS + 8 * p + j]
+                a += b * S[ra + j]
+                t += b * S[rt + j]
+                x += b * S[rx + j]
+                y += b * S[ry + j]
+        elif p == 0:
+            a, t, x, y = S[ra], S[rt], S[rx], S[ry]
+        elif p < 5:
+            a, t, x, y = hi * S[ra + p], hi * S[rt + p], hi * S[rx + p], hi * S[ry + p]
+        else:
+            a = t = x = y = 0.0
+        S[COEF + 3 * p] = fabs(a + t)
+        S[COEF + 3 * p + 1] = fabs(x)
+        S[COEF + 3 * p + 2] = fabs(y)
 
 
 def ev_dip_search(S, g, ctx, h0, h1):
