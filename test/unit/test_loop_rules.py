@@ -64,6 +64,20 @@ def test_the_compiled_loop_has_no_numerics_of_the_rules():
     assert "brentq.c" not in core and "pow(err" not in core
 
 
+def test_the_compiled_rules_touch_no_python_object():
+    """The C of every rule (loop_rules.pxd's functions, in _loop_rules.c) calls nothing of Python: no
+    object, no exception check (Cython's cdivision and noexcept, the state a double *)."""
+    c = (ENGINE / "_loop_rules.c").read_text()
+    names = re.findall(r"^cdef (?:public )?\w+ (\w+)\(", (ENGINE / "loop_rules.pxd").read_text(), re.M)
+    assert len(names) >= 10
+    for name in names:
+        head = rf"\n(?:static )?(?:int|void|double) (?:__pyx_f_\w+_)?{name}\(double \*__pyx_v_S[^)]*\) {{\n"
+        m = re.search(head + r"(.*?)\n}\n", c, re.S)
+        assert m, name
+        code = [line for line in m.group(1).splitlines() if not line.lstrip().startswith(("/*", "*"))]
+        assert not [line for line in code if re.search(r"PyObject|__Pyx_|PyErr", line)], name
+
+
 @pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=f"no compiled loop: {compiled_loop.WHY_NOT}")
 def test_without_cython_the_python_rules_give_the_compiled_bits():
     """In a process where Cython cannot be imported, the rules run as Python through the shim, and the walk
