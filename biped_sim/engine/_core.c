@@ -77,10 +77,10 @@ typedef struct {
         struct { LOOP_STATE_MEMBERS };
     };
     /* options */
-    double max_speed, ground_tol, force_tol, arm_height, mu, front_tol, scuff_depth;
+    double max_speed, ground_tol, force_tol, arm_height, mu;
     double zeno_interval, impulse_tol, contact_tol;
     long max_events;
-    int front_rule, forward_rule, compute_grf;   /* touchdown_rule "front", scuff_rule "forward" */
+    int front_rule, compute_grf;   /* touchdown_rule "front" */
     /* the history the Python code checks an impact against: the last impact's time, the mode events so
      * far and the times of the last 49 (HybridSimulator._mode_event_times), in a ring */
     double last_impact, ring[49];
@@ -320,39 +320,11 @@ triggered(double w0, double w1)
     return w0 > 0 && w1 <= 0;
 }
 
-/* guards.swinging_through of a foot (x, height, dx, dheight): moving forward more than it sinks */
-static int
-swinging_through(const double *foot)
+/* the feet on the dense output at tt into S[LS_FEET] (the scuff's tracking: loop_rules.ev_track_scuff) */
+static void
+feet_into_state(double *S, void *ctx, double tt)
 {
-    return foot[2] > 0.0 && foot[2] + foot[3] >= 0.0;
-}
-
-/* EventLocator._track_scuffs of the swing foot over a step in which nothing else happens (t_end = the
- * step's end), on copies: 0 and the scuff followed (scuff, deepest updated), 1 when it ended in the
- * step (the foot above the ground at its end), -1 when the Python code must see this step (the scuff
- * leaves the model: the Python code reports it) */
-static int
-track_scuff(Loop *L, int leg, double *scuff, double *deepest)
-{
-    int st = L->leg;
-    double t_end = L->t, t0 = L->t_old > scuff[0] ? L->t_old : scuff[0];
-    double step_t = (t_end - t0) / 8, ft[8] = {0};
-    rk_dense(L->S, rhs, L);
-    for (int i = 0; i <= 8; i++) {
-        double tt = i < 8 ? i * step_t + t0 : t_end;     /* numpy.linspace(t0, t_end, 9) */
-        feet_at(L, tt, ft);
-        double depth = -ft[4 * (leg - 1) + 1];
-        if (depth > scuff[1]) {
-            scuff[1] = depth;
-            scuff[2] = tt;
-        }
-        /* guards.passes_through: under the ground, not swinging through ("forward") or in front ("behind") */
-        if (depth > 0 && (L->forward_rule ? !swinging_through(ft + 4 * (leg - 1))
-                                          : ft[4 * (leg - 1)] > ft[4 * (st - 1)] + L->front_tol)) return -1;
-    }
-    *deepest = *deepest > scuff[1] ? *deepest : scuff[1];
-    if (scuff[1] > L->scuff_depth) return -1;
-    return ft[4 * (leg - 1) + 1] > 0.0;
+    feet_at((Loop *)ctx, tt, S + LS_FEET);
 }
 
 /* HybridSimulator._integrate's event branch for a touchdown in front at t_ev, then _reset's: the event's
@@ -516,7 +488,8 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
              * moving forward, a scuff; else a touchdown (the Python code's) */
             double fr[8];
             feet_at(L, t_root, fr);
-            if (fr[4 * (sw - 1)] > fr[4 * (st - 1)] + L->front_tol || (L->forward_rule && !swinging_through(fr + 4 * (sw - 1)))) {
+            const double *fw = fr + 4 * (sw - 1);
+            if (!ev_starts_scuff(L->forward_rule != 0.0, L->front_tol, fw[0], fw[2], fw[3], fr[4 * (st - 1)])) {
                 touching = 1;         /* a touchdown: applied below if nothing else happens in the step */
                 t_touch = t_root;
             } else {
@@ -550,8 +523,14 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     if (L->impact_phase && !L->armed[sw - 1] && !scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) { L->why = 6; return 0; }
     int ended = 0;
     if (scuffing) {
-        ended = track_scuff(L, sw, scuff, &deepest);
+        /* EventLocator._track_scuffs, on copies: a scuff that leaves the model is the Python code's to report */
+        rk_dense(L->S, rhs, L);
+        memcpy(L->scuff_trial, scuff, sizeof scuff);
+        L->deepest_trial = deepest;
+        ended = ev_track_scuff(L->S, feet_into_state, L, sw, st, L->t);
         if (ended < 0) { L->why = 7; return 0; }
+        memcpy(scuff, L->scuff_trial, sizeof scuff);
+        deepest = L->deepest_trial;
     }
     /* modes.project_onto_pin */
     const double *fs = ft1 + 4 * (st - 1);
@@ -680,11 +659,13 @@ Loop_set_options(Loop *L, PyObject *args)
 {
     PyObject *mu, *tpb;
     double slope;
+    int forward_rule;
     if (!PyArg_ParseTuple(args, "ddddddddOppppdOdddpp", &L->rtol, &L->atol, &L->max_step, &L->max_speed,
                           &L->ground_tol, &L->force_tol, &L->graze_tol, &L->arm_height, &mu, &L->stop_on_slip,
                           &L->project, &L->check_invariants, &L->impact_phase, &slope, &tpb, &L->front_tol,
-                          &L->scuff_depth, &L->event_tol, &L->front_rule, &L->forward_rule))
+                          &L->scuff_depth, &L->event_tol, &L->front_rule, &forward_rule))
         return NULL;
+    L->forward_rule = forward_rule;
     L->has_mu = mu != Py_None;
     L->mu = L->has_mu ? PyFloat_AsDouble(mu) : 0.0;
     if (L->mu == -1.0 && PyErr_Occurred()) return NULL;

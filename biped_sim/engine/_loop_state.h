@@ -4,7 +4,7 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 905
+#define LOOP_STATE_SIZE 920
 #define LS_NMAX 11
 #define LS_MAX_DEPTH 30
 #define LS_METHOD 0
@@ -17,38 +17,46 @@
 #define LS_L_LEG 7
 #define LS_TAN_S 8
 #define LS_FIXED_BASE 9
-#define LS_K_POS 10
-#define LS_TO_POWER_BASIS 42
-#define LS_T 106
-#define LS_T_BOUND 107
-#define LS_H_ABS 108
-#define LS_T_OLD 109
-#define LS_H 110
-#define LS_Y 111
-#define LS_F 122
-#define LS_Y_OLD 133
-#define LS_STAGES 144
-#define LS_NFEV 287
-#define LS_NREJECTED 288
-#define LS_NACCEPTED 289
-#define LS_DENSE_READY 290
-#define LS_DENSE 291
-#define LS_FAIL_KIND 379
-#define LS_FAIL_VALUE 380
-#define LS_FAIL_T 381
-#define LS_CALLBACK_FAILED 382
-#define LS_GUARD_LEG 383
-#define LS_OUT 384
-#define LS_RESULT 550
-#define LS_COEF 552
-#define LS_QS 576
-#define LS_PS 581
-#define LS_STACK 585
+#define LS_FRONT_TOL 10
+#define LS_SCUFF_DEPTH 11
+#define LS_FORWARD_RULE 12
+#define LS_K_POS 13
+#define LS_TO_POWER_BASIS 45
+#define LS_T 109
+#define LS_T_BOUND 110
+#define LS_H_ABS 111
+#define LS_T_OLD 112
+#define LS_H 113
+#define LS_Y 114
+#define LS_F 125
+#define LS_Y_OLD 136
+#define LS_STAGES 147
+#define LS_NFEV 290
+#define LS_NREJECTED 291
+#define LS_NACCEPTED 292
+#define LS_DENSE_READY 293
+#define LS_DENSE 294
+#define LS_FAIL_KIND 382
+#define LS_FAIL_VALUE 383
+#define LS_FAIL_T 384
+#define LS_CALLBACK_FAILED 385
+#define LS_GUARD_LEG 386
+#define LS_SCUFF_TRIAL 387
+#define LS_DEEPEST_TRIAL 390
+#define LS_FEET 391
+#define LS_OUT 399
+#define LS_RESULT 565
+#define LS_COEF 567
+#define LS_QS 591
+#define LS_PS 596
+#define LS_STACK 600
 
 /* the right-hand side f(ctx, t, y) -> dy the generated steps take, and a guard's value at t: the
  * functions the rules take as arguments */
 typedef int (*rhs_t)(void *ctx, double t, const double *y, double *dy);
 typedef double (*guard_t)(double *S, void *ctx, double t);
+/* the feet at t into S[LS_FEET] */
+typedef void (*feet_t)(double *S, void *ctx, double t);
 
 #define LOOP_STATE_MEMBERS \
     double method;  /* the Runge-Kutta pair: 0 dop853, 1 dopri5 (METHODS) */ \
@@ -61,6 +69,9 @@ typedef double (*guard_t)(double *S, void *ctx, double t);
     double l_leg;  /* the leg's length (m) */ \
     double tan_s;  /* tan(slope) of the ground */ \
     double fixed_base;  /* 1 when y is the fixed base's (q1, q2, q3, dq..., work): the dip bound's form */ \
+    double front_tol;  /* touchdown_rule front: a swing foot within this of the stance foot counts as behind (m) */ \
+    double scuff_depth;  /* the deepest a scuff may pass under the ground (m) */ \
+    double forward_rule;  /* 1 under scuff_rule forward, 0 under behind */ \
     double k_pos[32];  /* the constants of the closed form foot_positions (BipedModel.k; room for any) */ \
     double to_power_basis[8][8];  /* dop853's dense row to its power-basis coefficients (integrators) */ \
     double t;  /* time (s) at the end of the last step */ \
@@ -82,6 +93,9 @@ typedef double (*guard_t)(double *S, void *ctx, double t);
     double fail_t;  /* the time the failing step started at */ \
     double callback_failed;  /* 1 once the torque law failed inside the right-hand side (the compiled loop) */ \
     double guard_leg;  /* the foot whose height the root finder and the dip search follow */ \
+    double scuff_trial[3];  /* a scuff followed over a step: t_start, deepest, t_deepest (ev_track_scuff) */ \
+    double deepest_trial;  /* the deepest of any scuff so far, with this step's (ev_track_scuff) */ \
+    double feet[2][4];  /* the feet on the dense output: x, height across the slope, and their rates, a row a foot */ \
     double out[166];  /* a trial step: y_new, f_new, err, stages; between steps the dense state (dense_state) */ \
     double result[2];  /* a located root, or a dip's bracket */ \
     double coef[8][3];  /* the dip search's |power-basis coefficients|: swing leg angle, hip x, hip y (fixed base: swing leg angle, stance leg angle) */ \

@@ -97,8 +97,8 @@ def slip_guard(normal, tangential, mu) -> float:
 def swinging_through(foot: FootState) -> bool:
     """A foot moving forward more than it sinks (a crossing at most 45 degrees steep): a leg swinging
     through near the bottom of its arc, not a robot falling onto its foot (which moves backward, or
-    down)."""
-    return foot.dx > 0.0 and foot.dx + foot.dheight >= 0.0
+    down). The rule ``loop_rules.ev_swinging_through``."""
+    return rules.ev_swinging_through(foot.dx, foot.dheight)
 
 
 def starts_scuff(swing: FootState, stance: FootState, opt) -> bool:
@@ -106,18 +106,16 @@ def starts_scuff(swing: FootState, stance: FootState, opt) -> bool:
     than touching down: at or behind the stance foot (within ``front_tol`` counts as behind), and under
     ``scuff_rule`` "forward" swinging through (``swinging_through``; a foot that comes down behind
     otherwise is the robot falling back onto it, and lands)."""
-    if swing.x > stance.x + opt.front_tol:
-        return False
-    return opt.scuff_rule == "behind" or swinging_through(swing)
+    return rules.ev_starts_scuff(opt.scuff_rule == "forward", opt.front_tol, swing.x, swing.dx, swing.dheight,
+                                 stance.x)
 
 
 def passes_through(swing: FootState, stance: FootState, opt) -> bool:
     """Whether a swing foot under the ground still passes through it, as a scuff under way: under
     ``scuff_rule`` "forward" while it swings through (wherever it is), under "behind" while it is behind
     the stance foot."""
-    if opt.scuff_rule == "forward":
-        return swinging_through(swing)
-    return swing.x <= stance.x + opt.front_tol
+    return rules.ev_passes_through(opt.scuff_rule == "forward", opt.front_tol, swing.x, swing.dx, swing.dheight,
+                                   stance.x)
 
 
 # -- locating a crossing -----------------------------------------------------------------------

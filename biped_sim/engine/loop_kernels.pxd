@@ -9,6 +9,8 @@ cdef extern from "_loop_state.h":
     ctypedef int (*rhs_t)(void *ctx, double t, const double *y, double *dy) noexcept nogil
     # a guard's value at time t (the root finder's and the dip search's function)
     ctypedef double (*guard_t)(double *S, void *ctx, double t) noexcept nogil
+    # the feet (x, height, dx, dheight, a row a foot) at time t into S[FEET] (the scuff's tracking)
+    ctypedef void (*feet_t)(double *S, void *ctx, double t) noexcept nogil
 
 cdef extern from "_gen/_kernels.h" nogil:
     int k_dop853_step_11(rhs_t fun, void *ctx, double t, const double *ys, const double *k0, double h, double rtol,

@@ -45,13 +45,17 @@ if not cython.compiled:
         ATOL,
         CALLBACK_FAILED,
         COEF,
+        DEEPEST_TRIAL,
         DENSE,
         DENSE_READY,
         EVENT_TOL,
         FAIL_KIND,
         FAIL_T,
         FAIL_VALUE,
+        FEET,
         FIXED_BASE,
+        FORWARD_RULE,
+        FRONT_TOL,
         GRAZE_TOL,
         GUARD_LEG,
         H_ABS,
@@ -69,6 +73,8 @@ if not cython.compiled:
         QS,
         RESULT,
         RTOL,
+        SCUFF_DEPTH,
+        SCUFF_TRIAL,
         STACK,
         STAGES,
         T_BOUND,
@@ -441,3 +447,56 @@ def ev_locate_height_crossing(S, fun, ctx, leg, ta, tb):
     rk_dense(S, fun, ctx)
     S[GUARD_LEG] = leg
     return ev_locate_crossing(S, ev_height_guard, ctx, ta, tb)
+
+
+# -- the scuffs of touchdown_rule "front" (guards.py, locator.py) -------------------------------------------
+def ev_swinging_through(dx, dheight):
+    """A foot moving forward more than it sinks (a crossing at most 45 degrees steep)."""
+    return dx > 0.0 and dx + dheight >= 0.0
+
+
+def ev_starts_scuff(forward, front_tol, x, dx, dheight, x_stance):
+    """Whether a swing foot (x, its rates dx, dheight) crossing the ground going down passes through it (a
+    scuff): at or behind the stance foot (at x_stance; within front_tol counts as behind), and under scuff_rule
+    "forward" (forward true) swinging through."""
+    if x > x_stance + front_tol:
+        return False
+    return not forward or ev_swinging_through(dx, dheight)
+
+
+def ev_passes_through(forward, front_tol, x, dx, dheight, x_stance):
+    """Whether a swing foot under the ground still passes through it: under "forward" while it swings
+    through, under "behind" while it is behind the stance foot."""
+    if forward:
+        return ev_swinging_through(dx, dheight)
+    return x <= x_stance + front_tol
+
+
+def ev_track_scuff(S, feet_at, ctx, leg, stance_leg, t_end):
+    """Follow foot leg's scuff (S[SCUFF_TRIAL]: t_start, deepest, t_deepest) over the last step up to t_end, on
+    9 even points from max(t_start, t_old) (numpy.linspace's), the feet there by feet_at(S, ctx, t) into
+    S[FEET]: its deepest dip, and S[DEEPEST_TRIAL] the deepest of any. 0: it goes on; 1: it ended (the foot
+    above the ground at t_end); -1: at S[RESULT] the foot is S[RESULT + 1] under the ground and no longer
+    passes through it (S[FEET] the feet there); -2: deeper than scuff_depth."""
+    t0: cython.double = S[T_OLD] if S[T_OLD] > S[SCUFF_TRIAL] else S[SCUFF_TRIAL]
+    step: cython.double = (t_end - t0) / 8
+    tt: cython.double
+    depth: cython.double
+    i: cython.Py_ssize_t
+    f: cython.Py_ssize_t = FEET + 4 * (leg - 1)
+    st: cython.Py_ssize_t = FEET + 4 * (stance_leg - 1)
+    for i in range(9):
+        tt = i * step + t0 if i < 8 else t_end
+        feet_at(S, ctx, tt)
+        depth = -S[f + 1]
+        if depth > S[SCUFF_TRIAL + 1]:
+            S[SCUFF_TRIAL + 1] = depth
+            S[SCUFF_TRIAL + 2] = tt
+        if depth > 0 and not ev_passes_through(S[FORWARD_RULE] != 0.0, S[FRONT_TOL], S[f], S[f + 2], S[f + 3], S[st]):
+            S[RESULT] = tt
+            S[RESULT + 1] = depth
+            return -1
+    S[DEEPEST_TRIAL] = S[DEEPEST_TRIAL] if not S[SCUFF_TRIAL + 1] > S[DEEPEST_TRIAL] else S[SCUFF_TRIAL + 1]
+    if S[SCUFF_TRIAL + 1] > S[SCUFF_DEPTH]:
+        return -2
+    return 1 if S[f + 1] > 0.0 else 0

@@ -50,6 +50,9 @@ FIELDS = (
     Field("l_leg", (), "the leg's length (m)"),
     Field("tan_s", (), "tan(slope) of the ground"),
     Field("fixed_base", (), "1 when y is the fixed base's (q1, q2, q3, dq..., work): the dip bound's form"),
+    Field("front_tol", (), "touchdown_rule front: a swing foot within this of the stance foot counts as behind (m)"),
+    Field("scuff_depth", (), "the deepest a scuff may pass under the ground (m)"),
+    Field("forward_rule", (), "1 under scuff_rule forward, 0 under behind"),
     Field("k_pos", (32,), "the constants of the closed form foot_positions (BipedModel.k; room for any)"),
     Field("to_power_basis", (8, 8), "dop853's dense row to its power-basis coefficients (integrators)"),
     # -- the stepper (integrators._ListRungeKutta)
@@ -73,6 +76,9 @@ FIELDS = (
     Field("fail_t", (), "the time the failing step started at"),
     Field("callback_failed", (), "1 once the torque law failed inside the right-hand side (the compiled loop)"),
     Field("guard_leg", (), "the foot whose height the root finder and the dip search follow"),
+    Field("scuff_trial", (3,), "a scuff followed over a step: t_start, deepest, t_deepest (ev_track_scuff)"),
+    Field("deepest_trial", (), "the deepest of any scuff so far, with this step's (ev_track_scuff)"),
+    Field("feet", (2, 4), "the feet on the dense output: x, height across the slope, and their rates, a row a foot"),
     # -- scratch
     Field("out", (2 * NMAX + 1 + MAX_STAGES * NMAX,), "a trial step: y_new, f_new, err, stages; between steps "
                                                       "the dense state (dense_state)"),
@@ -131,6 +137,8 @@ def c_header() -> str:
               " * functions the rules take as arguments */",
               "typedef int (*rhs_t)(void *ctx, double t, const double *y, double *dy);",
               "typedef double (*guard_t)(double *S, void *ctx, double t);",
+              "/* the feet at t into S[LS_FEET] */",
+              "typedef void (*feet_t)(double *S, void *ctx, double t);",
               "", "#define LOOP_STATE_MEMBERS \\"]
     for field in FIELDS:
         dims = "".join(f"[{d}]" for d in field.shape)

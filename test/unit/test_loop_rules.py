@@ -59,9 +59,23 @@ def test_the_compiled_loop_has_no_numerics_of_the_rules():
     output, the foot's height, the dip search or brentq itself."""
     core = (ENGINE / "_core.c").read_text()
     assert '#include "_loop_rules.c"' in core
-    for name in ("step", "dense", "dense_at", "height_at", "may_dip", "locate_crossing", "ulp"):
+    for name in ("step", "dense", "dense_at", "height_at", "may_dip", "locate_crossing", "ulp", "track_scuff",
+                 "swinging_through"):
         assert not re.search(rf"^{name}\(", core, re.M), f"_core.c defines {name}()"
     assert "brentq.c" not in core and "pow(err" not in core
+
+
+def test_the_scuff_rules_are_written_once():
+    """A foot swinging through, a scuff's start, its passing through and its tracking over a step are the rules'
+    (loop_rules.py), in no other file of the engine's Python or in _core.c."""
+    rules = (ENGINE / "loop_rules.py").read_text()
+    assert rules.count("dx > 0.0 and dx + dheight >= 0.0") == 1
+    assert rules.count("tt = i * step + t0 if i < 8 else t_end") == 1
+    for path in [*ENGINE.glob("*.py"), ENGINE / "_core.c"]:
+        if path.name != "loop_rules.py":
+            text = path.read_text()
+            assert not re.search(r"dx \+ \w*\.?dheight >= 0|foot\[2\] \+ foot\[3\]", text), path.name
+            assert "linspace(t0, t_end" not in text and "i * step_t + t0" not in text, path.name
 
 
 def test_the_compiled_rules_touch_no_python_object():
@@ -71,8 +85,8 @@ def test_the_compiled_rules_touch_no_python_object():
     names = re.findall(r"^cdef (?:public )?\w+ (\w+)\(", (ENGINE / "loop_rules.pxd").read_text(), re.M)
     assert len(names) >= 10
     for name in names:
-        head = rf"\n(?:static )?(?:int|void|double) (?:__pyx_f_\w+_)?{name}\(double \*__pyx_v_S[^)]*\) {{\n"
-        m = re.search(head + r"(.*?)\n}\n", c, re.S)
+        head = rf"\n(?:static )?(?:int|void|double) (?:__pyx_f_\w+_)?{name}\("
+        m = re.search(head + r"(?:double \*|double |int )__pyx_v_\w+[^)]*\) {\n(.*?)\n}\n", c, re.S)
         assert m, name
         code = [line for line in m.group(1).splitlines() if not line.lstrip().startswith(("/*", "*"))]
         assert not [line for line in code if re.search(r"PyObject|__Pyx_|PyErr", line)], name
