@@ -35,7 +35,6 @@ from biped_sim.engine.loop_state import (
     FAIL_T,
     FAIL_VALUE,
     H_ABS,
-    MAX_STEP,
     N_Y,
     NACCEPTED,
     NFEV,
@@ -212,7 +211,6 @@ class _ListRungeKutta(_Stepper):
         # a Python float: a numpy scalar here would make every entry of the state one, and the
         # scalar closed forms several times slower
         S[H_ABS] = float(min(S[H_ABS], self.max_step))
-        S[MAX_STEP] = float(self.max_step)
         self._dense = None
 
     def replace_y(self, y):
