@@ -5,7 +5,7 @@ STAMP   := $(VENV)/.installed
 DEV_STAMP := $(VENV)/.installed-dev
 PYTHON  ?= $(shell command -v python3.11 || command -v python3)
 
-.PHONY: venv venv-dev venv-drake demo test bench generate docs-figures clean-venv
+.PHONY: venv venv-dev venv-drake demo test bench generate generate-loop docs-figures clean-venv
 
 # venv: what a run needs (requirements.txt); venv-dev adds the tests, ruff, colcon and Ray
 # (requirements-dev.txt), which `make test` installs and `make demo` does not
@@ -20,7 +20,8 @@ venv-dev: $(DEV_STAMP)
 # twin (biped_sim/engine/_gen/_cmodel.c), the compiled loop (biped_sim/engine/_core.c), the compiled walking
 # laws (biped_sim/control/_laws.c) or the recorder's frame buffer (biped_sim/recording/_frames.c) after a change.
 $(STAMP): requirements.txt setup.py setup.cfg biped_sim/engine/_gen/_cmodel.c biped_sim/engine/_core.c \
-          biped_sim/engine/_gen/_kernels.h biped_sim/recording/_frames.c biped_sim/control/_laws.c
+          biped_sim/engine/_gen/_kernels.h biped_sim/recording/_frames.c biped_sim/control/_laws.c \
+          biped_sim/engine/_loop_rules.c biped_sim/engine/_loop_state.h
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	@if $(PY) -m pip install -q uv==0.13.8 >/dev/null 2>&1; then \
 	    $(VENV)/bin/uv pip install -q --python $(PY) -r requirements.txt --reinstall-package biped_sim -e . ; \
@@ -82,6 +83,14 @@ generate: $(STAMP)
 	$(PY) tools/generate_models.py
 	$(PY) tools/generate_rk.py
 	$(PY) tools/generate_c.py
+	$(MAKE) --always-make venv
+
+# Regenerate the compiled hybrid loop's single-source parts (tools/generate_loop.py): the state's declarations
+# biped_sim/engine/_loop_state.{h,pxd} from loop_state.py, and biped_sim/engine/_loop_rules.c from
+# loop_rules.py by Cython (requirements-dev.txt); then rebuild. Run it after an edit of loop_rules.py,
+# loop_rules.pxd, loop_kernels.pxd or loop_state.py (test/unit/test_loop_rules.py fails until then).
+generate-loop: $(DEV_STAMP)
+	$(PY) tools/generate_loop.py
 	$(MAKE) --always-make venv
 
 clean-venv:

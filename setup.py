@@ -22,8 +22,11 @@ setup(
     # and the compiled hybrid loop (biped_sim/engine/compiled_loop.py) on the same generated code's kernels
     ext_modules=[Extension("biped_sim.engine._gen._cmodel", ["biped_sim/engine/_gen/_cmodel.c"],
                            extra_compile_args=["-O2", "-ffp-contract=off"], optional=True),
+                 # (it includes the hybrid loop's rules, biped_sim/engine/loop_rules.py compiled by Cython into the
+                 # committed _loop_rules.c by tools/generate_loop.py: built with gcc alone)
                  Extension("biped_sim.engine._core", ["biped_sim/engine/_core.c"],
-                           depends=["biped_sim/engine/_gen/_kernels.h"],
+                           depends=["biped_sim/engine/_gen/_kernels.h", "biped_sim/engine/_loop_state.h",
+                                    "biped_sim/engine/_loop_rules.c"],
                            extra_compile_args=["-O2", "-ffp-contract=off"], optional=True),
                  # the walking laws as compiled torque laws of the loop's hook (biped_sim/control/walking.py)
                  Extension("biped_sim.control._laws", ["biped_sim/control/_laws.c"],

@@ -20,6 +20,13 @@
  * the hook's glue) follow their Python lines operation for operation (named beside each), so
  * that a run gives the same bits on both paths (test/unit/test_compiled_loop.py).
  */
+/* The rules written once (loop_rules.py: the step with its error control, the dense output, a foot's height,
+ * the dip search, brentq), compiled by Cython into the committed _loop_rules.c (tools/generate_loop.py), are
+ * part of this translation unit: the loop calls them by name (rk_step, rk_dense_at, ev_may_dip...) on its
+ * state, and the compiler sees them with the loop's right-hand side (docs/engine.md, "The core"). They
+ * include _gen/_kernels.h and _loop_state.h. */
+#include "_loop_rules.c"
+
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <structmember.h>
@@ -27,7 +34,6 @@
 #include <time.h>
 #include <string.h>
 
-#include "_gen/_kernels.h"
 
 #define N 11                 /* the floating base's integrated state: q (5), dq (5), motor work */
 #define MAX_STAGES 13        /* dop853's k0..k12 */
@@ -62,12 +68,19 @@ typedef struct {
 typedef struct {
     PyObject_HEAD
     /* model: the constants of the closed forms (BipedModel.k) */
-    double k_stance[KMAX], k_feet[KMAX], k_pos[KMAX], k_energy[KMAX], k_terms[KMAX], k_impact[KMAX], l_leg;
+    double k_stance[KMAX], k_feet[KMAX], k_energy[KMAX], k_terms[KMAX], k_impact[KMAX];
+    /* the state the rules read and write (loop_state.py): S by offset, the same memory by member (the model's
+     * k_pos and l_leg, the options rtol, atol, max_step, graze_tol, event_tol, tan_s, the method, the stepper,
+     * callback_failed, the failure of the last step) */
+    union {
+        double S[LOOP_STATE_SIZE];
+        struct { LOOP_STATE_MEMBERS };
+    };
     /* options */
-    double rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu, front_tol, scuff_depth;
-    double event_tol, zeno_interval, impulse_tol, contact_tol;
+    double max_speed, ground_tol, force_tol, arm_height, mu;
+    double zeno_interval, impulse_tol, contact_tol;
     long max_events;
-    int front_rule, forward_rule, compute_grf;   /* touchdown_rule "front", scuff_rule "forward" */
+    int front_rule, compute_grf;   /* touchdown_rule "front" */
     /* the history the Python code checks an impact against: the last impact's time, the mode events so
      * far and the times of the last 49 (HybridSimulator._mode_event_times), in a ring */
     double last_impact, ring[49];
@@ -78,29 +91,18 @@ typedef struct {
      * in order: their Events are the Python code's to make */
     EventRecord events[EVENT_ROOM];
     int n_events;
-    double sin_s, cos_s, tan_s;
+    double sin_s, cos_s;
     int has_mu, stop_on_slip, project, check_invariants, impact_phase;
-    double to_power_basis[64];
     /* mode and torque */
-    int method, leg, law_kind;     /* law_kind: HELD (u_hold), COMPILED (law) or CALLBACK (callback) */
+    int leg, law_kind;     /* law_kind: HELD (u_hold), COMPILED (law) or CALLBACK (callback) */
     double pin[2], u_hold[2];
     CompiledLaw law;
     /* a Python controller, called back as controller(t, q, dq, stance_leg) and checked (call_controller).
      * The first failure of the law (the controller raised, a compiled law returned nonzero) is kept as an
      * exception and the computation it spoiled is thrown away (callback_failed) */
     PyObject *callback;
-    int callback_failed;
     PyObject *exc_type, *exc_value, *exc_tb;
-    /* stepper (integrators._ListRungeKutta's fields) */
-    double t, t_bound, h_abs, t_old, h;
-    double y[N], f[N], y_old[N], stages[MAX_STAGES][N];
-    long nfev, nrejected, naccepted;
-    int dense_ready;
-    double dense[N * 8];
     double last_F[2], last_u[2];
-    /* failure of the last step */
-    int fail_kind;
-    double fail_value, fail_t;
     /* locator: armed feet; the feet and force at the last step's end (EventLocator._feet_end/_force_end) */
     int armed[2];
     int scuff_leg;           /* the foot in a scuff (EventLocator.active_scuffs), or 0 */
@@ -326,101 +328,16 @@ slip_margin(const Loop *L, const double *F)
     return L->mu * n - fabs(tg);
 }
 
-/* -- the stepper (integrators._ListRungeKutta.step) ------------------------------------------- */
-
-static double
-ulp(double x)
-{   /* math.ulp */
-    x = fabs(x);
-    if (isinf(x)) return x;
-    double x2 = nextafter(x, INFINITY);
-    if (isinf(x2)) return x - nextafter(x, -INFINITY);
-    return x2 - x;
-}
-
-static int
-n_stages(const Loop *L)
-{
-    return L->method == DOP853 ? 12 : 6;
-}
-
-/* One accepted step, or a failure (fail_kind set, the state unchanged). 0: a step, 1: none (at t_bound). */
-static int
-step(Loop *L)
-{
-    double t = L->t, remaining = L->t_bound - t;
-    if (remaining <= 0) return 1;
-    double min_step = 10 * ulp(t) + 1e-300;
-    double h_abs = L->max_step < L->h_abs ? L->max_step : L->h_abs;
-    double exponent = L->method == DOP853 ? -1.0 / 8 : -1.0 / 5;
-    int rejected = 0, ns = n_stages(L);
-    double out[N + N + 1 + MAX_STAGES * N], h, err;
-    for (;;) {
-        if (h_abs < min_step) {
-            L->fail_kind = FAIL_STEP_SIZE; L->fail_value = h_abs; L->fail_t = t;
-            return -1;
-        }
-        h = h_abs;
-        if (h >= remaining) {
-            h = remaining;
-            h_abs = remaining;
-        }
-        if (L->method == DOP853) k_dop853_step_11(rhs, L, t, L->y, L->f, h, L->rtol, L->atol, out);
-        else k_dopri5_step_11(rhs, L, t, L->y, L->f, h, L->rtol, L->atol, out);
-        if (L->callback_failed) {      /* (the Python step raises before it counts its evaluations) */
-            L->fail_kind = FAIL_CALLBACK;
-            return -1;
-        }
-        L->nfev += ns;
-        err = out[2 * N];
-        if (err < 1.0) {
-            double s = 0.0;
-            for (int i = 0; i < N; i++) s += out[i];
-            if (!isfinite(s)) {
-                L->fail_kind = FAIL_NON_FINITE; L->fail_value = t + h; L->fail_t = t;
-                return -1;
-            }
-            double factor;
-            if (err == 0.0) factor = 10.0;
-            else {
-                factor = 0.9 * pow(err, exponent);
-                factor = factor < 10.0 ? factor : 10.0;
-            }
-            if (rejected) factor = factor < 1.0 ? factor : 1.0;
-            L->h_abs = h_abs * factor;
-            break;
-        }
-        if (!isfinite(err)) h_abs *= 0.2;
-        else {
-            double v = 0.9 * pow(err, exponent);
-            h_abs *= v > 0.2 ? v : 0.2;
-        }
-        rejected = 1;
-        L->nrejected++;
-    }
-    L->naccepted++;
-    L->t_old = t;
-    memcpy(L->y_old, L->y, sizeof L->y);
-    L->h = h;
-    L->t = h < remaining ? t + h : L->t_bound;
-    memcpy(L->y, out, sizeof L->y);
-    memcpy(L->f, out + N, sizeof L->f);
-    memcpy(L->stages, out + 2 * N + 1, sizeof(double) * (ns + 1) * N);
-    L->dense_ready = 0;
-    return 0;
-}
+/* -- the stepper: the rules of loop_rules.py (integrators._ListRungeKutta), compiled -------------------- */
 
 /* A mode's start at time t from the current y (integrators._ListRungeKutta.restart): f = rhs(t, y)
  * under the torque now set, the step's fields reset; t_bound the end of the interval */
 static void
 restart(Loop *L, double t, double t_bound)
 {
-    L->t = L->t_old = t;
-    memcpy(L->y_old, L->y, sizeof L->y);
+    L->t = t;
     L->t_bound = t_bound;
-    rhs(L, t, L->y, L->f);
-    L->nfev += 1;
-    L->dense_ready = 0;
+    rk_begin(L->S, rhs, L);
 }
 
 /* The step size a new stepper starts with: the carried-over h, capped by max_step (restart's min) */
@@ -441,177 +358,13 @@ carry_step_arg(Loop *L, PyObject *h)
     return 0;
 }
 
-/* The dense output's rows (generated: rk_steps.dop853_dense_11 / dopri5_dense_11) */
-static void
-dense(Loop *L)
-{
-    if (L->dense_ready) return;
-    double (*k)[N] = L->stages;
-    if (L->method == DOP853) {
-        k_dop853_dense_11(rhs, L, L->t_old, L->h, L->y_old, L->y, k[0], k[5], k[6], k[7], k[8], k[9], k[10],
-                          k[11], k[12], L->dense);
-        L->nfev += 3;
-    } else {
-        k_dopri5_dense_11(L->y_old, k[0], k[1], k[2], k[3], k[4], k[5], k[6], L->dense);
-    }
-    L->dense_ready = 1;
-}
-
-/* entry i of the dense output at time tt (integrators._DOP853Interpolant.at, _DOPRI5Interpolant.at) */
-static double
-dense_at(const Loop *L, int i, double tt)
-{
-    double hi = L->t - L->t_old, x = (tt - L->t_old) / hi;
-    if (L->method == DOP853) {
-        const double *r = L->dense + 8 * i;
-        double u = 1.0 - x;
-        return ((((((r[1] * x + r[2]) * u + r[3]) * x + r[4]) * u + r[5]) * x + r[6]) * u + r[7]) * x + r[0];
-    }
-    const double *r = L->dense + 5 * i;
-    return r[0] + hi * ((((r[4] * x + r[3]) * x + r[2]) * x + r[1]) * x);
-}
-
-/* guards.foot_height on the dense output */
-static double
-height_at(const Loop *L, int leg, double tt)
-{
-    double q[5], p[4];
-    for (int i = 0; i < 5; i++) q[i] = dense_at(L, i, tt);
-    k_foot_positions(q, L->k_pos, p);
-    return p[2 * leg - 1] + L->tan_s * p[2 * leg - 2];
-}
-
 /* EventLocator._feet_at: the feet on the dense output at tt */
 static void
 feet_at(const Loop *L, double tt, double *ft)
 {
     double qd[10];
-    for (int j = 0; j < 10; j++) qd[j] = dense_at(L, j, tt);
+    for (int j = 0; j < 10; j++) qd[j] = rk_dense_at((double *)L->S, j, tt);
     feet(L, qd, qd + 5, ft);
-}
-
-/* grazing.dip_bracket on the floating base: 1 if a dip deeper than graze_tol may be inside the step
- * (the Python code then searches it itself), 0 if there is none. */
-static int
-may_dip(Loop *L, int leg, double h0, double h1, double *bracket)
-{
-    dense(L);
-    int cols[4] = {1 + leg, 4, 0, 1};
-    double C[8][4];
-    for (int c = 0; c < 4; c++) {
-        if (L->method == DOP853) {
-            const double *r = L->dense + 8 * cols[c];
-            for (int p = 0; p < 8; p++) {
-                double s = 0.0;
-                for (int j = 0; j < 8; j++) s += L->to_power_basis[8 * p + j] * r[j];
-                C[p][c] = s;
-            }
-        } else {
-            const double *r = L->dense + 5 * cols[c];
-            double hi = L->t - L->t_old;
-            C[0][c] = r[0];
-            for (int p = 1; p < 5; p++) C[p][c] = hi * r[p];
-            for (int p = 5; p < 8; p++) C[p][c] = 0.0;
-        }
-    }
-    double A[8][3];
-    for (int p = 0; p < 8; p++) {
-        A[p][0] = fabs(C[p][0] + C[p][1]);
-        A[p][1] = fabs(C[p][2]);
-        A[p][2] = fabs(C[p][3]);
-    }
-    double ta = fabs(L->tan_s), lt = L->l_leg * (1 + ta), slack = 1.0 + 1e-6;
-    double t_old = L->t_old, h_step = L->t - L->t_old;
-    struct { double a, b, ha, hb; int depth; } stack[2 * 31 + 2];
-    int top = 0;
-    stack[top].a = 0.0; stack[top].b = 1.0; stack[top].ha = h0; stack[top].hb = h1; stack[top].depth = 0;
-    top++;
-    while (top) {
-        top--;
-        double a = stack[top].a, b = stack[top].b, ha = stack[top].ha, hb = stack[top].hb;
-        int depth = stack[top].depth;
-        double d1[3] = {0, 0, 0}, d2[3] = {0, 0, 0};
-        for (int k = 0; k < 8; k++) {
-            /* grazing._derivative_weights (on [0, 1] the powers of b are 1: _WEIGHTS_ON_0_1) */
-            double w1 = b == 1.0 ? k : k * pow(b, k - 1 > 0 ? k - 1 : 0);
-            double w2 = b == 1.0 ? k * (k - 1) : k * (k - 1) * pow(b, k - 2 > 0 ? k - 2 : 0);
-            for (int c = 0; c < 3; c++) {
-                d1[c] += w1 * A[k][c];
-                d2[c] += w2 * A[k][c];
-            }
-        }
-        double bound = (lt * (d2[0] + d1[0] * d1[0]) + d2[2] + ta * d2[1]) * slack;
-        double drop = bound * (b - a) * (b - a) / 8;
-        double lo = ha < hb ? ha : hb;
-        if (lo - drop > 0 || drop <= L->graze_tol || depth >= 30) continue;
-        double mid = 0.5 * (a + b);
-        double hm = height_at(L, leg, t_old + mid * h_step);
-        if (hm <= 0) {
-            bracket[0] = t_old + a * h_step;
-            bracket[1] = t_old + mid * h_step;
-            return 1;
-        }
-        stack[top].a = mid; stack[top].b = b; stack[top].ha = hm; stack[top].hb = hb; stack[top].depth = depth + 1;
-        top++;
-        stack[top].a = a; stack[top].b = mid; stack[top].ha = ha; stack[top].hb = hm; stack[top].depth = depth + 1;
-        top++;
-    }
-    return 0;
-}
-
-/* guards.locate_crossing of foot leg's height on the dense output: scipy's brentq (scipy/optimize/Zeros/
- * brentq.c, the same iterates; xtol = event_tol, rtol = 4 eps, 200 iterations). 0 and the root, or -1
- * where brentq would raise (no convergence, a NaN): the Python code then raises it. */
-static int
-locate_crossing(Loop *L, int leg, double ta, double tb, double *root)
-{
-    dense(L);
-    double ga = height_at(L, leg, ta), gb = height_at(L, leg, tb);
-    if (gb == 0.0) { *root = tb; return 0; }
-    if (ga <= 0) { *root = ta; return 0; }
-    double xtol = L->event_tol, rtol = 4 * 2.220446049250313e-16;
-    double xpre = ta, xcur = tb, xblk = 0., fpre, fcur, fblk = 0., spre = 0., scur = 0., sbis, delta, stry, dpre, dblk;
-    fpre = height_at(L, leg, xpre);
-    fcur = height_at(L, leg, xcur);
-    if (isnan(fpre) || isnan(fcur)) return -1;
-    if (fpre == 0) { *root = xpre; return 0; }
-    if (fcur == 0) { *root = xcur; return 0; }
-    if (signbit(fpre) == signbit(fcur)) return -1;
-    for (int i = 0; i < 200; i++) {
-        if (fpre != 0 && fcur != 0 && (signbit(fpre) != signbit(fcur))) {
-            xblk = xpre;
-            fblk = fpre;
-            spre = scur = xcur - xpre;
-        }
-        if (fabs(fblk) < fabs(fcur)) {
-            xpre = xcur; xcur = xblk; xblk = xpre;
-            fpre = fcur; fcur = fblk; fblk = fpre;
-        }
-        delta = (xtol + rtol * fabs(xcur)) / 2;
-        sbis = (xblk - xcur) / 2;
-        if (fcur == 0 || fabs(sbis) < delta) { *root = xcur; return 0; }
-        if (fabs(spre) > delta && fabs(fcur) < fabs(fpre)) {
-            if (xpre == xblk) stry = -fcur * (xcur - xpre) / (fcur - fpre);      /* interpolate */
-            else {                                                                /* extrapolate */
-                dpre = (fpre - fcur) / (xpre - xcur);
-                dblk = (fblk - fcur) / (xblk - xcur);
-                stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre));
-            }
-            double lim = 3 * fabs(sbis) - delta;
-            if (2 * fabs(stry) < (fabs(spre) < lim ? fabs(spre) : lim)) { spre = scur; scur = stry; }
-            else { spre = sbis; scur = sbis; }
-        } else {
-            spre = sbis;
-            scur = sbis;
-        }
-        xpre = xcur;
-        fpre = fcur;
-        if (fabs(scur) > delta) xcur += scur;
-        else xcur += (sbis > 0 ? delta : -delta);
-        fcur = height_at(L, leg, xcur);
-        if (isnan(fcur)) return -1;
-    }
-    return -1;
 }
 
 /* -- the quiet steps ----------------------------------------------------------------------------- */
@@ -624,39 +377,11 @@ triggered(double w0, double w1)
     return w0 > 0 && w1 <= 0;
 }
 
-/* guards.swinging_through of a foot (x, height, dx, dheight): moving forward more than it sinks */
-static int
-swinging_through(const double *foot)
+/* the feet on the dense output at tt into S[LS_FEET] (the scuff's tracking: loop_rules.ev_track_scuff) */
+static void
+feet_into_state(double *S, void *ctx, double tt)
 {
-    return foot[2] > 0.0 && foot[2] + foot[3] >= 0.0;
-}
-
-/* EventLocator._track_scuffs of the swing foot over a step in which nothing else happens (t_end = the
- * step's end), on copies: 0 and the scuff followed (scuff, deepest updated), 1 when it ended in the
- * step (the foot above the ground at its end), -1 when the Python code must see this step (the scuff
- * leaves the model: the Python code reports it) */
-static int
-track_scuff(Loop *L, int leg, double *scuff, double *deepest)
-{
-    int st = L->leg;
-    double t_end = L->t, t0 = L->t_old > scuff[0] ? L->t_old : scuff[0];
-    double step_t = (t_end - t0) / 8, ft[8] = {0};
-    dense(L);
-    for (int i = 0; i <= 8; i++) {
-        double tt = i < 8 ? i * step_t + t0 : t_end;     /* numpy.linspace(t0, t_end, 9) */
-        feet_at(L, tt, ft);
-        double depth = -ft[4 * (leg - 1) + 1];
-        if (depth > scuff[1]) {
-            scuff[1] = depth;
-            scuff[2] = tt;
-        }
-        /* guards.passes_through: under the ground, not swinging through ("forward") or in front ("behind") */
-        if (depth > 0 && (L->forward_rule ? !swinging_through(ft + 4 * (leg - 1))
-                                          : ft[4 * (leg - 1)] > ft[4 * (st - 1)] + L->front_tol)) return -1;
-    }
-    *deepest = *deepest > scuff[1] ? *deepest : scuff[1];
-    if (scuff[1] > L->scuff_depth) return -1;
-    return ft[4 * (leg - 1) + 1] > 0.0;
+    feet_at((Loop *)ctx, tt, S + LS_FEET);
 }
 
 /* HybridSimulator._integrate's event branch for a touchdown in front at t_ev, then _reset's: the event's
@@ -675,7 +400,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     if (L->mode_events + 1 >= L->max_events) { L->why = 15; return 0; }
     if (L->mode_events >= 49 && t_ev - L->ring[L->mode_events % 49] < 1e-9) { L->why = 16; return 0; }
     double y[N], ue[2], Fe[2] = {0.0, 0.0}, out[7], TVm[2], TVp[2], dqp[5], imp[2];
-    for (int j = 0; j < N; j++) y[j] = dense_at(L, j, t_ev);
+    for (int j = 0; j < N; j++) y[j] = rk_dense_at(L->S, j, t_ev);
     double *q = y, *dqm = y + 5, w = y[10];
     torque(L, t_ev, q, dqm, ue);
     if (L->compute_grf) {
@@ -805,13 +530,23 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     if (L->impact_phase && L->armed[sw - 1]) {
         double g1 = ft1[4 * (sw - 1) + 1], g0 = ft0[4 * (sw - 1) + 1], bracket[2] = {L->t_old, L->t}, t_root;
         int crossing = triggered(g0, g1);
-        if (crossing || (g0 > 0 && g1 > 0 && may_dip(L, sw, g0, g1, bracket))) {
-            if (locate_crossing(L, sw, bracket[0], bracket[1], &t_root) < 0 || !L->front_rule) { L->why = 2; return 0; }
+        if (!crossing && g0 > 0 && g1 > 0 && ev_may_dip(L->S, rhs, L, sw, g0, g1)) {
+            crossing = 1;
+            bracket[0] = L->S[LS_RESULT];
+            bracket[1] = L->S[LS_RESULT + 1];
+        }
+        if (crossing) {
+            if (ev_locate_height_crossing(L->S, rhs, L, sw, bracket[0], bracket[1]) < 0 || !L->front_rule) {
+                L->why = 2;
+                return 0;
+            }
+            t_root = L->S[LS_RESULT];
             /* _is_scuff (guards.starts_scuff): at or behind the stance foot, and under scuff_rule "forward"
              * moving forward, a scuff; else a touchdown (the Python code's) */
             double fr[8];
             feet_at(L, t_root, fr);
-            if (fr[4 * (sw - 1)] > fr[4 * (st - 1)] + L->front_tol || (L->forward_rule && !swinging_through(fr + 4 * (sw - 1)))) {
+            const double *fw = fr + 4 * (sw - 1);
+            if (!ev_starts_scuff(L->forward_rule != 0.0, L->front_tol, fw[0], fw[2], fw[3], fr[4 * (st - 1)])) {
                 touching = 1;         /* a touchdown: applied below if nothing else happens in the step */
                 t_touch = t_root;
             } else {
@@ -845,8 +580,14 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     if (L->impact_phase && !L->armed[sw - 1] && !scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) { L->why = 6; return 0; }
     int ended = 0;
     if (scuffing) {
-        ended = track_scuff(L, sw, scuff, &deepest);
+        /* EventLocator._track_scuffs, on copies: a scuff that leaves the model is the Python code's to report */
+        rk_dense(L->S, rhs, L);
+        memcpy(L->scuff_trial, scuff, sizeof scuff);
+        L->deepest_trial = deepest;
+        ended = ev_track_scuff(L->S, feet_into_state, L, sw, st, L->t);
         if (ended < 0) { L->why = 7; return 0; }
+        memcpy(scuff, L->scuff_trial, sizeof scuff);
+        deepest = L->deepest_trial;
     }
     /* modes.project_onto_pin */
     const double *fs = ft1 + 4 * (st - 1);
@@ -883,7 +624,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         memcpy(ev->v, scuff, sizeof scuff);
         ev->v[3] = L->t;
         for (int j = 0; j < 10; j++)
-            ev->v[4 + j] = L->t_old <= scuff[2] && scuff[2] <= L->t ? dense_at(L, j, scuff[2]) : NAN;
+            ev->v[4 + j] = L->t_old <= scuff[2] && scuff[2] <= L->t ? rk_dense_at(L->S, j, scuff[2]) : NAN;
     }
     cache_step_end(L, ft1, F1);
     for (int leg = 1; leg <= 2; leg++)
@@ -975,18 +716,20 @@ Loop_set_options(Loop *L, PyObject *args)
 {
     PyObject *mu, *tpb;
     double slope;
+    int forward_rule;
     if (!PyArg_ParseTuple(args, "ddddddddOppppdOdddpp", &L->rtol, &L->atol, &L->max_step, &L->max_speed,
                           &L->ground_tol, &L->force_tol, &L->graze_tol, &L->arm_height, &mu, &L->stop_on_slip,
                           &L->project, &L->check_invariants, &L->impact_phase, &slope, &tpb, &L->front_tol,
-                          &L->scuff_depth, &L->event_tol, &L->front_rule, &L->forward_rule))
+                          &L->scuff_depth, &L->event_tol, &L->front_rule, &forward_rule))
         return NULL;
+    L->forward_rule = forward_rule;
     L->has_mu = mu != Py_None;
     L->mu = L->has_mu ? PyFloat_AsDouble(mu) : 0.0;
     if (L->mu == -1.0 && PyErr_Occurred()) return NULL;
     L->sin_s = sin(slope);
     L->cos_s = cos(slope);
     L->tan_s = tan(slope);
-    if (doubles(tpb, L->to_power_basis, 64, 64, "to_power_basis", NULL)) return NULL;
+    if (doubles(tpb, &L->to_power_basis[0][0], 64, 64, "to_power_basis", NULL)) return NULL;
     Py_RETURN_NONE;
 }
 
@@ -1063,7 +806,7 @@ Loop_rhs(Loop *L, PyObject *args)
 static PyObject *
 failure(Loop *L)
 {
-    return Py_BuildValue("(idd)", L->fail_kind, L->fail_value, L->fail_t);
+    return Py_BuildValue("(idd)", (int)L->fail_kind, L->fail_value, L->fail_t);
 }
 
 /* step() -> None, or (kind, value, t) of a failure */
@@ -1071,7 +814,7 @@ static PyObject *
 Loop_step(Loop *L, PyObject *unused)
 {
     (void)unused;
-    if (step(L) < 0) return L->callback_failed ? raise_callback_error(L) : failure(L);
+    if (rk_step(L->S, rhs, L) < 0) return L->callback_failed ? raise_callback_error(L) : failure(L);
     /* the torque and force of the step's last evaluation, at its end (FSAL), as handed() gives them */
     L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
     L->end_F[0] = L->last_F[0]; L->end_F[1] = L->last_F[1];
@@ -1098,7 +841,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
 {
     while (L->t < t_end) {
         if ((!rs->last_only && rs->n + 2 > rs->cap) || L->n_events == EVENT_ROOM) return GROW;
-        if (step(L) < 0) return FAILED;
+        if (rk_step(L->S, rhs, L) < 0) return FAILED;
         double drift = 0.0, rate = 0.0, residual, row[34];
         int accepted_how = quiet_step(L, row, rs->E0, rs->push_work, rs->energy_lost, &drift, &rate, &residual);
         if (!accepted_how) return PENDING;
@@ -1584,16 +1327,16 @@ static PyObject *
 Loop_locate_crossing(Loop *L, PyObject *args)
 {
     int leg;
-    double ta, tb, root;
+    double ta, tb;
     if (!PyArg_ParseTuple(args, "idd", &leg, &ta, &tb)) return NULL;
     if (leg != 1 && leg != 2) {
         PyErr_SetString(PyExc_ValueError, "locate_crossing(): leg 1 or 2");
         return NULL;
     }
-    int rc = locate_crossing(L, leg, ta, tb, &root);
+    int rc = ev_locate_height_crossing(L->S, rhs, L, leg, ta, tb);
     if (L->callback_failed) return raise_callback_error(L);
     if (rc < 0) Py_RETURN_NONE;
-    return PyFloat_FromDouble(root);
+    return PyFloat_FromDouble(L->S[LS_RESULT]);
 }
 
 /* raise_error(): raise the Python controller's exception that ended the last run (outcome RAISED) */
@@ -1609,7 +1352,7 @@ static PyObject *
 Loop_counts(Loop *L, PyObject *unused)
 {
     (void)unused;
-    return Py_BuildValue("(ll)", L->nfev, L->nrejected);
+    return Py_BuildValue("(ll)", (long)L->nfev, (long)L->nrejected);
 }
 
 /* begin(method, stance_leg, pin_x, pin_y, law, u1, u2, t, y, t_bound, h_abs or None, reset_counters), law
@@ -1641,7 +1384,8 @@ Loop_begin(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         return NULL;
     }
     if (doubles(args[8], L->y, N, N, "y", NULL) || carry_step_arg(L, args[10]) < 0) return NULL;
-    L->method = (int)method;
+    L->method = method;
+    L->n_y = N;
     L->leg = (int)leg;
     L->pin[0] = pin0;
     L->pin[1] = pin1;
@@ -1689,7 +1433,7 @@ static PyObject *
 Loop_dense_rows(Loop *L, PyObject *unused)
 {
     (void)unused;
-    dense(L);
+    rk_dense(L->S, rhs, L);
     if (L->callback_failed) return raise_callback_error(L);
     int width = L->method == DOP853 ? 8 : 5;
     PyObject *rows = PyList_New(N);
@@ -1711,9 +1455,9 @@ Loop_dense_at(Loop *L, PyObject *arg)
 {
     double tt = PyFloat_AsDouble(arg), v[N];
     if (tt == -1.0 && PyErr_Occurred()) return NULL;
-    dense(L);
+    rk_dense(L->S, rhs, L);
     if (L->callback_failed) return raise_callback_error(L);
-    for (int i = 0; i < N; i++) v[i] = dense_at(L, i, tt);
+    for (int i = 0; i < N; i++) v[i] = rk_dense_at(L->S, i, tt);
     return list_of(v, N);
 }
 
@@ -1723,7 +1467,7 @@ Loop_state(Loop *L, PyObject *unused)
 {
     (void)unused;
     return Py_BuildValue("(ddddNNNlll)", L->t, L->t_old, L->h, L->h_abs, list_of(L->y, N), list_of(L->y_old, N),
-                         list_of(L->f, N), L->nfev, L->nrejected, L->naccepted);
+                         list_of(L->f, N), (long)L->nfev, (long)L->nrejected, (long)L->naccepted);
 }
 
 /* handed() -> (start feet (8), start F (2), end u (2), end F (2), armed (2)) of the step handed back */
@@ -1745,7 +1489,11 @@ Loop_armed(Loop *L, PyObject *unused)
 static PyObject *
 Loop_counters(Loop *L, PyObject *args)
 {
-    if (!PyArg_ParseTuple(args, "lll", &L->nfev, &L->nrejected, &L->naccepted)) return NULL;
+    long nfev, nrejected, naccepted;
+    if (!PyArg_ParseTuple(args, "lll", &nfev, &nrejected, &naccepted)) return NULL;
+    L->nfev = nfev;
+    L->nrejected = nrejected;
+    L->naccepted = naccepted;
     Py_RETURN_NONE;
 }
 

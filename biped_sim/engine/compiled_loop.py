@@ -123,11 +123,12 @@ def _step_failure(fail):
     return integrators.StepFailure(integrators.non_finite_message(value))
 
 
-class CompiledStepper(integrators._ListRungeKutta):
+class CompiledStepper(integrators._Stepper):
     """The stepper of a mode the compiled loop runs: its state lives in the C ``Loop``; the fields the
     Python code reads (``t``, ``y``, ``t_old``, ``y_old``, ``h``, ``h_abs``) are copied out only when a
     step is handed back (``_sync``). The locator's armed feet and scuff live in C while it runs, and
     are exchanged when either side changed them (``loop.locator_stale``, ``locator_changed``)."""
+    takes_lists = True
 
     def __init__(self, sim):
         self.sim = sim

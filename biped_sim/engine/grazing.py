@@ -20,67 +20,46 @@ from __future__ import annotations
 
 import numpy as np
 
+from biped_sim.engine import loop_rules as rules
+from biped_sim.engine.loop_state import COEF, FIXED_BASE, GRAZE_TOL, L_LEG, RESULT, TAN_S, new_state
+
 DEGREE = 7
 NODES = 0.5 - 0.5 * np.cos((2 * np.arange(DEGREE + 1) + 1) * np.pi / (2 * (DEGREE + 1)))   # in (0, 1)
 _VANDERMONDE_INV = np.linalg.inv(np.vander(NODES, DEGREE + 1, increasing=True))
-_K = np.arange(DEGREE + 1, dtype=float)
-MAX_DEPTH = 30          # halvings: the width of a leaf is at least 2^-30 of the step
 
 
-def _derivative_weights(b):
-    """Row vectors w1, w2 with w1 @ |c| >= max |p'| and w2 @ |c| >= max |p''| over [0, b] (0 < b <= 1)
-    for p(s) = sum c_k s^k."""
-    return _K * b ** np.maximum(_K - 1, 0), _K * (_K - 1) * b ** np.maximum(_K - 2, 0)
-
-
-_WEIGHTS_ON_0_1 = _derivative_weights(1.0)
+def _guard(S, height_at, t):
+    """A Python function of t as the rules call a guard: g(S, ctx, t), ctx the function."""
+    return height_at(t)
 
 
 def dip_bracket(st, to_phys, height_at, leg, stance_leg, fixed_base, l_leg, tan_slope, h0, h1, graze_tol):
     """(t_a, t_b) with the foot's height > 0 at t_a and <= 0 at t_b inside the last step, or None if
     no dip deeper than ``graze_tol`` exists there. ``height_at(t) -> float`` on the dense output;
-    h0, h1: the heights at the step's ends (both > 0)."""
-    t_old, h_step = st.t_old, st.t - st.t_old
-    # the entries of the integrated state y the foot's height depends on
-    cols = [leg - 1, 2, stance_leg - 1] if fixed_base else [1 + leg, 4, 0, 1]
+    h0, h1: the heights at the step's ends (both > 0). The search and its bound are the rule
+    ``loop_rules.ev_dip_search``; on the floating base, the coefficients of a dop853 or dopri5 step are
+    ``loop_rules.ev_dip_coefficients``' (the compiled loop's rules, the same bits)."""
     interpolant = st.dense_output()
-    if hasattr(interpolant, "poly_coefficients"):
-        C = interpolant.poly_coefficients(cols)
+    S = getattr(interpolant, "state", None)
+    if S is not None and not fixed_base:     # dop853's or dopri5's rows, in the interpolant's state
+        rules.ev_dip_coefficients(S, leg)
     else:
-        C = _VANDERMONDE_INV @ np.array([np.asarray(interpolant(t_old + s * h_step))[cols] for s in NODES])
-    # |coefficients| of: the swing leg's angle, then the stance leg's angle (fixed base) or the hip's
-    # x and y (floating base)
-    if fixed_base:   # y = (q1, q2, q3, dq...): the hip hangs from the pin by the stance leg
-        A = np.abs(np.column_stack([C[:, 0] + C[:, 1], C[:, 2] + C[:, 1]]))
-    else:            # y = (x, y, q1, q2, q3, ...)
-        A = np.abs(np.column_stack([C[:, 0] + C[:, 1], C[:, 2], C[:, 3]]))
-    lt = l_leg * (1 + abs(tan_slope))
-    slack = 1.0 + 1e-6    # the coefficients carry roundoff
-
-    def m2(b):
-        w1, w2 = _WEIGHTS_ON_0_1 if b == 1.0 else _derivative_weights(b)
-        d1, d2 = (w1 @ A).tolist(), (w2 @ A).tolist()
-        if fixed_base:
-            bound = lt * (d2[0] + d1[0] * d1[0] + d2[1] + d1[1] * d1[1])
+        t_old, h_step = st.t_old, st.t - st.t_old
+        # the entries of the integrated state y the foot's height depends on
+        cols = [leg - 1, 2, stance_leg - 1] if fixed_base else [1 + leg, 4, 0, 1]
+        if hasattr(interpolant, "poly_coefficients"):
+            C = interpolant.poly_coefficients(cols)
         else:
-            bound = lt * (d2[0] + d1[0] * d1[0]) + d2[2] + abs(tan_slope) * d2[1]
-        return bound * slack
-
-    def h_at(s):
-        return h0 if s == 0.0 else h1 if s == 1.0 else height_at(t_old + s * h_step)
-
-    stack = [(0.0, 1.0, h0, h1, 0)]
-    while stack:
-        a, b, ha, hb, depth = stack.pop()
-        drop = m2(b) * (b - a) ** 2 / 8
-        if min(ha, hb) - drop > 0 or drop <= graze_tol or depth >= MAX_DEPTH:
-            continue
-        mid = 0.5 * (a + b)
-        hm = h_at(mid)
-        if hm <= 0:
-            return t_old + a * h_step, t_old + mid * h_step
-        # the left half first: the earliest dip is the one that counts
-        stack.append((mid, b, hm, hb, depth + 1))
-        stack.append((a, mid, ha, hm, depth + 1))
+            C = _VANDERMONDE_INV @ np.array([np.asarray(interpolant(t_old + s * h_step))[cols] for s in NODES])
+        # |coefficients| of: the swing leg's angle, then the stance leg's angle (fixed base) or the hip's
+        # x and y (floating base)
+        if fixed_base:   # y = (q1, q2, q3, dq...): the hip hangs from the pin by the stance leg
+            A = np.abs(np.column_stack([C[:, 0] + C[:, 1], C[:, 2] + C[:, 1], np.zeros(8)]))
+        else:            # y = (x, y, q1, q2, q3, ...)
+            A = np.abs(np.column_stack([C[:, 0] + C[:, 1], C[:, 2], C[:, 3]]))
+        S = new_state(t_old=st.t_old, t=st.t)
+        S[COEF:COEF + 24] = A.ravel().tolist()
+    S[FIXED_BASE], S[L_LEG], S[TAN_S], S[GRAZE_TOL] = float(fixed_base), l_leg, tan_slope, graze_tol
+    if rules.ev_dip_search(S, _guard, height_at, h0, h1):
+        return S[RESULT], S[RESULT + 1]
     return None
-

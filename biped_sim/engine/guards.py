@@ -26,7 +26,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from biped_sim.engine import loop_rules as rules
 from biped_sim.engine.compiled import gen
+from biped_sim.engine.loop_state import RESULT, new_state
 
 
 class FootState(NamedTuple):
@@ -95,8 +97,8 @@ def slip_guard(normal, tangential, mu) -> float:
 def swinging_through(foot: FootState) -> bool:
     """A foot moving forward more than it sinks (a crossing at most 45 degrees steep): a leg swinging
     through near the bottom of its arc, not a robot falling onto its foot (which moves backward, or
-    down)."""
-    return foot.dx > 0.0 and foot.dx + foot.dheight >= 0.0
+    down). The rule ``loop_rules.ev_swinging_through``."""
+    return rules.ev_swinging_through(foot.dx, foot.dheight)
 
 
 def starts_scuff(swing: FootState, stance: FootState, opt) -> bool:
@@ -104,30 +106,33 @@ def starts_scuff(swing: FootState, stance: FootState, opt) -> bool:
     than touching down: at or behind the stance foot (within ``front_tol`` counts as behind), and under
     ``scuff_rule`` "forward" swinging through (``swinging_through``; a foot that comes down behind
     otherwise is the robot falling back onto it, and lands)."""
-    if swing.x > stance.x + opt.front_tol:
-        return False
-    return opt.scuff_rule == "behind" or swinging_through(swing)
+    return rules.ev_starts_scuff(opt.scuff_rule == "forward", opt.front_tol, swing.x, swing.dx, swing.dheight,
+                                 stance.x)
 
 
 def passes_through(swing: FootState, stance: FootState, opt) -> bool:
     """Whether a swing foot under the ground still passes through it, as a scuff under way: under
     ``scuff_rule`` "forward" while it swings through (wherever it is), under "behind" while it is behind
     the stance foot."""
-    if opt.scuff_rule == "forward":
-        return swinging_through(swing)
-    return swing.x <= stance.x + opt.front_tol
+    return rules.ev_passes_through(opt.scuff_rule == "forward", opt.front_tol, swing.x, swing.dx, swing.dheight,
+                                   stance.x)
 
 
 # -- locating a crossing -----------------------------------------------------------------------
+def _guard(S, guard_at, t):
+    """A Python function of t as the rules call a guard: g(S, ctx, t), ctx the function."""
+    return guard_at(t)
+
+
 def locate_crossing(guard_at, ta, tb, event_tol) -> float:
     """The time in [ta, tb] where ``guard_at`` (positive at ta, <= 0 at tb) crosses zero, to
-    ``event_tol`` seconds (an end of the bracket where the guard is already zero there)."""
-    ga, gb = guard_at(ta), guard_at(tb)
-    if gb == 0.0:
-        return tb
-    if ga <= 0:
-        return ta
-    from scipy.optimize import brentq  # here: its import (~0.4 s) is paid by runs that locate an event
+    ``event_tol`` seconds (an end of the bracket where the guard is already zero there): the rule
+    ``loop_rules.ev_locate_crossing`` (scipy's brentq, the same iterates), which the compiled loop runs
+    compiled. Where brentq gives up (no sign change, a NaN, no convergence) scipy's raises its error."""
+    S = new_state(event_tol=event_tol)
+    if rules.ev_locate_crossing(S, _guard, guard_at, ta, tb) == 0:
+        return float(S[RESULT])
+    from scipy.optimize import brentq  # here: its import (~0.4 s) is paid by a run whose root finder gives up
     return brentq(guard_at, ta, tb, xtol=event_tol, rtol=4 * np.finfo(float).eps, maxiter=200)
 
 

@@ -24,11 +24,32 @@ Methods (``make_stepper(name, ...)``):
 from __future__ import annotations
 
 import functools
-import math
 
 import numpy as np
 
+from biped_sim.engine import loop_rules as rules, loop_state
 from biped_sim.engine.compiled import rk as _rk
+from biped_sim.engine.loop_state import (
+    DENSE,
+    FAIL_KIND,
+    FAIL_T,
+    FAIL_VALUE,
+    H_ABS,
+    N_Y,
+    NACCEPTED,
+    NFEV,
+    NMAX,
+    NREJECTED,
+    OUT,
+    T_BOUND,
+    T_OLD,
+    Y_OLD,
+    F,
+    H,
+    T,
+    Y,
+    new_state,
+)
 
 FIXED_STEP_METHODS = ("rk4", "semi_implicit_euler")
 ADAPTIVE_METHODS = ("dop853", "dopri5", "radau", "bdf", "scipy_dop853", "scipy_rk45")
@@ -113,118 +134,144 @@ class _Stepper:
         return np.asarray(self.dense_output()(t)).tolist()
 
 
+def _entry(offset, doc):
+    """A float entry of the state S as an attribute."""
+    def set_entry(self, value):
+        self.S[offset] = float(value)
+    return property(lambda self: self.S[offset], set_entry, doc=doc)
+
+
+def _count(offset, doc):
+    """A counter of the state S (a whole float there) as an int attribute."""
+    def set_count(self, value):
+        self.S[offset] = float(value)
+    return property(lambda self: int(self.S[offset]), set_count, doc=doc)
+
+
+def _entries(offset, doc):
+    """The first n entries of a field of NMAX of the state S (y, f, y_old) as a list attribute."""
+    def set_entries(self, values):
+        self.S[offset:offset + self.n] = [float(v) for v in values]
+    return property(lambda self: self.S[offset:offset + self.n], set_entries, doc=doc)
+
+
 class _ListRungeKutta(_Stepper):
     """An embedded explicit Runge-Kutta pair on lists, with scipy's step control (Hairer's).
 
-    The state and the right-hand side are Python lists: one step is a generated, unrolled function
-    of ``_gen/rk_steps.py`` (see tools/generate_rk.py for why). Subclasses give the step functions,
-    the error estimator's order and the dense output (generated too, ``*_dense_<n>``).
+    Its state is the hybrid loop's (``loop_state``: a list of floats S), and its step, its dense output
+    and their evaluation are the rules of ``loop_rules`` on that state, run as Python: the same source
+    the compiled loop runs compiled (``_loop_rules.c``). The right-hand side and the stages are Python
+    lists; one step is a generated, unrolled function of ``_gen/rk_steps.py`` (see tools/generate_rk.py
+    for why) for the state sizes the engine uses, a generic one for others (at most NMAX entries).
+    Subclasses give the step functions, the error estimator's order and the dense output's rows
+    (generated too, ``*_dense_<n>``).
     """
     takes_lists = True
-    STEPS, GENERIC_STEP, ERROR_ORDER, N_STAGES = {}, None, None, None
-    SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
+    STEPS, GENERIC_STEP, ERROR_ORDER, N_STAGES, METHOD = {}, None, None, None, None
+    SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0     # (the step control's, as loop_rules.rk_step has them)
+
+    t = _entry(T, "time at the end of the last step")
+    t_old = _entry(T_OLD, "time at its start")
+    t_bound = _entry(T_BOUND, "the end of the interval")
+    h = _entry(H, "the last step's size")
+    h_abs = _entry(H_ABS, "the step size the next step tries")
+    y = _entries(Y, "the state at t")
+    y_old = _entries(Y_OLD, "the state at t_old")
+    f = _entries(F, "the right-hand side at (t, y)")
+    nfev = _count(NFEV, "right-hand-side evaluations")
+    naccepted = _count(NACCEPTED, "accepted steps")
+    nrejected = _count(NREJECTED, "rejected steps")
 
     def __init__(self, fun, t0, y0, t_bound, rtol=1e-9, atol=1e-9, h0=None, max_step=np.inf):
         self.rtol, self.atol, self.max_step = rtol, atol, max_step
-        self.h_abs = h0
-        self.error_exponent = -1.0 / (self.ERROR_ORDER + 1)
+        self.S = new_state(method=loop_state.METHODS[self.METHOD], rtol=rtol, atol=atol, max_step=max_step)
+        self.n = 0
+        self._h_unset = h0 is None
+        if h0 is not None:
+            self.S[H_ABS] = float(h0)
         super().__init__(fun, t0, y0, t_bound)
 
     def restart(self, t0, y0, t_bound, h=None):
-        super().restart(t0, y0, t_bound)
-        self._step = self.STEPS.get(len(self.y), self.GENERIC_STEP)   # unrolled for the engine's sizes
-        self.f = self.fun(self.t, self.y)
-        self.nfev += 1
+        S = self.S
+        y0 = [float(v) for v in y0]
+        if len(y0) > NMAX:
+            raise ValueError(f"the {self.METHOD} stepper takes a state of at most {NMAX} entries, got {len(y0)}")
+        self.n = len(y0)
+        S[N_Y] = self.n
+        S[T], S[T_BOUND] = float(t0), float(t_bound)
+        S[Y:Y + self.n] = y0
+        self.rk_step = self.STEPS.get(self.n, self.GENERIC_STEP)   # unrolled for the engine's sizes
+        rules.rk_begin(S, self.fun, self)                            # f = fun(t, y)
         if h is not None:
-            self.h_abs = h
-        if self.h_abs is None:
-            self.h_abs = self._initial_step()
+            S[H_ABS] = h
+            self._h_unset = False
+        if self._h_unset:
+            S[H_ABS] = self._initial_step()
+            self._h_unset = False
         # a Python float: a numpy scalar here would make every entry of the state one, and the
         # scalar closed forms several times slower
-        self.h_abs = float(min(self.h_abs, self.max_step))
-        self._stages = None
+        S[H_ABS] = float(min(S[H_ABS], self.max_step))
         self._dense = None
 
+    def replace_y(self, y):
+        self.y = y
+
     def dense_at(self, t):
-        return self.dense_output().at(t)
+        S = self.S
+        rules.rk_dense(S, self.fun, self)
+        rules.rk_dense_state(S, t)
+        return S[OUT:OUT + self.n]
 
     def _initial_step(self):
-        self.nfev += 1
+        self.S[NFEV] += 1
         return initial_step(self.fun, self.t, self.y, self.f, self.t_bound, self.rtol, self.atol, self.ERROR_ORDER)
 
     def step(self):
-        t, y, f = self.t, self.y, self.f
-        remaining = self.t_bound - t
-        if remaining <= 0:
-            return
-        min_step = 10 * math.ulp(t) + 1e-300
-        h_abs = min(self.h_abs, self.max_step)
-        rejected = False
-        while True:
-            if h_abs < min_step:
-                raise StepFailure(step_size_message(h_abs, t))
-            h = h_abs
-            if h >= remaining:
-                h = remaining
-                h_abs = remaining
-            y_new, f_new, err, stages = self._step(self.fun, t, y, f, h, self.rtol, self.atol)
-            self.nfev += self.N_STAGES
-            if err < 1.0:
-                if not math.isfinite(sum(y_new)):
-                    raise StepFailure(non_finite_message(t + h))
-                factor = (self.MAX_FACTOR if err == 0.0
-                          else min(self.MAX_FACTOR, self.SAFETY * err ** self.error_exponent))
-                if rejected:
-                    factor = min(1.0, factor)
-                self.h_abs = h_abs * factor
-                break
-            if not math.isfinite(err):
-                h_abs *= self.MIN_FACTOR
-            else:
-                h_abs *= max(self.MIN_FACTOR, self.SAFETY * err ** self.error_exponent)
-            rejected = True
-            self.nrejected += 1
-        self.naccepted += 1
-        self.t_old, self.y_old, self.f_old, self.h = t, y, f, h
-        self.t = t + h if h < remaining else self.t_bound
-        self.y, self.f = y_new, f_new
-        self._stages = stages
+        rc = rules.rk_step(self.S, self.fun, self)
         self._dense = None
+        if rc < 0:
+            kind, value, t = self.S[FAIL_KIND], self.S[FAIL_VALUE], self.S[FAIL_T]
+            raise StepFailure(step_size_message(value, t) if kind == 1.0 else non_finite_message(value))
+
+    def dense_output(self):
+        """The last step's dense output as an interpolant that keeps its rows (valid after the next step)."""
+        if self._dense is None:
+            S = self.S
+            rules.rk_dense(S, self.fun, self)
+            w = self.INTERPOLANT.WIDTH
+            rows = [tuple(S[DENSE + w * i:DENSE + w * i + w]) for i in range(self.n)]
+            self._dense = self.INTERPOLANT(self.t_old, self.t, rows)
+        return self._dense
 
 
 class DOP853Stepper(_ListRungeKutta):
     """Dormand-Prince 8(5,3), the algorithm of scipy's DOP853. The three extra stages of its
-    7th-order dense output are computed only when ``dense_output()`` is asked for, which the
+    7th-order dense output are computed only when the dense output is asked for, which the
     hybrid engine does only in steps where a guard may have crossed."""
     STEPS, GENERIC_STEP, ERROR_ORDER = _rk.DOP853_STEPS, staticmethod(_rk.dop853_step), 7
-    N_STAGES = _rk.N_STAGES["dop853"]
+    N_STAGES, METHOD = _rk.N_STAGES["dop853"], "dop853"
 
-    def dense_output(self):
-        if self._dense is None:
-            dense = _rk.DOP853_DENSE.get(len(self.y))
-            if dense is None:
-                rows = self._dense_rows_any_size()
-            else:       # generated and unrolled: the same operations as the compiled loop's
-                rows = dense(self.fun, self.t_old, self.h, self.y_old, self.y,
-                             *[self._stages[j] for j in _rk.DOP853_DENSE_STAGES])
-            self.nfev += 3
-            self._dense = _DOP853Interpolant(self.t_old, self.t, rows)
-        return self._dense
+    def rk_dense_rows(self, fun, t_old, h, y_old, y, stages):
+        """The rows of the dense output of the step (t_old, t_old + h) from its stages k0..k12 (loop_kernels)."""
+        dense = _rk.DOP853_DENSE.get(len(y))
+        if dense is None:
+            return self._dense_rows_any_size(fun, t_old, h, y_old, y, stages)
+        # generated and unrolled: the same operations as the compiled loop's
+        return dense(fun, t_old, h, y_old, y, *[stages[j] for j in _rk.DOP853_DENSE_STAGES])
 
-    def _dense_rows_any_size(self):
+    def _dense_rows_any_size(self, fun, t0, h, y_old, y, stages):
         """The rows of the dense output for a state size without a generated one (scipy's tables)."""
         ref = _scipy_integrate().DOP853
-        h, t0 = self.h, self.t_old
-        y0 = np.array(self.y_old)
+        y0 = np.array(y_old)
         n_stages_extended = ref.A_EXTRA.shape[1]
         K = np.empty((n_stages_extended, y0.size))
-        K[:self.N_STAGES + 1] = self._stages
+        K[:self.N_STAGES + 1] = stages
         K[:self.N_STAGES + 1] *= h
         for s, (a, c) in enumerate(zip(ref.A_EXTRA, ref.C_EXTRA), start=self.N_STAGES + 1):
-            K[s] = self.fun(t0 + c * h, (y0 + np.dot(a[:s], K[:s])).tolist())
+            K[s] = fun(t0 + c * h, (y0 + np.dot(a[:s], K[:s])).tolist())
             K[s] *= h
         F = np.empty((ref.D.shape[0] + 3, y0.size))
-        dy = np.array(self.y) - y0
+        dy = np.array(y) - y0
         F[0] = dy
         F[1] = K[0] - dy
         F[2] = 2 * dy - (K[12] + K[0])
@@ -238,27 +285,38 @@ class DOPRI5Stepper(_ListRungeKutta):
     short control period (the node's 1 ms) it reaches the tolerance with about half the
     evaluations of DOP853, whose order pays off only on long steps."""
     STEPS, GENERIC_STEP, ERROR_ORDER = _rk.DOPRI5_STEPS, staticmethod(_rk.dopri5_step), 4
-    N_STAGES = _rk.N_STAGES["dopri5"]
+    N_STAGES, METHOD = _rk.N_STAGES["dopri5"], "dopri5"
 
-    def dense_output(self):
-        if self._dense is None:
-            dense = _rk.DOPRI5_DENSE.get(len(self.y))
-            if dense is None:    # scipy's Q = K^T P for a size without a generated one
-                Q = np.array(self._stages).T @ _scipy_integrate().RK45.P
-                rows = list(zip(self.y_old, *Q.T.tolist()))
-            else:
-                rows = dense(self.y_old, *self._stages)
-            self._dense = _DOPRI5Interpolant(self.t_old, self.t, rows)
-        return self._dense
+    def rk_dense_rows(self, fun, t_old, h, y_old, y, stages):
+        """The rows of the dense output of the step from its stages k0..k6 (loop_kernels)."""
+        dense = _rk.DOPRI5_DENSE.get(len(y))
+        if dense is None:    # scipy's Q = K^T P for a size without a generated one
+            Q = np.array(stages).T @ _scipy_integrate().RK45.P
+            return list(zip(y_old, *Q.T.tolist()))
+        return dense(y_old, *stages)
 
 
 class _RowInterpolant:
     """A step's dense output from ``rows``, one per entry of the state (the generated ``*_dense_<n>``'s);
-    ``at(t)`` the state at t as a list of plain floats (for 11 entries cheaper than numpy arithmetic)."""
+    ``at(t)`` the state at t as a list of plain floats: ``loop_rules.rk_dense_state`` on a state of its
+    own (``state``: the rows, t_old, t), the rule the compiled loop runs."""
+    METHOD = WIDTH = None
+    _TEMPLATE = None    # the state of the class's rows but for the step (made once)
 
     def __init__(self, t_old, t, rows):
         self.t_old, self.t, self.rows = t_old, t, rows
         self.h = t - t_old
+        cls = type(self)
+        if cls._TEMPLATE is None:
+            cls._TEMPLATE = new_state(method=loop_state.METHODS[cls.METHOD],
+                                      to_power_basis=_DOP853Interpolant.TO_POWER_BASIS.ravel().tolist())
+        self.state = S = cls._TEMPLATE[:]
+        S[N_Y], S[T_OLD], S[T] = float(len(rows)), float(t_old), float(t)
+        S[DENSE:DENSE + self.WIDTH * len(rows)] = [float(v) for row in rows for v in row]
+
+    def at(self, t):
+        rules.rk_dense_state(self.state, t)
+        return self.state[OUT:OUT + len(self.rows)]
 
     def __call__(self, t):
         return np.array(self.at(t))
@@ -266,12 +324,8 @@ class _RowInterpolant:
 
 class _DOPRI5Interpolant(_RowInterpolant):
     """DOPRI5's 4th-order dense output: per entry y + h (((q4 x + q3) x + q2) x + q1) x, x = (t' - t_old) / h
-    (scipy's RkDenseOutput, evaluated by Horner's rule, as the compiled loop does)."""
-
-    def at(self, t):
-        h = self.h
-        x = (t - self.t_old) / h
-        return [y + h * ((((q4 * x + q3) * x + q2) * x + q1) * x) for y, q1, q2, q3, q4 in self.rows]
+    (scipy's RkDenseOutput, evaluated by Horner's rule: loop_rules.rk_dense_at)."""
+    METHOD, WIDTH = "dopri5", 5
 
     def poly_coefficients(self, cols):
         """Power-basis coefficients in x of the entries ``cols``: one row a power (0 to 7)."""
@@ -298,18 +352,17 @@ def _nested_to_power_basis():
 
 class _DOP853Interpolant(_RowInterpolant):
     """DOP853's 7th-order dense output (scipy's Dop853DenseOutput): a nested product in x and 1 - x,
-    from ``rows``, per entry (y_old, f0, ..., f6)."""
+    from ``rows``, per entry (y_old, f0, ..., f6) (loop_rules.rk_dense_at)."""
+    METHOD, WIDTH = "dop853", 8
     TO_POWER_BASIS = _nested_to_power_basis()
 
     def poly_coefficients(self, cols):
         """Power-basis coefficients in x of the entries ``cols``: one row a power (0 to 7)."""
         return self.TO_POWER_BASIS @ np.array([self.rows[c] for c in cols]).T
 
-    def at(self, t):
-        x = (t - self.t_old) / self.h
-        u = 1.0 - x
-        return [((((((f0 * x + f1) * u + f2) * x + f3) * u + f4) * x + f5) * u + f6) * x + y0
-                for y0, f0, f1, f2, f3, f4, f5, f6 in self.rows]
+
+DOP853Stepper.INTERPOLANT = _DOP853Interpolant
+DOPRI5Stepper.INTERPOLANT = _DOPRI5Interpolant
 
 
 class _HermiteInterpolant:

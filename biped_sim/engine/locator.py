@@ -20,8 +20,9 @@ import math
 
 import numpy as np
 
-from biped_sim.engine import guards as G
+from biped_sim.engine import guards as G, loop_rules as rules
 from biped_sim.engine.grazing import dip_bracket
+from biped_sim.engine.loop_state import DEEPEST_TRIAL, FEET, RESULT, SCUFF_TRIAL, T_OLD, new_state
 from biped_sim.engine.results import Event, SceneAssumptionError
 from biped_sim.engine.witnesses import triggered, witness, witnesses
 
@@ -51,6 +52,9 @@ class EventLocator:
         self.active_scuffs: dict = {}   # leg -> [t_start, deepest, t_deepest] while that foot is under
         self.scuff_events: list = []    # finished scuffs, for the simulator to report
         self._feet_end = self._force_end = (None, None)   # (t, value) at the last step's end
+        # the state the scuffs are followed on (loop_rules.ev_track_scuff): the scuff options
+        self._scuff_state = new_state(front_tol=opt.front_tol, scuff_depth=opt.scuff_depth,
+                                      forward_rule=float(opt.scuff_rule == "forward"))
 
     def witnesses(self, stance_leg):
         """The witnesses of the mode (:func:`~biped_sim.engine.witnesses.witnesses`) with the feet armed now."""
@@ -188,28 +192,29 @@ class EventLocator:
         return [leg for leg in (1, 2) if leg != stance_leg and not self.armed[leg - 1]
                 and leg not in self.active_scuffs and feet[leg - 1].height < -self.opt.ground_tol]
 
-    def _track_scuffs(self, st, to_phys, stance_leg, t_end, n=8):
-        """Follow each scuffing foot over the step up to ``t_end``: its deepest dip (on n + 1 points of
-        the dense output), the end of the scuff when it is above the ground again, and the two ways
-        a scuff leaves the model (it stops passing through under the ground; deeper than scuff_depth)."""
+    def _track_scuffs(self, st, to_phys, stance_leg, t_end):
+        """Follow each scuffing foot over the step up to ``t_end`` (the rule ``loop_rules.ev_track_scuff``):
+        its deepest dip (on 9 points of the dense output), the end of the scuff when it is above the ground
+        again, and the two ways a scuff leaves the model (it stops passing through under the ground; deeper
+        than scuff_depth), which stop the run here."""
+        S = self._scuff_state
         for leg, scuff in list(self.active_scuffs.items()):
-            t0 = max(scuff[0], st.t_old)
-            for t in np.linspace(t0, t_end, n + 1).tolist():
-                feet = self._feet_at(st, to_phys, t)
-                depth = -feet[leg - 1].height
-                if depth > scuff[1]:
-                    scuff[1], scuff[2] = depth, t
-                if depth > 0 and not G.passes_through(feet[leg - 1], feet[stance_leg - 1], self.opt):
-                    raise SceneAssumptionError(scuff_left_model(leg, scuff[0], depth, t, feet[leg - 1],
-                                                                self.opt.scuff_rule))
-            self.deepest_scuff = max(self.deepest_scuff, scuff[1])
-            if scuff[1] > self.opt.scuff_depth:
+            S[T_OLD] = st.t_old
+            S[SCUFF_TRIAL:SCUFF_TRIAL + 3] = scuff
+            S[DEEPEST_TRIAL] = self.deepest_scuff
+            outcome = rules.ev_track_scuff(S, _feet_into_state, (self, st, to_phys), leg, stance_leg, t_end)
+            scuff[:] = S[SCUFF_TRIAL:SCUFF_TRIAL + 3]
+            if outcome == -1:
+                t, depth, foot = S[RESULT], S[RESULT + 1], G.FootState(*S[FEET + 4 * (leg - 1):FEET + 4 * leg])
+                raise SceneAssumptionError(scuff_left_model(leg, scuff[0], depth, t, foot, self.opt.scuff_rule))
+            self.deepest_scuff = S[DEEPEST_TRIAL]
+            if outcome == -2:
                 raise SceneAssumptionError(
                     f"foot {leg} went {scuff[1]:.3g} m below the ground behind the stance foot (leg {stance_leg}) "
                     f"at t={scuff[2]:.9g} s, deeper than scuff_depth={self.opt.scuff_depth:g} m: the robot is "
                     "falling onto that foot, which the model (touchdown_rule='front') does not let touch down "
                     "(a larger scuff_depth, or inf, lets deeper scuffs pass)")
-            if feet[leg - 1].height > 0.0:     # the loop's last point is t_end
+            if outcome == 1:     # the foot is above the ground at t_end
                 del self.active_scuffs[leg]
                 self.scuff_events.append(self._scuff_event(st, to_phys, leg, stance_leg, scuff, t_end))
 
@@ -239,6 +244,14 @@ def landing_bracket(height_at, t_old, t, n=16):
     ts = [tk for tk in ts if t_old < tk < t] + [t]
     above = [k for k, tk in enumerate(ts[:-1]) if height_at(tk) > 0.0]
     return (ts[above[-1]], ts[above[-1] + 1]) if above else (t_old, t)
+
+
+def _feet_into_state(S, ctx, t):
+    """The feet on the dense output at t into S[FEET], as the rules call feet_at(S, ctx, t): ctx is (the
+    locator, the stepper, to_phys)."""
+    locator, st, to_phys = ctx
+    foot1, foot2 = locator._feet_at(st, to_phys, t)
+    S[FEET:FEET + 8] = [*foot1, *foot2]
 
 
 def scuff_left_model(leg, t_start, depth, t, foot, scuff_rule) -> str:

@@ -15,8 +15,10 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parents[2] / "biped_sim"
 LEVEL = {"engine": 0, "control": 1, "config": 2, "analysis": 3, "recording": 3, "ros": 4, "cli": 5}
 ENGINE_THIRD_PARTY = {"numpy", "scipy"}
-#: engine files allowed one more third-party package, imported inside a function only
-ENGINE_LAZY_EXTRA = {"figure.py": {"matplotlib"}}
+#: engine files allowed one more third-party package, imported inside a function (or a branch) only; the rules'
+#: `import cython` takes Cython's magic module only where Cython is imported already, else the shim
+#: (engine/_cython_shim.py): Cython is needed only to generate _loop_rules.c
+ENGINE_LAZY_EXTRA = {"figure.py": {"matplotlib"}, "loop_rules.py": {"cython"}}
 
 
 def _imports(path):

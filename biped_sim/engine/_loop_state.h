@@ -1,0 +1,106 @@
+/* The hybrid loop's state (biped_sim/engine/loop_state.py, written by tools/generate_loop.py: do not
+ * edit). LOOP_STATE_MEMBERS are the fields as doubles in the order of the offsets LS_*, so that a
+ * union of double S[LOOP_STATE_SIZE] with a struct of these members reads the same memory both ways. */
+#ifndef BIPED_SIM_LOOP_STATE_H
+#define BIPED_SIM_LOOP_STATE_H
+
+#define LOOP_STATE_SIZE 920
+#define LS_NMAX 11
+#define LS_MAX_DEPTH 30
+#define LS_METHOD 0
+#define LS_N_Y 1
+#define LS_RTOL 2
+#define LS_ATOL 3
+#define LS_MAX_STEP 4
+#define LS_GRAZE_TOL 5
+#define LS_EVENT_TOL 6
+#define LS_L_LEG 7
+#define LS_TAN_S 8
+#define LS_FIXED_BASE 9
+#define LS_FRONT_TOL 10
+#define LS_SCUFF_DEPTH 11
+#define LS_FORWARD_RULE 12
+#define LS_K_POS 13
+#define LS_TO_POWER_BASIS 45
+#define LS_T 109
+#define LS_T_BOUND 110
+#define LS_H_ABS 111
+#define LS_T_OLD 112
+#define LS_H 113
+#define LS_Y 114
+#define LS_F 125
+#define LS_Y_OLD 136
+#define LS_STAGES 147
+#define LS_NFEV 290
+#define LS_NREJECTED 291
+#define LS_NACCEPTED 292
+#define LS_DENSE_READY 293
+#define LS_DENSE 294
+#define LS_FAIL_KIND 382
+#define LS_FAIL_VALUE 383
+#define LS_FAIL_T 384
+#define LS_CALLBACK_FAILED 385
+#define LS_GUARD_LEG 386
+#define LS_SCUFF_TRIAL 387
+#define LS_DEEPEST_TRIAL 390
+#define LS_FEET 391
+#define LS_OUT 399
+#define LS_RESULT 565
+#define LS_COEF 567
+#define LS_QS 591
+#define LS_PS 596
+#define LS_STACK 600
+
+/* the right-hand side f(ctx, t, y) -> dy the generated steps take, and a guard's value at t: the
+ * functions the rules take as arguments */
+typedef int (*rhs_t)(void *ctx, double t, const double *y, double *dy);
+typedef double (*guard_t)(double *S, void *ctx, double t);
+/* the feet at t into S[LS_FEET] */
+typedef void (*feet_t)(double *S, void *ctx, double t);
+
+#define LOOP_STATE_MEMBERS \
+    double method;  /* the Runge-Kutta pair: 0 dop853, 1 dopri5 (METHODS) */ \
+    double n_y;  /* entries of y in use (at most NMAX) */ \
+    double rtol;  /* relative tolerance of the step control */ \
+    double atol;  /* absolute tolerance of the step control */ \
+    double max_step;  /* the largest step size (s) */ \
+    double graze_tol;  /* the dip search's depth (m): a dip of the foot deeper than this is found */ \
+    double event_tol;  /* brentq's xtol (s) */ \
+    double l_leg;  /* the leg's length (m) */ \
+    double tan_s;  /* tan(slope) of the ground */ \
+    double fixed_base;  /* 1 when y is the fixed base's (q1, q2, q3, dq..., work): the dip bound's form */ \
+    double front_tol;  /* touchdown_rule front: a swing foot within this of the stance foot counts as behind (m) */ \
+    double scuff_depth;  /* the deepest a scuff may pass under the ground (m) */ \
+    double forward_rule;  /* 1 under scuff_rule forward, 0 under behind */ \
+    double k_pos[32];  /* the constants of the closed form foot_positions (BipedModel.k; room for any) */ \
+    double to_power_basis[8][8];  /* dop853's dense row to its power-basis coefficients (integrators) */ \
+    double t;  /* time (s) at the end of the last step */ \
+    double t_bound;  /* the end of the interval the stepper runs to (s) */ \
+    double h_abs;  /* the step size the next step tries (s) */ \
+    double t_old;  /* time at the start of the last step (s) */ \
+    double h;  /* the last step's size (s) */ \
+    double y[11];  /* the state at t */ \
+    double f[11];  /* the right-hand side at (t, y) */ \
+    double y_old[11];  /* the state at t_old */ \
+    double stages[13][11];  /* the last step's stages k0..k12 */ \
+    double nfev;  /* right-hand-side evaluations */ \
+    double nrejected;  /* rejected steps */ \
+    double naccepted;  /* accepted steps */ \
+    double dense_ready;  /* 1 when dense holds the last step's dense output */ \
+    double dense[88];  /* the last step's dense output, a row of DENSE_WIDTH per entry of y */ \
+    double fail_kind;  /* why the last step failed: 1 the step size underflowed, 2 a non-finite state, 3 the torque law failed (callback_failed) */ \
+    double fail_value;  /* the failure's step size (kind 1) or time (kind 2) */ \
+    double fail_t;  /* the time the failing step started at */ \
+    double callback_failed;  /* 1 once the torque law failed inside the right-hand side (the compiled loop) */ \
+    double guard_leg;  /* the foot whose height the root finder and the dip search follow */ \
+    double scuff_trial[3];  /* a scuff followed over a step: t_start, deepest, t_deepest (ev_track_scuff) */ \
+    double deepest_trial;  /* the deepest of any scuff so far, with this step's (ev_track_scuff) */ \
+    double feet[2][4];  /* the feet on the dense output: x, height across the slope, and their rates, a row a foot */ \
+    double out[166];  /* a trial step: y_new, f_new, err, stages; between steps the dense state (dense_state) */ \
+    double result[2];  /* a located root, or a dip's bracket */ \
+    double coef[8][3];  /* the dip search's |power-basis coefficients|: swing leg angle, hip x, hip y (fixed base: swing leg angle, stance leg angle) */ \
+    double qs[5];  /* q on the dense output */ \
+    double ps[4];  /* the feet's positions there */ \
+    double stack[64][5];  /* the dip search's intervals: a, b, h(a), h(b), depth */
+
+#endif

@@ -1,0 +1,76 @@
+# The generated formulas as the compiled rules (loop_rules.py) call them: the kernels of _gen/_kernels.h behind
+# the names and arguments of loop_kernels.py, their Python twins: the state S (a pointer to its first entry) and
+# offsets into it. Wiring only: every operation is a generated kernel's (or a copy).
+from libc.string cimport memcpy
+from libc.math cimport fabs, isinf, nextafter, INFINITY
+
+cdef extern from "_loop_state.h":
+    # the right-hand side f(ctx, t, y, dy) the generated steps take (the compiled loop's, with its torque law)
+    ctypedef int (*rhs_t)(void *ctx, double t, const double *y, double *dy) noexcept nogil
+    # a guard's value at time t (the root finder's and the dip search's function)
+    ctypedef double (*guard_t)(double *S, void *ctx, double t) noexcept nogil
+    # the feet (x, height, dx, dheight, a row a foot) at time t into S[FEET] (the scuff's tracking)
+    ctypedef void (*feet_t)(double *S, void *ctx, double t) noexcept nogil
+
+cdef extern from "_gen/_kernels.h" nogil:
+    int k_dop853_step_11(rhs_t fun, void *ctx, double t, const double *ys, const double *k0, double h, double rtol,
+                         double atol, double *out)
+    int k_dopri5_step_11(rhs_t fun, void *ctx, double t, const double *ys, const double *k0, double h, double rtol,
+                         double atol, double *out)
+    int k_dop853_dense_11(rhs_t fun, void *ctx, double t, double h, const double *ys, const double *y_new,
+                          const double *k0, const double *k5, const double *k6, const double *k7, const double *k8,
+                          const double *k9, const double *k10, const double *k11, const double *k12, double *out)
+    int k_dopri5_dense_11(const double *ys, const double *k0, const double *k1, const double *k2, const double *k3,
+                          const double *k4, const double *k5, const double *k6, double *out)
+    int c_foot_positions "k_foot_positions"(const double *q, const double *k, double *out)
+
+cdef extern from "_loop_state.h":
+    enum:
+        LS_NMAX
+        LS_METHOD
+        LS_K_POS
+
+
+cdef inline void k_rhs(double *S, rhs_t fun, void *ctx, double t, Py_ssize_t y, Py_ssize_t dy) noexcept nogil:
+    fun(ctx, t, &S[y], &S[dy])
+
+
+cdef inline void k_step(double *S, rhs_t fun, void *ctx, double t, Py_ssize_t y, Py_ssize_t f, double h,
+                        double rtol, double atol, Py_ssize_t out) noexcept nogil:
+    # S[out:] = y_new, f_new, err, stages k0..k12, each NMAX long (the compiled loop's y has NMAX = 11 entries)
+    if S[LS_METHOD] == 0.0:
+        k_dop853_step_11(fun, ctx, t, &S[y], &S[f], h, rtol, atol, &S[out])
+    else:
+        k_dopri5_step_11(fun, ctx, t, &S[y], &S[f], h, rtol, atol, &S[out])
+
+
+cdef inline void k_dense(double *S, rhs_t fun, void *ctx, double t_old, double h, Py_ssize_t y_old, Py_ssize_t y,
+                         Py_ssize_t k, Py_ssize_t dense) noexcept nogil:
+    # S[dense:] = the dense output's rows of the step from the stages at S[k:] (dop853: 8 an entry, dopri5: 5)
+    cdef Py_ssize_t n = LS_NMAX
+    if S[LS_METHOD] == 0.0:
+        k_dop853_dense_11(fun, ctx, t_old, h, &S[y_old], &S[y], &S[k], &S[k + 5 * n], &S[k + 6 * n],
+                          &S[k + 7 * n], &S[k + 8 * n], &S[k + 9 * n], &S[k + 10 * n], &S[k + 11 * n],
+                          &S[k + 12 * n], &S[dense])
+    else:
+        k_dopri5_dense_11(&S[y_old], &S[k], &S[k + n], &S[k + 2 * n], &S[k + 3 * n], &S[k + 4 * n],
+                          &S[k + 5 * n], &S[k + 6 * n], &S[dense])
+
+
+cdef inline void k_foot_positions(double *S, Py_ssize_t q, Py_ssize_t p) noexcept nogil:
+    c_foot_positions(&S[q], &S[LS_K_POS], &S[p])
+
+
+cdef inline void k_copy(double *S, Py_ssize_t dst, Py_ssize_t src, Py_ssize_t n) noexcept nogil:
+    memcpy(&S[dst], &S[src], n * sizeof(double))
+
+
+cdef inline double k_ulp(double x) noexcept nogil:
+    # math.ulp
+    x = fabs(x)
+    if isinf(x):
+        return x
+    cdef double x2 = nextafter(x, INFINITY)
+    if isinf(x2):
+        return x - nextafter(x, -INFINITY)
+    return x2 - x

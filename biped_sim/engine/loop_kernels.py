@@ -1,0 +1,62 @@
+"""The generated formulas as the rules (``loop_rules.py``) call them when they run as Python: the twins of
+``loop_kernels.pxd``'s C glue, with the same names and arguments.
+
+Each function reads and writes the state S (a list, ``loop_state``) at the offsets it is given, as the C
+does through pointers into it, and performs the generated Python code's operations (the twins of the C
+kernels, bit for bit: test/unit/test_compiled.py). The right-hand side ``fun(t, y)`` takes and returns
+lists; ``ctx`` is the stepper (``integrators._ListRungeKutta``), which knows the generated step and dense
+output of its state's size. A field of NMAX entries holds a smaller state in its first entries.
+"""
+from __future__ import annotations
+
+import math
+
+from biped_sim.engine.loop_state import K_POS, N_Y, NMAX
+
+ulp = math.ulp
+
+
+def k_rhs(S, fun, ctx, t, y, dy):
+    """S[dy:dy + n] = fun(t, S[y:y + n])."""
+    n = int(S[N_Y])
+    S[dy:dy + n] = fun(t, S[y:y + n])
+
+
+def k_step(S, fun, ctx, t, y, f, h, rtol, atol, out):
+    """One step of the stepper's Runge-Kutta pair from (t, S[y:]), S[f:] its derivative: S[out:] = y_new,
+    f_new, err, stages k0..k12, each NMAX long."""
+    n = int(S[N_Y])
+    y_new, f_new, err, stages = ctx.rk_step(fun, t, S[y:y + n], S[f:f + n], h, rtol, atol)
+    S[out:out + n] = y_new
+    S[out + NMAX:out + NMAX + n] = f_new
+    S[out + 2 * NMAX] = err
+    at = out + 2 * NMAX + 1
+    for k in stages:
+        S[at:at + n] = k
+        at += NMAX
+
+
+def k_dense(S, fun, ctx, t_old, h, y_old, y, k, dense):
+    """S[dense:] = the dense output's rows of the step (t_old, t_old + h) from its stages at S[k:] (a row of
+    8 values an entry for dop853, 5 for dopri5, one after the other)."""
+    n = int(S[N_Y])
+    stages = [S[k + NMAX * j:k + NMAX * j + n] for j in range(ctx.N_STAGES + 1)]
+    rows = ctx.rk_dense_rows(fun, t_old, h, S[y_old:y_old + n], S[y:y + n], stages)
+    for i, row in enumerate(rows):
+        w = len(row)
+        S[dense + w * i:dense + w * i + w] = row
+
+
+def k_foot_positions(S, q, p):
+    """S[p:p + 4] = the feet's positions at q = S[q:q + 5]."""
+    from biped_sim.engine.compiled import gen
+    S[p:p + 4] = gen.foot_positions(S[q:q + 5], S[K_POS:K_POS + 9])
+
+
+def k_copy(S, dst, src, n):
+    """S[dst:dst + n] = S[src:src + n]."""
+    S[dst:dst + n] = S[src:src + n]
+
+
+def k_ulp(x):
+    return ulp(x)

@@ -1,0 +1,26 @@
+# The signatures of loop_rules.py's rules when Cython compiles it (an augmenting .pxd): C functions on the state
+# S. The compiled loop (_core.c) includes the generated _loop_rules.c and calls the public ones by these names.
+from libc.math cimport fabs, isfinite, isnan, pow
+
+from biped_sim.engine._loop_state cimport *
+from biped_sim.engine.loop_kernels cimport (feet_t, guard_t, k_copy, k_dense, k_foot_positions, k_rhs, k_step, k_ulp,
+                                            rhs_t)
+
+cdef public void rk_begin(double *S, rhs_t fun, void *ctx) noexcept nogil
+cdef public int rk_step(double *S, rhs_t fun, void *ctx) noexcept nogil
+cdef public void rk_dense(double *S, rhs_t fun, void *ctx) noexcept nogil
+cdef public double rk_dense_at(double *S, Py_ssize_t i, double tt) noexcept nogil
+cdef public void rk_dense_state(double *S, double tt) noexcept nogil
+cdef public double ev_height_at(double *S, int leg, double tt) noexcept nogil
+cdef double ev_height_guard(double *S, void *ctx, double tt) noexcept nogil
+cdef void ev_dip_coefficients(double *S, int leg) noexcept nogil
+cdef int ev_dip_search(double *S, guard_t g, void *ctx, double h0, double h1) noexcept nogil
+cdef public int ev_may_dip(double *S, rhs_t fun, void *ctx, int leg, double h0, double h1) noexcept nogil
+cdef int ev_locate_crossing(double *S, guard_t g, void *ctx, double ta, double tb) noexcept nogil
+cdef public int ev_locate_height_crossing(double *S, rhs_t fun, void *ctx, int leg, double ta, double tb) noexcept nogil
+cdef public bint ev_swinging_through(double dx, double dheight) noexcept nogil
+cdef public bint ev_starts_scuff(bint forward, double front_tol, double x, double dx, double dheight,
+                                 double x_stance) noexcept nogil
+cdef public bint ev_passes_through(bint forward, double front_tol, double x, double dx, double dheight,
+                                   double x_stance) noexcept nogil
+cdef public int ev_track_scuff(double *S, feet_t feet_at, void *ctx, int leg, int stance_leg, double t_end) noexcept nogil

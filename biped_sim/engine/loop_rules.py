@@ -1,0 +1,502 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
+"""The hybrid loop's numerical rules, written once: the Runge-Kutta step with its error control, the dense
+output, a foot's height on it, the dip search and the root finder.
+
+This file runs two ways. Imported, it is the Python loop's code (``integrators``, ``grazing``, ``guards``
+call it). Compiled by Cython in its pure-Python mode (``tools/generate_loop.py``: the signatures are in
+``loop_rules.pxd``, the generated formulas reached through ``loop_kernels.pxd``), it is the committed C
+``_loop_rules.c``, the extension ``biped_sim.engine._loop_rules`` that the compiled loop (``_core.c``) calls
+through Cython's C API (``_loop_rules_api.h``). Both perform the same IEEE operations in the same order
+(the C built with ``-ffp-contract=off``, C division without Python's zero check), so a run gives the same
+bits on both loops (test/unit/test_compiled_loop.py).
+
+Everything a rule reads or writes is an entry of the state S (``loop_state``: a list as Python, a
+``double *`` in C) at a named offset; besides S a rule takes only scalars, the right-hand side
+``fun`` (``fun(t, y) -> list`` as Python, ``rhs_t`` with its context ``ctx`` in C) and a guard
+``g(S, ctx, t) -> float``. Kept to what both take: float and int scalars, indexing of S, ``if``,
+``while``, ``for ... in range``, calls; a rule must never divide by zero (C would go on where
+Python raises).
+"""
+from __future__ import annotations
+
+import sys
+
+# As Python the rules ask Cython only whether they are compiled: unless Cython is imported already, the shim
+# answers, for this import only (Cython's shadow module takes 5 ms to import, and Cython is build-only)
+if sys.modules.get("cython") is not None:
+    import cython
+else:
+    from biped_sim.engine import _cython_shim
+    _entry = sys.modules.pop("cython", _cython_shim)     # (None: an import of Cython is refused)
+    sys.modules["cython"] = _cython_shim
+    try:
+        import cython
+    finally:
+        if _entry is _cython_shim:
+            del sys.modules["cython"]
+        else:
+            sys.modules["cython"] = _entry
+
+if not cython.compiled:
+    from math import fabs, isfinite, isnan, pow
+
+    from biped_sim.engine.loop_kernels import k_copy, k_dense, k_foot_positions, k_rhs, k_step, k_ulp
+    from biped_sim.engine.loop_state import (
+        ATOL,
+        CALLBACK_FAILED,
+        COEF,
+        DEEPEST_TRIAL,
+        DENSE,
+        DENSE_READY,
+        EVENT_TOL,
+        FAIL_KIND,
+        FAIL_T,
+        FAIL_VALUE,
+        FEET,
+        FIXED_BASE,
+        FORWARD_RULE,
+        FRONT_TOL,
+        GRAZE_TOL,
+        GUARD_LEG,
+        H_ABS,
+        L_LEG,
+        MAX_DEPTH,
+        MAX_STEP,
+        METHOD,
+        N_Y,
+        NACCEPTED,
+        NFEV,
+        NMAX,
+        NREJECTED,
+        OUT,
+        PS,
+        QS,
+        RESULT,
+        RTOL,
+        SCUFF_DEPTH,
+        SCUFF_TRIAL,
+        STACK,
+        STAGES,
+        T_BOUND,
+        T_OLD,
+        TAN_S,
+        TO_POWER_BASIS,
+        Y_OLD,
+        F,
+        H,
+        T,
+        Y,
+    )
+
+
+# -- the stepper (integrators._ListRungeKutta) ------------------------------------------------------------
+def rk_begin(S, fun, ctx):
+    """A mode's start at (S[T], S[Y]): the step's start there, f = fun(t, y) (one evaluation)."""
+    S[T_OLD] = S[T]
+    k_copy(S, Y_OLD, Y, NMAX)
+    k_rhs(S, fun, ctx, S[T], Y, F)
+    S[NFEV] += 1
+    S[DENSE_READY] = 0.0
+
+
+def rk_step(S, fun, ctx):
+    """One accepted step (0), none at t_bound (1), or a failure (-1: S[FAIL_*] say which, the state
+    unchanged) with scipy's step control (Hairer's: safety 0.9, factors 0.2 to 10)."""
+    t: cython.double = S[T]
+    remaining: cython.double = S[T_BOUND] - t
+    if remaining <= 0:
+        return 1
+    min_step: cython.double = 10 * k_ulp(t) + 1e-300
+    h_abs: cython.double = S[MAX_STEP] if S[MAX_STEP] < S[H_ABS] else S[H_ABS]
+    dop853: cython.bint = S[METHOD] == 0.0
+    exponent: cython.double = -1.0 / 8 if dop853 else -1.0 / 5     # -1 / (the error estimator's order + 1)
+    evaluations: cython.double = 12.0 if dop853 else 6.0           # a step's (dopri5's last is the next f)
+    stages: cython.Py_ssize_t = 13 if dop853 else 7                 # k0..k12, k0..k6
+    rejected: cython.bint = False
+    h: cython.double
+    err: cython.double
+    s: cython.double
+    factor: cython.double
+    v: cython.double
+    i: cython.Py_ssize_t
+    n: cython.Py_ssize_t = int(S[N_Y])
+    while True:
+        if h_abs < min_step:
+            S[FAIL_KIND] = 1.0
+            S[FAIL_VALUE] = h_abs
+            S[FAIL_T] = t
+            return -1
+        h = h_abs
+        if h >= remaining:
+            h = remaining
+            h_abs = remaining
+        k_step(S, fun, ctx, t, Y, F, h, S[RTOL], S[ATOL], OUT)
+        if S[CALLBACK_FAILED] != 0.0:   # the torque law failed inside (the Python law raises before this)
+            S[FAIL_KIND] = 3.0
+            return -1
+        S[NFEV] += evaluations
+        err = S[OUT + 2 * NMAX]
+        if err < 1.0:
+            s = 0.0
+            for i in range(n):
+                s += S[OUT + i]
+            if not isfinite(s):
+                S[FAIL_KIND] = 2.0
+                S[FAIL_VALUE] = t + h
+                S[FAIL_T] = t
+                return -1
+            if err == 0.0:
+                factor = 10.0
+            else:
+                factor = 0.9 * pow(err, exponent)
+                factor = factor if factor < 10.0 else 10.0
+            if rejected:
+                factor = factor if factor < 1.0 else 1.0
+            S[H_ABS] = h_abs * factor
+            break
+        if not isfinite(err):
+            h_abs *= 0.2
+        else:
+            v = 0.9 * pow(err, exponent)
+            h_abs *= v if v > 0.2 else 0.2
+        rejected = True
+        S[NREJECTED] += 1
+    S[NACCEPTED] += 1
+    S[T_OLD] = t
+    k_copy(S, Y_OLD, Y, NMAX)
+    S[H] = h
+    S[T] = t + h if h < remaining else S[T_BOUND]
+    k_copy(S, Y, OUT, 2 * NMAX)                             # y_new and f_new: Y and F are next to each other
+    k_copy(S, STAGES, OUT + 2 * NMAX + 1, stages * NMAX)
+    S[DENSE_READY] = 0.0
+    return 0
+
+
+def rk_dense(S, fun, ctx):
+    """The last step's dense output rows, computed once a step (dop853: 3 more evaluations)."""
+    if S[DENSE_READY] != 0.0:
+        return
+    k_dense(S, fun, ctx, S[T_OLD], S[H], Y_OLD, Y, STAGES, DENSE)
+    if S[METHOD] == 0.0:
+        S[NFEV] += 3
+    S[DENSE_READY] = 1.0
+
+
+def rk_dense_at(S, i, tt):
+    """Entry i of the dense output at tt (rk_dense first): dop853's nested product in x and 1 - x, dopri5's
+    y + h (((q4 x + q3) x + q2) x + q1) x, x = (tt - t_old) / h (scipy's, by Horner's rule)."""
+    hi: cython.double = S[T] - S[T_OLD]
+    x: cython.double = (tt - S[T_OLD]) / hi
+    u: cython.double
+    r: cython.Py_ssize_t
+    if S[METHOD] == 0.0:
+        u = 1.0 - x
+        r = DENSE + 8 * i
+        return ((((((S[r + 1] * x + S[r + 2]) * u + S[r + 3]) * x + S[r + 4]) * u + S[r + 5]) * x + S[r + 6]) * u
+                + S[r + 7]) * x + S[r]
+    r = DENSE + 5 * i
+    return S[r] + hi * ((((S[r + 4] * x + S[r + 3]) * x + S[r + 2]) * x + S[r + 1]) * x)
+
+
+def rk_dense_state(S, tt):
+    """The whole state on the dense output at tt, into S[OUT:OUT + n] (rk_dense first)."""
+    i: cython.Py_ssize_t
+    n: cython.Py_ssize_t = int(S[N_Y])
+    for i in range(n):
+        S[OUT + i] = rk_dense_at(S, i, tt)
+
+
+# -- a foot's height, the dip search and the root finder (grazing.py, guards.locate_crossing) ---------------
+def ev_height_at(S, leg, tt):
+    """Foot leg's height across the slope on the floating base's dense output at tt (guards.foot_height)."""
+    i: cython.Py_ssize_t
+    for i in range(5):
+        S[QS + i] = rk_dense_at(S, i, tt)
+    k_foot_positions(S, QS, PS)
+    return S[PS + 2 * leg - 1] + S[TAN_S] * S[PS + 2 * leg - 2]
+
+
+def ev_height_guard(S, ctx, tt):
+    """ev_height_at of foot S[GUARD_LEG], as a guard g(S, ctx, t)."""
+    leg: cython.int = int(S[GUARD_LEG])
+    return ev_height_at(S, leg, tt)
+
+
+def ev_dip_coefficients(S, leg):
+    """S[COEF]: |power-basis coefficients| of the floating base's swing leg angle (its entry of y plus the
+    torso's), the hip's x and y (rk_dense first): a row of 3 for each power 0 to 7. dop853: TO_POWER_BASIS
+    times the dense row; dopri5: y, h q1 .. h q4, then zeros."""
+    p: cython.Py_ssize_t
+    j: cython.Py_ssize_t
+    w: cython.Py_ssize_t = 8 if S[METHOD] == 0.0 else 5
+    ra: cython.Py_ssize_t = DENSE + w * (1 + leg)      # the rows of the leg's angle, the torso's, x and y
+    rt: cython.Py_ssize_t = DENSE + w * 4
+    rx: cython.Py_ssize_t = DENSE
+    ry: cython.Py_ssize_t = DENSE + w
+    a: cython.double
+    t: cython.double
+    x: cython.double
+    y: cython.double
+    b: cython.double
+    hi: cython.double = S[T] - S[T_OLD]
+    for p in range(8):
+        if w == 8:
+            a = t = x = y = 0.0
+            for j in range(8):
+                b = S[TO_POWER_BASIS + 8 * p + j]
+                a += b * S[ra + j]
+                t += b * S[rt + j]
+                x += b * S[rx + j]
+                y += b * S[ry + j]
+        elif p == 0:
+            a, t, x, y = S[ra], S[rt], S[rx], S[ry]
+        elif p < 5:
+            a, t, x, y = hi * S[ra + p], hi * S[rt + p], hi * S[rx + p], hi * S[ry + p]
+        else:
+            a = t = x = y = 0.0
+        S[COEF + 3 * p] = fabs(a + t)
+        S[COEF + 3 * p + 1] = fabs(x)
+        S[COEF + 3 * p + 2] = fabs(y)
+
+
+def ev_dip_search(S, g, ctx, h0, h1):
+    """grazing.dip_bracket's search over the last step [t_old, t] (both ends above the ground: guard values h0,
+    h1 > 0) with the |coefficients| in S[COEF]: 1 and a bracket in S[RESULT:RESULT + 2] where the guard
+    g(S, ctx, t) may dip deeper than graze_tol inside the step, else 0.
+
+    Bound on [a, b] (in s = (t - t_old) / h): |h''| <= l (1 + |tan|) (|theta''| + theta'^2) + |y''| + |tan| |x''|
+    (fixed base: l (1 + |tan|) (|theta''| + theta'^2 + |theta_st''| + theta_st'^2)), from the coefficients'
+    derivative weights; h >= min(h(a), h(b)) - M2 (b - a)^2 / 8. The left half is searched first."""
+    k: cython.Py_ssize_t
+    ta: cython.double = fabs(S[TAN_S])
+    lt: cython.double = S[L_LEG] * (1 + ta)
+    slack: cython.double = 1.0 + 1e-6           # the coefficients carry roundoff
+    t_old: cython.double = S[T_OLD]
+    h_step: cython.double = S[T] - S[T_OLD]
+    fixed: cython.bint = S[FIXED_BASE] != 0.0
+    top: cython.Py_ssize_t
+    a: cython.double
+    b: cython.double
+    ha: cython.double
+    hb: cython.double
+    depth: cython.int
+    d1_0: cython.double
+    d1_1: cython.double
+    d2_0: cython.double
+    d2_1: cython.double
+    d2_2: cython.double
+    w1: cython.double
+    w2: cython.double
+    bound: cython.double
+    drop: cython.double
+    lo: cython.double
+    mid: cython.double
+    hm: cython.double
+    S[STACK] = 0.0
+    S[STACK + 1] = 1.0
+    S[STACK + 2] = h0
+    S[STACK + 3] = h1
+    S[STACK + 4] = 0.0
+    top = 1
+    while top:
+        top -= 1
+        a = S[STACK + 5 * top]
+        b = S[STACK + 5 * top + 1]
+        ha = S[STACK + 5 * top + 2]
+        hb = S[STACK + 5 * top + 3]
+        depth = int(S[STACK + 5 * top + 4])
+        d1_0 = d1_1 = d2_0 = d2_1 = d2_2 = 0.0
+        for k in range(8):
+            # the derivative weights over [0, b]: k b^(k-1) and k (k-1) b^(k-2) (on [0, 1] the powers are 1)
+            if b == 1.0:
+                w1 = k
+                w2 = k * (k - 1)
+            else:
+                w1 = k * pow(b, 1.0 * (k - 1 if k - 1 > 0 else 0))
+                w2 = k * (k - 1) * pow(b, 1.0 * (k - 2 if k - 2 > 0 else 0))
+            d1_0 += w1 * S[COEF + 3 * k]
+            d2_0 += w2 * S[COEF + 3 * k]
+            d1_1 += w1 * S[COEF + 3 * k + 1]
+            d2_1 += w2 * S[COEF + 3 * k + 1]
+            d2_2 += w2 * S[COEF + 3 * k + 2]
+        if fixed:
+            bound = lt * (d2_0 + d1_0 * d1_0 + d2_1 + d1_1 * d1_1) * slack
+        else:
+            bound = (lt * (d2_0 + d1_0 * d1_0) + d2_2 + ta * d2_1) * slack
+        drop = bound * (b - a) * (b - a) / 8
+        lo = ha if ha < hb else hb
+        if lo - drop > 0 or drop <= S[GRAZE_TOL] or depth >= MAX_DEPTH:
+            continue
+        mid = 0.5 * (a + b)
+        hm = g(S, ctx, t_old + mid * h_step)
+        if hm <= 0:
+            S[RESULT] = t_old + a * h_step
+            S[RESULT + 1] = t_old + mid * h_step
+            return 1
+        S[STACK + 5 * top] = mid
+        S[STACK + 5 * top + 1] = b
+        S[STACK + 5 * top + 2] = hm
+        S[STACK + 5 * top + 3] = hb
+        S[STACK + 5 * top + 4] = depth + 1
+        top += 1
+        S[STACK + 5 * top] = a
+        S[STACK + 5 * top + 1] = mid
+        S[STACK + 5 * top + 2] = ha
+        S[STACK + 5 * top + 3] = hm
+        S[STACK + 5 * top + 4] = depth + 1
+        top += 1
+    return 0
+
+
+def ev_may_dip(S, fun, ctx, leg, h0, h1):
+    """ev_dip_search of the floating base's foot leg on the last step (heights h0, h1 at its ends)."""
+    rk_dense(S, fun, ctx)
+    ev_dip_coefficients(S, leg)
+    S[GUARD_LEG] = leg
+    return ev_dip_search(S, ev_height_guard, ctx, h0, h1)
+
+
+def ev_locate_crossing(S, g, ctx, ta, tb):
+    """Where the guard g(S, ctx, t) (positive at ta, <= 0 at tb) crosses zero in [ta, tb]: 0 and the time in
+    S[RESULT] (an end of the bracket where the guard is zero there already), or -1 where scipy's brentq
+    raises (no sign change, a NaN, no convergence). brentq as scipy/optimize/Zeros/brentq.c, the same iterates:
+    xtol S[EVENT_TOL], rtol 4 eps, 200 iterations."""
+    ga: cython.double = g(S, ctx, ta)
+    gb: cython.double = g(S, ctx, tb)
+    if gb == 0.0:
+        S[RESULT] = tb
+        return 0
+    if ga <= 0:
+        S[RESULT] = ta
+        return 0
+    xtol: cython.double = S[EVENT_TOL]
+    rtol: cython.double = 4 * 2.220446049250313e-16
+    xpre: cython.double = ta
+    xcur: cython.double = tb
+    xblk: cython.double = 0.0
+    fblk: cython.double = 0.0
+    spre: cython.double = 0.0
+    scur: cython.double = 0.0
+    fpre: cython.double = g(S, ctx, xpre)
+    fcur: cython.double = g(S, ctx, xcur)
+    sbis: cython.double
+    delta: cython.double
+    stry: cython.double
+    dpre: cython.double
+    dblk: cython.double
+    lim: cython.double
+    _iteration: cython.int
+    if isnan(fpre) or isnan(fcur):
+        return -1
+    if fpre == 0:
+        S[RESULT] = xpre
+        return 0
+    if fcur == 0:
+        S[RESULT] = xcur
+        return 0
+    if (fpre < 0) == (fcur < 0):
+        return -1
+    for _iteration in range(200):
+        if fpre != 0 and fcur != 0 and (fpre < 0) != (fcur < 0):
+            xblk = xpre
+            fblk = fpre
+            spre = scur = xcur - xpre
+        if fabs(fblk) < fabs(fcur):
+            xpre = xcur
+            xcur = xblk
+            xblk = xpre
+            fpre = fcur
+            fcur = fblk
+            fblk = fpre
+        delta = (xtol + rtol * fabs(xcur)) / 2
+        sbis = (xblk - xcur) / 2
+        if fcur == 0 or fabs(sbis) < delta:
+            S[RESULT] = xcur
+            return 0
+        if fabs(spre) > delta and fabs(fcur) < fabs(fpre):
+            if xpre == xblk:        # interpolate
+                stry = -fcur * (xcur - xpre) / (fcur - fpre)
+            else:                   # extrapolate
+                dpre = (fpre - fcur) / (xpre - xcur)
+                dblk = (fblk - fcur) / (xblk - xcur)
+                stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
+            lim = 3 * fabs(sbis) - delta
+            if 2 * fabs(stry) < (fabs(spre) if fabs(spre) < lim else lim):
+                spre = scur
+                scur = stry
+            else:
+                spre = sbis
+                scur = sbis
+        else:
+            spre = sbis
+            scur = sbis
+        xpre = xcur
+        fpre = fcur
+        if fabs(scur) > delta:
+            xcur += scur
+        else:
+            xcur += delta if sbis > 0 else -delta
+        fcur = g(S, ctx, xcur)
+        if isnan(fcur):
+            return -1
+    return -1
+
+
+def ev_locate_height_crossing(S, fun, ctx, leg, ta, tb):
+    """ev_locate_crossing of the floating base's foot leg's height on the last step."""
+    rk_dense(S, fun, ctx)
+    S[GUARD_LEG] = leg
+    return ev_locate_crossing(S, ev_height_guard, ctx, ta, tb)
+
+
+# -- the scuffs of touchdown_rule "front" (guards.py, locator.py) -------------------------------------------
+def ev_swinging_through(dx, dheight):
+    """A foot moving forward more than it sinks (a crossing at most 45 degrees steep)."""
+    return dx > 0.0 and dx + dheight >= 0.0
+
+
+def ev_starts_scuff(forward, front_tol, x, dx, dheight, x_stance):
+    """Whether a swing foot (x, its rates dx, dheight) crossing the ground going down passes through it (a
+    scuff): at or behind the stance foot (at x_stance; within front_tol counts as behind), and under scuff_rule
+    "forward" (forward true) swinging through."""
+    if x > x_stance + front_tol:
+        return False
+    return not forward or ev_swinging_through(dx, dheight)
+
+
+def ev_passes_through(forward, front_tol, x, dx, dheight, x_stance):
+    """Whether a swing foot under the ground still passes through it: under "forward" while it swings
+    through, under "behind" while it is behind the stance foot."""
+    if forward:
+        return ev_swinging_through(dx, dheight)
+    return x <= x_stance + front_tol
+
+
+def ev_track_scuff(S, feet_at, ctx, leg, stance_leg, t_end):
+    """Follow foot leg's scuff (S[SCUFF_TRIAL]: t_start, deepest, t_deepest) over the last step up to t_end, on
+    9 even points from max(t_start, t_old) (numpy.linspace's), the feet there by feet_at(S, ctx, t) into
+    S[FEET]: its deepest dip, and S[DEEPEST_TRIAL] the deepest of any. 0: it goes on; 1: it ended (the foot
+    above the ground at t_end); -1: at S[RESULT] the foot is S[RESULT + 1] under the ground and no longer
+    passes through it (S[FEET] the feet there); -2: deeper than scuff_depth."""
+    t0: cython.double = S[T_OLD] if S[T_OLD] > S[SCUFF_TRIAL] else S[SCUFF_TRIAL]
+    step: cython.double = (t_end - t0) / 8
+    tt: cython.double
+    depth: cython.double
+    i: cython.Py_ssize_t
+    f: cython.Py_ssize_t = FEET + 4 * (leg - 1)
+    st: cython.Py_ssize_t = FEET + 4 * (stance_leg - 1)
+    for i in range(9):
+        tt = i * step + t0 if i < 8 else t_end
+        feet_at(S, ctx, tt)
+        depth = -S[f + 1]
+        if depth > S[SCUFF_TRIAL + 1]:
+            S[SCUFF_TRIAL + 1] = depth
+            S[SCUFF_TRIAL + 2] = tt
+        if depth > 0 and not ev_passes_through(S[FORWARD_RULE] != 0.0, S[FRONT_TOL], S[f], S[f + 2], S[f + 3], S[st]):
+            S[RESULT] = tt
+            S[RESULT + 1] = depth
+            return -1
+    S[DEEPEST_TRIAL] = S[DEEPEST_TRIAL] if not S[SCUFF_TRIAL + 1] > S[DEEPEST_TRIAL] else S[SCUFF_TRIAL + 1]
+    if S[SCUFF_TRIAL + 1] > S[SCUFF_DEPTH]:
+        return -2
+    return 1 if S[f + 1] > 0.0 else 0

@@ -1,0 +1,159 @@
+"""The hybrid loop's state: one declaration of the fields the single-source rules read and write.
+
+Every field is float64 and lives at a fixed offset in one flat buffer ``S``; counters and flags are
+floats too (whole numbers, exact below 2^53). From :data:`FIELDS` come
+
+* the offsets, as module constants named like the field in capitals (``T``, ``Y``, ``STAGES``...), which
+  the rules (``loop_rules.py``) index ``S`` with when they run as Python;
+* ``_loop_state.h`` for C: the same offsets as ``LS_<NAME>`` and the fields as the members of a struct
+  of doubles laid out exactly as ``S`` (``LOOP_STATE_MEMBERS``), so that the compiled loop (``_core.c``)
+  holds one buffer that it reads by member and the compiled rules read by offset;
+* ``_loop_state.pxd`` for Cython: the offsets as C constants of the compiled rules.
+
+Both files are written by ``tools/generate_loop.py`` (``make generate-loop``) and checked against this
+declaration by test/unit/test_loop_rules.py. Run as Python, a state is a list of floats
+(:func:`new_state`): the interpreter indexes a list several times faster than a numpy array.
+
+Fields whose size depends on the integrated state have room for ``NMAX`` entries (the floating base's
+11); a smaller state (the fixed base's 7) uses the first entries of each. The scratch fields at the end
+hold intermediate results between two calls of the rules and nothing across steps.
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+NMAX = 11           # the floating base's integrated state: q (5), dq (5), motor work
+MAX_STAGES = 13     # dop853's stages k0..k12 (dopri5 uses k0..k6)
+DENSE_WIDTH = 8     # coefficients a dense-output row: dop853's 8 (dopri5 uses 5)
+MAX_DEPTH = 30      # the dip search's halvings (grazing.MAX_DEPTH)
+METHODS = {"dop853": 0, "dopri5": 1}
+
+
+class Field(NamedTuple):
+    """A field of the state: its name, its shape (() for a scalar), what it holds."""
+    name: str
+    shape: tuple
+    doc: str
+
+
+FIELDS = (
+    # -- the stepper's method and options
+    Field("method", (), "the Runge-Kutta pair: 0 dop853, 1 dopri5 (METHODS)"),
+    Field("n_y", (), "entries of y in use (at most NMAX)"),
+    Field("rtol", (), "relative tolerance of the step control"),
+    Field("atol", (), "absolute tolerance of the step control"),
+    Field("max_step", (), "the largest step size (s)"),
+    # -- the events' options and the model's constants they use
+    Field("graze_tol", (), "the dip search's depth (m): a dip of the foot deeper than this is found"),
+    Field("event_tol", (), "brentq's xtol (s)"),
+    Field("l_leg", (), "the leg's length (m)"),
+    Field("tan_s", (), "tan(slope) of the ground"),
+    Field("fixed_base", (), "1 when y is the fixed base's (q1, q2, q3, dq..., work): the dip bound's form"),
+    Field("front_tol", (), "touchdown_rule front: a swing foot within this of the stance foot counts as behind (m)"),
+    Field("scuff_depth", (), "the deepest a scuff may pass under the ground (m)"),
+    Field("forward_rule", (), "1 under scuff_rule forward, 0 under behind"),
+    Field("k_pos", (32,), "the constants of the closed form foot_positions (BipedModel.k; room for any)"),
+    Field("to_power_basis", (8, 8), "dop853's dense row to its power-basis coefficients (integrators)"),
+    # -- the stepper (integrators._ListRungeKutta)
+    Field("t", (), "time (s) at the end of the last step"),
+    Field("t_bound", (), "the end of the interval the stepper runs to (s)"),
+    Field("h_abs", (), "the step size the next step tries (s)"),
+    Field("t_old", (), "time at the start of the last step (s)"),
+    Field("h", (), "the last step's size (s)"),
+    Field("y", (NMAX,), "the state at t"),
+    Field("f", (NMAX,), "the right-hand side at (t, y)"),
+    Field("y_old", (NMAX,), "the state at t_old"),
+    Field("stages", (MAX_STAGES, NMAX), "the last step's stages k0..k12"),
+    Field("nfev", (), "right-hand-side evaluations"),
+    Field("nrejected", (), "rejected steps"),
+    Field("naccepted", (), "accepted steps"),
+    Field("dense_ready", (), "1 when dense holds the last step's dense output"),
+    Field("dense", (NMAX * DENSE_WIDTH,), "the last step's dense output, a row of DENSE_WIDTH per entry of y"),
+    Field("fail_kind", (), "why the last step failed: 1 the step size underflowed, 2 a non-finite state, "
+                           "3 the torque law failed (callback_failed)"),
+    Field("fail_value", (), "the failure's step size (kind 1) or time (kind 2)"),
+    Field("fail_t", (), "the time the failing step started at"),
+    Field("callback_failed", (), "1 once the torque law failed inside the right-hand side (the compiled loop)"),
+    Field("guard_leg", (), "the foot whose height the root finder and the dip search follow"),
+    Field("scuff_trial", (3,), "a scuff followed over a step: t_start, deepest, t_deepest (ev_track_scuff)"),
+    Field("deepest_trial", (), "the deepest of any scuff so far, with this step's (ev_track_scuff)"),
+    Field("feet", (2, 4), "the feet on the dense output: x, height across the slope, and their rates, a row a foot"),
+    # -- scratch
+    Field("out", (2 * NMAX + 1 + MAX_STAGES * NMAX,), "a trial step: y_new, f_new, err, stages; between steps "
+                                                      "the dense state (dense_state)"),
+    Field("result", (2,), "a located root, or a dip's bracket"),
+    Field("coef", (8, 3), "the dip search's |power-basis coefficients|: swing leg angle, hip x, hip y "
+                          "(fixed base: swing leg angle, stance leg angle)"),
+    Field("qs", (5,), "q on the dense output"),
+    Field("ps", (4,), "the feet's positions there"),
+    Field("stack", (2 * MAX_DEPTH + 4, 5), "the dip search's intervals: a, b, h(a), h(b), depth"),
+)
+
+
+def _size(shape):
+    return math.prod(shape)
+
+
+def _offsets():
+    out, at = {}, 0
+    for field in FIELDS:
+        out[field.name.upper()] = at
+        at += _size(field.shape)
+    return out, at
+
+
+OFFSETS, SIZE = _offsets()
+globals().update(OFFSETS)       # T, Y, STAGES, ...: the offsets the rules index S with when they run as Python
+
+
+def new_state(**values) -> list:
+    """A state as a list of SIZE floats, zero but for ``values`` (field name: a float, or a sequence of
+    floats filling the field from its start)."""
+    S = [0.0] * SIZE
+    for name, value in values.items():
+        at = OFFSETS[name.upper()]
+        if isinstance(value, (int, float)):
+            S[at] = float(value)
+        else:
+            value = [float(v) for v in value]
+            size = _size(next(f.shape for f in FIELDS if f.name == name))
+            if len(value) > size:
+                raise ValueError(f"the state's field {name} holds {size} values, got {len(value)}")
+            S[at:at + len(value)] = value
+    return S
+
+
+# -- the generated declarations for C and Cython (tools/generate_loop.py writes them) ----------------------
+def c_header() -> str:
+    """_loop_state.h: the offsets and the struct members of the state, for the compiled loop."""
+    lines = ["/* The hybrid loop's state (biped_sim/engine/loop_state.py, written by tools/generate_loop.py: do not",
+             " * edit). LOOP_STATE_MEMBERS are the fields as doubles in the order of the offsets LS_*, so that a",
+             " * union of double S[LOOP_STATE_SIZE] with a struct of these members reads the same memory both ways. */",
+             "#ifndef BIPED_SIM_LOOP_STATE_H", "#define BIPED_SIM_LOOP_STATE_H", "",
+             f"#define LOOP_STATE_SIZE {SIZE}", f"#define LS_NMAX {NMAX}", f"#define LS_MAX_DEPTH {MAX_DEPTH}"]
+    lines += [f"#define LS_{name} {at}" for name, at in OFFSETS.items()]
+    lines += ["", "/* the right-hand side f(ctx, t, y) -> dy the generated steps take, and a guard's value at t: the",
+              " * functions the rules take as arguments */",
+              "typedef int (*rhs_t)(void *ctx, double t, const double *y, double *dy);",
+              "typedef double (*guard_t)(double *S, void *ctx, double t);",
+              "/* the feet at t into S[LS_FEET] */",
+              "typedef void (*feet_t)(double *S, void *ctx, double t);",
+              "", "#define LOOP_STATE_MEMBERS \\"]
+    for field in FIELDS:
+        dims = "".join(f"[{d}]" for d in field.shape)
+        lines.append(f"    double {field.name}{dims};  /* {field.doc.replace('*/', '* /')} */ \\")
+    lines[-1] = lines[-1][:-2]
+    lines += ["", "#endif", ""]
+    return "\n".join(lines)
+
+
+def cython_pxd() -> str:
+    """_loop_state.pxd: the offsets as C constants of the compiled rules (from _loop_state.h)."""
+    lines = ["# The hybrid loop's state's offsets for the compiled rules (biped_sim/engine/loop_state.py, written by",
+             "# tools/generate_loop.py: do not edit).",
+             'cdef extern from "_loop_state.h":', "    enum:",
+             '        SIZE "LOOP_STATE_SIZE"', '        NMAX "LS_NMAX"', '        MAX_DEPTH "LS_MAX_DEPTH"']
+    lines += [f'        {name} "LS_{name}"' for name in OFFSETS]
+    lines.append("")
+    return "\n".join(lines)

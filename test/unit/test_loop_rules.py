@@ -1,0 +1,122 @@
+"""The hybrid loop's rules written once (biped_sim/engine/loop_rules.py on the state of loop_state.py): the
+committed C the compiled loop runs was generated from the current source, the compiled loop has no numerics of
+its own for them, and run as Python without Cython installed they give the compiled loop's bits
+(docs/engine.md, "The core")."""
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from biped_sim.engine import compiled_loop, loop_state
+
+ROOT = Path(__file__).resolve().parents[2]
+ENGINE = ROOT / "biped_sim" / "engine"
+sys.path.insert(0, str(ROOT / "tools"))
+import generate_loop  # noqa: E402  (tools/ is not a package)
+
+
+def test_the_committed_c_was_generated_from_the_current_sources():
+    """_loop_state.h and .pxd are what loop_state.py declares; _loop_rules.c carries the digest of the
+    sources it was made from (regenerate: make generate-loop)."""
+    for path, text in generate_loop.state_files().items():
+        assert path.read_text() == text, f"{path.name} is stale: run make generate-loop"
+    assert generate_loop.committed_digest() == generate_loop.sources_digest(), \
+        "_loop_rules.c is stale: run make generate-loop"
+
+
+def test_a_one_operation_change_of_a_rule_changes_the_digest(tmp_path):
+    """The digest covers the rules' text: (t - t_old) * (1 / h) for (t - t_old) / h is a stale C."""
+    for name in generate_loop.RULE_SOURCES:
+        shutil.copyfile(ENGINE / name, tmp_path / name)
+    rules = tmp_path / "loop_rules.py"
+    text, line = rules.read_text(), "x: cython.double = (tt - S[T_OLD]) / hi"
+    assert text.count(line) == 1
+    rules.write_text(text.replace(line, "x: cython.double = (tt - S[T_OLD]) * (1 / hi)"))
+    assert generate_loop.sources_digest(tmp_path) != generate_loop.sources_digest(ENGINE)
+
+
+def test_the_state_is_one_buffer_read_by_offset_and_by_member():
+    """The C struct members lie at the offsets the rules index (every field a double, in order)."""
+    header = (ENGINE / "_loop_state.h").read_text()
+    at = 0
+    for field in loop_state.FIELDS:
+        assert f"#define LS_{field.name.upper()} {at}\n" in header
+        at += math.prod(field.shape)
+    assert at == loop_state.SIZE and f"#define LOOP_STATE_SIZE {at}\n" in header
+    S = loop_state.new_state(t=1.5, y=[1.0, 2.0])
+    assert len(S) == loop_state.SIZE and S[loop_state.T] == 1.5 and S[loop_state.Y + 1] == 2.0
+    with pytest.raises(ValueError, match="holds 11 values"):
+        loop_state.new_state(y=[0.0] * 12)
+
+
+def test_the_compiled_loop_has_no_numerics_of_the_rules():
+    """_core.c includes the compiled rules (_loop_rules.c) and defines none of the step, the dense
+    output, the foot's height, the dip search or brentq itself."""
+    core = (ENGINE / "_core.c").read_text()
+    assert '#include "_loop_rules.c"' in core
+    for name in ("step", "dense", "dense_at", "height_at", "may_dip", "locate_crossing", "ulp", "track_scuff",
+                 "swinging_through"):
+        assert not re.search(rf"^{name}\(", core, re.M), f"_core.c defines {name}()"
+    assert "brentq.c" not in core and "pow(err" not in core
+
+
+def test_the_scuff_rules_are_written_once():
+    """A foot swinging through, a scuff's start, its passing through and its tracking over a step are the rules'
+    (loop_rules.py), in no other file of the engine's Python or in _core.c."""
+    rules = (ENGINE / "loop_rules.py").read_text()
+    assert rules.count("dx > 0.0 and dx + dheight >= 0.0") == 1
+    assert rules.count("tt = i * step + t0 if i < 8 else t_end") == 1
+    for path in [*ENGINE.glob("*.py"), ENGINE / "_core.c"]:
+        if path.name != "loop_rules.py":
+            text = path.read_text()
+            assert not re.search(r"dx \+ \w*\.?dheight >= 0|foot\[2\] \+ foot\[3\]", text), path.name
+            assert "linspace(t0, t_end" not in text and "i * step_t + t0" not in text, path.name
+
+
+def test_the_compiled_rules_touch_no_python_object():
+    """The C of every rule (loop_rules.pxd's functions, in _loop_rules.c) calls nothing of Python: no
+    object, no exception check (Cython's cdivision and noexcept, the state a double *)."""
+    c = (ENGINE / "_loop_rules.c").read_text()
+    names = re.findall(r"^cdef (?:public )?\w+ (\w+)\(", (ENGINE / "loop_rules.pxd").read_text(), re.M)
+    assert len(names) >= 10
+    for name in names:
+        head = rf"\n(?:static )?(?:int|void|double) (?:__pyx_f_\w+_)?{name}\("
+        m = re.search(head + r"(?:double \*|double |int )__pyx_v_\w+[^)]*\) {\n(.*?)\n}\n", c, re.S)
+        assert m, name
+        code = [line for line in m.group(1).splitlines() if not line.lstrip().startswith(("/*", "*"))]
+        assert not [line for line in code if re.search(r"PyObject|__Pyx_|PyErr", line)], name
+
+
+@pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=f"no compiled loop: {compiled_loop.WHY_NOT}")
+def test_without_cython_the_python_rules_give_the_compiled_bits():
+    """In a process where Cython cannot be imported, the rules run as Python through the shim, and the walk
+    (held 1 ms and continuous, dop853 and dopri5) gives the compiled loop's bits."""
+    script = """
+import hashlib, sys
+sys.modules["cython"] = None          # as if Cython were not installed
+import numpy as np
+import biped_sim as bs
+from biped_sim.engine import compiled_loop, loop_rules
+assert loop_rules.cython.__name__ == "biped_sim.engine._cython_shim", loop_rules.cython
+for method in ("dop853", "dopri5"):
+    for hold in (True, False):
+        r = bs.load_scene("walk").simulate(hold=hold, method=method, t_final=1.2)
+        h = hashlib.sha256(b"".join(np.ascontiguousarray(a).tobytes() for a in (r.t, r.q, r.dq, r.u, r.grf)))
+        print(compiled_loop.AVAILABLE, len(r.impacts), h.hexdigest())
+"""
+    runs = {}
+    for pure in ("1", "0"):
+        out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,
+                             env={**os.environ, "BIPED_SIM_PURE_PYTHON": pure})
+        assert out.returncode == 0, out.stderr
+        runs[pure] = out.stdout.split("\n")
+    assert all(line.startswith("False") for line in runs["1"] if line)
+    assert all(line.startswith("True") for line in runs["0"] if line)
+    assert [line.split()[1:] for line in runs["1"]] == [line.split()[1:] for line in runs["0"]]
+    assert all(int(line.split()[1]) >= 2 for line in runs["1"] if line)      # touchdowns were located
+
