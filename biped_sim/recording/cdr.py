@@ -257,6 +257,25 @@ def read_joint_state(data):
     return sec * 1_000_000_000 + nanosec, frame_id, *seqs
 
 
+def read_float64_multi_array(data):
+    """(data, [dim labels]) of the CDR of a ``std_msgs/Float64MultiArray`` (a ``hip_torque`` command);
+    None where it is not little-endian plain CDR (the caller then takes rclpy's deserialiser)."""
+    if data[:2] != ENCAPSULATION_HEADER[:2]:
+        return None
+    b = memoryview(data)[4:]
+    (n_dims,) = _U32.unpack_from(b, 0)
+    off, labels = 4, []
+    for _ in range(n_dims):             # label, size, stride
+        off, label = _read_string(b, off)
+        labels.append(label)
+        off += _pad(off, 4) + 8
+    off += _pad(off, 4) + 4             # data_offset
+    (n,) = _U32.unpack_from(b, off)
+    off += 4
+    values = list(struct.unpack_from(f"<{n}d", b, off + _pad(off, 8))) if n else []
+    return values, labels
+
+
 def read_wrench_stamped(data):
     """(t_ns, frame_id, (fx, fy, fz, tx, ty, tz)) of the CDR of a ``geometry_msgs/WrenchStamped``; None
     where it is not little-endian plain CDR."""

@@ -25,7 +25,7 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -36,6 +36,7 @@ from biped_sim.config import parameters as P
 from biped_sim.engine import compiled_loop
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, WHY_PYTHON
 from biped_sim.engine.guards import prepare_event_location
+from biped_sim.recording.cdr import read_float64_multi_array
 from biped_sim.recording.markers import TF_TOPIC, TF_TYPE, MarkerStream, hip_transform
 from biped_sim.recording.messages import (
     TOPIC_TYPES,
@@ -248,13 +249,18 @@ class SimNode(Node):
 
     # -- commands -----------------------------------------------------------------------------
     def _on_command(self, msg):
+        self._command(list(msg.data), msg, msg)
+
+    def _command(self, data, msg, recorded):
+        """A ``hip_torque`` command's values ``data``: recorded (``recorded``: the message or its CDR),
+        checked, and held from now on (in lockstep, after the stale check of ``msg``, then one period)."""
         t = self.sim.t
         self.counts["received"] += 1
         if self.recorder is not None:
-            self.recorder.write(self.sub.topic_name, msg, to_ns(t))
+            self.recorder.write(self.sub.topic_name, recorded, to_ns(t))
         if self.mode == "lockstep" and self._stale(msg, t):
             return
-        u = self._check_command(list(msg.data), t)
+        u = self._check_command(data, t)
         if u is not None:
             self.u = u
             self.last_command_wall = time.monotonic()
@@ -268,12 +274,22 @@ class SimNode(Node):
         """Run the command callback for each ``hip_torque`` message received since the last call, in
         order, without waiting (realtime and fast: at each period's start; the newest one holds)."""
         sub = self.sub
+        raw = self.mode != "lockstep"     # realtime, fast: the tag is not read, so the CDR is decoded here
         with sub.handle:
             while True:
-                taken = sub.handle.take_message(sub.msg_type, sub.raw)
+                taken = sub.handle.take_message(sub.msg_type, raw)
                 if taken is None:
                     return
-                self._on_command(taken[0])
+                if not raw:
+                    self._on_command(taken[0])
+                    continue
+                # its CDR read by hand and handed to the bag as it came (rclpy's message and the
+                # recorder's encoding of it cost ~10 us a command: issue 35's figures, performance.md)
+                values = read_float64_multi_array(taken[0])
+                if values is None:
+                    self._on_command(deserialize_message(taken[0], sub.msg_type))
+                else:
+                    self._command(values[0], None, taken[0])
 
     def _lockstep(self, t):
         """One control period per command, then its state."""

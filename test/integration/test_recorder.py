@@ -360,6 +360,24 @@ def test_fast_cdr_decodes_like_the_message_it_encodes():
         assert plain(topic, decoded) == plain(topic, msg), (typ, msg)
 
 
+def test_a_command_read_from_its_cdr_is_the_command_rclpy_decodes():
+    """The realtime node reads hip_torque's CDR itself (SimNode.take_commands): the values and labels of any
+    Float64MultiArray rclpy serialises, tagged or not, with dims and a data offset."""
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import Float64MultiArray, MultiArrayDimension, MultiArrayLayout
+
+    from biped_sim.recording import messages as M
+    from biped_sim.recording.cdr import read_float64_multi_array
+    dims = [MultiArrayDimension(label="a", size=1, stride=1), MultiArrayDimension(label="bcd", size=3, stride=3)]
+    cases = [M.torque_msg([3.0, -4.5]), M.torque_msg([1e300, -0.0], answers_ns=472_000_000), Float64MultiArray(),
+             Float64MultiArray(data=[1.0, 2.0, float("nan")], layout=MultiArrayLayout(dim=dims, data_offset=5))]
+    for msg in cases:
+        values, labels = read_float64_multi_array(serialize_message(msg))
+        assert [repr(v) for v in values] == [repr(v) for v in msg.data]
+        assert labels == [d.label for d in msg.layout.dim]
+    assert read_float64_multi_array(b"\x00\x00\x00\x00" + serialize_message(cases[0])[4:]) is None   # big-endian
+
+
 def test_the_state_serializer_gives_the_messages_the_node_published_before():
     # sim_node publishes and records StateSerializer's bytes: they decode (rclpy) to the messages of
     # joint_state_message, wrench_message and clock_msg, and equal the recorder's CDR of those messages
