@@ -405,7 +405,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench", description=__doc__.split("\n")[0])
     parser.add_argument("--only", help="run one group only",
                         choices=("engine", "node", "record", "scenes", "sweep", "cli", "sensitivity", "mujoco",
-                                 "userlaw", "loop_compilers", "drake"))
+                                 "userlaw", "drake"))
     parser.add_argument("--repeats", type=int, default=7, help="timed repeats of each walk (alternating)")
     args = parser.parse_args(argv)
     model = BipedModel()
@@ -432,23 +432,7 @@ def main(argv=None):
             print(f"\n==== benchmarks.{module} ====")
             sys.stdout.flush()
             mod.main([]) if _takes_argv(mod.main) else mod.main()
-    if args.only in (None, "loop_compilers"):
-        bench_loop_compilers()
     return 0
-
-
-def bench_loop_compilers():
-    """Issue 29's probe (benchmarks/loop_compilers, docs/engine.md "How the compiled loop is made: the choice"):
-    the single-source slice against the hand C, bits and ns per call, without the build and first-call costs
-    (``python -m benchmarks.loop_compilers.measure`` has them). Optional: it needs Cython (numba too for its
-    column)."""
-    print("\n==== benchmarks.loop_compilers.measure --cases 60 --no-costs ====")
-    if importlib.util.find_spec("Cython") is None:
-        print("(skipped: Cython is not installed; uv pip install cython numba)")
-        return
-    from benchmarks.loop_compilers import measure
-    sys.stdout.flush()
-    measure.main(["--cases", "60", "--no-costs"])
 
 
 def _takes_argv(fn):
