@@ -189,6 +189,10 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
     model = scene
     smap = StepMap(model, controller, slope=slope, **options)
     if z0 is None:
+        if not hasattr(controller, "initial_state"):
+            raise ValueError("find_gait(model, controller): give z0, the post-impact state [q_st, q_sw, q3, dq_st, "
+                             "dq_sw, dq3] to start Newton's method from (this controller has no initial_state()), "
+                             "or a scene: find_gait('walk', controller=...) starts from the scene's state")
         q, dq = controller.initial_state()
         z0 = np.concatenate([q[2:], dq[2:]])
         if slope:   # rotate the flat-ground start onto the slope

@@ -158,3 +158,8 @@ def test_a_controller_that_does_not_walk_has_no_gait_in_one_line(user_folder):
     run = cli("gait", "--scene", "walk", "--controller", "my_controllers:HipPD", cwd=user_folder)
     assert run.returncode == 1 and run.stdout.startswith("scene walk: no periodic gait: the step from z="), run.stdout
     assert run.stdout.count("\n") == 1 and not run.stderr
+
+
+def test_find_gait_of_a_model_and_a_controller_without_initial_state_asks_for_z0():
+    with pytest.raises(ValueError, match=r"give z0, the post-impact state .* or a scene"):
+        bs.find_gait(BipedModel(), lambda t, q, dq, leg: [0.0, 0.0])
