@@ -369,14 +369,6 @@ feet_at(const Loop *L, double tt, double *ft)
 
 /* -- the quiet steps ----------------------------------------------------------------------------- */
 
-/* witnesses.triggered: a witness with value w0 at a step's start and w1 at its end fired in the step (the
- * one direction of the model's witnesses, "positive then non-positive") */
-static inline int
-triggered(double w0, double w1)
-{
-    return w0 > 0 && w1 <= 0;
-}
-
 /* the feet on the dense output at tt into S[LS_FEET] (the scuff's tracking: loop_rules.ev_track_scuff) */
 static void
 feet_into_state(double *S, void *ctx, double tt)
@@ -529,7 +521,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     /* EventLocator.locate: the witnesses of stance, in witnesses.witnesses' order (touchdown, liftoff, slip) */
     if (L->impact_phase && L->armed[sw - 1]) {
         double g1 = ft1[4 * (sw - 1) + 1], g0 = ft0[4 * (sw - 1) + 1], bracket[2] = {L->t_old, L->t}, t_root;
-        int crossing = triggered(g0, g1);
+        int crossing = ev_triggered(g0, g1);
         if (!crossing && g0 > 0 && g1 > 0 && ev_may_dip(L->S, rhs, L, sw, g0, g1)) {
             crossing = 1;
             bracket[0] = L->S[LS_RESULT];
@@ -565,10 +557,10 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         }
     }
     {
-        if (triggered(normal(L, F0), normal(L, F1))) { L->why = 4; return 0; }
+        if (ev_triggered(normal(L, F0), normal(L, F1))) { L->why = 4; return 0; }
     }
     if (L->has_mu) {
-        if (triggered(slip_margin(L, F0), slip_margin(L, F1))) { L->why = 5; return 0; }
+        if (ev_triggered(slip_margin(L, F0), slip_margin(L, F1))) { L->why = 5; return 0; }
     }
     if (touching) {
         if (scuffing) { L->why = 3; return 0; }

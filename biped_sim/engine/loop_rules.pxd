@@ -18,6 +18,7 @@ cdef int ev_dip_search(double *S, guard_t g, void *ctx, double h0, double h1) no
 cdef public int ev_may_dip(double *S, rhs_t fun, void *ctx, int leg, double h0, double h1) noexcept nogil
 cdef int ev_locate_crossing(double *S, guard_t g, void *ctx, double ta, double tb) noexcept nogil
 cdef public int ev_locate_height_crossing(double *S, rhs_t fun, void *ctx, int leg, double ta, double tb) noexcept nogil
+cdef public bint ev_triggered(double w0, double w1) noexcept nogil
 cdef public bint ev_swinging_through(double dx, double dheight) noexcept nogil
 cdef public bint ev_starts_scuff(bint forward, double front_tol, double x, double dx, double dheight,
                                  double x_stance) noexcept nogil

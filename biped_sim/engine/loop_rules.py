@@ -1,6 +1,7 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
 """The hybrid loop's numerical rules, written once: the Runge-Kutta step with its error control, the dense
-output, a foot's height on it, the dip search and the root finder.
+output, a foot's height on it, the dip search and the root finder, the test of a witness's crossing, the
+scuffs' rules.
 
 This file runs two ways. Imported, it is the Python loop's code (``integrators``, ``grazing``, ``guards``
 call it). Compiled by Cython in its pure-Python mode (``tools/generate_loop.py``: the signatures are in
@@ -447,6 +448,13 @@ def ev_locate_height_crossing(S, fun, ctx, leg, ta, tb):
     rk_dense(S, fun, ctx)
     S[GUARD_LEG] = leg
     return ev_locate_crossing(S, ev_height_guard, ctx, ta, tb)
+
+
+# -- the witnesses (witnesses.py) --------------------------------------------------------------------------
+def ev_triggered(w0, w1):
+    """Whether a witness whose value is w0 at a step's start and w1 at its end fired in the step: the one
+    direction of the model's witnesses, positive then non-positive (a NaN fires nothing)."""
+    return w0 > 0 and w1 <= 0
 
 
 # -- the scuffs of touchdown_rule "front" (guards.py, locator.py) -------------------------------------------
