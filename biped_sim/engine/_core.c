@@ -77,7 +77,7 @@ typedef struct {
         struct { LOOP_STATE_MEMBERS };
     };
     /* options */
-    double max_speed, ground_tol, force_tol, arm_height, mu;
+    double max_speed, ground_tol, force_tol, arm_height;
     double zeno_interval, impulse_tol, contact_tol;
     long max_events;
     int front_rule, compute_grf;   /* touchdown_rule "front" */
@@ -91,7 +91,6 @@ typedef struct {
      * in order: their Events are the Python code's to make */
     EventRecord events[EVENT_ROOM];
     int n_events;
-    double sin_s, cos_s;
     int has_mu, stop_on_slip, project, check_invariants, impact_phase;
     /* mode and torque */
     int leg, law_kind;     /* law_kind: HELD (u_hold), COMPILED (law) or CALLBACK (callback) */
@@ -311,21 +310,8 @@ feet(const Loop *L, const double *q, const double *dq, double *ft)
 {
     double p[8], t = L->tan_s;
     k_foot_kinematics(q, dq, L->k_feet, p);
-    ft[0] = p[0]; ft[1] = p[1] + t * p[0]; ft[2] = p[4]; ft[3] = p[5] + t * p[4];
-    ft[4] = p[2]; ft[5] = p[3] + t * p[2]; ft[6] = p[6]; ft[7] = p[7] + t * p[6];
-}
-
-static double
-normal(const Loop *L, const double *F)
-{
-    return F[0] * L->sin_s + F[1] * L->cos_s;
-}
-
-static double
-slip_margin(const Loop *L, const double *F)
-{
-    double n = F[0] * L->sin_s + F[1] * L->cos_s, tg = F[0] * L->cos_s - F[1] * L->sin_s;
-    return L->mu * n - fabs(tg);
+    ft[0] = p[0]; ft[1] = ev_across(t, p[0], p[1]); ft[2] = p[4]; ft[3] = ev_across(t, p[4], p[5]);
+    ft[4] = p[2]; ft[5] = ev_across(t, p[2], p[3]); ft[6] = p[6]; ft[7] = ev_across(t, p[6], p[7]);
 }
 
 /* -- the stepper: the rules of loop_rules.py (integrators._ListRungeKutta), compiled -------------------- */
@@ -410,7 +396,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     /* resets.impact_warnings and invariants.check_impact */
     double fa[8];
     feet(L, q, dqp, fa);
-    double n_imp = imp[0] * L->sin_s + imp[1] * L->cos_s, tg_imp = imp[0] * L->cos_s - imp[1] * L->sin_s;
+    double n_imp = ev_normal_force(L->S, imp[0], imp[1]), tg_imp = ev_tangential_force(L->S, imp[0], imp[1]);
     if (fa[4 * (old - 1) + 3] < 0) { L->why = 18; return 0; }
     if (n_imp < 0 || (L->has_mu && fabs(tg_imp) > L->mu * n_imp)) { L->why = 19; return 0; }
     if (L->check_invariants && fa[4 * (old - 1) + 3] < L->contact_tol) { L->why = 20; return 0; }
@@ -421,7 +407,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     stance(L, q, dqp, up, out);
     L->leg = old;
     Fp[0] = out[5]; Fp[1] = out[6];
-    if (normal(L, Fp) < 0.0 || (L->has_mu && slip_margin(L, Fp) < 0.0)) { L->why = 21; return 0; }
+    if (ev_normal_force(L->S, Fp[0], Fp[1]) < 0.0 || (L->has_mu && ev_cone_margin(L->S, Fp[0], Fp[1]) < 0.0)) { L->why = 21; return 0; }
     /* applied */
     double lost = energy_lost + loss;
     double res_e = TVm[0] + TVm[1] - E0 - w - push_work + energy_lost;
@@ -557,10 +543,10 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         }
     }
     {
-        if (ev_triggered(normal(L, F0), normal(L, F1))) { L->why = 4; return 0; }
+        if (ev_triggered(ev_normal_force(L->S, F0[0], F0[1]), ev_normal_force(L->S, F1[0], F1[1]))) { L->why = 4; return 0; }
     }
     if (L->has_mu) {
-        if (ev_triggered(slip_margin(L, F0), slip_margin(L, F1))) { L->why = 5; return 0; }
+        if (ev_triggered(ev_cone_margin(L->S, F0[0], F0[1]), ev_cone_margin(L->S, F1[0], F1[1]))) { L->why = 5; return 0; }
     }
     if (touching) {
         if (scuffing) { L->why = 3; return 0; }
@@ -598,9 +584,9 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         for (int i = 0; i < 5; i++) sd += dq[i];
         if (!isfinite(s + sd)) { L->why = 8; return 0; }
         if (!scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) { L->why = 9; return 0; }
-        double n = normal(L, F1);
+        double n = ev_normal_force(L->S, F1[0], F1[1]);
         if (n < -L->force_tol) { L->why = 10; return 0; }
-        if (L->has_mu && L->stop_on_slip && slip_margin(L, F1) < -L->force_tol) { L->why = 11; return 0; }
+        if (L->has_mu && L->stop_on_slip && ev_cone_margin(L->S, F1[0], F1[1]) < -L->force_tol) { L->why = 11; return 0; }
     }
     if (L->callback_failed) { L->why = 12; return 0; }
     /* accepted: the locator's state, the sample, the projected state */
@@ -986,7 +972,7 @@ hold(Loop *L, double u0, double u1, double t_bound)
 static int
 refused_at_start(Loop *L)
 {
-    if (!(normal(L, L->last_F) < 0.0 || (L->has_mu && slip_margin(L, L->last_F) < 0.0))) return 0;
+    if (!(ev_normal_force(L->S, L->last_F[0], L->last_F[1]) < 0.0 || (L->has_mu && ev_cone_margin(L->S, L->last_F[0], L->last_F[1]) < 0.0))) return 0;
     L->nfev -= 1;
     return 1;
 }

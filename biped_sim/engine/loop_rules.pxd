@@ -19,6 +19,13 @@ cdef public int ev_may_dip(double *S, rhs_t fun, void *ctx, int leg, double h0, 
 cdef int ev_locate_crossing(double *S, guard_t g, void *ctx, double ta, double tb) noexcept nogil
 cdef public int ev_locate_height_crossing(double *S, rhs_t fun, void *ctx, int leg, double ta, double tb) noexcept nogil
 cdef public bint ev_triggered(double w0, double w1) noexcept nogil
+cdef public double ev_across(double tan_s, double x, double y) noexcept nogil
+cdef public double ev_normal(double sin_s, double cos_s, double fx, double fy) noexcept nogil
+cdef public double ev_tangential(double sin_s, double cos_s, double fx, double fy) noexcept nogil
+cdef public double ev_slip_margin(double mu, double normal, double tangential) noexcept nogil
+cdef public double ev_normal_force(double *S, double fx, double fy) noexcept nogil
+cdef public double ev_tangential_force(double *S, double fx, double fy) noexcept nogil
+cdef public double ev_cone_margin(double *S, double fx, double fy) noexcept nogil
 cdef public bint ev_swinging_through(double dx, double dheight) noexcept nogil
 cdef public bint ev_starts_scuff(bint forward, double front_tol, double x, double dx, double dheight,
                                  double x_stance) noexcept nogil

@@ -1,7 +1,7 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
 """The hybrid loop's numerical rules, written once: the Runge-Kutta step with its error control, the dense
-output, a foot's height on it, the dip search and the root finder, the test of a witness's crossing, the
-scuffs' rules.
+output, a foot's height on it, the dip search and the root finder, the witnesses' values and the test of
+their crossing, the scuffs' rules.
 
 This file runs two ways. Imported, it is the Python loop's code (``integrators``, ``grazing``, ``guards``
 call it). Compiled by Cython in its pure-Python mode (``tools/generate_loop.py``: the signatures are in
@@ -46,6 +46,7 @@ if not cython.compiled:
         ATOL,
         CALLBACK_FAILED,
         COEF,
+        COS_S,
         DEEPEST_TRIAL,
         DENSE,
         DENSE_READY,
@@ -64,6 +65,7 @@ if not cython.compiled:
         MAX_DEPTH,
         MAX_STEP,
         METHOD,
+        MU,
         N_Y,
         NACCEPTED,
         NFEV,
@@ -76,6 +78,7 @@ if not cython.compiled:
         RTOL,
         SCUFF_DEPTH,
         SCUFF_TRIAL,
+        SIN_S,
         STACK,
         STAGES,
         T_BOUND,
@@ -214,7 +217,7 @@ def ev_height_at(S, leg, tt):
     for i in range(5):
         S[QS + i] = rk_dense_at(S, i, tt)
     k_foot_positions(S, QS, PS)
-    return S[PS + 2 * leg - 1] + S[TAN_S] * S[PS + 2 * leg - 2]
+    return ev_across(S[TAN_S], S[PS + 2 * leg - 2], S[PS + 2 * leg - 1])
 
 
 def ev_height_guard(S, ctx, tt):
@@ -455,6 +458,42 @@ def ev_triggered(w0, w1):
     """Whether a witness whose value is w0 at a step's start and w1 at its end fired in the step: the one
     direction of the model's witnesses, positive then non-positive (a NaN fires nothing)."""
     return w0 > 0 and w1 <= 0
+
+
+def ev_across(tan_s, x, y):
+    """The height across the sloped ground of a point at (x, y), or the rate across it of a velocity (x, y):
+    y + tan(slope) x. The touchdown witness's value is its foot's height across the ground."""
+    return y + tan_s * x
+
+
+def ev_normal(sin_s, cos_s, fx, fy):
+    """The normal component (into the ground line, up) of a ground force or impulse (fx, fy)."""
+    return fx * sin_s + fy * cos_s
+
+
+def ev_tangential(sin_s, cos_s, fx, fy):
+    """The tangential component (along the ground line, forward) of a ground force or impulse (fx, fy)."""
+    return fx * cos_s - fy * sin_s
+
+
+def ev_slip_margin(mu, normal, tangential):
+    """The slip witness's value, the margin inside the friction cone: mu F_n - |F_t|."""
+    return mu * normal - fabs(tangential)
+
+
+def ev_normal_force(S, fx, fy):
+    """The liftoff witness's value: the normal component of the stance force (fx, fy) on S's ground."""
+    return ev_normal(S[SIN_S], S[COS_S], fx, fy)
+
+
+def ev_tangential_force(S, fx, fy):
+    """The tangential component of the stance force (fx, fy) on S's ground."""
+    return ev_tangential(S[SIN_S], S[COS_S], fx, fy)
+
+
+def ev_cone_margin(S, fx, fy):
+    """The slip witness's value for the stance force (fx, fy) on S's ground, under S's mu."""
+    return ev_slip_margin(S[MU], ev_normal(S[SIN_S], S[COS_S], fx, fy), ev_tangential(S[SIN_S], S[COS_S], fx, fy))
 
 
 # -- the scuffs of touchdown_rule "front" (guards.py, locator.py) -------------------------------------------

@@ -78,6 +78,28 @@ def test_the_scuff_rules_are_written_once():
             assert "linspace(t0, t_end" not in text and "i * step_t + t0" not in text, path.name
 
 
+def test_the_witness_values_are_written_once():
+    """A foot's height across the ground (the touchdown witness), a force's normal component (liftoff) and the
+    friction-cone margin (slip) are the rules' (loop_rules.py): guards.py and _core.c call them."""
+    rules = (ENGINE / "loop_rules.py").read_text()
+    for formula in ("return y + tan_s * x", "return fx * sin_s + fy * cos_s", "return fx * cos_s - fy * sin_s",
+                    "return mu * normal - fabs(tangential)"):
+        assert rules.count(formula) == 1, formula
+    written_again = (r"\* L->(sin|cos)_s|\* L->mu\b|p\[\d\] \+ t \* p\[|\w+\[0\] \* s \+ \w+\[1\] \* c"
+                     r"|\w+\[0\] \* c - \w+\[1\] \* s|mu \* normal - (abs|fabs)\(|\w+ \+ t \* \w+x\b"
+                     r"|\by \+ tan_slope \* x")
+    for path in [*ENGINE.glob("*.py"), ENGINE / "_core.c"]:
+        if path.name != "loop_rules.py":
+            assert not re.search(written_again, path.read_text()), path.name
+    from biped_sim.engine import guards as G, loop_rules as rules_py
+    ground = G.Ground.of(0.05)
+    n, tg = G.normal_tangent([3.0, 100.0], ground)
+    assert (n, tg) == (3.0 * ground.sin + 100.0 * ground.cos, 3.0 * ground.cos - 100.0 * ground.sin)
+    assert G.slip_guard(n, tg, 0.6) == 0.6 * n - abs(tg)
+    S = loop_state.new_state(sin_s=ground.sin, cos_s=ground.cos, mu=0.6)
+    assert rules_py.ev_normal_force(S, 3.0, 100.0) == n and rules_py.ev_cone_margin(S, 3.0, 100.0) == 0.6 * n - abs(tg)
+
+
 def test_the_compiled_rules_touch_no_python_object():
     """The C of every rule (loop_rules.pxd's functions, in _loop_rules.c) calls nothing of Python: no
     object, no exception check (Cython's cdivision and noexcept, the state a double *)."""
