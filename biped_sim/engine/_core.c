@@ -439,7 +439,8 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     ev->v[20] = L->pin[0];
     ev->v[21] = L->pin[1];
     L->leg = nw;
-    L->armed[0] = L->armed[1] = 0;
+    for (int leg = 1; leg <= 2; leg++)
+        if (ev_disarmed_by_reset(leg, 0, old, nw)) L->armed[leg - 1] = 0;
     L->cache_ok = 0;        /* EventLocator.after_reset: the step end's feet and force are not the new state's */
     L->locator_changed = 1;
     L->last_impact = t_ev;
@@ -568,15 +569,9 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         deepest = L->deepest_trial;
     }
     /* modes.project_onto_pin */
-    const double *fs = ft1 + 4 * (st - 1);
-    double fy = fs[1] - L->tan_s * fs[0];
-    double drift = hypot(fs[0] - L->pin[0], fy - L->pin[1]), rate = hypot(fs[2], fs[3]);
-    if (L->project) {
-        q[0] += L->pin[0] - fs[0];
-        q[1] += L->pin[1] - fy;
-        dq[0] -= fs[2];
-        dq[1] -= fs[3] - L->tan_s * fs[2];
-    }
+    double *fs = ft1 + 4 * (st - 1);
+    double drift = ev_pin_drift(fs, L->pin, L->tan_s), rate = ev_pin_drift_rate(fs);
+    if (L->project) ev_project_onto_pin(q, dq, fs, L->pin, L->tan_s);
     /* invariants.check_sample (a violation: pending, and the Python code reports it) */
     if (L->check_invariants) {
         double s = 0.0, sd = 0.0;
@@ -606,7 +601,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     }
     cache_step_end(L, ft1, F1);
     for (int leg = 1; leg <= 2; leg++)
-        if (!L->armed[leg - 1] && leg != st && ft1[4 * (leg - 1) + 1] > L->arm_height) {
+        if (!L->armed[leg - 1] && ev_arms(leg != st, ft1[4 * (leg - 1) + 1], L->arm_height)) {
             L->armed[leg - 1] = 1;
             L->locator_changed = 1;
         }

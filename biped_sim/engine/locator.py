@@ -71,10 +71,9 @@ class EventLocator:
                 f"the stance foot (leg {event.stance_leg_before}) {event.kind} at t={event.time:.9g} s while foot "
                 f"{leg} is still below the ground, passing through it (a scuff since "
                 f"t={self.active_scuffs[leg][0]:.9g} s): the model has no contact there")
-        if event.kind == "double_touchdown":
-            self.armed = [False, False]
-        for leg in (event.stance_leg_after, event.stance_leg_before):
-            if leg:
+        for leg in (1, 2):
+            if rules.ev_disarmed_by_reset(leg, event.kind == "double_touchdown", event.stance_leg_before or 0,
+                                          event.stance_leg_after or 0):
                 self.armed[leg - 1] = False
 
     def restart(self, t, feet, F):
@@ -229,7 +228,7 @@ class EventLocator:
 
     def _arm(self, feet, stance_leg):
         for leg in (1, 2):
-            if not self.armed[leg - 1] and leg != stance_leg and feet[leg - 1].height > self.opt.arm_height:
+            if not self.armed[leg - 1] and rules.ev_arms(leg != stance_leg, feet[leg - 1].height, self.opt.arm_height):
                 self.armed[leg - 1] = True
 
 

@@ -1,7 +1,7 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
 """The hybrid loop's numerical rules, written once: the Runge-Kutta step with its error control, the dense
 output, a foot's height on it, the dip search and the root finder, the witnesses' values and the test of
-their crossing, the scuffs' rules.
+their crossing, arming, the projection onto the pinned foot, the scuffs' rules.
 
 This file runs two ways. Imported, it is the Python loop's code (``integrators``, ``grazing``, ``guards``
 call it). Compiled by Cython in its pure-Python mode (``tools/generate_loop.py``: the signatures are in
@@ -39,7 +39,7 @@ else:
             sys.modules["cython"] = _entry
 
 if not cython.compiled:
-    from math import fabs, isfinite, isnan, pow
+    from math import fabs, hypot, isfinite, isnan, pow
 
     from biped_sim.engine.loop_kernels import k_copy, k_dense, k_foot_positions, k_rhs, k_step, k_ulp
     from biped_sim.engine.loop_state import (
@@ -495,6 +495,48 @@ def ev_cone_margin(S, fx, fy):
     """The slip witness's value for the stance force (fx, fy) on S's ground, under S's mu."""
     return ev_slip_margin(S[MU], ev_normal(S[SIN_S], S[COS_S], fx, fy), ev_tangential(S[SIN_S], S[COS_S], fx, fy))
 
+
+
+def ev_ground_y(tan_s, x, height):
+    """The y of a point at x whose height across the ground is height (ev_across's inverse), or the y rate of a
+    velocity (x, its rate across the ground)."""
+    return height - tan_s * x
+
+
+# -- arming: a free foot's touchdown witness counts once the foot has been above the ground ------------------
+def ev_arms(free, height, arm_height):
+    """Whether a free foot (free: not the stance foot) whose touchdown witness is disarmed arms at a step's
+    end: higher than arm_height above the ground. A reset disarms the feet it put on the ground or took off
+    it (ev_disarmed_by_reset), whose witness, zero there, must not fire again at once."""
+    return free and height > arm_height
+
+
+def ev_disarmed_by_reset(leg, both, stance_before, stance_after):
+    """Whether a reset disarms foot leg's touchdown witness: every foot after a double touchdown, else the
+    stance feet before and after it (0: none, in flight); both: a double touchdown."""
+    return both or leg == stance_before or leg == stance_after
+
+
+# -- the projection onto the pinned stance foot (modes.project_onto_pin) -------------------------------------
+def ev_pin_drift(foot, pin, tan_s):
+    """|p - c|: the distance of the stance foot (foot: x, height across the ground, their rates) from its pin
+    (x, y)."""
+    return hypot(foot[0] - pin[0], ev_ground_y(tan_s, foot[0], foot[1]) - pin[1])
+
+
+def ev_pin_drift_rate(foot):
+    """|J dq|: the stance foot's speed (foot: x, height across the ground, their rates)."""
+    return hypot(foot[2], foot[3])
+
+
+def ev_project_onto_pin(q, dq, foot, pin, tan_s):
+    """The floating-base stance state (q, dq, changed in place) projected back onto the constraints: the hip
+    moved by the stance foot's drift from its pin, the base velocity set so that J dq = 0 (J = [I2 | A]:
+    subtracting J dq from dq_base)."""
+    q[0] += pin[0] - foot[0]
+    q[1] += pin[1] - ev_ground_y(tan_s, foot[0], foot[1])
+    dq[0] -= foot[2]
+    dq[1] -= ev_ground_y(tan_s, foot[2], foot[3])
 
 # -- the scuffs of touchdown_rule "front" (guards.py, locator.py) -------------------------------------------
 def ev_swinging_through(dx, dheight):

@@ -100,6 +100,33 @@ def test_the_witness_values_are_written_once():
     assert rules_py.ev_normal_force(S, 3.0, 100.0) == n and rules_py.ev_cone_margin(S, 3.0, 100.0) == 0.6 * n - abs(tg)
 
 
+def test_arming_and_the_projection_are_written_once():
+    """A free foot's arming, the disarming by a reset and the projection onto the pinned stance foot are the
+    rules' (loop_rules.py): locator.py, modes.py and _core.c call them. Projected, the stance foot is at its pin
+    and at rest."""
+    rules = (ENGINE / "loop_rules.py").read_text()
+    for formula in ("return free and height > arm_height", "return height - tan_s * x",
+                    "q[1] += pin[1] - ev_ground_y(tan_s, foot[0], foot[1])"):
+        assert rules.count(formula) == 1, formula
+    written_again = (r"height > (self\.opt\.|L->)arm_height|\+= (L->)?pin\[[01]\] - |-= \w+(\.dheight|\[3\]) - "
+                     r"|armed\[0\] = L->armed\[1\] = 0|self\.armed = \[False, False\]")
+    for path in [*ENGINE.glob("*.py"), ENGINE / "_core.c"]:
+        if path.name != "loop_rules.py":
+            assert not re.search(written_again, path.read_text()), path.name
+    import biped_sim as bs
+    from biped_sim.engine import guards as G, modes
+    model, slope = bs.BipedModel(), 0.04
+    q0, dq0 = bs.stance_state(model, [math.pi + 0.2, math.pi - 0.25, 0.1], [0.3, -0.4, 0.5])
+    q, dq = (q0 + [1e-4, -2e-4, 0, 0, 0]).tolist(), (dq0 + [3e-3, 1e-3, 0, 0, 0]).tolist()
+    foot = G.foot_states(model, q, dq, math.tan(slope))[0]
+    pin = G.foot_xy(model, q0.tolist(), 1)
+    qp, dqp, drift, rate = modes.project_onto_pin(q, dq, foot, pin, math.tan(slope))
+    assert drift > 1e-4 and rate > 1e-3
+    after = G.foot_states(model, qp, dqp, math.tan(slope))[0]
+    assert abs(G.foot_xy(model, qp, 1)[0] - pin[0]) < 1e-15 and abs(G.foot_xy(model, qp, 1)[1] - pin[1]) < 1e-15
+    assert abs(after.dx) < 1e-15 and abs(after.dheight) < 1e-15
+
+
 def test_the_compiled_rules_touch_no_python_object():
     """The C of every rule (loop_rules.pxd's functions, in _loop_rules.c) calls nothing of Python: no
     object, no exception check (Cython's cdivision and noexcept, the state a double *)."""
