@@ -556,7 +556,10 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         return touchdown(L, t_touch, row, E0, push_work, energy_lost, residual_out);
     }
     /* a resting free foot pushed into the ground (_resting_feet_pushed_in) */
-    if (L->impact_phase && !L->armed[sw - 1] && !scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) { L->why = 6; return 0; }
+    if (L->impact_phase && !L->armed[sw - 1] && !scuffing && ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)) {
+        L->why = 6;
+        return 0;
+    }
     int ended = 0;
     if (scuffing) {
         /* EventLocator._track_scuffs, on copies: a scuff that leaves the model is the Python code's to report */
@@ -574,14 +577,13 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     if (L->project) ev_project_onto_pin(q, dq, fs, L->pin, L->tan_s);
     /* invariants.check_sample (a violation: pending, and the Python code reports it) */
     if (L->check_invariants) {
-        double s = 0.0, sd = 0.0;
-        for (int i = 0; i < 5; i++) s += q[i];
-        for (int i = 0; i < 5; i++) sd += dq[i];
-        if (!isfinite(s + sd)) { L->why = 8; return 0; }
-        if (!scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) { L->why = 9; return 0; }
-        double n = ev_normal_force(L->S, F1[0], F1[1]);
-        if (n < -L->force_tol) { L->why = 10; return 0; }
-        if (L->has_mu && L->stop_on_slip && ev_cone_margin(L->S, F1[0], F1[1]) < -L->force_tol) { L->why = 11; return 0; }
+        if (!ev_finite_state(q, dq, 5)) { L->why = 8; return 0; }
+        if (!scuffing && ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)) { L->why = 9; return 0; }
+        if (ev_violated(ev_normal_force(L->S, F1[0], F1[1]), L->force_tol)) { L->why = 10; return 0; }
+        if (L->has_mu && L->stop_on_slip && ev_violated(ev_cone_margin(L->S, F1[0], F1[1]), L->force_tol)) {
+            L->why = 11;
+            return 0;
+        }
     }
     if (L->callback_failed) { L->why = 12; return 0; }
     /* accepted: the locator's state, the sample, the projected state */
@@ -838,7 +840,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
             memcpy(rs->data + 17 * at, row, 17 * sizeof(double));
             rs->n = at + 1;
             rs->appended += 1;
-            rs->provisional = rs->appended > 1 && (!rs->every || (rs->appended - 1) % rs->every != 0);
+            rs->provisional = ev_provisional(rs->appended, rs->every);
             L->max_drift = drift > L->max_drift ? drift : L->max_drift;
             L->max_rate = rate > L->max_rate ? rate : L->max_rate;
         }

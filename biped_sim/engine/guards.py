@@ -173,7 +173,7 @@ def check_initial_contact(feet, stance_leg, opt):
                        ", scuff_rule 'behind')")) + "; raise the hip or the foot")
     else:
         for leg in (1, 2):
-            if feet[leg - 1].height < -opt.ground_tol:
+            if rules.ev_violated(feet[leg - 1].height, opt.ground_tol):
                 raise ValueError(f"initial state in flight: foot {leg} is {-feet[leg - 1].height:.6g} m below the "
                                  f"ground (ground_tol {opt.ground_tol:g} m); raise the hip")
     for leg in (1, 2):

@@ -189,7 +189,7 @@ class EventLocator:
         if "impact" not in self.opt.phases:
             return []
         return [leg for leg in (1, 2) if leg != stance_leg and not self.armed[leg - 1]
-                and leg not in self.active_scuffs and feet[leg - 1].height < -self.opt.ground_tol]
+                and leg not in self.active_scuffs and rules.ev_violated(feet[leg - 1].height, self.opt.ground_tol)]
 
     def _track_scuffs(self, st, to_phys, stance_leg, t_end):
         """Follow each scuffing foot over the step up to ``t_end`` (the rule ``loop_rules.ev_track_scuff``):

@@ -32,6 +32,9 @@ cdef public bint ev_disarmed_by_reset(int leg, bint both, int stance_before, int
 cdef public double ev_pin_drift(double *foot, double *pin, double tan_s) noexcept nogil
 cdef public double ev_pin_drift_rate(double *foot) noexcept nogil
 cdef public void ev_project_onto_pin(double *q, double *dq, double *foot, double *pin, double tan_s) noexcept nogil
+cdef public bint ev_finite_state(double *q, double *dq, Py_ssize_t n) noexcept nogil
+cdef public bint ev_violated(double value, double tol) noexcept nogil
+cdef public bint ev_provisional(long appended, long every) noexcept nogil
 cdef public bint ev_swinging_through(double dx, double dheight) noexcept nogil
 cdef public bint ev_starts_scuff(bint forward, double front_tol, double x, double dx, double dheight,
                                  double x_stance) noexcept nogil

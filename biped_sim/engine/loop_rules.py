@@ -1,7 +1,8 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
 """The hybrid loop's numerical rules, written once: the Runge-Kutta step with its error control, the dense
 output, a foot's height on it, the dip search and the root finder, the witnesses' values and the test of
-their crossing, arming, the projection onto the pinned foot, the scuffs' rules.
+their crossing, arming, the projection onto the pinned foot, the invariants'
+predicates, the sample's thinning, the scuffs' rules.
 
 This file runs two ways. Imported, it is the Python loop's code (``integrators``, ``grazing``, ``guards``
 call it). Compiled by Cython in its pure-Python mode (``tools/generate_loop.py``: the signatures are in
@@ -537,6 +538,31 @@ def ev_project_onto_pin(q, dq, foot, pin, tan_s):
     q[1] += pin[1] - ev_ground_y(tan_s, foot[0], foot[1])
     dq[0] -= foot[2]
     dq[1] -= ev_ground_y(tan_s, foot[2], foot[3])
+
+
+# -- the invariants' predicates (invariants.py) and the sample's thinning (results.Samples) -------------------
+def ev_finite_state(q, dq, n):
+    """The invariant 'finite state': the sum of q's n entries plus that of dq's is finite."""
+    s: cython.double = 0.0
+    sd: cython.double = 0.0
+    i: cython.Py_ssize_t
+    for i in range(n):
+        s += q[i]
+    for i in range(n):
+        sd += dq[i]
+    return isfinite(s + sd)
+
+
+def ev_violated(value, tol):
+    """Whether an invariant 'value >= 0' (a foot's height, the normal force, the friction-cone margin, a normal
+    impulse) is violated beyond its tolerance tol."""
+    return value < -tol
+
+
+def ev_provisional(appended, every):
+    """Whether the newest of appended samples will be overwritten by the next: thinned out, keeping the first,
+    then every every-th (every 0: none but the events' and the last)."""
+    return appended > 1 and (every == 0 or (appended - 1) % every != 0)
 
 # -- the scuffs of touchdown_rule "front" (guards.py, locator.py) -------------------------------------------
 def ev_swinging_through(dx, dheight):

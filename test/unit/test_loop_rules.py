@@ -127,6 +127,25 @@ def test_arming_and_the_projection_are_written_once():
     assert abs(after.dx) < 1e-15 and abs(after.dheight) < 1e-15
 
 
+def test_the_invariants_predicates_and_the_thinning_are_written_once():
+    """The invariants' predicates (a finite state, a value below zero beyond its tolerance) and the sample's
+    thinning are the rules' (loop_rules.py): invariants.py, locator.py, results.py and _core.c call them."""
+    rules = (ENGINE / "loop_rules.py").read_text()
+    for formula in ("return value < -tol", "return isfinite(s + sd)",
+                    "return appended > 1 and (every == 0 or (appended - 1) % every != 0)"):
+        assert rules.count(formula) == 1, formula
+    written_again = (r"< -(\w+\.)*(\w+->)?(ground|force|impulse)_tol|>= -(\w+\.)*(ground|force)_tol"
+                     r"|isfinite\(sum\(q\)|isfinite\(s \+ sd\)|\(appended - 1\) % \w*\.?every")
+    for path in [*ENGINE.glob("*.py"), ENGINE / "_core.c"]:
+        if path.name != "loop_rules.py":
+            assert not re.search(written_again, path.read_text()), path.name
+    from biped_sim.engine import results
+    samples = results.Samples(keep=3)
+    for k in range(8):
+        samples.append(float(k), [0.0] * 5, [0.0] * 5, 1, [0.0, 0.0], [0.0, 0.0], 0.0)
+    assert samples.n == 4 and list(samples._data[:samples.n, 0]) == [0.0, 3.0, 6.0, 7.0]     # the newest last
+
+
 def test_the_compiled_rules_touch_no_python_object():
     """The C of every rule (loop_rules.pxd's functions, in _loop_rules.c) calls nothing of Python: no
     object, no exception check (Cython's cdivision and noexcept, the state a double *)."""
@@ -135,7 +154,7 @@ def test_the_compiled_rules_touch_no_python_object():
     assert len(names) >= 10
     for name in names:
         head = rf"\n(?:static )?(?:int|void|double) (?:__pyx_f_\w+_)?{name}\("
-        m = re.search(head + r"(?:double \*|double |int )__pyx_v_\w+[^)]*\) {\n(.*?)\n}\n", c, re.S)
+        m = re.search(head + r"(?:double \*|double |int |long )__pyx_v_\w+[^)]*\) {\n(.*?)\n}\n", c, re.S)
         assert m, name
         code = [line for line in m.group(1).splitlines() if not line.lstrip().startswith(("/*", "*"))]
         assert not [line for line in code if re.search(r"PyObject|__Pyx_|PyErr", line)], name
