@@ -1,21 +1,23 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
-"""The hybrid loop's numerical rules, written once: the Runge-Kutta step with its error control, the dense
-output, a foot's height on it, the dip search and the root finder, the witnesses' values and the test of
-their crossing, arming, the projection onto the pinned foot, the invariants'
-predicates, the sample's thinning, the scuffs' rules.
+"""The hybrid loop's rules, written once: the Runge-Kutta step with its error control, the dense output, a
+foot's height on it, the dip search and the root finder, the witnesses' values and the test of their
+crossing, arming, the projection onto the pinned foot, the invariants' predicates, the sample's thinning,
+the scuffs' rules.
 
-This file runs two ways. Imported, it is the Python loop's code (``integrators``, ``grazing``, ``guards``
-call it). Compiled by Cython in its pure-Python mode (``tools/generate_loop.py``: the signatures are in
-``loop_rules.pxd``, the generated formulas reached through ``loop_kernels.pxd``), it is the committed C
-``_loop_rules.c``, the extension ``biped_sim.engine._loop_rules`` that the compiled loop (``_core.c``) calls
-through Cython's C API (``_loop_rules_api.h``). Both perform the same IEEE operations in the same order
-(the C built with ``-ffp-contract=off``, C division without Python's zero check), so a run gives the same
-bits on both loops (test/unit/test_compiled_loop.py).
+This file runs two ways. Imported, it is the Python loop's code (``integrators``, ``grazing``, ``guards``,
+``witnesses``, ``locator``, ``modes``, ``invariants``, ``results`` call it). Compiled by Cython in its
+pure-Python mode (``tools/generate_loop.py``: the signatures are in ``loop_rules.pxd``, the generated formulas
+reached through ``loop_kernels.pxd``), it is the committed C ``_loop_rules.c``, which the compiled loop
+(``_core.c``) includes and whose public functions it calls by name. Both perform the same IEEE operations
+in the same order (the C built with ``-ffp-contract=off``, C division without Python's zero check), so a run
+gives the same bits on both loops (test/unit/test_compiled_loop.py).
 
 Everything a rule reads or writes is an entry of the state S (``loop_state``: a list as Python, a
-``double *`` in C) at a named offset; besides S a rule takes only scalars, the right-hand side
-``fun`` (``fun(t, y) -> list`` as Python, ``rhs_t`` with its context ``ctx`` in C) and a guard
-``g(S, ctx, t) -> float``. Kept to what both take: float and int scalars, indexing of S, ``if``,
+``double *`` in C) at a named offset; besides S a rule takes only scalars, short vectors (q, dq, a foot's
+row, a pin: a list or tuple as Python, a ``double *`` in C), the right-hand side ``fun`` (``fun(t, y) ->
+list`` as Python, ``rhs_t`` with its context ``ctx`` in C) and a guard ``g(S, ctx, t) -> float``; the
+witnesses', arming's and the invariants' rules take the scalars their Python callers have. Kept to what
+both take: float and int scalars, indexing of S and of the vectors, ``if``,
 ``while``, ``for ... in range``, calls; a rule must never divide by zero (C would go on where
 Python raises).
 """
