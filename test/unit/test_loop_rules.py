@@ -78,19 +78,25 @@ def test_the_scuff_rules_are_written_once():
             assert "linspace(t0, t_end" not in text and "i * step_t + t0" not in text, path.name
 
 
-def test_the_witness_values_are_written_once():
-    """A foot's height across the ground (the touchdown witness), a force's normal component (liftoff) and the
-    friction-cone margin (slip) are the rules' (loop_rules.py): guards.py and _core.c call them."""
+def assert_written_once(formulas, written_again):
+    """Each formula is written once in loop_rules.py, and the regular expression written_again (the same rule
+    written out by hand) matches no other file of the engine's Python nor _core.c."""
     rules = (ENGINE / "loop_rules.py").read_text()
-    for formula in ("return y + tan_s * x", "return fx * sin_s + fy * cos_s", "return fx * cos_s - fy * sin_s",
-                    "return mu * normal - fabs(tangential)"):
+    for formula in formulas:
         assert rules.count(formula) == 1, formula
-    written_again = (r"\* L->(sin|cos)_s|\* L->mu\b|p\[\d\] \+ t \* p\[|\w+\[0\] \* s \+ \w+\[1\] \* c"
-                     r"|\w+\[0\] \* c - \w+\[1\] \* s|mu \* normal - (abs|fabs)\(|\w+ \+ t \* \w+x\b"
-                     r"|\by \+ tan_slope \* x")
     for path in [*ENGINE.glob("*.py"), ENGINE / "_core.c"]:
         if path.name != "loop_rules.py":
             assert not re.search(written_again, path.read_text()), path.name
+
+
+def test_the_witness_values_are_written_once():
+    """A foot's height across the ground (the touchdown witness), a force's normal component (liftoff) and the
+    friction-cone margin (slip) are the rules' (loop_rules.py): guards.py and _core.c call them."""
+    assert_written_once(("return y + tan_s * x", "return fx * sin_s + fy * cos_s", "return fx * cos_s - fy * sin_s",
+                         "return mu * normal - fabs(tangential)"),
+                        (r"\* L->(sin|cos)_s|\* L->mu\b|p\[\d\] \+ t \* p\[|\w+\[0\] \* s \+ \w+\[1\] \* c"
+                         r"|\w+\[0\] \* c - \w+\[1\] \* s|mu \* normal - (abs|fabs)\(|\w+ \+ t \* \w+x\b"
+                         r"|\by \+ tan_slope \* x"))
     from biped_sim.engine import guards as G, loop_rules as rules_py
     ground = G.Ground.of(0.05)
     n, tg = G.normal_tangent([3.0, 100.0], ground)
@@ -104,15 +110,10 @@ def test_arming_and_the_projection_are_written_once():
     """A free foot's arming, the disarming by a reset and the projection onto the pinned stance foot are the
     rules' (loop_rules.py): locator.py, modes.py and _core.c call them. Projected, the stance foot is at its pin
     and at rest."""
-    rules = (ENGINE / "loop_rules.py").read_text()
-    for formula in ("return free and height > arm_height", "return height - tan_s * x",
-                    "q[1] += pin[1] - ev_ground_y(tan_s, foot[0], foot[1])"):
-        assert rules.count(formula) == 1, formula
-    written_again = (r"height > (self\.opt\.|L->)arm_height|\+= (L->)?pin\[[01]\] - |-= \w+(\.dheight|\[3\]) - "
-                     r"|armed\[0\] = L->armed\[1\] = 0|self\.armed = \[False, False\]")
-    for path in [*ENGINE.glob("*.py"), ENGINE / "_core.c"]:
-        if path.name != "loop_rules.py":
-            assert not re.search(written_again, path.read_text()), path.name
+    assert_written_once(("return free and height > arm_height", "return height - tan_s * x",
+                         "q[1] += pin[1] - ev_ground_y(tan_s, foot[0], foot[1])"),
+                        (r"height > (self\.opt\.|L->)arm_height|\+= (L->)?pin\[[01]\] - |-= \w+(\.dheight|\[3\]) - "
+                         r"|armed\[0\] = L->armed\[1\] = 0|self\.armed = \[False, False\]"))
     import biped_sim as bs
     from biped_sim.engine import guards as G, modes
     model, slope = bs.BipedModel(), 0.04
@@ -130,15 +131,10 @@ def test_arming_and_the_projection_are_written_once():
 def test_the_invariants_predicates_and_the_thinning_are_written_once():
     """The invariants' predicates (a finite state, a value below zero beyond its tolerance) and the sample's
     thinning are the rules' (loop_rules.py): invariants.py, locator.py, results.py and _core.c call them."""
-    rules = (ENGINE / "loop_rules.py").read_text()
-    for formula in ("return value < -tol", "return isfinite(s + sd)",
-                    "return appended > 1 and (every == 0 or (appended - 1) % every != 0)"):
-        assert rules.count(formula) == 1, formula
-    written_again = (r"< -(\w+\.)*(\w+->)?(ground|force|impulse)_tol|>= -(\w+\.)*(ground|force)_tol"
-                     r"|isfinite\(sum\(q\)|isfinite\(s \+ sd\)|\(appended - 1\) % \w*\.?every")
-    for path in [*ENGINE.glob("*.py"), ENGINE / "_core.c"]:
-        if path.name != "loop_rules.py":
-            assert not re.search(written_again, path.read_text()), path.name
+    assert_written_once(("return value < -tol", "return isfinite(s + sd)",
+                         "return appended > 1 and (every == 0 or (appended - 1) % every != 0)"),
+                        (r"< -(\w+\.)*(\w+->)?(ground|force|impulse)_tol|>= -(\w+\.)*(ground|force)_tol"
+                         r"|isfinite\(sum\(q\)|isfinite\(s \+ sd\)|\(appended - 1\) % \w*\.?every"))
     from biped_sim.engine import results
     samples = results.Samples(keep=3)
     for k in range(8):
