@@ -27,7 +27,10 @@ setup(
                  Extension("biped_sim.engine._core", ["biped_sim/engine/_core.c"],
                            depends=["biped_sim/engine/_gen/_kernels.h", "biped_sim/engine/_loop_state.h",
                                     "biped_sim/engine/_loop_rules.c"],
-                           extra_compile_args=["-O2", "-ffp-contract=off"], optional=True),
+                           # the rules are Cython's public (exported) functions: without semantic interposition
+                           # gcc may inline the small ones into the loop as it does a static function
+                           extra_compile_args=["-O2", "-ffp-contract=off", "-fno-semantic-interposition"],
+                           optional=True),
                  # the walking laws as compiled torque laws of the loop's hook (biped_sim/control/walking.py)
                  Extension("biped_sim.control._laws", ["biped_sim/control/_laws.c"],
                            depends=["biped_sim/engine/_gen/_kernels.h"],

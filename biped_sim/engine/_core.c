@@ -77,7 +77,7 @@ typedef struct {
         struct { LOOP_STATE_MEMBERS };
     };
     /* options */
-    double max_speed, ground_tol, force_tol, arm_height, mu;
+    double max_speed, ground_tol, force_tol, arm_height;
     double zeno_interval, impulse_tol, contact_tol;
     long max_events;
     int front_rule, compute_grf;   /* touchdown_rule "front" */
@@ -91,7 +91,6 @@ typedef struct {
      * in order: their Events are the Python code's to make */
     EventRecord events[EVENT_ROOM];
     int n_events;
-    double sin_s, cos_s;
     int has_mu, stop_on_slip, project, check_invariants, impact_phase;
     /* mode and torque */
     int leg, law_kind;     /* law_kind: HELD (u_hold), COMPILED (law) or CALLBACK (callback) */
@@ -311,21 +310,8 @@ feet(const Loop *L, const double *q, const double *dq, double *ft)
 {
     double p[8], t = L->tan_s;
     k_foot_kinematics(q, dq, L->k_feet, p);
-    ft[0] = p[0]; ft[1] = p[1] + t * p[0]; ft[2] = p[4]; ft[3] = p[5] + t * p[4];
-    ft[4] = p[2]; ft[5] = p[3] + t * p[2]; ft[6] = p[6]; ft[7] = p[7] + t * p[6];
-}
-
-static double
-normal(const Loop *L, const double *F)
-{
-    return F[0] * L->sin_s + F[1] * L->cos_s;
-}
-
-static double
-slip_margin(const Loop *L, const double *F)
-{
-    double n = F[0] * L->sin_s + F[1] * L->cos_s, tg = F[0] * L->cos_s - F[1] * L->sin_s;
-    return L->mu * n - fabs(tg);
+    ft[0] = p[0]; ft[1] = ev_across(t, p[0], p[1]); ft[2] = p[4]; ft[3] = ev_across(t, p[4], p[5]);
+    ft[4] = p[2]; ft[5] = ev_across(t, p[2], p[3]); ft[6] = p[6]; ft[7] = ev_across(t, p[6], p[7]);
 }
 
 /* -- the stepper: the rules of loop_rules.py (integrators._ListRungeKutta), compiled -------------------- */
@@ -369,14 +355,6 @@ feet_at(const Loop *L, double tt, double *ft)
 
 /* -- the quiet steps ----------------------------------------------------------------------------- */
 
-/* witnesses.triggered: a witness with value w0 at a step's start and w1 at its end fired in the step (the
- * one direction of the model's witnesses, "positive then non-positive") */
-static inline int
-triggered(double w0, double w1)
-{
-    return w0 > 0 && w1 <= 0;
-}
-
 /* the feet on the dense output at tt into S[LS_FEET] (the scuff's tracking: loop_rules.ev_track_scuff) */
 static void
 feet_into_state(double *S, void *ctx, double tt)
@@ -418,7 +396,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     /* resets.impact_warnings and invariants.check_impact */
     double fa[8];
     feet(L, q, dqp, fa);
-    double n_imp = imp[0] * L->sin_s + imp[1] * L->cos_s, tg_imp = imp[0] * L->cos_s - imp[1] * L->sin_s;
+    double n_imp = ev_normal_force(L->S, imp[0], imp[1]), tg_imp = ev_tangential_force(L->S, imp[0], imp[1]);
     if (fa[4 * (old - 1) + 3] < 0) { L->why = 18; return 0; }
     if (n_imp < 0 || (L->has_mu && fabs(tg_imp) > L->mu * n_imp)) { L->why = 19; return 0; }
     if (L->check_invariants && fa[4 * (old - 1) + 3] < L->contact_tol) { L->why = 20; return 0; }
@@ -429,7 +407,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     stance(L, q, dqp, up, out);
     L->leg = old;
     Fp[0] = out[5]; Fp[1] = out[6];
-    if (normal(L, Fp) < 0.0 || (L->has_mu && slip_margin(L, Fp) < 0.0)) { L->why = 21; return 0; }
+    if (ev_normal_force(L->S, Fp[0], Fp[1]) < 0.0 || (L->has_mu && ev_cone_margin(L->S, Fp[0], Fp[1]) < 0.0)) { L->why = 21; return 0; }
     /* applied */
     double lost = energy_lost + loss;
     double res_e = TVm[0] + TVm[1] - E0 - w - push_work + energy_lost;
@@ -461,7 +439,8 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     ev->v[20] = L->pin[0];
     ev->v[21] = L->pin[1];
     L->leg = nw;
-    L->armed[0] = L->armed[1] = 0;
+    for (int leg = 1; leg <= 2; leg++)
+        if (ev_disarmed_by_reset(leg, 0, old, nw)) L->armed[leg - 1] = 0;
     L->cache_ok = 0;        /* EventLocator.after_reset: the step end's feet and force are not the new state's */
     L->locator_changed = 1;
     L->last_impact = t_ev;
@@ -529,7 +508,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     /* EventLocator.locate: the witnesses of stance, in witnesses.witnesses' order (touchdown, liftoff, slip) */
     if (L->impact_phase && L->armed[sw - 1]) {
         double g1 = ft1[4 * (sw - 1) + 1], g0 = ft0[4 * (sw - 1) + 1], bracket[2] = {L->t_old, L->t}, t_root;
-        int crossing = triggered(g0, g1);
+        int crossing = ev_triggered(g0, g1);
         if (!crossing && g0 > 0 && g1 > 0 && ev_may_dip(L->S, rhs, L, sw, g0, g1)) {
             crossing = 1;
             bracket[0] = L->S[LS_RESULT];
@@ -565,10 +544,10 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         }
     }
     {
-        if (triggered(normal(L, F0), normal(L, F1))) { L->why = 4; return 0; }
+        if (ev_triggered(ev_normal_force(L->S, F0[0], F0[1]), ev_normal_force(L->S, F1[0], F1[1]))) { L->why = 4; return 0; }
     }
     if (L->has_mu) {
-        if (triggered(slip_margin(L, F0), slip_margin(L, F1))) { L->why = 5; return 0; }
+        if (ev_triggered(ev_cone_margin(L->S, F0[0], F0[1]), ev_cone_margin(L->S, F1[0], F1[1]))) { L->why = 5; return 0; }
     }
     if (touching) {
         if (scuffing) { L->why = 3; return 0; }
@@ -577,7 +556,10 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         return touchdown(L, t_touch, row, E0, push_work, energy_lost, residual_out);
     }
     /* a resting free foot pushed into the ground (_resting_feet_pushed_in) */
-    if (L->impact_phase && !L->armed[sw - 1] && !scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) { L->why = 6; return 0; }
+    if (L->impact_phase && !L->armed[sw - 1] && !scuffing && ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)) {
+        L->why = 6;
+        return 0;
+    }
     int ended = 0;
     if (scuffing) {
         /* EventLocator._track_scuffs, on copies: a scuff that leaves the model is the Python code's to report */
@@ -590,25 +572,18 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         deepest = L->deepest_trial;
     }
     /* modes.project_onto_pin */
-    const double *fs = ft1 + 4 * (st - 1);
-    double fy = fs[1] - L->tan_s * fs[0];
-    double drift = hypot(fs[0] - L->pin[0], fy - L->pin[1]), rate = hypot(fs[2], fs[3]);
-    if (L->project) {
-        q[0] += L->pin[0] - fs[0];
-        q[1] += L->pin[1] - fy;
-        dq[0] -= fs[2];
-        dq[1] -= fs[3] - L->tan_s * fs[2];
-    }
+    double *fs = ft1 + 4 * (st - 1);
+    double drift = ev_pin_drift(fs, L->pin, L->tan_s), rate = ev_pin_drift_rate(fs);
+    if (L->project) ev_project_onto_pin(q, dq, fs, L->pin, L->tan_s);
     /* invariants.check_sample (a violation: pending, and the Python code reports it) */
     if (L->check_invariants) {
-        double s = 0.0, sd = 0.0;
-        for (int i = 0; i < 5; i++) s += q[i];
-        for (int i = 0; i < 5; i++) sd += dq[i];
-        if (!isfinite(s + sd)) { L->why = 8; return 0; }
-        if (!scuffing && ft1[4 * (sw - 1) + 1] < -L->ground_tol) { L->why = 9; return 0; }
-        double n = normal(L, F1);
-        if (n < -L->force_tol) { L->why = 10; return 0; }
-        if (L->has_mu && L->stop_on_slip && slip_margin(L, F1) < -L->force_tol) { L->why = 11; return 0; }
+        if (!ev_finite_state(q, dq, 5)) { L->why = 8; return 0; }
+        if (!scuffing && ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)) { L->why = 9; return 0; }
+        if (ev_violated(ev_normal_force(L->S, F1[0], F1[1]), L->force_tol)) { L->why = 10; return 0; }
+        if (L->has_mu && L->stop_on_slip && ev_violated(ev_cone_margin(L->S, F1[0], F1[1]), L->force_tol)) {
+            L->why = 11;
+            return 0;
+        }
     }
     if (L->callback_failed) { L->why = 12; return 0; }
     /* accepted: the locator's state, the sample, the projected state */
@@ -628,7 +603,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     }
     cache_step_end(L, ft1, F1);
     for (int leg = 1; leg <= 2; leg++)
-        if (!L->armed[leg - 1] && leg != st && ft1[4 * (leg - 1) + 1] > L->arm_height) {
+        if (!L->armed[leg - 1] && ev_arms(leg != st, ft1[4 * (leg - 1) + 1], L->arm_height)) {
             L->armed[leg - 1] = 1;
             L->locator_changed = 1;
         }
@@ -865,7 +840,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
             memcpy(rs->data + 17 * at, row, 17 * sizeof(double));
             rs->n = at + 1;
             rs->appended += 1;
-            rs->provisional = rs->appended > 1 && (!rs->every || (rs->appended - 1) % rs->every != 0);
+            rs->provisional = ev_provisional(rs->appended, rs->every);
             L->max_drift = drift > L->max_drift ? drift : L->max_drift;
             L->max_rate = rate > L->max_rate ? rate : L->max_rate;
         }
@@ -994,7 +969,7 @@ hold(Loop *L, double u0, double u1, double t_bound)
 static int
 refused_at_start(Loop *L)
 {
-    if (!(normal(L, L->last_F) < 0.0 || (L->has_mu && slip_margin(L, L->last_F) < 0.0))) return 0;
+    if (!(ev_normal_force(L->S, L->last_F[0], L->last_F[1]) < 0.0 || (L->has_mu && ev_cone_margin(L->S, L->last_F[0], L->last_F[1]) < 0.0))) return 0;
     L->nfev -= 1;
     return 1;
 }

@@ -4,7 +4,7 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 920
+#define LOOP_STATE_SIZE 923
 #define LS_NMAX 11
 #define LS_MAX_DEPTH 30
 #define LS_METHOD 0
@@ -16,40 +16,43 @@
 #define LS_EVENT_TOL 6
 #define LS_L_LEG 7
 #define LS_TAN_S 8
-#define LS_FIXED_BASE 9
-#define LS_FRONT_TOL 10
-#define LS_SCUFF_DEPTH 11
-#define LS_FORWARD_RULE 12
-#define LS_K_POS 13
-#define LS_TO_POWER_BASIS 45
-#define LS_T 109
-#define LS_T_BOUND 110
-#define LS_H_ABS 111
-#define LS_T_OLD 112
-#define LS_H 113
-#define LS_Y 114
-#define LS_F 125
-#define LS_Y_OLD 136
-#define LS_STAGES 147
-#define LS_NFEV 290
-#define LS_NREJECTED 291
-#define LS_NACCEPTED 292
-#define LS_DENSE_READY 293
-#define LS_DENSE 294
-#define LS_FAIL_KIND 382
-#define LS_FAIL_VALUE 383
-#define LS_FAIL_T 384
-#define LS_CALLBACK_FAILED 385
-#define LS_GUARD_LEG 386
-#define LS_SCUFF_TRIAL 387
-#define LS_DEEPEST_TRIAL 390
-#define LS_FEET 391
-#define LS_OUT 399
-#define LS_RESULT 565
-#define LS_COEF 567
-#define LS_QS 591
-#define LS_PS 596
-#define LS_STACK 600
+#define LS_SIN_S 9
+#define LS_COS_S 10
+#define LS_MU 11
+#define LS_FIXED_BASE 12
+#define LS_FRONT_TOL 13
+#define LS_SCUFF_DEPTH 14
+#define LS_FORWARD_RULE 15
+#define LS_K_POS 16
+#define LS_TO_POWER_BASIS 48
+#define LS_T 112
+#define LS_T_BOUND 113
+#define LS_H_ABS 114
+#define LS_T_OLD 115
+#define LS_H 116
+#define LS_Y 117
+#define LS_F 128
+#define LS_Y_OLD 139
+#define LS_STAGES 150
+#define LS_NFEV 293
+#define LS_NREJECTED 294
+#define LS_NACCEPTED 295
+#define LS_DENSE_READY 296
+#define LS_DENSE 297
+#define LS_FAIL_KIND 385
+#define LS_FAIL_VALUE 386
+#define LS_FAIL_T 387
+#define LS_CALLBACK_FAILED 388
+#define LS_GUARD_LEG 389
+#define LS_SCUFF_TRIAL 390
+#define LS_DEEPEST_TRIAL 393
+#define LS_FEET 394
+#define LS_OUT 402
+#define LS_RESULT 568
+#define LS_COEF 570
+#define LS_QS 594
+#define LS_PS 599
+#define LS_STACK 603
 
 /* the right-hand side f(ctx, t, y) -> dy the generated steps take, and a guard's value at t: the
  * functions the rules take as arguments */
@@ -68,6 +71,9 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double event_tol;  /* brentq's xtol (s) */ \
     double l_leg;  /* the leg's length (m) */ \
     double tan_s;  /* tan(slope) of the ground */ \
+    double sin_s;  /* sin(slope): a force's normal and tangential components on the ground line */ \
+    double cos_s;  /* cos(slope) */ \
+    double mu;  /* the friction coefficient (0 without one: the slip witness is then not a row) */ \
     double fixed_base;  /* 1 when y is the fixed base's (q1, q2, q3, dq..., work): the dip bound's form */ \
     double front_tol;  /* touchdown_rule front: a swing foot within this of the stance foot counts as behind (m) */ \
     double scuff_depth;  /* the deepest a scuff may pass under the ground (m) */ \

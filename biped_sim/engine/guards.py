@@ -42,9 +42,9 @@ class FootState(NamedTuple):
 def foot_states(model, q, dq, tan_slope=0.0) -> tuple[FootState, FootState]:
     """(foot 1, foot 2) at the physical state (lists q, dq); heights measured across the slope."""
     p1x, p1y, p2x, p2y, v1x, v1y, v2x, v2y = gen.foot_kinematics(q, dq, model.k["foot_kinematics"])
-    t = tan_slope
-    return (FootState(p1x, p1y + t * p1x, v1x, v1y + t * v1x),
-            FootState(p2x, p2y + t * p2x, v2x, v2y + t * v2x))
+    t, across = tan_slope, rules.ev_across
+    return (FootState(p1x, across(t, p1x, p1y), v1x, across(t, v1x, v1y)),
+            FootState(p2x, across(t, p2x, p2y), v2x, across(t, v2x, v2y)))
 
 
 def foot_xy(model, q, leg):
@@ -56,7 +56,7 @@ def foot_xy(model, q, leg):
 def foot_height(model, q, leg, tan_slope=0.0) -> float:
     """Height of foot ``leg`` above the ground: the touchdown guard from q alone (root finding)."""
     x, y = foot_xy(model, q, leg)
-    return y + tan_slope * x
+    return rules.ev_across(tan_slope, x, y)
 
 
 class Ground(NamedTuple):
@@ -74,7 +74,7 @@ class Ground(NamedTuple):
 def normal_tangent(F, ground: Ground):
     """(normal, tangential) components of a ground force or impulse [Fx, Fy] on the ground line."""
     s, c = ground.sin, ground.cos
-    return F[0] * s + F[1] * c, F[0] * c - F[1] * s
+    return rules.ev_normal(s, c, F[0], F[1]), rules.ev_tangential(s, c, F[0], F[1])
 
 
 # -- the guards: positive while the mode holds, an event where they cross zero going down --------
@@ -89,8 +89,8 @@ def liftoff_guard(normal, tangential) -> float:
 
 
 def slip_guard(normal, tangential, mu) -> float:
-    """The friction-cone margin mu F_n - |F_t| (N)."""
-    return mu * normal - abs(tangential)
+    """The friction-cone margin mu F_n - |F_t| (N): the rule ``loop_rules.ev_slip_margin``."""
+    return rules.ev_slip_margin(mu, normal, tangential)
 
 
 # -- the scuff assumption of touchdown_rule "front" --------------------------------------------------
@@ -173,7 +173,7 @@ def check_initial_contact(feet, stance_leg, opt):
                        ", scuff_rule 'behind')")) + "; raise the hip or the foot")
     else:
         for leg in (1, 2):
-            if feet[leg - 1].height < -opt.ground_tol:
+            if rules.ev_violated(feet[leg - 1].height, opt.ground_tol):
                 raise ValueError(f"initial state in flight: foot {leg} is {-feet[leg - 1].height:.6g} m below the "
                                  f"ground (ground_tol {opt.ground_tol:g} m); raise the hip")
     for leg in (1, 2):

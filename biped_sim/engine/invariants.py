@@ -18,8 +18,7 @@ run with status "stopped" (``SceneAssumptionError``) instead.
 """
 from __future__ import annotations
 
-import math
-
+from biped_sim.engine import loop_rules as rules
 from biped_sim.engine.guards import normal_tangent, starts_scuff
 from biped_sim.engine.results import SceneAssumptionError, SimulationError
 
@@ -31,11 +30,11 @@ class InvariantViolation(SimulationError):
 def check_sample(t, q, dq, feet, stance_leg, F, ground, mu, opt, scuffing, last_impact):
     """The invariants of an accepted sample (lists q, dq; ``scuffing``: the legs under the ground
     in a scuff)."""
-    if not math.isfinite(sum(q) + sum(dq)):
+    if not rules.ev_finite_state(q, dq, len(q)):
         raise InvariantViolation(f"invariant 'finite state' violated at t={t:.9g} s: q={q}, dq={dq}")
     for leg in (1, 2):
         f = feet[leg - 1]
-        if leg == stance_leg or leg in scuffing or f.height >= -opt.ground_tol:
+        if leg == stance_leg or leg in scuffing or not rules.ev_violated(f.height, opt.ground_tol):
             continue
         if "impact" not in opt.phases:
             # no touchdown guard is built: the scene, not the run, is at fault; where a crossing would be a
@@ -56,11 +55,11 @@ def check_sample(t, q, dq, feet, stance_leg, F, ground, mu, opt, scuffing, last_
             f"at t={t:.9g} s (tolerance ground_tol={opt.ground_tol:g} m){why}")
     if stance_leg:
         n, tg = normal_tangent(F, ground)
-        if n < -opt.force_tol:
+        if rules.ev_violated(n, opt.force_tol):
             raise InvariantViolation(
                 f"invariant 'the ground pushes' violated: the normal force on the stance foot (leg {stance_leg}) "
                 f"is {n:.6g} N at t={t:.9g} s (a liftoff was not found)")
-        if mu is not None and opt.stop_on_slip and mu * n - abs(tg) < -opt.force_tol:
+        if mu is not None and opt.stop_on_slip and rules.ev_violated(rules.ev_slip_margin(mu, n, tg), opt.force_tol):
             raise InvariantViolation(
                 f"invariant 'inside the friction cone' violated at t={t:.9g} s: |F_t| = {abs(tg):.6g} N > "
                 f"mu F_n = {mu * n:.6g} N (a slip was not found)")
@@ -73,7 +72,7 @@ def check_impact(event, feet_after, ground, recent_gaps, impulse_tol, rest_tol):
     landing = [1, 2] if event.kind == "double_touchdown" else [event.leg]
     for j, leg in enumerate(landing):
         n = normal_tangent(event.impulse[2 * j: 2 * j + 2], ground)[0]
-        if n < -impulse_tol:
+        if rules.ev_violated(n, impulse_tol):
             raise InvariantViolation(
                 f"invariant 'an impact pushes' violated at t={event.time:.9g} s: the ground's impulse on foot {leg} "
                 f"pulls it ({n:.6g} N s normal): a plastic impact there is not physical")

@@ -71,10 +71,9 @@ class EventLocator:
                 f"the stance foot (leg {event.stance_leg_before}) {event.kind} at t={event.time:.9g} s while foot "
                 f"{leg} is still below the ground, passing through it (a scuff since "
                 f"t={self.active_scuffs[leg][0]:.9g} s): the model has no contact there")
-        if event.kind == "double_touchdown":
-            self.armed = [False, False]
-        for leg in (event.stance_leg_after, event.stance_leg_before):
-            if leg:
+        for leg in (1, 2):
+            if rules.ev_disarmed_by_reset(leg, event.kind == "double_touchdown", event.stance_leg_before or 0,
+                                          event.stance_leg_after or 0):
                 self.armed[leg - 1] = False
 
     def restart(self, t, feet, F):
@@ -190,7 +189,7 @@ class EventLocator:
         if "impact" not in self.opt.phases:
             return []
         return [leg for leg in (1, 2) if leg != stance_leg and not self.armed[leg - 1]
-                and leg not in self.active_scuffs and feet[leg - 1].height < -self.opt.ground_tol]
+                and leg not in self.active_scuffs and rules.ev_violated(feet[leg - 1].height, self.opt.ground_tol)]
 
     def _track_scuffs(self, st, to_phys, stance_leg, t_end):
         """Follow each scuffing foot over the step up to ``t_end`` (the rule ``loop_rules.ev_track_scuff``):
@@ -229,7 +228,7 @@ class EventLocator:
 
     def _arm(self, feet, stance_leg):
         for leg in (1, 2):
-            if not self.armed[leg - 1] and leg != stance_leg and feet[leg - 1].height > self.opt.arm_height:
+            if not self.armed[leg - 1] and rules.ev_arms(leg != stance_leg, feet[leg - 1].height, self.opt.arm_height):
                 self.armed[leg - 1] = True
 
 

@@ -1,6 +1,6 @@
 # The signatures of loop_rules.py's rules when Cython compiles it (an augmenting .pxd): C functions on the state
 # S. The compiled loop (_core.c) includes the generated _loop_rules.c and calls the public ones by these names.
-from libc.math cimport fabs, isfinite, isnan, pow
+from libc.math cimport fabs, hypot, isfinite, isnan, pow
 
 from biped_sim.engine._loop_state cimport *
 from biped_sim.engine.loop_kernels cimport (feet_t, guard_t, k_copy, k_dense, k_foot_positions, k_rhs, k_step, k_ulp,
@@ -18,6 +18,23 @@ cdef int ev_dip_search(double *S, guard_t g, void *ctx, double h0, double h1) no
 cdef public int ev_may_dip(double *S, rhs_t fun, void *ctx, int leg, double h0, double h1) noexcept nogil
 cdef int ev_locate_crossing(double *S, guard_t g, void *ctx, double ta, double tb) noexcept nogil
 cdef public int ev_locate_height_crossing(double *S, rhs_t fun, void *ctx, int leg, double ta, double tb) noexcept nogil
+cdef public bint ev_triggered(double w0, double w1) noexcept nogil
+cdef public double ev_across(double tan_s, double x, double y) noexcept nogil
+cdef public double ev_normal(double sin_s, double cos_s, double fx, double fy) noexcept nogil
+cdef public double ev_tangential(double sin_s, double cos_s, double fx, double fy) noexcept nogil
+cdef public double ev_slip_margin(double mu, double normal, double tangential) noexcept nogil
+cdef public double ev_normal_force(double *S, double fx, double fy) noexcept nogil
+cdef public double ev_tangential_force(double *S, double fx, double fy) noexcept nogil
+cdef public double ev_cone_margin(double *S, double fx, double fy) noexcept nogil
+cdef public double ev_ground_y(double tan_s, double x, double height) noexcept nogil
+cdef public bint ev_arms(bint free, double height, double arm_height) noexcept nogil
+cdef public bint ev_disarmed_by_reset(int leg, bint both, int stance_before, int stance_after) noexcept nogil
+cdef public double ev_pin_drift(double *foot, double *pin, double tan_s) noexcept nogil
+cdef public double ev_pin_drift_rate(double *foot) noexcept nogil
+cdef public void ev_project_onto_pin(double *q, double *dq, double *foot, double *pin, double tan_s) noexcept nogil
+cdef public bint ev_finite_state(double *q, double *dq, Py_ssize_t n) noexcept nogil
+cdef public bint ev_violated(double value, double tol) noexcept nogil
+cdef public bint ev_provisional(long appended, long every) noexcept nogil
 cdef public bint ev_swinging_through(double dx, double dheight) noexcept nogil
 cdef public bint ev_starts_scuff(bint forward, double front_tol, double x, double dx, double dheight,
                                  double x_stance) noexcept nogil

@@ -1,19 +1,23 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
-"""The hybrid loop's numerical rules, written once: the Runge-Kutta step with its error control, the dense
-output, a foot's height on it, the dip search and the root finder.
+"""The hybrid loop's rules, written once: the Runge-Kutta step with its error control, the dense output, a
+foot's height on it, the dip search and the root finder, the witnesses' values and the test of their
+crossing, arming, the projection onto the pinned foot, the invariants' predicates, the sample's thinning,
+the scuffs' rules.
 
-This file runs two ways. Imported, it is the Python loop's code (``integrators``, ``grazing``, ``guards``
-call it). Compiled by Cython in its pure-Python mode (``tools/generate_loop.py``: the signatures are in
-``loop_rules.pxd``, the generated formulas reached through ``loop_kernels.pxd``), it is the committed C
-``_loop_rules.c``, the extension ``biped_sim.engine._loop_rules`` that the compiled loop (``_core.c``) calls
-through Cython's C API (``_loop_rules_api.h``). Both perform the same IEEE operations in the same order
-(the C built with ``-ffp-contract=off``, C division without Python's zero check), so a run gives the same
-bits on both loops (test/unit/test_compiled_loop.py).
+This file runs two ways. Imported, it is the Python loop's code (``integrators``, ``grazing``, ``guards``,
+``witnesses``, ``locator``, ``modes``, ``invariants``, ``results`` call it). Compiled by Cython in its
+pure-Python mode (``tools/generate_loop.py``: the signatures are in ``loop_rules.pxd``, the generated formulas
+reached through ``loop_kernels.pxd``), it is the committed C ``_loop_rules.c``, which the compiled loop
+(``_core.c``) includes and whose public functions it calls by name. Both perform the same IEEE operations
+in the same order (the C built with ``-ffp-contract=off``, C division without Python's zero check), so a run
+gives the same bits on both loops (test/unit/test_compiled_loop.py).
 
 Everything a rule reads or writes is an entry of the state S (``loop_state``: a list as Python, a
-``double *`` in C) at a named offset; besides S a rule takes only scalars, the right-hand side
-``fun`` (``fun(t, y) -> list`` as Python, ``rhs_t`` with its context ``ctx`` in C) and a guard
-``g(S, ctx, t) -> float``. Kept to what both take: float and int scalars, indexing of S, ``if``,
+``double *`` in C) at a named offset; besides S a rule takes only scalars, short vectors (q, dq, a foot's
+row, a pin: a list or tuple as Python, a ``double *`` in C), the right-hand side ``fun`` (``fun(t, y) ->
+list`` as Python, ``rhs_t`` with its context ``ctx`` in C) and a guard ``g(S, ctx, t) -> float``; the
+witnesses', arming's and the invariants' rules take the scalars their Python callers have. Kept to what
+both take: float and int scalars, indexing of S and of the vectors, ``if``,
 ``while``, ``for ... in range``, calls; a rule must never divide by zero (C would go on where
 Python raises).
 """
@@ -38,13 +42,14 @@ else:
             sys.modules["cython"] = _entry
 
 if not cython.compiled:
-    from math import fabs, isfinite, isnan, pow
+    from math import fabs, hypot, isfinite, isnan, pow
 
     from biped_sim.engine.loop_kernels import k_copy, k_dense, k_foot_positions, k_rhs, k_step, k_ulp
     from biped_sim.engine.loop_state import (
         ATOL,
         CALLBACK_FAILED,
         COEF,
+        COS_S,
         DEEPEST_TRIAL,
         DENSE,
         DENSE_READY,
@@ -63,6 +68,7 @@ if not cython.compiled:
         MAX_DEPTH,
         MAX_STEP,
         METHOD,
+        MU,
         N_Y,
         NACCEPTED,
         NFEV,
@@ -75,6 +81,7 @@ if not cython.compiled:
         RTOL,
         SCUFF_DEPTH,
         SCUFF_TRIAL,
+        SIN_S,
         STACK,
         STAGES,
         T_BOUND,
@@ -213,7 +220,7 @@ def ev_height_at(S, leg, tt):
     for i in range(5):
         S[QS + i] = rk_dense_at(S, i, tt)
     k_foot_positions(S, QS, PS)
-    return S[PS + 2 * leg - 1] + S[TAN_S] * S[PS + 2 * leg - 2]
+    return ev_across(S[TAN_S], S[PS + 2 * leg - 2], S[PS + 2 * leg - 1])
 
 
 def ev_height_guard(S, ctx, tt):
@@ -448,6 +455,116 @@ def ev_locate_height_crossing(S, fun, ctx, leg, ta, tb):
     S[GUARD_LEG] = leg
     return ev_locate_crossing(S, ev_height_guard, ctx, ta, tb)
 
+
+# -- the witnesses (witnesses.py) --------------------------------------------------------------------------
+def ev_triggered(w0, w1):
+    """Whether a witness whose value is w0 at a step's start and w1 at its end fired in the step: the one
+    direction of the model's witnesses, positive then non-positive (a NaN fires nothing)."""
+    return w0 > 0 and w1 <= 0
+
+
+def ev_across(tan_s, x, y):
+    """The height across the sloped ground of a point at (x, y), or the rate across it of a velocity (x, y):
+    y + tan(slope) x. The touchdown witness's value is its foot's height across the ground."""
+    return y + tan_s * x
+
+
+def ev_normal(sin_s, cos_s, fx, fy):
+    """The normal component (into the ground line, up) of a ground force or impulse (fx, fy)."""
+    return fx * sin_s + fy * cos_s
+
+
+def ev_tangential(sin_s, cos_s, fx, fy):
+    """The tangential component (along the ground line, forward) of a ground force or impulse (fx, fy)."""
+    return fx * cos_s - fy * sin_s
+
+
+def ev_slip_margin(mu, normal, tangential):
+    """The slip witness's value, the margin inside the friction cone: mu F_n - |F_t|."""
+    return mu * normal - fabs(tangential)
+
+
+def ev_normal_force(S, fx, fy):
+    """The liftoff witness's value: the normal component of the stance force (fx, fy) on S's ground."""
+    return ev_normal(S[SIN_S], S[COS_S], fx, fy)
+
+
+def ev_tangential_force(S, fx, fy):
+    """The tangential component of the stance force (fx, fy) on S's ground."""
+    return ev_tangential(S[SIN_S], S[COS_S], fx, fy)
+
+
+def ev_cone_margin(S, fx, fy):
+    """The slip witness's value for the stance force (fx, fy) on S's ground, under S's mu."""
+    return ev_slip_margin(S[MU], ev_normal(S[SIN_S], S[COS_S], fx, fy), ev_tangential(S[SIN_S], S[COS_S], fx, fy))
+
+
+
+def ev_ground_y(tan_s, x, height):
+    """The y of a point at x whose height across the ground is height (ev_across's inverse), or the y rate of a
+    velocity (x, its rate across the ground)."""
+    return height - tan_s * x
+
+
+# -- arming: a free foot's touchdown witness counts once the foot has been above the ground ------------------
+def ev_arms(free, height, arm_height):
+    """Whether a free foot (free: not the stance foot) whose touchdown witness is disarmed arms at a step's
+    end: higher than arm_height above the ground. A reset disarms the feet it put on the ground or took off
+    it (ev_disarmed_by_reset), whose witness, zero there, must not fire again at once."""
+    return free and height > arm_height
+
+
+def ev_disarmed_by_reset(leg, both, stance_before, stance_after):
+    """Whether a reset disarms foot leg's touchdown witness: every foot after a double touchdown, else the
+    stance feet before and after it (0: none, in flight); both: a double touchdown."""
+    return both or leg == stance_before or leg == stance_after
+
+
+# -- the projection onto the pinned stance foot (modes.project_onto_pin) -------------------------------------
+def ev_pin_drift(foot, pin, tan_s):
+    """|p - c|: the distance of the stance foot (foot: x, height across the ground, their rates) from its pin
+    (x, y)."""
+    return hypot(foot[0] - pin[0], ev_ground_y(tan_s, foot[0], foot[1]) - pin[1])
+
+
+def ev_pin_drift_rate(foot):
+    """|J dq|: the stance foot's speed (foot: x, height across the ground, their rates)."""
+    return hypot(foot[2], foot[3])
+
+
+def ev_project_onto_pin(q, dq, foot, pin, tan_s):
+    """The floating-base stance state (q, dq, changed in place) projected back onto the constraints: the hip
+    moved by the stance foot's drift from its pin, the base velocity set so that J dq = 0 (J = [I2 | A]:
+    subtracting J dq from dq_base)."""
+    q[0] += pin[0] - foot[0]
+    q[1] += pin[1] - ev_ground_y(tan_s, foot[0], foot[1])
+    dq[0] -= foot[2]
+    dq[1] -= ev_ground_y(tan_s, foot[2], foot[3])
+
+
+# -- the invariants' predicates (invariants.py) and the sample's thinning (results.Samples) -------------------
+def ev_finite_state(q, dq, n):
+    """The invariant 'finite state': the sum of q's n entries plus that of dq's is finite."""
+    s: cython.double = 0.0
+    sd: cython.double = 0.0
+    i: cython.Py_ssize_t
+    for i in range(n):
+        s += q[i]
+    for i in range(n):
+        sd += dq[i]
+    return isfinite(s + sd)
+
+
+def ev_violated(value, tol):
+    """Whether an invariant 'value >= 0' (a foot's height, the normal force, the friction-cone margin, a normal
+    impulse) is violated beyond its tolerance tol."""
+    return value < -tol
+
+
+def ev_provisional(appended, every):
+    """Whether the newest of appended samples will be overwritten by the next: thinned out, keeping the first,
+    then every every-th (every 0: none but the events' and the last)."""
+    return appended > 1 and (every == 0 or (appended - 1) % every != 0)
 
 # -- the scuffs of touchdown_rule "front" (guards.py, locator.py) -------------------------------------------
 def ev_swinging_through(dx, dheight):

@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 
+from biped_sim.engine import loop_rules as rules
 from biped_sim.engine.compiled import gen
 from biped_sim.engine.dynamics import flight_fast, stance_fixed_accel_fast
 from biped_sim.engine.model import real_vector, short_repr
@@ -175,14 +176,11 @@ def project_onto_pin(q, dq, foot, pin, tan_slope, project=True):
     """(q, dq, drift, drift rate) of a floating-base stance state whose stance foot (``foot``, its
     FootState) has drifted from its pin: the drift |p - c| and |J dq| before the projection, and the
     state projected back (the hip moved by the drift, the base velocity set so that J dq = 0) where
-    ``project``, else unchanged. Lists in, lists out."""
-    fy = foot.height - tan_slope * foot.x        # the foot's y (its height is across the slope)
-    drift, rate = math.hypot(foot.x - pin[0], fy - pin[1]), math.hypot(foot.dx, foot.dheight)
+    ``project``, else unchanged (the rules ``loop_rules.ev_pin_drift``, ``ev_pin_drift_rate`` and
+    ``ev_project_onto_pin``). Lists in, lists out."""
+    drift, rate = rules.ev_pin_drift(foot, pin, tan_slope), rules.ev_pin_drift_rate(foot)
     if not project:
         return q, dq, drift, rate
     q, dq = list(q), list(dq)
-    q[0] += pin[0] - foot.x
-    q[1] += pin[1] - fy
-    dq[0] -= foot.dx                     # J = [I2 | A]: subtracting J dq from dq_base makes J dq = 0
-    dq[1] -= foot.dheight - tan_slope * foot.dx
+    rules.ev_project_onto_pin(q, dq, foot, pin, tan_slope)
     return q, dq, drift, rate

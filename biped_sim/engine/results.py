@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from biped_sim.engine import loop_rules as rules
+
 EVENT_KINDS = ("touchdown", "double_touchdown", "liftoff", "slip", "scuff", "error", "zeno", "push")
 IMPACT_KINDS = ("touchdown", "double_touchdown")
 
@@ -151,7 +153,7 @@ class Samples:
         self.n += 1
         self.appended += 1
         # the first sample (the initial state) is always kept
-        self.provisional = self.appended > 1 and (not self.every or (self.appended - 1) % self.every != 0)
+        self.provisional = rules.ev_provisional(self.appended, self.every)
 
     def grow(self):
         """Twice the room (the compiled loop writes into ``_data`` directly and asks for this when full)."""

@@ -16,7 +16,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from biped_sim.engine import guards as G
+from biped_sim.engine import guards as G, loop_rules as rules
 from biped_sim.engine.resets import double_touchdown_reset, liftoff_reset, slip_event, touchdown_reset
 
 #: the one direction of this model's witnesses (Drake's ``kPositiveThenNonPositive``): an event where
@@ -25,11 +25,11 @@ POSITIVE_THEN_NON_POSITIVE = "positive then non-positive"
 
 
 def triggered(w0, w1, direction=POSITIVE_THEN_NON_POSITIVE) -> bool:
-    """Whether a witness whose value is ``w0`` at a step's start and ``w1`` at its end fired in the step
-    (``_core.c``'s ``triggered`` is the same test)."""
+    """Whether a witness whose value is ``w0`` at a step's start and ``w1`` at its end fired in the step:
+    the rule ``loop_rules.ev_triggered``, which the compiled loop runs compiled."""
     if direction != POSITIVE_THEN_NON_POSITIVE:
         raise ValueError(f"a witness's direction must be {POSITIVE_THEN_NON_POSITIVE!r}, got {direction!r}")
-    return w0 > 0 and w1 <= 0
+    return rules.ev_triggered(w0, w1)
 
 
 class ResetContext(NamedTuple):

@@ -78,6 +78,70 @@ def test_the_scuff_rules_are_written_once():
             assert "linspace(t0, t_end" not in text and "i * step_t + t0" not in text, path.name
 
 
+def assert_written_once(formulas, written_again):
+    """Each formula is written once in loop_rules.py, and the regular expression written_again (the same rule
+    written out by hand) matches no other file of the engine's Python nor _core.c."""
+    rules = (ENGINE / "loop_rules.py").read_text()
+    for formula in formulas:
+        assert rules.count(formula) == 1, formula
+    for path in [*ENGINE.glob("*.py"), ENGINE / "_core.c"]:
+        if path.name != "loop_rules.py":
+            assert not re.search(written_again, path.read_text()), path.name
+
+
+def test_the_witness_values_are_written_once():
+    """A foot's height across the ground (the touchdown witness), a force's normal component (liftoff) and the
+    friction-cone margin (slip) are the rules' (loop_rules.py): guards.py and _core.c call them."""
+    assert_written_once(("return y + tan_s * x", "return fx * sin_s + fy * cos_s", "return fx * cos_s - fy * sin_s",
+                         "return mu * normal - fabs(tangential)"),
+                        (r"\* L->(sin|cos)_s|\* L->mu\b|p\[\d\] \+ t \* p\[|\w+\[0\] \* s \+ \w+\[1\] \* c"
+                         r"|\w+\[0\] \* c - \w+\[1\] \* s|mu \* normal - (abs|fabs)\(|\w+ \+ t \* \w+x\b"
+                         r"|\by \+ tan_slope \* x"))
+    from biped_sim.engine import guards as G, loop_rules as rules_py
+    ground = G.Ground.of(0.05)
+    n, tg = G.normal_tangent([3.0, 100.0], ground)
+    assert (n, tg) == (3.0 * ground.sin + 100.0 * ground.cos, 3.0 * ground.cos - 100.0 * ground.sin)
+    assert G.slip_guard(n, tg, 0.6) == 0.6 * n - abs(tg)
+    S = loop_state.new_state(sin_s=ground.sin, cos_s=ground.cos, mu=0.6)
+    assert rules_py.ev_normal_force(S, 3.0, 100.0) == n and rules_py.ev_cone_margin(S, 3.0, 100.0) == 0.6 * n - abs(tg)
+
+
+def test_arming_and_the_projection_are_written_once():
+    """A free foot's arming, the disarming by a reset and the projection onto the pinned stance foot are the
+    rules' (loop_rules.py): locator.py, modes.py and _core.c call them. Projected, the stance foot is at its pin
+    and at rest."""
+    assert_written_once(("return free and height > arm_height", "return height - tan_s * x",
+                         "q[1] += pin[1] - ev_ground_y(tan_s, foot[0], foot[1])"),
+                        (r"height > (self\.opt\.|L->)arm_height|\+= (L->)?pin\[[01]\] - |-= \w+(\.dheight|\[3\]) - "
+                         r"|armed\[0\] = L->armed\[1\] = 0|self\.armed = \[False, False\]"))
+    import biped_sim as bs
+    from biped_sim.engine import guards as G, modes
+    model, slope = bs.BipedModel(), 0.04
+    q0, dq0 = bs.stance_state(model, [math.pi + 0.2, math.pi - 0.25, 0.1], [0.3, -0.4, 0.5])
+    q, dq = (q0 + [1e-4, -2e-4, 0, 0, 0]).tolist(), (dq0 + [3e-3, 1e-3, 0, 0, 0]).tolist()
+    foot = G.foot_states(model, q, dq, math.tan(slope))[0]
+    pin = G.foot_xy(model, q0.tolist(), 1)
+    qp, dqp, drift, rate = modes.project_onto_pin(q, dq, foot, pin, math.tan(slope))
+    assert drift > 1e-4 and rate > 1e-3
+    after = G.foot_states(model, qp, dqp, math.tan(slope))[0]
+    assert abs(G.foot_xy(model, qp, 1)[0] - pin[0]) < 1e-15 and abs(G.foot_xy(model, qp, 1)[1] - pin[1]) < 1e-15
+    assert abs(after.dx) < 1e-15 and abs(after.dheight) < 1e-15
+
+
+def test_the_invariants_predicates_and_the_thinning_are_written_once():
+    """The invariants' predicates (a finite state, a value below zero beyond its tolerance) and the sample's
+    thinning are the rules' (loop_rules.py): invariants.py, locator.py, results.py and _core.c call them."""
+    assert_written_once(("return value < -tol", "return isfinite(s + sd)",
+                         "return appended > 1 and (every == 0 or (appended - 1) % every != 0)"),
+                        (r"< -(\w+\.)*(\w+->)?(ground|force|impulse)_tol|>= -(\w+\.)*(ground|force)_tol"
+                         r"|isfinite\(sum\(q\)|isfinite\(s \+ sd\)|\(appended - 1\) % \w*\.?every"))
+    from biped_sim.engine import results
+    samples = results.Samples(keep=3)
+    for k in range(8):
+        samples.append(float(k), [0.0] * 5, [0.0] * 5, 1, [0.0, 0.0], [0.0, 0.0], 0.0)
+    assert samples.n == 4 and list(samples._data[:samples.n, 0]) == [0.0, 3.0, 6.0, 7.0]     # the newest last
+
+
 def test_the_compiled_rules_touch_no_python_object():
     """The C of every rule (loop_rules.pxd's functions, in _loop_rules.c) calls nothing of Python: no
     object, no exception check (Cython's cdivision and noexcept, the state a double *)."""
@@ -86,7 +150,7 @@ def test_the_compiled_rules_touch_no_python_object():
     assert len(names) >= 10
     for name in names:
         head = rf"\n(?:static )?(?:int|void|double) (?:__pyx_f_\w+_)?{name}\("
-        m = re.search(head + r"(?:double \*|double |int )__pyx_v_\w+[^)]*\) {\n(.*?)\n}\n", c, re.S)
+        m = re.search(head + r"(?:double \*|double |int |long )__pyx_v_\w+[^)]*\) {\n(.*?)\n}\n", c, re.S)
         assert m, name
         code = [line for line in m.group(1).splitlines() if not line.lstrip().startswith(("/*", "*"))]
         assert not [line for line in code if re.search(r"PyObject|__Pyx_|PyErr", line)], name
