@@ -60,7 +60,7 @@ class NodeRun:
         self.state_outputs = tuple(name in outputs for name in STATE_OUTPUTS)
         self.serializer = StateSerializer(JOINT_NAMES, labels=labels)
         self.counts = dict(rejected=0, clipped=0)
-        self.sim = None
+        self.u = [0.0, 0.0]
         self.restart()
 
     def restart(self):
@@ -68,7 +68,6 @@ class NodeRun:
         (a lockstep controller's answer to the untouched t = 0 state stands over a reset)."""
         from biped_sim.engine.hybrid import HybridSimulator
         self.sim = HybridSimulator(**engine_arguments(self.params), keep_samples=False)
-        self.u = getattr(self, "u", [0.0, 0.0])
         self.finished = False           # the duration is reached
         self.stopped = False            # the engine stopped (an error, a fall, a refused start)
         return self.sim
@@ -87,19 +86,17 @@ class NodeRun:
         """(torques, why) of a command's values: (the two floats, None) taken; (clipped, why) beyond
         ``torque_limit`` with ``torque_limit_action`` clip; (None, why) refused: not two finite values, or
         beyond the limit with reject (the held torque stays). Counts the refused and the clipped."""
-        why = None
         if len(data) != 2:
             why = f"{len(data)} values instead of 2 (hip 1, hip 2)"
         elif not all(math.isfinite(v) for v in data):
             why = f"not finite: {list(data)}"
-        elif max(abs(data[0]), abs(data[1])) > self.limit:
+        elif max(abs(data[0]), abs(data[1])) <= self.limit:
+            return [float(data[0]), float(data[1])], None
+        else:
+            why = f"{list(data)} beyond torque_limit {self.limit:g} N m"
             if self.clip:
                 self.counts["clipped"] += 1
-                return ([max(-self.limit, min(self.limit, float(v))) for v in data],
-                        f"{list(data)} beyond torque_limit {self.limit:g} N m")
-            why = f"{list(data)} beyond torque_limit {self.limit:g} N m"
-        if why is None:
-            return [float(data[0]), float(data[1])], None
+                return [max(-self.limit, min(self.limit, float(v))) for v in data], why
         self.counts["rejected"] += 1
         return None, why
 

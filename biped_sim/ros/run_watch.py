@@ -58,6 +58,12 @@ def endpoint_name(info) -> str:
     return f"{ns}/{info.node_name}"
 
 
+def best_effort(endpoints) -> list:
+    """The names among ``endpoints`` ((name, QoS) pairs) that publish best effort: DDS does not match them
+    with this node's reliable ``hip_torque`` subscription, so none of their commands arrive."""
+    return sorted(name for name, qos in endpoints if qos.reliability == ReliabilityPolicy.BEST_EFFORT)
+
+
 class GraphWatch:
     """Other publishers on the command and the state topic; each new set is said once."""
 
@@ -109,8 +115,7 @@ class GraphWatch:
         self.said[self.command_topic] = tuple(commanders) if len(commanders) > 1 else ()
         # rclpy's own warning of an incompatible QoS needs event handlers on the subscription, which the
         # realtime loop's command subscription does without (they kept the executor awake): said here
-        unmatched = sorted(name for name, qos in self.endpoints(self.command_topic, publishers=True)
-                           if qos.reliability == ReliabilityPolicy.BEST_EFFORT)
+        unmatched = best_effort(self.endpoints(self.command_topic, publishers=True))
         if unmatched and tuple(unmatched) != self.said_best_effort:
             lines.append(
                 f"{', '.join(unmatched)} publish{'es' if len(unmatched) == 1 else ''} {self.command_topic} best "
@@ -318,9 +323,9 @@ class RunWatch:
         if not commanders:
             return (f"{here}, but no node publishes {topic}: does the controller publish its command there "
                     "(std_msgs/Float64MultiArray, data [u1, u2])? Check the topic name and remappings.")
-        best_effort = sorted(name for name, qos in commanders if qos.reliability == ReliabilityPolicy.BEST_EFFORT)
-        if best_effort:
-            return (f"{here}; {', '.join(best_effort)} publish{'es' if len(best_effort) == 1 else ''} {topic} best "
+        unmatched = best_effort(commanders)
+        if unmatched:
+            return (f"{here}; {', '.join(unmatched)} publish{'es' if len(unmatched) == 1 else ''} {topic} best "
                     "effort, which this node's reliable subscription does not match: publish it reliable "
                     "(rclpy's default QoS).")
         return (f"{here}, and {', '.join(sorted({n for n, _ in commanders}))} publish {topic}, but no command has "
