@@ -5,7 +5,7 @@ import time
 
 from biped_sim.analysis import basin as bn, sweep as sw
 from biped_sim.cli.sweep import ProgressLine
-from biped_sim.config.controllers import cli_controller
+from biped_sim.config.controllers import CLI_HELP, cli_law
 from biped_sim.config.help_format import HelpFormatter
 
 
@@ -22,9 +22,7 @@ def register(sub):
     p.add_argument("scene", help="a scene with a walk_controller section (walk, slope, ...)")
     p.add_argument("--span", default="1.0,2.0", help="largest offsets of the stance-leg rate and the torso rate "
                                                      "(rad/s), as DQ_STANCE,DQ_TORSO")
-    p.add_argument("--controller", metavar="MODULE:ATTR",
-                   help="your controller instead of the scene's (a class or factory made on the scene's model, or a "
-                        "controller; imported from the current folder or the Python path; docs/controllers.md)")
+    p.add_argument("--controller", metavar="MODULE:ATTR|walk|none", help=CLI_HELP + " [default: the scene's]")
     p.add_argument("--num", type=int, default=11, help="points along each axis")
     p.add_argument("--duration", type=float, default=5.0, help="simulated seconds per run")
     p.add_argument("--workers", type=int, default=None, help="parallel runs (default: every core)")
@@ -46,7 +44,7 @@ def run(args):
         sw.check_writable(args.plot, "--plot")
     progress = None if args.no_progress else ProgressLine(args.num ** 2, label="basin")
     t0 = time.perf_counter()
-    controller = cli_controller(args.controller) if args.controller else None
+    controller = cli_law(args.controller)
     gait, rows = bn.basin(args.scene, span=span, num=args.num, duration=args.duration, workers=args.workers,
                           backend=args.backend, progress=progress, controller=controller)
     if progress:

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import time
 
+from biped_sim.config.controllers import CLI_HELP
+
 
 def register(sub):
     p = sub.add_parser(
@@ -16,9 +18,7 @@ def register(sub):
                     "saltation matrix of its impact (docs/gait.md).")
     p.add_argument("--scene", default="walk", metavar="NAME|PATH", help="scene with a walk_controller section "
                    "(default: walk)")
-    p.add_argument("--controller", metavar="MODULE:ATTR",
-                   help="your controller instead of the scene's: a class or factory (made on the scene's model) or "
-                        "a controller, imported from the current folder or the Python path (docs/controllers.md)")
+    p.add_argument("--controller", metavar="MODULE:ATTR|walk|none", help=CLI_HELP + " [default: the scene's]")
     p.add_argument("--jacobian", choices=("exact", "fd"), default="exact",
                    help="the Jacobian of the step map for Newton's method and the eigenvalues: exact (default; "
                         "variational equations and saltation matrix) or fd (central differences of the map)")
@@ -27,13 +27,13 @@ def register(sub):
 
 def run(args):
     from biped_sim.analysis.gait import EXACT, FINITE_DIFFERENCES, NoGait, format_gait, scene_gait
-    from biped_sim.config.controllers import cli_controller
+    from biped_sim.config.controllers import cli_law
     from biped_sim.config.scenes import load_scene
     scene = load_scene(args.scene)
     t0 = time.perf_counter()
     try:
         g = scene_gait(scene, jacobian=EXACT if args.jacobian == "exact" else FINITE_DIFFERENCES,
-                       controller=cli_controller(args.controller) if args.controller else None)
+                       controller=cli_law(args.controller))
     except NoGait as exc:       # an answer, not a usage error: the controller does not walk from this start
         print(f"scene {scene.name}: no periodic gait: {exc}")
         return 1

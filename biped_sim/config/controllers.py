@@ -180,6 +180,18 @@ def cli_controller(text):
     return text
 
 
+def no_torque(t, q, dq, stance_leg):
+    """u = 0: ``--controller none`` where a tool calls a controller itself (gait, basin: a passive gait)."""
+    return [0.0, 0.0]
+
+
+def cli_law(text):
+    """``--controller`` where a tool takes a controller to call itself (gait, basin): None for the scene's
+    (not given, or "walk"), :func:`no_torque` for "none", else the checked ``"MODULE:ATTR"``."""
+    text = cli_controller(text)
+    return {None: None, "walk": None, "none": no_torque}.get(text, text)
+
+
 def chosen_controller(choice, scene=None, model=None):
     """The controller ``--controller`` chose: with a ``scene``, the scene's (not given, or "walk");
     without, the reference walking controller on ``model`` (not given, or "walk"); None for "none";

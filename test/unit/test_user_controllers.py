@@ -163,3 +163,12 @@ def test_a_controller_that_does_not_walk_has_no_gait_in_one_line(user_folder):
 def test_find_gait_of_a_model_and_a_controller_without_initial_state_asks_for_z0():
     with pytest.raises(ValueError, match=r"give z0, the post-impact state .* or a scene"):
         bs.find_gait(BipedModel(), lambda t, q, dq, leg: [0.0, 0.0])
+
+
+def test_gait_takes_walk_and_none_as_the_other_tools_do(user_folder):
+    """gait's --controller is simulate's and sweep's: walk (the scene's law) and none (u = 0: the compass
+    gait's passive gait, whose leg multipliers have moduli 0.5798 and 0.1314) were taken for MODULE:ATTR."""
+    walk = cli("gait", "--scene", "walk", "--controller", "walk", cwd=user_folder)
+    assert walk.returncode == 0 and "stable  yes" in walk.stdout, walk.stdout + walk.stderr
+    passive = cli("gait", "--scene", "compass_gait", "--controller", "none", cwd=user_folder)
+    assert "|eigenvalues|  1, 1, 0.5798, 0.5798, 0.1314" in passive.stdout, passive.stdout + passive.stderr
