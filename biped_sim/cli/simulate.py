@@ -7,13 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
-from biped_sim.config.controllers import CLI_HELP, chosen_controller, cli_controller
+from biped_sim.config.controllers import CLI_HELP, chosen_controller, cli_controller, run_without_scene
 from biped_sim.config.help_format import HelpFormatter
-from biped_sim.control.walking import WalkingController
 from biped_sim.engine import compiled_loop
 from biped_sim.engine.compiled import WHY_PYTHON
 from biped_sim.engine.integrators import FIXED_STEP_METHODS, METHODS
-from biped_sim.engine.model import BipedModel
 from biped_sim.engine.simulate import simulate
 
 
@@ -134,14 +132,7 @@ def run(args):
         return _report(scene.simulate(hold=not args.continuous, controller=controller), args)
     if args.duration is None:
         args.duration = 10.0
-    model = BipedModel()
-    walk = WalkingController(model)
-    ctrl = chosen_controller(args.controller, model=model)
-    if (args.q0 is None) != (args.dq0 is None):
-        raise ValueError("give both --q0 and --dq0, or neither")
-    # without --q0/--dq0: your controller's initial_state() if it has one, else the reference gait's
-    start = getattr(ctrl, "initial_state", walk.initial_state)
-    q0, dq0 = (args.q0, args.dq0) if args.q0 is not None else start()
+    model, ctrl, q0, dq0 = run_without_scene(args.controller, args.q0, args.dq0)
     options = dict(base=args.base)
     if args.method in FIXED_STEP_METHODS:
         options["step"] = args.step

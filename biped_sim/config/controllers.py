@@ -180,6 +180,21 @@ def cli_controller(text):
     return text
 
 
+def run_without_scene(choice, q0=None, dq0=None):
+    """(model, controller, q0, dq0) of ``biped-sim simulate`` without ``--scene`` (headless or recorded):
+    the reference model, the controller ``--controller`` chose, and the start ``--q0``/``--dq0`` give, else
+    the controller's ``initial_state()``, else the reference gait's. ValueError for one of q0, dq0 alone."""
+    from biped_sim.control.walking import WalkingController
+    from biped_sim.engine.model import BipedModel
+    if (q0 is None) != (dq0 is None):
+        raise ValueError("give both --q0 and --dq0, or neither")
+    model = BipedModel()
+    controller = chosen_controller(choice, model=model)
+    if q0 is None:
+        q0, dq0 = getattr(controller, "initial_state", WalkingController(model).initial_state)()
+    return model, controller, q0, dq0
+
+
 def no_torque(t, q, dq, stance_leg):
     """u = 0: ``--controller none`` where a tool calls a controller itself (gait, basin: a passive gait)."""
     return [0.0, 0.0]

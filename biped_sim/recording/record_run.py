@@ -114,15 +114,9 @@ def params_from_args(args):
         params = dict(scene.params)
         params["time_mode"] = "lockstep"
         return P.validate(params), chosen_controller(getattr(args, "controller", None), scene)
-    from biped_sim.control.walking import WalkingController
+    from biped_sim.config.controllers import run_without_scene
     from biped_sim.engine.integrators import FIXED_STEP_METHODS
-    from biped_sim.engine.model import BipedModel
-    walk = WalkingController(BipedModel())
-    controller = chosen_controller(args.controller, model=walk.model)
-    if (args.q0 is None) != (args.dq0 is None):
-        raise ValueError("give both --q0 and --dq0, or neither")
-    # without --q0/--dq0: your controller's initial_state() if it has one, else the reference gait's
-    q0, dq0 = (args.q0, args.dq0) if args.q0 is not None else getattr(controller, "initial_state", walk.initial_state)()
+    _model, controller, q0, dq0 = run_without_scene(args.controller, args.q0, args.dq0)
     values = dict(scene="simulate", time_mode="lockstep", duration=10.0 if args.duration is None else args.duration,
                   initial_q=[float(v) for v in q0], initial_dq=[float(v) for v in dq0],
                   initial_stance_leg=args.stance_leg, method=args.method, rtol=args.rtol, atol=args.atol,
