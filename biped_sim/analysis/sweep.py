@@ -97,7 +97,6 @@ def check_sweep(scene, grid, duration=None, run_options=None) -> list[dict]:
     scene = _scene_argument(scene)
     names, columns, runs = grid_runs(grid)
     run_options = dict(run_options or {})
-    first_scene, first_ctrl = controller_arguments(runs[0])
     for name, values in zip(names, columns):
         for value in values:
             point_scene, point_ctrl = controller_arguments(dict(runs[0], **{name: value}))
