@@ -60,6 +60,11 @@ def import_spec(text: str):
     except ImportError as exc:
         raise ValueError(f"controller {text!r}: cannot import {module_name!r}: {exc} (run from the folder "
                          "that holds it, or add that folder to PYTHONPATH)") from None
+    except Exception as exc:    # the module's own code failed: a mistake in it, not in this program
+        import traceback
+        frame = traceback.extract_tb(exc.__traceback__)[-1]
+        raise ValueError(f"controller {text!r}: importing {module_name!r} raised {type(exc).__name__}: {exc} "
+                         f"({frame.filename}:{frame.lineno})") from exc
     obj = module
     for part in attr.split("."):
         try:

@@ -65,6 +65,10 @@ def test_module_attr_class_factory_and_law_are_made_alike(user_folder):
         make_controller("no_such_module:X", model)
     with pytest.raises(ValueError, match="expected MODULE:ATTR"):
         make_controller("my_controllers.HipPD", model)
+    (user_folder / "broken_controllers.py").write_text("x = 1\nundefined_name\n")
+    with pytest.raises(ValueError, match=r"importing 'broken_controllers' raised NameError: name 'undefined_name' is "
+                                         r"not defined \(.*broken_controllers\.py:2\)"):
+        make_controller("broken_controllers:X", model)
 
 
 def test_a_controller_with_the_wrong_signature_is_refused_before_the_run(user_folder):
