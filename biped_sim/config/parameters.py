@@ -168,6 +168,9 @@ PARAMETERS = [
           "advances until ~/pause false (or ~/step); lets a controller connect before the run moves"),
     Param("record", bool, True, "record the run to an MCAP bag"),
     Param("bag_dir", str, "bags", "folder for bags; each run records to <bag_dir>/<scene>-<UTC time>/"),
+    Param("robot", str, "three_link", "the robot: a shipped name (three_link, compass_gait, three_link_hip_mass, "
+          "rabbit) or a description file (.yaml, .yml, .urdf; a relative path is from the current folder); the "
+          "model.* parameters default to a shipped three-link robot's (docs/models.md)"),
 ] + [
     Param(f"model.{name}", float, float(getattr(_defaults, name)), f"model parameter {name} (SI)",
           0.0 if name in ("g", "I_torso", "I_leg", "l_torso") else 1e-9, 1e9)
@@ -194,7 +197,25 @@ def validate(values: dict, table=None, owner: str = "") -> dict:
     out = {p.name: p.default for p in table}
     for name, value in values.items():
         out[name] = by_name[name].check(value)
+    if "robot" in by_name:
+        _robot_defaults(values, out)
     return out
+
+
+def _robot_defaults(values: dict, out: dict) -> None:
+    """Check ``robot`` (a shipped name or an existing description file) and give the ``model.*``
+    parameters that ``values`` does not set the values of a shipped three-link robot
+    (``config.models.THREE_LINK_PARAMETERS``): ``robot: compass_gait`` alone is the compass gait."""
+    from biped_sim.config import models
+    try:
+        models.description_path(out["robot"])
+    except ValueError as exc:
+        raise ValueError(f"parameter 'robot': {exc}") from None
+    robot_parameters = models.THREE_LINK_PARAMETERS.get(out["robot"], {})
+    for name, value in robot_parameters.items():
+        key = f"model.{name}"
+        if key in out and key not in values:
+            out[key] = float(value)
 
 
 #: control periods up to this use dopri5 under method "auto". Measured (python -m benchmarks.bench
@@ -225,10 +246,21 @@ def model_arguments(params: dict) -> dict:
             if n.startswith("model.") and not (n.startswith("model.c_") and v == 0.0)}
 
 
+def robot_model(params: dict):
+    """The engine's model of checked parameters: a ``BipedModel`` of the ``model.*`` values for a shipped
+    three-link robot; ValueError, one line (``config.models.engine_refusal``), for a robot the engine
+    cannot run yet."""
+    from biped_sim.config import models
+    from biped_sim.engine.model import BipedModel
+    robot = params.get("robot", "three_link")
+    if robot not in models.THREE_LINK_PARAMETERS:
+        raise ValueError(models.engine_refusal(robot))
+    return BipedModel(**model_arguments(params))
+
+
 def engine_arguments(params: dict) -> dict:
     """Keyword arguments of ``HybridSimulator`` / ``simulate`` (and the model's) from checked values."""
-    from biped_sim.engine.model import BipedModel
-    model = BipedModel(**model_arguments(params))
+    model = robot_model(params)
     phases = frozenset(params["phases"])
     kwargs = dict(model=model, q0=params["initial_q"], dq0=params["initial_dq"],
                   stance_leg=params["initial_stance_leg"], rtol=params["rtol"], atol=params["atol"],

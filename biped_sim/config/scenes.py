@@ -48,10 +48,12 @@ CONTROLLER_PARAMETERS = [
             "stance detection: a foot is on the ground when within this height of it (m)", 1e-9, 0.1),
     P.Param("contact_speed_tol", float, 1e-3,
             "stance detection: ... and slower than this (m/s); the pinned stance foot is at rest", 1e-9, 1.0),
+    P.BY_NAME["robot"],
     P.BY_NAME["slope"],
 ] + [p for p in P.PARAMETERS if p.name.startswith("model.")]
 CONTROLLER_BY_NAME = {p.name: p for p in CONTROLLER_PARAMETERS}
-_SHARED_WITH_SIM = [p.name for p in CONTROLLER_PARAMETERS if p.name == "slope" or p.name.startswith("model.")]
+_SHARED_WITH_SIM = [p.name for p in CONTROLLER_PARAMETERS
+                    if p.name in ("robot", "slope") or p.name.startswith("model.")]
 _GAINS = ("torso_pitch", "step_angle", "clearance", "lag", "kp", "kd", "torque_limit")
 
 
@@ -63,8 +65,7 @@ def validate_controller(values: dict) -> dict:
 def make_controller(cparams: dict):
     """A :class:`WalkingController` from checked controller parameters."""
     from biped_sim.control.walking import WalkingController
-    from biped_sim.engine.model import BipedModel
-    model = BipedModel(**P.model_arguments(cparams))
+    model = P.robot_model(cparams)
     return WalkingController(model, **{k: cparams[k] for k in _GAINS})
 
 
@@ -117,6 +118,11 @@ class Scene:
     params: dict                              # all sim-node parameters, defaults filled in
     controller_params: dict | None = None     # None: no controller (u = 0)
     given: dict = field(default_factory=dict)  # the node parameters the file sets
+
+    @property
+    def robot(self) -> str:
+        """The robot the scene names (parameter ``robot``): a shipped name or a description file."""
+        return self.params["robot"]
 
     @property
     def phases(self) -> frozenset:
@@ -220,7 +226,8 @@ def load_scene(name_or_path, overrides=None) -> Scene:
         except ValueError as exc:
             raise ValueError(f"scene {path}, section {CONTROLLER_SECTION}: {exc}") from None
         for name in _SHARED_WITH_SIM:
-            if not math.isclose(cparams[name], params[name], rel_tol=1e-12, abs_tol=1e-15):
+            if (cparams[name] != params[name] if isinstance(params[name], str) else
+                    not math.isclose(cparams[name], params[name], rel_tol=1e-12, abs_tol=1e-15)):
                 raise ValueError(f"scene {path}: {CONTROLLER_SECTION} parameter '{name}' = {cparams[name]!r} "
                                  f"differs from the simulation's {params[name]!r}; set it to the same value "
                                  "in both sections")

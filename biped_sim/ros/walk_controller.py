@@ -44,7 +44,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from biped_sim.config.parameters import Param
+from biped_sim.config.parameters import Param, robot_model
 from biped_sim.config.scenes import CONTROLLER_PARAMETERS, make_controller
 from biped_sim.recording.messages import JOINT_NAMES, TOPIC_TYPES, stamp_ns, torque_msg
 from biped_sim.ros import params_files, startup
@@ -97,14 +97,14 @@ class WalkControllerNode(Node):
             raise StartupError(value_less_override_message(exc) or exc) from None
         params_files.check_applies(self, sys.argv if argv is None else argv)
         self.values = v = declare_from_table(self, PARAMETERS)
+        try:
+            self.model = robot_model(v)       # the robot the engine runs (a refusal names it and says why)
+        except ValueError as exc:
+            raise StartupError(str(exc)) from None
         if v["controller"] == "walk":
             self.ctrl = make_controller(v)
-            self.model = self.ctrl.model
         else:
             from biped_sim.config.controllers import make_controller as make_users
-            from biped_sim.config.parameters import model_arguments
-            from biped_sim.engine.model import BipedModel
-            self.model = BipedModel(**model_arguments(v))
             try:
                 self.ctrl = make_users(v["controller"], self.model)
             except ValueError as exc:

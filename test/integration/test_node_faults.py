@@ -780,3 +780,21 @@ def test_cannot_keep_up_is_said_of_a_slow_realtime_node_and_not_of_a_late_period
     assert said, slow.output()
     lag, late_for, rtf = map(float, said.groups())
     assert late_for >= 1.0 and lag > 0.005 and rtf < 5, said.group(0)
+
+
+# -- issue 31, item 1: a scene's robot the engine cannot run ------------------------------------------------
+@pytest.mark.parametrize("program", ["sim_node", "walk_controller"])
+def test_a_robot_the_engine_cannot_run_is_refused_by_the_node_in_one_line(program, tmp_path):
+    """The scene's robot (``robot: rabbit`` in the node's section of a params file) reaches the node, which
+    refuses it at start: the line names the robot, says why, and what to give instead."""
+    node = {"sim_node": "biped_sim", "walk_controller": "walk_controller"}[program]
+    path = tmp_path / "params.yaml"
+    path.write_text(f"{node}:\n  ros__parameters:\n    robot: rabbit\n")
+    with ros_domain() as dom:
+        done = subprocess.run([str(BIN / program), "--ros-args", "--params-file", str(path)], env=ros_env(dom),
+                              cwd=tmp_path, capture_output=True, text=True, timeout=30, stdin=subprocess.DEVNULL)
+    assert done.returncode == 2, done.stdout + done.stderr
+    lines = [ln for ln in done.stderr.splitlines() if ln.startswith(f"{program}: error:")]
+    assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
+    assert "robot 'rabbit' (5 links, 7 coordinates) cannot be simulated yet" in lines[0], lines[0]
+    assert "three_link, compass_gait, three_link_hip_mass" in lines[0], lines[0]

@@ -249,3 +249,57 @@ def test_infinities_nan_quotes_and_tags_as_rcl_reads_them():
     assert doc["a"] == math.inf and doc["b"] == -math.inf and doc["c"] == math.inf and math.isnan(doc["d"])
     assert doc["e"] == "1e3" and doc["f"] == "y" and doc["g"] == "12"      # quoted, !!str: strings
     assert type(doc["h"]) is int and doc["i"] == [True, False]               # rcl ignores other tags
+
+
+# -- issue 31, item 1: scenes name their robot ------------------------------------------------------------
+def _robot_scene(tmp_path, robot, **extra):
+    path = tmp_path / f"robot_{abs(hash(robot))}.yaml"
+    path.write_text(yaml.safe_dump({"biped_sim": {"ros__parameters": dict(
+        robot=robot, phases=["stance", "impact"], outputs=["joint_states"], duration=0.1, **extra)}}))
+    return path
+
+
+def test_a_scene_names_its_robot_whose_numbers_are_the_model_parameters(tmp_path):
+    from biped_sim.config.models import load_model
+    assert load_scene("walk").robot == "three_link" and P.BY_NAME["robot"].default == "three_link"
+    cg = load_scene("compass_gait")
+    assert cg.robot == "compass_gait" and "model.m_torso" not in cg.given   # the robot gives the numbers
+    assert cg.engine_arguments()["model"].parameters == load_model("compass_gait").parameters
+    hip_mass = load_scene(_robot_scene(tmp_path, "three_link_hip_mass"))
+    assert hip_mass.engine_arguments()["model"].parameters == load_model("three_link_hip_mass").parameters
+    heavier = load_scene(_robot_scene(tmp_path, "compass_gait", **{"model.m_torso": 12.0}))   # a model.* given wins
+    assert heavier.engine_arguments()["model"].parameters.m_torso == 12.0
+    assert heavier.engine_arguments()["model"].parameters.I_leg == 0.0
+    over = load_scene("walk", overrides={"robot": "compass_gait"})      # an override names both sections' robot
+    assert over.robot == over.controller_params["robot"] == "compass_gait"
+    assert over.controller().model.parameters == load_model("compass_gait").parameters
+
+
+def test_a_robot_the_engine_cannot_run_is_refused_in_one_line_that_says_why_and_what_to_do(tmp_path, capsys):
+    from biped_sim.config.models import ROBOTS_DIR
+    scene = load_scene(_robot_scene(tmp_path, "rabbit"))
+    assert scene.robot == "rabbit"
+    with pytest.raises(ValueError) as err:
+        scene.simulate()
+    line = str(err.value)
+    assert "\n" not in line and line.startswith("robot 'rabbit' (5 links, 7 coordinates) cannot be simulated yet")
+    assert "runs three-link chains only today" in line and "give robot one of those" in line
+    assert "bs.load_model('rabbit')" in line
+    assert cli_main(["simulate", "--scene", str(_robot_scene(tmp_path, "rabbit"))]) == 2
+    err_text = capsys.readouterr().err
+    assert err_text.count("\n") == 1 and "robot 'rabbit' (5 links" in err_text, err_text
+    desc = tmp_path / "mine.yaml"
+    desc.write_text((ROBOTS_DIR / "rabbit.yaml").read_text())            # a user's description file
+    with pytest.raises(ValueError, match=r"robot '.*mine.yaml' \(5 links.*robot three_link with the model\.\*"):
+        load_scene(_robot_scene(tmp_path, str(desc))).simulate()
+
+
+def test_a_robot_that_is_no_shipped_name_nor_a_file_is_named_with_the_choices(tmp_path):
+    with pytest.raises(ValueError, match=r"parameter 'robot': unknown model 'rabit'; shipped: three_link, "
+                                         r"compass_gait, three_link_hip_mass, rabbit"):
+        load_scene(_robot_scene(tmp_path, "rabit"))
+    with pytest.raises(ValueError, match=r"parameter 'robot': robot description '.*nowhere.urdf' does not exist"):
+        load_scene(_robot_scene(tmp_path, str(tmp_path / "nowhere.urdf")))
+    with pytest.raises(ValueError, match="walk_controller parameter 'robot' = 'compass_gait' differs from the "
+                                         "simulation's 'three_link'"):
+        load_scene(_scene_file(tmp_path, ctrl={"robot": "compass_gait"}))
