@@ -145,6 +145,10 @@ CLOCK_FORMAT = "4siI"          # values (ENCAPSULATION_HEADER, sec, nanosec)
 _CLOCK = struct.Struct("<" + CLOCK_FORMAT)
 
 
+def _three_link_effort(u):
+    return [0.0, 0.0, float(u[0]), float(u[1]), 0.0]
+
+
 class StateSerializer:
     """The CDR of the node's state messages from plain values, without building rclpy messages: the
     bytes of ``serialize_message`` of :func:`~biped_sim.recording.messages.joint_state_message`,
@@ -152,8 +156,11 @@ class StateSerializer:
     these bytes and records the same bytes: filling rosidl messages (their setters check every value)
     and letting rclpy convert and serialise them cost about 35 us a period more (bench_node)."""
 
-    def __init__(self, names, labels=None):
+    def __init__(self, names, labels=None, effort=None):
         self.names = tuple(names)
+        # u -> joint_states' effort (B u), from the robot's joint layout (config.joints); default the
+        # three-link biped's [0, 0, u1, u2, 0]
+        self._effort = effort or _three_link_effort
         self._joint_state, self._wrench = {}, {}      # (struct, constant) per frame id (and size)
         # what ``period`` names each message by: the output name, or e.g. its topic (``labels``), so that
         # the node hands the list to the recorder as it is
@@ -184,15 +191,14 @@ class StateSerializer:
     def period(self, t_ns: int, frame_id: str, position, velocity, u, force, joint_states=True,
                ground_reaction=True, clock=True) -> list:
         """The state messages of one period as ``sim_node`` publishes them: [(label, CDR bytes)] of
-        joint_states (effort B u = [0, 0, u1, u2, 0]), ground_reaction (unless ``force`` is None: in
-        flight) and clock, those asked for, stamped ``t_ns``; a label is the output name unless
+        joint_states (effort B u: [0, 0, u1, u2, 0] for the three-link biped), ground_reaction (unless
+        ``force`` is None: in flight) and clock, those asked for, stamped ``t_ns``; a label is the output name unless
         ``labels`` named it otherwise."""
         sec, nanosec = divmod(t_ns, 1_000_000_000)
         out = []
         labels = self._labels
         if joint_states:
-            out.append((labels[0], self.joint_state(sec, nanosec, frame_id, position, velocity,
-                                                    [0.0, 0.0, float(u[0]), float(u[1]), 0.0])))
+            out.append((labels[0], self.joint_state(sec, nanosec, frame_id, position, velocity, self._effort(u))))
         if ground_reaction and force is not None:
             out.append((labels[1], self.wrench_stamped(sec, nanosec, frame_id, force)))
         if clock:

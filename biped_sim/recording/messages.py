@@ -7,7 +7,8 @@ packages are imported inside the functions, so that reading a bag needs no rclpy
 
 Topics (names relative to the node's namespace) and their types:
 
-* ``joint_states`` (``sensor_msgs/msg/JointState``): q, dq, effort = B u = [0, 0, u1, u2, 0];
+* ``joint_states`` (``sensor_msgs/msg/JointState``): q, dq, effort = B u ([0, 0, u1, u2, 0] for the
+  three-link biped; names and layout from the robot, :mod:`biped_sim.config.joints`);
   ``frame_id`` names the stance foot (``foot_1``/``foot_2``/``flight``).
 * ``ground_reaction`` (``geometry_msgs/msg/WrenchStamped``): the ground's force on the stance foot.
 * ``impact`` (``diagnostic_msgs/msg/DiagnosticArray``): one status per impact, stamped with the
@@ -23,6 +24,8 @@ from __future__ import annotations
 
 import math
 
+#: the three-link biped's joint_states names (``config.joints.joint_layout("three_link").coordinates``, which
+#: a test checks); a run's names are its robot's layout (``NodeRun.layout``)
 JOINT_NAMES = ("base_x", "base_y", "hip_1", "hip_2", "torso_pitch")
 IMPACT_KINDS = ("touchdown", "double_touchdown")
 
@@ -63,16 +66,18 @@ def foot_frame(stance_leg):
     return f"foot_{stance_leg}" if stance_leg else "flight"
 
 
-def joint_state_message(t, q, dq, u, stance_leg):
-    """sensor_msgs/JointState; effort = B u = [0, 0, u1, u2, 0]; frame_id names the stance foot."""
+def joint_state_message(t, q, dq, u, stance_leg, layout=None):
+    """sensor_msgs/JointState; effort = B u ([0, 0, u1, u2, 0] for the three-link biped); frame_id names the
+    stance foot. ``layout``: the robot's :class:`~biped_sim.config.joints.JointLayout` (default the
+    three-link biped's)."""
     from sensor_msgs.msg import JointState
     msg = JointState()
     msg.header.stamp = stamp(t)
     msg.header.frame_id = foot_frame(stance_leg)
-    msg.name = list(JOINT_NAMES)
+    msg.name = list(JOINT_NAMES if layout is None else layout.coordinates)
     msg.position = [float(v) for v in q]
     msg.velocity = [float(v) for v in dq]
-    msg.effort = [0.0, 0.0, float(u[0]), float(u[1]), 0.0]
+    msg.effort = [0.0, 0.0, float(u[0]), float(u[1]), 0.0] if layout is None else layout.effort(u)
     return msg
 
 
@@ -167,11 +172,13 @@ def answers_label(t_ns: int) -> str:
 
 
 def torque_msg(u, answers_ns: int | None = None):
-    """A ``hip_torque`` command ``[u1, u2]``; tagged with the state it answers if ``answers_ns`` is given."""
+    """A ``hip_torque`` command: one torque per actuated joint (``[u1, u2]`` for the three-link biped);
+    tagged with the state it answers if ``answers_ns`` is given."""
     from std_msgs.msg import Float64MultiArray, MultiArrayDimension
-    msg = Float64MultiArray(data=[float(u[0]), float(u[1])])
+    msg = Float64MultiArray(data=[float(v) for v in u])
     if answers_ns is not None:
-        msg.layout.dim = [MultiArrayDimension(label=answers_label(answers_ns), size=2, stride=2)]
+        msg.layout.dim = [MultiArrayDimension(label=answers_label(answers_ns), size=len(msg.data),
+                                              stride=len(msg.data))]
     return msg
 
 

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import math
 
+from biped_sim.config.joints import joint_layout
 from biped_sim.config.parameters import engine_arguments
 from biped_sim.recording.cdr import StateSerializer
-from biped_sim.recording.messages import IMPACT_KINDS, JOINT_NAMES, foot_frame, to_ns
+from biped_sim.recording.messages import IMPACT_KINDS, foot_frame, to_ns
 
 #: the state messages of a period, in the order ``StateSerializer.period`` gives them
 STATE_OUTPUTS = ("joint_states", "ground_reaction", "clock")
@@ -58,9 +59,13 @@ class NodeRun:
         self.clip = params["torque_limit_action"] == "clip"
         outputs = set(params["outputs"])
         self.state_outputs = tuple(name in outputs for name in STATE_OUTPUTS)
-        self.serializer = StateSerializer(JOINT_NAMES, labels=labels)
+        # joint_states' names and effort, a command's length: the robot's (config.joints)
+        self.layout = joint_layout(params.get("robot", "three_link"))
+        self.n_actuated = len(self.layout.actuated)
+        self._largest, self._floats = self.layout.command_functions()
+        self.serializer = self._serializer(labels)
         self.counts = dict(rejected=0, clipped=0)
-        self.u = [0.0, 0.0]
+        self.u = self.zero_torque()
         self.restart()
 
     def restart(self):
@@ -75,7 +80,14 @@ class NodeRun:
     def label_states(self, labels):
         """Name the state messages of :meth:`state_messages` by ``labels`` ({output name: label}, e.g.
         the node's topic names) instead of the output names."""
-        self.serializer = StateSerializer(JOINT_NAMES, labels=labels)
+        self.serializer = self._serializer(labels)
+
+    def _serializer(self, labels):
+        return StateSerializer(self.layout.coordinates, labels=labels, effort=self.layout.effort_function())
+
+    def zero_torque(self) -> list:
+        """u = 0: one zero per actuated joint."""
+        return [0.0] * len(self.layout.actuated)
 
     @property
     def running(self) -> bool:
@@ -83,15 +95,16 @@ class NodeRun:
 
     # -- commands -------------------------------------------------------------------------------
     def check_command(self, data):
-        """(torques, why) of a command's values: (the two floats, None) taken; (clipped, why) beyond
-        ``torque_limit`` with ``torque_limit_action`` clip; (None, why) refused: not two finite values, or
-        beyond the limit with reject (the held torque stays). Counts the refused and the clipped."""
-        if len(data) != 2:
-            why = f"{len(data)} values instead of 2 (hip 1, hip 2)"
+        """(torques, why) of a command's values: (the floats, None) taken; (clipped, why) beyond
+        ``torque_limit`` with ``torque_limit_action`` clip; (None, why) refused: not one finite value per
+        actuated joint, or beyond the limit with reject (the held torque stays). Counts the refused and the
+        clipped."""
+        if len(data) != self.n_actuated:
+            why = f"{len(data)} values instead of {self.layout.command_line()}"
         elif not all(math.isfinite(v) for v in data):
             why = f"not finite: {list(data)}"
-        elif max(abs(data[0]), abs(data[1])) <= self.limit:
-            return [float(data[0]), float(data[1])], None
+        elif self._largest(data) <= self.limit:
+            return self._floats(data), None
         else:
             why = f"{list(data)} beyond torque_limit {self.limit:g} N m"
             if self.clip:

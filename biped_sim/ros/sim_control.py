@@ -259,7 +259,7 @@ class SimControl:
         if node.markers is not None:      # the new run's events count from 0; its first state drawn at once
             node.markers.restart()
         if not keep_held:
-            node.u = [0.0, 0.0]
+            node.u = node.run_rules.zero_torque()
             self.lockstep_command_held = False
         node.timed_out = False
         node.last_command_wall = None

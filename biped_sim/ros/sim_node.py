@@ -338,7 +338,7 @@ class SimNode(Node):
             self.get_logger().warning(
                 f"no hip_torque command for more than command_timeout={self.timeout:g} s (wall) at "
                 f"t={self.sim.t:.6f} s: zero torque until the next command")
-            self.u = [0.0, 0.0]
+            self.u = self.run_rules.zero_torque()
 
     # -- stepping and publishing ----------------------------------------------------------------
     def step(self):

@@ -44,9 +44,10 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from biped_sim.config.joints import joint_layout
 from biped_sim.config.parameters import Param, robot_model
 from biped_sim.config.scenes import CONTROLLER_PARAMETERS, make_controller
-from biped_sim.recording.messages import JOINT_NAMES, TOPIC_TYPES, stamp_ns, torque_msg
+from biped_sim.recording.messages import TOPIC_TYPES, stamp_ns, torque_msg
 from biped_sim.ros import params_files, startup
 from biped_sim.ros.one_topic_spin import OneTopicSpin
 from biped_sim.ros.parameters import declare_from_table, usage_text, value_less_override_message
@@ -101,6 +102,7 @@ class WalkControllerNode(Node):
             self.model = robot_model(v)       # the robot the engine runs (a refusal names it and says why)
         except ValueError as exc:
             raise StartupError(str(exc)) from None
+        self.layout = joint_layout(v["robot"])     # the joints looked up in joint_states, by name
         if v["controller"] == "walk":
             self.ctrl = make_controller(v)
         else:
@@ -154,12 +156,12 @@ class WalkControllerNode(Node):
             return
         self._last = key
         try:
-            idx = [list(msg.name).index(n) for n in JOINT_NAMES]
+            idx = [list(msg.name).index(n) for n in self.layout.coordinates]
             # lists of floats, as the engine calls a controller (headless and node runs get the same bits)
             q = [msg.position[i] for i in idx]
             dq = [msg.velocity[i] for i in idx]
         except (ValueError, IndexError):
-            self.get_logger().error(f"joint_states without the joints {list(JOINT_NAMES)} (got names "
+            self.get_logger().error(f"joint_states without the joints {list(self.layout.coordinates)} (got names "
                                     f"{list(msg.name)}): not answered", throttle_duration_sec=1.0)
             return
         t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
@@ -172,7 +174,7 @@ class WalkControllerNode(Node):
             self.failures += 1
             self.get_logger().error(f"control law failed at t={t:.6f} s ({exc}): sending zero torque",
                                     throttle_duration_sec=1.0)
-            u = [0.0, 0.0]
+            u = [0.0] * len(self.layout.actuated)
         self.pub.publish(torque_msg(u, answers_ns=stamp_ns(msg.header.stamp)))
         self.answered += 1
 

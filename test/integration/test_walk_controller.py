@@ -11,7 +11,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 from biped_sim.config.scenes import load_scene  # noqa: E402
 
-from ros_helpers import Client, ros_domain, start_node  # noqa: E402
+from ros_helpers import Client, bag_messages, ros_domain, start_node  # noqa: E402
 
 pytest.importorskip("rclpy")
 from sensor_msgs.msg import JointState  # noqa: E402
@@ -156,3 +156,34 @@ def test_only_declared_topics_are_recorded(tmp_path):
     assert "/joint_states" in topics and "/clock" in topics
     assert "/impact" not in topics and "/ground_reaction" not in topics
     assert np.all([not t.endswith(("impact", "ground_reaction")) for t in topics])
+
+
+def test_a_compass_gait_lockstep_run_carries_its_robots_joint_names_and_the_controller_finds_them(tmp_path):
+    """Issue 31, item 2: the compass gait scene (robot compass_gait: its base angle is 'hip_pitch') in
+    lockstep with walk_controller (robot compass_gait, u = 0): joint_states carry the robot's names, the
+    controller looks its joints up by them and answers every state, and the run is the headless one; the
+    bag's joint_states, read back by rosbags, carry the same names."""
+    from biped_sim.config.controllers import no_torque
+    duration = 0.2
+    overrides = {"time_mode": "lockstep", "duration": duration}
+    ref = load_scene("compass_gait", overrides=overrides).simulate(controller=no_torque)
+    names = ["base_x", "base_y", "hip_1", "hip_2", "hip_pitch"]
+    with ros_domain() as dom:
+        with start_node({**overrides, "record": True, "bag_dir": str(tmp_path)}, dom,
+                        extra_args=scene_args("compass_gait")) as sim, Client(dom) as c:
+            js = c.collect("/joint_states", JointState)
+            c.wait_subscribed("/joint_states", proc=sim)
+            with start_node({"robot": "compass_gait", "slope": 0.0525,
+                             "controller": "biped_sim.config.controllers:no_torque"}, dom,
+                            executable="walk_controller") as ctl:
+                _spin_all([c], lambda: js and _t(js[-1]) >= duration - 1e-9, 90,
+                          f"the state at t = {duration} s", [sim, ctl])
+                assert ctl.stop() == 0
+                log = ctl.output()
+            assert sim.wait(20) == 0, sim.output()
+    assert list(js[-1].name) == names and list(js[-1].position) == ref.q[-1].tolist()
+    m = re.search(r"after (\d+) commands", log)
+    assert m and int(m.group(1)) == round(duration / 0.001) + 1 and "without the joints" not in log, log
+    (bag,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    recorded = bag_messages(bag)["/joint_states"]
+    assert len(recorded) == len(js) and all(list(m.name) == names for _t_ns, m in recorded)

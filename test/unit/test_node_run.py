@@ -81,3 +81,53 @@ def test_a_stale_lockstep_answer_is_named_for_what_it_answers():
     assert "older one" in stale_command(4_000_000, 5_000_000)
     assert "has not published" in stale_command(6_000_000, 5_000_000)
     assert "before the ~/reset" in stale_command(6_000_000, 5_000_000, before_reset_ns=7_000_000)
+
+
+# -- issue 31, item 2: names and sizes from the robot's description ----------------------------------------
+def _joint_state(data):
+    from rosbags.typesys import Stores, get_typestore  # an independent CDR reader
+    return get_typestore(Stores.ROS2_JAZZY).deserialize_cdr(data, "sensor_msgs/msg/JointState")
+
+
+def test_the_joint_layout_of_a_robot_comes_from_its_description(tmp_path):
+    from biped_sim.config.joints import joint_layout
+    from biped_sim.config.models import ROBOTS_DIR, load_description
+    from biped_sim.recording.messages import JOINT_NAMES
+    three = joint_layout("three_link")
+    assert three.coordinates == JOINT_NAMES and three.actuated == ("hip_1", "hip_2")
+    assert three.effort([1.5, -2.5]) == [0.0, 0.0, 1.5, -2.5, 0.0]
+    assert joint_layout("compass_gait").coordinates == ("base_x", "base_y", "hip_1", "hip_2", "hip_pitch")
+    rabbit = joint_layout("rabbit")
+    assert rabbit.coordinates == load_description("rabbit").coordinates
+    assert rabbit.actuated == ("hip_1", "hip_2", "knee_1", "knee_2")
+    assert rabbit.effort([1.0, 2.0, 3.0, 4.0]) == [0.0, 0.0, 1.0, 2.0, 3.0, 4.0, 0.0]
+    mine = tmp_path / "mine.yaml"                    # a description file: its names, read from the file
+    mine.write_text((ROBOTS_DIR / "rabbit.yaml").read_text().replace("knee_", "kn_").replace("actuated: [hip_1, "
+                                                                                              "hip_2, ", "actuated: ["))
+    layout = joint_layout(str(mine))
+    assert layout.coordinates[4:6] == ("kn_1", "kn_2") and layout.actuated == ("kn_1", "kn_2")
+    assert layout.effort([7.0, 8.0]) == [0.0, 0.0, 0.0, 0.0, 7.0, 8.0, 0.0]
+
+
+def test_a_runs_joint_states_carry_its_robots_names_and_the_three_link_bytes_are_unchanged():
+    from biped_sim.recording.cdr import StateSerializer
+    from biped_sim.recording.messages import JOINT_NAMES
+    three = NodeRun(walk_params()[0])
+    three.take_command([1.5, -2.5])
+    old = StateSerializer(JOINT_NAMES).period(0, "foot_1", *three.sim.state_lists(), [1.5, -2.5],
+                                              three.sim.ground_force)
+    assert three.state_messages() == old
+    cg = NodeRun(P.validate(dict(robot="compass_gait", initial_q=[0.0, 1.0, math.pi, math.pi, 0.0])))
+    cg.take_command([1.0, -2.0])
+    label, data = cg.state_messages()[0]
+    msg = _joint_state(data)
+    assert label == "joint_states" and list(msg.name) == ["base_x", "base_y", "hip_1", "hip_2", "hip_pitch"]
+    assert msg.effort.tolist() == [0.0, 0.0, 1.0, -2.0, 0.0] and msg.position.tolist() == [0.0, 1.0, math.pi,
+                                                                                         math.pi, 0.0]
+
+
+def test_a_command_of_another_length_is_refused_naming_the_actuated_joints():
+    run = NodeRun(walk_params()[0])
+    u, why = run.take_command([1.0, 2.0, 3.0])
+    assert u is None and why == "3 values instead of 2, one per actuated joint (hip_1, hip_2)"
+    assert run.u == [0.0, 0.0]
