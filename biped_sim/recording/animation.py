@@ -3,8 +3,8 @@
 Owns the frames (drawn with Pillow's ImageDraw, much faster than the same figure in matplotlib: the
 figures in docs/cli.md) and the files (GIF through Pillow, MP4 through imageio-ffmpeg
 when it is installed). A run comes from a bag (:func:`track_from_bag`) or from a headless
-``simulate`` (:func:`track_from_result`); the points are ``BipedModel.stick_figure`` and the arrow
-scale, colours and impact flash those of the markers (:mod:`biped_sim.recording.markers`).
+``simulate`` (:func:`track_from_result`); the points are :mod:`biped_sim.recording.drawing`'s (any chain)
+and the arrow scale, colours and impact flash those of the markers (:mod:`biped_sim.recording.markers`).
 """
 from __future__ import annotations
 
@@ -36,7 +36,9 @@ class Track:
 
 def track_from_result(result, model, slope=0.0) -> Track:
     """The Track of a ``SimulationResult`` (``simulate`` or ``Scene.simulate``)."""
-    impacts = [(e.time, tuple(model.foot_position(e.q, e.leg))) for e in result.impacts]
+    from biped_sim.recording.drawing import RobotDrawing
+    foot = RobotDrawing(model).foot
+    impacts = [(e.time, tuple(foot(e.q, e.leg))) for e in result.impacts]
     return Track(result.t, result.q, result.stance_leg, result.grf, impacts, model, slope)
 
 
@@ -99,7 +101,10 @@ class FrameDrawer:
 
     def __init__(self, track: Track, width=WIDTH, height=HEIGHT, scale=PIXELS_PER_METRE):
         from PIL import ImageFont
+
+        from biped_sim.recording.drawing import RobotDrawing
         self.track, self.w, self.h, self.s = track, width, height, scale
+        self.drawing = RobotDrawing(track.model)     # any chain: its description's links (drawing.py)
         colours = [_PALETTE["background"], _PALETTE["ground"], _PALETTE["tick"], _PALETTE["text"]] + [
             _rgb(c) for c in (MK.LEG_COLOURS[1], MK.LEG_COLOURS[2], MK.TORSO_COLOUR, MK.HIP_COLOUR,
                               MK.STANCE_FOOT_COLOUR, MK.SWING_FOOT_COLOUR, MK.FORCE_COLOUR, MK.FLASH_COLOUR)]
@@ -116,7 +121,7 @@ class FrameDrawer:
         img = Image.new("P", (self.w, self.h), 0)
         img.putpalette(self.palette)
         d = ImageDraw.Draw(img)
-        fig = self.track.model.stick_figure(q)
+        fig = self.drawing.figure(q)
         slope = self.track.slope
         cx, cy = fig.hip[0], MK.ground_y(fig.hip[0], slope) + 0.75   # view centre (m)
 
@@ -132,20 +137,31 @@ class FrameDrawer:
                fill=self.index[_PALETTE["ground"]], width=2)
         if flash_at is not None:
             self._dot(d, px(flash_at), 14, MK.FLASH_COLOUR)
-        d.line([px(fig.hip), px(fig.torso_tip)], fill=self._c(MK.TORSO_COLOUR), width=6)
-        for k, foot in ((1, fig.foot_1), (2, fig.foot_2)):
-            d.line([px(fig.hip), px(foot)], fill=self._c(MK.LEG_COLOURS[k]), width=5)
-        for k, foot in ((1, fig.foot_1), (2, fig.foot_2)):
+        self._lines(d, px, fig.body, self._c(MK.TORSO_COLOUR), 6)
+        for k, lines in enumerate(fig.legs, start=1):
+            self._lines(d, px, lines, self._c(MK.LEG_COLOURS[2 - k % 2]), 5)
+        for k, foot in enumerate(fig.feet, start=1):
             self._dot(d, px(foot), 6 if k == leg else 4, MK.STANCE_FOOT_COLOUR if k == leg else MK.SWING_FOOT_COLOUR)
         self._dot(d, px(fig.hip), 6, MK.HIP_COLOUR)
-        if leg in (1, 2) and (force[0] or force[1]):
-            foot = fig.foot_1 if leg == 1 else fig.foot_2
+        if 1 <= leg <= len(fig.feet) and (force[0] or force[1]):
+            foot = fig.feet[leg - 1]
             self._arrow(d, px(foot), px(MK.force_arrow_end(foot, force)), self._c(MK.FORCE_COLOUR))
         text = self.index[_PALETTE["text"]]
         d.text((10, 8), f"t = {t:6.3f} s", fill=text, font=self.font)
         d.text((10, self.h - 20), f"ground force arrow: {MK.NEWTONS_PER_METRE:g} N per m", fill=text,
                font=self.small)
         return img
+
+    @staticmethod
+    def _lines(d, px, lines, fill, width):
+        """A polyline (``lines.strip``) or its segments, as the markers draw them."""
+        points = [px(p) for p in lines.points]
+        if lines.strip:
+            if len(points) > 1:
+                d.line(points, fill=fill, width=width, joint="curve" if len(points) > 2 else None)
+        else:
+            for a, b in zip(points[::2], points[1::2]):
+                d.line([a, b], fill=fill, width=width)
 
     def _dot(self, d, p, r, colour):
         d.ellipse([p[0] - r, p[1] - r, p[0] + r, p[1] + r], fill=self._c(colour))
@@ -353,7 +369,7 @@ class BagStates:
                 for e in M.event_values(msg):
                     q, foot = e.get("q"), e.get("foot")
                     if isinstance(q, list) and len(q) == 5 and foot in (1, 2):
-                        impacts.append((float(e["time"]), tuple(self.model.foot_position(np.array(q), foot))))
+                        impacts.append((float(e["time"]), tuple(drawer.drawing.foot(np.array(q), foot))))
                 impacts.sort(key=lambda i: i[0])
         if state is not None:
             yield from draw_until(None)

@@ -2,7 +2,9 @@
 
 Owns the marker message (built here, so that the node, ``simulate --record`` and a bag tool make the
 same one) and what the animation shares with it: the arrow scale of the ground force, the colours,
-the impact flash. The points come from the engine's one geometry, ``BipedModel.stick_figure``.
+the impact flash. The points come from :mod:`biped_sim.recording.drawing` (a three-link ``BipedModel``'s
+``stick_figure``; any other chain from its description's links), so that a five-link robot with knees
+draws each leg as a polyline hip - knee - foot.
 
 Axes: ``frame_id`` ``world``; the model's sagittal plane (x forward, y up) is drawn as the x-z plane
 (x forward, z up, y = 0), as RViz and Foxglove expect a vertical z. Every marker is in namespace
@@ -83,10 +85,27 @@ def _deleted(header, mid, kind):
     return Marker(header=header, ns=NAMESPACE, id=mid, type=kind, action=Marker.DELETE)
 
 
+def leg_marker_id(leg: int) -> int:
+    """The id of leg ``leg``'s lines (foot ``leg``'s links): LEG_1, LEG_2, then 10, 12, ... for a robot with
+    more contact points."""
+    return {1: LEG_1, 2: LEG_2}.get(leg, 10 + 2 * (leg - 3))
+
+
+def foot_marker_id(leg: int) -> int:
+    return {1: FOOT_1, 2: FOOT_2}.get(leg, 11 + 2 * (leg - 3))
+
+
+def _lines_marker(header, mid, colour, width, lines):
+    from visualization_msgs.msg import Marker
+    return _marker(header, mid, Marker.LINE_STRIP if lines.strip else Marker.LINE_LIST, colour, (width, 0, 0),
+                   lines.points)
+
+
 def marker_array(t, figure, stance_leg, force, slope=0.0, flash_at=None):
     """The MarkerArray of one state at simulated time ``t`` (the header stamp).
 
-    ``figure``: ``BipedModel.stick_figure(q)``; ``stance_leg`` 1, 2 or 0 (flight); ``force`` the
+    ``figure``: the robot drawn (:meth:`biped_sim.recording.drawing.RobotDrawing.figure`, any chain), or a
+    three-link ``BipedModel.stick_figure(q)``; ``stance_leg`` 1, 2 or 0 (flight); ``force`` the
     ground's force on the stance foot [Fx, Fy] (N; ignored in flight); ``slope`` the ground's angle
     (rad); ``flash_at``: the (x, y) of a touchdown to flash, or None.
     """
@@ -94,20 +113,23 @@ def marker_array(t, figure, stance_leg, force, slope=0.0, flash_at=None):
     from std_msgs.msg import Header
     from visualization_msgs.msg import Marker, MarkerArray
 
+    from biped_sim.recording.drawing import Figure, from_stick_figure
     from biped_sim.recording.messages import stamp
+    if not isinstance(figure, Figure):
+        figure = from_stick_figure(figure)
     header = Header(stamp=stamp(t), frame_id=FRAME_ID)
-    hip, feet = figure.hip, {1: figure.foot_1, 2: figure.foot_2}
-    out = [_marker(header, LEG_1, Marker.LINE_STRIP, LEG_COLOURS[1], (0.04, 0, 0), (hip, feet[1])),
-           _marker(header, LEG_2, Marker.LINE_STRIP, LEG_COLOURS[2], (0.04, 0, 0), (hip, feet[2])),
-           _marker(header, TORSO, Marker.LINE_STRIP, TORSO_COLOUR, (0.05, 0, 0), (hip, figure.torso_tip)),
-           _marker(header, HIP, Marker.SPHERE, HIP_COLOUR, (0.09, 0.09, 0.09), position=hip)]
-    for leg, mid in ((1, FOOT_1), (2, FOOT_2)):
+    hip, feet = figure.hip, figure.feet
+    out = [_lines_marker(header, leg_marker_id(k), LEG_COLOURS[2 - k % 2], 0.04, lines)
+           for k, lines in enumerate(figure.legs, start=1)]
+    out[2:2] = [_lines_marker(header, TORSO, TORSO_COLOUR, 0.05, figure.body),
+                _marker(header, HIP, Marker.SPHERE, HIP_COLOUR, (0.09, 0.09, 0.09), position=hip)]
+    for leg, point in enumerate(feet, start=1):
         stance = leg == stance_leg
         d = 0.08 if stance else 0.06
-        out.append(_marker(header, mid, Marker.SPHERE, STANCE_FOOT_COLOUR if stance else SWING_FOOT_COLOUR,
-                           (d, d, d), position=feet[leg]))
-    if stance_leg in (1, 2):
-        foot = feet[stance_leg]
+        out.append(_marker(header, foot_marker_id(leg), Marker.SPHERE,
+                           STANCE_FOOT_COLOUR if stance else SWING_FOOT_COLOUR, (d, d, d), position=point))
+    if 1 <= stance_leg <= len(feet):
+        foot = feet[stance_leg - 1]
         out.append(_marker(header, FORCE, Marker.ARROW, FORCE_COLOUR, (0.02, 0.05, 0.06),
                            (foot, force_arrow_end(foot, force))))
     else:
@@ -143,7 +165,9 @@ class MarkerStream:
     """
 
     def __init__(self, model, slope: float, rate: float):
+        from biped_sim.recording.drawing import RobotDrawing
         self.model, self.slope, self.interval = model, float(slope), 1.0 / float(rate)
+        self.drawing = RobotDrawing(model)      # any chain: its description's links (drawing.py)
         self.restart()
 
     def restart(self):
@@ -162,7 +186,7 @@ class MarkerStream:
             self.n_events = len(events)
             if touchdowns:
                 last = touchdowns[-1]
-                self.flash_at = tuple(self.model.foot_position(last.q, last.leg))
+                self.flash_at = tuple(self.drawing.foot(last.q, last.leg))
                 self.flash_until = now + FLASH_DURATION
                 self.next_due = min(self.next_due, now)     # show it now
         if now < self.next_due and not force:
@@ -172,6 +196,6 @@ class MarkerStream:
         if flash is None:
             self.flash_at = None
         leg = sim.stance_leg
-        figure = self.model.stick_figure(sim.q)
+        figure = self.drawing.figure(sim.q)
         self.hip = figure.hip       # the /tf of this array (hip_transform)
         return marker_array(sim.t, figure, leg, sim.ground_force if leg else (0.0, 0.0), self.slope, flash)

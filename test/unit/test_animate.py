@@ -209,3 +209,25 @@ def test_animate_of_a_bag_cut_short_says_so_and_where_it_ends(tmp_path, capsys):
     assert f"drawn up to its last complete chunk, t = {end:.6g} s" in err and f"biped-sim recover {cut}" in err, err
     frames, _ = gif_frames(tmp_path / "cut.gif")
     assert len(frames) == int(end * 20 + 1e-9) + 1 < 81          # up to the cut, not the whole 4 s at 20 fps
+
+
+def test_a_frame_draws_rabbits_legs_through_its_knees():
+    """Issue 31, item 3: RABBIT (five links) at a given q, no simulation: the pixels along each tibia (knee
+    to foot, from the description's forward kinematics) are that leg's colour, and the torso's are drawn."""
+    from biped_sim.config.models import load_model
+    rabbit = load_model("rabbit")
+    q = np.array([0.1, 0.75, 3.5, 2.7, 0.5, 0.1, 0.2])       # legs apart, knee 1 bent
+    track = A.Track(np.zeros(1), q[None, :], np.ones(1, int), np.array([[0.0, 300.0]]), [], rabbit)
+    drawer = A.FrameDrawer(track)
+    frame = np.asarray(drawer.draw(0.0, q, 1, (0.0, 300.0)).convert("RGB"))
+    seg = rabbit.segments(q)                                  # (links, joint/tip, xy): femur_1, femur_2, tibia_1, ...
+    cx, cy = q[0], MK.ground_y(q[0], 0.0) + 0.75
+
+    def pixel(p):
+        return frame[int(round(A.HEIGHT / 2 - (p[1] - cy) * A.PIXELS_PER_METRE)),
+                     int(round(A.WIDTH / 2 + (p[0] - cx) * A.PIXELS_PER_METRE))]
+    for link, colour in ((2, MK.LEG_COLOURS[1]), (3, MK.LEG_COLOURS[2]), (4, MK.TORSO_COLOUR)):
+        start, end = seg[link]                                # a tibia from its knee; the torso from the hip
+        for s in (0.3, 0.5, 0.7):                             # along the link, away from the dots at its ends
+            rgb = [round(255 * c) for c in colour[:3]]
+            assert pixel(start + s * (end - start)).tolist() == rgb, (link, s)

@@ -169,3 +169,71 @@ def test_the_foxglove_layout_shows_the_markers_and_plots_topics_the_node_publish
     used = {p["value"].split(".")[0] for k, c in panels.items() if k.startswith("Plot!") for p in c["paths"]}
     used |= {c["topicPath"] for k, c in panels.items() if k.startswith("RawMessages!")}
     assert used <= topics and {"/joint_states", "/ground_reaction", "/impact"} <= used
+
+
+# -- issue 31, item 3: any chain drawn from its description -------------------------------------------------
+RABBIT_Q = np.array([0.1, 0.75, 3.3, 2.9, 0.35, 0.1, 0.2])   # knees bent, the torso leaning forward
+
+
+def forward_kinematics(desc, q):
+    """{link: (joint, tip)} from the description's conventions (docs/models.md), written here from them: a
+    link's absolute angle is its parent's + axis * q_joint + offset (the base's: its own), its joint sits
+    at ``origin`` in the parent's frame, its tip ``length`` along its z axis (sin a, cos a)."""
+    index = {link.name: 2 + i for i, link in enumerate(desc.links)}
+    by_name = {link.name: link for link in desc.links}
+    out = {}
+
+    def place(name):
+        if name in out:
+            return out[name]
+        link = by_name[name]
+        if link.parent is None:
+            angle, joint = link.sign * q[index[name]] + link.offset, np.array(q[:2], dtype=float)
+        else:
+            p_joint, _p_tip, p_angle = place(link.parent)
+            ox, oz = link.origin
+            joint = p_joint + ox * np.array([math.cos(p_angle), -math.sin(p_angle)]) + \
+                oz * np.array([math.sin(p_angle), math.cos(p_angle)])
+            angle = p_angle + link.sign * q[index[name]] + link.offset
+        tip = joint + link.length * np.array([math.sin(angle), math.cos(angle)])
+        out[name] = (joint, tip, angle)
+        return out[name]
+    for link in desc.links:
+        place(link.name)
+    return {name: (joint, tip) for name, (joint, tip, _angle) in out.items()}
+
+
+def test_rabbit_is_drawn_from_its_descriptions_links_a_polyline_hip_knee_foot_per_leg():
+    """No simulation: RABBIT (five links, knees) at a given q; each marker's points against forward
+    kinematics written in this test from the description."""
+    from biped_sim.config.models import load_model
+    from biped_sim.recording.drawing import RobotDrawing
+    rabbit = load_model("rabbit")
+    fk = forward_kinematics(rabbit.description, RABBIT_Q)
+    m = by_id(MK.marker_array(0.5, RobotDrawing(rabbit).figure(RABBIT_Q), 1, [10.0, 300.0]))
+    assert sorted(m) == list(range(1, 10))
+    for mid, side in ((MK.LEG_1, "1"), (MK.LEG_2, "2")):
+        femur, tibia = fk[f"femur_{side}"], fk[f"tibia_{side}"]
+        assert m[mid].type == Marker.LINE_STRIP and len(m[mid].points) == 3       # hip - knee - foot
+        for got, want in zip(m[mid].points, (femur[0], femur[1], tibia[1])):
+            np.testing.assert_allclose(xz(got), want, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(femur[1], tibia[0], atol=1e-15)                 # the knee joins them
+        np.testing.assert_allclose(xz(m[MK.FOOT_1 if side == "1" else MK.FOOT_2].pose.position), tibia[1],
+                                   atol=1e-14)
+    torso = fk["torso"]
+    np.testing.assert_allclose([xz(p) for p in m[MK.TORSO].points], [torso[0], torso[1]], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(xz(m[MK.HIP].pose.position), RABBIT_Q[:2], atol=0)
+    knee_to_foot = np.linalg.norm(xz(m[MK.LEG_1].points[2]) - xz(m[MK.LEG_1].points[1]))
+    assert knee_to_foot == pytest.approx(0.4, abs=1e-14)
+    arrow = m[MK.FORCE]                                          # the force arrow starts at the stance foot
+    np.testing.assert_allclose(xz(arrow.points[0]), fk["tibia_1"][1], atol=1e-14)
+
+
+def test_the_three_link_markers_are_unchanged_by_the_chain_drawing():
+    from biped_sim.recording.drawing import RobotDrawing
+    via_stick = MK.marker_array(1.25, MODEL.stick_figure(Q), 2, [5.0, 150.0], 0.03, flash_at=(0.3, -0.03))
+    via_chain = MK.marker_array(1.25, RobotDrawing(MODEL).figure(Q), 2, [5.0, 150.0], 0.03, flash_at=(0.3, -0.03))
+    assert via_stick == via_chain
+    leg1 = by_id(via_chain)[MK.LEG_1]
+    assert leg1.type == Marker.LINE_STRIP and [xz(p).tolist() for p in leg1.points] == [
+        Q[:2].tolist(), MODEL.foot_position(Q, 1).tolist()]
