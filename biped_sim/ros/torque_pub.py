@@ -61,10 +61,15 @@ def build_parser():
     p = argparse.ArgumentParser(
         prog="torque_pub", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG,
         description="Publish hip torque commands (std_msgs/Float64MultiArray, [u1, u2] in N m: hip of leg 1, "
-                    "then leg 2) for the biped_sim node. Without --rate or --lockstep it publishes once, after "
-                    "a subscriber is found, and exits.")
-    p.add_argument("torques", nargs="*", type=float, metavar="U", help="the two torques u1 u2 (N m); default 0 0")
-    p.add_argument("--expr", nargs=2, metavar=("E1", "E2"), help="torques as expressions of t (s)")
+                    "then leg 2; another robot: one torque per actuated joint) for the biped_sim node. Without "
+                    "--rate or --lockstep it publishes once, after a subscriber is found, and exits.")
+    p.add_argument("torques", nargs="*", type=float, metavar="U",
+                   help="the torques, one per actuated joint of --robot: u1 u2 (N m) for the three-link biped; "
+                        "default zeros")
+    p.add_argument("--expr", nargs="+", metavar="E", help="torques as expressions of t (s), one per actuated joint")
+    p.add_argument("--robot", default="three_link", metavar="NAME|PATH",
+                   help="the node's robot (its scene's robot parameter), which says how many torques a command "
+                        "holds: a shipped name or a description file [default: three_link]")
     p.add_argument("--rate", type=float, help="publish at this rate (Hz, wall clock) until --duration or Ctrl-C")
     p.add_argument("--duration", type=float, default=0.0, help="with --rate: stop after this many s (0: never)")
     p.add_argument("--lockstep", action="store_true",
@@ -83,15 +88,24 @@ def build_parser():
 def main(argv=None):
     args = build_parser().parse_args(negative_numbers_as_values(sys.argv[1:] if argv is None else argv))
     try:
+        from biped_sim.config.joints import joint_layout
+        try:
+            layout = joint_layout(args.robot)
+        except ValueError as exc:
+            raise ValueError(f"--robot: {exc}") from None
+        want = (f"{len(layout.actuated)} torques, one per actuated joint ({', '.join(layout.actuated)}) of robot "
+                f"{args.robot}")
         if args.expr:
             if args.torques:
-                raise ValueError("give either two torques or --expr E1 E2, not both")
-            f1, f2 = (compile_expr(e) for e in args.expr)
-            torques = lambda t: [f1(t), f2(t)]  # noqa: E731
+                raise ValueError(f"give either the torques or --expr with one expression each ({want}), not both")
+            if len(args.expr) != len(layout.actuated):
+                raise ValueError(f"--expr takes {want}; got {len(args.expr)} expression(s)")
+            functions = [compile_expr(e) for e in args.expr]
+            torques = lambda t: [f(t) for f in functions]  # noqa: E731
         else:
-            vals = args.torques or [0.0, 0.0]
-            if len(vals) != 2:
-                raise ValueError(f"give two torques (hip 1, hip 2), got {len(vals)}")
+            vals = args.torques or [0.0] * len(layout.actuated)
+            if len(vals) != len(layout.actuated):
+                raise ValueError(f"give {want}; got {len(vals)}")
             torques = lambda t: list(vals)  # noqa: E731
         if args.rate is not None and not args.rate > 0:
             raise ValueError("--rate must be positive")

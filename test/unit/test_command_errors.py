@@ -105,3 +105,18 @@ def test_a_recovered_original_gets_a_free_name(tmp_path):
     (tmp_path / "b_0.mcap.truncated").write_bytes(b"1")
     (tmp_path / "b_0.mcap.truncated.1").write_bytes(b"2")
     assert kept_name(src).name == "b_0.mcap.truncated.2"
+
+
+def test_torque_pub_takes_one_torque_per_actuated_joint_of_its_robot(capsys):
+    """Issue 31, item 2: how many torques a command holds comes from the robot's description (--robot, default
+    three_link); a wrong count is one line naming the actuated joints, before any ROS start."""
+    from biped_sim.ros.torque_pub import main
+    cases = [(["1", "2", "3"], "give 2 torques, one per actuated joint (hip_1, hip_2) of robot three_link; got 3"),
+             (["--robot", "rabbit", "1", "2"],
+              "give 4 torques, one per actuated joint (hip_1, hip_2, knee_1, knee_2) of robot rabbit; got 2"),
+             (["--robot", "rabbit", "--expr", "t", "0"], "--expr takes 4 torques, one per actuated joint"),
+             (["--robot", "rabit", "1", "2"], "--robot: unknown model 'rabit'; shipped: three_link")]
+    for argv, expected in cases:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith(f"torque_pub: error: {expected}"), (argv, err)
