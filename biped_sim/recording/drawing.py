@@ -90,8 +90,7 @@ class RobotDrawing:
             return from_stick_figure(self.model.stick_figure(q))
         model = self.model
         segments = model.segments(q)
-        flat = model.module.contact_positions(model._q(q))
-        feet = tuple(np.array(flat[2 * i: 2 * i + 2]) for i in range(len(model.contacts)))
+        feet = tuple(model.contact_position(q, k) for k in range(1, len(model.contacts) + 1))
         hip = np.asarray(q, dtype=float)[:2].copy()      # the base link's joint: (base_x, base_y)
         return Figure(hip, tuple(_lines(segments, idx, strip) for idx, strip in self.legs),
                       _lines(segments, *self.body), feet)
