@@ -108,3 +108,30 @@ def test_the_compass_gait_has_the_reference_multipliers():
     for r in reference:
         assert min(abs(m - r) for m in legs) < 1e-7
     assert np.allclose(sorted(g.multipliers, key=lambda m: abs(m - 1.0))[:2], 1.0, atol=1e-5)
+
+
+def test_the_gait_moves_with_the_controller_gains_as_its_exact_derivative_says(walk_gait):
+    """Gait.derivatives: the fixed point's and the period's derivatives by the walking law's gains, exact,
+    against central differences of the fixed points Newton finds with each gain moved (to 1e-5 relative:
+    Newton's residual, ~1e-12, over the step); l_leg, which moves the section, is refused."""
+    import copy
+
+    from biped_sim.analysis.gait import find_gait
+    g = walk_gait
+    d = g.derivatives(["controller.step_angle", "controller.kp", "m_torso"])
+    assert d.fixed_point.shape == (6, 3) and d.period.shape == (3,) and d.gain_derivative == "exact"
+    s = load_scene("walk")
+    kw = s.engine_arguments()
+    for j, (name, eps) in enumerate((("step_angle", 1e-5), ("kp", 1e-2))):
+        found = []
+        for sign in (1, -1):
+            c = copy.copy(g.step_map.controller)
+            setattr(c, name, getattr(c, name) + sign * eps)
+            found.append(find_gait(kw["model"], c, z0=g.z, touchdown_rule=kw["touchdown_rule"], tol=1e-12,
+                                   warmup_steps=0))
+        dz = (found[0].z - found[1].z) / (2 * eps)
+        dT = (found[0].period - found[1].period) / (2 * eps)
+        assert np.max(np.abs(d.fixed_point[:, j] - dz)) < 1e-5 * np.max(np.abs(dz))
+        assert abs(d.period[j] - dT) < 1e-5 * abs(dT)
+    with pytest.raises(ValueError, match="l_leg moves the section"):
+        g.derivatives(["l_leg"])
