@@ -135,3 +135,30 @@ def test_the_gait_moves_with_the_controller_gains_as_its_exact_derivative_says(w
         assert abs(d.period[j] - dT) < 1e-5 * abs(dT)
     with pytest.raises(ValueError, match="l_leg moves the section"):
         g.derivatives(["l_leg"])
+
+
+def test_the_docs_table_has_the_multipliers_of_every_shipped_gait():
+    """docs/gait.md's table of the shipped gaits (tools/docs_figures.py gait) has a row for every scene with a
+    gait, the compass gait's included (no torque), whose multipliers are the ones its command finds, and no row
+    for a scene without one."""
+    import re
+    from pathlib import Path
+
+    from biped_sim.config.controllers import no_torque
+    from biped_sim.config.scenes import available_scenes
+    page = (Path(__file__).resolve().parents[2] / "docs" / "gait.md").read_text()
+    table = page.split("<!-- docs-figures: multipliers -->")[1].split("<!-- /docs-figures -->")[0]
+    rows = {m[1]: m for m in re.finditer(r"^\| (\w+) \| `biped-sim gait --scene \1( --controller none)?` \| "
+                                         r"([^|]+) \|", table, re.M)}
+    for name in available_scenes():
+        scene = load_scene(name)
+        passive = scene.controller_params is None
+        try:
+            g = scene_gait(scene, controller=no_torque if passive else None)
+        except ValueError:
+            assert name not in rows
+            continue
+        assert bool(rows[name][2]) == passive
+        printed = [complex(v.replace(" ", "")) for v in rows[name][3].split(", ")]
+        assert np.max(np.abs(np.sort_complex(printed) - np.sort_complex(g.multipliers))) < 1e-6
+    assert "compass_gait" in rows
