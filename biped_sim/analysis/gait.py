@@ -150,6 +150,10 @@ class StepMap:
             why = sim.message or (ev.message if ev else f"no touchdown within {max_time} s")
             raise NoGait(f"the step from z={np.round(z, 6).tolist()} does not end in a touchdown: {why}")
         qe, dqp = ev.q, ev.dq_plus          # leg 2 is the new stance leg: relabel
+        if np.linalg.norm(self.model.foot_position(qe, 2) - self.model.foot_position(qe, 1)) < 1e-6:
+            # both legs as one (q_st = q_sw): the swing foot is on the ground where the stance foot is, at once
+            raise NoGait(f"the step from z={np.round(z, 6).tolist()} touches down where the stance foot is, "
+                         f"at t={ev.time:.3g} s (the legs together): not a step")
         return np.array([qe[3], qe[2], qe[4], dqp[3], dqp[2], dqp[4]]), sim
 
     def __call__(self, z):

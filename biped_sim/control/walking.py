@@ -178,6 +178,56 @@ class WalkingController:
         J[np.abs(u_star) >= self.torque_limit] = 0.0
         return J
 
+    def jacobian_batch(self, t, Q, DQ, stance_leg):
+        """(u (P, 2), d u / d(q, dq) (P, 2, 10)) at P states at once (Q, DQ: P x 5 arrays), as ``__call__`` and
+        ``jacobian`` give them point by point (engine/variational.py's stacks use it), from the stance KKT
+        system of the whole stack (``variational.stance_stack`` on this law's model); None in flight."""
+        if stance_leg == 0:
+            return None
+        from biped_sim.engine import variational
+        from biped_sim.engine.sensitivity import Linearization
+        lin = getattr(self, "_linearization", None)
+        if lin is None or lin.model is not self.model:
+            lin = self._linearization = Linearization(self.model)
+        s, w = (2, 3) if stance_leg == 1 else (3, 2)
+        P = Q.shape[0]
+        phi, dphi = Q[:, s] + Q[:, 4] - math.pi, DQ[:, s] + DQ[:, 4]
+        f, df, ddf = self.swing_target(phi)
+        H = np.zeros((P, 2, 3))
+        H[:, 0, 2] = 1.0
+        H[:, 1, 2] = 1.0 - df
+        H[:, 1, s - 2] = -df
+        H[:, 1, w - 2] = 1.0
+        y = np.stack([Q[:, 4] - self.torso_pitch, Q[:, w] + Q[:, 4] - math.pi - f], axis=1)
+        dy = np.einsum("pij,pj->pi", H, DQ[:, 2:5])
+        bias = np.stack([np.zeros(P), -ddf * dphi * dphi], axis=1)
+        _K, s0, su, derivative = variational.stance_stack(self.model, lin.k, Q, DQ, stance_leg)
+        HB = H @ su[:, 2:5, :]
+        rhs = -self.kp * y - self.kd * dy - np.einsum("pij,pj->pi", H, s0[:, 2:5]) - bias
+        u_star = np.linalg.solve(HB, rhs[:, :, None])[:, :, 0]
+        acc = s0 + np.einsum("pij,pj->pi", su, u_star)
+        dsq, dsv = derivative(acc)
+        d3f = 6.0 * self.clearance / self._a2
+        dphi_x = np.zeros(10)
+        dphi_x[s] = dphi_x[4] = 1.0
+        drate_x = np.zeros(10)
+        drate_x[5 + s] = drate_x[9] = 1.0
+        kp, kd = self.kp, self.kd
+        Phi_x = H @ np.concatenate([dsq[:, 2:5], dsv[:, 2:5]], axis=2)
+        Phi_x[:, 1] += np.outer(-ddf * (acc[:, s] + acc[:, 4]) - d3f * dphi * dphi - kp * df - kd * ddf * dphi,
+                                dphi_x)
+        Phi_x[:, 1] += np.outer(-2.0 * ddf * dphi - kd * df, drate_x)
+        Phi_x[:, 0, 4] += kp
+        Phi_x[:, 0, 9] += kd
+        Phi_x[:, 1, w] += kp
+        Phi_x[:, 1, 4] += kp
+        Phi_x[:, 1, 5 + w] += kd
+        Phi_x[:, 1, 9] += kd
+        UX = -np.linalg.solve(HB, Phi_x)
+        lim = self.torque_limit
+        UX[np.abs(u_star) >= lim] = 0.0
+        return np.clip(u_star, -lim, lim), UX
+
     def _computed_torque(self, q, dq, stance_leg):
         """(y, dy, H (2 x 3), H Bu, u* unclipped, (s, ds/dq, ds/ddq) of the stance KKT system at u*) in stance:
         the terms of ``jacobian`` and ``gain_jacobian`` (``Linearization.accelerations`` on this law's model)."""
@@ -374,6 +424,7 @@ def _clipped(G, u, limit, names):
 #: (set here, not in the class body: compiled_law's _runs_as lists the methods the C law replaces)
 PDWalkingController.jacobian = _pd_jacobian
 PDWalkingController.gain_jacobian = _pd_gain_jacobian
+PDWalkingController.jacobian_batch = None     # (not the computed torque's: point by point, ``jacobian``)
 
 
 def _runs_as(controller, cls, methods):

@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from biped_sim.engine import variational
 from biped_sim.engine._gen import derivatives as dgen
 from biped_sim.engine.compiled import gen
 from biped_sim.engine.dynamics import stance_floating_fast
@@ -57,6 +58,9 @@ CONTROLLER_PREFIX = "controller."
 LAW_EXACT = "exact"
 LAW_FD = "finite differences of the law"
 LAW_NONE = "none (torque held constant)"
+#: run_jacobian's ``integration``: the engine's own accepted steps differentiated (engine/variational.py), or
+#: the augmented system integrated on its own by scipy's solve_ivp
+STEPS, SOLVE_IVP = "steps", "solve_ivp"
 #: the event kinds a run is linearised through (a scuff is a report, not a change of mode)
 LINEARISED_EVENTS = ("touchdown", "liftoff")
 #: (the last model parameters and state asked, Linearization._affine's terms there): shared by every
@@ -349,12 +353,13 @@ class RunSensitivity:
     law_derivative: str         # LAW_EXACT, LAW_FD or LAW_NONE
     parameters: tuple           # the names of the parameter columns (the last columns of ``jacobian``)
     gain_derivative: str = ""   # by the controller's gains: LAW_EXACT or LAW_FD ("" without gains)
+    integration: str = ""       # STEPS (the engine's own steps differentiated) or SOLVE_IVP
     simulator: object = field(repr=False, default=None)   # the engine's run (HybridSimulator)
 
 
 def run_jacobian(model, q0, dq0, t_final, controller=None, u=None, stance_leg=1, control_period=None,
                  directions=None, parameters=(), rtol=1e-12, atol=1e-12, end_at_event=False, method="dop853",
-                 **options) -> RunSensitivity:
+                 integration=STEPS, **options) -> RunSensitivity:
     """The state transition matrix of a run: d(q, dq)(t_final) / d(initial state, parameters).
 
     The run is the engine's (``HybridSimulator`` with ``options``, the same arguments as ``simulate``): under
@@ -367,7 +372,10 @@ the law alone by its attribute NAME; ``gain_derivative`` says which). ``end_at_e
 event, after the reset (a step map): the
     Jacobian is of the state just after it, and ``time_derivative`` that of its time. Events other than
     touchdowns of one foot and liftoffs (slips, both feet at once, pushes) have no linearisation here: a
-    ValueError says so."""
+    ValueError says so. ``integration``: ``STEPS`` (default) differentiates the engine's own accepted steps
+    where the run allows it (engine/variational.py: DOP853 on the floating base, stance phases joined by
+    touchdowns, continuous feedback or a constant torque, no parameters), else and with ``SOLVE_IVP`` the
+    augmented system is integrated on its own by scipy's DOP853."""
     parameters = tuple(parameters)
     model_names, gains = _split_parameters(parameters, controller)
     if controller is None and u is None:
@@ -407,10 +415,17 @@ event, after the reset (a step map): the
             integ.Sg[gains.index(name[len(CONTROLLER_PREFIX):]), m0 + j] = 1.0
         else:
             Sp[PARAMETER_NAMES.index(name), m0 + j] = 1.0
-    x, S, dtau = integ.run(sim.t0, x, S, Sp, stance_leg, events, t_end, end_at_event)
+    if integration not in (STEPS, SOLVE_IVP):
+        raise ValueError(f"integration must be {STEPS!r} or {SOLVE_IVP!r}, got {integration!r}")
+    if integration == STEPS and variational.eligible(sim, method, control_period, parameters, stance_leg, events,
+                                                     options):
+        x, S, dtau = variational.run(integ, sim, S, events, t_end, end_at_event)
+    else:
+        integration = SOLVE_IVP
+        x, S, dtau = integ.run(sim.t0, x, S, Sp, stance_leg, events, t_end, end_at_event)
     return RunSensitivity(t=t_end, q=x[:5], dq=x[5:], jacobian=S, time_derivative=dtau, events=events,
                           law_derivative=integ.law_derivative, parameters=parameters,
-                          gain_derivative=integ.gain_derivative, simulator=sim)
+                          gain_derivative=integ.gain_derivative, integration=integration, simulator=sim)
 
 
 class _Integration:

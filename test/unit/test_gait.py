@@ -87,6 +87,16 @@ def test_scene_without_controller_or_impacts_is_refused():
         scene_gait(load_scene("stance_fixed"))
 
 
+def test_a_step_with_the_legs_together_is_no_gait():
+    """The passive scene without torque has no gait: its steps end with the swing foot on the ground where the
+    stance foot is (the legs together, q_st = q_sw), which is no step: NoGait in one line, not a 'fixed point'
+    of zero length and period (which Newton's method on the exact Jacobian otherwise reaches)."""
+    from biped_sim.analysis.gait import NoGait
+    from biped_sim.config.controllers import no_torque
+    with pytest.raises(NoGait, match="the legs together"):
+        scene_gait(load_scene("passive"), controller=no_torque)
+
+
 def test_cli_gait(capsys):
     assert cli_main(["gait", "--scene", "slope"]) == 0
     out = capsys.readouterr().out

@@ -123,7 +123,8 @@ def engine_end(model, x0, t_final, stance_leg, controller, u, control_period, **
 
 
 def check_run_jacobian(model, z_or_x, t_final, stance_leg=1, foot=(0.0, 0.0), controller=None, u=None,
-                       control_period=None, differences=lambda fun, x: central(fun, x, eps=1e-6), **options):
+                       control_period=None, differences=lambda fun, x: central(fun, x, eps=1e-6),
+                       parameters=RUN_PARAMETERS, **options):
     """run_jacobian against central differences of the engine's run (the initial state by its joint coordinates
     in stance, with the foot kept where it is; by all ten numbers in flight; and the parameters RUN_PARAMETERS
     of the plant, the controller keeping its own model): agree to 1e-7 relative. Returns the run's events."""
@@ -132,16 +133,17 @@ def check_run_jacobian(model, z_or_x, t_final, stance_leg=1, foot=(0.0, 0.0), co
 
     x0 = start(np.asarray(z_or_x, float))
     r = run_jacobian(model, x0[:5], x0[5:], t_final, controller=controller, u=u, stance_leg=stance_leg,
-                     control_period=control_period, parameters=RUN_PARAMETERS, **options)
+                     control_period=control_period, parameters=parameters, **options)
     run = dict(stance_leg=stance_leg, controller=controller, u=u, control_period=control_period, **options)
     fd = differences(lambda v: engine_end(model, start(v), t_final, **run), z_or_x)
-    p0 = np.array([getattr(model.parameters, n) for n in RUN_PARAMETERS])
+    p0 = np.array([getattr(model.parameters, n) for n in parameters])
 
     def with_p(p):
-        m = BipedModel(replace(model.parameters, **dict(zip(RUN_PARAMETERS, p))))
+        m = BipedModel(replace(model.parameters, **dict(zip(parameters, p))))
         return engine_end(m, x0, t_final, **run)
 
-    fd = np.hstack([fd, differences(with_p, p0)])
+    if parameters:
+        fd = np.hstack([fd, differences(with_p, p0)])
     assert np.allclose(np.concatenate([r.q, r.dq]), engine_end(model, x0, t_final, **run), rtol=0, atol=1e-9)
     assert rel(r.jacobian, fd) < 1e-7
     return r
@@ -331,3 +333,29 @@ def test_a_user_law_without_derivatives_gets_differences_of_the_law_by_its_gains
         run_jacobian(MODEL, q0, dq0, 0.05, controller=WalkingController(MODEL), parameters=("controller.k",))
     with pytest.raises(ValueError, match="no controller"):
         run_jacobian(MODEL, q0, dq0, 0.05, parameters=("controller.kp",))
+
+
+@settings(max_examples=4, deadline=None, derandomize=True)
+@given(st.sampled_from([WalkingController, PDWalkingController]), SCALES, st.tuples(*[st.floats(-0.01, 0.01)] * 6),
+       st.sampled_from([0.12, 0.3]))
+@example(WalkingController, (1.0,) * 4, (0.0,) * 6, 0.3)
+def test_run_jacobian_on_the_engine_steps(law, scale, dz, t_final):
+    """By the initial state alone under continuous feedback (the step map's case), the engine's own accepted steps
+    differentiated (engine/variational.py; the computed-torque law's derivative on the whole stack, the PD law's
+    point by point): the last 80 ms of a step, its touchdown, and 40 ms or 220 ms of the next stance, against
+    central differences of the same run to 1e-7 and against the augmented system integrated by solve_ivp."""
+    model = model_with(scale)
+    ctrl = law(model)
+    q0, dq0 = WalkingController(model).initial_state()
+    sim = HybridSimulator(model, q0, dq0, rtol=1e-12, atol=1e-12)
+    sim.advance(0.4, controller=WalkingController(model))
+    z = np.concatenate([sim.q[2:], sim.dq[2:]]) + np.array(dz)
+    foot = tuple(model.foot_position(sim.q, 1))
+    r = check_run_jacobian(model, z, t_final, foot=foot, controller=ctrl, parameters=(),
+                           phases=frozenset({"stance", "impact"}))
+    assert r.integration == "steps" and r.law_derivative == LAW_EXACT
+    assert [kind for _t, kind, _leg in r.events] == ["touchdown"]
+    x0 = np.concatenate(stance_state(model, z[:3], z[3:], 1, foot=foot))
+    other = run_jacobian(model, x0[:5], x0[5:], t_final, controller=ctrl, integration="solve_ivp",
+                         phases=frozenset({"stance", "impact"}))
+    assert other.integration == "solve_ivp" and rel(r.jacobian, other.jacobian) < 1e-8
