@@ -206,7 +206,7 @@ class WalkingController:
         rhs = -self.kp * y - self.kd * dy - np.einsum("pij,pj->pi", H, s0[:, 2:5]) - bias
         u_star = np.linalg.solve(HB, rhs[:, :, None])[:, :, 0]
         acc = s0 + np.einsum("pij,pj->pi", su, u_star)
-        dsq, dsv = derivative(acc)
+        dsq, dsv, _ = derivative(acc)
         d3f = 6.0 * self.clearance / self._a2
         dphi_x = np.zeros(10)
         dphi_x[s] = dphi_x[4] = 1.0

@@ -340,10 +340,11 @@ def test_a_user_law_without_derivatives_gets_differences_of_the_law_by_its_gains
        st.sampled_from([0.12, 0.3]))
 @example(WalkingController, (1.0,) * 4, (0.0,) * 6, 0.3)
 def test_run_jacobian_on_the_engine_steps(law, scale, dz, t_final):
-    """By the initial state alone under continuous feedback (the step map's case), the engine's own accepted steps
-    differentiated (engine/variational.py; the computed-torque law's derivative on the whole stack, the PD law's
-    point by point): the last 80 ms of a step, its touchdown, and 40 ms or 220 ms of the next stance, against
-    central differences of the same run to 1e-7 and against the augmented system integrated by solve_ivp."""
+    """Under continuous feedback (the step map's case), by the initial state and the model's parameters, the
+    engine's own accepted steps differentiated (engine/variational.py; the computed-torque law's derivative on the
+    whole stack, the PD law's point by point): the last 80 ms of a step, its touchdown, and 40 ms or 220 ms of the
+    next stance, against central differences of the same run to 1e-7 and against the augmented system integrated
+    by solve_ivp."""
     model = model_with(scale)
     ctrl = law(model)
     q0, dq0 = WalkingController(model).initial_state()
@@ -351,11 +352,10 @@ def test_run_jacobian_on_the_engine_steps(law, scale, dz, t_final):
     sim.advance(0.4, controller=WalkingController(model))
     z = np.concatenate([sim.q[2:], sim.dq[2:]]) + np.array(dz)
     foot = tuple(model.foot_position(sim.q, 1))
-    r = check_run_jacobian(model, z, t_final, foot=foot, controller=ctrl, parameters=(),
-                           phases=frozenset({"stance", "impact"}))
+    r = check_run_jacobian(model, z, t_final, foot=foot, controller=ctrl, phases=frozenset({"stance", "impact"}))
     assert r.integration == "steps" and r.law_derivative == LAW_EXACT
     assert [kind for _t, kind, _leg in r.events] == ["touchdown"]
     x0 = np.concatenate(stance_state(model, z[:3], z[3:], 1, foot=foot))
     other = run_jacobian(model, x0[:5], x0[5:], t_final, controller=ctrl, integration="solve_ivp",
-                         phases=frozenset({"stance", "impact"}))
+                         parameters=RUN_PARAMETERS, phases=frozenset({"stance", "impact"}))
     assert other.integration == "solve_ivp" and rel(r.jacobian, other.jacobian) < 1e-8
