@@ -206,6 +206,8 @@ class WalkingController:
         rhs = -self.kp * y - self.kd * dy - np.einsum("pij,pj->pi", H, s0[:, 2:5]) - bias
         u_star = np.linalg.solve(HB, rhs[:, :, None])[:, :, 0]
         acc = s0 + np.einsum("pij,pj->pi", su, u_star)
+        # (for gain_jacobian_batch at the same stack, which the flow asks for next)
+        self._last_batch = ((Q.tobytes(), DQ.tobytes(), stance_leg), (y, dy, HB, u_star, acc, phi, dphi))
         dsq, dsv, _ = derivative(acc)
         d3f = 6.0 * self.clearance / self._a2
         dphi_x = np.zeros(10)
@@ -227,6 +229,37 @@ class WalkingController:
         lim = self.torque_limit
         UX[np.abs(u_star) >= lim] = 0.0
         return np.clip(u_star, -lim, lim), UX
+
+    def gain_jacobian_batch(self, t, Q, DQ, stance_leg, names):
+        """d u / d(gains ``names``) (P, 2, len(names)) at P states at once, as ``gain_jacobian`` gives it point by
+        point; None in flight."""
+        if stance_leg == 0:
+            return None
+        names = _checked_gains(self, names)
+        key = (Q.tobytes(), DQ.tobytes(), stance_leg)
+        last = getattr(self, "_last_batch", None)
+        if last is None or last[0] != key:
+            self.jacobian_batch(t, Q, DQ, stance_leg)
+        y, dy, HB, u_star, acc, phi, dphi = self._last_batch[1]
+        s = 2 if stance_leg == 1 else 3
+        Phi = np.zeros((Q.shape[0], 2, len(names)))
+        for j, name in enumerate(names):
+            if name == "kp":
+                Phi[:, :, j] = y
+            elif name == "kd":
+                Phi[:, :, j] = dy
+            elif name == "torso_pitch":
+                Phi[:, 0, j] = -self.kp
+            elif name != "torque_limit":    # row 2: -f' (ddq_s + ddq3) - f'' dphi^2 + kp y2 + kd dy2
+                f_t, df_t, ddf_t = self.target_derivatives(phi, name)
+                Phi[:, 1, j] = (-df_t * (acc[:, s] + acc[:, 4]) - ddf_t * dphi * dphi - self.kp * f_t
+                                - self.kd * df_t * dphi)
+        G = -np.linalg.solve(HB, Phi)
+        clipped = np.abs(u_star) >= self.torque_limit
+        G[clipped] = 0.0
+        if "torque_limit" in names:
+            G[:, :, names.index("torque_limit")][clipped] = np.sign(u_star)[clipped]
+        return G
 
     def _computed_torque(self, q, dq, stance_leg):
         """(y, dy, H (2 x 3), H Bu, u* unclipped, (s, ds/dq, ds/ddq) of the stance KKT system at u*) in stance:
@@ -425,6 +458,7 @@ def _clipped(G, u, limit, names):
 PDWalkingController.jacobian = _pd_jacobian
 PDWalkingController.gain_jacobian = _pd_gain_jacobian
 PDWalkingController.jacobian_batch = None     # (not the computed torque's: point by point, ``jacobian``)
+PDWalkingController.gain_jacobian_batch = None
 
 
 def _runs_as(controller, cls, methods):

@@ -35,7 +35,7 @@ of the law alone, each gain an attribute of the controller set to theta +- e and
 The run itself is the engine's (``HybridSimulator``: it decides which events happen). S is carried along
 the engine's own accepted steps, each DOP853 step differentiated (engine/variational.py), where the run
 allows it (stance phases joined by touchdowns on the floating base, continuous feedback or a constant
-torque, no gains); else the augmented system (x, S) is integrated again here with scipy's ``solve_ivp``
+torque); else the augmented system (x, S) is integrated again here with scipy's ``solve_ivp``
 (DOP853, tight tolerances: its error control covers S as well as x, and its dense output locates each of
 the engine's events on this trajectory), independently of the engine's two loops.
 """
@@ -376,7 +376,7 @@ event, after the reset (a step map): the
     touchdowns of one foot and liftoffs (slips, both feet at once, pushes) have no linearisation here: a
     ValueError says so. ``integration``: ``STEPS`` (default) differentiates the engine's own accepted steps
     where the run allows it (engine/variational.py: DOP853 on the floating base, stance phases joined by
-    touchdowns, continuous feedback or a constant torque, no gains), else and with ``SOLVE_IVP`` the
+    touchdowns, continuous feedback or a constant torque), else and with ``SOLVE_IVP`` the
     augmented system is integrated on its own by scipy's DOP853."""
     parameters = tuple(parameters)
     model_names, gains = _split_parameters(parameters, controller)
@@ -419,7 +419,7 @@ event, after the reset (a step map): the
             Sp[PARAMETER_NAMES.index(name), m0 + j] = 1.0
     if integration not in (STEPS, SOLVE_IVP):
         raise ValueError(f"integration must be {STEPS!r} or {SOLVE_IVP!r}, got {integration!r}")
-    if integration == STEPS and variational.eligible(sim, method, control_period, gains, stance_leg, events, options):
+    if integration == STEPS and variational.eligible(sim, method, control_period, stance_leg, events, options):
         x, S, dtau = variational.run(integ, sim, S, Sp, events, t_end, end_at_event)
     else:
         integration = SOLVE_IVP

@@ -2,15 +2,16 @@
 
 Owns ``run_jacobian``'s fast path (engine/sensitivity.py): a run in stance phases through touchdowns of one
 foot, on the floating base, by DOP853, under continuous feedback of a controller or a constant torque, by
-its initial state and the model's parameters (not the controller's gains). Each accepted step of the
+its initial state, the model's parameters and the controller's gains. Each accepted step of the
 engine's run, x_{k+1} = x_k + h sum_i b_i K_i with the stages K_i = f(x_k + h sum_j a_ij K_j), is
 differentiated as it stands (the derivative of the discrete step, "internal differentiation"):
 S_{k+1} = Phi_k S_k with
 
   Phi_k = I + h sum_i b_i Psi_i,   Psi_i = A(x_ki) (I + h sum_j a_ij Psi_j)
 
-(A = f_x + f_u u_x at the stage state x_ki), and by the parameters S_{k+1} = Phi_k S_k + Gamma_k with
-Gamma_k = h sum_i b_i Gamma_i, Gamma_i = A(x_ki) h sum_j a_ij Gamma_j + f_p(x_ki) W_p. The steps are the
+(A = f_x + f_u u_x at the stage state x_ki), and by the inputs S_{k+1} = Phi_k S_k + Gamma_k with
+Gamma_k = h sum_i b_i Gamma_i, Gamma_i = A(x_ki) h sum_j a_ij Gamma_j + f_p W_p + f_u u_theta W_theta (at
+x_ki). The steps are the
 engine's (its samples: every accepted step from its start, tolerances and error control), so no step is
 taken for S alone, and the stages of all the steps of a phase are evaluated together: the closed forms
 (``_gen/closed_forms.py``, ``_gen/derivatives.py``) run on numpy arrays of every step's stage state, the
@@ -147,9 +148,25 @@ def torques(controller, u_held, t, Q, DQ, leg):
     return U, UX, how
 
 
+def gain_torques(controller, t, Q, DQ, leg, gains):
+    """(d u/d(gains) (P,2,k), how) of the law at the points: its ``gain_jacobian_batch`` where it has one, else
+    point by point (``sensitivity.law_gain_jacobian``)."""
+    from biped_sim.engine.sensitivity import LAW_EXACT, law_gain_jacobian
+    batch = getattr(controller, "gain_jacobian_batch", None)
+    if batch is not None:
+        out = batch(t, Q, DQ, leg, gains)
+        if out is not None:
+            return out, LAW_EXACT
+    UG = np.zeros((Q.shape[0], 2, len(gains)))
+    how = None
+    for p in range(Q.shape[0]):
+        UG[p], how = law_gain_jacobian(controller, t[p], Q[p], DQ[p], leg, gains)
+    return UG, how
+
+
 def flows(model, k_derivatives, controller, u_held, t, X, leg, parameters=False):
-    """(f (P,10), A (P,10,10), f_p (P,10,9) or None, how) of stance on ``leg`` at the points X (P,10) at
-    times t (P)."""
+    """(f (P,10), A (P,10,10), f_p (P,10,9) or None, f_u (P,10,2), how) of stance on ``leg`` at the points X
+    (P,10) at times t (P)."""
     Q, DQ = np.ascontiguousarray(X[:, :5]), np.ascontiguousarray(X[:, 5:])
     U, UX, how = torques(controller, u_held, t, Q, DQ, leg)
     _K, s0, su, derivative = stance_stack(model, k_derivatives, Q, DQ, leg)
@@ -166,7 +183,9 @@ def flows(model, k_derivatives, controller, u_held, t, X, leg, parameters=False)
     if parameters:
         fp = np.zeros((P, 10, dsp.shape[2]))
         fp[:, 5:] = dsp[:, :5]
-    return f, A, fp, how
+    fu = np.zeros((P, 10, 2))
+    fu[:, 5:] = su[:, :5]
+    return f, A, fp, fu, how
 
 
 def _tableau():
@@ -174,36 +193,44 @@ def _tableau():
     return c.A[:12, :12], c.B, c.C[:12]
 
 
-def steps_transition(model, k_derivatives, controller, u_held, t0, X0, H, leg, Wp=None):
+def steps_transition(model, k_derivatives, controller, u_held, t0, X0, H, leg, Wp=None, gains=(), Wg=None):
     """The DOP853 steps of sizes H (N) from the states X0 (N,10) at times t0 (N), all on stance ``leg``:
     (their end states (N,10), Phi (N,10,10) the derivative of each step's end state by its start, Gamma
-    (N,10,m) its derivative by the parameters' directions ``Wp`` (9 x m; None: no parameters), how)."""
+    (N,10,m) its derivative by the parameters' directions ``Wp`` (9 x m) and the controller's ``gains``'
+    ``Wg`` (k x m) (None without either), how, the gains' how)."""
     a, b, c = _tableau()
     N = X0.shape[0]
     Kf = np.zeros((12, N, 10))
     Psi = np.zeros((12, N, 10, 10))
-    Gam = None if Wp is None else np.zeros((12, N, 10, Wp.shape[1]))
+    m = Wp.shape[1] if Wp is not None else (Wg.shape[1] if gains else 0)
+    Gam = np.zeros((12, N, 10, m)) if m else None
     eye = np.eye(10)
-    how = None
+    how = gain_how = None
     for i in range(12):
+        ti = t0 + c[i] * H
         Xi = X0 + H[:, None] * np.einsum("j,jpn->pn", a[i, :i], Kf[:i])
         Mi = eye + H[:, None, None] * np.einsum("j,jpmn->pmn", a[i, :i], Psi[:i])
-        f, A, fp, how = flows(model, k_derivatives, controller, u_held, t0 + c[i] * H, Xi, leg, Wp is not None)
+        f, A, fp, fu, how = flows(model, k_derivatives, controller, u_held, ti, Xi, leg, Wp is not None)
         Kf[i] = f
         Psi[i] = A @ Mi
         if Gam is not None:
-            Gam[i] = A @ (H[:, None, None] * np.einsum("j,jpmn->pmn", a[i, :i], Gam[:i])) + fp @ Wp
+            Gam[i] = A @ (H[:, None, None] * np.einsum("j,jpmn->pmn", a[i, :i], Gam[:i]))
+            if Wp is not None:
+                Gam[i] += fp @ Wp
+            if gains:
+                Q, DQ = np.ascontiguousarray(Xi[:, :5]), np.ascontiguousarray(Xi[:, 5:])
+                UG, gain_how = gain_torques(controller, ti, Q, DQ, leg, gains)
+                Gam[i] += fu @ (UG @ Wg)
     X1 = X0 + H[:, None] * np.einsum("j,jpn->pn", b, Kf)
     Phi = eye + H[:, None, None] * np.einsum("j,jpmn->pmn", b, Psi)
     Gamma = None if Gam is None else H[:, None, None] * np.einsum("j,jpmn->pmn", b, Gam)
-    return X1, Phi, Gamma, how
+    return X1, Phi, Gamma, how, gain_how
 
 
-def eligible(sim, method, control_period, gains, stance_leg, events, options):
+def eligible(sim, method, control_period, stance_leg, events, options):
     """Whether ``run_jacobian``'s run takes this path: DOP853 on the floating base, stance phases (no flight)
-    joined by touchdowns, continuous feedback or a constant torque, by the initial state and the model's
-    parameters (no gains)."""
-    return (method == "dop853" and control_period is None and not gains and stance_leg in (1, 2)
+    joined by touchdowns, continuous feedback or a constant torque."""
+    return (method == "dop853" and control_period is None and stance_leg in (1, 2)
             and options.get("base", "floating") == "floating" and sim.opt.keep_samples
             and all(kind == "touchdown" for _t, kind, _leg in events))
 
@@ -230,10 +257,13 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
         H = np.array(ends) - t[idx]
         keep = H > 0
         if keep.any():
-            X1, Phi, Gamma, how = steps_transition(lin.model, lin.k, integ.controller, integ.u_held, t[idx][keep],
-                                                   X[idx][keep], H[keep], leg, Wp)
+            X1, Phi, Gamma, how, gain_how = steps_transition(
+                lin.model, lin.k, integ.controller, integ.u_held, t[idx][keep], X[idx][keep], H[keep], leg, Wp,
+                integ.gains, integ.Sg)
             if how is not None:
                 integ.law_derivative = how
+            if gain_how is not None:
+                integ.gain_derivative = gain_how
             for k in range(Phi.shape[0]):
                 S = Phi[k] @ S if Gamma is None else Phi[k] @ S + Gamma[k]
             x = X1[-1]

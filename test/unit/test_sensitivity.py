@@ -303,6 +303,7 @@ def test_run_jacobian_by_the_controller_gains_through_a_touchdown(law, scale, pe
     r = check_gain_jacobian(MODEL, ctrl, x0, 0.12, control_period=period, phases=frozenset({"stance", "impact"}))
     assert [kind for _t, kind, _leg in r.events] == ["touchdown"]
     assert r.gain_derivative == LAW_EXACT and r.parameters[-4:] == GAIN_PARAMETERS
+    assert r.integration == ("steps" if period is None else "solve_ivp")
 
 
 class UserLaw:
