@@ -181,8 +181,10 @@ class WalkingController:
     def jacobian_batch(self, t, Q, DQ, stance_leg):
         """(u (P, 2), d u / d(q, dq) (P, 2, 10)) at P states at once (Q, DQ: P x 5 arrays), as ``__call__`` and
         ``jacobian`` give them point by point (engine/variational.py's stacks use it), from the stance KKT
-        system of the whole stack (``variational.stance_stack`` on this law's model); None in flight."""
-        if stance_leg == 0:
+        system of the whole stack (``variational.stance_stack`` on this law's model); None in flight, or where
+        a subclass or the instance replaces a method of the law or ``jacobian`` (then ``jacobian`` point by
+        point)."""
+        if stance_leg == 0 or not _own_law(self, "jacobian"):
             return None
         from biped_sim.engine import variational
         from biped_sim.engine.sensitivity import Linearization
@@ -232,8 +234,9 @@ class WalkingController:
 
     def gain_jacobian_batch(self, t, Q, DQ, stance_leg, names):
         """d u / d(gains ``names``) (P, 2, len(names)) at P states at once, as ``gain_jacobian`` gives it point by
-        point; None in flight."""
-        if stance_leg == 0:
+        point; None in flight, or where a subclass or the instance replaces a method of the law or
+        ``gain_jacobian`` (then ``gain_jacobian`` point by point)."""
+        if stance_leg == 0 or not _own_law(self, "gain_jacobian"):
             return None
         names = _checked_gains(self, names)
         key = (Q.tobytes(), DQ.tobytes(), stance_leg)
@@ -433,6 +436,13 @@ def _pd_gain_jacobian(self, t, q, dq, stance_leg, names):
     u = self(t, q, dq, stance_leg)
     G = np.array([stance, swing] if stance_leg == 1 else [swing, stance])
     return _clipped(G, np.asarray(u, float), self.torque_limit, names)
+
+
+def _own_law(controller, derivative):
+    """Whether ``controller`` runs WalkingController's own computed-torque law and ``derivative`` (none of the
+    methods replaced by a subclass or on the instance), which the stacked derivatives reproduce."""
+    return all(getattr(type(controller), name) is getattr(WalkingController, name) and name not in vars(controller)
+               for name in ("__call__", "outputs", "swing_target", "target_derivatives", derivative))
 
 
 def _checked_gains(controller, names):

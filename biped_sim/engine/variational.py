@@ -243,7 +243,8 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
     res = sim.result()
     t, X, legs = res.t, np.hstack([res.q, res.dq]), res.stance_leg
     if np.any(legs == 0):
-        raise ValueError("a flight phase: not on this path")
+        raise ValueError("the run has a flight phase, which the engine's steps are not differentiated through: "
+                         "run_jacobian(..., integration='solve_ivp')")
     Su = np.zeros((2, S.shape[1]))
     Wp = Sp if integ.parameters else None
     leg, t_start = int(legs[0]), float(t[0])

@@ -360,3 +360,28 @@ def test_run_jacobian_on_the_engine_steps(law, scale, dz, t_final):
     other = run_jacobian(model, x0[:5], x0[5:], t_final, controller=ctrl, integration="solve_ivp",
                          parameters=RUN_PARAMETERS, phases=frozenset({"stance", "impact"}))
     assert other.integration == "solve_ivp" and rel(r.jacobian, other.jacobian) < 1e-8
+
+
+def test_the_stacked_law_derivatives_are_the_law_point_by_point():
+    """WalkingController's jacobian_batch and gain_jacobian_batch (engine/variational.py's stacks) give its torque
+    and derivatives at each state of the stack as __call__, jacobian and gain_jacobian do one by one (either stance
+    leg); a subclass that replaces the law gets None (its own methods point by point)."""
+    ctrl = WalkingController(MODEL)
+    q0, dq0 = ctrl.initial_state()
+    rng = np.random.default_rng(7)
+    Q, DQ = q0 + rng.normal(size=(6, 5)) * 0.05, dq0 + rng.normal(size=(6, 5)) * 0.3
+    names = list(ctrl.GAINS)
+    for leg in (1, 2):
+        U, UX = ctrl.jacobian_batch(np.zeros(6), Q, DQ, leg)
+        UG = ctrl.gain_jacobian_batch(np.zeros(6), Q, DQ, leg, names)
+        for p in range(6):
+            assert np.allclose(U[p], ctrl(0.0, Q[p], DQ[p], leg), rtol=1e-12, atol=1e-9)
+            assert rel(UX[p], ctrl.jacobian(0.0, Q[p], DQ[p], leg)) < 1e-10
+            assert rel(UG[p], ctrl.gain_jacobian(0.0, Q[p], DQ[p], leg, names)) < 1e-10
+
+    class Halved(WalkingController):
+        def __call__(self, t, q, dq, stance_leg):
+            return 0.5 * super().__call__(t, q, dq, stance_leg)
+
+    assert Halved(MODEL).jacobian_batch(np.zeros(6), Q, DQ, 1) is None
+    assert Halved(MODEL).gain_jacobian_batch(np.zeros(6), Q, DQ, 1, names) is None
