@@ -1,15 +1,18 @@
 """The exact Jacobian of the step map against finite differences: ``python -m benchmarks.bench_sensitivity``.
 
-Owns the timings of issue 32 (no assertions: the machine is shared), each the median of ``repeats``:
+Owns the timings of issue 32 (no assertions: the machine is shared), each the median of ``repeats``, the
+rows of each group measured in alternation:
 
-* the walk scene's gait: the 5 x 5 Jacobian of its step map at the fixed point, exact
-  (``StepMap.jacobian``: one run of the variational equations with the saltation matrix of the impact)
-  against central differences (``StepMap.jacobian_fd``: 10 runs of the engine);
-* one step of the walk gait with its Jacobian (``run_jacobian``: the engine's run, then the augmented
-  system (x, S) with S 10 x 6, integrated by scipy's DOP853 in Python) against one step without (the
-  engine's run, ``StepMap.run``, on the compiled loop where it is built) and against the same step by the
-  same integrator without S (scipy's DOP853 on x alone, the same right-hand side in Python): the first
-  ratio is what a user pays, the second what the variational equations cost in one machinery.
+* the walk scene's gait: the 5 x 5 Jacobian of its step map at the fixed point, exact (``StepMap.jacobian``:
+  ``run_jacobian`` on the engine's own accepted steps, engine/variational.py, the default; and the augmented
+  system integrated on its own by scipy's solve_ivp, ``integration="solve_ivp"``) against central
+  differences (``StepMap.jacobian_fd``: 10 runs of the engine); the row "exact / central differences" is
+  issue 32's first ratio (its goal: <= 0.1);
+* one step of the walk gait with its Jacobian (``run_jacobian``, S 10 x 6: the engine's run, then S on its
+  steps) against one step without (the engine's run, ``StepMap.run``, on the compiled loop where it is
+  built): the row "step with its Jacobian / step" is issue 32's second ratio (its goal: <= 3, n = 10);
+  and the same step by scipy's DOP853 on x alone in Python (the right-hand side the solve_ivp path
+  integrates, without S).
 """
 from __future__ import annotations
 
@@ -18,19 +21,10 @@ import time
 
 import numpy as np
 
-from biped_sim.analysis.gait import scene_gait
+from biped_sim.analysis.gait import RELABELED_ROWS, scene_gait
 from biped_sim.engine.compiled import IMPLEMENTATION
 from biped_sim.engine.dynamics import stance_floating_fast
-from biped_sim.engine.sensitivity import run_jacobian
-
-
-def median_seconds(fn, repeats):
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+from biped_sim.engine.sensitivity import SOLVE_IVP, STEPS, run_jacobian
 
 
 def plain_step_in_python(smap, z, rtol, atol):
@@ -52,28 +46,48 @@ def plain_step_in_python(smap, z, rtol, atol):
                      events=touchdown, dense_output=True)
 
 
+def alternating(fns, repeats):
+    """The median seconds of each of ``fns`` (a dict), measured in alternation."""
+    times = {k: [] for k in fns}
+    for _ in range(repeats):
+        for k, fn in fns.items():
+            t0 = time.perf_counter()
+            fn()
+            times[k].append(time.perf_counter() - t0)
+    return {k: statistics.median(v) for k, v in times.items()}
+
+
 def main():
-    repeats = 5
+    repeats = 7
     g = scene_gait("walk")
     smap, z = g.step_map, g.fixed_point
     U, _ = smap.basis(z)
-    exact = median_seconds(lambda: smap.jacobian(z, U), repeats)
-    fd = median_seconds(lambda: smap.jacobian_fd(z, U), repeats)
-    print(f"walk gait (generated code {IMPLEMENTATION}; law derivative: {g.law_derivative}): 5 x 5 Jacobian of the "
-          f"step map exact {exact * 1e3:.1f} ms, central differences {fd * 1e3:.1f} ms "
-          f"(exact / differences = {exact / fd:.2f}; issue 32's goal: <= 0.1)")
     q, dq = smap.state(z)
     kw = smap.kw
-    with_jacobian = median_seconds(lambda: run_jacobian(smap.model, q, dq, 5.0, controller=smap.controller,
-                                                        end_at_event=True, **kw), repeats)
-    engine_step = median_seconds(lambda: smap.run(z), repeats)
-    python_step = median_seconds(lambda: plain_step_in_python(smap, z, kw["rtol"], kw["atol"]), repeats)
-    print(f"one step of the walk gait (n = 10 states, S 10 x 6): with its Jacobian {with_jacobian * 1e3:.1f} ms, "
-          f"without on the engine {engine_step * 1e3:.2f} ms (ratio {with_jacobian / engine_step:.1f}), "
-          f"without by the same Python DOP853 {python_step * 1e3:.1f} ms (ratio {with_jacobian / python_step:.1f}); "
-          "issue 32's goal: <= 3")
-    return dict(exact_s=exact, fd_s=fd, step_with_jacobian_s=with_jacobian, engine_step_s=engine_step,
-                python_step_s=python_step)
+
+    def exact(integration):
+        run_jacobian(smap.model, q, dq, 5.0, controller=smap.controller, end_at_event=True, integration=integration,
+                     **kw)
+    m = alternating({"exact": lambda: smap.jacobian(z, U), "fd": lambda: smap.jacobian_fd(z, U),
+                     "exact_ivp": lambda: U.T @ run_jacobian(smap.model, q, dq, 5.0, controller=smap.controller,
+                                                             end_at_event=True, integration=SOLVE_IVP,
+                                                             **kw).jacobian[RELABELED_ROWS] @ U}, repeats)
+    print(f"walk gait (generated code {IMPLEMENTATION}; law derivative: {g.law_derivative}), 5 x 5 Jacobian of the "
+          f"step map, medians of {repeats}:")
+    print(f"  exact on the engine's steps      {m['exact'] * 1e3:8.2f} ms")
+    print(f"  exact by solve_ivp               {m['exact_ivp'] * 1e3:8.2f} ms")
+    print(f"  central differences (10 runs)    {m['fd'] * 1e3:8.2f} ms")
+    print(f"  exact / central differences      {m['exact'] / m['fd']:8.2f}     (solve_ivp's: "
+          f"{m['exact_ivp'] / m['fd']:.2f}; issue 32's goal: <= 0.1)")
+    s = alternating({"with": lambda: exact(STEPS), "engine": lambda: smap.run(z),
+                     "python": lambda: plain_step_in_python(smap, z, kw["rtol"], kw["atol"])}, repeats)
+    print("one step of the walk gait (n = 10 states, S 10 x 6):")
+    print(f"  with its Jacobian                {s['with'] * 1e3:8.2f} ms")
+    print(f"  without, on the engine           {s['engine'] * 1e3:8.2f} ms")
+    print(f"  without, scipy DOP853 in Python  {s['python'] * 1e3:8.2f} ms")
+    print(f"  step with its Jacobian / step    {s['with'] / s['engine']:8.2f}     (issue 32's goal: <= 3)")
+    return dict(exact_s=m["exact"], exact_solve_ivp_s=m["exact_ivp"], fd_s=m["fd"], step_with_jacobian_s=s["with"],
+                engine_step_s=s["engine"], python_step_s=s["python"])
 
 
 if __name__ == "__main__":

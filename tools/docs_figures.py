@@ -76,29 +76,36 @@ def scaling():
 
 
 def gait():
-    """docs/gait.md: the multipliers of every scene's gait (exact, and the largest difference from central
-    differences of the same map), and docs/gait_multipliers.png, the walk scene's multipliers along its slope."""
+    """docs/gait.md: the multipliers of every shipped scene's gait (exact, and the largest difference from central
+    differences of the same map), each with the command that prints it: the scene's controller, or for a
+    scene without one, no torque (``--controller none``: the compass gait's passive gait); a scene with no
+    gait (no impacts, or no periodic step from its start) is left out with its reason printed. And
+    docs/gait_multipliers.png, the walk scene's multipliers along its slope."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
 
     from biped_sim.analysis.gait import gaits_along, scene_gait
+    from biped_sim.config.controllers import no_torque
     from biped_sim.config.scenes import available_scenes, load_scene
 
-    rows = ["| scene | multipliers (exact) | max \\|exact - central differences\\| | period (s) |",
-            "| --- | --- | --- | --- |"]
+    rows = ["| scene | command | multipliers (exact) | max \\|exact - central differences\\| | period (s) |",
+            "| --- | --- | --- | --- | --- |"]
     for name in available_scenes():
+        scene = load_scene(name)
+        passive = scene.controller_params is None
+        command = f"`biped-sim gait --scene {name}" + (" --controller none`" if passive else "`")
         try:
-            g = scene_gait(load_scene(name))
-        except ValueError as exc:       # no controller, or no impacts: no gait
-            print(f"  {name}: {exc}")
+            g = scene_gait(scene, controller=no_torque if passive else None)
+        except ValueError as exc:       # no impacts, or no periodic step (NoGait): no gait
+            print(f"  {name}: no gait: {str(exc).splitlines()[0]}")
             continue
         fd = np.linalg.eigvals(g.jacobian_fd())
         diff = np.max(np.abs(np.sort_complex(g.multipliers) - np.sort_complex(fd)))
         mults = ", ".join(f"{m.real:.7f}" if abs(m.imag) < 1e-12 else f"{m.real:.7f} {m.imag:+.7f}j"
                           for m in g.multipliers)
-        rows.append(f"| {name} | {mults} | {diff:.1e} | {g.period:.6f} |")
+        rows.append(f"| {name} | {command} | {mults} | {diff:.1e} | {g.period:.6f} |")
     splice(DOCS / "gait.md", "multipliers", "\n".join(rows))
     slopes = np.round(np.arange(0.0, 0.0501, 0.0025), 4)
     found = [(v, g) for v, g, _why in gaits_along("walk", "slope", slopes) if g is not None]

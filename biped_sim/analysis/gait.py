@@ -20,8 +20,11 @@ then the relabeling), at the cost of about one run; ``StepMap.jacobian_fd`` take
 of the same map (2 x 5 runs), kept as a check.
 
 The fixed point is found by Newton's method on U^T (P(z) - z) = 0 with the exact Jacobian, each
-iterate projected back onto h = 0. The step map P integrates one stance phase with the controller
-until the swing foot touches down (the engine's touchdown guard and impact map).
+iterate projected back onto h = 0. Its derivative by a parameter theta (a controller's gain
+"controller.NAME", or a model parameter that leaves the section where it is) follows from
+P(z*(theta), theta) = z*(theta): dz*/dtheta = U (I - A)^-1 U^T dP/dtheta (``Gait.derivatives``).
+The step map P integrates one stance phase with the controller until the swing foot touches down (the
+engine's touchdown guard and impact map).
 """
 from __future__ import annotations
 
@@ -83,6 +86,35 @@ class Gait:
         U, _ = self.step_map.basis(self.z)
         return self.step_map.jacobian_fd(self.z, U, eps)
 
+    def derivatives(self, parameters) -> "GaitDerivatives":
+        """How the gait moves with ``parameters`` (``run_jacobian``'s names: a controller's gain
+        "controller.NAME", or a model parameter but ``l_leg``, which moves the section itself), exact: the
+        fixed point's dz*/dtheta = U (I - A)^-1 U^T dP/dtheta and the period's dT/dtheta = T_z dz*/dtheta + T_theta,
+        from one run of the step's variational equations at z*."""
+        parameters = tuple(parameters)
+        if "l_leg" in parameters:
+            raise ValueError("Gait.derivatives: l_leg moves the section (both feet on the ground) itself; the "
+                             "other model parameters and the controller's gains are at hand")
+        smap = self.step_map
+        U, _ = smap.basis(self.z)
+        r = smap.sensitivity(self.z, parameters)
+        J, k = r.jacobian[RELABELED_ROWS], len(parameters)
+        A = U.T @ J[:, :6] @ U
+        dz = U @ np.linalg.solve(np.eye(U.shape[1]) - A, U.T @ J[:, 6:])
+        dT = r.time_derivative[:6] @ dz + r.time_derivative[6:]
+        return GaitDerivatives(parameters=parameters, fixed_point=dz.reshape(6, k), period=np.asarray(dT).reshape(k),
+                               law_derivative=r.law_derivative, gain_derivative=r.gain_derivative)
+
+
+@dataclass
+class GaitDerivatives:
+    """``Gait.derivatives``: the gait's fixed point and period differentiated by ``parameters``."""
+    parameters: tuple
+    fixed_point: np.ndarray       # dz*/dtheta, 6 x len(parameters)
+    period: np.ndarray            # dT/dtheta (s per unit), len(parameters)
+    law_derivative: str           # the law's derivative by the state (sensitivity.LAW_*)
+    gain_derivative: str          # by its gains (sensitivity.LAW_*; "" without gains)
+
 
 class NoGait(ValueError):
     """A step of the map that does not end in the swing foot's touchdown (the controller does not walk from
@@ -118,6 +150,10 @@ class StepMap:
             why = sim.message or (ev.message if ev else f"no touchdown within {max_time} s")
             raise NoGait(f"the step from z={np.round(z, 6).tolist()} does not end in a touchdown: {why}")
         qe, dqp = ev.q, ev.dq_plus          # leg 2 is the new stance leg: relabel
+        if np.linalg.norm(self.model.foot_position(qe, 2) - self.model.foot_position(qe, 1)) < 1e-6:
+            # both legs as one (q_st = q_sw): the swing foot is on the ground where the stance foot is, at once
+            raise NoGait(f"the step from z={np.round(z, 6).tolist()} touches down where the stance foot is, "
+                         f"at t={ev.time:.3g} s (the legs together): not a step")
         return np.array([qe[3], qe[2], qe[4], dqp[3], dqp[2], dqp[4]]), sim
 
     def __call__(self, z):
@@ -145,17 +181,22 @@ class StepMap:
             z[0:3] -= h * grad / (grad @ grad)
         return z
 
-    def full_jacobian(self, z, max_time=5.0):
-        """(dP/dz (6 x 6), the law's derivative): exact, from the step's state transition matrix
-        (``engine.sensitivity.run_jacobian`` to the touchdown and through its impact map; the initial
-        perturbations are z's own coordinates, the stance foot held at the origin)."""
+    def sensitivity(self, z, parameters=(), max_time=5.0):
+        """The step's ``RunSensitivity`` (``engine.sensitivity.run_jacobian`` to the touchdown and through its
+        impact map; the initial perturbations are z's own coordinates, the stance foot held at the origin, then
+        ``parameters``); its rows are physical: ``RELABELED_ROWS`` picks the next section point's."""
         q, dq = self.state(np.asarray(z, float))
         r = run_jacobian(self.model, q, dq, max_time, controller=self.controller, stance_leg=1, end_at_event=True,
-                         **self.kw)
+                         parameters=parameters, **self.kw)
         kind, leg = r.events[-1][1:] if r.events else (None, None)
         if kind != "touchdown" or leg != 2:
             raise NoGait(f"the step from z={np.round(z, 6).tolist()} does not end in a touchdown of leg 2 "
                                f"(events {r.events})")
+        return r
+
+    def full_jacobian(self, z, max_time=5.0):
+        """(dP/dz (6 x 6), the law's derivative): exact (``sensitivity``)."""
+        r = self.sensitivity(z, max_time=max_time)
         return r.jacobian[RELABELED_ROWS], r.law_derivative
 
     def jacobian(self, z, U):

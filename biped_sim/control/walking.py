@@ -48,6 +48,9 @@ class WalkingController:
     q and dq may be numpy arrays or lists (the engine gives lists).
     """
 
+    #: the gains a run can be differentiated by (``gain_jacobian``; ``run_jacobian``'s "controller.NAME")
+    GAINS = ("kp", "kd", "torso_pitch", "step_angle", "clearance", "lag", "torque_limit")
+
     def __init__(self, model: BipedModel, torso_pitch=0.15, step_angle=0.2, clearance=0.5, lag=-0.04,
                  kp=200.0, kd=30.0, torque_limit=500.0):
         if step_angle <= 0:
@@ -145,19 +148,10 @@ class WalkingController:
         if stance_leg == 0:     # flight: u = -kd (dq1, dq2)
             J[0, 7] = J[1, 8] = -self.kd
             return J
-        from biped_sim.engine.sensitivity import Linearization
-        lin = getattr(self, "_linearization", None)
-        if lin is None or lin.model is not self.model:
-            lin = self._linearization = Linearization(self.model)
         q = [float(v) for v in q]
         dq = [float(v) for v in dq]
         s, w = (2, 3) if stance_leg == 1 else (3, 2)
-        y, dy, (H1, H2), bias = self.outputs(q, dq, stance_leg)
-        H = np.array([H1, H2])
-        a0, _dq0, _dv0, dsu, _ = lin.accelerations(q, dq, (0.0, 0.0), stance_leg)
-        HB = H @ dsu[2:5]           # H Bu: ddq_r = a + Bu u
-        u_star = np.linalg.solve(HB, -self.kp * np.array(y) - self.kd * np.array(dy) - H @ a0[2:5] - np.array(bias))
-        acc, dsq, dsv, _dsu, _ = lin.accelerations(q, dq, u_star, stance_leg)
+        y, dy, H, HB, u_star, (acc, dsq, dsv) = self._computed_torque(q, dq, stance_leg)
         ddq_r = acc[2:5]
         phi, dphi = q[s] + q[4] - math.pi, dq[s] + dq[4]
         _f, df, ddf = self.swing_target(phi)
@@ -183,6 +177,156 @@ class WalkingController:
         J = -np.linalg.solve(HB, Phi_x)
         J[np.abs(u_star) >= self.torque_limit] = 0.0
         return J
+
+    def jacobian_batch(self, t, Q, DQ, stance_leg):
+        """(u (P, 2), d u / d(q, dq) (P, 2, 10)) at P states at once (Q, DQ: P x 5 arrays), as ``__call__`` and
+        ``jacobian`` give them point by point (engine/variational.py's stacks use it), from the stance KKT
+        system of the whole stack (``variational.stance_stack`` on this law's model); None in flight, or where
+        a subclass or the instance replaces a method of the law or ``jacobian`` (then ``jacobian`` point by
+        point)."""
+        if stance_leg == 0 or not _own_law(self, "jacobian"):
+            return None
+        from biped_sim.engine import variational
+        from biped_sim.engine.sensitivity import Linearization
+        lin = getattr(self, "_linearization", None)
+        if lin is None or lin.model is not self.model:
+            lin = self._linearization = Linearization(self.model)
+        s, w = (2, 3) if stance_leg == 1 else (3, 2)
+        P = Q.shape[0]
+        phi, dphi = Q[:, s] + Q[:, 4] - math.pi, DQ[:, s] + DQ[:, 4]
+        f, df, ddf = self.swing_target(phi)
+        H = np.zeros((P, 2, 3))
+        H[:, 0, 2] = 1.0
+        H[:, 1, 2] = 1.0 - df
+        H[:, 1, s - 2] = -df
+        H[:, 1, w - 2] = 1.0
+        y = np.stack([Q[:, 4] - self.torso_pitch, Q[:, w] + Q[:, 4] - math.pi - f], axis=1)
+        dy = np.einsum("pij,pj->pi", H, DQ[:, 2:5])
+        bias = np.stack([np.zeros(P), -ddf * dphi * dphi], axis=1)
+        _K, s0, su, derivative = variational.stance_stack(self.model, lin.k, Q, DQ, stance_leg)
+        HB = H @ su[:, 2:5, :]
+        rhs = -self.kp * y - self.kd * dy - np.einsum("pij,pj->pi", H, s0[:, 2:5]) - bias
+        u_star = np.linalg.solve(HB, rhs[:, :, None])[:, :, 0]
+        acc = s0 + np.einsum("pij,pj->pi", su, u_star)
+        # (for gain_jacobian_batch at the same stack, which the flow asks for next)
+        self._last_batch = ((Q.tobytes(), DQ.tobytes(), stance_leg), (y, dy, HB, u_star, acc, phi, dphi))
+        dsq, dsv, _ = derivative(acc)
+        d3f = 6.0 * self.clearance / self._a2
+        dphi_x = np.zeros(10)
+        dphi_x[s] = dphi_x[4] = 1.0
+        drate_x = np.zeros(10)
+        drate_x[5 + s] = drate_x[9] = 1.0
+        kp, kd = self.kp, self.kd
+        Phi_x = H @ np.concatenate([dsq[:, 2:5], dsv[:, 2:5]], axis=2)
+        Phi_x[:, 1] += np.outer(-ddf * (acc[:, s] + acc[:, 4]) - d3f * dphi * dphi - kp * df - kd * ddf * dphi,
+                                dphi_x)
+        Phi_x[:, 1] += np.outer(-2.0 * ddf * dphi - kd * df, drate_x)
+        Phi_x[:, 0, 4] += kp
+        Phi_x[:, 0, 9] += kd
+        Phi_x[:, 1, w] += kp
+        Phi_x[:, 1, 4] += kp
+        Phi_x[:, 1, 5 + w] += kd
+        Phi_x[:, 1, 9] += kd
+        UX = -np.linalg.solve(HB, Phi_x)
+        lim = self.torque_limit
+        UX[np.abs(u_star) >= lim] = 0.0
+        return np.clip(u_star, -lim, lim), UX
+
+    def gain_jacobian_batch(self, t, Q, DQ, stance_leg, names):
+        """d u / d(gains ``names``) (P, 2, len(names)) at P states at once, as ``gain_jacobian`` gives it point by
+        point; None in flight, or where a subclass or the instance replaces a method of the law or
+        ``gain_jacobian`` (then ``gain_jacobian`` point by point)."""
+        if stance_leg == 0 or not _own_law(self, "gain_jacobian"):
+            return None
+        names = _checked_gains(self, names)
+        key = (Q.tobytes(), DQ.tobytes(), stance_leg)
+        last = getattr(self, "_last_batch", None)
+        if last is None or last[0] != key:
+            self.jacobian_batch(t, Q, DQ, stance_leg)
+        y, dy, HB, u_star, acc, phi, dphi = self._last_batch[1]
+        s = 2 if stance_leg == 1 else 3
+        Phi = np.zeros((Q.shape[0], 2, len(names)))
+        for j, name in enumerate(names):
+            if name == "kp":
+                Phi[:, :, j] = y
+            elif name == "kd":
+                Phi[:, :, j] = dy
+            elif name == "torso_pitch":
+                Phi[:, 0, j] = -self.kp
+            elif name != "torque_limit":    # row 2: -f' (ddq_s + ddq3) - f'' dphi^2 + kp y2 + kd dy2
+                f_t, df_t, ddf_t = self.target_derivatives(phi, name)
+                Phi[:, 1, j] = (-df_t * (acc[:, s] + acc[:, 4]) - ddf_t * dphi * dphi - self.kp * f_t
+                                - self.kd * df_t * dphi)
+        G = -np.linalg.solve(HB, Phi)
+        clipped = np.abs(u_star) >= self.torque_limit
+        G[clipped] = 0.0
+        if "torque_limit" in names:
+            G[:, :, names.index("torque_limit")][clipped] = np.sign(u_star)[clipped]
+        return G
+
+    def _computed_torque(self, q, dq, stance_leg):
+        """(y, dy, H (2 x 3), H Bu, u* unclipped, (s, ds/dq, ds/ddq) of the stance KKT system at u*) in stance:
+        the terms of ``jacobian`` and ``gain_jacobian`` (``Linearization.accelerations`` on this law's model)."""
+        from biped_sim.engine.sensitivity import Linearization
+        lin = getattr(self, "_linearization", None)
+        if lin is None or lin.model is not self.model:
+            lin = self._linearization = Linearization(self.model)
+        y, dy, (H1, H2), bias = self.outputs(q, dq, stance_leg)
+        H = np.array([H1, H2])
+        a0, _dq0, _dv0, dsu, _ = lin.accelerations(q, dq, (0.0, 0.0), stance_leg)
+        HB = H @ dsu[2:5]           # H Bu: ddq_r = a + Bu u
+        u_star = np.linalg.solve(HB, -self.kp * np.array(y) - self.kd * np.array(dy) - H @ a0[2:5] - np.array(bias))
+        acc, dsq, dsv, _dsu, _ = lin.accelerations(q, dq, u_star, stance_leg)
+        return y, dy, H, HB, u_star, (acc, dsq, dsv)
+
+    def target_derivatives(self, phi_s, name):
+        """(f_theta, f'_theta, f''_theta): ``swing_target``'s f, f', f'' at phi_s differentiated by the gain
+        ``name`` (zeros for a gain f does not depend on). f = -phi + (l - c phi) b, b = 1 - phi^2 / a^2
+        (a the step angle, c the clearance, l the lag): linear in b and in (c, l)."""
+        a, c, l = self.step_angle, self.clearance, self.lag
+        if name == "clearance":
+            b, db, ddb = 1.0 - phi_s * phi_s / self._a2, -2.0 * phi_s / self._a2, self._ddb
+            return -phi_s * b, -b - phi_s * db, -2.0 * db - phi_s * ddb
+        if name == "lag":
+            return 1.0 - phi_s * phi_s / self._a2, -2.0 * phi_s / self._a2, self._ddb
+        if name == "step_angle":    # b, b', b'' by a: 2 phi^2 / a^3, 4 phi / a^3, 4 / a^3
+            a3 = a * a * a
+            b_a, db_a, ddb_a = 2.0 * phi_s * phi_s / a3, 4.0 * phi_s / a3, 4.0 / a3
+            k = l - c * phi_s
+            return k * b_a, -c * b_a + k * db_a, -2.0 * c * db_a + k * ddb_a
+        return 0.0, 0.0, 0.0
+
+    def gain_jacobian(self, t, q, dq, stance_leg, names):
+        """d u / d(gains) (2 x len(names)) of this law, exact, for the gains ``names`` of ``GAINS``
+        (engine/sensitivity.py's run Jacobians by "controller.NAME" use it).
+
+        u* solves Phi(x, u, theta) = H ddq_r(x, u) + bias + kp y + kd dy = 0, so u*_theta = -(H Bu)^-1 Phi_theta
+        at fixed u; a torque at its limit has derivative 0 by every gain but ``torque_limit`` (then +-1)."""
+        names = _checked_gains(self, names)
+        G = np.zeros((2, len(names)))
+        if stance_leg == 0:     # flight: u = -kd (dq1, dq2)
+            if "kd" in names:
+                G[:, names.index("kd")] = [-float(dq[2]), -float(dq[3])]
+            return G
+        q = [float(v) for v in q]
+        dq = [float(v) for v in dq]
+        s = 2 if stance_leg == 1 else 3
+        y, dy, _H, HB, u_star, (acc, _dsq, _dsv) = self._computed_torque(q, dq, stance_leg)
+        phi, dphi = q[s] + q[4] - math.pi, dq[s] + dq[4]
+        ddq_s_q3 = acc[s] + acc[4]       # ddq_s + ddq3
+        Phi = np.zeros((2, len(names)))
+        for j, name in enumerate(names):
+            if name == "kp":
+                Phi[:, j] = y
+            elif name == "kd":
+                Phi[:, j] = dy
+            elif name == "torso_pitch":     # y1 = q3 - pitch
+                Phi[0, j] = -self.kp
+            elif name != "torque_limit":    # row 2: -f' (ddq_s + ddq3) - f'' dphi^2 + kp y2 + kd dy2
+                f_t, df_t, ddf_t = self.target_derivatives(phi, name)
+                Phi[1, j] = -df_t * ddq_s_q3 - ddf_t * dphi * dphi - self.kp * f_t - self.kd * df_t * dphi
+        G = -np.linalg.solve(HB, Phi)
+        return _clipped(G, u_star, self.torque_limit, names)
 
     def initial_state(self, speed=1.0):
         """A state on the virtual constraints at the start of a step (stance leg 1 in front).
@@ -263,8 +407,68 @@ def _pd_jacobian(self, t, q, dq, stance_leg):
     return np.array([stance_x, swing_x] if stance_leg == 1 else [swing_x, stance_x])
 
 
+def _pd_gain_jacobian(self, t, q, dq, stance_leg, names):
+    """d u / d(gains) (2 x len(names)) of PDWalkingController's law, exact: u_sw = -kp y2 - kd dy2,
+    u_st = 2 (kp (q3 - pitch) + kd dq3) - u_sw; a torque at its limit has derivative 0 by every gain but
+    ``torque_limit`` (then +-1)."""
+    if stance_leg == 0:
+        return WalkingController.gain_jacobian(self, t, q, dq, 0, names)
+    names = _checked_gains(self, names)
+    q = [float(v) for v in q]
+    dq = [float(v) for v in dq]
+    s, w = (2, 3) if stance_leg == 1 else (3, 2)
+    phi, dphi = q[s] + q[4] - math.pi, dq[s] + dq[4]
+    f, df, _ = self.swing_target(phi)
+    y1, dy1 = q[4] - self.torso_pitch, dq[4]
+    y2, dy2 = q[w] + q[4] - math.pi - f, dq[w] + dq[4] - df * dphi
+    swing, stance = np.zeros(len(names)), np.zeros(len(names))
+    for j, name in enumerate(names):
+        if name == "kp":
+            swing[j], stance[j] = -y2, 2.0 * y1 + y2
+        elif name == "kd":
+            swing[j], stance[j] = -dy2, 2.0 * dy1 + dy2
+        elif name == "torso_pitch":
+            stance[j] = -2.0 * self.kp
+        elif name != "torque_limit":    # y2 = ... - f, dy2 = ... - f' dphi
+            f_t, df_t, _ = self.target_derivatives(phi, name)
+            swing[j] = self.kp * f_t + self.kd * df_t * dphi
+            stance[j] = -swing[j]
+    u = self(t, q, dq, stance_leg)
+    G = np.array([stance, swing] if stance_leg == 1 else [swing, stance])
+    return _clipped(G, np.asarray(u, float), self.torque_limit, names)
+
+
+def _own_law(controller, derivative):
+    """Whether ``controller`` runs WalkingController's own computed-torque law and ``derivative`` (none of the
+    methods replaced by a subclass or on the instance), which the stacked derivatives reproduce."""
+    return all(getattr(type(controller), name) is getattr(WalkingController, name) and name not in vars(controller)
+               for name in ("__call__", "outputs", "swing_target", "target_derivatives", derivative))
+
+
+def _checked_gains(controller, names):
+    names = list(names)
+    bad = [n for n in names if n not in controller.GAINS]
+    if bad:
+        raise ValueError(f"{type(controller).__name__} has no gains {bad}: its gains are {list(controller.GAINS)}")
+    return names
+
+
+def _clipped(G, u, limit, names):
+    """G with the rows of the torques at their limit (|u| >= limit) replaced by their derivative there: 0 by
+    every gain, sign(u) by ``torque_limit``."""
+    for i in range(2):
+        if abs(u[i]) >= limit:
+            G[i] = 0.0
+            if "torque_limit" in names:
+                G[i, names.index("torque_limit")] = math.copysign(1.0, u[i])
+    return G
+
+
 #: (set here, not in the class body: compiled_law's _runs_as lists the methods the C law replaces)
 PDWalkingController.jacobian = _pd_jacobian
+PDWalkingController.gain_jacobian = _pd_gain_jacobian
+PDWalkingController.jacobian_batch = None     # (not the computed torque's: point by point, ``jacobian``)
+PDWalkingController.gain_jacobian_batch = None
 
 
 def _runs_as(controller, cls, methods):

@@ -2,8 +2,9 @@
 state transition matrix of a run through its events.
 
 Owns the sensitivities of a run (docs/gait.md "How the Jacobian is computed"). The state is
-x = (q, dq) in physical coordinates (10 numbers, leg 1 stays leg 1) in every mode; w = (u, p) are the
-inputs a run may depend on besides x: a held torque u and the model parameters p (``PARAMETER_NAMES``).
+x = (q, dq) in physical coordinates (10 numbers, leg 1 stays leg 1) in every mode; w = (u, p, theta) are
+the inputs a run may depend on besides x: a held torque u, the model parameters p (``PARAMETER_NAMES``) and
+the controller's gains theta ("controller.NAME": the law's torque depends on them, u = law(x; theta)).
 
 * Stance on foot i: f(x) = (dq, ddq) with the KKT system of docs/model.md, K s = r,
   K = [D -J_i^T; J_i 0], s = [ddq; F], r = [-h + B u; -Jdot_i dq] (h = C dq + G). For each variable v
@@ -21,17 +22,22 @@ inputs a run may depend on besides x: a held torque u and the model parameters p
   KKT system, [D -J_i^T; J_i 0][dq+; L] = [D dq-; 0]); liftoff: g = F_n (the normal ground force),
   R = identity. The relabeling of the step map (swap the legs) is a permutation of the result.
 * Variational equations along each phase: dS/dt = A S + f_w W, A = f_x + f_u u_x under continuous
-  feedback (the controller at every evaluation); under a zero-order hold the torque of a period is
-  u_k = law(x(t_k)), so at t_k the torque's sensitivity becomes u_x S and stays over the period.
+  feedback (the controller at every evaluation), and the gains enter as f_u u_theta W_theta; under a
+  zero-order hold the torque of a period is u_k = law(x(t_k); theta), so at t_k the torque's sensitivity
+  becomes u_x S + u_theta W_theta and stays over the period.
 
 The derivatives of D, h, J, Jdot dq come from the generator (``_gen/derivatives.py``, tools/generate_model.py);
 a controller's from its ``jacobian(t, q, dq, stance_leg)`` (a 2 x 10 array, d u / d(q, dq)) where it has one,
-else from central differences of the law alone (``law_jacobian`` says which).
+else from central differences of the law alone (``law_jacobian`` says which); by its gains from its
+``gain_jacobian(t, q, dq, stance_leg, names)`` (2 x len(names)) where it has one, else from central differences
+of the law alone, each gain an attribute of the controller set to theta +- e and back (``law_gain_jacobian``).
 
-The run itself is the engine's (``HybridSimulator``: it decides which events happen); the augmented
-system (x, S) is integrated again here with scipy's ``solve_ivp`` (DOP853, tight tolerances: its error
-control covers S as well as x, and its dense output locates each of the engine's events on this
-trajectory), independently of the engine's two loops.
+The run itself is the engine's (``HybridSimulator``: it decides which events happen). S is carried along
+the engine's own accepted steps, each DOP853 step differentiated (engine/variational.py), where the run
+allows it (stance phases joined by touchdowns on the floating base, continuous feedback or a constant
+torque); else the augmented system (x, S) is integrated again here with scipy's ``solve_ivp``
+(DOP853, tight tolerances: its error control covers S as well as x, and its dense output locates each of
+the engine's events on this trajectory), independently of the engine's two loops.
 """
 from __future__ import annotations
 
@@ -40,6 +46,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from biped_sim.engine import variational
 from biped_sim.engine._gen import derivatives as dgen
 from biped_sim.engine.compiled import gen
 from biped_sim.engine.dynamics import stance_floating_fast
@@ -48,9 +55,14 @@ from biped_sim.engine.model import B
 
 #: the model parameters a run can be differentiated by, in the order of BipedModel.p
 PARAMETER_NAMES = dgen.PARAMETER_NAMES
+#: a parameter "controller.NAME" is the controller's gain NAME (its attribute)
+CONTROLLER_PREFIX = "controller."
 LAW_EXACT = "exact"
 LAW_FD = "finite differences of the law"
 LAW_NONE = "none (torque held constant)"
+#: run_jacobian's ``integration``: the engine's own accepted steps differentiated (engine/variational.py), or
+#: the augmented system integrated on its own by scipy's solve_ivp
+STEPS, SOLVE_IVP = "steps", "solve_ivp"
 #: the event kinds a run is linearised through (a scuff is a report, not a change of mode)
 LINEARISED_EVENTS = ("touchdown", "liftoff")
 #: (the last model parameters and state asked, Linearization._affine's terms there): shared by every
@@ -77,6 +89,56 @@ def law_jacobian(controller, t, q, dq, stance_leg):
         um = np.asarray(controller(t, xm[:5], xm[5:], stance_leg), float)
         cols.append((up - um) / (2 * e))
     return u, np.column_stack(cols), LAW_FD
+
+
+def law_gain_jacobian(controller, t, q, dq, stance_leg, names):
+    """(d u / d(gains ``names``) as a 2 x len(names) array, how): the law's own ``gain_jacobian`` (``LAW_EXACT``)
+    where it has one, else central differences of the law alone (``LAW_FD``): each gain, an attribute of the
+    controller, set to theta +- 1e-6 (1 + |theta|) and back."""
+    q, dq = np.asarray(q, float), np.asarray(dq, float)
+    jac = getattr(controller, "gain_jacobian", None)
+    if jac is not None:
+        return np.asarray(jac(t, q, dq, stance_leg, list(names)), float).reshape(2, len(names)), LAW_EXACT
+    cols = []
+    for name in names:
+        value = getattr(controller, name)
+        e = 1e-6 * (1.0 + abs(float(value)))
+        try:
+            setattr(controller, name, float(value) + e)
+            up = np.asarray(controller(t, q, dq, stance_leg), float)
+            setattr(controller, name, float(value) - e)
+            um = np.asarray(controller(t, q, dq, stance_leg), float)
+        finally:
+            setattr(controller, name, value)
+        cols.append((up - um) / (2 * e))
+    return np.column_stack(cols) if cols else np.zeros((2, 0)), LAW_FD
+
+
+def _split_parameters(parameters, controller):
+    """(the model's names, the controller's gain names) of ``run_jacobian``'s ``parameters``, checked."""
+    model_names, gains = [], []
+    for name in parameters:
+        if name.startswith(CONTROLLER_PREFIX):
+            gain = name[len(CONTROLLER_PREFIX):]
+            if controller is None:
+                raise ValueError(f"parameter {name!r}: the run has no controller (a constant torque u)")
+            known = getattr(controller, "GAINS", None)
+            if getattr(controller, "gain_jacobian", None) is not None and known is not None:
+                if gain not in known:
+                    raise ValueError(f"parameter {name!r}: the controller's gains are "
+                                     f"{[CONTROLLER_PREFIX + g for g in known]}")
+            else:
+                value = getattr(controller, gain, None)
+                if not isinstance(value, (int, float)) or isinstance(value, bool):
+                    raise ValueError(f"parameter {name!r}: the controller has no number attribute {gain!r} to "
+                                     "differentiate by (and no gain_jacobian)")
+            gains.append(gain)
+        elif name in PARAMETER_NAMES:
+            model_names.append(name)
+        else:
+            raise ValueError(f"unknown parameter {name!r}: the model's are {list(PARAMETER_NAMES)}, a controller's "
+                             f"gain is '{CONTROLLER_PREFIX}NAME'")
+    return model_names, gains
 
 
 class Linearization:
@@ -292,12 +354,14 @@ class RunSensitivity:
     events: list                # (t, kind, leg) of the engine's run, each linearised through
     law_derivative: str         # LAW_EXACT, LAW_FD or LAW_NONE
     parameters: tuple           # the names of the parameter columns (the last columns of ``jacobian``)
+    gain_derivative: str = ""   # by the controller's gains: LAW_EXACT or LAW_FD ("" without gains)
+    integration: str = ""       # STEPS (the engine's own steps differentiated) or SOLVE_IVP
     simulator: object = field(repr=False, default=None)   # the engine's run (HybridSimulator)
 
 
 def run_jacobian(model, q0, dq0, t_final, controller=None, u=None, stance_leg=1, control_period=None,
                  directions=None, parameters=(), rtol=1e-12, atol=1e-12, end_at_event=False, method="dop853",
-                 **options) -> RunSensitivity:
+                 integration=STEPS, **options) -> RunSensitivity:
     """The state transition matrix of a run: d(q, dq)(t_final) / d(initial state, parameters).
 
     The run is the engine's (``HybridSimulator`` with ``options``, the same arguments as ``simulate``): under
@@ -305,14 +369,17 @@ def run_jacobian(model, q0, dq0, t_final, controller=None, u=None, stance_leg=1,
     the constant torque ``u``. ``directions`` (10 x m) are the initial perturbations; by default the joint
     coordinates of the stance state (``Linearization.stance_tangent``: the stance foot stays where it is), or
     the identity in flight. ``parameters``: names of ``PARAMETER_NAMES`` (the plant's; the controller keeps its
-    own model). ``end_at_event``: the run ends at its last event, after the reset (a step map): the
+    own model) and "controller.NAME", the controller's gain NAME (its ``gain_jacobian``, else central differences of
+the law alone by its attribute NAME; ``gain_derivative`` says which). ``end_at_event``: the run ends at its last
+event, after the reset (a step map): the
     Jacobian is of the state just after it, and ``time_derivative`` that of its time. Events other than
     touchdowns of one foot and liftoffs (slips, both feet at once, pushes) have no linearisation here: a
-    ValueError says so."""
+    ValueError says so. ``integration``: ``STEPS`` (default) differentiates the engine's own accepted steps
+    where the run allows it (engine/variational.py: DOP853 on the floating base, stance phases joined by
+    touchdowns, continuous feedback or a constant torque), else and with ``SOLVE_IVP`` the
+    augmented system is integrated on its own by scipy's DOP853."""
     parameters = tuple(parameters)
-    bad = [p for p in parameters if p not in PARAMETER_NAMES]
-    if bad:
-        raise ValueError(f"unknown parameters {bad}: they are among {list(PARAMETER_NAMES)}")
+    model_names, gains = _split_parameters(parameters, controller)
     if controller is None and u is None:
         u = (0.0, 0.0)
     q0, dq0 = np.asarray(q0, float), np.asarray(dq0, float)
@@ -334,7 +401,7 @@ def run_jacobian(model, q0, dq0, t_final, controller=None, u=None, stance_leg=1,
         raise ValueError(f"end_at_event: the run has no event before t={t_final} s")
     t_end = events[-1][0] if end_at_event else sim.t
     lin = Linearization(model, options.get("slope", 0.0))
-    integ = _Integration(lin, controller, u, control_period, parameters, rtol, atol)
+    integ = _Integration(lin, controller, u, control_period, bool(model_names), gains, rtol, atol)
     x = np.concatenate([q0, dq0])
     if directions is None:
         directions = lin.stance_tangent(q0, dq0, stance_leg) if stance_leg else np.eye(10)
@@ -344,30 +411,50 @@ def run_jacobian(model, q0, dq0, t_final, controller=None, u=None, stance_leg=1,
     S = np.zeros((10, m))
     S[:, :m0] = directions
     Sp = np.zeros((len(PARAMETER_NAMES), m))
+    integ.Sg = np.zeros((len(gains), m))
     for j, name in enumerate(parameters):
-        Sp[PARAMETER_NAMES.index(name), m0 + j] = 1.0
-    x, S, dtau = integ.run(sim.t0, x, S, Sp, stance_leg, events, t_end, end_at_event)
+        if name.startswith(CONTROLLER_PREFIX):
+            integ.Sg[gains.index(name[len(CONTROLLER_PREFIX):]), m0 + j] = 1.0
+        else:
+            Sp[PARAMETER_NAMES.index(name), m0 + j] = 1.0
+    if integration not in (STEPS, SOLVE_IVP):
+        raise ValueError(f"integration must be {STEPS!r} or {SOLVE_IVP!r}, got {integration!r}")
+    if integration == STEPS and variational.eligible(sim, method, control_period, stance_leg, events, options):
+        x, S, dtau = variational.run(integ, sim, S, Sp, events, t_end, end_at_event)
+    else:
+        integration = SOLVE_IVP
+        x, S, dtau = integ.run(sim.t0, x, S, Sp, stance_leg, events, t_end, end_at_event)
     return RunSensitivity(t=t_end, q=x[:5], dq=x[5:], jacobian=S, time_derivative=dtau, events=events,
-                          law_derivative=integ.law_derivative, parameters=parameters, simulator=sim)
+                          law_derivative=integ.law_derivative, parameters=parameters,
+                          gain_derivative=integ.gain_derivative, integration=integration, simulator=sim)
 
 
 class _Integration:
     """The augmented system (x, S) along the engine's sequence of modes (``run_jacobian``)."""
 
-    def __init__(self, lin, controller, u, control_period, parameters, rtol, atol):
+    def __init__(self, lin, controller, u, control_period, parameters, gains, rtol, atol):
         self.lin, self.controller, self.period = lin, controller, control_period
-        self.parameters = bool(parameters)
+        self.parameters = bool(parameters)      # (model parameters among the inputs)
+        self.gains = list(gains)                # the controller's gains among the inputs, their W_theta in Sg
+        self.Sg = np.zeros((len(self.gains), 0))
         self.rtol, self.atol = rtol, atol
         self.u_held = None if u is None else np.asarray(u, float)
         self.law_derivative = LAW_NONE
+        self.gain_derivative = ""
+
+    def _gain_sensitivity(self, t, x, leg):
+        """u_theta W_theta (2 x m): the torque's sensitivity through the gains, at fixed x."""
+        ug, self.gain_derivative = law_gain_jacobian(self.controller, t, x[:5], x[5:], leg, self.gains)
+        return ug @ self.Sg
 
     def _torque(self, t, x, leg, Su):
         """(u, u_x or None, the torque's sensitivity W_u (2 x m)): the law's at every evaluation (continuous
-        feedback: u_x folded into A, W_u = 0), or the held one with its sensitivity."""
+        feedback: u_x folded into A, W_u = u_theta W_theta, None without gains), or the held one with its
+        sensitivity."""
         if self.controller is not None and self.period is None:
             u, ux, how = law_jacobian(self.controller, t, x[:5], x[5:], leg)
             self.law_derivative = how
-            return u, ux, None
+            return u, ux, (self._gain_sensitivity(t, x, leg) if self.gains else None)
         return self.u_held, None, Su
 
     def _flow(self, t, x, leg, S, Su, Sp):
@@ -424,11 +511,11 @@ class _Integration:
         return stance_floating_fast(self.lin.model, x[:5].tolist(), x[5:].tolist(), list(map(float, u)), leg)[1]
 
     def _hold(self, t, x, leg, S):
-        """A control period starts: u_k = law(x(t_k)), its sensitivity u_x S."""
+        """A control period starts: u_k = law(x(t_k); theta), its sensitivity u_x S + u_theta W_theta."""
         u, ux, how = law_jacobian(self.controller, t, x[:5], x[5:], leg)
         self.law_derivative = how
         self.u_held = u
-        return ux @ S
+        return ux @ S + (self._gain_sensitivity(t, x, leg) if self.gains else 0.0)
 
     def run(self, t, x, S, Sp, leg, events, t_end, end_at_event):
         m = S.shape[1]

@@ -87,6 +87,16 @@ def test_scene_without_controller_or_impacts_is_refused():
         scene_gait(load_scene("stance_fixed"))
 
 
+def test_a_step_with_the_legs_together_is_no_gait():
+    """The passive scene without torque has no gait: its steps end with the swing foot on the ground where the
+    stance foot is (the legs together, q_st = q_sw), which is no step: NoGait in one line, not a 'fixed point'
+    of zero length and period (which Newton's method on the exact Jacobian otherwise reaches)."""
+    from biped_sim.analysis.gait import NoGait
+    from biped_sim.config.controllers import no_torque
+    with pytest.raises(NoGait, match="the legs together"):
+        scene_gait(load_scene("passive"), controller=no_torque)
+
+
 def test_cli_gait(capsys):
     assert cli_main(["gait", "--scene", "slope"]) == 0
     out = capsys.readouterr().out
@@ -108,3 +118,57 @@ def test_the_compass_gait_has_the_reference_multipliers():
     for r in reference:
         assert min(abs(m - r) for m in legs) < 1e-7
     assert np.allclose(sorted(g.multipliers, key=lambda m: abs(m - 1.0))[:2], 1.0, atol=1e-5)
+
+
+def test_the_gait_moves_with_the_controller_gains_as_its_exact_derivative_says(walk_gait):
+    """Gait.derivatives: the fixed point's and the period's derivatives by the walking law's gains, exact,
+    against central differences of the fixed points Newton finds with each gain moved (to 1e-5 relative:
+    Newton's residual, ~1e-12, over the step); l_leg, which moves the section, is refused."""
+    import copy
+
+    from biped_sim.analysis.gait import find_gait
+    g = walk_gait
+    d = g.derivatives(["controller.step_angle", "controller.kp", "m_torso"])
+    assert d.fixed_point.shape == (6, 3) and d.period.shape == (3,) and d.gain_derivative == "exact"
+    s = load_scene("walk")
+    kw = s.engine_arguments()
+    for j, (name, eps) in enumerate((("step_angle", 1e-5), ("kp", 1e-2))):
+        found = []
+        for sign in (1, -1):
+            c = copy.copy(g.step_map.controller)
+            setattr(c, name, getattr(c, name) + sign * eps)
+            found.append(find_gait(kw["model"], c, z0=g.z, touchdown_rule=kw["touchdown_rule"], tol=1e-12,
+                                   warmup_steps=0))
+        dz = (found[0].z - found[1].z) / (2 * eps)
+        dT = (found[0].period - found[1].period) / (2 * eps)
+        assert np.max(np.abs(d.fixed_point[:, j] - dz)) < 1e-5 * np.max(np.abs(dz))
+        assert abs(d.period[j] - dT) < 1e-5 * abs(dT)
+    with pytest.raises(ValueError, match="l_leg moves the section"):
+        g.derivatives(["l_leg"])
+
+
+def test_the_docs_table_has_the_multipliers_of_every_shipped_gait():
+    """docs/gait.md's table of the shipped gaits (tools/docs_figures.py gait) has a row for every scene with a
+    gait, the compass gait's included (no torque), whose multipliers are the ones its command finds, and no row
+    for a scene without one."""
+    import re
+    from pathlib import Path
+
+    from biped_sim.config.controllers import no_torque
+    from biped_sim.config.scenes import available_scenes
+    page = (Path(__file__).resolve().parents[2] / "docs" / "gait.md").read_text()
+    table = page.split("<!-- docs-figures: multipliers -->")[1].split("<!-- /docs-figures -->")[0]
+    rows = {m[1]: m for m in re.finditer(r"^\| (\w+) \| `biped-sim gait --scene \1( --controller none)?` \| "
+                                         r"([^|]+) \|", table, re.M)}
+    for name in available_scenes():
+        scene = load_scene(name)
+        passive = scene.controller_params is None
+        try:
+            g = scene_gait(scene, controller=no_torque if passive else None)
+        except ValueError:
+            assert name not in rows
+            continue
+        assert bool(rows[name][2]) == passive
+        printed = [complex(v.replace(" ", "")) for v in rows[name][3].split(", ")]
+        assert np.max(np.abs(np.sort_complex(printed) - np.sort_complex(g.multipliers))) < 1e-6
+    assert "compass_gait" in rows

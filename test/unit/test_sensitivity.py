@@ -1,5 +1,6 @@
 """Exact linearisation (engine/sensitivity.py, issue 32): the phases' Jacobians against central differences
 of the engine's own functions, and a run's state transition matrix against central differences of the run."""
+import copy
 from dataclasses import replace
 
 import numpy as np
@@ -122,7 +123,8 @@ def engine_end(model, x0, t_final, stance_leg, controller, u, control_period, **
 
 
 def check_run_jacobian(model, z_or_x, t_final, stance_leg=1, foot=(0.0, 0.0), controller=None, u=None,
-                       control_period=None, differences=lambda fun, x: central(fun, x, eps=1e-6), **options):
+                       control_period=None, differences=lambda fun, x: central(fun, x, eps=1e-6),
+                       parameters=RUN_PARAMETERS, **options):
     """run_jacobian against central differences of the engine's run (the initial state by its joint coordinates
     in stance, with the foot kept where it is; by all ten numbers in flight; and the parameters RUN_PARAMETERS
     of the plant, the controller keeping its own model): agree to 1e-7 relative. Returns the run's events."""
@@ -131,16 +133,17 @@ def check_run_jacobian(model, z_or_x, t_final, stance_leg=1, foot=(0.0, 0.0), co
 
     x0 = start(np.asarray(z_or_x, float))
     r = run_jacobian(model, x0[:5], x0[5:], t_final, controller=controller, u=u, stance_leg=stance_leg,
-                     control_period=control_period, parameters=RUN_PARAMETERS, **options)
+                     control_period=control_period, parameters=parameters, **options)
     run = dict(stance_leg=stance_leg, controller=controller, u=u, control_period=control_period, **options)
     fd = differences(lambda v: engine_end(model, start(v), t_final, **run), z_or_x)
-    p0 = np.array([getattr(model.parameters, n) for n in RUN_PARAMETERS])
+    p0 = np.array([getattr(model.parameters, n) for n in parameters])
 
     def with_p(p):
-        m = BipedModel(replace(model.parameters, **dict(zip(RUN_PARAMETERS, p))))
+        m = BipedModel(replace(model.parameters, **dict(zip(parameters, p))))
         return engine_end(m, x0, t_final, **run)
 
-    fd = np.hstack([fd, differences(with_p, p0)])
+    if parameters:
+        fd = np.hstack([fd, differences(with_p, p0)])
     assert np.allclose(np.concatenate([r.q, r.dq]), engine_end(model, x0, t_final, **run), rtol=0, atol=1e-9)
     assert rel(r.jacobian, fd) < 1e-7
     return r
@@ -216,3 +219,169 @@ def test_the_reference_laws_give_their_exact_derivatives(law, leg):
     assert rel(J, J_fd) < 1e-8
     r = run_jacobian(MODEL, q0, dq0, 0.01, controller=user_law)
     assert r.law_derivative == LAW_FD
+
+
+# -- the controller's gains as parameters ----------------------------------------------------------------------
+SCALED_GAINS = ("kp", "kd", "torso_pitch", "step_angle", "clearance", "lag")
+GAIN_SCALES = st.fixed_dictionaries({name: st.floats(0.8, 1.2) for name in SCALED_GAINS})
+
+
+def law_with(law, scale, model=MODEL):
+    """``law`` on ``model`` with its gains (all but torque_limit) scaled by ``scale`` (a dict)."""
+    ctrl = law(model)
+    for name, k in scale.items():
+        setattr(ctrl, name, getattr(ctrl, name) * k)
+    return ctrl
+
+
+def gain_differences(ctrl, t, q, dq, leg, names, eps=1e-6):
+    """Central differences of the law alone by its gains (each an attribute, set and restored)."""
+    cols = []
+    for name in names:
+        v = getattr(ctrl, name)
+        e = eps * (1 + abs(v))
+        setattr(ctrl, name, v + e)
+        up = np.asarray(ctrl(t, q, dq, leg), float)
+        setattr(ctrl, name, v - e)
+        um = np.asarray(ctrl(t, q, dq, leg), float)
+        setattr(ctrl, name, v)
+        cols.append((up - um) / (2 * e))
+    return np.column_stack(cols)
+
+
+@settings(max_examples=6, deadline=None, derandomize=True)
+@given(st.sampled_from([WalkingController, PDWalkingController]), st.sampled_from([1, 2, 0]), GAIN_SCALES,
+       st.integers(0, 2 ** 16))
+def test_the_reference_laws_give_their_exact_derivatives_by_their_gains(law, leg, scale, seed):
+    """``gain_jacobian`` of the built-in laws against central differences of the law alone, on random states
+    and gains (stance on either leg, flight), to 1e-7 relative; a torque at its limit moves with the limit."""
+    ctrl = law_with(law, scale)
+    q0, dq0 = ctrl.initial_state()
+    rng = np.random.default_rng(seed)
+    q, dq = q0 + rng.normal(size=5) * 0.05, dq0 + rng.normal(size=5) * 0.3
+    names = list(SCALED_GAINS) + ["torque_limit"]
+    assert tuple(ctrl.GAINS) == tuple(names)
+    G = ctrl.gain_jacobian(0.0, q, dq, leg, names)
+    assert G.shape == (2, len(names))
+    assert rel(G, gain_differences(ctrl, 0.0, q, dq, leg, names)) < 1e-7
+    ctrl.torque_limit = 0.5 * float(np.max(np.abs(ctrl(0.0, q, dq, leg))))   # the larger torque now clipped
+    assert rel(ctrl.gain_jacobian(0.0, q, dq, leg, names), gain_differences(ctrl, 0.0, q, dq, leg, names)) < 1e-7
+
+
+GAIN_PARAMETERS = ("controller.kp", "controller.kd", "controller.step_angle", "controller.torso_pitch")
+
+
+def check_gain_jacobian(model, ctrl, x0, t_final, control_period=None, **options):
+    """run_jacobian by the controller's gains against central differences of the same run (each difference a
+    copy of the controller with one gain moved): agree to 1e-7 relative."""
+    r = run_jacobian(model, x0[:5], x0[5:], t_final, controller=ctrl, control_period=control_period,
+                     parameters=("m_torso",) + GAIN_PARAMETERS, **options)
+
+    def with_gains(g):
+        c = copy.copy(ctrl)
+        for name, v in zip(GAIN_PARAMETERS, g):
+            setattr(c, name.split(".", 1)[1], v)
+        return engine_end(model, x0, t_final, 1, c, None, control_period, **options)
+
+    g0 = np.array([getattr(ctrl, name.split(".", 1)[1]) for name in GAIN_PARAMETERS])
+    fd = central(with_gains, g0, eps=1e-6)
+    assert rel(r.jacobian[:, -len(GAIN_PARAMETERS):], fd) < 1e-7
+    return r
+
+
+@settings(max_examples=3, deadline=None, derandomize=True)
+@given(st.sampled_from([WalkingController, PDWalkingController]), GAIN_SCALES, st.sampled_from([None, 1e-3]))
+@example(WalkingController, {name: 1.0 for name in SCALED_GAINS}, None)
+def test_run_jacobian_by_the_controller_gains_through_a_touchdown(law, scale, period):
+    """The last 80 ms of a step, its touchdown and the first of the next, differentiated by the law's gains
+    (continuous feedback or held 1 ms), against central differences of the same run."""
+    ctrl = law_with(law, scale)
+    q0, dq0 = WalkingController(MODEL).initial_state()
+    sim = HybridSimulator(MODEL, q0, dq0, rtol=1e-12, atol=1e-12)
+    sim.advance(0.4, controller=WalkingController(MODEL))
+    x0 = np.concatenate([sim.q, sim.dq])
+    r = check_gain_jacobian(MODEL, ctrl, x0, 0.12, control_period=period, phases=frozenset({"stance", "impact"}))
+    assert [kind for _t, kind, _leg in r.events] == ["touchdown"]
+    assert r.gain_derivative == LAW_EXACT and r.parameters[-4:] == GAIN_PARAMETERS
+    assert r.integration == ("steps" if period is None else "solve_ivp")
+
+
+class UserLaw:
+    """A user's law without derivatives: the PD walking law's torques, gains as attributes."""
+
+    def __init__(self, model):
+        self.law = PDWalkingController(model)
+        self.kp = self.law.kp
+
+    def __call__(self, t, q, dq, stance_leg):
+        self.law.kp = self.kp
+        return self.law(t, q, dq, stance_leg)
+
+
+def test_a_user_law_without_derivatives_gets_differences_of_the_law_by_its_gains():
+    """The gain of a user's law (an attribute) by central differences of the law alone, and the result says so;
+    a gain that is not a number attribute, or a gain of a run without controller, is one clear line."""
+    ctrl = UserLaw(MODEL)
+    q0, dq0 = ctrl.law.initial_state()
+    r = run_jacobian(MODEL, q0, dq0, 0.05, controller=ctrl, parameters=("controller.kp",))
+    ref = run_jacobian(MODEL, q0, dq0, 0.05, controller=PDWalkingController(MODEL), parameters=("controller.kp",))
+    assert (r.gain_derivative, r.law_derivative, ref.gain_derivative) == (LAW_FD, LAW_FD, LAW_EXACT)
+    assert rel(r.jacobian[:, -1], ref.jacobian[:, -1]) < 1e-7
+    assert ctrl.kp == PDWalkingController(MODEL).kp       # restored after the differences
+    with pytest.raises(ValueError, match="no number attribute 'gain'"):
+        run_jacobian(MODEL, q0, dq0, 0.05, controller=ctrl, parameters=("controller.gain",))
+    with pytest.raises(ValueError, match="controller's gains are"):
+        run_jacobian(MODEL, q0, dq0, 0.05, controller=WalkingController(MODEL), parameters=("controller.k",))
+    with pytest.raises(ValueError, match="no controller"):
+        run_jacobian(MODEL, q0, dq0, 0.05, parameters=("controller.kp",))
+
+
+@settings(max_examples=4, deadline=None, derandomize=True)
+@given(st.sampled_from([WalkingController, PDWalkingController]), SCALES, st.tuples(*[st.floats(-0.01, 0.01)] * 6),
+       st.sampled_from([0.12, 0.3]))
+@example(WalkingController, (1.0,) * 4, (0.0,) * 6, 0.3)
+def test_run_jacobian_on_the_engine_steps(law, scale, dz, t_final):
+    """Under continuous feedback (the step map's case), by the initial state and the model's parameters, the
+    engine's own accepted steps differentiated (engine/variational.py; the computed-torque law's derivative on the
+    whole stack, the PD law's point by point): the last 80 ms of a step, its touchdown, and 40 ms or 220 ms of the
+    next stance, against central differences of the same run to 1e-7 and against the augmented system integrated
+    by solve_ivp."""
+    model = model_with(scale)
+    ctrl = law(model)
+    q0, dq0 = WalkingController(model).initial_state()
+    sim = HybridSimulator(model, q0, dq0, rtol=1e-12, atol=1e-12)
+    sim.advance(0.4, controller=WalkingController(model))
+    z = np.concatenate([sim.q[2:], sim.dq[2:]]) + np.array(dz)
+    foot = tuple(model.foot_position(sim.q, 1))
+    r = check_run_jacobian(model, z, t_final, foot=foot, controller=ctrl, phases=frozenset({"stance", "impact"}))
+    assert r.integration == "steps" and r.law_derivative == LAW_EXACT
+    assert [kind for _t, kind, _leg in r.events] == ["touchdown"]
+    x0 = np.concatenate(stance_state(model, z[:3], z[3:], 1, foot=foot))
+    other = run_jacobian(model, x0[:5], x0[5:], t_final, controller=ctrl, integration="solve_ivp",
+                         parameters=RUN_PARAMETERS, phases=frozenset({"stance", "impact"}))
+    assert other.integration == "solve_ivp" and rel(r.jacobian, other.jacobian) < 1e-8
+
+
+def test_the_stacked_law_derivatives_are_the_law_point_by_point():
+    """WalkingController's jacobian_batch and gain_jacobian_batch (engine/variational.py's stacks) give its torque
+    and derivatives at each state of the stack as __call__, jacobian and gain_jacobian do one by one (either stance
+    leg); a subclass that replaces the law gets None (its own methods point by point)."""
+    ctrl = WalkingController(MODEL)
+    q0, dq0 = ctrl.initial_state()
+    rng = np.random.default_rng(7)
+    Q, DQ = q0 + rng.normal(size=(6, 5)) * 0.05, dq0 + rng.normal(size=(6, 5)) * 0.3
+    names = list(ctrl.GAINS)
+    for leg in (1, 2):
+        U, UX = ctrl.jacobian_batch(np.zeros(6), Q, DQ, leg)
+        UG = ctrl.gain_jacobian_batch(np.zeros(6), Q, DQ, leg, names)
+        for p in range(6):
+            assert np.allclose(U[p], ctrl(0.0, Q[p], DQ[p], leg), rtol=1e-12, atol=1e-9)
+            assert rel(UX[p], ctrl.jacobian(0.0, Q[p], DQ[p], leg)) < 1e-10
+            assert rel(UG[p], ctrl.gain_jacobian(0.0, Q[p], DQ[p], leg, names)) < 1e-10
+
+    class Halved(WalkingController):
+        def __call__(self, t, q, dq, stance_leg):
+            return 0.5 * super().__call__(t, q, dq, stance_leg)
+
+    assert Halved(MODEL).jacobian_batch(np.zeros(6), Q, DQ, 1) is None
+    assert Halved(MODEL).gain_jacobian_batch(np.zeros(6), Q, DQ, 1, names) is None
