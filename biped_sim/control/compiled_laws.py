@@ -215,7 +215,11 @@ def _jitted(fn, done):
     glb = dict(fn.__globals__)
     copy = types.FunctionType(fn.__code__, glb, fn.__name__, fn.__defaults__, fn.__closure__)
     # cache=True: the machine code is kept beside the function's module (numba's __pycache__), so the next
-    # process compiles only the small C wrapper (the compile times: docs/controllers.md)
+    # process compiles only the small C wrapper (the compile times: docs/controllers.md). numba names the
+    # entry by the file and the qualified name, and the entry imports the module that wrote it: the module's
+    # name in the qualified name keeps a file imported as ``pkg.law`` and run as ``python pkg/law.py``
+    # (module __main__) from finding each other's entries
+    copy.__qualname__ = f"{fn.__module__}.{fn.__qualname__}"
     try:
         jitted = numba.njit(error_model="numpy", cache=True)(copy)
     except RuntimeError:        # no file to keep it beside (a function of `python -c`): compiled each process

@@ -172,3 +172,28 @@ def test_a_law_already_under_njit_is_taken_as_its_python_function():
     import numba
     law = bs.torque_law(numba.njit(failing_law), [2.0])
     assert law.fn is failing_law and law(0.0, [0.0] * 5, [0.0, 0.0, 1.0, -1.0, 0.0], 1) == [-2.0, 2.0]
+
+
+@needs_numba
+def test_a_law_file_compiles_as_a_script_after_it_was_imported_as_a_module(tmp_path):
+    """numba's cache beside a law's file is keyed by the file, not by the module's name: a law imported as
+    ``pkg.law`` (a test, ``--controller pkg.law:ATTR``) and then run as ``python pkg/law.py`` must compile
+    in both (the documented ``python examples/hzd_bezier.py`` raised ModuleNotFoundError: 'examples')."""
+    pkg = tmp_path / "lawpkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "law.py").write_text(
+        "from biped_sim.control.compiled_laws import torque_law\n"
+        "from biped_sim.engine.model import BipedModel\n\n"
+        "def gain(x, k):\n    return k * x\n\n"
+        "def law(t, q, dq, stance_leg, params, u):\n"
+        "    u[0] = gain(q[2], params[0])\n    u[1] = -u[0]\n    return 0\n\n"
+        "def compiled():\n    return torque_law(law, [2.0]).compiled_law(BipedModel()) is not None\n\n"
+        "if __name__ == '__main__':\n    print('compiled', compiled())\n")
+    as_module = (["-c", "import lawpkg.law as m; print('compiled', m.compiled())"], str(tmp_path))
+    as_script = ([str(pkg / "law.py")], str(ROOT))      # (the package is not on the script's path)
+    for args, path in (as_module, as_script):
+        env = {**os.environ, "PYTHONPATH": path}
+        done = subprocess.run([sys.executable, *args], cwd=tmp_path, env=env, capture_output=True, text=True,
+                              timeout=300)
+        assert done.returncode == 0 and "compiled True" in done.stdout, done.stderr[-2000:]
