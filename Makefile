@@ -58,9 +58,12 @@ bench: $(DEV_STAMP)
 
 # drake 1.58 (pydrake.examples.CompassGait, for benchmarks/bench_drake.py) installs from PyPI for Python 3.12
 # only: a venv of its own, never part of make test
-DRAKE_PYTHON ?= $(shell command -v python3.12 || echo /root/.pyenv/versions/3.12.1/bin/python)
+# (the first Python 3.12 that runs: a pyenv shim may be on the PATH without a 3.12 behind it)
+DRAKE_PYTHON ?= $(shell for p in $$(command -v python3.12) $$(ls -d /root/.pyenv/versions/3.12*/bin/python 2>/dev/null); do \
+	$$p -c 'import sys; assert sys.version_info[:2] == (3, 12)' 2>/dev/null && echo $$p && break; done)
 venv-drake: .venv-drake/.installed
 .venv-drake/.installed:
+	@test -n "$(DRAKE_PYTHON)" || { echo "make venv-drake: no Python 3.12 found (drake 1.58 installs for 3.12 only): give one, make venv-drake DRAKE_PYTHON=/path/to/python3.12"; exit 2; }
 	@test -x .venv-drake/bin/python || $(DRAKE_PYTHON) -m venv .venv-drake
 	.venv-drake/bin/python -m pip install -q drake==1.58.0
 	@touch $@
