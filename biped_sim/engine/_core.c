@@ -67,8 +67,8 @@ typedef struct {
 
 typedef struct {
     PyObject_HEAD
-    /* model: the constants of the closed forms (BipedModel.k) */
-    double k_stance[KMAX], k_feet[KMAX], k_energy[KMAX], k_terms[KMAX], k_impact[KMAX];
+    /* model: the constants of the closed forms (BipedModel.k; k_feet, k_energy and k_impact are the state's) */
+    double k_stance[KMAX], k_terms[KMAX];
     /* the state the rules read and write (loop_state.py): S by offset, the same memory by member (the model's
      * k_pos and l_leg, the options rtol, atol, max_step, graze_tol, event_tol, tan_s, the method, the stepper,
      * callback_failed, the failure of the last step) */
@@ -377,7 +377,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     if (L->n_impacts > 0 && t_ev - L->last_impact < L->zeno_interval) { L->why = 14; return 0; }
     if (L->mode_events + 1 >= L->max_events) { L->why = 15; return 0; }
     if (L->mode_events >= 49 && t_ev - L->ring[L->mode_events % 49] < 1e-9) { L->why = 16; return 0; }
-    double y[N], ue[2], Fe[2] = {0.0, 0.0}, out[7], TVm[2], TVp[2], dqp[5], imp[2];
+    double y[N], ue[2], Fe[2] = {0.0, 0.0}, out[7];
     for (int j = 0; j < N; j++) y[j] = rk_dense_at(L->S, j, t_ev);
     double *q = y, *dqm = y + 5, w = y[10];
     torque(L, t_ev, q, dqm, ue);
@@ -386,20 +386,14 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
         Fe[0] = out[5]; Fe[1] = out[6];
     }
     if (L->callback_failed) { L->why = 12; return 0; }
-    if (nw == 1) k_impact_map_1(q, dqm, L->k_impact, out);
-    else k_impact_map_2(q, dqm, L->k_impact, out);
-    memcpy(dqp, out, 5 * sizeof(double));
-    memcpy(imp, out + 5, 2 * sizeof(double));
-    k_energy(q, dqm, L->k_energy, TVm);
-    k_energy(q, dqp, L->k_energy, TVp);
-    double loss = (TVm[0] + TVm[1]) - (TVp[0] + TVp[1]);
-    /* resets.impact_warnings and invariants.check_impact */
-    double fa[8];
-    feet(L, q, dqp, fa);
-    double n_imp = ev_normal_force(L->S, imp[0], imp[1]), tg_imp = ev_tangential_force(L->S, imp[0], imp[1]);
-    if (fa[4 * (old - 1) + 3] < 0) { L->why = 18; return 0; }
-    if (n_imp < 0 || (L->has_mu && fabs(tg_imp) > L->mu * n_imp)) { L->why = 19; return 0; }
-    if (L->check_invariants && fa[4 * (old - 1) + 3] < L->contact_tol) { L->why = 20; return 0; }
+    /* the impact and its checks (loop_rules.ev_impact: resets.impact_warnings' and invariants.check_impact's) */
+    memcpy(L->q_impact, q, 5 * sizeof(double));
+    memcpy(L->dq_minus, dqm, 5 * sizeof(double));
+    int checks = ev_impact(L->S, nw, old, L->has_mu);
+    double *dqp = L->dq_plus, *imp = L->impulse, loss = L->energy_before - L->energy_after;
+    if (checks & IMPACT_OLD_FOOT_SINKS) { L->why = 18; return 0; }
+    if (checks & (IMPACT_PULLS | IMPACT_OUTSIDE_CONE)) { L->why = 19; return 0; }
+    if (L->check_invariants && ev_stays_down(L->feet_after[old - 1][3], L->contact_tol)) { L->why = 20; return 0; }
     /* the new stance (_check_stance_start): the ground must push, inside the friction cone */
     double up[2], Fp[2];
     L->leg = nw;
@@ -410,8 +404,8 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     if (ev_normal_force(L->S, Fp[0], Fp[1]) < 0.0 || (L->has_mu && ev_cone_margin(L->S, Fp[0], Fp[1]) < 0.0)) { L->why = 21; return 0; }
     /* applied */
     double lost = energy_lost + loss;
-    double res_e = TVm[0] + TVm[1] - E0 - w - push_work + energy_lost;
-    double res_p = TVp[0] + TVp[1] - E0 - w - push_work + lost;
+    double res_e = L->energy_before - E0 - w - push_work + energy_lost;
+    double res_p = L->energy_after - E0 - w - push_work + lost;
     rows[0] = t_ev;
     for (int i = 0; i < 5; i++) { rows[1 + i] = q[i]; rows[6 + i] = dqm[i]; }
     rows[11] = old;

@@ -77,7 +77,7 @@ def check_impact(event, feet_after, ground, recent_gaps, impulse_tol, rest_tol):
                 f"invariant 'an impact pushes' violated at t={event.time:.9g} s: the ground's impulse on foot {leg} "
                 f"pulls it ({n:.6g} N s normal): a plastic impact there is not physical")
     old = event.stance_leg_before
-    if old and old not in landing and feet_after[old - 1].dheight < rest_tol:
+    if old and old not in landing and rules.ev_stays_down(feet_after[old - 1].dheight, rest_tol):
         v = feet_after[old - 1].dheight
         if len(recent_gaps) >= 3 and all(b < a for a, b in zip(recent_gaps, recent_gaps[1:])):
             return (f"the impacts accumulate (Zeno behaviour): the gaps between the last impacts shrink "

@@ -184,3 +184,62 @@ for method in ("dop853", "dopri5"):
     assert [line.split()[1:] for line in runs["1"]] == [line.split()[1:] for line in runs["0"]]
     assert all(int(line.split()[1]) >= 2 for line in runs["1"] if line)      # touchdowns were located
 
+
+
+def test_the_impact_and_its_checks_are_written_once():
+    """The one-foot impact (the generated impact map, the energy before and after, the feet after) and its checks
+    (an impulse that pulls or lies outside the friction cone, the old stance foot moving into the ground or not
+    leaving it) are the rules' (loop_rules.ev_impact): resets.py, invariants.py and _core.c's touchdown call them."""
+    assert_written_once(("return fabs(tg) - mu * n > tol", "return dheight < tol",
+                         "k_impact_map(S, leg, Q_IMPACT, DQ_MINUS, DQ_PLUS)"),
+                        (r"k_impact_map_[12]\(|k_energy\(q, dq[mp]\b|fabs\(tg\w*\) > |abs\(tg\) (-|>) mu \* n"
+                         r"|\[old - 1\]\.dheight < |\.dheight < rest_tol|\[3\] < (0\b|L->contact_tol)|\bn_imp < 0"))
+
+
+def test_the_impact_rule_gives_the_impact_map_and_says_which_check_refused():
+    """Run as Python, ev_impact gives dynamics.impact_map's dq+ and impulse and the energy's loss, bit for bit, and
+    its bits say which assumption the impact violates: none for a foot landing forward on a grippy ground, the
+    cone where mu is 0, the pull where the foot is moving up, the old stance foot where it sinks after it."""
+    import numpy as np
+
+    import biped_sim as bs
+    from biped_sim.engine import guards as G, loop_rules as rules, resets
+    from biped_sim.engine.dynamics import impact_map_fast
+    from biped_sim.engine.loop_state import (
+        DQ_MINUS,
+        DQ_PLUS,
+        ENERGY_AFTER,
+        ENERGY_BEFORE,
+        FEET_AFTER,
+        IMPACT_OLD_FOOT_SINKS,
+        IMPACT_OUTSIDE_CONE,
+        IMPACT_PULLS,
+        IMPULSE,
+        Q_IMPACT,
+    )
+    model, ground = bs.BipedModel(), G.Ground.of(0.03)
+    q, _ = bs.stance_state(model, [math.pi + 0.25, math.pi - 0.25, 0.1], [0.0, 0.0, 0.0])
+    ctrl = bs.WalkingController(model)
+    _, dq_walk = ctrl.initial_state()
+
+    def impact(dq, mu, old=1):
+        S = resets.touchdown_state(model, ground, mu)
+        S[Q_IMPACT:Q_IMPACT + 5], S[DQ_MINUS:DQ_MINUS + 5] = q.tolist(), list(dq)
+        return rules.ev_impact(S, 2, old, mu is not None), S
+
+    dq = [0.3, -0.2, *dq_walk[2:].tolist()]
+    checks, S = impact(dq, 10.0)
+    dq_plus, impulse = impact_map_fast(model, q, np.array(dq), 2)
+    assert S[DQ_PLUS:DQ_PLUS + 5] == dq_plus.tolist() and S[IMPULSE:IMPULSE + 2] == impulse.tolist()
+    loss = model.energy_fast(q.tolist(), dq) - model.energy_fast(q.tolist(), dq_plus.tolist())
+    assert S[ENERGY_BEFORE] - S[ENERGY_AFTER] == loss and loss > 0
+    feet = G.foot_states(model, q.tolist(), dq_plus.tolist(), ground.tan)
+    assert S[FEET_AFTER:FEET_AFTER + 8] == [v for foot in feet for v in foot]
+    n, tg = G.normal_tangent(impulse, ground)
+    assert n > 0 and tg != 0
+    assert checks & (IMPACT_PULLS | IMPACT_OUTSIDE_CONE) == 0
+    assert bool(checks & IMPACT_OLD_FOOT_SINKS) == (feet[0].dheight < 0)
+    assert impact(dq, 0.0)[0] & IMPACT_OUTSIDE_CONE and not impact(dq, None)[0] & IMPACT_OUTSIDE_CONE
+    up = [-v for v in dq]            # the swing foot moving up: the ground would have to pull it down
+    assert impact(up, 10.0)[0] & IMPACT_PULLS
+    assert not impact(dq, 10.0, old=0)[0] & IMPACT_OLD_FOOT_SINKS        # from flight: no old stance foot
