@@ -362,6 +362,14 @@ feet_into_state(double *S, void *ctx, double tt)
     feet_at((Loop *)ctx, tt, S + LS_FEET);
 }
 
+/* How the stance starts under the ground force F (loop_rules.ev_stance_start: HybridSimulator._check_stance_start);
+ * the slip witness is watched whenever there is a friction coefficient (nothing is latched while the loop runs) */
+static int
+stance_start(Loop *L, const double *F)
+{
+    return ev_stance_start(L->has_mu, L->mu, ev_normal_force(L->S, F[0], F[1]), ev_tangential_force(L->S, F[0], F[1]));
+}
+
 /* HybridSimulator._integrate's event branch for a touchdown in front at t_ev, then _reset's: the event's
  * sample (_accept), the impact map (k_impact_map_1/2: dynamics.impact_map_fast's closed form), relabeling,
  * the sample after it,
@@ -401,7 +409,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     stance(L, q, dqp, up, out);
     L->leg = old;
     Fp[0] = out[5]; Fp[1] = out[6];
-    if (ev_normal_force(L->S, Fp[0], Fp[1]) < 0.0 || (L->has_mu && ev_cone_margin(L->S, Fp[0], Fp[1]) < 0.0)) { L->why = 21; return 0; }
+    if (stance_start(L, Fp) != STANCE_HOLDS) { L->why = 21; return 0; }
     /* applied */
     double lost = energy_lost + loss;
     double res_e = L->energy_before - E0 - w - push_work + energy_lost;
@@ -963,7 +971,7 @@ hold(Loop *L, double u0, double u1, double t_bound)
 static int
 refused_at_start(Loop *L)
 {
-    if (!(ev_normal_force(L->S, L->last_F[0], L->last_F[1]) < 0.0 || (L->has_mu && ev_cone_margin(L->S, L->last_F[0], L->last_F[1]) < 0.0))) return 0;
+    if (stance_start(L, L->last_F) == STANCE_HOLDS) return 0;
     L->nfev -= 1;
     return 1;
 }

@@ -105,6 +105,9 @@ if not cython.compiled:
         SIN_S,
         STACK,
         STAGES,
+        STANCE_HOLDS,
+        STANCE_LIFTS_OFF,
+        STANCE_SLIPS,
         T_BOUND,
         T_OLD,
         TAN_S,
@@ -641,7 +644,7 @@ def ev_track_scuff(S, feet_at, ctx, leg, stance_leg, t_end):
     return 1 if S[f + 1] > 0.0 else 0
 
 
-# -- the touchdown: the impact and its checks (resets.py, invariants.py) -------------------------------------
+# -- the touchdown: the impact and its checks (resets.py, invariants.py), the next stance's start (hybrid.py) --
 def ev_outside_cone(mu, n, tg, tol):
     """Whether an impulse (or a force) with normal component n and tangential tg lies outside the friction cone
     by more than tol: |tg| - mu n > tol (tol 0: |tg| > mu n)."""
@@ -692,3 +695,15 @@ def ev_impact(S, leg, old, has_mu):
     if old != 0 and old != leg and ev_stays_down(S[FEET_AFTER + 4 * (old - 1) + 3], 0.0):
         code |= IMPACT_OLD_FOOT_SINKS
     return code
+
+
+def ev_stance_start(slip_watched, mu, n, tg):
+    """How a stance starts (after an impact, at its first instant, where the held torque changes) under the ground
+    force with normal component n and tangential tg: STANCE_LIFTS_OFF where the ground would pull (n < 0: the
+    liftoff witness is past zero already), else STANCE_SLIPS where the slip witness is watched (a friction
+    coefficient mu, the witness not latched) and the force lies outside the cone, else STANCE_HOLDS."""
+    if n < 0.0:
+        return STANCE_LIFTS_OFF
+    if slip_watched and ev_slip_margin(mu, n, tg) < 0.0:
+        return STANCE_SLIPS
+    return STANCE_HOLDS

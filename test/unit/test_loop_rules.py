@@ -243,3 +243,19 @@ def test_the_impact_rule_gives_the_impact_map_and_says_which_check_refused():
     up = [-v for v in dq]            # the swing foot moving up: the ground would have to pull it down
     assert impact(up, 10.0)[0] & IMPACT_PULLS
     assert not impact(dq, 10.0, old=0)[0] & IMPACT_OLD_FOOT_SINKS        # from flight: no old stance foot
+
+
+def test_the_stance_start_is_written_once():
+    """How a stance starts (the ground pulls: a liftoff at once; outside the friction cone with the slip witness
+    watched: a slip at once) is the rule ev_stance_start: hybrid's _check_stance_start and _core.c's touchdown
+    (the new stance) and refused_at_start (a period's start) call it."""
+    assert_written_once(("if slip_watched and ev_slip_margin(mu, n, tg) < 0.0",),
+                        (r"normal_force\(L->S, [\w>-]+\[0\], [\w>-]+\[1\]\) < 0\.0|cone_margin\(L->S, [^)]*\) < 0\.0"
+                         r"|slip_guard\(n, tg, self\.mu\) < 0\.0"))
+    from biped_sim.engine import loop_rules as rules
+    from biped_sim.engine.loop_state import STANCE_HOLDS, STANCE_LIFTS_OFF, STANCE_SLIPS
+    assert rules.ev_stance_start(True, 0.5, -1e-12, 0.0) == STANCE_LIFTS_OFF
+    assert rules.ev_stance_start(True, 0.5, 100.0, 60.0) == STANCE_SLIPS
+    assert rules.ev_stance_start(False, 0.5, 100.0, 60.0) == STANCE_HOLDS        # latched, or no mu
+    assert rules.ev_stance_start(True, 0.5, 100.0, 50.0) == STANCE_HOLDS         # on the cone's edge
+    assert rules.ev_stance_start(True, 0.0, 0.0, 0.0) == STANCE_HOLDS
