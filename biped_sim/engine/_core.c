@@ -382,9 +382,11 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
 {
     int old = L->leg, nw = 3 - L->leg;
     if (L->law_kind == CALLBACK) { L->why = 13; return 0; }
-    if (L->n_impacts > 0 && t_ev - L->last_impact < L->zeno_interval) { L->why = 14; return 0; }
-    if (L->mode_events + 1 >= L->max_events) { L->why = 15; return 0; }
-    if (L->mode_events >= 49 && t_ev - L->ring[L->mode_events % 49] < 1e-9) { L->why = 16; return 0; }
+    /* the impact history's rules (loop_rules: ImpactHistory.record, HybridSimulator._add_event); the ring holds
+     * the last 49 mode events, so the 50th before this one where there are that many */
+    if (ev_impacts_close(L->n_impacts, L->last_impact, t_ev, L->zeno_interval)) { L->why = 14; return 0; }
+    if (ev_over_budget(L->mode_events + 1, L->max_events)) { L->why = 15; return 0; }
+    if (ev_event_loop(L->mode_events + 1, L->ring[L->mode_events % 49], t_ev)) { L->why = 16; return 0; }
     double y[N], ue[2], Fe[2] = {0.0, 0.0}, out[7];
     for (int j = 0; j < N; j++) y[j] = rk_dense_at(L->S, j, t_ev);
     double *q = y, *dqm = y + 5, w = y[10];
@@ -533,11 +535,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
             } else {
                 /* ImpactHistory.accumulating: a crossing that continues impacts whose gaps shrink is the Python
                  * code's to decide (an impact of the Zeno limit) */
-                if (L->n_recent == 4) {
-                    const double *r = L->recent_impacts;
-                    double g0 = r[1] - r[0], g1 = r[2] - r[1], g2 = r[3] - r[2];
-                    if (g0 > g1 && g1 > g2 && g2 <= 0.5 * g0 && t_root - r[3] < g2) { L->why = 22; return 0; }
-                }
+                if (ev_accumulating(L->recent_impacts, L->n_recent, t_root)) { L->why = 22; return 0; }
                 scuffs++;
                 scuffing = 1;
                 scuff[0] = scuff[2] = t_root;

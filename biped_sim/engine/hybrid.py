@@ -610,11 +610,11 @@ class HybridSimulator:
         self._stats["events"] = len(self.events)
         if ev.kind == "scuff":      # a report, not a change of mode: max_events counts the changes
             return
-        self._mode_event_times.append(ev.time)
-        if len(self._mode_event_times) >= self.opt.max_events:
-            self._stop("stopped", f"stopped after {len(self._mode_event_times)} events (max_events)")
-        recent = self._mode_event_times[-50:]
-        if len(recent) == 50 and recent[-1] - recent[0] < 1e-9:
+        times = self._mode_event_times
+        times.append(ev.time)
+        if rules.ev_over_budget(len(times), self.opt.max_events):
+            self._stop("stopped", f"stopped after {len(times)} events (max_events)")
+        if rules.ev_event_loop(len(times), times[max(len(times) - 50, 0)], times[-1]):
             self._stop("stopped", f"event loop: 50 events within 1e-9 s ending at t={ev.time:.9g} s "
                                   f"(last: {ev.kind} of leg {ev.leg}); the run stops instead of hanging")
 

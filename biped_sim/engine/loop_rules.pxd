@@ -46,3 +46,7 @@ cdef public bint ev_stays_down(double dheight, double tol) noexcept nogil
 cdef public int ev_impulse_checks(bint has_mu, double mu, double n, double tg) noexcept nogil
 cdef public int ev_impact(double *S, int leg, int old, bint has_mu) noexcept nogil
 cdef public int ev_stance_start(bint slip_watched, double mu, double n, double tg) noexcept nogil
+cdef public bint ev_impacts_close(long n_before, double t_before, double t, double interval) noexcept nogil
+cdef public bint ev_over_budget(long n_events, long max_events) noexcept nogil
+cdef public bint ev_event_loop(long n_events, double t_first, double t_last) noexcept nogil
+cdef public bint ev_accumulating(double *times, Py_ssize_t n, double t) noexcept nogil

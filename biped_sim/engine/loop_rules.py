@@ -707,3 +707,34 @@ def ev_stance_start(slip_watched, mu, n, tg):
     if slip_watched and ev_slip_margin(mu, n, tg) < 0.0:
         return STANCE_SLIPS
     return STANCE_HOLDS
+
+
+# -- the impact history: impacts that accumulate, the events' budget, an event loop (invariants.py, hybrid.py) -
+def ev_impacts_close(n_before, t_before, t, interval):
+    """Whether an impact at t comes less than interval after the one before it (at t_before; n_before impacts
+    so far): a gap of a Zeno run (zeno_count of them in a row stop it)."""
+    return n_before > 0 and t - t_before < interval
+
+
+def ev_over_budget(n_events, max_events):
+    """Whether n_events changes of mode (the scuffs not counted) reach the run's budget max_events."""
+    return n_events >= max_events
+
+
+def ev_event_loop(n_events, t_first, t_last):
+    """Whether the last 50 of n_events changes of mode, the first of them at t_first and the last at t_last, came
+    within 1e-9 s: an event loop, which stops the run instead of hanging."""
+    return n_events >= 50 and t_last - t_first < 1e-9
+
+
+def ev_accumulating(times, n, t):
+    """Whether a crossing at t continues a run of impacts that accumulate (times: the last n <= 4 impacts', oldest
+    first): the last three gaps shrink, the last to at most half the first (a walk's steps settle far more
+    slowly), and t comes sooner than the last gap. That is the Zeno limit, where a foot comes back to the ground
+    at vanishing speed: such a crossing is an impact (whose check says Zeno), never a scuff."""
+    if n < 4:
+        return False
+    g0: cython.double = times[1] - times[0]
+    g1: cython.double = times[2] - times[1]
+    g2: cython.double = times[3] - times[2]
+    return g0 > g1 and g1 > g2 and g2 <= 0.5 * g0 and t - times[3] < g2

@@ -259,3 +259,28 @@ def test_the_stance_start_is_written_once():
     assert rules.ev_stance_start(False, 0.5, 100.0, 60.0) == STANCE_HOLDS        # latched, or no mu
     assert rules.ev_stance_start(True, 0.5, 100.0, 50.0) == STANCE_HOLDS         # on the cone's edge
     assert rules.ev_stance_start(True, 0.0, 0.0, 0.0) == STANCE_HOLDS
+
+
+def test_the_impact_history_predicates_are_written_once():
+    """A gap of a Zeno run, the events' budget, an event loop and impacts that accumulate (the Zeno limit, where a
+    crossing is an impact and never a scuff) are the rules' (loop_rules.py): invariants.ImpactHistory,
+    HybridSimulator._add_event and _core.c's touchdown and quiet step call them with the history's values."""
+    assert_written_once(("return n_before > 0 and t - t_before < interval", "return n_events >= max_events",
+                         "return n_events >= 50 and t_last - t_first < 1e-9",
+                         "return g0 > g1 and g1 > g2 and g2 <= 0.5 * g0 and t - times[3] < g2"),
+                        (r"- (L->)?last_impact < |mode_events \+ 1 >= |>= self\.opt\.max_events"
+                         r"|recent\[-1\] - recent\[0\]|ring\[[^]]*\] < 1e-9|g\[0\] > g\[1\] > g\[2\]"
+                         r"|g2 <= 0\.5 \* g0|b - a < self\.interval"))
+    from biped_sim.engine import loop_rules as rules
+    from biped_sim.engine.invariants import ImpactHistory
+    assert rules.ev_impacts_close(1, 1.0, 1.0 + 5e-7, 1e-6) and not rules.ev_impacts_close(0, 1.0, 1.0 + 5e-7, 1e-6)
+    assert rules.ev_over_budget(10, 10) and not rules.ev_over_budget(9, 10)
+    assert rules.ev_event_loop(50, 2.0, 2.0 + 5e-10) and not rules.ev_event_loop(49, 2.0, 2.0)
+    assert not rules.ev_event_loop(60, 2.0, 2.0 + 2e-9)
+    history = ImpactHistory(zeno_count=3, zeno_interval=1e-3)
+    for t in (0.0, 0.4, 0.6, 0.7):              # gaps 0.4, 0.2, 0.1: each at most half the one before
+        assert history.record(t) is None
+    assert history.accumulating(0.75) and not history.accumulating(0.85)     # sooner than the last gap, or not
+    assert not ImpactHistory(3, 1e-3).accumulating(0.75)                    # no impacts yet
+    assert [history.record(0.7 + k * 1e-4) for k in (1, 2)] == [None, None]
+    assert "3 impacts in a row less than 0.001 s apart" in history.record(0.7 + 3e-4)
