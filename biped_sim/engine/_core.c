@@ -15,10 +15,10 @@
  * by the Python code (from what this file measured, for a scuff or a touchdown it applied).
  *
  * Every formula comes from the generated kernels (_gen/_kernels.h: the closed forms, the unrolled
- * steps and their dense output), which perform the Python code's operations in the same order; the
- * few lines written here (the step control, the guard values, the projection, the dip bound, brentq,
- * the hook's glue) follow their Python lines operation for operation (named beside each), so
- * that a run gives the same bits on both paths (test/unit/test_compiled_loop.py).
+ * steps and their dense output) or from the rules compiled from loop_rules.py (below), which perform the
+ * Python code's operations in the same order; what is written here is the loop's glue (the samples, the
+ * event records, relabeling, the hand-overs, the hook), so that a run gives the same bits on both paths
+ * (test/unit/test_compiled_loop.py).
  */
 /* The rules written once (loop_rules.py: the step with its error control, the dense output, a foot's height,
  * the dip search, brentq), compiled by Cython into the committed _loop_rules.c (tools/generate_loop.py), are
@@ -371,12 +371,11 @@ stance_start(Loop *L, const double *F)
 }
 
 /* HybridSimulator._integrate's event branch for a touchdown in front at t_ev, then _reset's: the event's
- * sample (_accept), the impact map (k_impact_map_1/2: dynamics.impact_map_fast's closed form), relabeling,
- * the sample after it,
- * the next mode's start. Whatever the Python code would report or act on (a warning of the impact, an
- * invariant of check_impact, a possible Zeno stop, max_events, an event loop, a new stance that the
- * ground pulls or that slips at once, a Python controller) hands the step back instead: 0. Else 3,
- * two samples in rows (34 values), residual_out the larger |residual|, the record in td. */
+ * sample (_accept), the impact (loop_rules.ev_impact, as resets.touchdown_reset calls it), relabeling, the
+ * sample after it, the next mode's start. Whatever the Python code would report or act on (a warning of the
+ * impact, an invariant of check_impact, a possible Zeno stop, max_events, an event loop, a new stance that the
+ * ground pulls or that slips at once: the rules' answers; a Python controller) hands the step back instead: 0.
+ * Else 3, two samples in rows (34 values), residual_out the larger |residual|, the record in L->events. */
 static int
 touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, double energy_lost, double *residual_out)
 {
