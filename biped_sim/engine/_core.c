@@ -15,10 +15,10 @@
  * by the Python code (from what this file measured, for a scuff or a touchdown it applied).
  *
  * Every formula comes from the generated kernels (_gen/_kernels.h: the closed forms, the unrolled
- * steps and their dense output), which perform the Python code's operations in the same order; the
- * few lines written here (the step control, the guard values, the projection, the dip bound, brentq,
- * the hook's glue) follow their Python lines operation for operation (named beside each), so
- * that a run gives the same bits on both paths (test/unit/test_compiled_loop.py).
+ * steps and their dense output) or from the rules compiled from loop_rules.py (below), which perform the
+ * Python code's operations in the same order; what is written here is the loop's glue (the samples, the
+ * event records, relabeling, the hand-overs, the hook), so that a run gives the same bits on both paths
+ * (test/unit/test_compiled_loop.py).
  */
 /* The rules written once (loop_rules.py: the step with its error control, the dense output, a foot's height,
  * the dip search, brentq), compiled by Cython into the committed _loop_rules.c (tools/generate_loop.py), are
@@ -67,8 +67,8 @@ typedef struct {
 
 typedef struct {
     PyObject_HEAD
-    /* model: the constants of the closed forms (BipedModel.k) */
-    double k_stance[KMAX], k_feet[KMAX], k_energy[KMAX], k_terms[KMAX], k_impact[KMAX];
+    /* model: the constants of the closed forms (BipedModel.k; k_feet, k_energy and k_impact are the state's) */
+    double k_stance[KMAX], k_terms[KMAX];
     /* the state the rules read and write (loop_state.py): S by offset, the same memory by member (the model's
      * k_pos and l_leg, the options rtol, atol, max_step, graze_tol, event_tol, tan_s, the method, the stepper,
      * callback_failed, the failure of the last step) */
@@ -362,22 +362,31 @@ feet_into_state(double *S, void *ctx, double tt)
     feet_at((Loop *)ctx, tt, S + LS_FEET);
 }
 
+/* How the stance starts under the ground force F (loop_rules.ev_stance_start: HybridSimulator._check_stance_start);
+ * the slip witness is watched whenever there is a friction coefficient (nothing is latched while the loop runs) */
+static int
+stance_start(Loop *L, const double *F)
+{
+    return ev_stance_start(L->has_mu, L->mu, ev_normal_force(L->S, F[0], F[1]), ev_tangential_force(L->S, F[0], F[1]));
+}
+
 /* HybridSimulator._integrate's event branch for a touchdown in front at t_ev, then _reset's: the event's
- * sample (_accept), the impact map (k_impact_map_1/2: dynamics.impact_map_fast's closed form), relabeling,
- * the sample after it,
- * the next mode's start. Whatever the Python code would report or act on (a warning of the impact, an
- * invariant of check_impact, a possible Zeno stop, max_events, an event loop, a new stance that the
- * ground pulls or that slips at once, a Python controller) hands the step back instead: 0. Else 3,
- * two samples in rows (34 values), residual_out the larger |residual|, the record in td. */
+ * sample (_accept), the impact (loop_rules.ev_impact, as resets.touchdown_reset calls it), relabeling, the
+ * sample after it, the next mode's start. Whatever the Python code would report or act on (a warning of the
+ * impact, an invariant of check_impact, a possible Zeno stop, max_events, an event loop, a new stance that the
+ * ground pulls or that slips at once: the rules' answers; a Python controller) hands the step back instead: 0.
+ * Else 3, two samples in rows (34 values), residual_out the larger |residual|, the record in L->events. */
 static int
 touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, double energy_lost, double *residual_out)
 {
     int old = L->leg, nw = 3 - L->leg;
     if (L->law_kind == CALLBACK) { L->why = 13; return 0; }
-    if (L->n_impacts > 0 && t_ev - L->last_impact < L->zeno_interval) { L->why = 14; return 0; }
-    if (L->mode_events + 1 >= L->max_events) { L->why = 15; return 0; }
-    if (L->mode_events >= 49 && t_ev - L->ring[L->mode_events % 49] < 1e-9) { L->why = 16; return 0; }
-    double y[N], ue[2], Fe[2] = {0.0, 0.0}, out[7], TVm[2], TVp[2], dqp[5], imp[2];
+    /* the impact history's rules (loop_rules: ImpactHistory.record, HybridSimulator._add_event); the ring holds
+     * the last 49 mode events, so the 50th before this one where there are that many */
+    if (ev_impacts_close(L->n_impacts, L->last_impact, t_ev, L->zeno_interval)) { L->why = 14; return 0; }
+    if (ev_over_budget(L->mode_events + 1, L->max_events)) { L->why = 15; return 0; }
+    if (ev_event_loop(L->mode_events + 1, L->ring[L->mode_events % 49], t_ev)) { L->why = 16; return 0; }
+    double y[N], ue[2], Fe[2] = {0.0, 0.0}, out[7];
     for (int j = 0; j < N; j++) y[j] = rk_dense_at(L->S, j, t_ev);
     double *q = y, *dqm = y + 5, w = y[10];
     torque(L, t_ev, q, dqm, ue);
@@ -386,20 +395,14 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
         Fe[0] = out[5]; Fe[1] = out[6];
     }
     if (L->callback_failed) { L->why = 12; return 0; }
-    if (nw == 1) k_impact_map_1(q, dqm, L->k_impact, out);
-    else k_impact_map_2(q, dqm, L->k_impact, out);
-    memcpy(dqp, out, 5 * sizeof(double));
-    memcpy(imp, out + 5, 2 * sizeof(double));
-    k_energy(q, dqm, L->k_energy, TVm);
-    k_energy(q, dqp, L->k_energy, TVp);
-    double loss = (TVm[0] + TVm[1]) - (TVp[0] + TVp[1]);
-    /* resets.impact_warnings and invariants.check_impact */
-    double fa[8];
-    feet(L, q, dqp, fa);
-    double n_imp = ev_normal_force(L->S, imp[0], imp[1]), tg_imp = ev_tangential_force(L->S, imp[0], imp[1]);
-    if (fa[4 * (old - 1) + 3] < 0) { L->why = 18; return 0; }
-    if (n_imp < 0 || (L->has_mu && fabs(tg_imp) > L->mu * n_imp)) { L->why = 19; return 0; }
-    if (L->check_invariants && fa[4 * (old - 1) + 3] < L->contact_tol) { L->why = 20; return 0; }
+    /* the impact and its checks (loop_rules.ev_impact: resets.impact_warnings' and invariants.check_impact's) */
+    memcpy(L->q_impact, q, 5 * sizeof(double));
+    memcpy(L->dq_minus, dqm, 5 * sizeof(double));
+    int checks = ev_impact(L->S, nw, old, L->has_mu);
+    double *dqp = L->dq_plus, *imp = L->impulse, loss = L->energy_before - L->energy_after;
+    if (checks & IMPACT_OLD_FOOT_SINKS) { L->why = 18; return 0; }
+    if (checks & (IMPACT_PULLS | IMPACT_OUTSIDE_CONE)) { L->why = 19; return 0; }
+    if (L->check_invariants && ev_stays_down(L->feet_after[old - 1][3], L->contact_tol)) { L->why = 20; return 0; }
     /* the new stance (_check_stance_start): the ground must push, inside the friction cone */
     double up[2], Fp[2];
     L->leg = nw;
@@ -407,11 +410,11 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     stance(L, q, dqp, up, out);
     L->leg = old;
     Fp[0] = out[5]; Fp[1] = out[6];
-    if (ev_normal_force(L->S, Fp[0], Fp[1]) < 0.0 || (L->has_mu && ev_cone_margin(L->S, Fp[0], Fp[1]) < 0.0)) { L->why = 21; return 0; }
+    if (stance_start(L, Fp) != STANCE_HOLDS) { L->why = 21; return 0; }
     /* applied */
     double lost = energy_lost + loss;
-    double res_e = TVm[0] + TVm[1] - E0 - w - push_work + energy_lost;
-    double res_p = TVp[0] + TVp[1] - E0 - w - push_work + lost;
+    double res_e = L->energy_before - E0 - w - push_work + energy_lost;
+    double res_p = L->energy_after - E0 - w - push_work + lost;
     rows[0] = t_ev;
     for (int i = 0; i < 5; i++) { rows[1 + i] = q[i]; rows[6 + i] = dqm[i]; }
     rows[11] = old;
@@ -531,11 +534,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
             } else {
                 /* ImpactHistory.accumulating: a crossing that continues impacts whose gaps shrink is the Python
                  * code's to decide (an impact of the Zeno limit) */
-                if (L->n_recent == 4) {
-                    const double *r = L->recent_impacts;
-                    double g0 = r[1] - r[0], g1 = r[2] - r[1], g2 = r[3] - r[2];
-                    if (g0 > g1 && g1 > g2 && g2 <= 0.5 * g0 && t_root - r[3] < g2) { L->why = 22; return 0; }
-                }
+                if (ev_accumulating(L->recent_impacts, L->n_recent, t_root)) { L->why = 22; return 0; }
                 scuffs++;
                 scuffing = 1;
                 scuff[0] = scuff[2] = t_root;
@@ -969,7 +968,7 @@ hold(Loop *L, double u0, double u1, double t_bound)
 static int
 refused_at_start(Loop *L)
 {
-    if (!(ev_normal_force(L->S, L->last_F[0], L->last_F[1]) < 0.0 || (L->has_mu && ev_cone_margin(L->S, L->last_F[0], L->last_F[1]) < 0.0))) return 0;
+    if (stance_start(L, L->last_F) == STANCE_HOLDS) return 0;
     L->nfev -= 1;
     return 1;
 }

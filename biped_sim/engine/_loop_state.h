@@ -4,7 +4,7 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 923
+#define LOOP_STATE_SIZE 1056
 #define LS_NMAX 11
 #define LS_MAX_DEPTH 30
 #define LS_METHOD 0
@@ -53,6 +53,24 @@
 #define LS_QS 594
 #define LS_PS 599
 #define LS_STACK 603
+#define LS_K_IMPACT 923
+#define LS_K_ENERGY 955
+#define LS_K_FEET 987
+#define LS_Q_IMPACT 1019
+#define LS_DQ_MINUS 1024
+#define LS_DQ_PLUS 1029
+#define LS_IMPULSE 1034
+#define LS_TV 1036
+#define LS_ENERGY_BEFORE 1038
+#define LS_ENERGY_AFTER 1039
+#define LS_KINEMATICS 1040
+#define LS_FEET_AFTER 1048
+#define IMPACT_OLD_FOOT_SINKS 1
+#define IMPACT_PULLS 2
+#define IMPACT_OUTSIDE_CONE 4
+#define STANCE_HOLDS 0
+#define STANCE_LIFTS_OFF 1
+#define STANCE_SLIPS 2
 
 /* the right-hand side f(ctx, t, y) -> dy the generated steps take, and a guard's value at t: the
  * functions the rules take as arguments */
@@ -107,6 +125,18 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double coef[8][3];  /* the dip search's |power-basis coefficients|: swing leg angle, hip x, hip y (fixed base: swing leg angle, stance leg angle) */ \
     double qs[5];  /* q on the dense output */ \
     double ps[4];  /* the feet's positions there */ \
-    double stack[64][5];  /* the dip search's intervals: a, b, h(a), h(b), depth */
+    double stack[64][5];  /* the dip search's intervals: a, b, h(a), h(b), depth */ \
+    double k_impact[32];  /* the constants of the closed form impact_map_1 (impact_map_2 takes the same) */ \
+    double k_energy[32];  /* the constants of the closed form energy */ \
+    double k_feet[32];  /* the constants of the closed form foot_kinematics */ \
+    double q_impact[5];  /* q at the impact */ \
+    double dq_minus[5];  /* dq before the impact */ \
+    double dq_plus[5];  /* dq after the impact (the impact map writes it and the impulse after it, in one row) */ \
+    double impulse[2];  /* the ground's impulse on the landing foot (N s) */ \
+    double tv[2];  /* T and V (the closed form energy) */ \
+    double energy_before;  /* T + V before the impact (J) */ \
+    double energy_after;  /* T + V after the impact (J) */ \
+    double kinematics[8];  /* foot_kinematics after the impact: p_1, p_2, dp_1/dt, dp_2/dt */ \
+    double feet_after[2][4];  /* the feet after the impact: x, height across the ground, their rates, a row a foot */
 
 #endif

@@ -27,13 +27,14 @@ import time
 
 import numpy as np
 
-from biped_sim.engine import compiled_loop, guards as G
+from biped_sim.engine import compiled_loop, guards as G, loop_rules as rules
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, gen
 from biped_sim.engine.controller_check import check_controller
 from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
 from biped_sim.engine.integrators import StepFailure, make_stepper, prepare as prepare_stepper
 from biped_sim.engine.invariants import ImpactHistory, check_impact, check_sample
 from biped_sim.engine.locator import EventLocator
+from biped_sim.engine.loop_state import STANCE_HOLDS, STANCE_LIFTS_OFF
 from biped_sim.engine.model import BipedModel, as_state_vector, short_repr
 from biped_sim.engine.modes import (
     bind_controller,
@@ -587,12 +588,11 @@ class HybridSimulator:
         t0, q, dq, leg, F_sample, u, residual = self._samples.last()
         n, tg = G.normal_tangent(F_sample if F is None else F, self.ground)
         slip = witness("slip", leg)
-        if n < 0.0:
-            guard = witness("liftoff", leg)
-        elif self.mu is not None and slip not in self.locator.latched and G.slip_guard(n, tg, self.mu) < 0.0:
-            guard = slip
-        else:
+        start = rules.ev_stance_start(self.mu is not None and slip not in self.locator.latched,
+                                      0.0 if self.mu is None else self.mu, n, tg)
+        if start == STANCE_HOLDS:
             return
+        guard = witness("liftoff", leg) if start == STANCE_LIFTS_OFF else slip
         q, dq = q.tolist(), dq.tolist()
         if F is not None:
             # the next step starts here under the new torque, not from the last step's end under the old one
@@ -610,11 +610,11 @@ class HybridSimulator:
         self._stats["events"] = len(self.events)
         if ev.kind == "scuff":      # a report, not a change of mode: max_events counts the changes
             return
-        self._mode_event_times.append(ev.time)
-        if len(self._mode_event_times) >= self.opt.max_events:
-            self._stop("stopped", f"stopped after {len(self._mode_event_times)} events (max_events)")
-        recent = self._mode_event_times[-50:]
-        if len(recent) == 50 and recent[-1] - recent[0] < 1e-9:
+        times = self._mode_event_times
+        times.append(ev.time)
+        if rules.ev_over_budget(len(times), self.opt.max_events):
+            self._stop("stopped", f"stopped after {len(times)} events (max_events)")
+        if rules.ev_event_loop(len(times), times[max(len(times) - 50, 0)], times[-1]):
             self._stop("stopped", f"event loop: 50 events within 1e-9 s ending at t={ev.time:.9g} s "
                                   f"(last: {ev.kind} of leg {ev.leg}); the run stops instead of hanging")
 

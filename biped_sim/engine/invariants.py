@@ -77,7 +77,7 @@ def check_impact(event, feet_after, ground, recent_gaps, impulse_tol, rest_tol):
                 f"invariant 'an impact pushes' violated at t={event.time:.9g} s: the ground's impulse on foot {leg} "
                 f"pulls it ({n:.6g} N s normal): a plastic impact there is not physical")
     old = event.stance_leg_before
-    if old and old not in landing and feet_after[old - 1].dheight < rest_tol:
+    if old and old not in landing and rules.ev_stays_down(feet_after[old - 1].dheight, rest_tol):
         v = feet_after[old - 1].dheight
         if len(recent_gaps) >= 3 and all(b < a for a, b in zip(recent_gaps, recent_gaps[1:])):
             return (f"the impacts accumulate (Zeno behaviour): the gaps between the last impacts shrink "
@@ -104,7 +104,9 @@ class ImpactHistory:
         if len(self.times) > max(self.count + 1, 5):
             del self.times[0]
         last = self.times[-(self.count + 1):]
-        if len(last) == self.count + 1 and all(b - a < self.interval for a, b in zip(last, last[1:])):
+        # (each gap's later impact has one before it at least)
+        if len(last) == self.count + 1 and all(rules.ev_impacts_close(1, a, b, self.interval)
+                                               for a, b in zip(last, last[1:])):
             return (f"{self.count} impacts in a row less than {self.interval:g} s apart ending at t={t:.9g} s: "
                     "the impacts accumulate (Zeno behaviour); the run stops")
         return None
@@ -116,7 +118,7 @@ class ImpactHistory:
         """Whether a crossing at t continues a run of impacts that accumulate: the last three gaps shrink,
         the last to at most half the first (a walk's steps settle far more slowly), and t comes sooner
         than the last gap. That is the Zeno limit, where a foot comes back to the ground at vanishing
-        speed: such a crossing is an impact (whose check says Zeno), never a scuff. (_core.c quiet_step
-        hands it back.)"""
-        g = self.gaps()[-3:]
-        return len(g) == 3 and g[0] > g[1] > g[2] and g[2] <= 0.5 * g[0] and t - self.times[-1] < g[2]
+        speed: such a crossing is an impact (whose check says Zeno), never a scuff: the rule
+        ``loop_rules.ev_accumulating``, which _core.c's quiet step calls too."""
+        recent = self.times[-4:]
+        return rules.ev_accumulating(recent, len(recent), t)

@@ -23,12 +23,19 @@ cdef extern from "_gen/_kernels.h" nogil:
     int k_dopri5_dense_11(const double *ys, const double *k0, const double *k1, const double *k2, const double *k3,
                           const double *k4, const double *k5, const double *k6, double *out)
     int c_foot_positions "k_foot_positions"(const double *q, const double *k, double *out)
+    int c_impact_map_1 "k_impact_map_1"(const double *q, const double *dqm, const double *k, double *out)
+    int c_impact_map_2 "k_impact_map_2"(const double *q, const double *dqm, const double *k, double *out)
+    int c_energy "k_energy"(const double *q, const double *dq, const double *k, double *out)
+    int c_foot_kinematics "k_foot_kinematics"(const double *q, const double *dq, const double *k, double *out)
 
 cdef extern from "_loop_state.h":
     enum:
         LS_NMAX
         LS_METHOD
         LS_K_POS
+        LS_K_IMPACT
+        LS_K_ENERGY
+        LS_K_FEET
 
 
 cdef inline void k_rhs(double *S, rhs_t fun, void *ctx, double t, Py_ssize_t y, Py_ssize_t dy) noexcept nogil:
@@ -59,6 +66,22 @@ cdef inline void k_dense(double *S, rhs_t fun, void *ctx, double t_old, double h
 
 cdef inline void k_foot_positions(double *S, Py_ssize_t q, Py_ssize_t p) noexcept nogil:
     c_foot_positions(&S[q], &S[LS_K_POS], &S[p])
+
+
+cdef inline void k_impact_map(double *S, int leg, Py_ssize_t q, Py_ssize_t dqm, Py_ssize_t out) noexcept nogil:
+    # S[out:] = dq+ (5) and the impulse (2) of foot leg's impact
+    if leg == 2:
+        c_impact_map_2(&S[q], &S[dqm], &S[LS_K_IMPACT], &S[out])
+    else:
+        c_impact_map_1(&S[q], &S[dqm], &S[LS_K_IMPACT], &S[out])
+
+
+cdef inline void k_energy(double *S, Py_ssize_t q, Py_ssize_t dq, Py_ssize_t out) noexcept nogil:
+    c_energy(&S[q], &S[dq], &S[LS_K_ENERGY], &S[out])
+
+
+cdef inline void k_foot_kinematics(double *S, Py_ssize_t q, Py_ssize_t dq, Py_ssize_t out) noexcept nogil:
+    c_foot_kinematics(&S[q], &S[dq], &S[LS_K_FEET], &S[out])
 
 
 cdef inline void k_copy(double *S, Py_ssize_t dst, Py_ssize_t src, Py_ssize_t n) noexcept nogil:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from biped_sim.engine.loop_state import K_POS, N_Y, NMAX
+from biped_sim.engine.loop_state import K_ENERGY, K_FEET, K_IMPACT, K_POS, N_Y, NMAX
 
 ulp = math.ulp
 
@@ -51,6 +51,29 @@ def k_foot_positions(S, q, p):
     """S[p:p + 4] = the feet's positions at q = S[q:q + 5]."""
     from biped_sim.engine.compiled import gen
     S[p:p + 4] = gen.foot_positions(S[q:q + 5], S[K_POS:K_POS + 9])
+
+
+def k_impact_map(S, leg, q, dqm, out):
+    """S[out:out + 5] = dq+ and S[out + 5:out + 7] = the ground's impulse of foot leg's impact at q = S[q:q + 5],
+    dq- = S[dqm:dqm + 5] (the closed forms impact_map_1 and impact_map_2, on the constants S[K_IMPACT])."""
+    from biped_sim.engine.compiled import gen
+    impact = gen.impact_map_2 if leg == 2 else gen.impact_map_1
+    dq_plus, impulse = impact(S[q:q + 5], S[dqm:dqm + 5], S[K_IMPACT:K_IMPACT + 26])
+    S[out:out + 5] = dq_plus
+    S[out + 5:out + 7] = impulse
+
+
+def k_energy(S, q, dq, out):
+    """S[out:out + 2] = (T, V) at q = S[q:q + 5], dq = S[dq:dq + 5]."""
+    from biped_sim.engine.compiled import gen
+    S[out:out + 2] = gen.energy(S[q:q + 5], S[dq:dq + 5], S[K_ENERGY:K_ENERGY + 9])
+
+
+def k_foot_kinematics(S, q, dq, out):
+    """S[out:out + 8] = the feet's positions p_1, p_2 and velocities dp_1/dt, dp_2/dt at q = S[q:q + 5],
+    dq = S[dq:dq + 5]."""
+    from biped_sim.engine.compiled import gen
+    S[out:out + 8] = gen.foot_kinematics(S[q:q + 5], S[dq:dq + 5], S[K_FEET:K_FEET + 9])
 
 
 def k_copy(S, dst, src, n):

@@ -3,8 +3,8 @@
 from libc.math cimport fabs, hypot, isfinite, isnan, pow
 
 from biped_sim.engine._loop_state cimport *
-from biped_sim.engine.loop_kernels cimport (feet_t, guard_t, k_copy, k_dense, k_foot_positions, k_rhs, k_step, k_ulp,
-                                            rhs_t)
+from biped_sim.engine.loop_kernels cimport (feet_t, guard_t, k_copy, k_dense, k_energy, k_foot_kinematics,
+                                            k_foot_positions, k_impact_map, k_rhs, k_step, k_ulp, rhs_t)
 
 cdef public void rk_begin(double *S, rhs_t fun, void *ctx) noexcept nogil
 cdef public int rk_step(double *S, rhs_t fun, void *ctx) noexcept nogil
@@ -41,3 +41,12 @@ cdef public bint ev_starts_scuff(bint forward, double front_tol, double x, doubl
 cdef public bint ev_passes_through(bint forward, double front_tol, double x, double dx, double dheight,
                                    double x_stance) noexcept nogil
 cdef public int ev_track_scuff(double *S, feet_t feet_at, void *ctx, int leg, int stance_leg, double t_end) noexcept nogil
+cdef public bint ev_outside_cone(double mu, double n, double tg, double tol) noexcept nogil
+cdef public bint ev_stays_down(double dheight, double tol) noexcept nogil
+cdef public int ev_impulse_checks(bint has_mu, double mu, double n, double tg) noexcept nogil
+cdef public int ev_impact(double *S, int leg, int old, bint has_mu) noexcept nogil
+cdef public int ev_stance_start(bint slip_watched, double mu, double n, double tg) noexcept nogil
+cdef public bint ev_impacts_close(long n_before, double t_before, double t, double interval) noexcept nogil
+cdef public bint ev_over_budget(long n_events, long max_events) noexcept nogil
+cdef public bint ev_event_loop(long n_events, double t_first, double t_last) noexcept nogil
+cdef public bint ev_accumulating(double *times, Py_ssize_t n, double t) noexcept nogil

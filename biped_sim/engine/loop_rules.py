@@ -44,7 +44,17 @@ else:
 if not cython.compiled:
     from math import fabs, hypot, isfinite, isnan, pow
 
-    from biped_sim.engine.loop_kernels import k_copy, k_dense, k_foot_positions, k_rhs, k_step, k_ulp
+    from biped_sim.engine.loop_kernels import (
+        k_copy,
+        k_dense,
+        k_energy,
+        k_foot_kinematics,
+        k_foot_positions,
+        k_impact_map,
+        k_rhs,
+        k_step,
+        k_ulp,
+    )
     from biped_sim.engine.loop_state import (
         ATOL,
         CALLBACK_FAILED,
@@ -53,17 +63,27 @@ if not cython.compiled:
         DEEPEST_TRIAL,
         DENSE,
         DENSE_READY,
+        DQ_MINUS,
+        DQ_PLUS,
+        ENERGY_AFTER,
+        ENERGY_BEFORE,
         EVENT_TOL,
         FAIL_KIND,
         FAIL_T,
         FAIL_VALUE,
         FEET,
+        FEET_AFTER,
         FIXED_BASE,
         FORWARD_RULE,
         FRONT_TOL,
         GRAZE_TOL,
         GUARD_LEG,
         H_ABS,
+        IMPACT_OLD_FOOT_SINKS,
+        IMPACT_OUTSIDE_CONE,
+        IMPACT_PULLS,
+        IMPULSE,
+        KINEMATICS,
         L_LEG,
         MAX_DEPTH,
         MAX_STEP,
@@ -76,6 +96,7 @@ if not cython.compiled:
         NREJECTED,
         OUT,
         PS,
+        Q_IMPACT,
         QS,
         RESULT,
         RTOL,
@@ -84,10 +105,14 @@ if not cython.compiled:
         SIN_S,
         STACK,
         STAGES,
+        STANCE_HOLDS,
+        STANCE_LIFTS_OFF,
+        STANCE_SLIPS,
         T_BOUND,
         T_OLD,
         TAN_S,
         TO_POWER_BASIS,
+        TV,
         Y_OLD,
         F,
         H,
@@ -617,3 +642,99 @@ def ev_track_scuff(S, feet_at, ctx, leg, stance_leg, t_end):
     if S[SCUFF_TRIAL + 1] > S[SCUFF_DEPTH]:
         return -2
     return 1 if S[f + 1] > 0.0 else 0
+
+
+# -- the touchdown: the impact and its checks (resets.py, invariants.py), the next stance's start (hybrid.py) --
+def ev_outside_cone(mu, n, tg, tol):
+    """Whether an impulse (or a force) with normal component n and tangential tg lies outside the friction cone
+    by more than tol: |tg| - mu n > tol (tol 0: |tg| > mu n)."""
+    return fabs(tg) - mu * n > tol
+
+
+def ev_stays_down(dheight, tol):
+    """Whether the old stance foot, its rate across the ground dheight after an impact, does not leave the ground
+    faster than tol (tol 0: it moves into the ground)."""
+    return dheight < tol
+
+
+def ev_impulse_checks(has_mu, mu, n, tg):
+    """The assumptions a ground impulse on a landing foot (normal n, tangential tg) violates, as the bits of
+    loop_state.CODES: IMPACT_PULLS where it pulls the foot into the ground (n < 0), else IMPACT_OUTSIDE_CONE
+    where, with a friction coefficient mu (has_mu), it lies outside the cone."""
+    if ev_violated(n, 0.0):
+        return IMPACT_PULLS
+    if has_mu and ev_outside_cone(mu, n, tg, 0.0):
+        return IMPACT_OUTSIDE_CONE
+    return 0
+
+
+def ev_impact(S, leg, old, has_mu):
+    """The rigid plastic impact of foot leg (docs/model.md "Impact": the generated closed form, one foot) at
+    q = S[Q_IMPACT], dq- = S[DQ_MINUS], old the stance foot before it (0 in flight): into S dq+ (DQ_PLUS), the
+    ground's impulse on the foot (IMPULSE), T + V before and after (ENERGY_BEFORE, ENERGY_AFTER: the loss is
+    their difference) and the feet after it (FEET_AFTER). Returns the bits of the assumptions it violates:
+    ev_impulse_checks' on the impulse, and IMPACT_OLD_FOOT_SINKS where the old stance foot moves into the
+    ground."""
+    i: cython.Py_ssize_t
+    p: cython.Py_ssize_t
+    code: cython.int
+    k_impact_map(S, leg, Q_IMPACT, DQ_MINUS, DQ_PLUS)
+    k_energy(S, Q_IMPACT, DQ_MINUS, TV)
+    S[ENERGY_BEFORE] = S[TV] + S[TV + 1]
+    k_energy(S, Q_IMPACT, DQ_PLUS, TV)
+    S[ENERGY_AFTER] = S[TV] + S[TV + 1]
+    k_foot_kinematics(S, Q_IMPACT, DQ_PLUS, KINEMATICS)
+    for i in range(2):
+        p = KINEMATICS + 2 * i
+        S[FEET_AFTER + 4 * i] = S[p]
+        S[FEET_AFTER + 4 * i + 1] = ev_across(S[TAN_S], S[p], S[p + 1])
+        S[FEET_AFTER + 4 * i + 2] = S[p + 4]
+        S[FEET_AFTER + 4 * i + 3] = ev_across(S[TAN_S], S[p + 4], S[p + 5])
+    code = ev_impulse_checks(has_mu, S[MU], ev_normal_force(S, S[IMPULSE], S[IMPULSE + 1]),
+                             ev_tangential_force(S, S[IMPULSE], S[IMPULSE + 1]))
+    if old != 0 and old != leg and ev_stays_down(S[FEET_AFTER + 4 * (old - 1) + 3], 0.0):
+        code |= IMPACT_OLD_FOOT_SINKS
+    return code
+
+
+def ev_stance_start(slip_watched, mu, n, tg):
+    """How a stance starts (after an impact, at its first instant, where the held torque changes) under the ground
+    force with normal component n and tangential tg: STANCE_LIFTS_OFF where the ground would pull (n < 0: the
+    liftoff witness is past zero already), else STANCE_SLIPS where the slip witness is watched (a friction
+    coefficient mu, the witness not latched) and the force lies outside the cone, else STANCE_HOLDS."""
+    if n < 0.0:
+        return STANCE_LIFTS_OFF
+    if slip_watched and ev_slip_margin(mu, n, tg) < 0.0:
+        return STANCE_SLIPS
+    return STANCE_HOLDS
+
+
+# -- the impact history: impacts that accumulate, the events' budget, an event loop (invariants.py, hybrid.py) -
+def ev_impacts_close(n_before, t_before, t, interval):
+    """Whether an impact at t comes less than interval after the one before it (at t_before; n_before impacts
+    so far): a gap of a Zeno run (zeno_count of them in a row stop it)."""
+    return n_before > 0 and t - t_before < interval
+
+
+def ev_over_budget(n_events, max_events):
+    """Whether n_events changes of mode (the scuffs not counted) reach the run's budget max_events."""
+    return n_events >= max_events
+
+
+def ev_event_loop(n_events, t_first, t_last):
+    """Whether the last 50 of n_events changes of mode, the first of them at t_first and the last at t_last, came
+    within 1e-9 s: an event loop, which stops the run instead of hanging."""
+    return n_events >= 50 and t_last - t_first < 1e-9
+
+
+def ev_accumulating(times, n, t):
+    """Whether a crossing at t continues a run of impacts that accumulate (times: the last n <= 4 impacts', oldest
+    first): the last three gaps shrink, the last to at most half the first (a walk's steps settle far more
+    slowly), and t comes sooner than the last gap. That is the Zeno limit, where a foot comes back to the ground
+    at vanishing speed: such a crossing is an impact (whose check says Zeno), never a scuff."""
+    if n < 4:
+        return False
+    g0: cython.double = times[1] - times[0]
+    g1: cython.double = times[2] - times[1]
+    g2: cython.double = times[3] - times[2]
+    return g0 > g1 and g1 > g2 and g2 <= 0.5 * g0 and t - times[3] < g2

@@ -15,8 +15,9 @@ declaration by test/unit/test_loop_rules.py. Run as Python, a state is a list of
 (:func:`new_state`): the interpreter indexes a list several times faster than a numpy array.
 
 Fields whose size depends on the integrated state have room for ``NMAX`` entries (the floating base's
-11); a smaller state (the fixed base's 7) uses the first entries of each. The scratch fields at the end
-hold intermediate results between two calls of the rules and nothing across steps.
+11); a smaller state (the fixed base's 7) uses the first entries of each. The scratch fields hold
+intermediate results between two calls of the rules and nothing across steps; the touchdown's block at the
+end holds the constants of the closed forms an impact evaluates (loop_rules.ev_impact) and its results.
 """
 from __future__ import annotations
 
@@ -91,7 +92,31 @@ FIELDS = (
     Field("qs", (5,), "q on the dense output"),
     Field("ps", (4,), "the feet's positions there"),
     Field("stack", (2 * MAX_DEPTH + 4, 5), "the dip search's intervals: a, b, h(a), h(b), depth"),
+    # -- touchdown: the impact (loop_rules.ev_impact), the constants of the closed forms it evaluates, its scratch
+    Field("k_impact", (32,), "the constants of the closed form impact_map_1 (impact_map_2 takes the same)"),
+    Field("k_energy", (32,), "the constants of the closed form energy"),
+    Field("k_feet", (32,), "the constants of the closed form foot_kinematics"),
+    Field("q_impact", (5,), "q at the impact"),
+    Field("dq_minus", (5,), "dq before the impact"),
+    Field("dq_plus", (5,), "dq after the impact (the impact map writes it and the impulse after it, in one row)"),
+    Field("impulse", (2,), "the ground's impulse on the landing foot (N s)"),
+    Field("tv", (2,), "T and V (the closed form energy)"),
+    Field("energy_before", (), "T + V before the impact (J)"),
+    Field("energy_after", (), "T + V after the impact (J)"),
+    Field("kinematics", (8,), "foot_kinematics after the impact: p_1, p_2, dp_1/dt, dp_2/dt"),
+    Field("feet_after", (2, 4), "the feet after the impact: x, height across the ground, their rates, a row a foot"),
 )
+
+#: the codes the touchdown's rules return (loop_rules.py): the bits of an impact's checks (ev_impact,
+#: ev_impulse_checks), and how a stance starts (ev_stance_start). _loop_state.h and .pxd carry them by these names.
+CODES = {
+    "IMPACT_OLD_FOOT_SINKS": 1,     # the old stance foot moves into the ground after the impact
+    "IMPACT_PULLS": 2,              # the ground's impulse on a landing foot pulls it (normal < 0)
+    "IMPACT_OUTSIDE_CONE": 4,       # it pushes, outside the friction cone (|Lambda_t| > mu Lambda_n)
+    "STANCE_HOLDS": 0,              # the ground pushes, inside the cone: the stance goes on
+    "STANCE_LIFTS_OFF": 1,          # the ground would pull (normal force < 0): a liftoff at once
+    "STANCE_SLIPS": 2,              # the force is outside the friction cone (the slip witness watched): a slip at once
+}
 
 
 def _size(shape):
@@ -108,6 +133,7 @@ def _offsets():
 
 OFFSETS, SIZE = _offsets()
 globals().update(OFFSETS)       # T, Y, STAGES, ...: the offsets the rules index S with when they run as Python
+globals().update(CODES)
 
 
 def new_state(**values) -> list:
@@ -136,6 +162,7 @@ def c_header() -> str:
              "#ifndef BIPED_SIM_LOOP_STATE_H", "#define BIPED_SIM_LOOP_STATE_H", "",
              f"#define LOOP_STATE_SIZE {SIZE}", f"#define LS_NMAX {NMAX}", f"#define LS_MAX_DEPTH {MAX_DEPTH}"]
     lines += [f"#define LS_{name} {at}" for name, at in OFFSETS.items()]
+    lines += [f"#define {name} {code}" for name, code in CODES.items()]
     lines += ["", "/* the right-hand side f(ctx, t, y) -> dy the generated steps take, and a guard's value at t: the",
               " * functions the rules take as arguments */",
               "typedef int (*rhs_t)(void *ctx, double t, const double *y, double *dy);",
@@ -158,5 +185,6 @@ def cython_pxd() -> str:
              'cdef extern from "_loop_state.h":', "    enum:",
              '        SIZE "LOOP_STATE_SIZE"', '        NMAX "LS_NMAX"', '        MAX_DEPTH "LS_MAX_DEPTH"']
     lines += [f'        {name} "LS_{name}"' for name in OFFSETS]
+    lines += [f'        {name} "{name}"' for name in CODES]
     lines.append("")
     return "\n".join(lines)

@@ -18,8 +18,22 @@ from __future__ import annotations
 
 import numpy as np
 
+from biped_sim.engine import loop_rules as rules
 from biped_sim.engine.dynamics import IMPACT_CONDITION_LIMIT, impact_condition, impact_map_fast, push_response
 from biped_sim.engine.guards import foot_states, normal_tangent
+from biped_sim.engine.loop_state import (
+    DQ_MINUS,
+    DQ_PLUS,
+    ENERGY_AFTER,
+    ENERGY_BEFORE,
+    FEET_AFTER,
+    IMPACT_OLD_FOOT_SINKS,
+    IMPACT_OUTSIDE_CONE,
+    IMPACT_PULLS,
+    IMPULSE,
+    Q_IMPACT,
+    new_state,
+)
 from biped_sim.engine.model import as_state_vector
 from biped_sim.engine.results import Event
 
@@ -32,28 +46,51 @@ PUSH_IMPULSE_LIMIT = 100.0
 TIE_TOL = 1e-9
 
 
+def touchdown_state(model, ground, mu=None) -> list:
+    """A state (``loop_state``) with what the impact's rule ``loop_rules.ev_impact`` reads: the model's closed-form
+    constants, the ground, the friction coefficient (0 without one)."""
+    return new_state(k_impact=model.k["impact_map_1"], k_energy=model.k["energy"], k_feet=model.k["foot_kinematics"],
+                     tan_s=ground.tan, sin_s=ground.sin, cos_s=ground.cos, mu=0.0 if mu is None else mu)
+
+
 def touchdown_reset(model, t, q, dq, legs, stance_leg, ground, mu=None) -> Event:
     """The impact of foot ``legs[0]`` (or of both feet, ``legs == [1, 2]``) at the state (q, dq) (arrays)."""
-    impact_leg = legs[0] if len(legs) == 1 else (1, 2)
-    dq_plus, impulse = impact_map_fast(model, q, dq, impact_leg)
     if len(legs) == 1:
-        new, kind = legs[0], "touchdown"
+        # one foot: the rule the compiled loop runs (loop_rules.ev_impact), on a state of its own
+        S = touchdown_state(model, ground, mu)
+        S[Q_IMPACT:Q_IMPACT + 5] = q.tolist()
+        S[DQ_MINUS:DQ_MINUS + 5] = dq.tolist()
+        checks = rules.ev_impact(S, legs[0], stance_leg, mu is not None)
+        dq_plus, impulse = np.array(S[DQ_PLUS:DQ_PLUS + 5]), np.array(S[IMPULSE:IMPULSE + 2])
+        loss = S[ENERGY_BEFORE] - S[ENERGY_AFTER]
+        dheight = S[FEET_AFTER + 4 * (stance_leg - 1) + 3] if stance_leg else 0.0
+        warnings = impact_warnings([checks & ~IMPACT_OLD_FOOT_SINKS], checks & IMPACT_OLD_FOOT_SINKS, dheight,
+                                   impulse, legs, stance_leg, ground, mu)
+        return Event(t, "touchdown", legs[0], q, dq, dq_plus, impulse, stance_leg, legs[0], loss, warnings)
+    # both feet (Python only: the compiled loop runs one foot's touchdown)
+    dq_plus, impulse = impact_map_fast(model, q, dq, (1, 2))
+    n1 = normal_tangent(impulse[0:2], ground)[0]
+    n2 = normal_tangent(impulse[2:4], ground)[0]
+    if abs(n1 - n2) <= TIE_TOL * max(abs(n1), abs(n2)):
+        # a tie (a symmetric landing): which impulse is larger is rounding, so the rear foot, by
+        # rule: then the front foot's touchdown is the next event and says that both feet stay
+        # down; on the front foot the rear one's sinking would pass for a scuff behind it
+        p1x, p2x = model.foot_position(q, 1)[0], model.foot_position(q, 2)[0]
+        new = 1 if p1x <= p2x else 2
     else:
-        n1 = normal_tangent(impulse[0:2], ground)[0]
-        n2 = normal_tangent(impulse[2:4], ground)[0]
-        if abs(n1 - n2) <= TIE_TOL * max(abs(n1), abs(n2)):
-            # a tie (a symmetric landing): which impulse is larger is rounding, so the rear foot, by
-            # rule: then the front foot's touchdown is the next event and says that both feet stay
-            # down; on the front foot the rear one's sinking would pass for a scuff behind it
-            p1x, p2x = model.foot_position(q, 1)[0], model.foot_position(q, 2)[0]
-            new = 1 if p1x <= p2x else 2
-        else:
-            new = 1 if n1 > n2 else 2
-        kind = "double_touchdown"
+        new = 1 if n1 > n2 else 2
     ql = q.tolist()
     loss = model.energy_fast(ql, dq.tolist()) - model.energy_fast(ql, dq_plus.tolist())
-    warnings = impact_warnings(model, q, dq_plus, impulse, legs, stance_leg, ground, mu)
-    return Event(t, kind, new, q, dq, dq_plus, impulse, stance_leg, new, loss, warnings)
+    warnings = []
+    if impact_condition(model, q, (1, 2)) > IMPACT_CONDITION_LIMIT:
+        feet = foot_states(model, ql, dq_plus.tolist(), ground.tan)
+        warnings.append(f"the feet land {abs(feet[0].x - feet[1].x):.3g} m apart, nearly at one point: the "
+                        "post-impact velocity is determined, the split of the impulse between them is not (the "
+                        "smallest impulses are reported)")
+    checks = [rules.ev_impulse_checks(mu is not None, 0.0 if mu is None else mu,
+                                      *normal_tangent(impulse[2 * j: 2 * j + 2], ground)) for j in range(2)]
+    warnings += impact_warnings(checks, 0, 0.0, impulse, [1, 2], stance_leg, ground, mu)
+    return Event(t, "double_touchdown", new, q, dq, dq_plus, impulse, stance_leg, new, loss, warnings)
 
 
 def double_touchdown_reset(model, t, q, dq, stance_leg, ground, mu=None) -> Event:
@@ -63,24 +100,22 @@ def double_touchdown_reset(model, t, q, dq, stance_leg, ground, mu=None) -> Even
     return touchdown_reset(model, t, q, dq, [1, 2], stance_leg, ground, mu)
 
 
-def impact_warnings(model, q, dq_plus, impulse, legs, old, ground, mu) -> list[str]:
-    """The contact assumptions an impact violates: the old stance foot must leave the ground, and each
-    impulse must push (and lie inside the friction cone, with ``mu``)."""
+def impact_warnings(impulse_checks, old_foot_sinks, dheight, impulse, legs, old, ground, mu) -> list[str]:
+    """The messages of the contact assumptions an impact violates (the bits of ``loop_rules.ev_impact``'s
+    checks): the old stance foot must leave the ground (``old_foot_sinks``; ``dheight`` its rate across the
+    ground after the impact), and each landing foot's impulse must push, inside the friction cone with ``mu``
+    (``impulse_checks``, the bits of each, in the order of ``legs``)."""
     warnings = []
-    feet = foot_states(model, q.tolist(), dq_plus.tolist(), ground.tan)
-    if len(legs) == 2 and impact_condition(model, q, (1, 2)) > IMPACT_CONDITION_LIMIT:
-        gap = abs(feet[0].x - feet[1].x)
-        warnings.append(f"the feet land {gap:.3g} m apart, nearly at one point: the post-impact velocity is "
-                        "determined, the split of the impulse between them is not (the smallest impulses are "
-                        "reported)")
-    if old and old not in legs and feet[old - 1].dheight < 0:
+    if old_foot_sinks:
         warnings.append(f"the old stance foot (leg {old}) does not leave the ground after the impact "
-                        f"(vertical velocity {feet[old - 1].dheight:.6g} m/s)")
-    for j, leg in enumerate(legs):
+                        f"(vertical velocity {dheight:.6g} m/s)")
+    for j, (leg, checks) in enumerate(zip(legs, impulse_checks)):
+        if not checks:
+            continue
         n, tg = normal_tangent(impulse[2 * j: 2 * j + 2], ground)
-        if n < 0:
+        if checks & IMPACT_PULLS:
             warnings.append(f"the impulse on foot {leg} pulls it into the ground (normal {n:.6g} N s)")
-        elif mu is not None and abs(tg) > mu * n:
+        elif checks & IMPACT_OUTSIDE_CONE:
             warnings.append(f"the impulse on foot {leg} is outside the friction cone "
                             f"(|tangential| {abs(tg):.6g} > mu * normal {mu * n:.6g} N s)")
     return warnings
@@ -105,7 +140,7 @@ def friction_cone_stop(ev, ground, mu, opt) -> str | None:
         keep = "keep the sticking impact"
     for j, leg in enumerate(legs):
         n, tg = normal_tangent(ev.impulse[2 * j: 2 * j + 2], ground)
-        if abs(tg) - mu * n > opt.impulse_tol:
+        if rules.ev_outside_cone(mu, n, tg, opt.impulse_tol):
             ratio = f"|Lambda_t|/Lambda_n = {abs(tg) / n:.6g}" if n > 0 else f"Lambda_n = {n:.6g} N s"
             return (f"{what}: the ground's impulse on foot {leg} is outside the friction cone ({ratio} > "
                     f"mu = {mu:g}: |Lambda_t| = {abs(tg):.6g} N s > mu Lambda_n = {mu * n:.6g} N s); the model "
@@ -172,7 +207,7 @@ def push_reset(model, t, q, dq, impulse, stance_leg, ground, mu, flight_allowed)
                                      f"{stance_leg}) off the ground (holding it would need a pull of {-n:.6g} "
                                      f"N s), but {why}")
             dq_plus, after = dq_free, 0
-        elif mu is not None and abs(tg) > mu * n:
+        elif rules.ev_impulse_checks(mu is not None, 0.0 if mu is None else mu, n, tg) & IMPACT_OUTSIDE_CONE:
             warnings.append(f"the ground's impulse on foot {stance_leg} is outside the friction cone "
                             f"(|tangential| {abs(tg):.6g} > mu * normal {mu * n:.6g} N s)")
     loss = model.energy(q, dq) - model.energy(q, dq_plus)

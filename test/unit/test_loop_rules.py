@@ -184,3 +184,104 @@ for method in ("dop853", "dopri5"):
     assert [line.split()[1:] for line in runs["1"]] == [line.split()[1:] for line in runs["0"]]
     assert all(int(line.split()[1]) >= 2 for line in runs["1"] if line)      # touchdowns were located
 
+
+
+def test_the_impact_and_its_checks_are_written_once():
+    """The one-foot impact (the generated impact map, the energy before and after, the feet after) and its checks
+    (an impulse that pulls or lies outside the friction cone, the old stance foot moving into the ground or not
+    leaving it) are the rules' (loop_rules.ev_impact): resets.py, invariants.py and _core.c's touchdown call them."""
+    assert_written_once(("return fabs(tg) - mu * n > tol", "return dheight < tol",
+                         "k_impact_map(S, leg, Q_IMPACT, DQ_MINUS, DQ_PLUS)"),
+                        (r"k_impact_map_[12]\(|k_energy\(q, dq[mp]\b|fabs\(tg\w*\) > |abs\(tg\) (-|>) mu \* n"
+                         r"|\[old - 1\]\.dheight < |\.dheight < rest_tol|\[3\] < (0\b|L->contact_tol)|\bn_imp < 0"))
+
+
+def test_the_impact_rule_gives_the_impact_map_and_says_which_check_refused():
+    """Run as Python, ev_impact gives dynamics.impact_map's dq+ and impulse and the energy's loss, bit for bit, and
+    its bits say which assumption the impact violates: none for a foot landing forward on a grippy ground, the
+    cone where mu is 0, the pull where the foot is moving up, the old stance foot where it goes on sinking."""
+    import numpy as np
+
+    import biped_sim as bs
+    from biped_sim.engine import guards as G, loop_rules as rules, resets
+    from biped_sim.engine.dynamics import impact_map_fast
+    from biped_sim.engine.loop_state import (
+        DQ_MINUS,
+        DQ_PLUS,
+        ENERGY_AFTER,
+        ENERGY_BEFORE,
+        FEET_AFTER,
+        IMPACT_OLD_FOOT_SINKS,
+        IMPACT_OUTSIDE_CONE,
+        IMPACT_PULLS,
+        IMPULSE,
+        Q_IMPACT,
+    )
+    model, ground = bs.BipedModel(), G.Ground.of(0.03)
+    q, _ = bs.stance_state(model, [math.pi + 0.25, math.pi - 0.25, 0.1], [0.0, 0.0, 0.0])
+    ctrl = bs.WalkingController(model)
+    _, dq_walk = ctrl.initial_state()
+
+    def impact(dq, mu, old=1):
+        S = resets.touchdown_state(model, ground, mu)
+        S[Q_IMPACT:Q_IMPACT + 5], S[DQ_MINUS:DQ_MINUS + 5] = q.tolist(), list(dq)
+        return rules.ev_impact(S, 2, old, mu is not None), S
+
+    dq = [0.3, -0.2, *dq_walk[2:].tolist()]
+    checks, S = impact(dq, 10.0)
+    dq_plus, impulse = impact_map_fast(model, q, np.array(dq), 2)
+    assert S[DQ_PLUS:DQ_PLUS + 5] == dq_plus.tolist() and S[IMPULSE:IMPULSE + 2] == impulse.tolist()
+    loss = model.energy_fast(q.tolist(), dq) - model.energy_fast(q.tolist(), dq_plus.tolist())
+    assert S[ENERGY_BEFORE] - S[ENERGY_AFTER] == loss and loss > 0
+    feet = G.foot_states(model, q.tolist(), dq_plus.tolist(), ground.tan)
+    assert S[FEET_AFTER:FEET_AFTER + 8] == [v for foot in feet for v in foot]
+    n, tg = G.normal_tangent(impulse, ground)
+    assert n > 0 and tg != 0
+    assert checks == 0 and feet[0].dheight > 0          # the old stance foot leaves the ground
+    falling = [0.0, -0.5, 0.0, 0.0, 0.0]                 # the whole robot falling: the old foot keeps sinking
+    assert impact(falling, 10.0)[0] == IMPACT_OLD_FOOT_SINKS
+    assert impact(dq, 0.0)[0] & IMPACT_OUTSIDE_CONE and not impact(dq, None)[0] & IMPACT_OUTSIDE_CONE
+    up = [-v for v in dq]            # the swing foot moving up: the ground would have to pull it down
+    assert impact(up, 10.0)[0] & IMPACT_PULLS
+    assert not impact(dq, 10.0, old=0)[0] & IMPACT_OLD_FOOT_SINKS        # from flight: no old stance foot
+
+
+def test_the_stance_start_is_written_once():
+    """How a stance starts (the ground pulls: a liftoff at once; outside the friction cone with the slip witness
+    watched: a slip at once) is the rule ev_stance_start: hybrid's _check_stance_start and _core.c's touchdown
+    (the new stance) and refused_at_start (a period's start) call it."""
+    assert_written_once(("if slip_watched and ev_slip_margin(mu, n, tg) < 0.0",),
+                        (r"normal_force\(L->S, [\w>-]+\[0\], [\w>-]+\[1\]\) < 0\.0|cone_margin\(L->S, [^)]*\) < 0\.0"
+                         r"|slip_guard\(n, tg, self\.mu\) < 0\.0"))
+    from biped_sim.engine import loop_rules as rules
+    from biped_sim.engine.loop_state import STANCE_HOLDS, STANCE_LIFTS_OFF, STANCE_SLIPS
+    assert rules.ev_stance_start(True, 0.5, -1e-12, 0.0) == STANCE_LIFTS_OFF
+    assert rules.ev_stance_start(True, 0.5, 100.0, 60.0) == STANCE_SLIPS
+    assert rules.ev_stance_start(False, 0.5, 100.0, 60.0) == STANCE_HOLDS        # latched, or no mu
+    assert rules.ev_stance_start(True, 0.5, 100.0, 50.0) == STANCE_HOLDS         # on the cone's edge
+    assert rules.ev_stance_start(True, 0.0, 0.0, 0.0) == STANCE_HOLDS
+
+
+def test_the_impact_history_predicates_are_written_once():
+    """A gap of a Zeno run, the events' budget, an event loop and impacts that accumulate (the Zeno limit, where a
+    crossing is an impact and never a scuff) are the rules' (loop_rules.py): invariants.ImpactHistory,
+    HybridSimulator._add_event and _core.c's touchdown and quiet step call them with the history's values."""
+    assert_written_once(("return n_before > 0 and t - t_before < interval", "return n_events >= max_events",
+                         "return n_events >= 50 and t_last - t_first < 1e-9",
+                         "return g0 > g1 and g1 > g2 and g2 <= 0.5 * g0 and t - times[3] < g2"),
+                        (r"- (L->)?last_impact < |mode_events \+ 1 >= |>= self\.opt\.max_events"
+                         r"|recent\[-1\] - recent\[0\]|ring\[[^]]*\] < 1e-9|g\[0\] > g\[1\] > g\[2\]"
+                         r"|g2 <= 0\.5 \* g0|b - a < self\.interval"))
+    from biped_sim.engine import loop_rules as rules
+    from biped_sim.engine.invariants import ImpactHistory
+    assert rules.ev_impacts_close(1, 1.0, 1.0 + 5e-7, 1e-6) and not rules.ev_impacts_close(0, 1.0, 1.0 + 5e-7, 1e-6)
+    assert rules.ev_over_budget(10, 10) and not rules.ev_over_budget(9, 10)
+    assert rules.ev_event_loop(50, 2.0, 2.0 + 5e-10) and not rules.ev_event_loop(49, 2.0, 2.0)
+    assert not rules.ev_event_loop(60, 2.0, 2.0 + 2e-9)
+    history = ImpactHistory(zeno_count=3, zeno_interval=1e-3)
+    for t in (0.0, 0.4, 0.6, 0.7):              # gaps 0.4, 0.2, 0.1: each at most half the one before
+        assert history.record(t) is None
+    assert history.accumulating(0.75) and not history.accumulating(0.85)     # sooner than the last gap, or not
+    assert not ImpactHistory(3, 1e-3).accumulating(0.75)                    # no impacts yet
+    assert [history.record(0.7 + k * 1e-4) for k in (1, 2)] == [None, None]
+    assert "3 impacts in a row less than 0.001 s apart" in history.record(0.7 + 3e-4)
