@@ -120,7 +120,6 @@ typedef struct {
     /* the Python code changed the simulator's state / its locator since the loop last held them
      * (CompiledStepper.python_changed): the loop takes them again before it runs */
     char state_stale, locator_stale;
-    double state_now[10];    /* q and dq as the last quiet period() left them (state_arrays) */
 } Loop;
 
 /* -- the torque law: held, compiled (the hook) or called back ------------------------------------- */
@@ -796,12 +795,13 @@ Loop_step(Loop *L, PyObject *unused)
     Py_RETURN_NONE;
 }
 
-/* A run (run, held, periods): quiet steps until t_end, the samples written into the simulator's Samples
- * array; its outcome DONE, PENDING (a step taken, for Python to handle), GROW (the sample array or the
- * event records are full), FAILED (the step failed: failure = (kind, value, t)) or RAISED. */
+/* A run (run, held, periods, period): quiet steps until t_end, the samples written into the Samples' array
+ * (handed to the run as a buffer: Samples._data); its outcome DONE, PENDING (a step taken, for Python to
+ * handle), GROW (the sample array or the event records are full), FAILED (the step failed: failure = (kind,
+ * value, t)) or RAISED. Its counters are the state's (n_samples, appended, provisional, every, last_only,
+ * the energy terms), held in locals while it runs. */
 typedef struct {
     double E0, push_work, energy_lost;
-    PyObject *samples;           /* the run's Samples (a new reference while the run lasts) */
     double *data;
     long cap, n, appended, every, accepted;
     int provisional, last_only;
@@ -855,55 +855,21 @@ quiet_until(Loop *L, double t_end, RunState *rs)
     return DONE;
 }
 
-/* the attributes a run reads and writes, interned at import */
-static PyObject *a_E0, *a_push_work, *a_energy_lost, *a_samples, *a_data, *a_n, *a_appended, *a_provisional, *a_every,
-    *a_keep;
-
+/* A run's state: its energy terms and the Samples' counters from the state, and the Samples' array ``data``
+ * (a writable C-contiguous buffer of rows of 17 doubles), whose counters end_run writes back. 0, or -1 with
+ * an exception. */
 static int
-attr_double(PyObject *o, PyObject *name, double *out)
+run_state(Loop *L, PyObject *data, RunState *rs, Py_buffer *buf)
 {
-    PyObject *v = PyObject_GetAttr(o, name);
-    if (v == NULL) return -1;
-    *out = PyFloat_AsDouble(v);
-    Py_DECREF(v);
-    return *out == -1.0 && PyErr_Occurred() ? -1 : 0;
-}
-
-static int
-attr_long(PyObject *o, PyObject *name, long *out)
-{
-    PyObject *v = PyObject_GetAttr(o, name);
-    if (v == NULL) return -1;
-    *out = PyLong_AsLong(v);
-    Py_DECREF(v);
-    return *out == -1 && PyErr_Occurred() ? -1 : 0;
-}
-
-/* A run's state from the simulator ``sim``: its energy terms (E0, push_work, energy_lost) and its Samples
- * (the array _data, with n, appended, provisional, every, and keep False: the last sample only), whose
- * counters run_result writes back. 0, or -1 with an exception. */
-static int
-run_state(Loop *L, PyObject *sim, RunState *rs, Py_buffer *buf)
-{
-    PyObject *samples = PyObject_GetAttr(sim, a_samples), *data = NULL, *keep = NULL;
-    int ok = samples != NULL && !attr_double(sim, a_E0, &rs->E0) && !attr_double(sim, a_push_work, &rs->push_work)
-             && !attr_double(sim, a_energy_lost, &rs->energy_lost) && !attr_long(samples, a_n, &rs->n)
-             && !attr_long(samples, a_appended, &rs->appended) && !attr_long(samples, a_every, &rs->every)
-             && (keep = PyObject_GetAttr(samples, a_keep)) != NULL && (data = PyObject_GetAttr(samples, a_data)) != NULL;
-    if (ok) {
-        PyObject *prov = PyObject_GetAttr(samples, a_provisional);
-        rs->provisional = prov == NULL ? -1 : PyObject_IsTrue(prov);
-        Py_XDECREF(prov);
-        rs->last_only = keep == Py_False;
-        ok = rs->provisional >= 0 && PyObject_GetBuffer(data, buf, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) == 0;
-    }
-    Py_XDECREF(keep);
-    Py_XDECREF(data);
-    if (!ok) {
-        Py_XDECREF(samples);
-        return -1;
-    }
-    rs->samples = samples;
+    if (PyObject_GetBuffer(data, buf, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0) return -1;
+    rs->E0 = L->e0;
+    rs->push_work = L->push_work;
+    rs->energy_lost = L->energy_lost;
+    rs->n = (long)L->n_samples;
+    rs->appended = (long)L->appended;
+    rs->every = (long)L->every;
+    rs->provisional = L->provisional != 0.0;
+    rs->last_only = L->last_only != 0.0;
     rs->data = buf->buf;
     rs->cap = (long)(buf->len / (Py_ssize_t)(17 * sizeof(double)));
     rs->accepted = 0;
@@ -914,40 +880,45 @@ run_state(Loop *L, PyObject *sim, RunState *rs, Py_buffer *buf)
     return 0;
 }
 
-/* the end of a run: the Samples' counters written back (0, or -1 with an exception) */
-static int
-end_run(RunState *rs, Py_buffer *buf)
+/* the end of a run: the Samples' counters and the energy lost written back into the state, and where a step
+ * was accepted the simulator's time, work, step size and state (the last sample's q and dq, its arrays made
+ * when read: sim_state_unmade) */
+static void
+end_run(Loop *L, RunState *rs, Py_buffer *buf)
 {
+    L->n_samples = rs->n;
+    L->appended = rs->appended;
+    L->provisional = rs->provisional;
+    L->energy_lost = rs->energy_lost;
+    if (rs->accepted > 0) {
+        L->sim_t = rs->t_accepted;
+        L->sim_work = rs->w_accepted;
+        L->sim_h = rs->h_accepted;
+        memcpy(L->sim_q, rs->data + 17 * (rs->n - 1) + 1, 5 * sizeof(double));
+        memcpy(L->sim_dq, rs->data + 17 * (rs->n - 1) + 6, 5 * sizeof(double));
+        L->sim_state_unmade = 1.0;
+    }
     PyBuffer_Release(buf);
-    PyObject *n = PyLong_FromLong(rs->n), *appended = PyLong_FromLong(rs->appended);
-    int bad = n == NULL || appended == NULL || PyObject_SetAttr(rs->samples, a_n, n) < 0
-              || PyObject_SetAttr(rs->samples, a_appended, appended) < 0
-              || PyObject_SetAttr(rs->samples, a_provisional, rs->provisional ? Py_True : Py_False) < 0;
-    Py_XDECREF(n);
-    Py_XDECREF(appended);
-    Py_DECREF(rs->samples);
-    return bad ? -1 : 0;
 }
 
-/* end_run, then (outcome, accepted steps, and the last one's t, work and h_abs, locator_changed, events
- * waiting in take_events, failure or None) */
+/* end_run, then (outcome, accepted steps, locator_changed, events waiting in take_events, failure or None) */
 static PyObject *
 run_result(Loop *L, int outcome, RunState *rs, Py_buffer *buf)
 {
-    if (end_run(rs, buf) < 0) return NULL;
+    end_run(L, rs, buf);
     if (L->callback_failed) outcome = RAISED;     /* the caller takes the accepted steps, then raise_error() */
-    return Py_BuildValue("(ildddiiN)", outcome, rs->accepted, rs->t_accepted, rs->w_accepted, rs->h_accepted,
-                         L->locator_changed, L->n_events, outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
+    return Py_BuildValue("(iliiN)", outcome, rs->accepted, L->locator_changed, L->n_events,
+                         outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
 }
 
-/* run(t_end, sim) -> run_result's tuple: the quiet steps to t_end */
+/* run(t_end, data) -> run_result's tuple: the quiet steps to t_end */
 static PyObject *
-run_quiet(Loop *L, PyObject *t_end_arg, PyObject *sim)
+run_quiet(Loop *L, PyObject *t_end_arg, PyObject *data)
 {
     RunState rs;
     Py_buffer buf;
     double t_end = PyFloat_AsDouble(t_end_arg);
-    if (PyErr_Occurred() || run_state(L, sim, &rs, &buf) < 0) return NULL;
+    if (PyErr_Occurred() || run_state(L, data, &rs, &buf) < 0) return NULL;
     return run_result(L, quiet_until(L, t_end, &rs), &rs, &buf);
 }
 
@@ -1003,25 +974,25 @@ period_end(double t, double period, double t_final, long *k)
     return t_next;
 }
 
-/* periods(law, period, control_periods, t_final, t_stop, sim)
- * -> (<run's result>, control_periods, t_next, (u1, u2), refused): control periods held (as
+/* periods(law, period, t_final, t_stop, data) -> (<run's result>, t_next, refused): control periods held (as
  * HybridSimulator.advance_period computes them, the command at each period's start: a compiled law's
  * (address, parameters, name), or a Python controller, called once a period and checked by
  * call_controller) until t_final, or the first period boundary at or after t_stop - 1e-9 period (a push due),
  * or a run outcome the Python code must see (then mid-period: its end t_next and its torque come back), or
  * a period whose command the stance guards refuse at its start (TORQUE_CHANGE: not begun, the count and
- * torque of the periods before it come back, and refused, its command (else None): the Python code runs the
+ * torque of the periods before it are the state's control_periods and sim_u, and refused, its command (else
+ * None): the Python code runs the
  * period with that command, so that a controller is called once a period on both loops). A command that fails (RAISED)
  * counts its period as begun, as advance_period does. */
 static PyObject *
 Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 6) {
-        PyErr_SetString(PyExc_TypeError, "periods() takes 6 arguments");
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "periods() takes 5 arguments");
         return NULL;
     }
-    double period = PyFloat_AsDouble(args[1]), t_final = PyFloat_AsDouble(args[3]), t_stop = PyFloat_AsDouble(args[4]);
-    long k0 = PyLong_AsLong(args[2]);
+    double period = PyFloat_AsDouble(args[1]), t_final = PyFloat_AsDouble(args[2]), t_stop = PyFloat_AsDouble(args[3]);
+    long k0 = (long)L->control_periods;
     if (PyErr_Occurred()) return NULL;
     if (!(period > 0.0 && period < INFINITY)) {
         PyErr_SetString(PyExc_ValueError, "periods(): period must be a positive finite number");
@@ -1037,7 +1008,7 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     }
     RunState rs;
     Py_buffer buf;
-    if (run_state(L, args[5], &rs, &buf) < 0) return NULL;
+    if (run_state(L, args[4], &rs, &buf) < 0) return NULL;
     int outcome = DONE;
     double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, refused[2] = {NAN, NAN}, tol = 1e-9 * period;
     while (L->t < t_final && t_stop > L->t + tol) {
@@ -1064,10 +1035,13 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         outcome = quiet_until(L, t_next, &rs);
         if (outcome != DONE) break;
     }
+    L->control_periods = (double)k0;
+    L->sim_u[0] = u[0];
+    L->sim_u[1] = u[1];
     PyObject *r = run_result(L, outcome, &rs, &buf);
     if (r == NULL) return NULL;
-    if (outcome != TORQUE_CHANGE) return Py_BuildValue("(Nld(dd)O)", r, k0, t_next, u[0], u[1], Py_None);
-    return Py_BuildValue("(Nld(dd)[dd])", r, k0, t_next, u[0], u[1], refused[0], refused[1]);
+    if (outcome != TORQUE_CHANGE) return Py_BuildValue("(NdO)", r, t_next, Py_None);
+    return Py_BuildValue("(Nd[dd])", r, t_next, refused[0], refused[1]);
 }
 
 static PyObject *
@@ -1080,27 +1054,26 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     return run_quiet(L, args[0], args[1]);
 }
 
-/* held(u1, u2, h_abs or None, t_end, sim): a control period under a held torque from where the
- * last run left the state (the same mode): the start of begin() (f = rhs(t, y) under the new torque,
- * the carried-over step size), then run() to its end, in one call (the node's period) */
+/* held(t_end, data): a control period under the state's held torque sim_u from where the last run left the
+ * state (the same mode): the start of begin() (f = rhs(t, y) under the new torque, the carried-over step size
+ * sim_h), then run() to its end, in one call (the node's period) */
 static PyObject *
 Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 5) {
-        PyErr_SetString(PyExc_TypeError, "held() takes 5 arguments");
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "held() takes 2 arguments");
         return NULL;
     }
-    double u0 = PyFloat_AsDouble(args[0]), u1 = PyFloat_AsDouble(args[1]), t_bound = PyFloat_AsDouble(args[3]);
-    if (PyErr_Occurred() || carry_step_arg(L, args[2]) < 0) return NULL;
-    hold(L, u0, u1, t_bound);
+    double t_bound = PyFloat_AsDouble(args[0]);
+    if (PyErr_Occurred()) return NULL;
+    if (!isnan(L->sim_h)) carry_step(L, L->sim_h);
+    hold(L, L->sim_u[0], L->sim_u[1], t_bound);
     if (L->callback_failed) return raise_callback_error(L);
-    return run_quiet(L, args[3], args[4]);
+    return run_quiet(L, args[0], args[1]);
 }
 
-/* the attributes of the simulator a quiet period reads and writes, interned at import */
-static PyObject *a_status, *a_running, *a_initial_sample_pending, *a_control_periods, *a_h, *a_u, *a_t, *a_work,
-    *a__q, *a__dq, *a_copy, *a_locator, *a_armed, *a_active_scuffs, *a_deepest_scuff, *a_scuffs;
-static int pull_locator(Loop *L, PyObject *locator);
+/* the attributes of the locator pull_locator writes, interned at import */
+static PyObject *a_armed, *a_active_scuffs, *a_deepest_scuff, *a_scuffs;
 
 /* u as two floats, as modes.two_finite_floats takes them: 0, or -1 (no exception) for anything the
  * Python code must judge (it refuses it, or takes what this does not: an array, a numpy integer, ...) */
@@ -1120,26 +1093,6 @@ two_finite(PyObject *u, double *out)
     return isfinite(out[0] + out[1]) ? 0 : -1;     /* as two_finite_floats: nan + x, inf - inf, 1e308 + 1e308 */
 }
 
-/* a new float64 array of n values (a copy of the template, so that no numpy headers are needed) */
-static PyObject *
-array_of(PyObject *template, const double *v, Py_ssize_t n)
-{
-    PyObject *a = PyObject_CallMethodNoArgs(template, a_copy);
-    Py_buffer b;
-    if (a == NULL || PyObject_GetBuffer(a, &b, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0) {
-        Py_XDECREF(a);
-        return NULL;
-    }
-    if (b.len == n * (Py_ssize_t)sizeof(double)) memcpy(b.buf, v, n * sizeof(double));
-    PyBuffer_Release(&b);
-    if (b.len != n * (Py_ssize_t)sizeof(double)) {
-        Py_DECREF(a);
-        PyErr_SetString(PyExc_ValueError, "state_arrays(): the template must be a float64 array of 5");
-        return NULL;
-    }
-    return a;
-}
-
 static double
 seconds_now(void)
 {
@@ -1148,24 +1101,15 @@ seconds_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static int
-set_float(PyObject *o, PyObject *name, double v)
-{
-    PyObject *f = PyFloat_FromDouble(v);
-    int bad = f == NULL || PyObject_SetAttr(o, name, f) < 0;
-    Py_XDECREF(f);
-    return bad ? -1 : 0;
-}
-
-/* period(period, u, t_final, sim) -> HybridSimulator.advance_period(period, u, t_final=t_final) under a
+/* period(period, u, t_final, data) -> HybridSimulator.advance_period(period, u, t_final=t_final) under a
  * held torque, in one call (the node's control period), when the loop holds the simulator's state and
  * locator and the run goes on past its first sample. Returns [] (the events of a period run quiet to its
- * end: the simulator's t, work, step size, control_periods, u and locator written, its wall time kept for
- * stats(), its q and dq left to state_arrays(): sim._q = sim._dq = None), or (the run's result, t_next)
- * for the Python code to finish (a touchdown or an ended scuff to make Events of, a step handed back, room
- * to make, a failure), or None having changed nothing: the Python code runs the period (the loop is
- * stale, the run has ended, u is not two finite numbers, a bad period, the stance guards refuse u at the
- * period's start, ...). */
+ * end: the state's sim_t, sim_work, sim_h, control_periods, sim_u, sim_q and sim_dq written, its wall time
+ * kept for stats(); the Python locator takes an armed foot or a scuff with locator_changed), or (the run's
+ * result, t_next) for the Python code to finish (a touchdown or an ended scuff to make Events of, a step
+ * handed back, room to make, a failure), or None having changed nothing: the Python code runs the period
+ * (the loop is stale, the run has ended, u is not two finite numbers, a bad period, the stance guards refuse
+ * u at the period's start, ...). */
 static PyObject *
 Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -1174,7 +1118,6 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         return NULL;
     }
     double wall0 = seconds_now(), u[2];
-    PyObject *sim = args[3];
     if (L->state_stale || L->locator_stale || two_finite(args[1], u) < 0) Py_RETURN_NONE;
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
     if (PyErr_Occurred() || PyBool_Check(args[0]) || !(period > 0.0 && period < INFINITY) || PyBool_Check(args[2])
@@ -1182,74 +1125,28 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         PyErr_Clear();
         Py_RETURN_NONE;
     }
-    PyObject *status = PyObject_GetAttr(sim, a_status), *pending = PyObject_GetAttr(sim, a_initial_sample_pending);
-    int running = status != NULL && pending == Py_False && PyUnicode_Check(status)
-                  && PyUnicode_Compare(status, a_running) == 0;
-    Py_XDECREF(status);
-    Py_XDECREF(pending);
-    long k;
-    if (!running || attr_long(sim, a_control_periods, &k) < 0) {
-        PyErr_Clear();
-        Py_RETURN_NONE;
-    }
+    if (L->running == 0.0 || L->initial_sample_pending != 0.0) Py_RETURN_NONE;
+    long k = (long)L->control_periods;
     double t_next = period_end(L->t, period, t_final, &k);
     if (!isfinite(t_next)) Py_RETURN_NONE;     /* the Python code says why */
-    PyObject *h = PyObject_GetAttr(sim, a_h);
-    int bad = h == NULL || carry_step_arg(L, h) < 0;
-    Py_XDECREF(h);
-    if (bad) return NULL;
+    if (!isnan(L->sim_h)) carry_step(L, L->sim_h);
     hold(L, u[0], u[1], t_next);
     if (refused_at_start(L)) Py_RETURN_NONE;
-    PyObject *periods = PyLong_FromLong(k), *torque = Py_BuildValue("[dd]", u[0], u[1]);
-    bad = periods == NULL || torque == NULL || PyObject_SetAttr(sim, a_control_periods, periods) < 0
-          || PyObject_SetAttr(sim, a_u, torque) < 0;
-    Py_XDECREF(periods);
-    Py_XDECREF(torque);
+    L->control_periods = (double)k;
+    L->sim_u[0] = u[0];
+    L->sim_u[1] = u[1];
     RunState rs;
     Py_buffer buf;
-    if (bad || run_state(L, sim, &rs, &buf) < 0) return NULL;
+    if (run_state(L, args[3], &rs, &buf) < 0) return NULL;
     int outcome = quiet_until(L, t_next, &rs);
     if (outcome != DONE || L->n_events || L->callback_failed) {
         PyObject *r = run_result(L, outcome, &rs, &buf);
         L->wall_time += seconds_now() - wall0;
         return r == NULL ? NULL : Py_BuildValue("(Nd)", r, t_next);
     }
-    int moved = rs.accepted > 0;
-    if (moved) memcpy(L->state_now, rs.data + 17 * (rs.n - 1) + 1, sizeof L->state_now);   /* the last sample's q, dq */
-    if (end_run(&rs, &buf) < 0) return NULL;
-    if (L->locator_changed) {    /* an armed foot, a scuff followed: the Python locator takes them now */
-        PyObject *locator = PyObject_GetAttr(sim, a_locator);
-        bad = locator == NULL || pull_locator(L, locator) < 0;
-        Py_XDECREF(locator);
-        if (bad) return NULL;
-    }
-    if (moved && (set_float(sim, a_t, rs.t_accepted) < 0 || set_float(sim, a_work, rs.w_accepted) < 0
-                  || set_float(sim, a_h, rs.h_accepted) < 0 || PyObject_SetAttr(sim, a__q, Py_None) < 0
-                  || PyObject_SetAttr(sim, a__dq, Py_None) < 0))
-        return NULL;
+    end_run(L, &rs, &buf);
     L->wall_time += seconds_now() - wall0;
     return PyList_New(0);
-}
-
-/* state_lists() -> (q, dq): the state the last quiet period() left, as two lists (what a message takes) */
-static PyObject *
-Loop_state_lists(Loop *L, PyObject *unused)
-{
-    (void)unused;
-    return Py_BuildValue("(NN)", list_of(L->state_now, 5), list_of(L->state_now + 5, 5));
-}
-
-/* state_arrays(template) -> (q, dq): the state the last quiet period() left, as two new float64 arrays
- * (copies of template, a float64 array of 5) */
-static PyObject *
-Loop_state_arrays(Loop *L, PyObject *template)
-{
-    PyObject *q = array_of(template, L->state_now, 5), *dq = q == NULL ? NULL : array_of(template, L->state_now + 5, 5);
-    if (dq == NULL) {
-        Py_XDECREF(q);
-        return NULL;
-    }
-    return Py_BuildValue("(NN)", q, dq);
 }
 
 /* stats() -> (steps, max drift, max drift rate, max |residual|, wall time of period() calls) since the last
@@ -1539,8 +1436,6 @@ static PyMethodDef Loop_methods[] = {
     {"held", (PyCFunction)(void (*)(void))Loop_held, METH_FASTCALL, NULL},
     {"periods", (PyCFunction)(void (*)(void))Loop_periods, METH_FASTCALL, NULL},
     {"period", (PyCFunction)(void (*)(void))Loop_period, METH_FASTCALL, NULL},
-    {"state_arrays", (PyCFunction)Loop_state_arrays, METH_O, NULL},
-    {"state_lists", (PyCFunction)Loop_state_lists, METH_NOARGS, NULL},
     {"stats", (PyCFunction)Loop_stats, METH_NOARGS, NULL},
     {"pull_locator", (PyCFunction)Loop_pull_locator, METH_O, NULL},
     {"counts", (PyCFunction)Loop_counts, METH_NOARGS, NULL},
@@ -1564,8 +1459,19 @@ static PyMethodDef Loop_methods[] = {
 static PyMemberDef Loop_members[] = {
     {"state_stale", T_BOOL, offsetof(Loop, state_stale), 0, "the simulator's state is not the loop's"},
     {"locator_stale", T_BOOL, offsetof(Loop, locator_stale), 0, "the Python locator changed what the loop holds of it"},
+    {"locator_changed", T_INT, offsetof(Loop, locator_changed), READONLY, "the last run armed a foot or followed a scuff"},
     {NULL, 0, 0, 0, NULL},
 };
+
+/* The state S exported as bytes (memoryview(loop).cast("d") is S: compiled_loop.run_state): the simulator, its
+ * Samples and its locator read and write the same memory as the loop */
+static int
+Loop_getbuffer(Loop *L, Py_buffer *view, int flags)
+{
+    return PyBuffer_FillInfo(view, (PyObject *)L, L->S, sizeof L->S, 0, flags);
+}
+
+static PyBufferProcs Loop_as_buffer = {.bf_getbuffer = (getbufferproc)Loop_getbuffer};
 
 static void
 Loop_dealloc(Loop *L)
@@ -1586,6 +1492,7 @@ static PyTypeObject LoopType = {
     .tp_new = PyType_GenericNew,
     .tp_methods = Loop_methods,
     .tp_members = Loop_members,
+    .tp_as_buffer = &Loop_as_buffer,
     .tp_doc = "The compiled hybrid loop's state (see biped_sim/engine/compiled_loop.py).",
 };
 
@@ -1599,14 +1506,8 @@ PyMODINIT_FUNC
 PyInit__core(void)
 {
     if (PyType_Ready(&LoopType) < 0) return NULL;
-    PyObject **names[] = {&a_E0, &a_push_work, &a_energy_lost, &a_samples, &a_data, &a_n, &a_appended, &a_provisional,
-                          &a_every, &a_keep, &a_status, &a_running, &a_initial_sample_pending, &a_control_periods,
-                          &a_h, &a_u, &a_t, &a_work, &a__q, &a__dq, &a_copy, &a_locator,
-                          &a_armed, &a_active_scuffs, &a_deepest_scuff, &a_scuffs};
-    const char *strings[] = {"E0", "push_work", "energy_lost", "_samples", "_data", "n", "appended", "provisional",
-                             "every", "keep", "status", "running", "_initial_sample_pending", "control_periods",
-                             "_h", "_u", "t", "work", "_q", "_dq", "copy", "locator", "armed",
-                             "active_scuffs", "deepest_scuff", "scuffs"};
+    PyObject **names[] = {&a_armed, &a_active_scuffs, &a_deepest_scuff, &a_scuffs};
+    const char *strings[] = {"armed", "active_scuffs", "deepest_scuff", "scuffs"};
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
         if ((*names[i] = PyUnicode_InternFromString(strings[i])) == NULL) return NULL;
     PyObject *m = PyModule_Create(&module);

@@ -4,7 +4,7 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 923
+#define LOOP_STATE_SIZE 950
 #define LS_NMAX 11
 #define LS_MAX_DEPTH 30
 #define LS_METHOD 0
@@ -47,12 +47,30 @@
 #define LS_SCUFF_TRIAL 390
 #define LS_DEEPEST_TRIAL 393
 #define LS_FEET 394
-#define LS_OUT 402
-#define LS_RESULT 568
-#define LS_COEF 570
-#define LS_QS 594
-#define LS_PS 599
-#define LS_STACK 603
+#define LS_E0 402
+#define LS_PUSH_WORK 403
+#define LS_ENERGY_LOST 404
+#define LS_SIM_T 405
+#define LS_SIM_WORK 406
+#define LS_SIM_H 407
+#define LS_SIM_U 408
+#define LS_SIM_Q 410
+#define LS_SIM_DQ 415
+#define LS_SIM_STATE_UNMADE 420
+#define LS_CONTROL_PERIODS 421
+#define LS_RUNNING 422
+#define LS_INITIAL_SAMPLE_PENDING 423
+#define LS_N_SAMPLES 424
+#define LS_APPENDED 425
+#define LS_PROVISIONAL 426
+#define LS_EVERY 427
+#define LS_LAST_ONLY 428
+#define LS_OUT 429
+#define LS_RESULT 595
+#define LS_COEF 597
+#define LS_QS 621
+#define LS_PS 626
+#define LS_STACK 630
 
 /* the right-hand side f(ctx, t, y) -> dy the generated steps take, and a guard's value at t: the
  * functions the rules take as arguments */
@@ -102,6 +120,24 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double scuff_trial[3];  /* a scuff followed over a step: t_start, deepest, t_deepest (ev_track_scuff) */ \
     double deepest_trial;  /* the deepest of any scuff so far, with this step's (ev_track_scuff) */ \
     double feet[2][4];  /* the feet on the dense output: x, height across the slope, and their rates, a row a foot */ \
+    double e0;  /* the energy at the run's start (J) */ \
+    double push_work;  /* the kinetic energy pushes added (J) */ \
+    double energy_lost;  /* the energy the impacts took out (J) */ \
+    double sim_t;  /* the simulator's time: its last accepted state's (s) */ \
+    double sim_work;  /* the hip motors' work up to sim_t (J) */ \
+    double sim_h;  /* the step size the next stepper starts with (NaN: none yet, the initial one is computed) */ \
+    double sim_u[2];  /* the torque held now (N m) */ \
+    double sim_q[5];  /* q at sim_t, where a quiet period left it (sim_state_unmade) */ \
+    double sim_dq[5];  /* dq at sim_t, alike */ \
+    double sim_state_unmade;  /* 1 when sim_q and sim_dq are the simulator's state and its arrays not yet made */ \
+    double control_periods;  /* the control periods begun so far */ \
+    double running;  /* 1 while the run's status is running */ \
+    double initial_sample_pending;  /* 1 until the first advance redoes the t0 sample under its torque */ \
+    double n_samples;  /* the Samples' rows in use */ \
+    double appended;  /* the samples appended so far */ \
+    double provisional;  /* 1 when the newest sample is overwritten by the next (ev_provisional) */ \
+    double every;  /* keep every this many samples (0: only the events' and the last) */ \
+    double last_only;  /* 1 when the Samples keep the last sample only (one row) */ \
     double out[166];  /* a trial step: y_new, f_new, err, stages; between steps the dense state (dense_state) */ \
     double result[2];  /* a located root, or a dip's bracket */ \
     double coef[8][3];  /* the dip search's |power-basis coefficients|: swing leg angle, hip x, hip y (fixed base: swing leg angle, stance leg angle) */ \

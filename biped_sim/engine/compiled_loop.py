@@ -26,6 +26,7 @@ from biped_sim.engine import integrators
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.guards import FootState
 from biped_sim.engine.locator import scuff_event
+from biped_sim.engine.loop_state import new_state
 from biped_sim.engine.modes import checked_torques, controller_failure
 from biped_sim.engine.results import ControllerError, Event
 from biped_sim.engine.witnesses import all_compiled
@@ -111,6 +112,16 @@ def _new_loop(model):
     return loop
 
 
+def run_state(model):
+    """(S, loop): the state a simulator owns for its life (``loop_state.py``'s fields) and the C ``Loop`` made
+    over it: with the compiled loop built, the Loop's own memory as a memoryview of doubles (the simulator, its
+    Samples and its locator read and write what the loop reads and writes); else a list of floats and None."""
+    if _core is None:
+        return new_state(), None
+    loop = _new_loop(model)
+    return memoryview(loop).cast("d"), loop
+
+
 def _python_only(locator):
     """Whether the locator holds what only the Python code follows: a latched guard, or two scuffs."""
     return bool(locator.latched) or len(locator.active_scuffs) > 1
@@ -132,7 +143,7 @@ class CompiledStepper(integrators._Stepper):
 
     def __init__(self, sim):
         self.sim = sim
-        self.loop = _new_loop(sim.model)
+        self.loop = sim._loop
         opt = sim.opt
         self.loop.set_options(sim.rtol, sim.atol, float(opt.max_step), opt.max_speed, opt.ground_tol, opt.force_tol,
                               opt.graze_tol, opt.arm_height, sim.mu, opt.stop_on_slip, opt.project_constraints,
@@ -146,7 +157,6 @@ class CompiledStepper(integrators._Stepper):
         self.method, self.method_code = sim.method, METHOD_CODES[sim.method]
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
         self.python_changed()           # the loop holds nothing of the simulator yet
-        self.template = np.zeros(5)     # (the arrays period() makes, q and dq, are copies of it)
 
     @property
     def nfev(self):
@@ -225,7 +235,7 @@ class CompiledStepper(integrators._Stepper):
             self._push_locator()
         while True:      # GROW: _make_room makes it, _after_run takes the events
             _make_room(sim._samples)
-            outcome = self._after_run(*self.loop.run(t_end, sim))
+            outcome = self._after_run(*self.loop.run(t_end, sim._samples._data))
             if outcome != GROW:
                 return outcome
 
@@ -255,9 +265,8 @@ class CompiledStepper(integrators._Stepper):
         if self.loop.locator_stale:
             self._push_locator()
         _make_room(sim._samples)
-        result, sim.control_periods, t_next, u, refused = self.loop.periods(
-            law if callable(law) else _hook_argument(law), period, sim.control_periods, t_final, t_stop, sim)
-        sim._u = list(u)
+        result, t_next, refused = self.loop.periods(law if callable(law) else _hook_argument(law), period, t_final,
+                                                    t_stop, sim._samples._data)
         outcome = self._after_run(*result)
         if outcome == GROW:      # the period in progress goes on in run(), which makes room
             return self.run(t_next), t_next, None
@@ -270,7 +279,7 @@ class CompiledStepper(integrators._Stepper):
         if self.loop.state_stale or self.loop.locator_stale or _python_only(sim.locator):
             return None
         # (no room made first: a full array comes back GROW before a step, and run() goes on)
-        return self.finish_held(self.loop.held(sim._u[0], sim._u[1], sim._h, t_end, sim), t_end)
+        return self.finish_held(self.loop.held(t_end, sim._samples._data), t_end)
 
     def finish_held(self, result, t_end):
         """The outcome of a held period's run (``held``, ``period``) that came back with ``result``."""
@@ -282,16 +291,17 @@ class CompiledStepper(integrators._Stepper):
         handles): the loop takes both again before it runs."""
         self.loop.state_stale = self.loop.locator_stale = True
 
-    def _after_run(self, outcome, accepted, t, w, h_abs, changed, n_events, fail):
-        """A run's result (its samples are written and Samples' counters set): the simulator's state, the
-        Events of what the loop applied, then the outcome's own handling."""
+    def _after_run(self, outcome, accepted, changed, n_events, fail):
+        """A run's result (its samples are written, the Samples' counters and the simulator's time, work, step
+        size and state set in the state): the Events of what the loop applied, then the outcome's own
+        handling."""
         sim = self.sim
-        s, loc = sim._samples, sim.locator
+        loc = sim.locator
         if changed:
             self._pull_locator()
         for record in self.loop.take_events() if n_events else ():    # applied in C: their Events, in order
             if record[0] == TOUCHDOWN:
-                _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, sim.energy_lost, pin = record
+                _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, _, pin = record   # (energy_lost: the state's)
                 sim.stance_leg, sim.pin = new, list(pin)
                 sim._stats["impacts"] += 1
                 sim._add_event(Event(t_ev, "touchdown", new, np.array(q), np.array(dq_minus), np.array(dq_plus),
@@ -301,10 +311,6 @@ class CompiledStepper(integrators._Stepper):
                 _, leg, stance_leg, scuff, t_up, q, dq = record
                 sim._add_event(scuff_event(leg, stance_leg, scuff, t_up, q, dq, sim.opt.scuff_depth,
                                            sim.opt.scuff_rule))
-        if accepted:
-            qdq = s._data[s.n - 1, 1:11].copy()
-            sim.t, sim.work, sim._h = t, w, h_abs
-            sim.q, sim.dq = qdq[:5], qdq[5:]
         if outcome == RAISED:     # the Python controller raised: after the steps accepted before it
             self.loop.raise_error()
         if outcome == FAILED:

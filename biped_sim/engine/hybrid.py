@@ -34,6 +34,21 @@ from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
 from biped_sim.engine.integrators import StepFailure, make_stepper, prepare as prepare_stepper
 from biped_sim.engine.invariants import ImpactHistory, check_impact, check_sample
 from biped_sim.engine.locator import EventLocator
+from biped_sim.engine.loop_state import (
+    CONTROL_PERIODS,
+    E0,
+    ENERGY_LOST,
+    INITIAL_SAMPLE_PENDING,
+    PUSH_WORK,
+    RUNNING,
+    SIM_DQ,
+    SIM_H,
+    SIM_Q,
+    SIM_STATE_UNMADE,
+    SIM_T,
+    SIM_U,
+    SIM_WORK,
+)
 from biped_sim.engine.model import BipedModel, as_state_vector, short_repr
 from biped_sim.engine.modes import (
     bind_controller,
@@ -108,6 +123,9 @@ class HybridSimulator:
     def __init__(self, model: BipedModel, q0, dq0, stance_leg=1, rtol=1e-9, atol=1e-9,
                  method="dop853", mu=None, t0=0.0, on_step=None, **options):
         self.model = model
+        # the hybrid state, the simulator's for its life: the fields below that the compiled loop reads and
+        # writes are properties over it (loop_state.py: sim_t, e0, control_periods, ...)
+        self.S, self._loop = compiled_loop.run_state(model)
         self.opt = Options(**options)
         self.opt.check()
         stance_leg = check_run_arguments(self.opt, method, rtol, atol, mu, stance_leg)
@@ -145,7 +163,7 @@ class HybridSimulator:
         self._stepper = None
         self._compiled = None               # the compiled loop's stepper, built at its first mode
         self._last_F, self._last_u = [0.0, 0.0], [0.0, 0.0]   # the last right-hand-side evaluation's
-        self._initial_sample_pending = True    # the t0 sample, redone under the first advance's torque
+        self._initial_sample_pending = True
         self._periods_outcome = None        # how the compiled loop's last periods() ended
         self._mode_event_times: list[float] = []   # the events that changed the mode (not the scuffs)
         self._stats = dict(steps=0, compiled_loop_steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
@@ -153,7 +171,7 @@ class HybridSimulator:
                           max_energy_balance_residual=0.0, pushes=0, scuffs_ignored=0, deepest_scuff=0.0, wall_time=0.0)
         self._nfev_base = 0
         self._rejected_base = 0
-        self._samples = Samples(keep=self.opt.keep_samples)
+        self._samples = Samples(keep=self.opt.keep_samples, S=self.S)
         self._record(self.q, self.dq, self.stance_leg, self._force_at(self.t, self.q.tolist(), self.dq.tolist()),
                      self.u)
 
@@ -176,40 +194,138 @@ class HybridSimulator:
     def q(self):
         """The coordinates now, ``[x, y, q1, q2, q3]`` (physical, leg 1 stays leg 1): a new array each time
         the state changes."""
-        if self._q is None:
+        if self.S[SIM_STATE_UNMADE]:
             self._state_from_loop()
         return self._q
 
     @q.setter
     def q(self, value):
+        if self.S[SIM_STATE_UNMADE]:
+            self._state_from_loop()
         self._q = value
 
     @property
     def dq(self):
         """The rates now (as ``q``)."""
-        if self._dq is None:
+        if self.S[SIM_STATE_UNMADE]:
             self._state_from_loop()
         return self._dq
 
     @dq.setter
     def dq(self, value):
+        if self.S[SIM_STATE_UNMADE]:
+            self._state_from_loop()
         self._dq = value
 
     def state_lists(self):
         """``(q.tolist(), dq.tolist())``, what a message takes, without making the arrays where a quiet
         period left them unmade (the node publishes the state every period)."""
-        if self._q is None and self._dq is None:
-            return self._compiled.loop.state_lists()
-        return self.q.tolist(), self.dq.tolist()
+        S = self.S
+        if S[SIM_STATE_UNMADE]:
+            return list(S[SIM_Q:SIM_Q + 5]), list(S[SIM_DQ:SIM_DQ + 5])
+        return self._q.tolist(), self._dq.tolist()
 
     def _state_from_loop(self):
-        # a quiet period run by the compiled loop (Loop.period) leaves q and dq (None) to be made when read:
-        # the node's engine period makes no arrays nobody reads
-        q, dq = self._compiled.loop.state_arrays(self._compiled.template)
-        if self._q is None:
-            self._q = q
-        if self._dq is None:
-            self._dq = dq
+        # a run of the compiled loop leaves q and dq in the state (sim_q, sim_dq) to be made when read: the
+        # node's engine period makes no arrays nobody reads
+        S = self.S
+        self._q, self._dq = np.array(S[SIM_Q:SIM_Q + 5]), np.array(S[SIM_DQ:SIM_DQ + 5])
+        S[SIM_STATE_UNMADE] = 0.0
+
+    # -- the fields of the state (loop_state.py) the compiled loop reads and writes
+    @property
+    def t(self):
+        """The time now (s): the last accepted state's."""
+        return self.S[SIM_T]
+
+    @t.setter
+    def t(self, value):
+        self.S[SIM_T] = value
+
+    @property
+    def work(self):
+        """The hip motors' work so far (J)."""
+        return self.S[SIM_WORK]
+
+    @work.setter
+    def work(self, value):
+        self.S[SIM_WORK] = value
+
+    @property
+    def E0(self):
+        """The energy at the run's start (J)."""
+        return self.S[E0]
+
+    @E0.setter
+    def E0(self, value):
+        self.S[E0] = value
+
+    @property
+    def push_work(self):
+        """The kinetic energy pushes added (J)."""
+        return self.S[PUSH_WORK]
+
+    @push_work.setter
+    def push_work(self, value):
+        self.S[PUSH_WORK] = value
+
+    @property
+    def energy_lost(self):
+        """The energy the impacts took out (J)."""
+        return self.S[ENERGY_LOST]
+
+    @energy_lost.setter
+    def energy_lost(self, value):
+        self.S[ENERGY_LOST] = value
+
+    @property
+    def control_periods(self):
+        """The control periods begun so far (``advance_period``)."""
+        return int(self.S[CONTROL_PERIODS])
+
+    @control_periods.setter
+    def control_periods(self, value):
+        self.S[CONTROL_PERIODS] = value
+
+    @property
+    def status(self):
+        """How the run goes: "running", "stopped" or "failed"."""
+        return self._status
+
+    @status.setter
+    def status(self, value):
+        self._status = value
+        self.S[RUNNING] = float(value == "running")
+
+    @property
+    def _initial_sample_pending(self):
+        # the t0 sample, redone under the first advance's torque
+        return bool(self.S[INITIAL_SAMPLE_PENDING])
+
+    @_initial_sample_pending.setter
+    def _initial_sample_pending(self, value):
+        self.S[INITIAL_SAMPLE_PENDING] = float(value)
+
+    @property
+    def _u(self):
+        # the torque held now, [u1, u2]
+        S = self.S
+        return [S[SIM_U], S[SIM_U + 1]]
+
+    @_u.setter
+    def _u(self, value):
+        S = self.S
+        S[SIM_U], S[SIM_U + 1] = value
+
+    @property
+    def _h(self):
+        # the step size the next stepper starts with, None for the initial one
+        h = self.S[SIM_H]
+        return None if h != h else h
+
+    @_h.setter
+    def _h(self, value):
+        self.S[SIM_H] = math.nan if value is None else value
 
     @property
     def u(self):
@@ -301,9 +417,13 @@ class HybridSimulator:
         if controller is None and st is not None:
             # the node's period in one C call while the loop holds the state (Loop.period, _core.c: these
             # lines' twin); None when it cannot, having changed nothing
-            done = st.loop.period(period, u, t_final, self)
+            done = st.loop.period(period, u, t_final, self._samples._data)
             if done is not None:
-                return done if type(done) is list else self._advance(done[1], None, None, held=done[0])
+                if type(done) is not list:
+                    return self._advance(done[1], None, None, held=done[0])
+                if st.loop.locator_changed:
+                    st._pull_locator()
+                return done
         if self.status != "running":
             return []
         check_number("period", period, 0.0, math.inf, "s", open_low=True)   # (refused: no period begun)

@@ -82,6 +82,26 @@ FIELDS = (
     Field("scuff_trial", (3,), "a scuff followed over a step: t_start, deepest, t_deepest (ev_track_scuff)"),
     Field("deepest_trial", (), "the deepest of any scuff so far, with this step's (ev_track_scuff)"),
     Field("feet", (2, 4), "the feet on the dense output: x, height across the slope, and their rates, a row a foot"),
+    # -- the run: the simulator's, its Samples' and its locator's fields that both loops read and write (the
+    #    simulator owns the state for its life: compiled_loop.run_state)
+    Field("e0", (), "the energy at the run's start (J)"),
+    Field("push_work", (), "the kinetic energy pushes added (J)"),
+    Field("energy_lost", (), "the energy the impacts took out (J)"),
+    Field("sim_t", (), "the simulator's time: its last accepted state's (s)"),
+    Field("sim_work", (), "the hip motors' work up to sim_t (J)"),
+    Field("sim_h", (), "the step size the next stepper starts with (NaN: none yet, the initial one is computed)"),
+    Field("sim_u", (2,), "the torque held now (N m)"),
+    Field("sim_q", (5,), "q at sim_t, where a quiet period left it (sim_state_unmade)"),
+    Field("sim_dq", (5,), "dq at sim_t, alike"),
+    Field("sim_state_unmade", (), "1 when sim_q and sim_dq are the simulator's state and its arrays not yet made"),
+    Field("control_periods", (), "the control periods begun so far"),
+    Field("running", (), "1 while the run's status is running"),
+    Field("initial_sample_pending", (), "1 until the first advance redoes the t0 sample under its torque"),
+    Field("n_samples", (), "the Samples' rows in use"),
+    Field("appended", (), "the samples appended so far"),
+    Field("provisional", (), "1 when the newest sample is overwritten by the next (ev_provisional)"),
+    Field("every", (), "keep every this many samples (0: only the events' and the last)"),
+    Field("last_only", (), "1 when the Samples keep the last sample only (one row)"),
     # -- scratch
     Field("out", (2 * NMAX + 1 + MAX_STAGES * NMAX,), "a trial step: y_new, f_new, err, stages; between steps "
                                                       "the dense state (dense_state)"),

@@ -17,7 +17,7 @@ from hypothesis import event, example, given, settings, strategies as st
 import biped_sim as bs
 from biped_sim.analysis.edge_cases import on_both_loops, pd_walk_without_clearance, rocking_v, walk_that_scuffs
 from biped_sim.control.walking import PDWalkingController, WalkingController
-from biped_sim.engine import compiled_loop, guards as G, hybrid
+from biped_sim.engine import compiled_loop, guards as G, hybrid, loop_state
 from biped_sim.engine.model import BipedModel
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -347,7 +347,7 @@ def test_a_quiet_held_period_is_one_c_call_and_its_state_a_new_array():
     quiet, before, kept = 0, None, None
     for _ in range(300):
         events = sim.advance_period(1e-3, u=sim.command(ctrl))
-        quiet += not events and sim._q is None
+        quiet += not events and bool(sim.S[loop_state.SIM_STATE_UNMADE])
         lists = sim.state_lists()
         q = sim.q
         assert lists == (q.tolist(), sim.dq.tolist())
@@ -618,7 +618,7 @@ def test_a_run_from_a_late_t0_begins_the_period_under_way_on_both_loops(t0):
             sim.advance_period(period, [0.0, 0.0])
             k = sim.control_periods - 1
             assert sim.status == "running" and sim.t == (k + 1) * period > t_start >= k * period
-            out.append((sim.t, sim.control_periods, sim._q is None))
+            out.append((sim.t, sim.control_periods, bool(sim.S[loop_state.SIM_STATE_UNMADE])))
         return out
 
     compiled, python = both_loops(run)
@@ -631,3 +631,29 @@ def test_a_period_too_short_to_count_up_to_t_is_refused():
     with pytest.raises(ValueError, match=r"period=1e-12 s is too short for a run at t=100000.0 s"):
         sim.advance_period(1e-12, [0.0, 0.0])
     assert sim.control_periods == 0 and sim.status == "running"
+
+
+def test_the_simulator_its_samples_and_the_compiled_loop_share_one_state():
+    """The run's fields that the compiled loop reads and writes (the Samples' counters, the energy terms, the
+    control periods, the simulator's time, work, torque and step size) are fields of one state, the
+    simulator's for its life (loop_state.py): with the compiled loop built its S is the Loop's own memory, so
+    that the periods the loop ran in C are read in Python from where C wrote them, with nothing handed over."""
+    ls = loop_state
+
+    def run():
+        sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state(), keep_samples=3)
+        for _ in range(40):
+            sim.advance_period(1e-3, u=[0.5, -0.5])
+        S, s = sim.S, sim._samples
+        assert s.S is S and (sim.t, sim.work, sim._h, sim.control_periods, sim.u, sim.E0, sim.energy_lost) == (
+            S[ls.SIM_T], S[ls.SIM_WORK], S[ls.SIM_H], S[ls.CONTROL_PERIODS], [S[ls.SIM_U], S[ls.SIM_U + 1]],
+            S[ls.E0], S[ls.ENERGY_LOST])
+        assert (s.n, s.appended, s.provisional, s.every) == (S[ls.N_SAMPLES], S[ls.APPENDED], S[ls.PROVISIONAL], 3)
+        return sim, sim.result()
+
+    (sim_c, compiled), (sim_p, python) = both_loops(run)
+    if compiled_loop.AVAILABLE:
+        assert sim_c.S.obj is sim_c._loop and sim_c._compiled.loop is sim_c._loop
+        assert sim_c.stats["compiled_loop_steps"] > 20       # the periods ran in C
+    assert compiled.t.tolist() == python.t.tolist() and np.array_equal(compiled.q, python.q)
+    assert sim_c.control_periods == sim_p.control_periods == 40
