@@ -102,24 +102,17 @@ typedef struct {
     PyObject *callback;
     PyObject *exc_type, *exc_value, *exc_tb;
     double last_F[2], last_u[2];
-    /* locator: armed feet; the feet and force at the last step's end (EventLocator._feet_end/_force_end) */
-    int armed[2];
-    int scuff_leg;           /* the foot in a scuff (EventLocator.active_scuffs), or 0 */
-    double scuff[3];         /* its [t_start, deepest, t_deepest] */
-    double deepest_scuff;    /* EventLocator.deepest_scuff */
-    long scuffs;             /* EventLocator.scuffs */
+    /* (the locator's armed feet, scuffs and the step end's feet and force are the state's: armed, scuffing,
+     * scuff, deepest_scuff, scuffs, feet_end, force_end) */
     int why;                 /* which check handed the last step back (a debugging aid: the return in quiet_step) */
-    int locator_changed;     /* armed or the scuff changed in the last run (the Python locator must read them) */
     /* the run's statistics since the last stats() (HybridSimulator.stats) */
     long steps;
     double max_drift, max_rate, max_residual, wall_time;
-    int cache_ok;
-    double cache_t, cache_feet[8], cache_F[2];
-    /* the step handed back: its start's feet and force, and its end's torque and force */
-    double start_feet[8], start_F[2], end_u[2], end_F[2];
-    /* the Python code changed the simulator's state / its locator since the loop last held them
+    /* the step handed back: its end's torque and force */
+    double end_u[2], end_F[2];
+    /* the Python code changed the simulator's state / the impact history since the loop last took them
      * (CompiledStepper.python_changed): the loop takes them again before it runs */
-    char state_stale, locator_stale;
+    char state_stale, history_stale;
 } Loop;
 
 /* -- the torque law: held, compiled (the hook) or called back ------------------------------------- */
@@ -440,8 +433,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     L->leg = nw;
     for (int leg = 1; leg <= 2; leg++)
         if (ev_disarmed_by_reset(leg, 0, old, nw)) L->armed[leg - 1] = 0;
-    L->cache_ok = 0;        /* EventLocator.after_reset: the step end's feet and force are not the new state's */
-    L->locator_changed = 1;
+    L->feet_end_t = L->force_end_t = NAN;   /* EventLocator.after_reset: the step end's are not the new state's */
     L->last_impact = t_ev;
     L->n_impacts++;
     if (L->n_recent == 4) memmove(L->recent_impacts, L->recent_impacts + 1, 3 * sizeof(double));
@@ -461,13 +453,12 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
 /* The feet and the force at the step's end, kept for the next step's start (EventLocator's _feet_end
  * and _force_end) */
 static void
-cache_step_end(Loop *L, const double *feet8, const double *F)
+cache_step_end(Loop *L, double t, const double *feet8, const double *F)
 {
-    L->cache_ok = 1;
-    L->cache_t = L->t;
-    memcpy(L->cache_feet, feet8, 8 * sizeof(double));
-    L->cache_F[0] = F[0];
-    L->cache_F[1] = F[1];
+    L->feet_end_t = L->force_end_t = t;
+    memcpy(L->feet_end, feet8, 8 * sizeof(double));
+    L->force_end[0] = F[0];
+    L->force_end[1] = F[1];
 }
 
 /* The body of HybridSimulator._integrate for the step just taken, when nothing happens in it but a
@@ -489,19 +480,18 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
     F1[0] = L->end_F[0] = L->last_F[0];
     F1[1] = L->end_F[1] = L->last_F[1];
-    if (L->cache_ok && L->cache_t == L->t_old) {
-        memcpy(ft0, L->cache_feet, sizeof ft0);
-        F0[0] = L->cache_F[0]; F0[1] = L->cache_F[1];
+    if (L->feet_end_t == L->t_old && L->force_end_t == L->t_old) {
+        memcpy(ft0, L->feet_end, sizeof ft0);
+        F0[0] = L->force_end[0]; F0[1] = L->force_end[1];
     } else {
         feet(L, L->y_old, L->y_old + 5, ft0);
         force_at(L, L->t_old, L->y_old, L->y_old + 5, F0);
+        cache_step_end(L, L->t_old, ft0, F0);   /* a step handed back starts from them (EventLocator.locate) */
     }
-    memcpy(L->start_feet, ft0, sizeof ft0);
-    L->start_F[0] = F0[0]; L->start_F[1] = F0[1];
     int sw = 3 - L->leg, st = L->leg;
-    int scuffing = L->scuff_leg == sw;
-    double scuff[3] = {L->scuff[0], L->scuff[1], L->scuff[2]}, deepest = L->deepest_scuff;
-    long scuffs = L->scuffs;
+    int scuffing = L->scuffing[sw - 1] != 0.0;
+    double *kept = L->scuff[sw - 1], scuff[3] = {kept[0], kept[1], kept[2]}, deepest = L->deepest_scuff;
+    double scuffs = L->scuffs;
     int touching = 0;
     double t_touch = 0.0;
     /* EventLocator.locate: the witnesses of stance, in witnesses.witnesses' order (touchdown, liftoff, slip) */
@@ -551,7 +541,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     if (touching) {
         if (scuffing) { L->why = 3; return 0; }
         /* the locator's cache is of the step's end (EventLocator.locate sets it before it looks) */
-        cache_step_end(L, ft1, F1);
+        cache_step_end(L, L->t, ft1, F1);
         return touchdown(L, t_touch, row, E0, push_work, energy_lost, residual_out);
     }
     /* a resting free foot pushed into the ground (_resting_feet_pushed_in) */
@@ -586,10 +576,10 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     }
     if (L->callback_failed) { L->why = 12; return 0; }
     /* accepted: the locator's state, the sample, the projected state */
-    memcpy(L->scuff, scuff, sizeof scuff);
+    memcpy(kept, scuff, sizeof scuff);
     L->deepest_scuff = deepest;
     L->scuffs = scuffs;
-    L->scuff_leg = scuffing && !ended ? sw : 0;
+    L->scuffing[sw - 1] = scuffing && !ended;
     if (ended) {     /* EventLocator._scuff_event's data */
         EventRecord *ev = L->events + L->n_events++;
         ev->kind = SCUFF_ENDED;
@@ -600,13 +590,9 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         for (int j = 0; j < 10; j++)
             ev->v[4 + j] = L->t_old <= scuff[2] && scuff[2] <= L->t ? rk_dense_at(L->S, j, scuff[2]) : NAN;
     }
-    cache_step_end(L, ft1, F1);
+    cache_step_end(L, L->t, ft1, F1);
     for (int leg = 1; leg <= 2; leg++)
-        if (!L->armed[leg - 1] && ev_arms(leg != st, ft1[4 * (leg - 1) + 1], L->arm_height)) {
-            L->armed[leg - 1] = 1;
-            L->locator_changed = 1;
-        }
-    L->locator_changed |= scuffing;
+        if (!L->armed[leg - 1] && ev_arms(leg != st, ft1[4 * (leg - 1) + 1], L->arm_height)) L->armed[leg - 1] = 1;
     double TV[2];
     k_energy(q, dq, L->k_energy, TV);
     double residual = TV[0] + TV[1] - E0 - w - push_work + energy_lost;
@@ -876,7 +862,6 @@ run_state(Loop *L, PyObject *data, RunState *rs, Py_buffer *buf)
     rs->t_accepted = L->t_old;
     rs->w_accepted = 0.0;
     rs->h_accepted = L->h_abs;
-    L->locator_changed = 0;
     return 0;
 }
 
@@ -901,13 +886,13 @@ end_run(Loop *L, RunState *rs, Py_buffer *buf)
     PyBuffer_Release(buf);
 }
 
-/* end_run, then (outcome, accepted steps, locator_changed, events waiting in take_events, failure or None) */
+/* end_run, then (outcome, accepted steps, events waiting in take_events, failure or None) */
 static PyObject *
 run_result(Loop *L, int outcome, RunState *rs, Py_buffer *buf)
 {
     end_run(L, rs, buf);
     if (L->callback_failed) outcome = RAISED;     /* the caller takes the accepted steps, then raise_error() */
-    return Py_BuildValue("(iliiN)", outcome, rs->accepted, L->locator_changed, L->n_events,
+    return Py_BuildValue("(iliN)", outcome, rs->accepted, L->n_events,
                          outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
 }
 
@@ -1072,8 +1057,6 @@ Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     return run_quiet(L, args[0], args[1]);
 }
 
-/* the attributes of the locator pull_locator writes, interned at import */
-static PyObject *a_armed, *a_active_scuffs, *a_deepest_scuff, *a_scuffs;
 
 /* u as two floats, as modes.two_finite_floats takes them: 0, or -1 (no exception) for anything the
  * Python code must judge (it refuses it, or takes what this does not: an array, a numpy integer, ...) */
@@ -1105,7 +1088,7 @@ seconds_now(void)
  * held torque, in one call (the node's control period), when the loop holds the simulator's state and
  * locator and the run goes on past its first sample. Returns [] (the events of a period run quiet to its
  * end: the state's sim_t, sim_work, sim_h, control_periods, sim_u, sim_q and sim_dq written, its wall time
- * kept for stats(); the Python locator takes an armed foot or a scuff with locator_changed), or (the run's
+ * kept for stats(); the armed feet and the scuff followed are the state's too), or (the run's
  * result, t_next) for the Python code to finish (a touchdown or an ended scuff to make Events of, a step
  * handed back, room to make, a failure), or None having changed nothing: the Python code runs the period
  * (the loop is stale, the run has ended, u is not two finite numbers, a bad period, the stance guards refuse
@@ -1118,7 +1101,7 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         return NULL;
     }
     double wall0 = seconds_now(), u[2];
-    if (L->state_stale || L->locator_stale || two_finite(args[1], u) < 0) Py_RETURN_NONE;
+    if (L->state_stale || L->history_stale || two_finite(args[1], u) < 0) Py_RETURN_NONE;
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
     if (PyErr_Occurred() || PyBool_Check(args[0]) || !(period > 0.0 && period < INFINITY) || PyBool_Check(args[2])
         || !(t_final >= 0.0)) {   /* Python says why */
@@ -1159,38 +1142,6 @@ Loop_stats(Loop *L, PyObject *unused)
     L->steps = 0;
     L->max_drift = L->max_rate = L->max_residual = L->wall_time = 0.0;
     return r;
-}
-
-/* the armed feet and the scuff as the loop left them, written into the Python EventLocator ``locator``:
- * armed [bool, bool], active_scuffs {leg: [t_start, deepest, t_deepest]} or {}, deepest_scuff, scuffs.
- * 0, or -1 with an exception. */
-static int
-pull_locator(Loop *L, PyObject *locator)
-{
-    PyObject *armed = Py_BuildValue("[OO]", L->armed[0] ? Py_True : Py_False, L->armed[1] ? Py_True : Py_False);
-    PyObject *scuffs = PyDict_New(), *deepest = PyFloat_FromDouble(L->deepest_scuff), *count = PyLong_FromLong(L->scuffs);
-    int bad = armed == NULL || scuffs == NULL || deepest == NULL || count == NULL;
-    if (!bad && L->scuff_leg) {
-        PyObject *leg = PyLong_FromLong(L->scuff_leg), *scuff = list_of(L->scuff, 3);
-        bad = leg == NULL || scuff == NULL || PyDict_SetItem(scuffs, leg, scuff) < 0;
-        Py_XDECREF(leg);
-        Py_XDECREF(scuff);
-    }
-    bad = bad || PyObject_SetAttr(locator, a_armed, armed) < 0 || PyObject_SetAttr(locator, a_active_scuffs, scuffs) < 0
-          || PyObject_SetAttr(locator, a_deepest_scuff, deepest) < 0 || PyObject_SetAttr(locator, a_scuffs, count) < 0;
-    Py_XDECREF(armed);
-    Py_XDECREF(scuffs);
-    Py_XDECREF(deepest);
-    Py_XDECREF(count);
-    return bad ? -1 : 0;
-}
-
-/* pull_locator(locator): pull_locator above, from the Python code */
-static PyObject *
-Loop_pull_locator(Loop *L, PyObject *locator)
-{
-    if (pull_locator(L, locator) < 0) return NULL;
-    Py_RETURN_NONE;
 }
 
 /* locate_crossing(leg, ta, tb) -> the time foot leg's height crosses zero on the last step's dense output
@@ -1278,29 +1229,6 @@ Loop_replace_y(Loop *L, PyObject *y)
     Py_RETURN_NONE;
 }
 
-/* set_locator(armed1, armed2, cache_t or None, feet (8) or None, F (2) or None, scuff_leg, scuff (3), deepest,
- *             scuffs) */
-static PyObject *
-Loop_set_locator(Loop *L, PyObject *args)
-{
-    int a1, a2;
-    PyObject *ct, *ft, *F, *sc;
-    if (!PyArg_ParseTuple(args, "ppOOOiOdl", &a1, &a2, &ct, &ft, &F, &L->scuff_leg, &sc, &L->deepest_scuff,
-                          &L->scuffs))
-        return NULL;
-    if (doubles(sc, L->scuff, 3, 3, "scuff", NULL)) return NULL;
-    L->armed[0] = a1;
-    L->armed[1] = a2;
-    L->cache_ok = ct != Py_None && ft != Py_None && F != Py_None;
-    if (L->cache_ok) {
-        L->cache_t = PyFloat_AsDouble(ct);
-        if ((L->cache_t == -1.0 && PyErr_Occurred()) || doubles(ft, L->cache_feet, 8, 8, "feet", NULL)
-            || doubles(F, L->cache_F, 2, 2, "F", NULL))
-            return NULL;
-    }
-    Py_RETURN_NONE;
-}
-
 static PyObject *
 Loop_dense_rows(Loop *L, PyObject *unused)
 {
@@ -1342,20 +1270,12 @@ Loop_state(Loop *L, PyObject *unused)
                          list_of(L->f, N), (long)L->nfev, (long)L->nrejected, (long)L->naccepted);
 }
 
-/* handed() -> (start feet (8), start F (2), end u (2), end F (2), armed (2)) of the step handed back */
+/* handed() -> (end u (2), end F (2), why) of the step handed back */
 static PyObject *
 Loop_handed(Loop *L, PyObject *unused)
 {
     (void)unused;
-    return Py_BuildValue("(NNNN(ii)i)", list_of(L->start_feet, 8), list_of(L->start_F, 2), list_of(L->end_u, 2),
-                         list_of(L->end_F, 2), L->armed[0], L->armed[1], L->why);
-}
-
-static PyObject *
-Loop_armed(Loop *L, PyObject *unused)
-{
-    (void)unused;
-    return Py_BuildValue("(ii)", L->armed[0], L->armed[1]);
+    return Py_BuildValue("(NNi)", list_of(L->end_u, 2), list_of(L->end_F, 2), L->why);
 }
 
 static PyObject *
@@ -1437,7 +1357,6 @@ static PyMethodDef Loop_methods[] = {
     {"periods", (PyCFunction)(void (*)(void))Loop_periods, METH_FASTCALL, NULL},
     {"period", (PyCFunction)(void (*)(void))Loop_period, METH_FASTCALL, NULL},
     {"stats", (PyCFunction)Loop_stats, METH_NOARGS, NULL},
-    {"pull_locator", (PyCFunction)Loop_pull_locator, METH_O, NULL},
     {"counts", (PyCFunction)Loop_counts, METH_NOARGS, NULL},
     {"set_events", (PyCFunction)Loop_set_events, METH_VARARGS, NULL},
     {"set_history", (PyCFunction)Loop_set_history, METH_VARARGS, NULL},
@@ -1445,12 +1364,10 @@ static PyMethodDef Loop_methods[] = {
     {"raise_error", (PyCFunction)Loop_raise_error, METH_NOARGS, NULL},
     {"locate_crossing", (PyCFunction)Loop_locate_crossing, METH_VARARGS, NULL},
     {"replace_y", (PyCFunction)Loop_replace_y, METH_O, NULL},
-    {"set_locator", (PyCFunction)Loop_set_locator, METH_VARARGS, NULL},
     {"dense_rows", (PyCFunction)Loop_dense_rows, METH_NOARGS, NULL},
     {"dense_at", (PyCFunction)Loop_dense_at, METH_O, NULL},
     {"state", (PyCFunction)Loop_state, METH_NOARGS, NULL},
     {"handed", (PyCFunction)Loop_handed, METH_NOARGS, NULL},
-    {"armed", (PyCFunction)Loop_armed, METH_NOARGS, NULL},
     {"set_counters", (PyCFunction)Loop_counters, METH_VARARGS, NULL},
     {"law_torque", (PyCFunction)Loop_law_torque, METH_O, NULL},
     {NULL, NULL, 0, NULL},
@@ -1458,8 +1375,7 @@ static PyMethodDef Loop_methods[] = {
 
 static PyMemberDef Loop_members[] = {
     {"state_stale", T_BOOL, offsetof(Loop, state_stale), 0, "the simulator's state is not the loop's"},
-    {"locator_stale", T_BOOL, offsetof(Loop, locator_stale), 0, "the Python locator changed what the loop holds of it"},
-    {"locator_changed", T_INT, offsetof(Loop, locator_changed), READONLY, "the last run armed a foot or followed a scuff"},
+    {"history_stale", T_BOOL, offsetof(Loop, history_stale), 0, "the Python code may have changed the impact history"},
     {NULL, 0, 0, 0, NULL},
 };
 
@@ -1506,10 +1422,6 @@ PyMODINIT_FUNC
 PyInit__core(void)
 {
     if (PyType_Ready(&LoopType) < 0) return NULL;
-    PyObject **names[] = {&a_armed, &a_active_scuffs, &a_deepest_scuff, &a_scuffs};
-    const char *strings[] = {"armed", "active_scuffs", "deepest_scuff", "scuffs"};
-    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
-        if ((*names[i] = PyUnicode_InternFromString(strings[i])) == NULL) return NULL;
     PyObject *m = PyModule_Create(&module);
     if (m == NULL) return NULL;
     Py_INCREF(&LoopType);

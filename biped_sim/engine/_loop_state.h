@@ -4,7 +4,7 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 950
+#define LOOP_STATE_SIZE 974
 #define LS_NMAX 11
 #define LS_MAX_DEPTH 30
 #define LS_METHOD 0
@@ -65,12 +65,21 @@
 #define LS_PROVISIONAL 426
 #define LS_EVERY 427
 #define LS_LAST_ONLY 428
-#define LS_OUT 429
-#define LS_RESULT 595
-#define LS_COEF 597
-#define LS_QS 621
-#define LS_PS 626
-#define LS_STACK 630
+#define LS_ARMED 429
+#define LS_SCUFFING 431
+#define LS_SCUFF 433
+#define LS_DEEPEST_SCUFF 439
+#define LS_SCUFFS 440
+#define LS_FEET_END_T 441
+#define LS_FEET_END 442
+#define LS_FORCE_END_T 450
+#define LS_FORCE_END 451
+#define LS_OUT 453
+#define LS_RESULT 619
+#define LS_COEF 621
+#define LS_QS 645
+#define LS_PS 650
+#define LS_STACK 654
 
 /* the right-hand side f(ctx, t, y) -> dy the generated steps take, and a guard's value at t: the
  * functions the rules take as arguments */
@@ -138,6 +147,15 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double provisional;  /* 1 when the newest sample is overwritten by the next (ev_provisional) */ \
     double every;  /* keep every this many samples (0: only the events' and the last) */ \
     double last_only;  /* 1 when the Samples keep the last sample only (one row) */ \
+    double armed[2];  /* 1 for a foot whose touchdown counts (it has been higher than arm_height): EventLocator */ \
+    double scuffing[2];  /* 1 for a foot in a scuff (under the ground, passing through it) */ \
+    double scuff[2][3];  /* a foot's scuff: t_start, deepest, t_deepest */ \
+    double deepest_scuff;  /* the deepest dip of any scuff so far (m) */ \
+    double scuffs;  /* the scuffs so far (crossings behind the stance foot that did not touch down) */ \
+    double feet_end_t;  /* the time of feet_end (NaN: none kept): the last step's end, the next one's start */ \
+    double feet_end[2][4];  /* the feet there (x, height, and their rates, a row a foot) */ \
+    double force_end_t;  /* the time of force_end (NaN: none kept) */ \
+    double force_end[2];  /* the stance force there (N) */ \
     double out[166];  /* a trial step: y_new, f_new, err, stages; between steps the dense state (dense_state) */ \
     double result[2];  /* a located root, or a dip's bracket */ \
     double coef[8][3];  /* the dip search's |power-basis coefficients|: swing leg angle, hip x, hip y (fixed base: swing leg angle, stance leg angle) */ \

@@ -24,7 +24,6 @@ import numpy as np
 
 from biped_sim.engine import integrators
 from biped_sim.engine.compiled import _compiled_twin
-from biped_sim.engine.guards import FootState
 from biped_sim.engine.locator import scuff_event
 from biped_sim.engine.loop_state import new_state
 from biped_sim.engine.modes import checked_torques, controller_failure
@@ -137,8 +136,8 @@ def _step_failure(fail):
 class CompiledStepper(integrators._Stepper):
     """The stepper of a mode the compiled loop runs: its state lives in the C ``Loop``; the fields the
     Python code reads (``t``, ``y``, ``t_old``, ``y_old``, ``h``, ``h_abs``) are copied out only when a
-    step is handed back (``_sync``). The locator's armed feet and scuff live in C while it runs, and
-    are exchanged when either side changed them (``loop.locator_stale``, ``locator_changed``)."""
+    step is handed back (``_sync``). The locator's armed feet, its scuffs and the step end's feet and force
+    are fields of the simulator's state, which the loop reads and writes in place."""
     takes_lists = True
 
     def __init__(self, sim):
@@ -187,22 +186,14 @@ class CompiledStepper(integrators._Stepper):
         self.t, self.t_old, self.h, self.h_abs, self.y, self.y_old, self.f, _, _, _ = self.loop.state()
         self._dense = None
 
-    def _push_locator(self):
+    def _push_history(self):
+        """The one hand-over left: the impact history (the last four impact times, the mode events so far and
+        the times of the last 49), which the Python code keeps (``invariants.ImpactHistory``,
+        ``HybridSimulator._mode_event_times``) and the loop reads to hand back an impact of the Zeno limit,
+        ``max_events`` or an event loop; taken again after the Python code ran (``history_stale``)."""
         sim = self.sim
-        locator = sim.locator
-        (t_feet, ft), (t_force, F) = locator._feet_end, locator._force_end
-        same = t_feet is not None and t_feet == t_force
-        (leg, scuff), = locator.active_scuffs.items() or ((0, [0.0, 0.0, 0.0]),)
-        self.loop.set_locator(locator.armed[0], locator.armed[1], t_feet if same else None,
-                              [v for foot in ft for v in foot] if same else None, F if same else None, leg, scuff,
-                              locator.deepest_scuff, locator.scuffs)
-        self.loop.set_history(sim.impacts.times[-4:], len(sim._mode_event_times),
-                              sim._mode_event_times[-49:])
-        self.loop.locator_stale = False
-
-    def _pull_locator(self):
-        """The armed feet and the scuff as the loop left them, into the Python locator."""
-        self.loop.pull_locator(self.sim.locator)
+        self.loop.set_history(sim.impacts.times[-4:], len(sim._mode_event_times), sim._mode_event_times[-49:])
+        self.loop.history_stale = False
 
     def merge_stats(self, stats):
         """Add the loop's statistics since the last merge into the simulator's."""
@@ -222,7 +213,7 @@ class CompiledStepper(integrators._Stepper):
         self._sync()
         if fail is not None:
             raise _step_failure(fail)
-        _, _, self.sim._last_u, self.sim._last_F, _, _ = self.loop.handed()
+        self.sim._last_u, self.sim._last_F, _ = self.loop.handed()
 
     def run(self, t_end):
         """The quiet steps to ``t_end`` in C. DONE (at t_end: the simulator's state is the last sample's),
@@ -231,8 +222,8 @@ class CompiledStepper(integrators._Stepper):
         sim = self.sim
         if _python_only(sim.locator):
             return PYTHON_STEPS
-        if self.loop.locator_stale:
-            self._push_locator()
+        if self.loop.history_stale:
+            self._push_history()
         while True:      # GROW: _make_room makes it, _after_run takes the events
             _make_room(sim._samples)
             outcome = self._after_run(*self.loop.run(t_end, sim._samples._data))
@@ -262,8 +253,8 @@ class CompiledStepper(integrators._Stepper):
         begun: ``advance_period`` runs it with that command), else the outcome of the step handed back in the
         period ending at ``t_next`` (``can_run_periods`` first)."""
         sim = self.sim
-        if self.loop.locator_stale:
-            self._push_locator()
+        if self.loop.history_stale:
+            self._push_history()
         _make_room(sim._samples)
         result, t_next, refused = self.loop.periods(law if callable(law) else _hook_argument(law), period, t_final,
                                                     t_stop, sim._samples._data)
@@ -276,7 +267,7 @@ class CompiledStepper(integrators._Stepper):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""
         sim = self.sim
-        if self.loop.state_stale or self.loop.locator_stale or _python_only(sim.locator):
+        if self.loop.state_stale or self.loop.history_stale or _python_only(sim.locator):
             return None
         # (no room made first: a full array comes back GROW before a step, and run() goes on)
         return self.finish_held(self.loop.held(t_end, sim._samples._data), t_end)
@@ -289,16 +280,13 @@ class CompiledStepper(integrators._Stepper):
     def python_changed(self):
         """The Python code changed the simulator's state or its locator (an event, a push, a step it
         handles): the loop takes both again before it runs."""
-        self.loop.state_stale = self.loop.locator_stale = True
+        self.loop.state_stale = self.loop.history_stale = True
 
-    def _after_run(self, outcome, accepted, changed, n_events, fail):
+    def _after_run(self, outcome, accepted, n_events, fail):
         """A run's result (its samples are written, the Samples' counters and the simulator's time, work, step
         size and state set in the state): the Events of what the loop applied, then the outcome's own
         handling."""
         sim = self.sim
-        loc = sim.locator
-        if changed:
-            self._pull_locator()
         for record in self.loop.take_events() if n_events else ():    # applied in C: their Events, in order
             if record[0] == TOUCHDOWN:
                 _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, _, pin = record   # (energy_lost: the state's)
@@ -318,9 +306,7 @@ class CompiledStepper(integrators._Stepper):
         if outcome == PENDING:
             self.python_changed()
             self._sync()
-            start_feet, start_F, sim._last_u, sim._last_F, _, _ = self.loop.handed()
-            loc._feet_end = (self.t_old, (FootState(*start_feet[:4]), FootState(*start_feet[4:])))
-            loc._force_end = (self.t_old, start_F)
+            sim._last_u, sim._last_F, _ = self.loop.handed()     # (its start's feet and force: the state's)
         return outcome
 
     def replace_y(self, y):

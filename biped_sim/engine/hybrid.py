@@ -150,7 +150,7 @@ class HybridSimulator:
         self.E0 = model.energy(q0, dq0)
         self.events: list[Event] = []
         self.impacts = ImpactHistory(self.opt.zeno_count, self.opt.zeno_interval)
-        self.locator = EventLocator(model, self.ground, self.opt, mu, feet, stance_leg, self.impacts)
+        self.locator = EventLocator(model, self.ground, self.opt, mu, feet, stance_leg, self.impacts, self.S)
         self.pin = list(G.foot_xy(model, q0.tolist(), stance_leg)) if stance_leg else None
         self.status, self.message = "running", ""
         self.controller_error = None        # what ended the run in the controller (SimulationResult's)
@@ -419,11 +419,7 @@ class HybridSimulator:
             # lines' twin); None when it cannot, having changed nothing
             done = st.loop.period(period, u, t_final, self._samples._data)
             if done is not None:
-                if type(done) is not list:
-                    return self._advance(done[1], None, None, held=done[0])
-                if st.loop.locator_changed:
-                    st._pull_locator()
-                return done
+                return done if type(done) is list else self._advance(done[1], None, None, held=done[0])
         if self.status != "running":
             return []
         check_number("period", period, 0.0, math.inf, "s", open_low=True)   # (refused: no period begun)

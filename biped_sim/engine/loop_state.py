@@ -21,6 +21,7 @@ hold intermediate results between two calls of the rules and nothing across step
 from __future__ import annotations
 
 import math
+from array import array
 from typing import NamedTuple
 
 NMAX = 11           # the floating base's integrated state: q (5), dq (5), motor work
@@ -102,6 +103,15 @@ FIELDS = (
     Field("provisional", (), "1 when the newest sample is overwritten by the next (ev_provisional)"),
     Field("every", (), "keep every this many samples (0: only the events' and the last)"),
     Field("last_only", (), "1 when the Samples keep the last sample only (one row)"),
+    Field("armed", (2,), "1 for a foot whose touchdown counts (it has been higher than arm_height): EventLocator"),
+    Field("scuffing", (2,), "1 for a foot in a scuff (under the ground, passing through it)"),
+    Field("scuff", (2, 3), "a foot's scuff: t_start, deepest, t_deepest"),
+    Field("deepest_scuff", (), "the deepest dip of any scuff so far (m)"),
+    Field("scuffs", (), "the scuffs so far (crossings behind the stance foot that did not touch down)"),
+    Field("feet_end_t", (), "the time of feet_end (NaN: none kept): the last step's end, the next one's start"),
+    Field("feet_end", (2, 4), "the feet there (x, height, and their rates, a row a foot)"),
+    Field("force_end_t", (), "the time of force_end (NaN: none kept)"),
+    Field("force_end", (2,), "the stance force there (N)"),
     # -- scratch
     Field("out", (2 * NMAX + 1 + MAX_STAGES * NMAX,), "a trial step: y_new, f_new, err, stages; between steps "
                                                       "the dense state (dense_state)"),
@@ -128,6 +138,12 @@ def _offsets():
 
 OFFSETS, SIZE = _offsets()
 globals().update(OFFSETS)       # T, Y, STAGES, ...: the offsets the rules index S with when they run as Python
+
+
+def put(S, at, values):
+    """Write ``values`` into ``S`` from the offset ``at`` (S a list, or the compiled loop's memoryview of doubles,
+    which takes a slice as a buffer)."""
+    S[at:at + len(values)] = values if type(S) is list else array("d", values)
 
 
 def new_state(**values) -> list:

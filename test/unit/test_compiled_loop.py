@@ -635,7 +635,8 @@ def test_a_period_too_short_to_count_up_to_t_is_refused():
 
 def test_the_simulator_its_samples_and_the_compiled_loop_share_one_state():
     """The run's fields that the compiled loop reads and writes (the Samples' counters, the energy terms, the
-    control periods, the simulator's time, work, torque and step size) are fields of one state, the
+    control periods, the simulator's time, work, torque and step size, the locator's armed feet and the feet
+    kept of the last step's end) are fields of one state, the
     simulator's for its life (loop_state.py): with the compiled loop built its S is the Loop's own memory, so
     that the periods the loop ran in C are read in Python from where C wrote them, with nothing handed over."""
     ls = loop_state
@@ -649,6 +650,8 @@ def test_the_simulator_its_samples_and_the_compiled_loop_share_one_state():
             S[ls.SIM_T], S[ls.SIM_WORK], S[ls.SIM_H], S[ls.CONTROL_PERIODS], [S[ls.SIM_U], S[ls.SIM_U + 1]],
             S[ls.E0], S[ls.ENERGY_LOST])
         assert (s.n, s.appended, s.provisional, s.every) == (S[ls.N_SAMPLES], S[ls.APPENDED], S[ls.PROVISIONAL], 3)
+        loc = sim.locator
+        assert loc.S is S and loc.armed == [S[ls.ARMED] == 1.0, S[ls.ARMED + 1] == 1.0] and loc._feet_end[0] == sim.t
         return sim, sim.result()
 
     (sim_c, compiled), (sim_p, python) = both_loops(run)

@@ -184,3 +184,13 @@ for method in ("dop853", "dopri5"):
     assert [line.split()[1:] for line in runs["1"]] == [line.split()[1:] for line in runs["0"]]
     assert all(int(line.split()[1]) >= 2 for line in runs["1"] if line)      # touchdowns were located
 
+
+
+def test_the_compiled_loop_reads_no_python_attribute_by_name():
+    """_core.c reads and writes the run's fields in the state (the simulator's, which its Samples and its locator
+    view: loop_state.py) and takes the samples' array as an argument, so that renaming a Python attribute cannot
+    break the compiled loop at run time: no attribute of a Python object is read, written or called by name."""
+    core = (ENGINE / "_core.c").read_text()
+    by_name = re.findall(r"PyObject_(?:Get|Set|Has|Del)Attr\w*|PyObject_CallMethod\w*|PyUnicode_InternFromString"
+                         r"|_PyObject_\w*Id\b", core)
+    assert by_name == []
