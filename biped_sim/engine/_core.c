@@ -76,11 +76,8 @@ typedef struct {
         double S[LOOP_STATE_SIZE];
         struct { LOOP_STATE_MEMBERS };
     };
-    /* options */
-    double max_speed, ground_tol, force_tol, arm_height;
-    double zeno_interval, impulse_tol, contact_tol;
-    long max_events;
-    int front_rule, compute_grf;   /* touchdown_rule "front" */
+    /* (the options, the stance leg, the pin and the held torque are the state's: max_speed ... max_events,
+     * stance_leg, pin, u_hold) */
     /* the history the Python code checks an impact against: the last impact's time, the mode events so
      * far and the times of the last 49 (HybridSimulator._mode_event_times), in a ring */
     double last_impact, ring[49];
@@ -91,10 +88,8 @@ typedef struct {
      * in order: their Events are the Python code's to make */
     EventRecord events[EVENT_ROOM];
     int n_events;
-    int has_mu, stop_on_slip, project, check_invariants, impact_phase;
-    /* mode and torque */
-    int leg, law_kind;     /* law_kind: HELD (u_hold), COMPILED (law) or CALLBACK (callback) */
-    double pin[2], u_hold[2];
+    /* the torque law */
+    int law_kind;     /* HELD (the state's u_hold), COMPILED (law) or CALLBACK (callback) */
     CompiledLaw law;
     /* a Python controller, called back as controller(t, q, dq, stance_leg) and checked (call_controller).
      * The first failure of the law (the controller raised, a compiled law returned nonzero) is kept as an
@@ -166,7 +161,7 @@ call_controller(Loop *L, PyObject *controller, double t, const double *q, const 
         PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
         return;
     }
-    PyObject *args[4] = {PyFloat_FromDouble(t), list_of(q, 5), list_of(dq, 5), PyLong_FromLong(L->leg)}, *r = NULL;
+    PyObject *args[4] = {PyFloat_FromDouble(t), list_of(q, 5), list_of(dq, 5), PyLong_FromLong((long)L->stance_leg)}, *r = NULL;
     if (args[0] && args[1] && args[2] && args[3]) r = PyObject_Vectorcall(controller, args, 4, NULL);
     for (int i = 0; i < 4; i++) Py_XDECREF(args[i]);
     if (r != NULL) {
@@ -204,13 +199,13 @@ call_controller(Loop *L, PyObject *controller, double t, const double *q, const 
     }
 }
 
-/* u = law(t, q, dq) in stance on L->leg; a failure kept as call_controller keeps an exception */
+/* u = law(t, q, dq) in stance on L->stance_leg; a failure kept as call_controller keeps an exception */
 static void
 apply_law(Loop *L, const CompiledLaw *law, double t, const double *q, const double *dq, double *u)
 {
     u[0] = u[1] = 0.0;
     if (L->callback_failed) return;
-    int code = law->fn(t, q, dq, L->leg, law->params, u);
+    int code = law->fn(t, q, dq, (int)L->stance_leg, law->params, u);
     if (code != 0) {
         char when[32];
         snprintf(when, sizeof when, "%.9g", t);      /* (as Python's f"{t:.9g}") */
@@ -268,7 +263,7 @@ raise_callback_error(Loop *L)
 static void
 stance(Loop *L, const double *q, const double *dq, const double *u, double *out7)
 {
-    if (L->leg == 1) k_stance_floating_1(q, dq, u, L->k_stance, out7);
+    if (L->stance_leg == 1) k_stance_floating_1(q, dq, u, L->k_stance, out7);
     else k_stance_floating_2(q, dq, u, L->k_stance, out7);
 }
 
@@ -325,17 +320,6 @@ carry_step(Loop *L, double h)
     L->h_abs = L->max_step < h ? L->max_step : h;
 }
 
-/* carry_step(h) for an argument h_abs or None (None: keep the current one); 0, or -1 with an exception */
-static int
-carry_step_arg(Loop *L, PyObject *h)
-{
-    if (h == Py_None) return 0;
-    double v = PyFloat_AsDouble(h);
-    if (v == -1.0 && PyErr_Occurred()) return -1;
-    carry_step(L, v);
-    return 0;
-}
-
 /* EventLocator._feet_at: the feet on the dense output at tt */
 static void
 feet_at(const Loop *L, double tt, double *ft)
@@ -364,7 +348,7 @@ feet_into_state(double *S, void *ctx, double tt)
 static int
 touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, double energy_lost, double *residual_out)
 {
-    int old = L->leg, nw = 3 - L->leg;
+    int old = (int)L->stance_leg, nw = 3 - old;
     if (L->law_kind == CALLBACK) { L->why = 13; return 0; }
     if (L->n_impacts > 0 && t_ev - L->last_impact < L->zeno_interval) { L->why = 14; return 0; }
     if (L->mode_events + 1 >= L->max_events) { L->why = 15; return 0; }
@@ -394,10 +378,10 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     if (L->check_invariants && fa[4 * (old - 1) + 3] < L->contact_tol) { L->why = 20; return 0; }
     /* the new stance (_check_stance_start): the ground must push, inside the friction cone */
     double up[2], Fp[2];
-    L->leg = nw;
+    L->stance_leg = nw;
     torque(L, t_ev, q, dqp, up);
     stance(L, q, dqp, up, out);
-    L->leg = old;
+    L->stance_leg = old;
     Fp[0] = out[5]; Fp[1] = out[6];
     if (ev_normal_force(L->S, Fp[0], Fp[1]) < 0.0 || (L->has_mu && ev_cone_margin(L->S, Fp[0], Fp[1]) < 0.0)) { L->why = 21; return 0; }
     /* applied */
@@ -430,7 +414,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     ev->v[19] = lost;
     ev->v[20] = L->pin[0];
     ev->v[21] = L->pin[1];
-    L->leg = nw;
+    L->stance_leg = nw;
     for (int leg = 1; leg <= 2; leg++)
         if (ev_disarmed_by_reset(leg, 0, old, nw)) L->armed[leg - 1] = 0;
     L->feet_end_t = L->force_end_t = NAN;   /* EventLocator.after_reset: the step end's are not the new state's */
@@ -488,7 +472,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         force_at(L, L->t_old, L->y_old, L->y_old + 5, F0);
         cache_step_end(L, L->t_old, ft0, F0);   /* a step handed back starts from them (EventLocator.locate) */
     }
-    int sw = 3 - L->leg, st = L->leg;
+    int st = (int)L->stance_leg, sw = 3 - st;
     int scuffing = L->scuffing[sw - 1] != 0.0;
     double *kept = L->scuff[sw - 1], scuff[3] = {kept[0], kept[1], kept[2]}, deepest = L->deepest_scuff;
     double scuffs = L->scuffs;
@@ -668,41 +652,6 @@ Loop_set_model(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* set_options(rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu or None,
- *             stop_on_slip, project, check_invariants, impact_phase, slope, to_power_basis (64), front_tol,
- *             scuff_depth, event_tol, touchdown_rule == "front", scuff_rule == "forward") */
-static PyObject *
-Loop_set_options(Loop *L, PyObject *args)
-{
-    PyObject *mu, *tpb;
-    double slope;
-    int forward_rule;
-    if (!PyArg_ParseTuple(args, "ddddddddOppppdOdddpp", &L->rtol, &L->atol, &L->max_step, &L->max_speed,
-                          &L->ground_tol, &L->force_tol, &L->graze_tol, &L->arm_height, &mu, &L->stop_on_slip,
-                          &L->project, &L->check_invariants, &L->impact_phase, &slope, &tpb, &L->front_tol,
-                          &L->scuff_depth, &L->event_tol, &L->front_rule, &forward_rule))
-        return NULL;
-    L->forward_rule = forward_rule;
-    L->has_mu = mu != Py_None;
-    L->mu = L->has_mu ? PyFloat_AsDouble(mu) : 0.0;
-    if (L->mu == -1.0 && PyErr_Occurred()) return NULL;
-    L->sin_s = sin(slope);
-    L->cos_s = cos(slope);
-    L->tan_s = tan(slope);
-    if (doubles(tpb, &L->to_power_basis[0][0], 64, 64, "to_power_basis", NULL)) return NULL;
-    Py_RETURN_NONE;
-}
-
-/* set_events(compute_grf, zeno_interval, impulse_tol, contact_tol, max_events) */
-static PyObject *
-Loop_set_events(Loop *L, PyObject *args)
-{
-    if (!PyArg_ParseTuple(args, "pdddl", &L->compute_grf, &L->zeno_interval, &L->impulse_tol, &L->contact_tol,
-                          &L->max_events))
-        return NULL;
-    Py_RETURN_NONE;
-}
-
 /* set_history(the last (up to 4) impact times (a list), mode events so far, the times of the last 49 (a list)) */
 static PyObject *
 Loop_set_history(Loop *L, PyObject *args)
@@ -743,13 +692,6 @@ Loop_take_events(Loop *L, PyObject *unused)
     return out;
 }
 
-
-static PyObject *
-Loop_set_h_abs(Loop *L, PyObject *arg)
-{
-    if (carry_step_arg(L, arg) < 0) return NULL;
-    Py_RETURN_NONE;
-}
 
 /* rhs(t, y) -> dy, for the initial step size */
 static PyObject *
@@ -1171,34 +1113,17 @@ Loop_raise_error(Loop *L, PyObject *unused)
     return raise_callback_error(L);
 }
 
+/* begin(law): a mode's start, as make_stepper builds a stepper (integrators._ListRungeKutta restart: f = rhs(t,
+ * y)), from the state's method, stance_leg, pin, u_hold, t, y, t_bound and h_abs (the carried-over step size),
+ * which the Python code wrote (CompiledStepper.start); law None (u_hold held), a Python callable (called
+ * back) or a compiled law (address, parameters, name) */
 static PyObject *
-Loop_counts(Loop *L, PyObject *unused)
+Loop_begin(Loop *L, PyObject *law)
 {
-    (void)unused;
-    return Py_BuildValue("(ll)", (long)L->nfev, (long)L->nrejected);
-}
-
-/* begin(method, stance_leg, pin_x, pin_y, law, u1, u2, t, y, t_bound, h_abs or None, reset_counters), law
- *       None (u1, u2 held), a Python callable (called back) or a compiled law (address, parameters, name): a mode's start, as make_stepper builds a stepper (integrators._ListRungeKutta
- *       restart: f = rhs(t, y), the carried-over step size capped by max_step) */
-static PyObject *
-Loop_begin(Loop *L, PyObject *const *args, Py_ssize_t nargs)
-{
-    if (nargs != 12) {
-        PyErr_SetString(PyExc_TypeError, "begin() takes 12 arguments");
-        return NULL;
-    }
-    long method = PyLong_AsLong(args[0]), leg = PyLong_AsLong(args[1]);
-    double pin0 = PyFloat_AsDouble(args[2]), pin1 = PyFloat_AsDouble(args[3]);
-    double u0 = PyFloat_AsDouble(args[5]), u1 = PyFloat_AsDouble(args[6]);
-    double t = PyFloat_AsDouble(args[7]), t_bound = PyFloat_AsDouble(args[9]);
-    int reset = PyObject_IsTrue(args[11]);
-    if (PyErr_Occurred()) return NULL;
-    if ((method != DOP853 && method != DOPRI5) || (leg != 1 && leg != 2)) {
+    if ((L->method != DOP853 && L->method != DOPRI5) || (L->stance_leg != 1 && L->stance_leg != 2)) {
         PyErr_SetString(PyExc_ValueError, "begin(): the loop steps dop853 (0) or dopri5 (1) in stance on leg 1 or 2");
         return NULL;
     }
-    PyObject *law = args[4];
     int kind = law == Py_None ? HELD : PyCallable_Check(law) ? CALLBACK : COMPILED;
     if (kind == CALLBACK) {
         Py_INCREF(law);
@@ -1206,26 +1131,10 @@ Loop_begin(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     } else if (kind == COMPILED && compiled_law_from(law, &L->law) < 0) {
         return NULL;
     }
-    if (doubles(args[8], L->y, N, N, "y", NULL) || carry_step_arg(L, args[10]) < 0) return NULL;
-    L->method = method;
     L->n_y = N;
-    L->leg = (int)leg;
-    L->pin[0] = pin0;
-    L->pin[1] = pin1;
     L->law_kind = kind;
-    L->u_hold[0] = u0;
-    L->u_hold[1] = u1;
-    if (reset) L->nfev = L->nrejected = L->naccepted = 0;
-    restart(L, t, t_bound);
+    restart(L, L->t, L->t_bound);
     if (L->callback_failed) return raise_callback_error(L);
-    Py_RETURN_NONE;
-}
-
-/* replace_y(y): continue from y (the projected state of a step Python accepted) */
-static PyObject *
-Loop_replace_y(Loop *L, PyObject *y)
-{
-    if (doubles(y, L->y, N, N, "y", NULL)) return NULL;
     Py_RETURN_NONE;
 }
 
@@ -1261,32 +1170,12 @@ Loop_dense_at(Loop *L, PyObject *arg)
     return list_of(v, N);
 }
 
-/* state() -> (t, t_old, h, h_abs, y, y_old, f, nfev, nrejected, naccepted) */
-static PyObject *
-Loop_state(Loop *L, PyObject *unused)
-{
-    (void)unused;
-    return Py_BuildValue("(ddddNNNlll)", L->t, L->t_old, L->h, L->h_abs, list_of(L->y, N), list_of(L->y_old, N),
-                         list_of(L->f, N), (long)L->nfev, (long)L->nrejected, (long)L->naccepted);
-}
-
 /* handed() -> (end u (2), end F (2), why) of the step handed back */
 static PyObject *
 Loop_handed(Loop *L, PyObject *unused)
 {
     (void)unused;
     return Py_BuildValue("(NNi)", list_of(L->end_u, 2), list_of(L->end_F, 2), L->why);
-}
-
-static PyObject *
-Loop_counters(Loop *L, PyObject *args)
-{
-    long nfev, nrejected, naccepted;
-    if (!PyArg_ParseTuple(args, "lll", &nfev, &nrejected, &naccepted)) return NULL;
-    L->nfev = nfev;
-    L->nrejected = nrejected;
-    L->naccepted = naccepted;
-    Py_RETURN_NONE;
 }
 
 /* law_torque(law) -> [u1, u2]: a compiled law's (address, parameters, name) torque at the loop's current
@@ -1347,28 +1236,21 @@ static PyMethodDef module_methods[] = {
 
 static PyMethodDef Loop_methods[] = {
     {"set_model", (PyCFunction)Loop_set_model, METH_VARARGS, NULL},
-    {"set_options", (PyCFunction)Loop_set_options, METH_VARARGS, NULL},
-    {"set_h_abs", (PyCFunction)Loop_set_h_abs, METH_O, NULL},
     {"rhs", (PyCFunction)Loop_rhs, METH_VARARGS, NULL},
     {"step", (PyCFunction)Loop_step, METH_NOARGS, NULL},
     {"run", (PyCFunction)(void (*)(void))Loop_run, METH_FASTCALL, NULL},
-    {"begin", (PyCFunction)(void (*)(void))Loop_begin, METH_FASTCALL, NULL},
+    {"begin", (PyCFunction)Loop_begin, METH_O, NULL},
     {"held", (PyCFunction)(void (*)(void))Loop_held, METH_FASTCALL, NULL},
     {"periods", (PyCFunction)(void (*)(void))Loop_periods, METH_FASTCALL, NULL},
     {"period", (PyCFunction)(void (*)(void))Loop_period, METH_FASTCALL, NULL},
     {"stats", (PyCFunction)Loop_stats, METH_NOARGS, NULL},
-    {"counts", (PyCFunction)Loop_counts, METH_NOARGS, NULL},
-    {"set_events", (PyCFunction)Loop_set_events, METH_VARARGS, NULL},
     {"set_history", (PyCFunction)Loop_set_history, METH_VARARGS, NULL},
     {"take_events", (PyCFunction)Loop_take_events, METH_NOARGS, NULL},
     {"raise_error", (PyCFunction)Loop_raise_error, METH_NOARGS, NULL},
     {"locate_crossing", (PyCFunction)Loop_locate_crossing, METH_VARARGS, NULL},
-    {"replace_y", (PyCFunction)Loop_replace_y, METH_O, NULL},
     {"dense_rows", (PyCFunction)Loop_dense_rows, METH_NOARGS, NULL},
     {"dense_at", (PyCFunction)Loop_dense_at, METH_O, NULL},
-    {"state", (PyCFunction)Loop_state, METH_NOARGS, NULL},
     {"handed", (PyCFunction)Loop_handed, METH_NOARGS, NULL},
-    {"set_counters", (PyCFunction)Loop_counters, METH_VARARGS, NULL},
     {"law_torque", (PyCFunction)Loop_law_torque, METH_O, NULL},
     {NULL, NULL, 0, NULL},
 };

@@ -4,7 +4,7 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 974
+#define LOOP_STATE_SIZE 994
 #define LS_NMAX 11
 #define LS_MAX_DEPTH 30
 #define LS_METHOD 0
@@ -25,61 +25,79 @@
 #define LS_FORWARD_RULE 15
 #define LS_K_POS 16
 #define LS_TO_POWER_BASIS 48
-#define LS_T 112
-#define LS_T_BOUND 113
-#define LS_H_ABS 114
-#define LS_T_OLD 115
-#define LS_H 116
-#define LS_Y 117
-#define LS_F 128
-#define LS_Y_OLD 139
-#define LS_STAGES 150
-#define LS_NFEV 293
-#define LS_NREJECTED 294
-#define LS_NACCEPTED 295
-#define LS_DENSE_READY 296
-#define LS_DENSE 297
-#define LS_FAIL_KIND 385
-#define LS_FAIL_VALUE 386
-#define LS_FAIL_T 387
-#define LS_CALLBACK_FAILED 388
-#define LS_GUARD_LEG 389
-#define LS_SCUFF_TRIAL 390
-#define LS_DEEPEST_TRIAL 393
-#define LS_FEET 394
-#define LS_E0 402
-#define LS_PUSH_WORK 403
-#define LS_ENERGY_LOST 404
-#define LS_SIM_T 405
-#define LS_SIM_WORK 406
-#define LS_SIM_H 407
-#define LS_SIM_U 408
-#define LS_SIM_Q 410
-#define LS_SIM_DQ 415
-#define LS_SIM_STATE_UNMADE 420
-#define LS_CONTROL_PERIODS 421
-#define LS_RUNNING 422
-#define LS_INITIAL_SAMPLE_PENDING 423
-#define LS_N_SAMPLES 424
-#define LS_APPENDED 425
-#define LS_PROVISIONAL 426
-#define LS_EVERY 427
-#define LS_LAST_ONLY 428
-#define LS_ARMED 429
-#define LS_SCUFFING 431
-#define LS_SCUFF 433
-#define LS_DEEPEST_SCUFF 439
-#define LS_SCUFFS 440
-#define LS_FEET_END_T 441
-#define LS_FEET_END 442
-#define LS_FORCE_END_T 450
-#define LS_FORCE_END 451
-#define LS_OUT 453
-#define LS_RESULT 619
-#define LS_COEF 621
-#define LS_QS 645
-#define LS_PS 650
-#define LS_STACK 654
+#define LS_MAX_SPEED 112
+#define LS_GROUND_TOL 113
+#define LS_FORCE_TOL 114
+#define LS_ARM_HEIGHT 115
+#define LS_HAS_MU 116
+#define LS_STOP_ON_SLIP 117
+#define LS_PROJECT 118
+#define LS_CHECK_INVARIANTS 119
+#define LS_IMPACT_PHASE 120
+#define LS_FRONT_RULE 121
+#define LS_COMPUTE_GRF 122
+#define LS_ZENO_INTERVAL 123
+#define LS_IMPULSE_TOL 124
+#define LS_CONTACT_TOL 125
+#define LS_MAX_EVENTS 126
+#define LS_STANCE_LEG 127
+#define LS_PIN 128
+#define LS_U_HOLD 130
+#define LS_T 132
+#define LS_T_BOUND 133
+#define LS_H_ABS 134
+#define LS_T_OLD 135
+#define LS_H 136
+#define LS_Y 137
+#define LS_F 148
+#define LS_Y_OLD 159
+#define LS_STAGES 170
+#define LS_NFEV 313
+#define LS_NREJECTED 314
+#define LS_NACCEPTED 315
+#define LS_DENSE_READY 316
+#define LS_DENSE 317
+#define LS_FAIL_KIND 405
+#define LS_FAIL_VALUE 406
+#define LS_FAIL_T 407
+#define LS_CALLBACK_FAILED 408
+#define LS_GUARD_LEG 409
+#define LS_SCUFF_TRIAL 410
+#define LS_DEEPEST_TRIAL 413
+#define LS_FEET 414
+#define LS_E0 422
+#define LS_PUSH_WORK 423
+#define LS_ENERGY_LOST 424
+#define LS_SIM_T 425
+#define LS_SIM_WORK 426
+#define LS_SIM_H 427
+#define LS_SIM_U 428
+#define LS_SIM_Q 430
+#define LS_SIM_DQ 435
+#define LS_SIM_STATE_UNMADE 440
+#define LS_CONTROL_PERIODS 441
+#define LS_RUNNING 442
+#define LS_INITIAL_SAMPLE_PENDING 443
+#define LS_N_SAMPLES 444
+#define LS_APPENDED 445
+#define LS_PROVISIONAL 446
+#define LS_EVERY 447
+#define LS_LAST_ONLY 448
+#define LS_ARMED 449
+#define LS_SCUFFING 451
+#define LS_SCUFF 453
+#define LS_DEEPEST_SCUFF 459
+#define LS_SCUFFS 460
+#define LS_FEET_END_T 461
+#define LS_FEET_END 462
+#define LS_FORCE_END_T 470
+#define LS_FORCE_END 471
+#define LS_OUT 473
+#define LS_RESULT 639
+#define LS_COEF 641
+#define LS_QS 665
+#define LS_PS 670
+#define LS_STACK 674
 
 /* the right-hand side f(ctx, t, y) -> dy the generated steps take, and a guard's value at t: the
  * functions the rules take as arguments */
@@ -107,6 +125,24 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double forward_rule;  /* 1 under scuff_rule forward, 0 under behind */ \
     double k_pos[32];  /* the constants of the closed form foot_positions (BipedModel.k; room for any) */ \
     double to_power_basis[8][8];  /* dop853's dense row to its power-basis coefficients (integrators) */ \
+    double max_speed;  /* a rate beyond this is a diverging state (Options.max_speed) */ \
+    double ground_tol;  /* how far a free foot may be under the ground (m) */ \
+    double force_tol;  /* how far the ground may pull or the force leave the cone (N) */ \
+    double arm_height;  /* a foot's touchdown counts once it has been higher than this (m) */ \
+    double has_mu;  /* 1 with a friction coefficient (the slip witness is a row) */ \
+    double stop_on_slip;  /* 1: a slip stops the run (Options.stop_on_slip) */ \
+    double project;  /* 1: the state is projected onto the pin after each step (project_constraints) */ \
+    double check_invariants;  /* 1: the invariants are checked after each step and impact */ \
+    double impact_phase;  /* 1 when the scene has impacts ("impact" in phases) */ \
+    double front_rule;  /* 1 under touchdown_rule front */ \
+    double compute_grf;  /* 1: the event's sample has its ground force */ \
+    double zeno_interval;  /* impacts closer than this may accumulate (s) */ \
+    double impulse_tol;  /* how far an impact's impulse may pull (N s) */ \
+    double contact_tol;  /* an old stance foot slower than this after an impact stays down (m/s) */ \
+    double max_events;  /* the run stops after this many mode events */ \
+    double stance_leg;  /* the stance foot: 1 or 2 */ \
+    double pin[2];  /* where the stance foot is pinned (m) */ \
+    double u_hold[2];  /* the torque held while the torque law is held (N m) */ \
     double t;  /* time (s) at the end of the last step */ \
     double t_bound;  /* the end of the interval the stepper runs to (s) */ \
     double h_abs;  /* the step size the next step tries (s) */ \

@@ -25,7 +25,23 @@ import numpy as np
 from biped_sim.engine import integrators
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.locator import scuff_event
-from biped_sim.engine.loop_state import new_state
+from biped_sim.engine.loop_state import (
+    H_ABS,
+    MAX_STEP,
+    NACCEPTED,
+    NFEV,
+    NMAX,
+    NREJECTED,
+    T_OLD,
+    Y_OLD,
+    F,
+    H,
+    T,
+    Y,
+    new_state,
+    put,
+    write,
+)
 from biped_sim.engine.modes import checked_torques, controller_failure
 from biped_sim.engine.results import ControllerError, Event
 from biped_sim.engine.witnesses import all_compiled
@@ -142,16 +158,17 @@ class CompiledStepper(integrators._Stepper):
 
     def __init__(self, sim):
         self.sim = sim
-        self.loop = sim._loop
-        opt = sim.opt
-        self.loop.set_options(sim.rtol, sim.atol, float(opt.max_step), opt.max_speed, opt.ground_tol, opt.force_tol,
-                              opt.graze_tol, opt.arm_height, sim.mu, opt.stop_on_slip, opt.project_constraints,
-                              opt.check_invariants, "impact" in opt.phases, opt.slope,
-                              integrators._DOP853Interpolant.TO_POWER_BASIS.ravel().tolist(), opt.front_tol,
-                              opt.scuff_depth, opt.event_tol, opt.touchdown_rule == "front",
-                              opt.scuff_rule == "forward")
-        self.loop.set_events(opt.compute_grf, opt.zeno_interval, opt.impulse_tol, opt.contact_tol,
-                             opt.max_events)
+        self.loop, self.S = sim._loop, sim.S
+        opt, ground = sim.opt, sim.ground
+        write(self.S, rtol=sim.rtol, atol=sim.atol, max_step=opt.max_step, max_speed=opt.max_speed,
+              ground_tol=opt.ground_tol, force_tol=opt.force_tol, graze_tol=opt.graze_tol, arm_height=opt.arm_height,
+              has_mu=sim.mu is not None, mu=0.0 if sim.mu is None else sim.mu, stop_on_slip=opt.stop_on_slip,
+              project=opt.project_constraints, check_invariants=opt.check_invariants,
+              impact_phase="impact" in opt.phases, sin_s=ground.sin, cos_s=ground.cos, tan_s=ground.tan,
+              to_power_basis=integrators._DOP853Interpolant.TO_POWER_BASIS.ravel().tolist(), front_tol=opt.front_tol,
+              scuff_depth=opt.scuff_depth, event_tol=opt.event_tol, front_rule=opt.touchdown_rule == "front",
+              forward_rule=opt.scuff_rule == "forward", compute_grf=opt.compute_grf, zeno_interval=opt.zeno_interval,
+              impulse_tol=opt.impulse_tol, contact_tol=opt.contact_tol, max_events=opt.max_events)
         self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
         self.method, self.method_code = sim.method, METHOD_CODES[sim.method]
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
@@ -159,31 +176,43 @@ class CompiledStepper(integrators._Stepper):
 
     @property
     def nfev(self):
-        return self.loop.counts()[0]
+        return int(self.S[NFEV])
 
     @property
     def nrejected(self):
-        return self.loop.counts()[1]
+        return int(self.S[NREJECTED])
+
+    def _carry_step(self, h):
+        """The step size a new stepper starts with: ``h`` capped by max_step (``_ListRungeKutta.restart``)."""
+        S = self.S
+        S[H_ABS] = S[MAX_STEP] if S[MAX_STEP] < h else h
 
     def start(self, t_bound, law, reset_counters):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
         torque law, f at the start, the carried-over step size (or the initial one)."""
-        sim = self.sim
-        self.loop.begin(self.method_code, sim.stance_leg, sim.pin[0], sim.pin[1], _hook_argument(law), sim._u[0],
-                        sim._u[1], sim.t, sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound, sim._h,
-                        reset_counters)
+        sim, S = self.sim, self.S
+        write(S, method=self.method_code, stance_leg=sim.stance_leg, pin=sim.pin, u_hold=sim._u, t=sim.t,
+              y=sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound=t_bound)
+        if sim._h is not None:
+            self._carry_step(sim._h)
+        if reset_counters:
+            S[NFEV] = S[NREJECTED] = S[NACCEPTED] = 0.0
+        self.loop.begin(_hook_argument(law))
         self.t_bound = t_bound
         self.loop.state_stale = False
         if sim._h is None:
             self._sync()
             h0 = integrators.initial_step(self.loop.rhs, self.t, self.y, self.f, t_bound, self.rtol, self.atol,
                                           self.ERROR_ORDER)
-            nfev, nrejected = self.loop.counts()
-            self.loop.set_counters(nfev + 1, nrejected, 0)
-            self.loop.set_h_abs(h0)
+            S[NFEV] += 1
+            S[NACCEPTED] = 0.0
+            self._carry_step(h0)
 
     def _sync(self):
-        self.t, self.t_old, self.h, self.h_abs, self.y, self.y_old, self.f, _, _, _ = self.loop.state()
+        """The stepper's fields the Python code reads, from the state."""
+        S = self.S
+        self.t, self.t_old, self.h, self.h_abs = S[T], S[T_OLD], S[H], S[H_ABS]
+        self.y, self.y_old, self.f = list(S[Y:Y + NMAX]), list(S[Y_OLD:Y_OLD + NMAX]), list(S[F:F + NMAX])
         self._dense = None
 
     def _push_history(self):
@@ -310,7 +339,7 @@ class CompiledStepper(integrators._Stepper):
         return outcome
 
     def replace_y(self, y):
-        self.loop.replace_y(y)
+        put(self.S, Y, y)
         self.y = list(y)
 
     def dense_output(self):
@@ -343,6 +372,7 @@ def compiled_torque(controller, stance_leg, q, dq, model):
     if _core is None or law is None:
         return None
     loop = _new_loop(model)
-    loop.begin(METHOD_CODES["dop853"], stance_leg, 0.0, 0.0, None, 0.0, 0.0, 0.0, list(q) + list(dq) + [0.0], 0.0,
-               None, True)
+    write(memoryview(loop).cast("d"), method=METHOD_CODES["dop853"], stance_leg=stance_leg,
+          y=list(q) + list(dq) + [0.0])
+    loop.begin(None)
     return np.array(loop.law_torque(_hook_argument(law)))

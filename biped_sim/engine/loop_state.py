@@ -59,6 +59,26 @@ FIELDS = (
     Field("forward_rule", (), "1 under scuff_rule forward, 0 under behind"),
     Field("k_pos", (32,), "the constants of the closed form foot_positions (BipedModel.k; room for any)"),
     Field("to_power_basis", (8, 8), "dop853's dense row to its power-basis coefficients (integrators)"),
+    # -- the options of the compiled loop's steps and events (Options: CompiledStepper writes them)
+    Field("max_speed", (), "a rate beyond this is a diverging state (Options.max_speed)"),
+    Field("ground_tol", (), "how far a free foot may be under the ground (m)"),
+    Field("force_tol", (), "how far the ground may pull or the force leave the cone (N)"),
+    Field("arm_height", (), "a foot's touchdown counts once it has been higher than this (m)"),
+    Field("has_mu", (), "1 with a friction coefficient (the slip witness is a row)"),
+    Field("stop_on_slip", (), "1: a slip stops the run (Options.stop_on_slip)"),
+    Field("project", (), "1: the state is projected onto the pin after each step (project_constraints)"),
+    Field("check_invariants", (), "1: the invariants are checked after each step and impact"),
+    Field("impact_phase", (), "1 when the scene has impacts (\"impact\" in phases)"),
+    Field("front_rule", (), "1 under touchdown_rule front"),
+    Field("compute_grf", (), "1: the event's sample has its ground force"),
+    Field("zeno_interval", (), "impacts closer than this may accumulate (s)"),
+    Field("impulse_tol", (), "how far an impact's impulse may pull (N s)"),
+    Field("contact_tol", (), "an old stance foot slower than this after an impact stays down (m/s)"),
+    Field("max_events", (), "the run stops after this many mode events"),
+    # -- the mode the compiled loop steps (CompiledStepper.start writes it, a touchdown changes it)
+    Field("stance_leg", (), "the stance foot: 1 or 2"),
+    Field("pin", (2,), "where the stance foot is pinned (m)"),
+    Field("u_hold", (2,), "the torque held while the torque law is held (N m)"),
     # -- the stepper (integrators._ListRungeKutta)
     Field("t", (), "time (s) at the end of the last step"),
     Field("t_bound", (), "the end of the interval the stepper runs to (s)"),
@@ -147,9 +167,13 @@ def put(S, at, values):
 
 
 def new_state(**values) -> list:
-    """A state as a list of SIZE floats, zero but for ``values`` (field name: a float, or a sequence of
-    floats filling the field from its start)."""
-    S = [0.0] * SIZE
+    """A state as a list of SIZE floats, zero but for ``values`` (as :func:`write` takes them)."""
+    return write([0.0] * SIZE, **values)
+
+
+def write(S, **values):
+    """Write ``values`` into the state S by field name (a float, a bool, or a sequence of floats filling the field
+    from its start); returns S."""
     for name, value in values.items():
         at = OFFSETS[name.upper()]
         if isinstance(value, (int, float)):
@@ -159,7 +183,7 @@ def new_state(**values) -> list:
             size = _size(next(f.shape for f in FIELDS if f.name == name))
             if len(value) > size:
                 raise ValueError(f"the state's field {name} holds {size} values, got {len(value)}")
-            S[at:at + len(value)] = value
+            put(S, at, value)
     return S
 
 

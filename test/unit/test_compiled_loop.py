@@ -660,3 +660,24 @@ def test_the_simulator_its_samples_and_the_compiled_loop_share_one_state():
         assert sim_c.stats["compiled_loop_steps"] > 20       # the periods ran in C
     assert compiled.t.tolist() == python.t.tolist() and np.array_equal(compiled.q, python.q)
     assert sim_c.control_periods == sim_p.control_periods == 40
+
+
+@pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=compiled_loop.WHY_NOT or "no compiled loop")
+def test_the_loop_takes_its_options_and_its_mode_from_the_state():
+    """No positional lists of options or of a mode's start: the compiled loop runs with the options and the mode
+    (stance leg, pin, held torque) that the Python code wrote by name into the state, and begin() takes the
+    torque law only."""
+    ls = loop_state
+    sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state(), mu=0.6, arm_height=0.02,
+                             stop_on_slip=False, slope=0.01)
+    for _ in range(5):
+        sim.advance_period(1e-3, [0.5, -0.5])
+    S = sim.S
+    assert sim.stats["compiled_loop_steps"] > 0
+    assert (S[ls.ARM_HEIGHT], S[ls.HAS_MU], S[ls.MU], S[ls.STOP_ON_SLIP], S[ls.SIN_S]) == (
+        0.02, 1.0, 0.6, 0.0, math.sin(0.01))
+    assert (S[ls.STANCE_LEG], [S[ls.PIN], S[ls.PIN + 1]], [S[ls.U_HOLD], S[ls.U_HOLD + 1]]) == (
+        sim.stance_leg, sim.pin, [0.5, -0.5])
+    assert not any(hasattr(sim._loop, name) for name in ("set_options", "set_events", "set_counters", "state"))
+    with pytest.raises(TypeError):
+        sim._loop.begin(None, 1, 0.0)
