@@ -41,15 +41,13 @@
 
 enum { DOP853 = 0, DOPRI5 = 1 };
 enum { HELD = 0, COMPILED = 1, CALLBACK = 2 };   /* the kinds of torque law */
-enum { DONE = 0, PENDING = 1, GROW = 2, FAILED = 3, PYTHON_STEPS = 4, SCUFF_ENDED = 5, RAISED = 6, TOUCHDOWN = 7,
-       TORQUE_CHANGE = 8 };
 enum { FAIL_NONE = 0, FAIL_STEP_SIZE = 1, FAIL_NON_FINITE = 2, FAIL_CALLBACK = 3 };
 
 typedef struct { double x, height, dx, dheight; } Foot;
 
 /* A touchdown (kind TOUCHDOWN; a, b: the old and the new stance leg; v: t, q, dq-, dq+, impulse, energy loss,
  * energy lost so far, the new pin) or an ended scuff (SCUFF_ENDED; a, b: the foot, the stance leg; v: t_start,
- * deepest, t_deepest, t_up, q and dq at t_deepest, NaN outside the step). A run returns GROW when the room is
+ * deepest, t_deepest, t_up, q and dq at t_deepest, NaN outside the step). A run returns OUTCOME_NEED_ROOM when the room is
  * full: a step makes at most one. */
 #define EVENT_ROOM 32
 typedef struct { int kind, a, b; double v[22]; } EventRecord;
@@ -86,8 +84,7 @@ typedef struct {
     int n_recent;
     /* the touchdowns applied and the scuffs ended since the Python code last took them (take_events),
      * in order: their Events are the Python code's to make */
-    EventRecord events[EVENT_ROOM];
-    int n_events;
+    EventRecord events[EVENT_ROOM];     /* (how many: the state's n_records) */
     /* the torque law */
     int law_kind;     /* HELD (the state's u_hold), COMPILED (law) or CALLBACK (callback) */
     CompiledLaw law;
@@ -349,10 +346,10 @@ static int
 touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, double energy_lost, double *residual_out)
 {
     int old = (int)L->stance_leg, nw = 3 - old;
-    if (L->law_kind == CALLBACK) { L->why = 13; return 0; }
-    if (L->n_impacts > 0 && t_ev - L->last_impact < L->zeno_interval) { L->why = 14; return 0; }
-    if (L->mode_events + 1 >= L->max_events) { L->why = 15; return 0; }
-    if (L->mode_events >= 49 && t_ev - L->ring[L->mode_events % 49] < 1e-9) { L->why = 16; return 0; }
+    if (L->law_kind == CALLBACK) { L->why = WHY_CALLED_BACK_LAW; return 0; }
+    if (L->n_impacts > 0 && t_ev - L->last_impact < L->zeno_interval) { L->why = WHY_IMPACTS_CLOSE; return 0; }
+    if (L->mode_events + 1 >= L->max_events) { L->why = WHY_MAX_EVENTS; return 0; }
+    if (L->mode_events >= 49 && t_ev - L->ring[L->mode_events % 49] < 1e-9) { L->why = WHY_EVENT_LOOP; return 0; }
     double y[N], ue[2], Fe[2] = {0.0, 0.0}, out[7], TVm[2], TVp[2], dqp[5], imp[2];
     for (int j = 0; j < N; j++) y[j] = rk_dense_at(L->S, j, t_ev);
     double *q = y, *dqm = y + 5, w = y[10];
@@ -361,7 +358,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
         stance(L, q, dqm, ue, out);
         Fe[0] = out[5]; Fe[1] = out[6];
     }
-    if (L->callback_failed) { L->why = 12; return 0; }
+    if (L->callback_failed) { L->why = WHY_LAW_FAILED; return 0; }
     if (nw == 1) k_impact_map_1(q, dqm, L->k_impact, out);
     else k_impact_map_2(q, dqm, L->k_impact, out);
     memcpy(dqp, out, 5 * sizeof(double));
@@ -373,9 +370,9 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     double fa[8];
     feet(L, q, dqp, fa);
     double n_imp = ev_normal_force(L->S, imp[0], imp[1]), tg_imp = ev_tangential_force(L->S, imp[0], imp[1]);
-    if (fa[4 * (old - 1) + 3] < 0) { L->why = 18; return 0; }
-    if (n_imp < 0 || (L->has_mu && fabs(tg_imp) > L->mu * n_imp)) { L->why = 19; return 0; }
-    if (L->check_invariants && fa[4 * (old - 1) + 3] < L->contact_tol) { L->why = 20; return 0; }
+    if (fa[4 * (old - 1) + 3] < 0) { L->why = WHY_OLD_FOOT_SINKS; return 0; }
+    if (n_imp < 0 || (L->has_mu && fabs(tg_imp) > L->mu * n_imp)) { L->why = WHY_IMPULSE_CHECK; return 0; }
+    if (L->check_invariants && fa[4 * (old - 1) + 3] < L->contact_tol) { L->why = WHY_OLD_FOOT_STAYS; return 0; }
     /* the new stance (_check_stance_start): the ground must push, inside the friction cone */
     double up[2], Fp[2];
     L->stance_leg = nw;
@@ -383,7 +380,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     stance(L, q, dqp, up, out);
     L->stance_leg = old;
     Fp[0] = out[5]; Fp[1] = out[6];
-    if (ev_normal_force(L->S, Fp[0], Fp[1]) < 0.0 || (L->has_mu && ev_cone_margin(L->S, Fp[0], Fp[1]) < 0.0)) { L->why = 21; return 0; }
+    if (ev_normal_force(L->S, Fp[0], Fp[1]) < 0.0 || (L->has_mu && ev_cone_margin(L->S, Fp[0], Fp[1]) < 0.0)) { L->why = WHY_STANCE_REFUSED; return 0; }
     /* applied */
     double lost = energy_lost + loss;
     double res_e = TVm[0] + TVm[1] - E0 - w - push_work + energy_lost;
@@ -401,8 +398,8 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     k_foot_positions(q, L->k_pos, p);
     L->pin[0] = p[2 * nw - 2];
     L->pin[1] = p[2 * nw - 1];
-    EventRecord *ev = L->events + L->n_events++;
-    ev->kind = TOUCHDOWN;
+    EventRecord *ev = L->events + (int)L->n_records++;
+    ev->kind = RECORD_TOUCHDOWN;
     ev->a = old;
     ev->b = nw;
     ev->v[0] = t_ev;
@@ -458,7 +455,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     memcpy(dq, L->y + 5, sizeof dq);
     double top = 0.0;
     for (int i = 0; i < 5; i++) top = fabs(dq[i]) > top ? fabs(dq[i]) : top;
-    if (!(top <= L->max_speed)) { L->why = 1; return 0; }
+    if (!(top <= L->max_speed)) { L->why = WHY_DIVERGING; return 0; }
     feet(L, q, dq, ft1);
     /* the torque and force of the step's last evaluation, at its end (FSAL) */
     L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
@@ -489,7 +486,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         }
         if (crossing) {
             if (ev_locate_height_crossing(L->S, rhs, L, sw, bracket[0], bracket[1]) < 0 || !L->front_rule) {
-                L->why = 2;
+                L->why = WHY_CROSSING_IN_PYTHON;
                 return 0;
             }
             t_root = L->S[LS_RESULT];
@@ -507,7 +504,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
                 if (L->n_recent == 4) {
                     const double *r = L->recent_impacts;
                     double g0 = r[1] - r[0], g1 = r[2] - r[1], g2 = r[3] - r[2];
-                    if (g0 > g1 && g1 > g2 && g2 <= 0.5 * g0 && t_root - r[3] < g2) { L->why = 22; return 0; }
+                    if (g0 > g1 && g1 > g2 && g2 <= 0.5 * g0 && t_root - r[3] < g2) { L->why = WHY_ACCUMULATING; return 0; }
                 }
                 scuffs++;
                 scuffing = 1;
@@ -517,20 +514,20 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         }
     }
     {
-        if (ev_triggered(ev_normal_force(L->S, F0[0], F0[1]), ev_normal_force(L->S, F1[0], F1[1]))) { L->why = 4; return 0; }
+        if (ev_triggered(ev_normal_force(L->S, F0[0], F0[1]), ev_normal_force(L->S, F1[0], F1[1]))) { L->why = WHY_LIFTOFF; return 0; }
     }
     if (L->has_mu) {
-        if (ev_triggered(ev_cone_margin(L->S, F0[0], F0[1]), ev_cone_margin(L->S, F1[0], F1[1]))) { L->why = 5; return 0; }
+        if (ev_triggered(ev_cone_margin(L->S, F0[0], F0[1]), ev_cone_margin(L->S, F1[0], F1[1]))) { L->why = WHY_SLIP; return 0; }
     }
     if (touching) {
-        if (scuffing) { L->why = 3; return 0; }
+        if (scuffing) { L->why = WHY_TOUCHDOWN_WHILE_SCUFFING; return 0; }
         /* the locator's cache is of the step's end (EventLocator.locate sets it before it looks) */
         cache_step_end(L, L->t, ft1, F1);
         return touchdown(L, t_touch, row, E0, push_work, energy_lost, residual_out);
     }
     /* a resting free foot pushed into the ground (_resting_feet_pushed_in) */
     if (L->impact_phase && !L->armed[sw - 1] && !scuffing && ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)) {
-        L->why = 6;
+        L->why = WHY_FOOT_PUSHED_IN;
         return 0;
     }
     int ended = 0;
@@ -540,7 +537,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         memcpy(L->scuff_trial, scuff, sizeof scuff);
         L->deepest_trial = deepest;
         ended = ev_track_scuff(L->S, feet_into_state, L, sw, st, L->t);
-        if (ended < 0) { L->why = 7; return 0; }
+        if (ended < 0) { L->why = WHY_SCUFF_LEAVES_MODEL; return 0; }
         memcpy(scuff, L->scuff_trial, sizeof scuff);
         deepest = L->deepest_trial;
     }
@@ -550,23 +547,23 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     if (L->project) ev_project_onto_pin(q, dq, fs, L->pin, L->tan_s);
     /* invariants.check_sample (a violation: pending, and the Python code reports it) */
     if (L->check_invariants) {
-        if (!ev_finite_state(q, dq, 5)) { L->why = 8; return 0; }
-        if (!scuffing && ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)) { L->why = 9; return 0; }
-        if (ev_violated(ev_normal_force(L->S, F1[0], F1[1]), L->force_tol)) { L->why = 10; return 0; }
+        if (!ev_finite_state(q, dq, 5)) { L->why = WHY_NON_FINITE; return 0; }
+        if (!scuffing && ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)) { L->why = WHY_FOOT_BELOW_GROUND; return 0; }
+        if (ev_violated(ev_normal_force(L->S, F1[0], F1[1]), L->force_tol)) { L->why = WHY_GROUND_PULLS; return 0; }
         if (L->has_mu && L->stop_on_slip && ev_violated(ev_cone_margin(L->S, F1[0], F1[1]), L->force_tol)) {
-            L->why = 11;
+            L->why = WHY_OUTSIDE_CONE;
             return 0;
         }
     }
-    if (L->callback_failed) { L->why = 12; return 0; }
+    if (L->callback_failed) { L->why = WHY_LAW_FAILED; return 0; }
     /* accepted: the locator's state, the sample, the projected state */
     memcpy(kept, scuff, sizeof scuff);
     L->deepest_scuff = deepest;
     L->scuffs = scuffs;
     L->scuffing[sw - 1] = scuffing && !ended;
     if (ended) {     /* EventLocator._scuff_event's data */
-        EventRecord *ev = L->events + L->n_events++;
-        ev->kind = SCUFF_ENDED;
+        EventRecord *ev = L->events + (int)L->n_records++;
+        ev->kind = RECORD_SCUFF_ENDED;
         ev->a = sw;
         ev->b = st;
         memcpy(ev->v, scuff, sizeof scuff);
@@ -676,19 +673,20 @@ static PyObject *
 Loop_take_events(Loop *L, PyObject *unused)
 {
     (void)unused;
-    PyObject *out = PyList_New(L->n_events);
-    for (int i = 0; out != NULL && i < L->n_events; i++) {
+    int n = (int)L->n_records;
+    PyObject *out = PyList_New(n);
+    for (int i = 0; out != NULL && i < n; i++) {
         const EventRecord *ev = L->events + i;
         const double *v = ev->v;
-        PyObject *item = ev->kind == TOUCHDOWN
-            ? Py_BuildValue("(idiiNNNNdd(dd))", TOUCHDOWN, v[0], ev->a, ev->b, list_of(v + 1, 5), list_of(v + 6, 5),
+        PyObject *item = ev->kind == RECORD_TOUCHDOWN
+            ? Py_BuildValue("(idiiNNNNdd(dd))", RECORD_TOUCHDOWN, v[0], ev->a, ev->b, list_of(v + 1, 5), list_of(v + 6, 5),
                             list_of(v + 11, 5), list_of(v + 16, 2), v[18], v[19], v[20], v[21])
-            : Py_BuildValue("(iii[ddd]dNN)", SCUFF_ENDED, ev->a, ev->b, v[0], v[1], v[2], v[3], list_of(v + 4, 5),
+            : Py_BuildValue("(iii[ddd]dNN)", RECORD_SCUFF_ENDED, ev->a, ev->b, v[0], v[1], v[2], v[3], list_of(v + 4, 5),
                             list_of(v + 9, 5));
         if (item == NULL) Py_CLEAR(out);
         else PyList_SET_ITEM(out, i, item);
     }
-    L->n_events = 0;
+    L->n_records = 0;
     return out;
 }
 
@@ -705,28 +703,22 @@ Loop_rhs(Loop *L, PyObject *args)
     return list_of(dy, N);
 }
 
-static PyObject *
-failure(Loop *L)
-{
-    return Py_BuildValue("(idd)", (int)L->fail_kind, L->fail_value, L->fail_t);
-}
-
-/* step() -> None, or (kind, value, t) of a failure */
+/* step() -> OUTCOME_DONE, OUTCOME_FAILED (the state's fail_kind, fail_value, fail_t) or OUTCOME_RAISED */
 static PyObject *
 Loop_step(Loop *L, PyObject *unused)
 {
     (void)unused;
-    if (rk_step(L->S, rhs, L) < 0) return L->callback_failed ? raise_callback_error(L) : failure(L);
+    if (rk_step(L->S, rhs, L) < 0) return PyLong_FromLong(L->callback_failed ? OUTCOME_RAISED : OUTCOME_FAILED);
     /* the torque and force of the step's last evaluation, at its end (FSAL), as handed() gives them */
     L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
     L->end_F[0] = L->last_F[0]; L->end_F[1] = L->last_F[1];
-    Py_RETURN_NONE;
+    return PyLong_FromLong(OUTCOME_DONE);
 }
 
 /* A run (run, held, periods, period): quiet steps until t_end, the samples written into the Samples' array
- * (handed to the run as a buffer: Samples._data); its outcome DONE, PENDING (a step taken, for Python to
- * handle), GROW (the sample array or the event records are full), FAILED (the step failed: failure = (kind,
- * value, t)) or RAISED. Its counters are the state's (n_samples, appended, provisional, every, last_only,
+ * (handed to the run as a buffer: Samples._data); its outcome OUTCOME_DONE, OUTCOME_EVENT (a step taken, for Python to
+ * handle), OUTCOME_NEED_ROOM (the sample array or the event records are full), OUTCOME_FAILED (the step failed: failure = (kind,
+ * value, t)) or OUTCOME_RAISED. Its counters are the state's (n_samples, appended, provisional, every, last_only,
  * the energy terms), held in locals while it runs. */
 typedef struct {
     double E0, push_work, energy_lost;
@@ -737,17 +729,17 @@ typedef struct {
 } RunState;
 
 /* The quiet steps to t_end (the loop of HybridSimulator._integrate), writing samples as Samples.append
- * does: DONE, PENDING, GROW (no room for a step's samples or its event: the Python code makes room and calls
- * again) or FAILED. Touchdowns and ended scuffs are applied and kept in L->events, and the steps go on. */
+ * does: OUTCOME_DONE, OUTCOME_EVENT, OUTCOME_NEED_ROOM (no room for a step's samples or its event: the Python code makes room and calls
+ * again) or OUTCOME_FAILED. Touchdowns and ended scuffs are applied and kept in L->events, and the steps go on. */
 static int
 quiet_until(Loop *L, double t_end, RunState *rs)
 {
     while (L->t < t_end) {
-        if ((!rs->last_only && rs->n + 2 > rs->cap) || L->n_events == EVENT_ROOM) return GROW;
-        if (rk_step(L->S, rhs, L) < 0) return FAILED;
+        if ((!rs->last_only && rs->n + 2 > rs->cap) || (int)L->n_records == EVENT_ROOM) return OUTCOME_NEED_ROOM;
+        if (rk_step(L->S, rhs, L) < 0) return OUTCOME_FAILED;
         double drift = 0.0, rate = 0.0, residual, row[34];
         int accepted_how = quiet_step(L, row, rs->E0, rs->push_work, rs->energy_lost, &drift, &rate, &residual);
-        if (!accepted_how) return PENDING;
+        if (!accepted_how) return OUTCOME_EVENT;
         long at = rs->last_only ? 0 : rs->provisional ? rs->n - 1 : rs->n;
         if (accepted_how == 3) {
             /* the event's sample (kept: _reset's keep_last), then the one after the impact (kept) */
@@ -758,7 +750,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
             rs->n = at + 1;
             rs->appended += 2;
             rs->provisional = 0;
-            rs->energy_lost = L->events[L->n_events - 1].v[19];
+            rs->energy_lost = L->events[(int)L->n_records - 1].v[19];
         } else {
             if (accepted_how == 2) {
                 /* the scuff's Event comes before this step's sample (HybridSimulator._push_event: keep_last) */
@@ -780,7 +772,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
         residual = fabs(residual);
         L->max_residual = residual > L->max_residual ? residual : L->max_residual;
     }
-    return DONE;
+    return OUTCOME_DONE;
 }
 
 /* A run's state: its energy terms and the Samples' counters from the state, and the Samples' array ``data``
@@ -828,17 +820,16 @@ end_run(Loop *L, RunState *rs, Py_buffer *buf)
     PyBuffer_Release(buf);
 }
 
-/* end_run, then (outcome, accepted steps, events waiting in take_events, failure or None) */
+/* end_run, then the run's Outcome (OUTCOME_RAISED where the torque law failed: the caller takes the steps
+ * accepted before it, then raise_error()) */
 static PyObject *
 run_result(Loop *L, int outcome, RunState *rs, Py_buffer *buf)
 {
     end_run(L, rs, buf);
-    if (L->callback_failed) outcome = RAISED;     /* the caller takes the accepted steps, then raise_error() */
-    return Py_BuildValue("(iliN)", outcome, rs->accepted, L->n_events,
-                         outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
+    return PyLong_FromLong(L->callback_failed ? OUTCOME_RAISED : outcome);
 }
 
-/* run(t_end, data) -> run_result's tuple: the quiet steps to t_end */
+/* run(t_end, data) -> the Outcome of the quiet steps to t_end */
 static PyObject *
 run_quiet(Loop *L, PyObject *t_end_arg, PyObject *data)
 {
@@ -901,15 +892,15 @@ period_end(double t, double period, double t_final, long *k)
     return t_next;
 }
 
-/* periods(law, period, t_final, t_stop, data) -> (<run's result>, t_next, refused): control periods held (as
+/* periods(law, period, t_final, t_stop, data) -> an Outcome (and t_next, refused_u): control periods held (as
  * HybridSimulator.advance_period computes them, the command at each period's start: a compiled law's
  * (address, parameters, name), or a Python controller, called once a period and checked by
  * call_controller) until t_final, or the first period boundary at or after t_stop - 1e-9 period (a push due),
  * or a run outcome the Python code must see (then mid-period: its end t_next and its torque come back), or
- * a period whose command the stance guards refuse at its start (TORQUE_CHANGE: not begun, the count and
+ * a period whose command the stance guards refuse at its start (OUTCOME_TORQUE_CHANGE: not begun, the count and
  * torque of the periods before it are the state's control_periods and sim_u, and refused, its command (else
  * None): the Python code runs the
- * period with that command, so that a controller is called once a period on both loops). A command that fails (RAISED)
+ * period with that command, so that a controller is called once a period on both loops). A command that fails (OUTCOME_RAISED)
  * counts its period as begun, as advance_period does. */
 static PyObject *
 Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
@@ -936,21 +927,21 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     RunState rs;
     Py_buffer buf;
     if (run_state(L, args[4], &rs, &buf) < 0) return NULL;
-    int outcome = DONE;
+    int outcome = OUTCOME_DONE;
     double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, refused[2] = {NAN, NAN}, tol = 1e-9 * period;
     while (L->t < t_final && t_stop > L->t + tol) {
         long k = k0;
         double t_end = period_end(L->t, period, t_final, &k), u_now[2];
         if (command != NULL) call_controller(L, command, L->t, L->y, L->y + 5, u_now);
         else apply_law(L, &law, L->t, L->y, L->y + 5, u_now);
-        if (L->callback_failed) {       /* (run_result: RAISED) */
+        if (L->callback_failed) {       /* (run_result: OUTCOME_RAISED) */
             k0 = k;
             break;
         }
         carry_step(L, L->h_abs);     /* as begin() carries it over */
         hold(L, u_now[0], u_now[1], t_end);
         if (refused_at_start(L)) {
-            outcome = TORQUE_CHANGE;
+            outcome = OUTCOME_TORQUE_CHANGE;
             refused[0] = u_now[0];
             refused[1] = u_now[1];
             break;
@@ -960,15 +951,15 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         u[0] = u_now[0];
         u[1] = u_now[1];
         outcome = quiet_until(L, t_next, &rs);
-        if (outcome != DONE) break;
+        if (outcome != OUTCOME_DONE) break;
     }
     L->control_periods = (double)k0;
     L->sim_u[0] = u[0];
     L->sim_u[1] = u[1];
-    PyObject *r = run_result(L, outcome, &rs, &buf);
-    if (r == NULL) return NULL;
-    if (outcome != TORQUE_CHANGE) return Py_BuildValue("(NdO)", r, t_next, Py_None);
-    return Py_BuildValue("(Nd[dd])", r, t_next, refused[0], refused[1]);
+    L->t_next = t_next;
+    L->refused_u[0] = refused[0];
+    L->refused_u[1] = refused[1];
+    return run_result(L, outcome, &rs, &buf);
 }
 
 static PyObject *
@@ -1026,15 +1017,15 @@ seconds_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* period(period, u, t_final, data) -> HybridSimulator.advance_period(period, u, t_final=t_final) under a
- * held torque, in one call (the node's control period), when the loop holds the simulator's state and
- * locator and the run goes on past its first sample. Returns [] (the events of a period run quiet to its
- * end: the state's sim_t, sim_work, sim_h, control_periods, sim_u, sim_q and sim_dq written, its wall time
- * kept for stats(); the armed feet and the scuff followed are the state's too), or (the run's
- * result, t_next) for the Python code to finish (a touchdown or an ended scuff to make Events of, a step
- * handed back, room to make, a failure), or None having changed nothing: the Python code runs the period
- * (the loop is stale, the run has ended, u is not two finite numbers, a bad period, the stance guards refuse
- * u at the period's start, ...). */
+/* period(period, u, t_final, data) -> an Outcome: HybridSimulator.advance_period(period, u, t_final=t_final)
+ * under a held torque, in one call (the node's control period), when the loop holds the simulator's state and
+ * the run goes on past its first sample. OUTCOME_DONE with no records waiting (n_records): a period run quiet
+ * to its end (the state's sim_t, sim_work, sim_h, control_periods, sim_u, sim_q and sim_dq written, its wall
+ * time kept for stats()); another outcome, or records to take, for the Python code to finish the period that
+ * ends at the state's t_next (a touchdown or an ended scuff to make Events of, a step handed back, room to
+ * make, a failure); OUTCOME_DECLINED having changed nothing: the Python code runs the period (the loop is
+ * stale, the run has ended, u is not two finite numbers, a bad period, the stance guards refuse u at the
+ * period's start, ...). */
 static PyObject *
 Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -1043,35 +1034,30 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         return NULL;
     }
     double wall0 = seconds_now(), u[2];
-    if (L->state_stale || L->history_stale || two_finite(args[1], u) < 0) Py_RETURN_NONE;
+    if (L->state_stale || L->history_stale || two_finite(args[1], u) < 0) return PyLong_FromLong(OUTCOME_DECLINED);
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
     if (PyErr_Occurred() || PyBool_Check(args[0]) || !(period > 0.0 && period < INFINITY) || PyBool_Check(args[2])
         || !(t_final >= 0.0)) {   /* Python says why */
         PyErr_Clear();
-        Py_RETURN_NONE;
+        return PyLong_FromLong(OUTCOME_DECLINED);
     }
-    if (L->running == 0.0 || L->initial_sample_pending != 0.0) Py_RETURN_NONE;
+    if (L->running == 0.0 || L->initial_sample_pending != 0.0) return PyLong_FromLong(OUTCOME_DECLINED);
     long k = (long)L->control_periods;
     double t_next = period_end(L->t, period, t_final, &k);
-    if (!isfinite(t_next)) Py_RETURN_NONE;     /* the Python code says why */
+    if (!isfinite(t_next)) return PyLong_FromLong(OUTCOME_DECLINED);     /* the Python code says why */
     if (!isnan(L->sim_h)) carry_step(L, L->sim_h);
     hold(L, u[0], u[1], t_next);
-    if (refused_at_start(L)) Py_RETURN_NONE;
+    if (refused_at_start(L)) return PyLong_FromLong(OUTCOME_DECLINED);
     L->control_periods = (double)k;
     L->sim_u[0] = u[0];
     L->sim_u[1] = u[1];
+    L->t_next = t_next;
     RunState rs;
     Py_buffer buf;
     if (run_state(L, args[3], &rs, &buf) < 0) return NULL;
-    int outcome = quiet_until(L, t_next, &rs);
-    if (outcome != DONE || L->n_events || L->callback_failed) {
-        PyObject *r = run_result(L, outcome, &rs, &buf);
-        L->wall_time += seconds_now() - wall0;
-        return r == NULL ? NULL : Py_BuildValue("(Nd)", r, t_next);
-    }
-    end_run(L, &rs, &buf);
+    PyObject *r = run_result(L, quiet_until(L, t_next, &rs), &rs, &buf);
     L->wall_time += seconds_now() - wall0;
-    return PyList_New(0);
+    return r;
 }
 
 /* stats() -> (steps, max drift, max drift rate, max |residual|, wall time of period() calls) since the last
@@ -1104,7 +1090,7 @@ Loop_locate_crossing(Loop *L, PyObject *args)
     return PyFloat_FromDouble(L->S[LS_RESULT]);
 }
 
-/* raise_error(): raise the Python controller's exception that ended the last run (outcome RAISED) */
+/* raise_error(): raise the Python controller's exception that ended the last run (outcome OUTCOME_RAISED) */
 static PyObject *
 Loop_raise_error(Loop *L, PyObject *unused)
 {

@@ -4,7 +4,7 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 994
+#define LOOP_STATE_SIZE 998
 #define LS_NMAX 11
 #define LS_MAX_DEPTH 30
 #define LS_METHOD 0
@@ -43,61 +43,97 @@
 #define LS_STANCE_LEG 127
 #define LS_PIN 128
 #define LS_U_HOLD 130
-#define LS_T 132
-#define LS_T_BOUND 133
-#define LS_H_ABS 134
-#define LS_T_OLD 135
-#define LS_H 136
-#define LS_Y 137
-#define LS_F 148
-#define LS_Y_OLD 159
-#define LS_STAGES 170
-#define LS_NFEV 313
-#define LS_NREJECTED 314
-#define LS_NACCEPTED 315
-#define LS_DENSE_READY 316
-#define LS_DENSE 317
-#define LS_FAIL_KIND 405
-#define LS_FAIL_VALUE 406
-#define LS_FAIL_T 407
-#define LS_CALLBACK_FAILED 408
-#define LS_GUARD_LEG 409
-#define LS_SCUFF_TRIAL 410
-#define LS_DEEPEST_TRIAL 413
-#define LS_FEET 414
-#define LS_E0 422
-#define LS_PUSH_WORK 423
-#define LS_ENERGY_LOST 424
-#define LS_SIM_T 425
-#define LS_SIM_WORK 426
-#define LS_SIM_H 427
-#define LS_SIM_U 428
-#define LS_SIM_Q 430
-#define LS_SIM_DQ 435
-#define LS_SIM_STATE_UNMADE 440
-#define LS_CONTROL_PERIODS 441
-#define LS_RUNNING 442
-#define LS_INITIAL_SAMPLE_PENDING 443
-#define LS_N_SAMPLES 444
-#define LS_APPENDED 445
-#define LS_PROVISIONAL 446
-#define LS_EVERY 447
-#define LS_LAST_ONLY 448
-#define LS_ARMED 449
-#define LS_SCUFFING 451
-#define LS_SCUFF 453
-#define LS_DEEPEST_SCUFF 459
-#define LS_SCUFFS 460
-#define LS_FEET_END_T 461
-#define LS_FEET_END 462
-#define LS_FORCE_END_T 470
-#define LS_FORCE_END 471
-#define LS_OUT 473
-#define LS_RESULT 639
-#define LS_COEF 641
-#define LS_QS 665
-#define LS_PS 670
-#define LS_STACK 674
+#define LS_T_NEXT 132
+#define LS_REFUSED_U 133
+#define LS_N_RECORDS 135
+#define LS_T 136
+#define LS_T_BOUND 137
+#define LS_H_ABS 138
+#define LS_T_OLD 139
+#define LS_H 140
+#define LS_Y 141
+#define LS_F 152
+#define LS_Y_OLD 163
+#define LS_STAGES 174
+#define LS_NFEV 317
+#define LS_NREJECTED 318
+#define LS_NACCEPTED 319
+#define LS_DENSE_READY 320
+#define LS_DENSE 321
+#define LS_FAIL_KIND 409
+#define LS_FAIL_VALUE 410
+#define LS_FAIL_T 411
+#define LS_CALLBACK_FAILED 412
+#define LS_GUARD_LEG 413
+#define LS_SCUFF_TRIAL 414
+#define LS_DEEPEST_TRIAL 417
+#define LS_FEET 418
+#define LS_E0 426
+#define LS_PUSH_WORK 427
+#define LS_ENERGY_LOST 428
+#define LS_SIM_T 429
+#define LS_SIM_WORK 430
+#define LS_SIM_H 431
+#define LS_SIM_U 432
+#define LS_SIM_Q 434
+#define LS_SIM_DQ 439
+#define LS_SIM_STATE_UNMADE 444
+#define LS_CONTROL_PERIODS 445
+#define LS_RUNNING 446
+#define LS_INITIAL_SAMPLE_PENDING 447
+#define LS_N_SAMPLES 448
+#define LS_APPENDED 449
+#define LS_PROVISIONAL 450
+#define LS_EVERY 451
+#define LS_LAST_ONLY 452
+#define LS_ARMED 453
+#define LS_SCUFFING 455
+#define LS_SCUFF 457
+#define LS_DEEPEST_SCUFF 463
+#define LS_SCUFFS 464
+#define LS_FEET_END_T 465
+#define LS_FEET_END 466
+#define LS_FORCE_END_T 474
+#define LS_FORCE_END 475
+#define LS_OUT 477
+#define LS_RESULT 643
+#define LS_COEF 645
+#define LS_QS 669
+#define LS_PS 674
+#define LS_STACK 678
+
+/* Outcome, Record and Reason (loop_state.py) */
+#define OUTCOME_DONE 0
+#define OUTCOME_EVENT 1
+#define OUTCOME_NEED_ROOM 2
+#define OUTCOME_FAILED 3
+#define OUTCOME_RAISED 4
+#define OUTCOME_TORQUE_CHANGE 5
+#define OUTCOME_DECLINED 6
+#define OUTCOME_PYTHON_STEPS 7
+#define RECORD_SCUFF_ENDED 1
+#define RECORD_TOUCHDOWN 2
+#define WHY_DIVERGING 1
+#define WHY_CROSSING_IN_PYTHON 2
+#define WHY_TOUCHDOWN_WHILE_SCUFFING 3
+#define WHY_LIFTOFF 4
+#define WHY_SLIP 5
+#define WHY_FOOT_PUSHED_IN 6
+#define WHY_SCUFF_LEAVES_MODEL 7
+#define WHY_NON_FINITE 8
+#define WHY_FOOT_BELOW_GROUND 9
+#define WHY_GROUND_PULLS 10
+#define WHY_OUTSIDE_CONE 11
+#define WHY_LAW_FAILED 12
+#define WHY_CALLED_BACK_LAW 13
+#define WHY_IMPACTS_CLOSE 14
+#define WHY_MAX_EVENTS 15
+#define WHY_EVENT_LOOP 16
+#define WHY_OLD_FOOT_SINKS 18
+#define WHY_IMPULSE_CHECK 19
+#define WHY_OLD_FOOT_STAYS 20
+#define WHY_STANCE_REFUSED 21
+#define WHY_ACCUMULATING 22
 
 /* the right-hand side f(ctx, t, y) -> dy the generated steps take, and a guard's value at t: the
  * functions the rules take as arguments */
@@ -143,6 +179,9 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double stance_leg;  /* the stance foot: 1 or 2 */ \
     double pin[2];  /* where the stance foot is pinned (m) */ \
     double u_hold[2];  /* the torque held while the torque law is held (N m) */ \
+    double t_next;  /* period(), periods(): the end of the control period under way (s) */ \
+    double refused_u[2];  /* periods() ending TORQUE_CHANGE: the command refused at its period's start (N m) */ \
+    double n_records;  /* the touchdowns and ended scuffs applied in C whose Events the Python code takes (Loop.take_events) */ \
     double t;  /* time (s) at the end of the last step */ \
     double t_bound;  /* the end of the interval the stepper runs to (s) */ \
     double h_abs;  /* the step size the next step tries (s) */ \

@@ -26,16 +26,24 @@ from biped_sim.engine import integrators
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.locator import scuff_event
 from biped_sim.engine.loop_state import (
+    FAIL_KIND,
+    FAIL_T,
+    FAIL_VALUE,
     H_ABS,
     MAX_STEP,
+    N_RECORDS,
     NACCEPTED,
     NFEV,
     NMAX,
     NREJECTED,
+    REFUSED_U,
+    T_NEXT,
     T_OLD,
     Y_OLD,
     F,
     H,
+    Outcome,
+    Record,
     T,
     Y,
     new_state,
@@ -45,10 +53,6 @@ from biped_sim.engine.loop_state import (
 from biped_sim.engine.modes import checked_torques, controller_failure
 from biped_sim.engine.results import ControllerError, Event
 from biped_sim.engine.witnesses import all_compiled
-
-DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED, TOUCHDOWN, TORQUE_CHANGE = range(9)
-# (SCUFF_ENDED and TOUCHDOWN: the kinds of take_events' records; TORQUE_CHANGE: periods() stopped before a
-# period whose command the stance guards refuse at its start, for the Python code to run)
 
 
 def _compiled_core():
@@ -142,8 +146,9 @@ def _python_only(locator):
     return bool(locator.latched) or len(locator.active_scuffs) > 1
 
 
-def _step_failure(fail):
-    kind, value, t = fail
+def _step_failure(S):
+    """The StepFailure of a step that failed (the state's fail_kind, fail_value, fail_t)."""
+    kind, value, t = S[FAIL_KIND], S[FAIL_VALUE], S[FAIL_T]
     if kind == 1:
         return integrators.StepFailure(integrators.step_size_message(value, t))
     return integrators.StepFailure(integrators.non_finite_message(value))
@@ -238,25 +243,28 @@ class CompiledStepper(integrators._Stepper):
     def step(self):
         """One step taken in C and handled by the Python code (the simulator's view of its end's
         evaluation set, as the right-hand side's sink does)."""
-        fail = self.loop.step()
+        outcome = self.loop.step()
         self._sync()
-        if fail is not None:
-            raise _step_failure(fail)
+        if outcome == Outcome.RAISED:
+            self.loop.raise_error()
+        if outcome == Outcome.FAILED:
+            raise _step_failure(self.S)
         self.sim._last_u, self.sim._last_F, _ = self.loop.handed()
 
     def run(self, t_end):
-        """The quiet steps to ``t_end`` in C. DONE (at t_end: the simulator's state is the last sample's),
-        PENDING (a step taken, not accepted: the Python code handles it), or PYTHON_STEPS (the locator
-        holds a latched guard or two scuffs, which only the Python code follows: step in Python)."""
+        """The quiet steps to ``t_end`` in C: an :class:`~biped_sim.engine.loop_state.Outcome`, DONE (at t_end:
+        the simulator's state is the last sample's), EVENT (a step taken, not accepted: the Python code handles
+        it), or PYTHON_STEPS (the locator holds a latched guard or two scuffs, which only the Python code
+        follows: step in Python)."""
         sim = self.sim
         if _python_only(sim.locator):
-            return PYTHON_STEPS
+            return Outcome.PYTHON_STEPS
         if self.loop.history_stale:
             self._push_history()
-        while True:      # GROW: _make_room makes it, _after_run takes the events
+        while True:      # NEED_ROOM: _make_room makes it, _after_run takes the events
             _make_room(sim._samples)
-            outcome = self._after_run(*self.loop.run(t_end, sim._samples._data))
-            if outcome != GROW:
+            outcome = self._after_run(self.loop.run(t_end, sim._samples._data))
+            if outcome != Outcome.NEED_ROOM:
                 return outcome
 
     def command(self, controller):
@@ -285,12 +293,13 @@ class CompiledStepper(integrators._Stepper):
         if self.loop.history_stale:
             self._push_history()
         _make_room(sim._samples)
-        result, t_next, refused = self.loop.periods(law if callable(law) else _hook_argument(law), period, t_final,
-                                                    t_stop, sim._samples._data)
-        outcome = self._after_run(*result)
-        if outcome == GROW:      # the period in progress goes on in run(), which makes room
+        outcome = self._after_run(self.loop.periods(law if callable(law) else _hook_argument(law), period, t_final,
+                                                    t_stop, sim._samples._data))
+        S = self.S
+        t_next = S[T_NEXT]
+        if outcome == Outcome.NEED_ROOM:      # the period in progress goes on in run(), which makes room
             return self.run(t_next), t_next, None
-        return outcome, t_next, refused
+        return outcome, t_next, [S[REFUSED_U], S[REFUSED_U + 1]] if outcome == Outcome.TORQUE_CHANGE else None
 
     def held_period(self, t_end):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
@@ -298,26 +307,26 @@ class CompiledStepper(integrators._Stepper):
         sim = self.sim
         if self.loop.state_stale or self.loop.history_stale or _python_only(sim.locator):
             return None
-        # (no room made first: a full array comes back GROW before a step, and run() goes on)
+        # (no room made first: a full array comes back NEED_ROOM before a step, and run() goes on)
         return self.finish_held(self.loop.held(t_end, sim._samples._data), t_end)
 
-    def finish_held(self, result, t_end):
-        """The outcome of a held period's run (``held``, ``period``) that came back with ``result``."""
-        outcome = self._after_run(*result)
-        return self.run(t_end) if outcome == GROW else outcome
+    def finish_held(self, outcome, t_end):
+        """The outcome of a held period's run (``held``, ``period``) that came back with ``outcome``."""
+        outcome = self._after_run(outcome)
+        return self.run(t_end) if outcome == Outcome.NEED_ROOM else outcome
 
     def python_changed(self):
         """The Python code changed the simulator's state or its locator (an event, a push, a step it
         handles): the loop takes both again before it runs."""
         self.loop.state_stale = self.loop.history_stale = True
 
-    def _after_run(self, outcome, accepted, n_events, fail):
-        """A run's result (its samples are written, the Samples' counters and the simulator's time, work, step
+    def _after_run(self, outcome):
+        """A run's outcome (its samples are written, the Samples' counters and the simulator's time, work, step
         size and state set in the state): the Events of what the loop applied, then the outcome's own
         handling."""
         sim = self.sim
-        for record in self.loop.take_events() if n_events else ():    # applied in C: their Events, in order
-            if record[0] == TOUCHDOWN:
+        for record in self.loop.take_events() if self.S[N_RECORDS] else ():    # applied in C: their Events
+            if record[0] == Record.TOUCHDOWN:
                 _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, _, pin = record   # (energy_lost: the state's)
                 sim.stance_leg, sim.pin = new, list(pin)
                 sim._stats["impacts"] += 1
@@ -328,11 +337,11 @@ class CompiledStepper(integrators._Stepper):
                 _, leg, stance_leg, scuff, t_up, q, dq = record
                 sim._add_event(scuff_event(leg, stance_leg, scuff, t_up, q, dq, sim.opt.scuff_depth,
                                            sim.opt.scuff_rule))
-        if outcome == RAISED:     # the Python controller raised: after the steps accepted before it
+        if outcome == Outcome.RAISED:     # the torque law failed: after the steps accepted before it
             self.loop.raise_error()
-        if outcome == FAILED:
-            raise _step_failure(fail)
-        if outcome == PENDING:
+        if outcome == Outcome.FAILED:
+            raise _step_failure(self.S)
+        if outcome == Outcome.EVENT:
             self.python_changed()
             self._sync()
             sim._last_u, sim._last_F, _ = self.loop.handed()     # (its start's feet and force: the state's)

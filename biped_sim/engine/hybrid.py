@@ -39,6 +39,7 @@ from biped_sim.engine.loop_state import (
     E0,
     ENERGY_LOST,
     INITIAL_SAMPLE_PENDING,
+    N_RECORDS,
     PUSH_WORK,
     RUNNING,
     SIM_DQ,
@@ -48,6 +49,8 @@ from biped_sim.engine.loop_state import (
     SIM_T,
     SIM_U,
     SIM_WORK,
+    T_NEXT,
+    Outcome,
 )
 from biped_sim.engine.model import BipedModel, as_state_vector, short_repr
 from biped_sim.engine.modes import (
@@ -417,9 +420,11 @@ class HybridSimulator:
         if controller is None and st is not None:
             # the node's period in one C call while the loop holds the state (Loop.period, _core.c: these
             # lines' twin); None when it cannot, having changed nothing
-            done = st.loop.period(period, u, t_final, self._samples._data)
-            if done is not None:
-                return done if type(done) is list else self._advance(done[1], None, None, held=done[0])
+            outcome = st.loop.period(period, u, t_final, self._samples._data)
+            if outcome != Outcome.DECLINED:
+                if outcome == Outcome.DONE and not self.S[N_RECORDS]:
+                    return []
+                return self._advance(self.S[T_NEXT], None, None, held=outcome)
         if self.status != "running":
             return []
         check_number("period", period, 0.0, math.inf, "s", open_low=True)   # (refused: no period begun)
@@ -465,7 +470,7 @@ class HybridSimulator:
                 law = compiled_loop.reference_law(controller, self.model) or controller
             self._periods_outcome = None
             self.advance(t_final, _periods=(period, law, t_final, t_stop))
-            if self._periods_outcome is not None and self._periods_outcome[0] == compiled_loop.TORQUE_CHANGE \
+            if self._periods_outcome is not None and self._periods_outcome[0] == Outcome.TORQUE_CHANGE \
                     and self.status == "running":
                 # the stance guards refuse the next period's command at its start: its events are the Python
                 # code's (_check_torque_change), under that command (the controller is not called again)
@@ -474,7 +479,7 @@ class HybridSimulator:
     def _integrate_periods(self, period, law, t_final, t_stop):
         outcome, t_next, refused = self._compiled.periods(period, law, t_final, t_stop)
         self._periods_outcome = outcome, refused
-        if outcome not in (compiled_loop.DONE, compiled_loop.TORQUE_CHANGE):    # the rest of the period in
+        if outcome not in (Outcome.DONE, Outcome.TORQUE_CHANGE):    # the rest of the period in
             self._integrate(t_next, outcome)                                   # progress, as any
 
     def push(self, impulse):
@@ -553,9 +558,9 @@ class HybridSimulator:
             if st is self._compiled:    # its quiet steps in C; a step it hands back is handled below
                 if outcome is None:
                     outcome = st.run(t_end)
-                if outcome == compiled_loop.DONE:
+                if outcome == Outcome.DONE:
                     break
-                if outcome == compiled_loop.PYTHON_STEPS:
+                if outcome == Outcome.PYTHON_STEPS:
                     st.step()
                 outcome = None
                 st.python_changed()     # the Python code handles this step

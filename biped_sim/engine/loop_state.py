@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from array import array
+from enum import IntEnum
 from typing import NamedTuple
 
 NMAX = 11           # the floating base's integrated state: q (5), dq (5), motor work
@@ -79,6 +80,11 @@ FIELDS = (
     Field("stance_leg", (), "the stance foot: 1 or 2"),
     Field("pin", (2,), "where the stance foot is pinned (m)"),
     Field("u_hold", (2,), "the torque held while the torque law is held (N m)"),
+    # -- what an entry point of the compiled loop leaves besides its Outcome
+    Field("t_next", (), "period(), periods(): the end of the control period under way (s)"),
+    Field("refused_u", (2,), "periods() ending TORQUE_CHANGE: the command refused at its period's start (N m)"),
+    Field("n_records", (), "the touchdowns and ended scuffs applied in C whose Events the Python code takes "
+                           "(Loop.take_events)"),
     # -- the stepper (integrators._ListRungeKutta)
     Field("t", (), "time (s) at the end of the last step"),
     Field("t_bound", (), "the end of the interval the stepper runs to (s)"),
@@ -144,6 +150,51 @@ FIELDS = (
 )
 
 
+class Outcome(IntEnum):
+    """How an entry point of the compiled loop (``run``, ``held``, ``period``, ``periods``, ``step``) ended; what
+    it leaves besides is in the state (the samples and their counters, the simulator's time and state,
+    t_next, refused_u, n_records, the failure's fail_kind, fail_value, fail_t)."""
+    DONE = 0            # at its end: the state is the last sample's
+    EVENT = 1           # a step taken and not accepted: the Python code handles it (a step handed back)
+    NEED_ROOM = 2       # the Samples' array or the event records are full: make room, call again
+    FAILED = 3          # the step failed (fail_kind: the step size underflowed, or a non-finite state)
+    RAISED = 4          # the torque law failed: Loop.raise_error() raises its exception
+    TORQUE_CHANGE = 5   # periods(): the stance guards refuse the next period's command at its start (refused_u)
+    DECLINED = 6        # period(): not run, nothing changed: the Python code runs the period
+    PYTHON_STEPS = 7    # CompiledStepper.run, never C: the locator holds what only the Python code follows
+
+
+class Record(IntEnum):
+    """The kinds of Loop.take_events' records: what the loop applied, whose Events the Python code makes."""
+    SCUFF_ENDED = 1
+    TOUCHDOWN = 2
+
+
+class Reason(IntEnum):
+    """Why the compiled loop handed a step back to the Python code (``Loop.handed()``'s last value, ``L->why``)."""
+    DIVERGING = 1               # a rate beyond max_speed
+    CROSSING_IN_PYTHON = 2      # a touchdown crossing brentq gives up on, or touchdown_rule "any"
+    TOUCHDOWN_WHILE_SCUFFING = 3
+    LIFTOFF = 4                 # the liftoff witness triggered
+    SLIP = 5                    # the slip witness triggered
+    FOOT_PUSHED_IN = 6          # a resting free foot pushed into the ground
+    SCUFF_LEAVES_MODEL = 7      # a scuff that stops passing through, or deeper than scuff_depth
+    NON_FINITE = 8              # invariant: a non-finite state
+    FOOT_BELOW_GROUND = 9       # invariant: a free foot below the ground
+    GROUND_PULLS = 10           # invariant: the normal force beyond force_tol below zero
+    OUTSIDE_CONE = 11           # invariant: the force outside the cone (stop_on_slip)
+    LAW_FAILED = 12             # the torque law failed in the step
+    CALLED_BACK_LAW = 13        # a touchdown under a Python controller
+    IMPACTS_CLOSE = 14          # a touchdown within zeno_interval of the last impact
+    MAX_EVENTS = 15             # a touchdown that reaches max_events
+    EVENT_LOOP = 16             # a touchdown that makes 50 mode events within 1e-9 s
+    OLD_FOOT_SINKS = 18         # after the impact the old stance foot moves into the ground
+    IMPULSE_CHECK = 19          # the impulse pulls, or lies outside the friction cone
+    OLD_FOOT_STAYS = 20         # the old stance foot stays on the ground (check_invariants)
+    STANCE_REFUSED = 21         # the new stance starts with the ground pulling or outside the cone
+    ACCUMULATING = 22           # a crossing behind the stance foot while the impacts accumulate (Zeno)
+
+
 def _size(shape):
     return math.prod(shape)
 
@@ -196,6 +247,9 @@ def c_header() -> str:
              "#ifndef BIPED_SIM_LOOP_STATE_H", "#define BIPED_SIM_LOOP_STATE_H", "",
              f"#define LOOP_STATE_SIZE {SIZE}", f"#define LS_NMAX {NMAX}", f"#define LS_MAX_DEPTH {MAX_DEPTH}"]
     lines += [f"#define LS_{name} {at}" for name, at in OFFSETS.items()]
+    lines += ["", "/* Outcome, Record and Reason (loop_state.py) */"]
+    for enum, prefix in ((Outcome, "OUTCOME"), (Record, "RECORD"), (Reason, "WHY")):
+        lines += [f"#define {prefix}_{member.name} {member.value}" for member in enum]
     lines += ["", "/* the right-hand side f(ctx, t, y) -> dy the generated steps take, and a guard's value at t: the",
               " * functions the rules take as arguments */",
               "typedef int (*rhs_t)(void *ctx, double t, const double *y, double *dy);",

@@ -6,6 +6,7 @@ touchdown rule), and its compiled walking laws give the Python laws' torques bit
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -681,3 +682,25 @@ def test_the_loop_takes_its_options_and_its_mode_from_the_state():
     assert not any(hasattr(sim._loop, name) for name in ("set_options", "set_events", "set_counters", "state"))
     with pytest.raises(TypeError):
         sim._loop.begin(None, 1, 0.0)
+
+
+@pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=compiled_loop.WHY_NOT or "no compiled loop")
+def test_every_entry_point_of_the_loop_ends_with_one_outcome():
+    """run, held, period, periods and step return a loop_state.Outcome and leave the rest in the state (the end of
+    the period under way, the failure, the records waiting); the outcomes, the kinds of records and the reasons
+    a step is handed back are named once, in loop_state.py, and generated into _loop_state.h."""
+    ls = loop_state
+    header = (Path(compiled_loop.__file__).parent / "_loop_state.h").read_text()
+    core = (Path(compiled_loop.__file__).parent / "_core.c").read_text()
+    for enum, prefix in ((ls.Outcome, "OUTCOME"), (ls.Record, "RECORD"), (ls.Reason, "WHY")):
+        assert all(f"#define {prefix}_{m.name} {m.value}\n" in header for m in enum)
+    assert not re.search(r"why = \d", core)
+    sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+    for _ in range(3):
+        sim.advance_period(1e-3, [0.5, -0.5])
+    loop, data = sim._loop, sim._samples._data
+    assert ls.Outcome(loop.period(1e-3, [0.5, -0.5], 0.0, data)) == ls.Outcome.DONE and sim.S[ls.T_NEXT] == 4e-3
+    assert ls.Outcome(loop.held(4.5e-3, data)) == ls.Outcome.DONE
+    assert ls.Outcome(loop.run(4.5e-3, data)) == ls.Outcome.DONE and sim.S[ls.T] == 4.5e-3     # (at its t_bound)
+    assert ls.Outcome(loop.step()) == ls.Outcome.DONE
+    assert ls.Outcome(loop.period(1e-3, "not a torque", 0.0, data)) == ls.Outcome.DECLINED
