@@ -37,6 +37,7 @@ from biped_sim.engine.loop_state import (
     NMAX,
     NREJECTED,
     REFUSED_U,
+    T_BOUND,
     T_NEXT,
     T_OLD,
     Y_OLD,
@@ -155,11 +156,27 @@ def _step_failure(S):
 
 
 class CompiledStepper(integrators._Stepper):
-    """The stepper of a mode the compiled loop runs: its state lives in the C ``Loop``; the fields the
-    Python code reads (``t``, ``y``, ``t_old``, ``y_old``, ``h``, ``h_abs``) are copied out only when a
-    step is handed back (``_sync``). The locator's armed feet, its scuffs and the step end's feet and force
-    are fields of the simulator's state, which the loop reads and writes in place."""
+    """The stepper of a mode the compiled loop runs (the interface of ``integrators._ListRungeKutta``): its
+    fields (``t``, ``y``, ``t_old``, ``y_old``, ``f``, ``h``, ``h_abs``, ``t_bound``, the counters) are views of
+    the simulator's state, which the C ``Loop`` steps in place; so are the locator's armed feet, its scuffs and
+    the step end's feet and force."""
     takes_lists = True
+
+    def _view(at, size=None, doc=""):
+        """A stepper field that is the state's field at offset ``at``: a float, or a list of ``size`` floats."""
+        if size is None:
+            return property(lambda self: self.S[at], lambda self, v: self.S.__setitem__(at, v), doc=doc)
+        return property(lambda self: list(self.S[at:at + size]), lambda self, v: put(self.S, at, v), doc=doc)
+
+    t = _view(T, doc="time at the end of the last step (s)")
+    t_old = _view(T_OLD, doc="time at its start (s)")
+    t_bound = _view(T_BOUND, doc="the end of the interval the mode runs to (s)")
+    h = _view(H, doc="the last step's size (s)")
+    h_abs = _view(H_ABS, doc="the step size the next step tries (s)")
+    y = _view(Y, NMAX, doc="the state at t: q, dq, the motors' work")
+    y_old = _view(Y_OLD, NMAX, doc="the state at t_old")
+    f = _view(F, NMAX, doc="the right-hand side at (t, y)")
+    del _view
 
     def __init__(self, sim):
         self.sim = sim
@@ -203,22 +220,14 @@ class CompiledStepper(integrators._Stepper):
         if reset_counters:
             S[NFEV] = S[NREJECTED] = S[NACCEPTED] = 0.0
         self.loop.begin(_hook_argument(law))
-        self.t_bound = t_bound
         self.loop.state_stale = False
+        self._dense = None
         if sim._h is None:
-            self._sync()
             h0 = integrators.initial_step(self.loop.rhs, self.t, self.y, self.f, t_bound, self.rtol, self.atol,
                                           self.ERROR_ORDER)
             S[NFEV] += 1
             S[NACCEPTED] = 0.0
             self._carry_step(h0)
-
-    def _sync(self):
-        """The stepper's fields the Python code reads, from the state."""
-        S = self.S
-        self.t, self.t_old, self.h, self.h_abs = S[T], S[T_OLD], S[H], S[H_ABS]
-        self.y, self.y_old, self.f = list(S[Y:Y + NMAX]), list(S[Y_OLD:Y_OLD + NMAX]), list(S[F:F + NMAX])
-        self._dense = None
 
     def _push_history(self):
         """The one hand-over left: the impact history (the last four impact times, the mode events so far and
@@ -244,7 +253,7 @@ class CompiledStepper(integrators._Stepper):
         """One step taken in C and handled by the Python code (the simulator's view of its end's
         evaluation set, as the right-hand side's sink does)."""
         outcome = self.loop.step()
-        self._sync()
+        self._dense = None     # (the last step's dense output: made when asked)
         if outcome == Outcome.RAISED:
             self.loop.raise_error()
         if outcome == Outcome.FAILED:
@@ -343,13 +352,12 @@ class CompiledStepper(integrators._Stepper):
             raise _step_failure(self.S)
         if outcome == Outcome.EVENT:
             self.python_changed()
-            self._sync()
+            self._dense = None     # (the last step's dense output: made when asked)
             sim._last_u, sim._last_F, _ = self.loop.handed()     # (its start's feet and force: the state's)
         return outcome
 
     def replace_y(self, y):
-        put(self.S, Y, y)
-        self.y = list(y)
+        self.y = y
 
     def dense_output(self):
         if self._dense is None:

@@ -704,3 +704,17 @@ def test_every_entry_point_of_the_loop_ends_with_one_outcome():
     assert ls.Outcome(loop.run(4.5e-3, data)) == ls.Outcome.DONE and sim.S[ls.T] == 4.5e-3     # (at its t_bound)
     assert ls.Outcome(loop.step()) == ls.Outcome.DONE
     assert ls.Outcome(loop.period(1e-3, "not a torque", 0.0, data)) == ls.Outcome.DECLINED
+
+
+@pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=compiled_loop.WHY_NOT or "no compiled loop")
+def test_the_compiled_steppers_fields_are_views_of_the_state():
+    """The compiled stepper copies nothing out of the loop: after periods run quiet in C its t, y and step size
+    are where C left them (the last sample's), and what the Python code writes into them the loop steps from."""
+    sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+    for _ in range(20):
+        sim.advance_period(1e-3, [0.5, -0.5])
+    st, S = sim._compiled, sim.S
+    assert sim.stats["compiled_loop_steps"] > 10 and st.t == sim.t == S[loop_state.T] == 0.02
+    assert st.y[:10] == sim.q.tolist() + sim.dq.tolist() and st.h_abs == sim._h
+    st.y = [*st.y[:10], 5.0]
+    assert S[loop_state.Y + 10] == 5.0
