@@ -155,7 +155,8 @@ class HybridSimulator:
         self.impacts = ImpactHistory(self.opt.zeno_count, self.opt.zeno_interval)
         self.locator = EventLocator(model, self.ground, self.opt, mu, feet, stance_leg, self.impacts, self.S)
         self.pin = list(G.foot_xy(model, q0.tolist(), stance_leg)) if stance_leg else None
-        self.status, self.message = "running", ""
+        self.status, self.message = "running", ""    # (_stop changes it, and the state's running flag)
+        self.S[RUNNING] = 1.0
         self.controller_error = None        # what ended the run in the controller (SimulationResult's)
         self._signatures_checked = {}       # id -> the controllers whose signature was checked (held: no id reused)
         self.control_periods = 0            # advance_period calls so far
@@ -289,16 +290,6 @@ class HybridSimulator:
     @control_periods.setter
     def control_periods(self, value):
         self.S[CONTROL_PERIODS] = value
-
-    @property
-    def status(self):
-        """How the run goes: "running", "stopped" or "failed"."""
-        return self._status
-
-    @status.setter
-    def status(self, value):
-        self._status = value
-        self.S[RUNNING] = float(value == "running")
 
     @property
     def _initial_sample_pending(self):
@@ -587,7 +578,7 @@ class HybridSimulator:
                 self._accept(st.t, q, dq, w, F_end, u_end)
                 if self.opt.check_invariants:
                     check_sample(self.t, q, dq, feet, self.stance_leg, self._samples.last_force(), self.ground, self.mu,
-                                 self.opt, self.locator.active_scuffs, self.last_impact)
+                                 self.opt, self.locator.scuffing_legs(), self.last_impact)
                 if self.opt.project_constraints and self.stance_leg and self.opt.base == "floating":
                     st.replace_y(q + dq + [w])  # continue from the projected state
                 continue
@@ -635,7 +626,8 @@ class HybridSimulator:
         """A sample of the arrays q, dq (``lists``: the same as lists, if at hand), the torque u applied
         there, and the energy balance."""
         T, V = gen.energy(*(lists or (q.tolist(), dq.tolist())), self.model.k["energy"])
-        residual = T + V - self.E0 - self.work - self.push_work + self.energy_lost
+        S = self.S
+        residual = T + V - S[E0] - S[SIM_WORK] - S[PUSH_WORK] + S[ENERGY_LOST]
         self._stats["max_energy_balance_residual"] = max(self._stats["max_energy_balance_residual"], abs(residual))
         self._samples.append(self.t, q, dq, leg, F, u, residual)
 
@@ -741,6 +733,7 @@ class HybridSimulator:
 
     def _stop(self, status, message):
         self.status, self.message = status, message
+        self.S[RUNNING] = float(status == "running")
 
     def _fail(self, message, status="failed", error=None):
         """The run ends (``status``) with an error event; ``error``: the exception that ended it (a

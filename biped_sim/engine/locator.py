@@ -90,6 +90,11 @@ class EventLocator:
         S = self.S
         return {leg: list(S[SCUFF + 3 * (leg - 1):SCUFF + 3 * leg]) for leg in (1, 2) if S[SCUFFING + leg - 1]}
 
+    def scuffing_legs(self):
+        """The feet in a scuff, as a tuple (what an invariant's check asks, every step)."""
+        S = self.S
+        return (1,) * (S[SCUFFING] != 0.0) + (2,) * (S[SCUFFING + 1] != 0.0)
+
     scuffs = property(lambda self: int(self.S[SCUFFS]), lambda self, v: self.S.__setitem__(SCUFFS, v),
                       doc="touchdowns behind the stance foot ignored under touchdown_rule 'front'")
     deepest_scuff = property(lambda self: self.S[DEEPEST_SCUFF], lambda self, v: self.S.__setitem__(DEEPEST_SCUFF, v),
@@ -102,7 +107,7 @@ class EventLocator:
         t = S[FEET_END_T]
         if t != t:
             return None, None
-        return t, (G.FootState(*S[FEET_END:FEET_END + 4]), G.FootState(*S[FEET_END + 4:FEET_END + 8]))
+        return t, (G.FootState._make(S[FEET_END:FEET_END + 4]), G.FootState._make(S[FEET_END + 4:FEET_END + 8]))
 
     @_feet_end.setter
     def _feet_end(self, value):
@@ -211,7 +216,7 @@ class EventLocator:
             if not self._is_scuff(st, to_phys, guard, stance_leg, t_root):
                 roots.append((t_root, guard))
         t_end = min(roots)[0] if roots else st.t
-        if self.active_scuffs:
+        if self.S[SCUFFING] or self.S[SCUFFING + 1]:
             self._track_scuffs(st, to_phys, stance_leg, t_end)
         if not roots:
             self._arm(feet1, stance_leg)

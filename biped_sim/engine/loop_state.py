@@ -208,6 +208,7 @@ def _offsets():
 
 
 OFFSETS, SIZE = _offsets()
+SIZES = {field.name: _size(field.shape) for field in FIELDS}    # the values a field holds
 globals().update(OFFSETS)       # T, Y, STAGES, ...: the offsets the rules index S with when they run as Python
 
 
@@ -231,10 +232,13 @@ def write(S, **values):
             S[at] = float(value)
         else:
             value = [float(v) for v in value]
-            size = _size(next(f.shape for f in FIELDS if f.name == name))
+            size = SIZES[name]
             if len(value) > size:
                 raise ValueError(f"the state's field {name} holds {size} values, got {len(value)}")
-            put(S, at, value)
+            if type(S) is list:
+                S[at:at + len(value)] = value
+            else:
+                put(S, at, value)
     return S
 
 
