@@ -76,12 +76,8 @@ typedef struct {
     };
     /* (the options, the stance leg, the pin and the held torque are the state's: max_speed ... max_events,
      * stance_leg, pin, u_hold) */
-    /* the history the Python code checks an impact against: the last impact's time, the mode events so
-     * far and the times of the last 49 (HybridSimulator._mode_event_times), in a ring */
-    double last_impact, ring[49];
-    long n_impacts, mode_events;
-    double recent_impacts[4];   /* the last (up to) 4 impact times, oldest first (ImpactHistory.times[-4:]) */
-    int n_recent;
+    /* (the impact history and the mode events are the state's: last_impact, n_impacts, recent_impacts,
+     * n_recent, mode_events, ring) */
     /* the touchdowns applied and the scuffs ended since the Python code last took them (take_events),
      * in order: their Events are the Python code's to make */
     EventRecord events[EVENT_ROOM];     /* (how many: the state's n_records) */
@@ -102,9 +98,9 @@ typedef struct {
     double max_drift, max_rate, max_residual, wall_time;
     /* the step handed back: its end's torque and force */
     double end_u[2], end_F[2];
-    /* the Python code changed the simulator's state / the impact history since the loop last took them
-     * (CompiledStepper.python_changed): the loop takes them again before it runs */
-    char state_stale, history_stale;
+    /* the Python code changed the simulator's state or handled a step since the mode's last begin()
+     * (CompiledStepper.python_changed): the next period begins the mode again */
+    char state_stale;
 } Loop;
 
 /* -- the torque law: held, compiled (the hook) or called back ------------------------------------- */
@@ -349,7 +345,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     if (L->law_kind == CALLBACK) { L->why = WHY_CALLED_BACK_LAW; return 0; }
     if (L->n_impacts > 0 && t_ev - L->last_impact < L->zeno_interval) { L->why = WHY_IMPACTS_CLOSE; return 0; }
     if (L->mode_events + 1 >= L->max_events) { L->why = WHY_MAX_EVENTS; return 0; }
-    if (L->mode_events >= 49 && t_ev - L->ring[L->mode_events % 49] < 1e-9) { L->why = WHY_EVENT_LOOP; return 0; }
+    if (L->mode_events >= 49 && t_ev - L->ring[(long)L->mode_events % 49] < 1e-9) { L->why = WHY_EVENT_LOOP; return 0; }
     double y[N], ue[2], Fe[2] = {0.0, 0.0}, out[7], TVm[2], TVp[2], dqp[5], imp[2];
     for (int j = 0; j < N; j++) y[j] = rk_dense_at(L->S, j, t_ev);
     double *q = y, *dqm = y + 5, w = y[10];
@@ -419,8 +415,8 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     L->n_impacts++;
     if (L->n_recent == 4) memmove(L->recent_impacts, L->recent_impacts + 1, 3 * sizeof(double));
     else L->n_recent++;
-    L->recent_impacts[L->n_recent - 1] = t_ev;
-    L->ring[L->mode_events % 49] = t_ev;
+    L->recent_impacts[(int)L->n_recent - 1] = t_ev;
+    L->ring[(long)L->mode_events % 49] = t_ev;
     L->mode_events++;
     /* the next mode's start (begin): f at the state after the impact, the step size carried over */
     memcpy(L->y, q, 5 * sizeof(double));
@@ -646,23 +642,6 @@ Loop_set_model(Loop *L, PyObject *args)
         || doubles(c, L->k_pos, 9, 9, "k_pos", NULL) || doubles(d, L->k_energy, 9, 9, "k_energy", NULL)
         || doubles(e, L->k_terms, 22, 22, "k_terms", NULL) || doubles(f, L->k_impact, 26, 26, "k_impact", NULL))
         return NULL;
-    Py_RETURN_NONE;
-}
-
-/* set_history(the last (up to 4) impact times (a list), mode events so far, the times of the last 49 (a list)) */
-static PyObject *
-Loop_set_history(Loop *L, PyObject *args)
-{
-    PyObject *recent, *times;
-    Py_ssize_t n, n_recent;
-    double v[49];
-    if (!PyArg_ParseTuple(args, "OlO", &recent, &L->mode_events, &times)
-        || doubles(recent, L->recent_impacts, 0, 4, "recent impacts", &n_recent) || doubles(times, v, 0, 49, "times", &n))
-        return NULL;
-    L->n_recent = (int)n_recent;
-    L->n_impacts = n_recent > 0;
-    L->last_impact = n_recent > 0 ? L->recent_impacts[n_recent - 1] : 0.0;
-    for (Py_ssize_t i = 0; i < n; i++) L->ring[(L->mode_events - n + i) % 49] = v[i];
     Py_RETURN_NONE;
 }
 
@@ -1034,7 +1013,9 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         return NULL;
     }
     double wall0 = seconds_now(), u[2];
-    if (L->state_stale || L->history_stale || two_finite(args[1], u) < 0) return PyLong_FromLong(OUTCOME_DECLINED);
+    if (L->state_stale || L->n_latched != 0.0 || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
+        || two_finite(args[1], u) < 0)   /* (a latched guard, two scuffs: the Python code follows them) */
+        return PyLong_FromLong(OUTCOME_DECLINED);
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
     if (PyErr_Occurred() || PyBool_Check(args[0]) || !(period > 0.0 && period < INFINITY) || PyBool_Check(args[2])
         || !(t_final >= 0.0)) {   /* Python says why */
@@ -1230,7 +1211,6 @@ static PyMethodDef Loop_methods[] = {
     {"periods", (PyCFunction)(void (*)(void))Loop_periods, METH_FASTCALL, NULL},
     {"period", (PyCFunction)(void (*)(void))Loop_period, METH_FASTCALL, NULL},
     {"stats", (PyCFunction)Loop_stats, METH_NOARGS, NULL},
-    {"set_history", (PyCFunction)Loop_set_history, METH_VARARGS, NULL},
     {"take_events", (PyCFunction)Loop_take_events, METH_NOARGS, NULL},
     {"raise_error", (PyCFunction)Loop_raise_error, METH_NOARGS, NULL},
     {"locate_crossing", (PyCFunction)Loop_locate_crossing, METH_VARARGS, NULL},
@@ -1243,7 +1223,6 @@ static PyMethodDef Loop_methods[] = {
 
 static PyMemberDef Loop_members[] = {
     {"state_stale", T_BOOL, offsetof(Loop, state_stale), 0, "the simulator's state is not the loop's"},
-    {"history_stale", T_BOOL, offsetof(Loop, history_stale), 0, "the Python code may have changed the impact history"},
     {NULL, 0, 0, 0, NULL},
 };
 

@@ -4,7 +4,7 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 998
+#define LOOP_STATE_SIZE 1056
 #define LS_NMAX 11
 #define LS_MAX_DEPTH 30
 #define LS_METHOD 0
@@ -86,21 +86,28 @@
 #define LS_PROVISIONAL 450
 #define LS_EVERY 451
 #define LS_LAST_ONLY 452
-#define LS_ARMED 453
-#define LS_SCUFFING 455
-#define LS_SCUFF 457
-#define LS_DEEPEST_SCUFF 463
-#define LS_SCUFFS 464
-#define LS_FEET_END_T 465
-#define LS_FEET_END 466
-#define LS_FORCE_END_T 474
-#define LS_FORCE_END 475
-#define LS_OUT 477
-#define LS_RESULT 643
-#define LS_COEF 645
-#define LS_QS 669
-#define LS_PS 674
-#define LS_STACK 678
+#define LS_LAST_IMPACT 453
+#define LS_N_IMPACTS 454
+#define LS_RECENT_IMPACTS 455
+#define LS_N_RECENT 459
+#define LS_MODE_EVENTS 460
+#define LS_RING 461
+#define LS_N_LATCHED 510
+#define LS_ARMED 511
+#define LS_SCUFFING 513
+#define LS_SCUFF 515
+#define LS_DEEPEST_SCUFF 521
+#define LS_SCUFFS 522
+#define LS_FEET_END_T 523
+#define LS_FEET_END 524
+#define LS_FORCE_END_T 532
+#define LS_FORCE_END 533
+#define LS_OUT 535
+#define LS_RESULT 701
+#define LS_COEF 703
+#define LS_QS 727
+#define LS_PS 732
+#define LS_STACK 736
 
 /* Outcome, Record and Reason (loop_state.py) */
 #define OUTCOME_DONE 0
@@ -222,6 +229,13 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double provisional;  /* 1 when the newest sample is overwritten by the next (ev_provisional) */ \
     double every;  /* keep every this many samples (0: only the events' and the last) */ \
     double last_only;  /* 1 when the Samples keep the last sample only (one row) */ \
+    double last_impact;  /* the last impact's time (s): ImpactHistory, a touchdown the loop applies */ \
+    double n_impacts;  /* the impacts so far */ \
+    double recent_impacts[4];  /* the last (up to) 4 impact times, oldest first */ \
+    double n_recent;  /* how many of recent_impacts are in use */ \
+    double mode_events;  /* the events that changed the mode so far (max_events counts them) */ \
+    double ring[49];  /* the times of the last 49 of them, event i at i % 49 (50 within 1e-9 s: an event loop) */ \
+    double n_latched;  /* the guards the locator holds latched (off until positive again: only Python follows) */ \
     double armed[2];  /* 1 for a foot whose touchdown counts (it has been higher than arm_height): EventLocator */ \
     double scuffing[2];  /* 1 for a foot in a scuff (under the ground, passing through it) */ \
     double scuff[2][3];  /* a foot's scuff: t_start, deepest, t_deepest */ \

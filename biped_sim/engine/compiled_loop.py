@@ -229,15 +229,6 @@ class CompiledStepper(integrators._Stepper):
             S[NACCEPTED] = 0.0
             self._carry_step(h0)
 
-    def _push_history(self):
-        """The one hand-over left: the impact history (the last four impact times, the mode events so far and
-        the times of the last 49), which the Python code keeps (``invariants.ImpactHistory``,
-        ``HybridSimulator._mode_event_times``) and the loop reads to hand back an impact of the Zeno limit,
-        ``max_events`` or an event loop; taken again after the Python code ran (``history_stale``)."""
-        sim = self.sim
-        self.loop.set_history(sim.impacts.times[-4:], len(sim._mode_event_times), sim._mode_event_times[-49:])
-        self.loop.history_stale = False
-
     def merge_stats(self, stats):
         """Add the loop's statistics since the last merge into the simulator's."""
         steps, drift, rate, residual, wall_time = self.loop.stats()
@@ -268,8 +259,6 @@ class CompiledStepper(integrators._Stepper):
         sim = self.sim
         if _python_only(sim.locator):
             return Outcome.PYTHON_STEPS
-        if self.loop.history_stale:
-            self._push_history()
         while True:      # NEED_ROOM: _make_room makes it, _after_run takes the events
             _make_room(sim._samples)
             outcome = self._after_run(self.loop.run(t_end, sim._samples._data))
@@ -299,8 +288,6 @@ class CompiledStepper(integrators._Stepper):
         begun: ``advance_period`` runs it with that command), else the outcome of the step handed back in the
         period ending at ``t_next`` (``can_run_periods`` first)."""
         sim = self.sim
-        if self.loop.history_stale:
-            self._push_history()
         _make_room(sim._samples)
         outcome = self._after_run(self.loop.periods(law if callable(law) else _hook_argument(law), period, t_final,
                                                     t_stop, sim._samples._data))
@@ -314,7 +301,7 @@ class CompiledStepper(integrators._Stepper):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""
         sim = self.sim
-        if self.loop.state_stale or self.loop.history_stale or _python_only(sim.locator):
+        if self.loop.state_stale or _python_only(sim.locator):
             return None
         # (no room made first: a full array comes back NEED_ROOM before a step, and run() goes on)
         return self.finish_held(self.loop.held(t_end, sim._samples._data), t_end)
@@ -325,9 +312,11 @@ class CompiledStepper(integrators._Stepper):
         return self.run(t_end) if outcome == Outcome.NEED_ROOM else outcome
 
     def python_changed(self):
-        """The Python code changed the simulator's state or its locator (an event, a push, a step it
-        handles): the loop takes both again before it runs."""
-        self.loop.state_stale = self.loop.history_stale = True
+        """The Python code changed the simulator's state or handled a step (an event, a push, a step handed
+        back): the next period begins the mode again from the simulator's state (``start``: f evaluated there),
+        as the Python loop's new stepper does. The one flag left between the two loops: the simulator's q, dq
+        and mode are not yet the loop's y, stance_leg and pin (docs/engine.md, the plan's step 5)."""
+        self.loop.state_stale = True
 
     def _after_run(self, outcome):
         """A run's outcome (its samples are written, the Samples' counters and the simulator's time, work, step
@@ -340,8 +329,9 @@ class CompiledStepper(integrators._Stepper):
                 sim.stance_leg, sim.pin = new, list(pin)
                 sim._stats["impacts"] += 1
                 sim._add_event(Event(t_ev, "touchdown", new, np.array(q), np.array(dq_minus), np.array(dq_plus),
-                                     np.array(impulse), old, new, loss, []))
-                sim.impacts.record(t_ev)   # no Zeno stop: the loop hands back an impact that could make one
+                                     np.array(impulse), old, new, loss, []), applied_in_loop=True)
+                # (no Zeno stop: the loop hands back an impact that could make one; the state holds it already)
+                sim.impacts.record(t_ev, in_state=False)
             else:
                 _, leg, stance_leg, scuff, t_up, q, dq = record
                 sim._add_event(scuff_event(leg, stance_leg, scuff, t_up, q, dq, sim.opt.scuff_depth,

@@ -39,8 +39,10 @@ from biped_sim.engine.loop_state import (
     E0,
     ENERGY_LOST,
     INITIAL_SAMPLE_PENDING,
+    MODE_EVENTS,
     N_RECORDS,
     PUSH_WORK,
+    RING,
     RUNNING,
     SIM_DQ,
     SIM_H,
@@ -152,7 +154,7 @@ class HybridSimulator:
         self.push_work = 0.0                # kinetic energy added by pushes (J)
         self.E0 = model.energy(q0, dq0)
         self.events: list[Event] = []
-        self.impacts = ImpactHistory(self.opt.zeno_count, self.opt.zeno_interval)
+        self.impacts = ImpactHistory(self.opt.zeno_count, self.opt.zeno_interval, self.S)
         self.locator = EventLocator(model, self.ground, self.opt, mu, feet, stance_leg, self.impacts, self.S)
         self.pin = list(G.foot_xy(model, q0.tolist(), stance_leg)) if stance_leg else None
         self.status, self.message = "running", ""    # (_stop changes it, and the state's running flag)
@@ -169,7 +171,6 @@ class HybridSimulator:
         self._last_F, self._last_u = [0.0, 0.0], [0.0, 0.0]   # the last right-hand-side evaluation's
         self._initial_sample_pending = True
         self._periods_outcome = None        # how the compiled loop's last periods() ended
-        self._mode_event_times: list[float] = []   # the events that changed the mode (not the scuffs)
         self._stats = dict(steps=0, compiled_loop_steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
                           max_constraint_drift_position=0.0, max_constraint_drift_velocity=0.0,
                           max_energy_balance_residual=0.0, pushes=0, scuffs_ignored=0, deepest_scuff=0.0, wall_time=0.0)
@@ -650,7 +651,7 @@ class HybridSimulator:
             self.locator.after_reset(ev)
         self._push_event(ev)
         if fired.kind.latches:
-            self.locator.latched.add(fired)   # off until it is positive again: it must not fire at once
+            self.locator.latch(fired)   # off until it is positive again: it must not fire at once
         if stop is not None:
             self._stop("stopped", stop)
 
@@ -718,16 +719,23 @@ class HybridSimulator:
         self._samples.keep_last()       # the sample after the event's reset
         self._add_event(ev)
 
-    def _add_event(self, ev):
+    def _add_event(self, ev, applied_in_loop=False):
+        """Keep the Event; count a change of mode (the state's mode_events and the ring of the last 49 times)
+        and stop the run at max_events or an event loop. ``applied_in_loop``: a touchdown the compiled loop
+        applied, which it counted itself (it hands back one that would stop the run)."""
         self.events.append(ev)
         self._stats["events"] = len(self.events)
-        if ev.kind == "scuff":      # a report, not a change of mode: max_events counts the changes
+        if ev.kind == "scuff" or applied_in_loop:    # a scuff is a report, not a change of mode
             return
-        self._mode_event_times.append(ev.time)
-        if len(self._mode_event_times) >= self.opt.max_events:
-            self._stop("stopped", f"stopped after {len(self._mode_event_times)} events (max_events)")
-        recent = self._mode_event_times[-50:]
-        if len(recent) == 50 and recent[-1] - recent[0] < 1e-9:
+        S = self.S
+        m = int(S[MODE_EVENTS])
+        # the 50th event within 1e-9 s of the 49th before it
+        loop = m >= 49 and ev.time - S[RING + m % 49] < 1e-9
+        S[RING + m % 49] = ev.time
+        S[MODE_EVENTS] = m + 1
+        if m + 1 >= self.opt.max_events:
+            self._stop("stopped", f"stopped after {m + 1} events (max_events)")
+        if loop:
             self._stop("stopped", f"event loop: 50 events within 1e-9 s ending at t={ev.time:.9g} s "
                                   f"(last: {ev.kind} of leg {ev.leg}); the run stops instead of hanging")
 

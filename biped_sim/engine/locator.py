@@ -31,6 +31,7 @@ from biped_sim.engine.loop_state import (
     FEET_END_T,
     FORCE_END,
     FORCE_END_T,
+    N_LATCHED,
     RESULT,
     SCUFF,
     SCUFF_TRIAL,
@@ -67,7 +68,8 @@ class EventLocator:
         for leg in (1, 2):
             self.S[ARMED + leg - 1] = float(leg != stance_leg and feet[leg - 1].height > 0.0)
             self.S[SCUFFING + leg - 1] = 0.0
-        self.latched: set = set()
+        self.latched: set = set()       # (how many: the state's n_latched, which the compiled loop reads)
+        self.S[N_LATCHED] = 0.0
         self.scuffs = 0          # touchdowns behind the stance foot ignored under touchdown_rule "front"
         self.deepest_scuff = 0.0  # m, the deepest dip of any scuff so far
         self.scuff_events: list = []    # finished scuffs, for the simulator to report
@@ -131,6 +133,11 @@ class EventLocator:
         if t is not None:
             S[FORCE_END], S[FORCE_END + 1] = F
 
+    def latch(self, guard):
+        """Hold ``guard`` off until it is positive at a step's end (a guard that fired and was not reset)."""
+        self.latched.add(guard)
+        self.S[N_LATCHED] = len(self.latched)
+
     def witnesses(self, stance_leg):
         """The witnesses of the mode (:func:`~biped_sim.engine.witnesses.witnesses`) with the feet armed now."""
         return witnesses(stance_leg, self.armed, self.opt.phases, self.mu)
@@ -192,6 +199,7 @@ class EventLocator:
             if guard in self.latched:
                 if g1 > 0:
                     self.latched.discard(guard)
+                    self.S[N_LATCHED] = len(self.latched)
                 continue
             g0 = guard.value(self, st.t_old, q0, dq0, force_at, feet0, F0)
             guard_at = self._on_dense_output(st, to_phys, guard, force_at)

@@ -718,3 +718,29 @@ def test_the_compiled_steppers_fields_are_views_of_the_state():
     assert st.y[:10] == sim.q.tolist() + sim.dq.tolist() and st.h_abs == sim._h
     st.y = [*st.y[:10], 5.0]
     assert S[loop_state.Y + 10] == 5.0
+
+
+def test_the_impact_history_and_the_mode_events_are_the_states():
+    """What a touchdown is checked against (the last impacts, the mode events and the ring of the last 49 of
+    their times) is the state's, written where an impact or a mode event happens, by the Python code or by the
+    compiled loop, so that nothing is handed over between them (no set_history, no history_stale)."""
+    ls = loop_state
+
+    def run():
+        sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+        ctrl = PDWalkingController(MODEL)
+        while sim.t < 3.0 and sim.status == "running":
+            sim.advance_period(1e-3, sim.command(ctrl))
+        S, impacts = sim.S, [e.time for e in sim.events if e.kind == "touchdown"]
+        modes = [e.time for e in sim.events if e.kind != "scuff"]
+        assert len(impacts) >= 5 and (S[ls.N_IMPACTS], S[ls.LAST_IMPACT], S[ls.N_RECENT]) == (
+            len(impacts), impacts[-1], min(4, len(impacts)))
+        recent = list(S[ls.RECENT_IMPACTS:ls.RECENT_IMPACTS + 4])
+        assert recent == impacts[-4:] == sim.impacts.times[-4:]
+        assert S[ls.MODE_EVENTS] == len(modes) and all(S[ls.RING + i % 49] == t for i, t in enumerate(modes))
+        return sim.result()
+
+    compiled, python = both_loops(run)
+    assert_same_run(compiled, python, "the walk")
+    if compiled_loop.AVAILABLE:
+        assert not any(hasattr(compiled_loop._core.Loop, name) for name in ("set_history", "history_stale"))
