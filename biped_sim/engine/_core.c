@@ -98,9 +98,6 @@ typedef struct {
     double max_drift, max_rate, max_residual, wall_time;
     /* the step handed back: its end's torque and force */
     double end_u[2], end_F[2];
-    /* the Python code changed the simulator's state or handled a step since the mode's last begin()
-     * (CompiledStepper.python_changed): the next period begins the mode again */
-    char state_stale;
 } Loop;
 
 /* -- the torque law: held, compiled (the hook) or called back ------------------------------------- */
@@ -730,6 +727,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
             rs->appended += 2;
             rs->provisional = 0;
             rs->energy_lost = L->events[(int)L->n_records - 1].v[19];
+            L->sim_stance_leg = L->stance_leg;      /* the new stance */
         } else {
             if (accepted_how == 2) {
                 /* the scuff's Event comes before this step's sample (HybridSimulator._push_event: keep_last) */
@@ -1013,7 +1011,7 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         return NULL;
     }
     double wall0 = seconds_now(), u[2];
-    if (L->state_stale || L->n_latched != 0.0 || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
+    if (L->mode_begun == 0.0 || L->n_latched != 0.0 || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
         || two_finite(args[1], u) < 0)   /* (a latched guard, two scuffs: the Python code follows them) */
         return PyLong_FromLong(OUTCOME_DECLINED);
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
@@ -1100,6 +1098,7 @@ Loop_begin(Loop *L, PyObject *law)
     }
     L->n_y = N;
     L->law_kind = kind;
+    L->mode_begun = 1.0;
     restart(L, L->t, L->t_bound);
     if (L->callback_failed) return raise_callback_error(L);
     Py_RETURN_NONE;
@@ -1222,7 +1221,6 @@ static PyMethodDef Loop_methods[] = {
 };
 
 static PyMemberDef Loop_members[] = {
-    {"state_stale", T_BOOL, offsetof(Loop, state_stale), 0, "the simulator's state is not the loop's"},
     {NULL, 0, 0, 0, NULL},
 };
 

@@ -31,6 +31,7 @@ from biped_sim.engine.loop_state import (
     FAIL_VALUE,
     H_ABS,
     MAX_STEP,
+    MODE_BEGUN,
     N_RECORDS,
     NACCEPTED,
     NFEV,
@@ -194,7 +195,6 @@ class CompiledStepper(integrators._Stepper):
         self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
         self.method, self.method_code = sim.method, METHOD_CODES[sim.method]
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
-        self.python_changed()           # the loop holds nothing of the simulator yet
 
     @property
     def nfev(self):
@@ -220,7 +220,6 @@ class CompiledStepper(integrators._Stepper):
         if reset_counters:
             S[NFEV] = S[NREJECTED] = S[NACCEPTED] = 0.0
         self.loop.begin(_hook_argument(law))
-        self.loop.state_stale = False
         self._dense = None
         if sim._h is None:
             h0 = integrators.initial_step(self.loop.rhs, self.t, self.y, self.f, t_bound, self.rtol, self.atol,
@@ -269,14 +268,14 @@ class CompiledStepper(integrators._Stepper):
         """The control period's command of a compiled law at the simulator's state, computed in C (the
         law's own torques bit for bit), or None where the Python controller must be called."""
         law = reference_law(controller, self.sim.model)
-        if law is None or self.loop.state_stale or self.sim._stepper is not self:
+        if law is None or not self.S[MODE_BEGUN] or self.sim._stepper is not self:
             return None
         return self.loop.law_torque(_hook_argument(law))
 
     def can_run_periods(self):
         """Whether ``periods`` can run now: the simulator's state is the loop's, and the locator holds
         nothing only the Python code follows."""
-        return not self.loop.state_stale and not _python_only(self.sim.locator)
+        return bool(self.S[MODE_BEGUN]) and not _python_only(self.sim.locator)
 
     def periods(self, period, law, t_final, t_stop):
         """Control periods held, as ``advance_period`` would run them, each command computed at its period's
@@ -301,7 +300,7 @@ class CompiledStepper(integrators._Stepper):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""
         sim = self.sim
-        if self.loop.state_stale or _python_only(sim.locator):
+        if not self.S[MODE_BEGUN] or _python_only(sim.locator):
             return None
         # (no room made first: a full array comes back NEED_ROOM before a step, and run() goes on)
         return self.finish_held(self.loop.held(t_end, sim._samples._data), t_end)
@@ -311,13 +310,6 @@ class CompiledStepper(integrators._Stepper):
         outcome = self._after_run(outcome)
         return self.run(t_end) if outcome == Outcome.NEED_ROOM else outcome
 
-    def python_changed(self):
-        """The Python code changed the simulator's state or handled a step (an event, a push, a step handed
-        back): the next period begins the mode again from the simulator's state (``start``: f evaluated there),
-        as the Python loop's new stepper does. The one flag left between the two loops: the simulator's q, dq
-        and mode are not yet the loop's y, stance_leg and pin (docs/engine.md, the plan's step 5)."""
-        self.loop.state_stale = True
-
     def _after_run(self, outcome):
         """A run's outcome (its samples are written, the Samples' counters and the simulator's time, work, step
         size and state set in the state): the Events of what the loop applied, then the outcome's own
@@ -325,8 +317,9 @@ class CompiledStepper(integrators._Stepper):
         sim = self.sim
         for record in self.loop.take_events() if self.S[N_RECORDS] else ():    # applied in C: their Events
             if record[0] == Record.TOUCHDOWN:
-                _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, _, pin = record   # (energy_lost: the state's)
-                sim.stance_leg, sim.pin = new, list(pin)
+                # (energy_lost and the stance leg after the last of them: the state's)
+                _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, _, pin = record
+                sim.pin = list(pin)
                 sim._stats["impacts"] += 1
                 sim._add_event(Event(t_ev, "touchdown", new, np.array(q), np.array(dq_minus), np.array(dq_plus),
                                      np.array(impulse), old, new, loss, []), applied_in_loop=True)
@@ -341,7 +334,6 @@ class CompiledStepper(integrators._Stepper):
         if outcome == Outcome.FAILED:
             raise _step_failure(self.S)
         if outcome == Outcome.EVENT:
-            self.python_changed()
             self._dense = None     # (the last step's dense output: made when asked)
             sim._last_u, sim._last_F, _ = self.loop.handed()     # (its start's feet and force: the state's)
         return outcome

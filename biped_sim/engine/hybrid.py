@@ -39,6 +39,7 @@ from biped_sim.engine.loop_state import (
     E0,
     ENERGY_LOST,
     INITIAL_SAMPLE_PENDING,
+    MODE_BEGUN,
     MODE_EVENTS,
     N_RECORDS,
     PUSH_WORK,
@@ -47,6 +48,7 @@ from biped_sim.engine.loop_state import (
     SIM_DQ,
     SIM_H,
     SIM_Q,
+    SIM_STANCE_LEG,
     SIM_STATE_UNMADE,
     SIM_T,
     SIM_U,
@@ -205,9 +207,11 @@ class HybridSimulator:
 
     @q.setter
     def q(self, value):
-        if self.S[SIM_STATE_UNMADE]:
+        S = self.S
+        if S[SIM_STATE_UNMADE]:
             self._state_from_loop()
         self._q = value
+        S[MODE_BEGUN] = 0.0     # (the compiled loop begins its mode again from it)
 
     @property
     def dq(self):
@@ -218,9 +222,11 @@ class HybridSimulator:
 
     @dq.setter
     def dq(self, value):
-        if self.S[SIM_STATE_UNMADE]:
+        S = self.S
+        if S[SIM_STATE_UNMADE]:
             self._state_from_loop()
         self._dq = value
+        S[MODE_BEGUN] = 0.0
 
     def state_lists(self):
         """``(q.tolist(), dq.tolist())``, what a message takes, without making the arrays where a quiet
@@ -245,7 +251,21 @@ class HybridSimulator:
 
     @t.setter
     def t(self, value):
-        self.S[SIM_T] = value
+        S = self.S
+        S[SIM_T] = value
+        S[MODE_BEGUN] = 0.0
+
+    @property
+    def stance_leg(self):
+        """The stance foot now: 1, 2, or 0 in flight."""
+        return int(self.S[SIM_STANCE_LEG])
+
+    @stance_leg.setter
+    def stance_leg(self, value):
+        S = self.S
+        if value != S[SIM_STANCE_LEG]:
+            S[SIM_STANCE_LEG] = value
+            S[MODE_BEGUN] = 0.0
 
     @property
     def work(self):
@@ -409,7 +429,7 @@ class HybridSimulator:
         if controller is not None:
             self._check_signature(controller)
         st = self._compiled
-        if controller is None and st is not None:
+        if controller is None and st is not None and self._stepper is st:
             # the node's period in one C call while the loop holds the state (Loop.period, _core.c: these
             # lines' twin); None when it cannot, having changed nothing
             outcome = st.loop.period(period, u, t_final, self._samples._data)
@@ -479,8 +499,6 @@ class HybridSimulator:
         ``advance`` calls (so at the start of the next control period), as a velocity jump with
         the stance foot held (:mod:`biped_sim.engine.pushes`). Returns its events. A bad impulse
         (not two finite numbers, above ``PUSH_IMPULSE_LIMIT``) raises ValueError."""
-        if self._compiled is not None:
-            self._compiled.python_changed()
         n_events = len(self.events)
         try:
             return apply_push(self, impulse)
@@ -507,8 +525,6 @@ class HybridSimulator:
         if self._stepper is not None:
             self._nfev_base += self._stepper.nfev
             self._rejected_base += self._stepper.nrejected
-        if self._compiled is not None:
-            self._compiled.python_changed()     # (another stepper, or the loop's begun again)
         if law is not None:     # the mode stepped by the compiled loop (compiled_loop.py)
             if self._compiled is None:
                 self._compiled = compiled_loop.CompiledStepper(self)
@@ -554,8 +570,7 @@ class HybridSimulator:
                     break
                 if outcome == Outcome.PYTHON_STEPS:
                     st.step()
-                outcome = None
-                st.python_changed()     # the Python code handles this step
+                outcome = None          # (the Python code handles this step)
             else:
                 st.step()
             self._stats["steps"] += 1
@@ -637,8 +652,6 @@ class HybridSimulator:
         """Apply the reset of the witness that fired (for the feet ``legs``) at the state (q, dq: lists) at t,
         take the new mode from its event."""
         self._samples.keep_last()       # the sample at the event, before its reset
-        if self._compiled is not None:
-            self._compiled.python_changed()
         old = self.stance_leg
         ev, stop = fired.reset(ResetContext(self.model, self.ground, self.mu, self.opt, self._force_at), t, q, dq,
                                legs, old)

@@ -744,3 +744,28 @@ def test_the_impact_history_and_the_mode_events_are_the_states():
     assert_same_run(compiled, python, "the walk")
     if compiled_loop.AVAILABLE:
         assert not any(hasattr(compiled_loop._core.Loop, name) for name in ("set_history", "history_stale"))
+
+
+def test_a_change_of_the_simulators_state_in_python_begins_the_loops_mode_again():
+    """No hand-over flag: the loop's mode is begun at the simulator's state (mode_begun), and any write of that
+    state by the Python code (a push's velocities here) clears it, so that the next period begins the mode again
+    from the new state, as the Python loop's new stepper does: the same run on both loops."""
+    ls = loop_state
+
+    def run():
+        sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+        for _ in range(20):
+            sim.advance_period(1e-3, [0.5, -0.5])
+        begun = sim.S[ls.MODE_BEGUN]
+        sim.push([3.0, 0.0])
+        assert sim.S[ls.MODE_BEGUN] == 0.0
+        for _ in range(20):
+            sim.advance_period(1e-3, [0.5, -0.5])
+        return begun, sim.result()
+
+    (begun_c, compiled), (_, python) = both_loops(run)
+    assert_same_run(compiled, python, "a push between periods")
+    assert begun_c == float(compiled_loop.AVAILABLE)
+    assert not hasattr(compiled_loop.CompiledStepper, "python_changed")
+    if compiled_loop.AVAILABLE:
+        assert not hasattr(compiled_loop._core.Loop, "state_stale")
