@@ -1,6 +1,6 @@
 """The compiled hybrid loop (``_core.c``) as the hybrid simulator steps with it.
 
-Owns one choice and one hand-over. The choice: a mode runs on the compiled loop when it is
+Owns the choice of loop and the compiled stepper. The choice: a mode runs on the compiled loop when it is
 floating-base stance, stepped by dop853 or dopri5, with no ``on_step`` observer, every witness of the
 model one that the loop decides (``witnesses.all_compiled``), and the extension was built from the current
 generated kernels; its torque is held, a compiled law that the controller
@@ -9,14 +9,15 @@ or any other Python controller, called back. Else, and always with
 ``BIPED_SIM_PURE_PYTHON=1``, the Python loop of ``hybrid.py`` runs, the readable reference. Both give
 the same run (test/unit/test_compiled_loop.py).
 
-The hand-over: :class:`CompiledStepper` is the mode's stepper (the interface of
-``integrators._ListRungeKutta``). ``run`` (and ``held_period``, ``periods``: a control period, many
-control periods) lets the C loop take and accept the steps it can decide, writing their samples
-straight into the run's ``Samples`` array; the touchdowns it applied and the scuffs that ended are
-kept in the loop and taken when a run returns, for the Python code to make their Events; a step in
-which anything else may happen comes back taken and not accepted ("pending"), with the locator's
-view of its start, and ``hybrid.HybridSimulator._integrate`` handles it with the Python code, as any
-step.
+The stepper: :class:`CompiledStepper` is the mode's stepper (the interface of
+``integrators._ListRungeKutta``), its fields views of the simulator's state (``loop_state.py``: the
+simulator owns it, the C ``Loop``'s memory, :func:`run_state`), which the loop reads and writes in place:
+nothing is handed over. ``run`` (and ``held_period``, ``periods``: a control period, many control periods)
+lets the C loop take and accept the steps it can decide, writing their samples straight into the run's
+``Samples`` array, and returns a :class:`~biped_sim.engine.loop_state.Outcome`; the touchdowns it applied and
+the scuffs that ended are kept in the loop and taken when a run returns, for the simulator to make their
+Events (``HybridSimulator._loop_records``); a step in which anything else may happen comes back taken and
+not accepted (EVENT), and ``hybrid.HybridSimulator._integrate`` handles it with the Python code, as any step.
 """
 from __future__ import annotations
 
@@ -24,7 +25,6 @@ import numpy as np
 
 from biped_sim.engine import integrators
 from biped_sim.engine.compiled import _compiled_twin
-from biped_sim.engine.locator import scuff_event
 from biped_sim.engine.loop_state import (
     FAIL_KIND,
     FAIL_T,
@@ -45,7 +45,6 @@ from biped_sim.engine.loop_state import (
     F,
     H,
     Outcome,
-    Record,
     T,
     Y,
     new_state,
@@ -53,7 +52,7 @@ from biped_sim.engine.loop_state import (
     write,
 )
 from biped_sim.engine.modes import checked_torques, controller_failure
-from biped_sim.engine.results import ControllerError, Event
+from biped_sim.engine.results import ControllerError
 from biped_sim.engine.witnesses import all_compiled
 
 
@@ -315,20 +314,8 @@ class CompiledStepper(integrators._Stepper):
         size and state set in the state): the Events of what the loop applied, then the outcome's own
         handling."""
         sim = self.sim
-        for record in self.loop.take_events() if self.S[N_RECORDS] else ():    # applied in C: their Events
-            if record[0] == Record.TOUCHDOWN:
-                # (energy_lost and the stance leg after the last of them: the state's)
-                _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, _, pin = record
-                sim.pin = list(pin)
-                sim._stats["impacts"] += 1
-                sim._add_event(Event(t_ev, "touchdown", new, np.array(q), np.array(dq_minus), np.array(dq_plus),
-                                     np.array(impulse), old, new, loss, []), applied_in_loop=True)
-                # (no Zeno stop: the loop hands back an impact that could make one; the state holds it already)
-                sim.impacts.record(t_ev, in_state=False)
-            else:
-                _, leg, stance_leg, scuff, t_up, q, dq = record
-                sim._add_event(scuff_event(leg, stance_leg, scuff, t_up, q, dq, sim.opt.scuff_depth,
-                                           sim.opt.scuff_rule))
+        if self.S[N_RECORDS]:
+            sim._loop_records(self.loop.take_events())
         if outcome == Outcome.RAISED:     # the torque law failed: after the steps accepted before it
             self.loop.raise_error()
         if outcome == Outcome.FAILED:

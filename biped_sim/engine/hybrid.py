@@ -33,7 +33,7 @@ from biped_sim.engine.controller_check import check_controller
 from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
 from biped_sim.engine.integrators import StepFailure, make_stepper, prepare as prepare_stepper
 from biped_sim.engine.invariants import ImpactHistory, check_impact, check_sample
-from biped_sim.engine.locator import EventLocator
+from biped_sim.engine.locator import EventLocator, scuff_event
 from biped_sim.engine.loop_state import (
     CONTROL_PERIODS,
     E0,
@@ -55,6 +55,7 @@ from biped_sim.engine.loop_state import (
     SIM_WORK,
     T_NEXT,
     Outcome,
+    Record,
 )
 from biped_sim.engine.model import BipedModel, as_state_vector, short_repr
 from biped_sim.engine.modes import (
@@ -727,6 +728,24 @@ class HybridSimulator:
         self._reset(guard, [leg], t, q, dq)
         if guard.name == "liftoff" and self.stance_leg == 0 and F is None:
             self._samples.set_last_in_flight()   # in flight from this very instant: so is the sample just taken
+
+    def _loop_records(self, records):
+        """The Events of what the compiled loop applied (``Loop.take_events``' records, in order): its touchdowns
+        (the energy lost, the impact history and the stance leg after the last one are the state's already)
+        and the scuffs that ended."""
+        for record in records:
+            if record[0] == Record.TOUCHDOWN:
+                _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, _, pin = record
+                self.pin = list(pin)
+                self._stats["impacts"] += 1
+                self._add_event(Event(t_ev, "touchdown", new, np.array(q), np.array(dq_minus), np.array(dq_plus),
+                                      np.array(impulse), old, new, loss, []), applied_in_loop=True)
+                # (no Zeno stop: the loop hands back an impact that could make one)
+                self.impacts.record(t_ev, in_state=False)
+            else:
+                _, leg, stance_leg, scuff, t_up, q, dq = record
+                self._add_event(scuff_event(leg, stance_leg, scuff, t_up, q, dq, self.opt.scuff_depth,
+                                            self.opt.scuff_rule))
 
     def _push_event(self, ev):
         self._samples.keep_last()       # the sample after the event's reset
