@@ -727,7 +727,6 @@ quiet_until(Loop *L, double t_end, RunState *rs)
             rs->appended += 2;
             rs->provisional = 0;
             rs->energy_lost = L->events[(int)L->n_records - 1].v[19];
-            L->sim_stance_leg = L->stance_leg;      /* the new stance */
         } else {
             if (accepted_how == 2) {
                 /* the scuff's Event comes before this step's sample (HybridSimulator._push_event: keep_last) */

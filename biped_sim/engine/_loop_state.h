@@ -4,7 +4,7 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 1058
+#define LOOP_STATE_SIZE 1057
 #define LS_NMAX 11
 #define LS_MAX_DEPTH 30
 #define LS_METHOD 0
@@ -78,38 +78,37 @@
 #define LS_SIM_Q 434
 #define LS_SIM_DQ 439
 #define LS_SIM_STATE_UNMADE 444
-#define LS_SIM_STANCE_LEG 445
-#define LS_MODE_BEGUN 446
-#define LS_CONTROL_PERIODS 447
-#define LS_RUNNING 448
-#define LS_INITIAL_SAMPLE_PENDING 449
-#define LS_N_SAMPLES 450
-#define LS_APPENDED 451
-#define LS_PROVISIONAL 452
-#define LS_EVERY 453
-#define LS_LAST_ONLY 454
-#define LS_LAST_IMPACT 455
-#define LS_N_IMPACTS 456
-#define LS_RECENT_IMPACTS 457
-#define LS_N_RECENT 461
-#define LS_MODE_EVENTS 462
-#define LS_RING 463
-#define LS_N_LATCHED 512
-#define LS_ARMED 513
-#define LS_SCUFFING 515
-#define LS_SCUFF 517
-#define LS_DEEPEST_SCUFF 523
-#define LS_SCUFFS 524
-#define LS_FEET_END_T 525
-#define LS_FEET_END 526
-#define LS_FORCE_END_T 534
-#define LS_FORCE_END 535
-#define LS_OUT 537
-#define LS_RESULT 703
-#define LS_COEF 705
-#define LS_QS 729
-#define LS_PS 734
-#define LS_STACK 738
+#define LS_MODE_BEGUN 445
+#define LS_CONTROL_PERIODS 446
+#define LS_RUNNING 447
+#define LS_INITIAL_SAMPLE_PENDING 448
+#define LS_N_SAMPLES 449
+#define LS_APPENDED 450
+#define LS_PROVISIONAL 451
+#define LS_EVERY 452
+#define LS_LAST_ONLY 453
+#define LS_LAST_IMPACT 454
+#define LS_N_IMPACTS 455
+#define LS_RECENT_IMPACTS 456
+#define LS_N_RECENT 460
+#define LS_MODE_EVENTS 461
+#define LS_RING 462
+#define LS_N_LATCHED 511
+#define LS_ARMED 512
+#define LS_SCUFFING 514
+#define LS_SCUFF 516
+#define LS_DEEPEST_SCUFF 522
+#define LS_SCUFFS 523
+#define LS_FEET_END_T 524
+#define LS_FEET_END 525
+#define LS_FORCE_END_T 533
+#define LS_FORCE_END 534
+#define LS_OUT 536
+#define LS_RESULT 702
+#define LS_COEF 704
+#define LS_QS 728
+#define LS_PS 733
+#define LS_STACK 737
 
 /* Outcome, Record and Reason (loop_state.py) */
 #define OUTCOME_DONE 0
@@ -223,8 +222,7 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double sim_q[5];  /* q at sim_t, where a quiet period left it (sim_state_unmade) */ \
     double sim_dq[5];  /* dq at sim_t, alike */ \
     double sim_state_unmade;  /* 1 when sim_q and sim_dq are the simulator's state and its arrays not yet made */ \
-    double sim_stance_leg;  /* the simulator's stance foot (0 in flight) */ \
-    double mode_begun;  /* 1 while the compiled loop's mode was begun (Loop.begin) at the simulator's state: a write of the simulator's time, q, dq or stance leg by the Python code clears it, and the next period begins the mode again */ \
+    double mode_begun;  /* 1 while the compiled loop's mode was begun (Loop.begin) at the simulator's state: a write of the simulator's time, q or dq by the Python code, or its reset to flight, clears it, and the next period begins the mode again */ \
     double control_periods;  /* the control periods begun so far */ \
     double running;  /* 1 while the run's status is running */ \
     double initial_sample_pending;  /* 1 until the first advance redoes the t0 sample under its torque */ \

@@ -76,7 +76,6 @@ cdef extern from "_loop_state.h":
         SIM_Q "LS_SIM_Q"
         SIM_DQ "LS_SIM_DQ"
         SIM_STATE_UNMADE "LS_SIM_STATE_UNMADE"
-        SIM_STANCE_LEG "LS_SIM_STANCE_LEG"
         MODE_BEGUN "LS_MODE_BEGUN"
         CONTROL_PERIODS "LS_CONTROL_PERIODS"
         RUNNING "LS_RUNNING"

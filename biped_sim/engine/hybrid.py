@@ -48,7 +48,6 @@ from biped_sim.engine.loop_state import (
     SIM_DQ,
     SIM_H,
     SIM_Q,
-    SIM_STANCE_LEG,
     SIM_STATE_UNMADE,
     SIM_T,
     SIM_U,
@@ -255,18 +254,6 @@ class HybridSimulator:
         S = self.S
         S[SIM_T] = value
         S[MODE_BEGUN] = 0.0
-
-    @property
-    def stance_leg(self):
-        """The stance foot now: 1, 2, or 0 in flight."""
-        return int(self.S[SIM_STANCE_LEG])
-
-    @stance_leg.setter
-    def stance_leg(self, value):
-        S = self.S
-        if value != S[SIM_STANCE_LEG]:
-            S[SIM_STANCE_LEG] = value
-            S[MODE_BEGUN] = 0.0
 
     @property
     def work(self):
@@ -662,6 +649,7 @@ class HybridSimulator:
         if ev.stance_leg_after != ev.stance_leg_before:    # the foot left the ground: flight
             self.stance_leg = ev.stance_leg_after
             self.pin = None
+            self.S[MODE_BEGUN] = 0.0    # (a mode the compiled loop does not run; a push's liftoff wrote dq)
             self.locator.after_reset(ev)
         self._push_event(ev)
         if fired.kind.latches:
@@ -731,12 +719,11 @@ class HybridSimulator:
 
     def _loop_records(self, records):
         """The Events of what the compiled loop applied (``Loop.take_events``' records, in order): its touchdowns
-        (the energy lost, the impact history and the stance leg after the last one are the state's already)
-        and the scuffs that ended."""
+        (the energy lost and the impact history are the state's already) and the scuffs that ended."""
         for record in records:
             if record[0] == Record.TOUCHDOWN:
                 _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, _, pin = record
-                self.pin = list(pin)
+                self.stance_leg, self.pin = new, list(pin)
                 self._stats["impacts"] += 1
                 self._add_event(Event(t_ev, "touchdown", new, np.array(q), np.array(dq_minus), np.array(dq_plus),
                                       np.array(impulse), old, new, loss, []), applied_in_loop=True)

@@ -121,10 +121,9 @@ FIELDS = (
     Field("sim_q", (5,), "q at sim_t, where a quiet period left it (sim_state_unmade)"),
     Field("sim_dq", (5,), "dq at sim_t, alike"),
     Field("sim_state_unmade", (), "1 when sim_q and sim_dq are the simulator's state and its arrays not yet made"),
-    Field("sim_stance_leg", (), "the simulator's stance foot (0 in flight)"),
     Field("mode_begun", (), "1 while the compiled loop's mode was begun (Loop.begin) at the simulator's state: a "
-                            "write of the simulator's time, q, dq or stance leg by the Python code clears it, and "
-                            "the next period begins the mode again"),
+                            "write of the simulator's time, q or dq by the Python code, or its reset to flight, "
+                            "clears it, and the next period begins the mode again"),
     Field("control_periods", (), "the control periods begun so far"),
     Field("running", (), "1 while the run's status is running"),
     Field("initial_sample_pending", (), "1 until the first advance redoes the t0 sample under its torque"),
