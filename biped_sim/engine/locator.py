@@ -44,6 +44,8 @@ from biped_sim.engine.loop_state import (
 from biped_sim.engine.results import Event, SceneAssumptionError
 from biped_sim.engine.witnesses import triggered, witness, witnesses
 
+_tuple_new = tuple.__new__     # a FootState from the state's four floats, without namedtuple's Python __new__
+
 
 class EventLocator:
     """Finds the earliest guard crossing inside each accepted step, on the step's dense output.
@@ -109,7 +111,8 @@ class EventLocator:
         t = S[FEET_END_T]
         if t != t:
             return None, None
-        return t, (G.FootState._make(S[FEET_END:FEET_END + 4]), G.FootState._make(S[FEET_END + 4:FEET_END + 8]))
+        return t, (_tuple_new(G.FootState, S[FEET_END:FEET_END + 4]),
+                   _tuple_new(G.FootState, S[FEET_END + 4:FEET_END + 8]))
 
     @_feet_end.setter
     def _feet_end(self, value):
@@ -176,21 +179,27 @@ class EventLocator:
             return None, None
         # the step's start is the last step's end: its feet and force are known (the projection
         # since moved the state by the drift only, ~1e-14)
+        S = self.S
         q0 = dq0 = None
-        feet0 = self._feet_end[1] if self.S[FEET_END_T] == st.t_old else None
-        if feet0 is None:
+        if S[FEET_END_T] == st.t_old:
+            feet0 = (_tuple_new(G.FootState, S[FEET_END:FEET_END + 4]),
+                     _tuple_new(G.FootState, S[FEET_END + 4:FEET_END + 8]))
+        else:
             q0, dq0, _ = to_phys(st.y_old)
             feet0 = G.foot_states(self.model, q0, dq0, self.ground.tan)
-        self._feet_end = (st.t, feet1)
+        S[FEET_END_T] = st.t
+        put(S, FEET_END, [*feet1[0], *feet1[1]])
         F0 = F1 = None
         if stance_leg:
-            F0 = self._force_end[1] if self.S[FORCE_END_T] == st.t_old else None
-            if F0 is None:
+            if S[FORCE_END_T] == st.t_old:
+                F0 = [S[FORCE_END], S[FORCE_END + 1]]
+            else:
                 if q0 is None:
                     q0, dq0, _ = to_phys(st.y_old)
                 F0 = force_at(st.t_old, q0, dq0)
             F1 = F_end if F_end is not None else force_at(st.t, q1, dq1)
-            self._force_end = (st.t, F1)
+            S[FORCE_END_T] = st.t
+            S[FORCE_END], S[FORCE_END + 1] = F1
         if q0 is None and any(w.kind.reads == "state" for w in rows):
             q0, dq0, _ = to_phys(st.y_old)
         roots = []
