@@ -41,15 +41,13 @@
 
 enum { DOP853 = 0, DOPRI5 = 1 };
 enum { HELD = 0, COMPILED = 1, CALLBACK = 2 };   /* the kinds of torque law */
-enum { DONE = 0, PENDING = 1, GROW = 2, FAILED = 3, PYTHON_STEPS = 4, SCUFF_ENDED = 5, RAISED = 6, TOUCHDOWN = 7,
-       TORQUE_CHANGE = 8 };
 enum { FAIL_NONE = 0, FAIL_STEP_SIZE = 1, FAIL_NON_FINITE = 2, FAIL_CALLBACK = 3 };
 
 typedef struct { double x, height, dx, dheight; } Foot;
 
 /* A touchdown (kind TOUCHDOWN; a, b: the old and the new stance leg; v: t, q, dq-, dq+, impulse, energy loss,
  * energy lost so far, the new pin) or an ended scuff (SCUFF_ENDED; a, b: the foot, the stance leg; v: t_start,
- * deepest, t_deepest, t_up, q and dq at t_deepest, NaN outside the step). A run returns GROW when the room is
+ * deepest, t_deepest, t_up, q and dq at t_deepest, NaN outside the step). A run returns OUTCOME_NEED_ROOM when the room is
  * full: a step makes at most one. */
 #define EVENT_ROOM 32
 typedef struct { int kind, a, b; double v[22]; } EventRecord;
@@ -76,25 +74,15 @@ typedef struct {
         double S[LOOP_STATE_SIZE];
         struct { LOOP_STATE_MEMBERS };
     };
-    /* options */
-    double max_speed, ground_tol, force_tol, arm_height;
-    double zeno_interval, impulse_tol, contact_tol;
-    long max_events;
-    int front_rule, compute_grf;   /* touchdown_rule "front" */
-    /* the history the Python code checks an impact against: the last impact's time, the mode events so
-     * far and the times of the last 49 (HybridSimulator._mode_event_times), in a ring */
-    double last_impact, ring[49];
-    long n_impacts, mode_events;
-    double recent_impacts[4];   /* the last (up to) 4 impact times, oldest first (ImpactHistory.times[-4:]) */
-    int n_recent;
+    /* (the options, the stance leg, the pin and the held torque are the state's: max_speed ... max_events,
+     * stance_leg, pin, u_hold) */
+    /* (the impact history and the mode events are the state's: last_impact, n_impacts, recent_impacts,
+     * n_recent, mode_events, ring) */
     /* the touchdowns applied and the scuffs ended since the Python code last took them (take_events),
      * in order: their Events are the Python code's to make */
-    EventRecord events[EVENT_ROOM];
-    int n_events;
-    int has_mu, stop_on_slip, project, check_invariants, impact_phase;
-    /* mode and torque */
-    int leg, law_kind;     /* law_kind: HELD (u_hold), COMPILED (law) or CALLBACK (callback) */
-    double pin[2], u_hold[2];
+    EventRecord events[EVENT_ROOM];     /* (how many: the state's n_records) */
+    /* the torque law */
+    int law_kind;     /* HELD (the state's u_hold), COMPILED (law) or CALLBACK (callback) */
     CompiledLaw law;
     /* a Python controller, called back as controller(t, q, dq, stance_leg) and checked (call_controller).
      * The first failure of the law (the controller raised, a compiled law returned nonzero) is kept as an
@@ -102,25 +90,14 @@ typedef struct {
     PyObject *callback;
     PyObject *exc_type, *exc_value, *exc_tb;
     double last_F[2], last_u[2];
-    /* locator: armed feet; the feet and force at the last step's end (EventLocator._feet_end/_force_end) */
-    int armed[2];
-    int scuff_leg;           /* the foot in a scuff (EventLocator.active_scuffs), or 0 */
-    double scuff[3];         /* its [t_start, deepest, t_deepest] */
-    double deepest_scuff;    /* EventLocator.deepest_scuff */
-    long scuffs;             /* EventLocator.scuffs */
+    /* (the locator's armed feet, scuffs and the step end's feet and force are the state's: armed, scuffing,
+     * scuff, deepest_scuff, scuffs, feet_end, force_end) */
     int why;                 /* which check handed the last step back (a debugging aid: the return in quiet_step) */
-    int locator_changed;     /* armed or the scuff changed in the last run (the Python locator must read them) */
     /* the run's statistics since the last stats() (HybridSimulator.stats) */
     long steps;
     double max_drift, max_rate, max_residual, wall_time;
-    int cache_ok;
-    double cache_t, cache_feet[8], cache_F[2];
-    /* the step handed back: its start's feet and force, and its end's torque and force */
-    double start_feet[8], start_F[2], end_u[2], end_F[2];
-    /* the Python code changed the simulator's state / its locator since the loop last held them
-     * (CompiledStepper.python_changed): the loop takes them again before it runs */
-    char state_stale, locator_stale;
-    double state_now[10];    /* q and dq as the last quiet period() left them (state_arrays) */
+    /* the step handed back: its end's torque and force */
+    double end_u[2], end_F[2];
 } Loop;
 
 /* -- the torque law: held, compiled (the hook) or called back ------------------------------------- */
@@ -174,7 +151,7 @@ call_controller(Loop *L, PyObject *controller, double t, const double *q, const 
         PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
         return;
     }
-    PyObject *args[4] = {PyFloat_FromDouble(t), list_of(q, 5), list_of(dq, 5), PyLong_FromLong(L->leg)}, *r = NULL;
+    PyObject *args[4] = {PyFloat_FromDouble(t), list_of(q, 5), list_of(dq, 5), PyLong_FromLong((long)L->stance_leg)}, *r = NULL;
     if (args[0] && args[1] && args[2] && args[3]) r = PyObject_Vectorcall(controller, args, 4, NULL);
     for (int i = 0; i < 4; i++) Py_XDECREF(args[i]);
     if (r != NULL) {
@@ -212,13 +189,13 @@ call_controller(Loop *L, PyObject *controller, double t, const double *q, const 
     }
 }
 
-/* u = law(t, q, dq) in stance on L->leg; a failure kept as call_controller keeps an exception */
+/* u = law(t, q, dq) in stance on L->stance_leg; a failure kept as call_controller keeps an exception */
 static void
 apply_law(Loop *L, const CompiledLaw *law, double t, const double *q, const double *dq, double *u)
 {
     u[0] = u[1] = 0.0;
     if (L->callback_failed) return;
-    int code = law->fn(t, q, dq, L->leg, law->params, u);
+    int code = law->fn(t, q, dq, (int)L->stance_leg, law->params, u);
     if (code != 0) {
         char when[32];
         snprintf(when, sizeof when, "%.9g", t);      /* (as Python's f"{t:.9g}") */
@@ -276,7 +253,7 @@ raise_callback_error(Loop *L)
 static void
 stance(Loop *L, const double *q, const double *dq, const double *u, double *out7)
 {
-    if (L->leg == 1) k_stance_floating_1(q, dq, u, L->k_stance, out7);
+    if (L->stance_leg == 1) k_stance_floating_1(q, dq, u, L->k_stance, out7);
     else k_stance_floating_2(q, dq, u, L->k_stance, out7);
 }
 
@@ -333,17 +310,6 @@ carry_step(Loop *L, double h)
     L->h_abs = L->max_step < h ? L->max_step : h;
 }
 
-/* carry_step(h) for an argument h_abs or None (None: keep the current one); 0, or -1 with an exception */
-static int
-carry_step_arg(Loop *L, PyObject *h)
-{
-    if (h == Py_None) return 0;
-    double v = PyFloat_AsDouble(h);
-    if (v == -1.0 && PyErr_Occurred()) return -1;
-    carry_step(L, v);
-    return 0;
-}
-
 /* EventLocator._feet_at: the feet on the dense output at tt */
 static void
 feet_at(const Loop *L, double tt, double *ft)
@@ -379,13 +345,14 @@ stance_start(Loop *L, const double *F)
 static int
 touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, double energy_lost, double *residual_out)
 {
-    int old = L->leg, nw = 3 - L->leg;
-    if (L->law_kind == CALLBACK) { L->why = 13; return 0; }
+    int old = (int)L->stance_leg, nw = 3 - old;
+    if (L->law_kind == CALLBACK) { L->why = WHY_CALLED_BACK_LAW; return 0; }
     /* the impact history's rules (loop_rules: ImpactHistory.record, HybridSimulator._add_event); the ring holds
      * the last 49 mode events, so the 50th before this one where there are that many */
-    if (ev_impacts_close(L->n_impacts, L->last_impact, t_ev, L->zeno_interval)) { L->why = 14; return 0; }
-    if (ev_over_budget(L->mode_events + 1, L->max_events)) { L->why = 15; return 0; }
-    if (ev_event_loop(L->mode_events + 1, L->ring[L->mode_events % 49], t_ev)) { L->why = 16; return 0; }
+    long m = (long)L->mode_events;
+    if (ev_impacts_close(L->n_impacts, L->last_impact, t_ev, L->zeno_interval)) { L->why = WHY_IMPACTS_CLOSE; return 0; }
+    if (ev_over_budget(m + 1, L->max_events)) { L->why = WHY_MAX_EVENTS; return 0; }
+    if (ev_event_loop(m + 1, L->ring[m % 49], t_ev)) { L->why = WHY_EVENT_LOOP; return 0; }
     double y[N], ue[2], Fe[2] = {0.0, 0.0}, out[7];
     for (int j = 0; j < N; j++) y[j] = rk_dense_at(L->S, j, t_ev);
     double *q = y, *dqm = y + 5, w = y[10];
@@ -394,23 +361,23 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
         stance(L, q, dqm, ue, out);
         Fe[0] = out[5]; Fe[1] = out[6];
     }
-    if (L->callback_failed) { L->why = 12; return 0; }
+    if (L->callback_failed) { L->why = WHY_LAW_FAILED; return 0; }
     /* the impact and its checks (loop_rules.ev_impact: resets.impact_warnings' and invariants.check_impact's) */
     memcpy(L->q_impact, q, 5 * sizeof(double));
     memcpy(L->dq_minus, dqm, 5 * sizeof(double));
     int checks = ev_impact(L->S, nw, old, L->has_mu);
     double *dqp = L->dq_plus, *imp = L->impulse, loss = L->energy_before - L->energy_after;
-    if (checks & IMPACT_OLD_FOOT_SINKS) { L->why = 18; return 0; }
-    if (checks & (IMPACT_PULLS | IMPACT_OUTSIDE_CONE)) { L->why = 19; return 0; }
-    if (L->check_invariants && ev_stays_down(L->feet_after[old - 1][3], L->contact_tol)) { L->why = 20; return 0; }
+    if (checks & IMPACT_OLD_FOOT_SINKS) { L->why = WHY_OLD_FOOT_SINKS; return 0; }
+    if (checks & (IMPACT_PULLS | IMPACT_OUTSIDE_CONE)) { L->why = WHY_IMPULSE_CHECK; return 0; }
+    if (L->check_invariants && ev_stays_down(L->feet_after[old - 1][3], L->contact_tol)) { L->why = WHY_OLD_FOOT_STAYS; return 0; }
     /* the new stance (_check_stance_start): the ground must push, inside the friction cone */
     double up[2], Fp[2];
-    L->leg = nw;
+    L->stance_leg = nw;
     torque(L, t_ev, q, dqp, up);
     stance(L, q, dqp, up, out);
-    L->leg = old;
+    L->stance_leg = old;
     Fp[0] = out[5]; Fp[1] = out[6];
-    if (stance_start(L, Fp) != STANCE_HOLDS) { L->why = 21; return 0; }
+    if (stance_start(L, Fp) != STANCE_HOLDS) { L->why = WHY_STANCE_REFUSED; return 0; }
     /* applied */
     double lost = energy_lost + loss;
     double res_e = L->energy_before - E0 - w - push_work + energy_lost;
@@ -428,8 +395,8 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     k_foot_positions(q, L->k_pos, p);
     L->pin[0] = p[2 * nw - 2];
     L->pin[1] = p[2 * nw - 1];
-    EventRecord *ev = L->events + L->n_events++;
-    ev->kind = TOUCHDOWN;
+    EventRecord *ev = L->events + (int)L->n_records++;
+    ev->kind = RECORD_TOUCHDOWN;
     ev->a = old;
     ev->b = nw;
     ev->v[0] = t_ev;
@@ -441,17 +408,16 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     ev->v[19] = lost;
     ev->v[20] = L->pin[0];
     ev->v[21] = L->pin[1];
-    L->leg = nw;
+    L->stance_leg = nw;
     for (int leg = 1; leg <= 2; leg++)
         if (ev_disarmed_by_reset(leg, 0, old, nw)) L->armed[leg - 1] = 0;
-    L->cache_ok = 0;        /* EventLocator.after_reset: the step end's feet and force are not the new state's */
-    L->locator_changed = 1;
+    L->feet_end_t = L->force_end_t = NAN;   /* EventLocator.after_reset: the step end's are not the new state's */
     L->last_impact = t_ev;
     L->n_impacts++;
     if (L->n_recent == 4) memmove(L->recent_impacts, L->recent_impacts + 1, 3 * sizeof(double));
     else L->n_recent++;
-    L->recent_impacts[L->n_recent - 1] = t_ev;
-    L->ring[L->mode_events % 49] = t_ev;
+    L->recent_impacts[(int)L->n_recent - 1] = t_ev;
+    L->ring[(long)L->mode_events % 49] = t_ev;
     L->mode_events++;
     /* the next mode's start (begin): f at the state after the impact, the step size carried over */
     memcpy(L->y, q, 5 * sizeof(double));
@@ -465,13 +431,12 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
 /* The feet and the force at the step's end, kept for the next step's start (EventLocator's _feet_end
  * and _force_end) */
 static void
-cache_step_end(Loop *L, const double *feet8, const double *F)
+cache_step_end(Loop *L, double t, const double *feet8, const double *F)
 {
-    L->cache_ok = 1;
-    L->cache_t = L->t;
-    memcpy(L->cache_feet, feet8, 8 * sizeof(double));
-    L->cache_F[0] = F[0];
-    L->cache_F[1] = F[1];
+    L->feet_end_t = L->force_end_t = t;
+    memcpy(L->feet_end, feet8, 8 * sizeof(double));
+    L->force_end[0] = F[0];
+    L->force_end[1] = F[1];
 }
 
 /* The body of HybridSimulator._integrate for the step just taken, when nothing happens in it but a
@@ -487,25 +452,24 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     memcpy(dq, L->y + 5, sizeof dq);
     double top = 0.0;
     for (int i = 0; i < 5; i++) top = fabs(dq[i]) > top ? fabs(dq[i]) : top;
-    if (!(top <= L->max_speed)) { L->why = 1; return 0; }
+    if (!(top <= L->max_speed)) { L->why = WHY_DIVERGING; return 0; }
     feet(L, q, dq, ft1);
     /* the torque and force of the step's last evaluation, at its end (FSAL) */
     L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
     F1[0] = L->end_F[0] = L->last_F[0];
     F1[1] = L->end_F[1] = L->last_F[1];
-    if (L->cache_ok && L->cache_t == L->t_old) {
-        memcpy(ft0, L->cache_feet, sizeof ft0);
-        F0[0] = L->cache_F[0]; F0[1] = L->cache_F[1];
+    if (L->feet_end_t == L->t_old && L->force_end_t == L->t_old) {
+        memcpy(ft0, L->feet_end, sizeof ft0);
+        F0[0] = L->force_end[0]; F0[1] = L->force_end[1];
     } else {
         feet(L, L->y_old, L->y_old + 5, ft0);
         force_at(L, L->t_old, L->y_old, L->y_old + 5, F0);
+        cache_step_end(L, L->t_old, ft0, F0);   /* a step handed back starts from them (EventLocator.locate) */
     }
-    memcpy(L->start_feet, ft0, sizeof ft0);
-    L->start_F[0] = F0[0]; L->start_F[1] = F0[1];
-    int sw = 3 - L->leg, st = L->leg;
-    int scuffing = L->scuff_leg == sw;
-    double scuff[3] = {L->scuff[0], L->scuff[1], L->scuff[2]}, deepest = L->deepest_scuff;
-    long scuffs = L->scuffs;
+    int st = (int)L->stance_leg, sw = 3 - st;
+    int scuffing = L->scuffing[sw - 1] != 0.0;
+    double *kept = L->scuff[sw - 1], scuff[3] = {kept[0], kept[1], kept[2]}, deepest = L->deepest_scuff;
+    double scuffs = L->scuffs;
     int touching = 0;
     double t_touch = 0.0;
     /* EventLocator.locate: the witnesses of stance, in witnesses.witnesses' order (touchdown, liftoff, slip) */
@@ -519,7 +483,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         }
         if (crossing) {
             if (ev_locate_height_crossing(L->S, rhs, L, sw, bracket[0], bracket[1]) < 0 || !L->front_rule) {
-                L->why = 2;
+                L->why = WHY_CROSSING_IN_PYTHON;
                 return 0;
             }
             t_root = L->S[LS_RESULT];
@@ -534,7 +498,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
             } else {
                 /* ImpactHistory.accumulating: a crossing that continues impacts whose gaps shrink is the Python
                  * code's to decide (an impact of the Zeno limit) */
-                if (ev_accumulating(L->recent_impacts, L->n_recent, t_root)) { L->why = 22; return 0; }
+                if (ev_accumulating(L->recent_impacts, L->n_recent, t_root)) { L->why = WHY_ACCUMULATING; return 0; }
                 scuffs++;
                 scuffing = 1;
                 scuff[0] = scuff[2] = t_root;
@@ -543,20 +507,20 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         }
     }
     {
-        if (ev_triggered(ev_normal_force(L->S, F0[0], F0[1]), ev_normal_force(L->S, F1[0], F1[1]))) { L->why = 4; return 0; }
+        if (ev_triggered(ev_normal_force(L->S, F0[0], F0[1]), ev_normal_force(L->S, F1[0], F1[1]))) { L->why = WHY_LIFTOFF; return 0; }
     }
     if (L->has_mu) {
-        if (ev_triggered(ev_cone_margin(L->S, F0[0], F0[1]), ev_cone_margin(L->S, F1[0], F1[1]))) { L->why = 5; return 0; }
+        if (ev_triggered(ev_cone_margin(L->S, F0[0], F0[1]), ev_cone_margin(L->S, F1[0], F1[1]))) { L->why = WHY_SLIP; return 0; }
     }
     if (touching) {
-        if (scuffing) { L->why = 3; return 0; }
+        if (scuffing) { L->why = WHY_TOUCHDOWN_WHILE_SCUFFING; return 0; }
         /* the locator's cache is of the step's end (EventLocator.locate sets it before it looks) */
-        cache_step_end(L, ft1, F1);
+        cache_step_end(L, L->t, ft1, F1);
         return touchdown(L, t_touch, row, E0, push_work, energy_lost, residual_out);
     }
     /* a resting free foot pushed into the ground (_resting_feet_pushed_in) */
     if (L->impact_phase && !L->armed[sw - 1] && !scuffing && ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)) {
-        L->why = 6;
+        L->why = WHY_FOOT_PUSHED_IN;
         return 0;
     }
     int ended = 0;
@@ -566,7 +530,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         memcpy(L->scuff_trial, scuff, sizeof scuff);
         L->deepest_trial = deepest;
         ended = ev_track_scuff(L->S, feet_into_state, L, sw, st, L->t);
-        if (ended < 0) { L->why = 7; return 0; }
+        if (ended < 0) { L->why = WHY_SCUFF_LEAVES_MODEL; return 0; }
         memcpy(scuff, L->scuff_trial, sizeof scuff);
         deepest = L->deepest_trial;
     }
@@ -576,23 +540,23 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     if (L->project) ev_project_onto_pin(q, dq, fs, L->pin, L->tan_s);
     /* invariants.check_sample (a violation: pending, and the Python code reports it) */
     if (L->check_invariants) {
-        if (!ev_finite_state(q, dq, 5)) { L->why = 8; return 0; }
-        if (!scuffing && ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)) { L->why = 9; return 0; }
-        if (ev_violated(ev_normal_force(L->S, F1[0], F1[1]), L->force_tol)) { L->why = 10; return 0; }
+        if (!ev_finite_state(q, dq, 5)) { L->why = WHY_NON_FINITE; return 0; }
+        if (!scuffing && ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)) { L->why = WHY_FOOT_BELOW_GROUND; return 0; }
+        if (ev_violated(ev_normal_force(L->S, F1[0], F1[1]), L->force_tol)) { L->why = WHY_GROUND_PULLS; return 0; }
         if (L->has_mu && L->stop_on_slip && ev_violated(ev_cone_margin(L->S, F1[0], F1[1]), L->force_tol)) {
-            L->why = 11;
+            L->why = WHY_OUTSIDE_CONE;
             return 0;
         }
     }
-    if (L->callback_failed) { L->why = 12; return 0; }
+    if (L->callback_failed) { L->why = WHY_LAW_FAILED; return 0; }
     /* accepted: the locator's state, the sample, the projected state */
-    memcpy(L->scuff, scuff, sizeof scuff);
+    memcpy(kept, scuff, sizeof scuff);
     L->deepest_scuff = deepest;
     L->scuffs = scuffs;
-    L->scuff_leg = scuffing && !ended ? sw : 0;
+    L->scuffing[sw - 1] = scuffing && !ended;
     if (ended) {     /* EventLocator._scuff_event's data */
-        EventRecord *ev = L->events + L->n_events++;
-        ev->kind = SCUFF_ENDED;
+        EventRecord *ev = L->events + (int)L->n_records++;
+        ev->kind = RECORD_SCUFF_ENDED;
         ev->a = sw;
         ev->b = st;
         memcpy(ev->v, scuff, sizeof scuff);
@@ -600,13 +564,9 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         for (int j = 0; j < 10; j++)
             ev->v[4 + j] = L->t_old <= scuff[2] && scuff[2] <= L->t ? rk_dense_at(L->S, j, scuff[2]) : NAN;
     }
-    cache_step_end(L, ft1, F1);
+    cache_step_end(L, L->t, ft1, F1);
     for (int leg = 1; leg <= 2; leg++)
-        if (!L->armed[leg - 1] && ev_arms(leg != st, ft1[4 * (leg - 1) + 1], L->arm_height)) {
-            L->armed[leg - 1] = 1;
-            L->locator_changed = 1;
-        }
-    L->locator_changed |= scuffing;
+        if (!L->armed[leg - 1] && ev_arms(leg != st, ft1[4 * (leg - 1) + 1], L->arm_height)) L->armed[leg - 1] = 1;
     double TV[2];
     k_energy(q, dq, L->k_energy, TV);
     double residual = TV[0] + TV[1] - E0 - w - push_work + energy_lost;
@@ -682,58 +642,6 @@ Loop_set_model(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* set_options(rtol, atol, max_step, max_speed, ground_tol, force_tol, graze_tol, arm_height, mu or None,
- *             stop_on_slip, project, check_invariants, impact_phase, slope, to_power_basis (64), front_tol,
- *             scuff_depth, event_tol, touchdown_rule == "front", scuff_rule == "forward") */
-static PyObject *
-Loop_set_options(Loop *L, PyObject *args)
-{
-    PyObject *mu, *tpb;
-    double slope;
-    int forward_rule;
-    if (!PyArg_ParseTuple(args, "ddddddddOppppdOdddpp", &L->rtol, &L->atol, &L->max_step, &L->max_speed,
-                          &L->ground_tol, &L->force_tol, &L->graze_tol, &L->arm_height, &mu, &L->stop_on_slip,
-                          &L->project, &L->check_invariants, &L->impact_phase, &slope, &tpb, &L->front_tol,
-                          &L->scuff_depth, &L->event_tol, &L->front_rule, &forward_rule))
-        return NULL;
-    L->forward_rule = forward_rule;
-    L->has_mu = mu != Py_None;
-    L->mu = L->has_mu ? PyFloat_AsDouble(mu) : 0.0;
-    if (L->mu == -1.0 && PyErr_Occurred()) return NULL;
-    L->sin_s = sin(slope);
-    L->cos_s = cos(slope);
-    L->tan_s = tan(slope);
-    if (doubles(tpb, &L->to_power_basis[0][0], 64, 64, "to_power_basis", NULL)) return NULL;
-    Py_RETURN_NONE;
-}
-
-/* set_events(compute_grf, zeno_interval, impulse_tol, contact_tol, max_events) */
-static PyObject *
-Loop_set_events(Loop *L, PyObject *args)
-{
-    if (!PyArg_ParseTuple(args, "pdddl", &L->compute_grf, &L->zeno_interval, &L->impulse_tol, &L->contact_tol,
-                          &L->max_events))
-        return NULL;
-    Py_RETURN_NONE;
-}
-
-/* set_history(the last (up to 4) impact times (a list), mode events so far, the times of the last 49 (a list)) */
-static PyObject *
-Loop_set_history(Loop *L, PyObject *args)
-{
-    PyObject *recent, *times;
-    Py_ssize_t n, n_recent;
-    double v[49];
-    if (!PyArg_ParseTuple(args, "OlO", &recent, &L->mode_events, &times)
-        || doubles(recent, L->recent_impacts, 0, 4, "recent impacts", &n_recent) || doubles(times, v, 0, 49, "times", &n))
-        return NULL;
-    L->n_recent = (int)n_recent;
-    L->n_impacts = n_recent > 0;
-    L->last_impact = n_recent > 0 ? L->recent_impacts[n_recent - 1] : 0.0;
-    for (Py_ssize_t i = 0; i < n; i++) L->ring[(L->mode_events - n + i) % 49] = v[i];
-    Py_RETURN_NONE;
-}
-
 /* take_events() -> the touchdowns and ended scuffs since the last call, in order, as tuples:
  * (TOUCHDOWN, t, old leg, new leg, q, dq-, dq+, impulse, energy loss, energy lost so far, pin) or
  * (SCUFF_ENDED, foot, stance leg, [t_start, deepest, t_deepest], t_up, q, dq) */
@@ -741,29 +649,23 @@ static PyObject *
 Loop_take_events(Loop *L, PyObject *unused)
 {
     (void)unused;
-    PyObject *out = PyList_New(L->n_events);
-    for (int i = 0; out != NULL && i < L->n_events; i++) {
+    int n = (int)L->n_records;
+    PyObject *out = PyList_New(n);
+    for (int i = 0; out != NULL && i < n; i++) {
         const EventRecord *ev = L->events + i;
         const double *v = ev->v;
-        PyObject *item = ev->kind == TOUCHDOWN
-            ? Py_BuildValue("(idiiNNNNdd(dd))", TOUCHDOWN, v[0], ev->a, ev->b, list_of(v + 1, 5), list_of(v + 6, 5),
+        PyObject *item = ev->kind == RECORD_TOUCHDOWN
+            ? Py_BuildValue("(idiiNNNNdd(dd))", RECORD_TOUCHDOWN, v[0], ev->a, ev->b, list_of(v + 1, 5), list_of(v + 6, 5),
                             list_of(v + 11, 5), list_of(v + 16, 2), v[18], v[19], v[20], v[21])
-            : Py_BuildValue("(iii[ddd]dNN)", SCUFF_ENDED, ev->a, ev->b, v[0], v[1], v[2], v[3], list_of(v + 4, 5),
+            : Py_BuildValue("(iii[ddd]dNN)", RECORD_SCUFF_ENDED, ev->a, ev->b, v[0], v[1], v[2], v[3], list_of(v + 4, 5),
                             list_of(v + 9, 5));
         if (item == NULL) Py_CLEAR(out);
         else PyList_SET_ITEM(out, i, item);
     }
-    L->n_events = 0;
+    L->n_records = 0;
     return out;
 }
 
-
-static PyObject *
-Loop_set_h_abs(Loop *L, PyObject *arg)
-{
-    if (carry_step_arg(L, arg) < 0) return NULL;
-    Py_RETURN_NONE;
-}
 
 /* rhs(t, y) -> dy, for the initial step size */
 static PyObject *
@@ -777,30 +679,25 @@ Loop_rhs(Loop *L, PyObject *args)
     return list_of(dy, N);
 }
 
-static PyObject *
-failure(Loop *L)
-{
-    return Py_BuildValue("(idd)", (int)L->fail_kind, L->fail_value, L->fail_t);
-}
-
-/* step() -> None, or (kind, value, t) of a failure */
+/* step() -> OUTCOME_DONE, OUTCOME_FAILED (the state's fail_kind, fail_value, fail_t) or OUTCOME_RAISED */
 static PyObject *
 Loop_step(Loop *L, PyObject *unused)
 {
     (void)unused;
-    if (rk_step(L->S, rhs, L) < 0) return L->callback_failed ? raise_callback_error(L) : failure(L);
+    if (rk_step(L->S, rhs, L) < 0) return PyLong_FromLong(L->callback_failed ? OUTCOME_RAISED : OUTCOME_FAILED);
     /* the torque and force of the step's last evaluation, at its end (FSAL), as handed() gives them */
     L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
     L->end_F[0] = L->last_F[0]; L->end_F[1] = L->last_F[1];
-    Py_RETURN_NONE;
+    return PyLong_FromLong(OUTCOME_DONE);
 }
 
-/* A run (run, held, periods): quiet steps until t_end, the samples written into the simulator's Samples
- * array; its outcome DONE, PENDING (a step taken, for Python to handle), GROW (the sample array or the
- * event records are full), FAILED (the step failed: failure = (kind, value, t)) or RAISED. */
+/* A run (run, held, periods, period): quiet steps until t_end, the samples written into the Samples' array
+ * (handed to the run as a buffer: Samples._data); its outcome OUTCOME_DONE, OUTCOME_EVENT (a step taken, for Python to
+ * handle), OUTCOME_NEED_ROOM (the sample array or the event records are full), OUTCOME_FAILED (the step failed: failure = (kind,
+ * value, t)) or OUTCOME_RAISED. Its counters are the state's (n_samples, appended, provisional, every, last_only,
+ * the energy terms), held in locals while it runs. */
 typedef struct {
     double E0, push_work, energy_lost;
-    PyObject *samples;           /* the run's Samples (a new reference while the run lasts) */
     double *data;
     long cap, n, appended, every, accepted;
     int provisional, last_only;
@@ -808,17 +705,17 @@ typedef struct {
 } RunState;
 
 /* The quiet steps to t_end (the loop of HybridSimulator._integrate), writing samples as Samples.append
- * does: DONE, PENDING, GROW (no room for a step's samples or its event: the Python code makes room and calls
- * again) or FAILED. Touchdowns and ended scuffs are applied and kept in L->events, and the steps go on. */
+ * does: OUTCOME_DONE, OUTCOME_EVENT, OUTCOME_NEED_ROOM (no room for a step's samples or its event: the Python code makes room and calls
+ * again) or OUTCOME_FAILED. Touchdowns and ended scuffs are applied and kept in L->events, and the steps go on. */
 static int
 quiet_until(Loop *L, double t_end, RunState *rs)
 {
     while (L->t < t_end) {
-        if ((!rs->last_only && rs->n + 2 > rs->cap) || L->n_events == EVENT_ROOM) return GROW;
-        if (rk_step(L->S, rhs, L) < 0) return FAILED;
+        if ((!rs->last_only && rs->n + 2 > rs->cap) || (int)L->n_records == EVENT_ROOM) return OUTCOME_NEED_ROOM;
+        if (rk_step(L->S, rhs, L) < 0) return OUTCOME_FAILED;
         double drift = 0.0, rate = 0.0, residual, row[34];
         int accepted_how = quiet_step(L, row, rs->E0, rs->push_work, rs->energy_lost, &drift, &rate, &residual);
-        if (!accepted_how) return PENDING;
+        if (!accepted_how) return OUTCOME_EVENT;
         long at = rs->last_only ? 0 : rs->provisional ? rs->n - 1 : rs->n;
         if (accepted_how == 3) {
             /* the event's sample (kept: _reset's keep_last), then the one after the impact (kept) */
@@ -829,7 +726,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
             rs->n = at + 1;
             rs->appended += 2;
             rs->provisional = 0;
-            rs->energy_lost = L->events[L->n_events - 1].v[19];
+            rs->energy_lost = L->events[(int)L->n_records - 1].v[19];
         } else {
             if (accepted_how == 2) {
                 /* the scuff's Event comes before this step's sample (HybridSimulator._push_event: keep_last) */
@@ -851,102 +748,71 @@ quiet_until(Loop *L, double t_end, RunState *rs)
         residual = fabs(residual);
         L->max_residual = residual > L->max_residual ? residual : L->max_residual;
     }
-    return DONE;
+    return OUTCOME_DONE;
 }
 
-/* the attributes a run reads and writes, interned at import */
-static PyObject *a_E0, *a_push_work, *a_energy_lost, *a_samples, *a_data, *a_n, *a_appended, *a_provisional, *a_every,
-    *a_keep;
-
+/* A run's state: its energy terms and the Samples' counters from the state, and the Samples' array ``data``
+ * (a writable C-contiguous buffer of rows of 17 doubles), whose counters end_run writes back. 0, or -1 with
+ * an exception. */
 static int
-attr_double(PyObject *o, PyObject *name, double *out)
+run_state(Loop *L, PyObject *data, RunState *rs, Py_buffer *buf)
 {
-    PyObject *v = PyObject_GetAttr(o, name);
-    if (v == NULL) return -1;
-    *out = PyFloat_AsDouble(v);
-    Py_DECREF(v);
-    return *out == -1.0 && PyErr_Occurred() ? -1 : 0;
-}
-
-static int
-attr_long(PyObject *o, PyObject *name, long *out)
-{
-    PyObject *v = PyObject_GetAttr(o, name);
-    if (v == NULL) return -1;
-    *out = PyLong_AsLong(v);
-    Py_DECREF(v);
-    return *out == -1 && PyErr_Occurred() ? -1 : 0;
-}
-
-/* A run's state from the simulator ``sim``: its energy terms (E0, push_work, energy_lost) and its Samples
- * (the array _data, with n, appended, provisional, every, and keep False: the last sample only), whose
- * counters run_result writes back. 0, or -1 with an exception. */
-static int
-run_state(Loop *L, PyObject *sim, RunState *rs, Py_buffer *buf)
-{
-    PyObject *samples = PyObject_GetAttr(sim, a_samples), *data = NULL, *keep = NULL;
-    int ok = samples != NULL && !attr_double(sim, a_E0, &rs->E0) && !attr_double(sim, a_push_work, &rs->push_work)
-             && !attr_double(sim, a_energy_lost, &rs->energy_lost) && !attr_long(samples, a_n, &rs->n)
-             && !attr_long(samples, a_appended, &rs->appended) && !attr_long(samples, a_every, &rs->every)
-             && (keep = PyObject_GetAttr(samples, a_keep)) != NULL && (data = PyObject_GetAttr(samples, a_data)) != NULL;
-    if (ok) {
-        PyObject *prov = PyObject_GetAttr(samples, a_provisional);
-        rs->provisional = prov == NULL ? -1 : PyObject_IsTrue(prov);
-        Py_XDECREF(prov);
-        rs->last_only = keep == Py_False;
-        ok = rs->provisional >= 0 && PyObject_GetBuffer(data, buf, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) == 0;
-    }
-    Py_XDECREF(keep);
-    Py_XDECREF(data);
-    if (!ok) {
-        Py_XDECREF(samples);
-        return -1;
-    }
-    rs->samples = samples;
+    if (PyObject_GetBuffer(data, buf, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0) return -1;
+    rs->E0 = L->e0;
+    rs->push_work = L->push_work;
+    rs->energy_lost = L->energy_lost;
+    rs->n = (long)L->n_samples;
+    rs->appended = (long)L->appended;
+    rs->every = (long)L->every;
+    rs->provisional = L->provisional != 0.0;
+    rs->last_only = L->last_only != 0.0;
     rs->data = buf->buf;
     rs->cap = (long)(buf->len / (Py_ssize_t)(17 * sizeof(double)));
     rs->accepted = 0;
     rs->t_accepted = L->t_old;
     rs->w_accepted = 0.0;
     rs->h_accepted = L->h_abs;
-    L->locator_changed = 0;
     return 0;
 }
 
-/* the end of a run: the Samples' counters written back (0, or -1 with an exception) */
-static int
-end_run(RunState *rs, Py_buffer *buf)
+/* the end of a run: the Samples' counters and the energy lost written back into the state, and where a step
+ * was accepted the simulator's time, work, step size and state (the last sample's q and dq, its arrays made
+ * when read: sim_state_unmade) */
+static void
+end_run(Loop *L, RunState *rs, Py_buffer *buf)
 {
+    L->n_samples = rs->n;
+    L->appended = rs->appended;
+    L->provisional = rs->provisional;
+    L->energy_lost = rs->energy_lost;
+    if (rs->accepted > 0) {
+        L->sim_t = rs->t_accepted;
+        L->sim_work = rs->w_accepted;
+        L->sim_h = rs->h_accepted;
+        memcpy(L->sim_q, rs->data + 17 * (rs->n - 1) + 1, 5 * sizeof(double));
+        memcpy(L->sim_dq, rs->data + 17 * (rs->n - 1) + 6, 5 * sizeof(double));
+        L->sim_state_unmade = 1.0;
+    }
     PyBuffer_Release(buf);
-    PyObject *n = PyLong_FromLong(rs->n), *appended = PyLong_FromLong(rs->appended);
-    int bad = n == NULL || appended == NULL || PyObject_SetAttr(rs->samples, a_n, n) < 0
-              || PyObject_SetAttr(rs->samples, a_appended, appended) < 0
-              || PyObject_SetAttr(rs->samples, a_provisional, rs->provisional ? Py_True : Py_False) < 0;
-    Py_XDECREF(n);
-    Py_XDECREF(appended);
-    Py_DECREF(rs->samples);
-    return bad ? -1 : 0;
 }
 
-/* end_run, then (outcome, accepted steps, and the last one's t, work and h_abs, locator_changed, events
- * waiting in take_events, failure or None) */
+/* end_run, then the run's Outcome (OUTCOME_RAISED where the torque law failed: the caller takes the steps
+ * accepted before it, then raise_error()) */
 static PyObject *
 run_result(Loop *L, int outcome, RunState *rs, Py_buffer *buf)
 {
-    if (end_run(rs, buf) < 0) return NULL;
-    if (L->callback_failed) outcome = RAISED;     /* the caller takes the accepted steps, then raise_error() */
-    return Py_BuildValue("(ildddiiN)", outcome, rs->accepted, rs->t_accepted, rs->w_accepted, rs->h_accepted,
-                         L->locator_changed, L->n_events, outcome == FAILED ? failure(L) : Py_NewRef(Py_None));
+    end_run(L, rs, buf);
+    return PyLong_FromLong(L->callback_failed ? OUTCOME_RAISED : outcome);
 }
 
-/* run(t_end, sim) -> run_result's tuple: the quiet steps to t_end */
+/* run(t_end, data) -> the Outcome of the quiet steps to t_end */
 static PyObject *
-run_quiet(Loop *L, PyObject *t_end_arg, PyObject *sim)
+run_quiet(Loop *L, PyObject *t_end_arg, PyObject *data)
 {
     RunState rs;
     Py_buffer buf;
     double t_end = PyFloat_AsDouble(t_end_arg);
-    if (PyErr_Occurred() || run_state(L, sim, &rs, &buf) < 0) return NULL;
+    if (PyErr_Occurred() || run_state(L, data, &rs, &buf) < 0) return NULL;
     return run_result(L, quiet_until(L, t_end, &rs), &rs, &buf);
 }
 
@@ -1002,25 +868,25 @@ period_end(double t, double period, double t_final, long *k)
     return t_next;
 }
 
-/* periods(law, period, control_periods, t_final, t_stop, sim)
- * -> (<run's result>, control_periods, t_next, (u1, u2), refused): control periods held (as
+/* periods(law, period, t_final, t_stop, data) -> an Outcome (and t_next, refused_u): control periods held (as
  * HybridSimulator.advance_period computes them, the command at each period's start: a compiled law's
  * (address, parameters, name), or a Python controller, called once a period and checked by
  * call_controller) until t_final, or the first period boundary at or after t_stop - 1e-9 period (a push due),
  * or a run outcome the Python code must see (then mid-period: its end t_next and its torque come back), or
- * a period whose command the stance guards refuse at its start (TORQUE_CHANGE: not begun, the count and
- * torque of the periods before it come back, and refused, its command (else None): the Python code runs the
- * period with that command, so that a controller is called once a period on both loops). A command that fails (RAISED)
+ * a period whose command the stance guards refuse at its start (OUTCOME_TORQUE_CHANGE: not begun, the count and
+ * torque of the periods before it are the state's control_periods and sim_u, and refused, its command (else
+ * None): the Python code runs the
+ * period with that command, so that a controller is called once a period on both loops). A command that fails (OUTCOME_RAISED)
  * counts its period as begun, as advance_period does. */
 static PyObject *
 Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 6) {
-        PyErr_SetString(PyExc_TypeError, "periods() takes 6 arguments");
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "periods() takes 5 arguments");
         return NULL;
     }
-    double period = PyFloat_AsDouble(args[1]), t_final = PyFloat_AsDouble(args[3]), t_stop = PyFloat_AsDouble(args[4]);
-    long k0 = PyLong_AsLong(args[2]);
+    double period = PyFloat_AsDouble(args[1]), t_final = PyFloat_AsDouble(args[2]), t_stop = PyFloat_AsDouble(args[3]);
+    long k0 = (long)L->control_periods;
     if (PyErr_Occurred()) return NULL;
     if (!(period > 0.0 && period < INFINITY)) {
         PyErr_SetString(PyExc_ValueError, "periods(): period must be a positive finite number");
@@ -1036,22 +902,22 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     }
     RunState rs;
     Py_buffer buf;
-    if (run_state(L, args[5], &rs, &buf) < 0) return NULL;
-    int outcome = DONE;
+    if (run_state(L, args[4], &rs, &buf) < 0) return NULL;
+    int outcome = OUTCOME_DONE;
     double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, refused[2] = {NAN, NAN}, tol = 1e-9 * period;
     while (L->t < t_final && t_stop > L->t + tol) {
         long k = k0;
         double t_end = period_end(L->t, period, t_final, &k), u_now[2];
         if (command != NULL) call_controller(L, command, L->t, L->y, L->y + 5, u_now);
         else apply_law(L, &law, L->t, L->y, L->y + 5, u_now);
-        if (L->callback_failed) {       /* (run_result: RAISED) */
+        if (L->callback_failed) {       /* (run_result: OUTCOME_RAISED) */
             k0 = k;
             break;
         }
         carry_step(L, L->h_abs);     /* as begin() carries it over */
         hold(L, u_now[0], u_now[1], t_end);
         if (refused_at_start(L)) {
-            outcome = TORQUE_CHANGE;
+            outcome = OUTCOME_TORQUE_CHANGE;
             refused[0] = u_now[0];
             refused[1] = u_now[1];
             break;
@@ -1061,12 +927,15 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         u[0] = u_now[0];
         u[1] = u_now[1];
         outcome = quiet_until(L, t_next, &rs);
-        if (outcome != DONE) break;
+        if (outcome != OUTCOME_DONE) break;
     }
-    PyObject *r = run_result(L, outcome, &rs, &buf);
-    if (r == NULL) return NULL;
-    if (outcome != TORQUE_CHANGE) return Py_BuildValue("(Nld(dd)O)", r, k0, t_next, u[0], u[1], Py_None);
-    return Py_BuildValue("(Nld(dd)[dd])", r, k0, t_next, u[0], u[1], refused[0], refused[1]);
+    L->control_periods = (double)k0;
+    L->sim_u[0] = u[0];
+    L->sim_u[1] = u[1];
+    L->t_next = t_next;
+    L->refused_u[0] = refused[0];
+    L->refused_u[1] = refused[1];
+    return run_result(L, outcome, &rs, &buf);
 }
 
 static PyObject *
@@ -1079,27 +948,24 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     return run_quiet(L, args[0], args[1]);
 }
 
-/* held(u1, u2, h_abs or None, t_end, sim): a control period under a held torque from where the
- * last run left the state (the same mode): the start of begin() (f = rhs(t, y) under the new torque,
- * the carried-over step size), then run() to its end, in one call (the node's period) */
+/* held(t_end, data): a control period under the state's held torque sim_u from where the last run left the
+ * state (the same mode): the start of begin() (f = rhs(t, y) under the new torque, the carried-over step size
+ * sim_h), then run() to its end, in one call (the node's period) */
 static PyObject *
 Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 5) {
-        PyErr_SetString(PyExc_TypeError, "held() takes 5 arguments");
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "held() takes 2 arguments");
         return NULL;
     }
-    double u0 = PyFloat_AsDouble(args[0]), u1 = PyFloat_AsDouble(args[1]), t_bound = PyFloat_AsDouble(args[3]);
-    if (PyErr_Occurred() || carry_step_arg(L, args[2]) < 0) return NULL;
-    hold(L, u0, u1, t_bound);
+    double t_bound = PyFloat_AsDouble(args[0]);
+    if (PyErr_Occurred()) return NULL;
+    if (!isnan(L->sim_h)) carry_step(L, L->sim_h);
+    hold(L, L->sim_u[0], L->sim_u[1], t_bound);
     if (L->callback_failed) return raise_callback_error(L);
-    return run_quiet(L, args[3], args[4]);
+    return run_quiet(L, args[0], args[1]);
 }
 
-/* the attributes of the simulator a quiet period reads and writes, interned at import */
-static PyObject *a_status, *a_running, *a_initial_sample_pending, *a_control_periods, *a_h, *a_u, *a_t, *a_work,
-    *a__q, *a__dq, *a_copy, *a_locator, *a_armed, *a_active_scuffs, *a_deepest_scuff, *a_scuffs;
-static int pull_locator(Loop *L, PyObject *locator);
 
 /* u as two floats, as modes.two_finite_floats takes them: 0, or -1 (no exception) for anything the
  * Python code must judge (it refuses it, or takes what this does not: an array, a numpy integer, ...) */
@@ -1119,26 +985,6 @@ two_finite(PyObject *u, double *out)
     return isfinite(out[0] + out[1]) ? 0 : -1;     /* as two_finite_floats: nan + x, inf - inf, 1e308 + 1e308 */
 }
 
-/* a new float64 array of n values (a copy of the template, so that no numpy headers are needed) */
-static PyObject *
-array_of(PyObject *template, const double *v, Py_ssize_t n)
-{
-    PyObject *a = PyObject_CallMethodNoArgs(template, a_copy);
-    Py_buffer b;
-    if (a == NULL || PyObject_GetBuffer(a, &b, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0) {
-        Py_XDECREF(a);
-        return NULL;
-    }
-    if (b.len == n * (Py_ssize_t)sizeof(double)) memcpy(b.buf, v, n * sizeof(double));
-    PyBuffer_Release(&b);
-    if (b.len != n * (Py_ssize_t)sizeof(double)) {
-        Py_DECREF(a);
-        PyErr_SetString(PyExc_ValueError, "state_arrays(): the template must be a float64 array of 5");
-        return NULL;
-    }
-    return a;
-}
-
 static double
 seconds_now(void)
 {
@@ -1147,22 +993,13 @@ seconds_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static int
-set_float(PyObject *o, PyObject *name, double v)
-{
-    PyObject *f = PyFloat_FromDouble(v);
-    int bad = f == NULL || PyObject_SetAttr(o, name, f) < 0;
-    Py_XDECREF(f);
-    return bad ? -1 : 0;
-}
-
-/* period(period, u, t_final, sim) -> HybridSimulator.advance_period(period, u, t_final=t_final) under a
- * held torque, in one call (the node's control period), when the loop holds the simulator's state and
- * locator and the run goes on past its first sample. Returns [] (the events of a period run quiet to its
- * end: the simulator's t, work, step size, control_periods, u and locator written, its wall time kept for
- * stats(), its q and dq left to state_arrays(): sim._q = sim._dq = None), or (the run's result, t_next)
- * for the Python code to finish (a touchdown or an ended scuff to make Events of, a step handed back, room
- * to make, a failure), or None having changed nothing: the Python code runs the period (the loop is
+/* period(period, u, t_final, data) -> an Outcome: HybridSimulator.advance_period(period, u, t_final=t_final)
+ * under a held torque, in one call (the node's control period), when the loop holds the simulator's state and
+ * the run goes on past its first sample. OUTCOME_DONE with no records waiting (n_records): a period run quiet
+ * to its end (the state's sim_t, sim_work, sim_h, control_periods, sim_u, sim_q and sim_dq written, its wall
+ * time kept for stats()); another outcome, or records to take, for the Python code to finish the period that
+ * ends at the state's t_next (a touchdown or an ended scuff to make Events of, a step handed back, room to
+ * make, a failure); OUTCOME_DECLINED having changed nothing: the Python code runs the period (the loop is
  * stale, the run has ended, u is not two finite numbers, a bad period, the stance guards refuse u at the
  * period's start, ...). */
 static PyObject *
@@ -1173,82 +1010,32 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
         return NULL;
     }
     double wall0 = seconds_now(), u[2];
-    PyObject *sim = args[3];
-    if (L->state_stale || L->locator_stale || two_finite(args[1], u) < 0) Py_RETURN_NONE;
+    if (L->mode_begun == 0.0 || L->n_latched != 0.0 || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
+        || two_finite(args[1], u) < 0)   /* (a latched guard, two scuffs: the Python code follows them) */
+        return PyLong_FromLong(OUTCOME_DECLINED);
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
     if (PyErr_Occurred() || PyBool_Check(args[0]) || !(period > 0.0 && period < INFINITY) || PyBool_Check(args[2])
         || !(t_final >= 0.0)) {   /* Python says why */
         PyErr_Clear();
-        Py_RETURN_NONE;
+        return PyLong_FromLong(OUTCOME_DECLINED);
     }
-    PyObject *status = PyObject_GetAttr(sim, a_status), *pending = PyObject_GetAttr(sim, a_initial_sample_pending);
-    int running = status != NULL && pending == Py_False && PyUnicode_Check(status)
-                  && PyUnicode_Compare(status, a_running) == 0;
-    Py_XDECREF(status);
-    Py_XDECREF(pending);
-    long k;
-    if (!running || attr_long(sim, a_control_periods, &k) < 0) {
-        PyErr_Clear();
-        Py_RETURN_NONE;
-    }
+    if (L->running == 0.0 || L->initial_sample_pending != 0.0) return PyLong_FromLong(OUTCOME_DECLINED);
+    long k = (long)L->control_periods;
     double t_next = period_end(L->t, period, t_final, &k);
-    if (!isfinite(t_next)) Py_RETURN_NONE;     /* the Python code says why */
-    PyObject *h = PyObject_GetAttr(sim, a_h);
-    int bad = h == NULL || carry_step_arg(L, h) < 0;
-    Py_XDECREF(h);
-    if (bad) return NULL;
+    if (!isfinite(t_next)) return PyLong_FromLong(OUTCOME_DECLINED);     /* the Python code says why */
+    if (!isnan(L->sim_h)) carry_step(L, L->sim_h);
     hold(L, u[0], u[1], t_next);
-    if (refused_at_start(L)) Py_RETURN_NONE;
-    PyObject *periods = PyLong_FromLong(k), *torque = Py_BuildValue("[dd]", u[0], u[1]);
-    bad = periods == NULL || torque == NULL || PyObject_SetAttr(sim, a_control_periods, periods) < 0
-          || PyObject_SetAttr(sim, a_u, torque) < 0;
-    Py_XDECREF(periods);
-    Py_XDECREF(torque);
+    if (refused_at_start(L)) return PyLong_FromLong(OUTCOME_DECLINED);
+    L->control_periods = (double)k;
+    L->sim_u[0] = u[0];
+    L->sim_u[1] = u[1];
+    L->t_next = t_next;
     RunState rs;
     Py_buffer buf;
-    if (bad || run_state(L, sim, &rs, &buf) < 0) return NULL;
-    int outcome = quiet_until(L, t_next, &rs);
-    if (outcome != DONE || L->n_events || L->callback_failed) {
-        PyObject *r = run_result(L, outcome, &rs, &buf);
-        L->wall_time += seconds_now() - wall0;
-        return r == NULL ? NULL : Py_BuildValue("(Nd)", r, t_next);
-    }
-    int moved = rs.accepted > 0;
-    if (moved) memcpy(L->state_now, rs.data + 17 * (rs.n - 1) + 1, sizeof L->state_now);   /* the last sample's q, dq */
-    if (end_run(&rs, &buf) < 0) return NULL;
-    if (L->locator_changed) {    /* an armed foot, a scuff followed: the Python locator takes them now */
-        PyObject *locator = PyObject_GetAttr(sim, a_locator);
-        bad = locator == NULL || pull_locator(L, locator) < 0;
-        Py_XDECREF(locator);
-        if (bad) return NULL;
-    }
-    if (moved && (set_float(sim, a_t, rs.t_accepted) < 0 || set_float(sim, a_work, rs.w_accepted) < 0
-                  || set_float(sim, a_h, rs.h_accepted) < 0 || PyObject_SetAttr(sim, a__q, Py_None) < 0
-                  || PyObject_SetAttr(sim, a__dq, Py_None) < 0))
-        return NULL;
+    if (run_state(L, args[3], &rs, &buf) < 0) return NULL;
+    PyObject *r = run_result(L, quiet_until(L, t_next, &rs), &rs, &buf);
     L->wall_time += seconds_now() - wall0;
-    return PyList_New(0);
-}
-
-/* state_lists() -> (q, dq): the state the last quiet period() left, as two lists (what a message takes) */
-static PyObject *
-Loop_state_lists(Loop *L, PyObject *unused)
-{
-    (void)unused;
-    return Py_BuildValue("(NN)", list_of(L->state_now, 5), list_of(L->state_now + 5, 5));
-}
-
-/* state_arrays(template) -> (q, dq): the state the last quiet period() left, as two new float64 arrays
- * (copies of template, a float64 array of 5) */
-static PyObject *
-Loop_state_arrays(Loop *L, PyObject *template)
-{
-    PyObject *q = array_of(template, L->state_now, 5), *dq = q == NULL ? NULL : array_of(template, L->state_now + 5, 5);
-    if (dq == NULL) {
-        Py_XDECREF(q);
-        return NULL;
-    }
-    return Py_BuildValue("(NN)", q, dq);
+    return r;
 }
 
 /* stats() -> (steps, max drift, max drift rate, max |residual|, wall time of period() calls) since the last
@@ -1261,38 +1048,6 @@ Loop_stats(Loop *L, PyObject *unused)
     L->steps = 0;
     L->max_drift = L->max_rate = L->max_residual = L->wall_time = 0.0;
     return r;
-}
-
-/* the armed feet and the scuff as the loop left them, written into the Python EventLocator ``locator``:
- * armed [bool, bool], active_scuffs {leg: [t_start, deepest, t_deepest]} or {}, deepest_scuff, scuffs.
- * 0, or -1 with an exception. */
-static int
-pull_locator(Loop *L, PyObject *locator)
-{
-    PyObject *armed = Py_BuildValue("[OO]", L->armed[0] ? Py_True : Py_False, L->armed[1] ? Py_True : Py_False);
-    PyObject *scuffs = PyDict_New(), *deepest = PyFloat_FromDouble(L->deepest_scuff), *count = PyLong_FromLong(L->scuffs);
-    int bad = armed == NULL || scuffs == NULL || deepest == NULL || count == NULL;
-    if (!bad && L->scuff_leg) {
-        PyObject *leg = PyLong_FromLong(L->scuff_leg), *scuff = list_of(L->scuff, 3);
-        bad = leg == NULL || scuff == NULL || PyDict_SetItem(scuffs, leg, scuff) < 0;
-        Py_XDECREF(leg);
-        Py_XDECREF(scuff);
-    }
-    bad = bad || PyObject_SetAttr(locator, a_armed, armed) < 0 || PyObject_SetAttr(locator, a_active_scuffs, scuffs) < 0
-          || PyObject_SetAttr(locator, a_deepest_scuff, deepest) < 0 || PyObject_SetAttr(locator, a_scuffs, count) < 0;
-    Py_XDECREF(armed);
-    Py_XDECREF(scuffs);
-    Py_XDECREF(deepest);
-    Py_XDECREF(count);
-    return bad ? -1 : 0;
-}
-
-/* pull_locator(locator): pull_locator above, from the Python code */
-static PyObject *
-Loop_pull_locator(Loop *L, PyObject *locator)
-{
-    if (pull_locator(L, locator) < 0) return NULL;
-    Py_RETURN_NONE;
 }
 
 /* locate_crossing(leg, ta, tb) -> the time foot leg's height crosses zero on the last step's dense output
@@ -1313,7 +1068,7 @@ Loop_locate_crossing(Loop *L, PyObject *args)
     return PyFloat_FromDouble(L->S[LS_RESULT]);
 }
 
-/* raise_error(): raise the Python controller's exception that ended the last run (outcome RAISED) */
+/* raise_error(): raise the Python controller's exception that ended the last run (outcome OUTCOME_RAISED) */
 static PyObject *
 Loop_raise_error(Loop *L, PyObject *unused)
 {
@@ -1322,34 +1077,17 @@ Loop_raise_error(Loop *L, PyObject *unused)
     return raise_callback_error(L);
 }
 
+/* begin(law): a mode's start, as make_stepper builds a stepper (integrators._ListRungeKutta restart: f = rhs(t,
+ * y)), from the state's method, stance_leg, pin, u_hold, t, y, t_bound and h_abs (the carried-over step size),
+ * which the Python code wrote (CompiledStepper.start); law None (u_hold held), a Python callable (called
+ * back) or a compiled law (address, parameters, name) */
 static PyObject *
-Loop_counts(Loop *L, PyObject *unused)
+Loop_begin(Loop *L, PyObject *law)
 {
-    (void)unused;
-    return Py_BuildValue("(ll)", (long)L->nfev, (long)L->nrejected);
-}
-
-/* begin(method, stance_leg, pin_x, pin_y, law, u1, u2, t, y, t_bound, h_abs or None, reset_counters), law
- *       None (u1, u2 held), a Python callable (called back) or a compiled law (address, parameters, name): a mode's start, as make_stepper builds a stepper (integrators._ListRungeKutta
- *       restart: f = rhs(t, y), the carried-over step size capped by max_step) */
-static PyObject *
-Loop_begin(Loop *L, PyObject *const *args, Py_ssize_t nargs)
-{
-    if (nargs != 12) {
-        PyErr_SetString(PyExc_TypeError, "begin() takes 12 arguments");
-        return NULL;
-    }
-    long method = PyLong_AsLong(args[0]), leg = PyLong_AsLong(args[1]);
-    double pin0 = PyFloat_AsDouble(args[2]), pin1 = PyFloat_AsDouble(args[3]);
-    double u0 = PyFloat_AsDouble(args[5]), u1 = PyFloat_AsDouble(args[6]);
-    double t = PyFloat_AsDouble(args[7]), t_bound = PyFloat_AsDouble(args[9]);
-    int reset = PyObject_IsTrue(args[11]);
-    if (PyErr_Occurred()) return NULL;
-    if ((method != DOP853 && method != DOPRI5) || (leg != 1 && leg != 2)) {
+    if ((L->method != DOP853 && L->method != DOPRI5) || (L->stance_leg != 1 && L->stance_leg != 2)) {
         PyErr_SetString(PyExc_ValueError, "begin(): the loop steps dop853 (0) or dopri5 (1) in stance on leg 1 or 2");
         return NULL;
     }
-    PyObject *law = args[4];
     int kind = law == Py_None ? HELD : PyCallable_Check(law) ? CALLBACK : COMPILED;
     if (kind == CALLBACK) {
         Py_INCREF(law);
@@ -1357,49 +1095,11 @@ Loop_begin(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     } else if (kind == COMPILED && compiled_law_from(law, &L->law) < 0) {
         return NULL;
     }
-    if (doubles(args[8], L->y, N, N, "y", NULL) || carry_step_arg(L, args[10]) < 0) return NULL;
-    L->method = method;
     L->n_y = N;
-    L->leg = (int)leg;
-    L->pin[0] = pin0;
-    L->pin[1] = pin1;
     L->law_kind = kind;
-    L->u_hold[0] = u0;
-    L->u_hold[1] = u1;
-    if (reset) L->nfev = L->nrejected = L->naccepted = 0;
-    restart(L, t, t_bound);
+    L->mode_begun = 1.0;
+    restart(L, L->t, L->t_bound);
     if (L->callback_failed) return raise_callback_error(L);
-    Py_RETURN_NONE;
-}
-
-/* replace_y(y): continue from y (the projected state of a step Python accepted) */
-static PyObject *
-Loop_replace_y(Loop *L, PyObject *y)
-{
-    if (doubles(y, L->y, N, N, "y", NULL)) return NULL;
-    Py_RETURN_NONE;
-}
-
-/* set_locator(armed1, armed2, cache_t or None, feet (8) or None, F (2) or None, scuff_leg, scuff (3), deepest,
- *             scuffs) */
-static PyObject *
-Loop_set_locator(Loop *L, PyObject *args)
-{
-    int a1, a2;
-    PyObject *ct, *ft, *F, *sc;
-    if (!PyArg_ParseTuple(args, "ppOOOiOdl", &a1, &a2, &ct, &ft, &F, &L->scuff_leg, &sc, &L->deepest_scuff,
-                          &L->scuffs))
-        return NULL;
-    if (doubles(sc, L->scuff, 3, 3, "scuff", NULL)) return NULL;
-    L->armed[0] = a1;
-    L->armed[1] = a2;
-    L->cache_ok = ct != Py_None && ft != Py_None && F != Py_None;
-    if (L->cache_ok) {
-        L->cache_t = PyFloat_AsDouble(ct);
-        if ((L->cache_t == -1.0 && PyErr_Occurred()) || doubles(ft, L->cache_feet, 8, 8, "feet", NULL)
-            || doubles(F, L->cache_F, 2, 2, "F", NULL))
-            return NULL;
-    }
     Py_RETURN_NONE;
 }
 
@@ -1435,40 +1135,12 @@ Loop_dense_at(Loop *L, PyObject *arg)
     return list_of(v, N);
 }
 
-/* state() -> (t, t_old, h, h_abs, y, y_old, f, nfev, nrejected, naccepted) */
-static PyObject *
-Loop_state(Loop *L, PyObject *unused)
-{
-    (void)unused;
-    return Py_BuildValue("(ddddNNNlll)", L->t, L->t_old, L->h, L->h_abs, list_of(L->y, N), list_of(L->y_old, N),
-                         list_of(L->f, N), (long)L->nfev, (long)L->nrejected, (long)L->naccepted);
-}
-
-/* handed() -> (start feet (8), start F (2), end u (2), end F (2), armed (2)) of the step handed back */
+/* handed() -> (end u (2), end F (2), why) of the step handed back */
 static PyObject *
 Loop_handed(Loop *L, PyObject *unused)
 {
     (void)unused;
-    return Py_BuildValue("(NNNN(ii)i)", list_of(L->start_feet, 8), list_of(L->start_F, 2), list_of(L->end_u, 2),
-                         list_of(L->end_F, 2), L->armed[0], L->armed[1], L->why);
-}
-
-static PyObject *
-Loop_armed(Loop *L, PyObject *unused)
-{
-    (void)unused;
-    return Py_BuildValue("(ii)", L->armed[0], L->armed[1]);
-}
-
-static PyObject *
-Loop_counters(Loop *L, PyObject *args)
-{
-    long nfev, nrejected, naccepted;
-    if (!PyArg_ParseTuple(args, "lll", &nfev, &nrejected, &naccepted)) return NULL;
-    L->nfev = nfev;
-    L->nrejected = nrejected;
-    L->naccepted = naccepted;
-    Py_RETURN_NONE;
+    return Py_BuildValue("(NNi)", list_of(L->end_u, 2), list_of(L->end_F, 2), L->why);
 }
 
 /* law_torque(law) -> [u1, u2]: a compiled law's (address, parameters, name) torque at the loop's current
@@ -1529,42 +1201,37 @@ static PyMethodDef module_methods[] = {
 
 static PyMethodDef Loop_methods[] = {
     {"set_model", (PyCFunction)Loop_set_model, METH_VARARGS, NULL},
-    {"set_options", (PyCFunction)Loop_set_options, METH_VARARGS, NULL},
-    {"set_h_abs", (PyCFunction)Loop_set_h_abs, METH_O, NULL},
     {"rhs", (PyCFunction)Loop_rhs, METH_VARARGS, NULL},
     {"step", (PyCFunction)Loop_step, METH_NOARGS, NULL},
     {"run", (PyCFunction)(void (*)(void))Loop_run, METH_FASTCALL, NULL},
-    {"begin", (PyCFunction)(void (*)(void))Loop_begin, METH_FASTCALL, NULL},
+    {"begin", (PyCFunction)Loop_begin, METH_O, NULL},
     {"held", (PyCFunction)(void (*)(void))Loop_held, METH_FASTCALL, NULL},
     {"periods", (PyCFunction)(void (*)(void))Loop_periods, METH_FASTCALL, NULL},
     {"period", (PyCFunction)(void (*)(void))Loop_period, METH_FASTCALL, NULL},
-    {"state_arrays", (PyCFunction)Loop_state_arrays, METH_O, NULL},
-    {"state_lists", (PyCFunction)Loop_state_lists, METH_NOARGS, NULL},
     {"stats", (PyCFunction)Loop_stats, METH_NOARGS, NULL},
-    {"pull_locator", (PyCFunction)Loop_pull_locator, METH_O, NULL},
-    {"counts", (PyCFunction)Loop_counts, METH_NOARGS, NULL},
-    {"set_events", (PyCFunction)Loop_set_events, METH_VARARGS, NULL},
-    {"set_history", (PyCFunction)Loop_set_history, METH_VARARGS, NULL},
     {"take_events", (PyCFunction)Loop_take_events, METH_NOARGS, NULL},
     {"raise_error", (PyCFunction)Loop_raise_error, METH_NOARGS, NULL},
     {"locate_crossing", (PyCFunction)Loop_locate_crossing, METH_VARARGS, NULL},
-    {"replace_y", (PyCFunction)Loop_replace_y, METH_O, NULL},
-    {"set_locator", (PyCFunction)Loop_set_locator, METH_VARARGS, NULL},
     {"dense_rows", (PyCFunction)Loop_dense_rows, METH_NOARGS, NULL},
     {"dense_at", (PyCFunction)Loop_dense_at, METH_O, NULL},
-    {"state", (PyCFunction)Loop_state, METH_NOARGS, NULL},
     {"handed", (PyCFunction)Loop_handed, METH_NOARGS, NULL},
-    {"armed", (PyCFunction)Loop_armed, METH_NOARGS, NULL},
-    {"set_counters", (PyCFunction)Loop_counters, METH_VARARGS, NULL},
     {"law_torque", (PyCFunction)Loop_law_torque, METH_O, NULL},
     {NULL, NULL, 0, NULL},
 };
 
 static PyMemberDef Loop_members[] = {
-    {"state_stale", T_BOOL, offsetof(Loop, state_stale), 0, "the simulator's state is not the loop's"},
-    {"locator_stale", T_BOOL, offsetof(Loop, locator_stale), 0, "the Python locator changed what the loop holds of it"},
     {NULL, 0, 0, 0, NULL},
 };
+
+/* The state S exported as bytes (memoryview(loop).cast("d") is S: compiled_loop.run_state): the simulator, its
+ * Samples and its locator read and write the same memory as the loop */
+static int
+Loop_getbuffer(Loop *L, Py_buffer *view, int flags)
+{
+    return PyBuffer_FillInfo(view, (PyObject *)L, L->S, sizeof L->S, 0, flags);
+}
+
+static PyBufferProcs Loop_as_buffer = {.bf_getbuffer = (getbufferproc)Loop_getbuffer};
 
 static void
 Loop_dealloc(Loop *L)
@@ -1585,6 +1252,7 @@ static PyTypeObject LoopType = {
     .tp_new = PyType_GenericNew,
     .tp_methods = Loop_methods,
     .tp_members = Loop_members,
+    .tp_as_buffer = &Loop_as_buffer,
     .tp_doc = "The compiled hybrid loop's state (see biped_sim/engine/compiled_loop.py).",
 };
 
@@ -1598,16 +1266,6 @@ PyMODINIT_FUNC
 PyInit__core(void)
 {
     if (PyType_Ready(&LoopType) < 0) return NULL;
-    PyObject **names[] = {&a_E0, &a_push_work, &a_energy_lost, &a_samples, &a_data, &a_n, &a_appended, &a_provisional,
-                          &a_every, &a_keep, &a_status, &a_running, &a_initial_sample_pending, &a_control_periods,
-                          &a_h, &a_u, &a_t, &a_work, &a__q, &a__dq, &a_copy, &a_locator,
-                          &a_armed, &a_active_scuffs, &a_deepest_scuff, &a_scuffs};
-    const char *strings[] = {"E0", "push_work", "energy_lost", "_samples", "_data", "n", "appended", "provisional",
-                             "every", "keep", "status", "running", "_initial_sample_pending", "control_periods",
-                             "_h", "_u", "t", "work", "_q", "_dq", "copy", "locator", "armed",
-                             "active_scuffs", "deepest_scuff", "scuffs"};
-    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
-        if ((*names[i] = PyUnicode_InternFromString(strings[i])) == NULL) return NULL;
     PyObject *m = PyModule_Create(&module);
     if (m == NULL) return NULL;
     Py_INCREF(&LoopType);

@@ -4,7 +4,7 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 1056
+#define LOOP_STATE_SIZE 1190
 #define LS_NMAX 11
 #define LS_MAX_DEPTH 30
 #define LS_METHOD 0
@@ -25,52 +25,141 @@
 #define LS_FORWARD_RULE 15
 #define LS_K_POS 16
 #define LS_TO_POWER_BASIS 48
-#define LS_T 112
-#define LS_T_BOUND 113
-#define LS_H_ABS 114
-#define LS_T_OLD 115
-#define LS_H 116
-#define LS_Y 117
-#define LS_F 128
-#define LS_Y_OLD 139
-#define LS_STAGES 150
-#define LS_NFEV 293
-#define LS_NREJECTED 294
-#define LS_NACCEPTED 295
-#define LS_DENSE_READY 296
-#define LS_DENSE 297
-#define LS_FAIL_KIND 385
-#define LS_FAIL_VALUE 386
-#define LS_FAIL_T 387
-#define LS_CALLBACK_FAILED 388
-#define LS_GUARD_LEG 389
-#define LS_SCUFF_TRIAL 390
-#define LS_DEEPEST_TRIAL 393
-#define LS_FEET 394
-#define LS_OUT 402
-#define LS_RESULT 568
-#define LS_COEF 570
-#define LS_QS 594
-#define LS_PS 599
-#define LS_STACK 603
-#define LS_K_IMPACT 923
-#define LS_K_ENERGY 955
-#define LS_K_FEET 987
-#define LS_Q_IMPACT 1019
-#define LS_DQ_MINUS 1024
-#define LS_DQ_PLUS 1029
-#define LS_IMPULSE 1034
-#define LS_TV 1036
-#define LS_ENERGY_BEFORE 1038
-#define LS_ENERGY_AFTER 1039
-#define LS_KINEMATICS 1040
-#define LS_FEET_AFTER 1048
+#define LS_MAX_SPEED 112
+#define LS_GROUND_TOL 113
+#define LS_FORCE_TOL 114
+#define LS_ARM_HEIGHT 115
+#define LS_HAS_MU 116
+#define LS_STOP_ON_SLIP 117
+#define LS_PROJECT 118
+#define LS_CHECK_INVARIANTS 119
+#define LS_IMPACT_PHASE 120
+#define LS_FRONT_RULE 121
+#define LS_COMPUTE_GRF 122
+#define LS_ZENO_INTERVAL 123
+#define LS_IMPULSE_TOL 124
+#define LS_CONTACT_TOL 125
+#define LS_MAX_EVENTS 126
+#define LS_STANCE_LEG 127
+#define LS_PIN 128
+#define LS_U_HOLD 130
+#define LS_T_NEXT 132
+#define LS_REFUSED_U 133
+#define LS_N_RECORDS 135
+#define LS_T 136
+#define LS_T_BOUND 137
+#define LS_H_ABS 138
+#define LS_T_OLD 139
+#define LS_H 140
+#define LS_Y 141
+#define LS_F 152
+#define LS_Y_OLD 163
+#define LS_STAGES 174
+#define LS_NFEV 317
+#define LS_NREJECTED 318
+#define LS_NACCEPTED 319
+#define LS_DENSE_READY 320
+#define LS_DENSE 321
+#define LS_FAIL_KIND 409
+#define LS_FAIL_VALUE 410
+#define LS_FAIL_T 411
+#define LS_CALLBACK_FAILED 412
+#define LS_GUARD_LEG 413
+#define LS_SCUFF_TRIAL 414
+#define LS_DEEPEST_TRIAL 417
+#define LS_FEET 418
+#define LS_E0 426
+#define LS_PUSH_WORK 427
+#define LS_ENERGY_LOST 428
+#define LS_SIM_T 429
+#define LS_SIM_WORK 430
+#define LS_SIM_H 431
+#define LS_SIM_U 432
+#define LS_SIM_Q 434
+#define LS_SIM_DQ 439
+#define LS_SIM_STATE_UNMADE 444
+#define LS_MODE_BEGUN 445
+#define LS_CONTROL_PERIODS 446
+#define LS_RUNNING 447
+#define LS_INITIAL_SAMPLE_PENDING 448
+#define LS_N_SAMPLES 449
+#define LS_APPENDED 450
+#define LS_PROVISIONAL 451
+#define LS_EVERY 452
+#define LS_LAST_ONLY 453
+#define LS_LAST_IMPACT 454
+#define LS_N_IMPACTS 455
+#define LS_RECENT_IMPACTS 456
+#define LS_N_RECENT 460
+#define LS_MODE_EVENTS 461
+#define LS_RING 462
+#define LS_N_LATCHED 511
+#define LS_ARMED 512
+#define LS_SCUFFING 514
+#define LS_SCUFF 516
+#define LS_DEEPEST_SCUFF 522
+#define LS_SCUFFS 523
+#define LS_FEET_END_T 524
+#define LS_FEET_END 525
+#define LS_FORCE_END_T 533
+#define LS_FORCE_END 534
+#define LS_OUT 536
+#define LS_RESULT 702
+#define LS_COEF 704
+#define LS_QS 728
+#define LS_PS 733
+#define LS_STACK 737
+#define LS_K_IMPACT 1057
+#define LS_K_ENERGY 1089
+#define LS_K_FEET 1121
+#define LS_Q_IMPACT 1153
+#define LS_DQ_MINUS 1158
+#define LS_DQ_PLUS 1163
+#define LS_IMPULSE 1168
+#define LS_TV 1170
+#define LS_ENERGY_BEFORE 1172
+#define LS_ENERGY_AFTER 1173
+#define LS_KINEMATICS 1174
+#define LS_FEET_AFTER 1182
 #define IMPACT_OLD_FOOT_SINKS 1
 #define IMPACT_PULLS 2
 #define IMPACT_OUTSIDE_CONE 4
 #define STANCE_HOLDS 0
 #define STANCE_LIFTS_OFF 1
 #define STANCE_SLIPS 2
+
+/* Outcome, Record and Reason (loop_state.py) */
+#define OUTCOME_DONE 0
+#define OUTCOME_EVENT 1
+#define OUTCOME_NEED_ROOM 2
+#define OUTCOME_FAILED 3
+#define OUTCOME_RAISED 4
+#define OUTCOME_TORQUE_CHANGE 5
+#define OUTCOME_DECLINED 6
+#define OUTCOME_PYTHON_STEPS 7
+#define RECORD_SCUFF_ENDED 1
+#define RECORD_TOUCHDOWN 2
+#define WHY_DIVERGING 1
+#define WHY_CROSSING_IN_PYTHON 2
+#define WHY_TOUCHDOWN_WHILE_SCUFFING 3
+#define WHY_LIFTOFF 4
+#define WHY_SLIP 5
+#define WHY_FOOT_PUSHED_IN 6
+#define WHY_SCUFF_LEAVES_MODEL 7
+#define WHY_NON_FINITE 8
+#define WHY_FOOT_BELOW_GROUND 9
+#define WHY_GROUND_PULLS 10
+#define WHY_OUTSIDE_CONE 11
+#define WHY_LAW_FAILED 12
+#define WHY_CALLED_BACK_LAW 13
+#define WHY_IMPACTS_CLOSE 14
+#define WHY_MAX_EVENTS 15
+#define WHY_EVENT_LOOP 16
+#define WHY_OLD_FOOT_SINKS 18
+#define WHY_IMPULSE_CHECK 19
+#define WHY_OLD_FOOT_STAYS 20
+#define WHY_STANCE_REFUSED 21
+#define WHY_ACCUMULATING 22
 
 /* the right-hand side f(ctx, t, y) -> dy the generated steps take, and a guard's value at t: the
  * functions the rules take as arguments */
@@ -98,6 +187,27 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double forward_rule;  /* 1 under scuff_rule forward, 0 under behind */ \
     double k_pos[32];  /* the constants of the closed form foot_positions (BipedModel.k; room for any) */ \
     double to_power_basis[8][8];  /* dop853's dense row to its power-basis coefficients (integrators) */ \
+    double max_speed;  /* a rate beyond this is a diverging state (Options.max_speed) */ \
+    double ground_tol;  /* how far a free foot may be under the ground (m) */ \
+    double force_tol;  /* how far the ground may pull or the force leave the cone (N) */ \
+    double arm_height;  /* a foot's touchdown counts once it has been higher than this (m) */ \
+    double has_mu;  /* 1 with a friction coefficient (the slip witness is a row) */ \
+    double stop_on_slip;  /* 1: a slip stops the run (Options.stop_on_slip) */ \
+    double project;  /* 1: the state is projected onto the pin after each step (project_constraints) */ \
+    double check_invariants;  /* 1: the invariants are checked after each step and impact */ \
+    double impact_phase;  /* 1 when the scene has impacts ("impact" in phases) */ \
+    double front_rule;  /* 1 under touchdown_rule front */ \
+    double compute_grf;  /* 1: the event's sample has its ground force */ \
+    double zeno_interval;  /* impacts closer than this may accumulate (s) */ \
+    double impulse_tol;  /* how far an impact's impulse may pull (N s) */ \
+    double contact_tol;  /* an old stance foot slower than this after an impact stays down (m/s) */ \
+    double max_events;  /* the run stops after this many mode events */ \
+    double stance_leg;  /* the stance foot: 1 or 2 */ \
+    double pin[2];  /* where the stance foot is pinned (m) */ \
+    double u_hold[2];  /* the torque held while the torque law is held (N m) */ \
+    double t_next;  /* period(), periods(): the end of the control period under way (s) */ \
+    double refused_u[2];  /* periods() ending TORQUE_CHANGE: the command refused at its period's start (N m) */ \
+    double n_records;  /* the touchdowns and ended scuffs applied in C whose Events the Python code takes (Loop.take_events) */ \
     double t;  /* time (s) at the end of the last step */ \
     double t_bound;  /* the end of the interval the stepper runs to (s) */ \
     double h_abs;  /* the step size the next step tries (s) */ \
@@ -120,6 +230,41 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double scuff_trial[3];  /* a scuff followed over a step: t_start, deepest, t_deepest (ev_track_scuff) */ \
     double deepest_trial;  /* the deepest of any scuff so far, with this step's (ev_track_scuff) */ \
     double feet[2][4];  /* the feet on the dense output: x, height across the slope, and their rates, a row a foot */ \
+    double e0;  /* the energy at the run's start (J) */ \
+    double push_work;  /* the kinetic energy pushes added (J) */ \
+    double energy_lost;  /* the energy the impacts took out (J) */ \
+    double sim_t;  /* the simulator's time: its last accepted state's (s) */ \
+    double sim_work;  /* the hip motors' work up to sim_t (J) */ \
+    double sim_h;  /* the step size the next stepper starts with (NaN: none yet, the initial one is computed) */ \
+    double sim_u[2];  /* the torque held now (N m) */ \
+    double sim_q[5];  /* q at sim_t, where a quiet period left it (sim_state_unmade) */ \
+    double sim_dq[5];  /* dq at sim_t, alike */ \
+    double sim_state_unmade;  /* 1 when sim_q and sim_dq are the simulator's state and its arrays not yet made */ \
+    double mode_begun;  /* 1 while the compiled loop's mode was begun (Loop.begin) at the simulator's state: a write of the simulator's time, q or dq by the Python code, or its reset to flight, clears it, and the next period begins the mode again */ \
+    double control_periods;  /* the control periods begun so far */ \
+    double running;  /* 1 while the run's status is running */ \
+    double initial_sample_pending;  /* 1 until the first advance redoes the t0 sample under its torque */ \
+    double n_samples;  /* the Samples' rows in use */ \
+    double appended;  /* the samples appended so far */ \
+    double provisional;  /* 1 when the newest sample is overwritten by the next (ev_provisional) */ \
+    double every;  /* keep every this many samples (0: only the events' and the last) */ \
+    double last_only;  /* 1 when the Samples keep the last sample only (one row) */ \
+    double last_impact;  /* the last impact's time (s): ImpactHistory, a touchdown the loop applies */ \
+    double n_impacts;  /* the impacts so far */ \
+    double recent_impacts[4];  /* the last (up to) 4 impact times, oldest first */ \
+    double n_recent;  /* how many of recent_impacts are in use */ \
+    double mode_events;  /* the events that changed the mode so far (max_events counts them) */ \
+    double ring[49];  /* the times of the last 49 of them, event i at i % 49 (50 within 1e-9 s: an event loop) */ \
+    double n_latched;  /* the guards the locator holds latched (off until positive again: only Python follows) */ \
+    double armed[2];  /* 1 for a foot whose touchdown counts (it has been higher than arm_height): EventLocator */ \
+    double scuffing[2];  /* 1 for a foot in a scuff (under the ground, passing through it) */ \
+    double scuff[2][3];  /* a foot's scuff: t_start, deepest, t_deepest */ \
+    double deepest_scuff;  /* the deepest dip of any scuff so far (m) */ \
+    double scuffs;  /* the scuffs so far (crossings behind the stance foot that did not touch down) */ \
+    double feet_end_t;  /* the time of feet_end (NaN: none kept): the last step's end, the next one's start */ \
+    double feet_end[2][4];  /* the feet there (x, height, and their rates, a row a foot) */ \
+    double force_end_t;  /* the time of force_end (NaN: none kept) */ \
+    double force_end[2];  /* the stance force there (N) */ \
     double out[166];  /* a trial step: y_new, f_new, err, stages; between steps the dense state (dense_state) */ \
     double result[2];  /* a located root, or a dip's bracket */ \
     double coef[8][3];  /* the dip search's |power-basis coefficients|: swing leg angle, hip x, hip y (fixed base: swing leg angle, stance leg angle) */ \

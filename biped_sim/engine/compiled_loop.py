@@ -1,6 +1,6 @@
 """The compiled hybrid loop (``_core.c``) as the hybrid simulator steps with it.
 
-Owns one choice and one hand-over. The choice: a mode runs on the compiled loop when it is
+Owns the choice of loop and the compiled stepper. The choice: a mode runs on the compiled loop when it is
 floating-base stance, stepped by dop853 or dopri5, with no ``on_step`` observer, every witness of the
 model one that the loop decides (``witnesses.all_compiled``), and the extension was built from the current
 generated kernels; its torque is held, a compiled law that the controller
@@ -9,14 +9,15 @@ or any other Python controller, called back. Else, and always with
 ``BIPED_SIM_PURE_PYTHON=1``, the Python loop of ``hybrid.py`` runs, the readable reference. Both give
 the same run (test/unit/test_compiled_loop.py).
 
-The hand-over: :class:`CompiledStepper` is the mode's stepper (the interface of
-``integrators._ListRungeKutta``). ``run`` (and ``held_period``, ``periods``: a control period, many
-control periods) lets the C loop take and accept the steps it can decide, writing their samples
-straight into the run's ``Samples`` array; the touchdowns it applied and the scuffs that ended are
-kept in the loop and taken when a run returns, for the Python code to make their Events; a step in
-which anything else may happen comes back taken and not accepted ("pending"), with the locator's
-view of its start, and ``hybrid.HybridSimulator._integrate`` handles it with the Python code, as any
-step.
+The stepper: :class:`CompiledStepper` is the mode's stepper (the interface of
+``integrators._ListRungeKutta``), its fields views of the simulator's state (``loop_state.py``: the
+simulator owns it, the C ``Loop``'s memory, :func:`run_state`), which the loop reads and writes in place:
+nothing is handed over. ``run`` (and ``held_period``, ``periods``: a control period, many control periods)
+lets the C loop take and accept the steps it can decide, writing their samples straight into the run's
+``Samples`` array, and returns a :class:`~biped_sim.engine.loop_state.Outcome`; the touchdowns it applied and
+the scuffs that ended are kept in the loop and taken when a run returns, for the simulator to make their
+Events (``HybridSimulator._loop_records``); a step in which anything else may happen comes back taken and
+not accepted (EVENT), and ``hybrid.HybridSimulator._integrate`` handles it with the Python code, as any step.
 """
 from __future__ import annotations
 
@@ -24,15 +25,35 @@ import numpy as np
 
 from biped_sim.engine import integrators
 from biped_sim.engine.compiled import _compiled_twin
-from biped_sim.engine.guards import FootState
-from biped_sim.engine.locator import scuff_event
+from biped_sim.engine.loop_state import (
+    FAIL_KIND,
+    FAIL_T,
+    FAIL_VALUE,
+    H_ABS,
+    MAX_STEP,
+    MODE_BEGUN,
+    N_RECORDS,
+    NACCEPTED,
+    NFEV,
+    NMAX,
+    NREJECTED,
+    REFUSED_U,
+    T_BOUND,
+    T_NEXT,
+    T_OLD,
+    Y_OLD,
+    F,
+    H,
+    Outcome,
+    T,
+    Y,
+    new_state,
+    put,
+    write,
+)
 from biped_sim.engine.modes import checked_torques, controller_failure
-from biped_sim.engine.results import ControllerError, Event
+from biped_sim.engine.results import ControllerError
 from biped_sim.engine.witnesses import all_compiled
-
-DONE, PENDING, GROW, FAILED, PYTHON_STEPS, SCUFF_ENDED, RAISED, TOUCHDOWN, TORQUE_CHANGE = range(9)
-# (SCUFF_ENDED and TOUCHDOWN: the kinds of take_events' records; TORQUE_CHANGE: periods() stopped before a
-# period whose command the stance guards refuse at its start, for the Python code to run)
 
 
 def _compiled_core():
@@ -111,88 +132,100 @@ def _new_loop(model):
     return loop
 
 
+def run_state(model):
+    """(S, loop): the state a simulator owns for its life (``loop_state.py``'s fields) and the C ``Loop`` made
+    over it: with the compiled loop built, the Loop's own memory as a memoryview of doubles (the simulator, its
+    Samples and its locator read and write what the loop reads and writes); else a list of floats and None."""
+    if _core is None:
+        return new_state(), None
+    loop = _new_loop(model)
+    return memoryview(loop).cast("d"), loop
+
+
 def _python_only(locator):
     """Whether the locator holds what only the Python code follows: a latched guard, or two scuffs."""
     return bool(locator.latched) or len(locator.active_scuffs) > 1
 
 
-def _step_failure(fail):
-    kind, value, t = fail
+def _step_failure(S):
+    """The StepFailure of a step that failed (the state's fail_kind, fail_value, fail_t)."""
+    kind, value, t = S[FAIL_KIND], S[FAIL_VALUE], S[FAIL_T]
     if kind == 1:
         return integrators.StepFailure(integrators.step_size_message(value, t))
     return integrators.StepFailure(integrators.non_finite_message(value))
 
 
 class CompiledStepper(integrators._Stepper):
-    """The stepper of a mode the compiled loop runs: its state lives in the C ``Loop``; the fields the
-    Python code reads (``t``, ``y``, ``t_old``, ``y_old``, ``h``, ``h_abs``) are copied out only when a
-    step is handed back (``_sync``). The locator's armed feet and scuff live in C while it runs, and
-    are exchanged when either side changed them (``loop.locator_stale``, ``locator_changed``)."""
+    """The stepper of a mode the compiled loop runs (the interface of ``integrators._ListRungeKutta``): its
+    fields (``t``, ``y``, ``t_old``, ``y_old``, ``f``, ``h``, ``h_abs``, ``t_bound``, the counters) are views of
+    the simulator's state, which the C ``Loop`` steps in place; so are the locator's armed feet, its scuffs and
+    the step end's feet and force."""
     takes_lists = True
+
+    def _view(at, size=None, doc=""):
+        """A stepper field that is the state's field at offset ``at``: a float, or a list of ``size`` floats."""
+        if size is None:
+            return property(lambda self: self.S[at], lambda self, v: self.S.__setitem__(at, v), doc=doc)
+        return property(lambda self: list(self.S[at:at + size]), lambda self, v: put(self.S, at, v), doc=doc)
+
+    t = _view(T, doc="time at the end of the last step (s)")
+    t_old = _view(T_OLD, doc="time at its start (s)")
+    t_bound = _view(T_BOUND, doc="the end of the interval the mode runs to (s)")
+    h = _view(H, doc="the last step's size (s)")
+    h_abs = _view(H_ABS, doc="the step size the next step tries (s)")
+    y = _view(Y, NMAX, doc="the state at t: q, dq, the motors' work")
+    y_old = _view(Y_OLD, NMAX, doc="the state at t_old")
+    f = _view(F, NMAX, doc="the right-hand side at (t, y)")
+    del _view
 
     def __init__(self, sim):
         self.sim = sim
-        self.loop = _new_loop(sim.model)
-        opt = sim.opt
-        self.loop.set_options(sim.rtol, sim.atol, float(opt.max_step), opt.max_speed, opt.ground_tol, opt.force_tol,
-                              opt.graze_tol, opt.arm_height, sim.mu, opt.stop_on_slip, opt.project_constraints,
-                              opt.check_invariants, "impact" in opt.phases, opt.slope,
-                              integrators._DOP853Interpolant.TO_POWER_BASIS.ravel().tolist(), opt.front_tol,
-                              opt.scuff_depth, opt.event_tol, opt.touchdown_rule == "front",
-                              opt.scuff_rule == "forward")
-        self.loop.set_events(opt.compute_grf, opt.zeno_interval, opt.impulse_tol, opt.contact_tol,
-                             opt.max_events)
+        self.loop, self.S = sim._loop, sim.S
+        opt, ground = sim.opt, sim.ground
+        write(self.S, rtol=sim.rtol, atol=sim.atol, max_step=opt.max_step, max_speed=opt.max_speed,
+              ground_tol=opt.ground_tol, force_tol=opt.force_tol, graze_tol=opt.graze_tol, arm_height=opt.arm_height,
+              has_mu=sim.mu is not None, mu=0.0 if sim.mu is None else sim.mu, stop_on_slip=opt.stop_on_slip,
+              project=opt.project_constraints, check_invariants=opt.check_invariants,
+              impact_phase="impact" in opt.phases, sin_s=ground.sin, cos_s=ground.cos, tan_s=ground.tan,
+              to_power_basis=integrators._DOP853Interpolant.TO_POWER_BASIS.ravel().tolist(), front_tol=opt.front_tol,
+              scuff_depth=opt.scuff_depth, event_tol=opt.event_tol, front_rule=opt.touchdown_rule == "front",
+              forward_rule=opt.scuff_rule == "forward", compute_grf=opt.compute_grf, zeno_interval=opt.zeno_interval,
+              impulse_tol=opt.impulse_tol, contact_tol=opt.contact_tol, max_events=opt.max_events)
         self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
         self.method, self.method_code = sim.method, METHOD_CODES[sim.method]
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
-        self.python_changed()           # the loop holds nothing of the simulator yet
-        self.template = np.zeros(5)     # (the arrays period() makes, q and dq, are copies of it)
 
     @property
     def nfev(self):
-        return self.loop.counts()[0]
+        return int(self.S[NFEV])
 
     @property
     def nrejected(self):
-        return self.loop.counts()[1]
+        return int(self.S[NREJECTED])
+
+    def _carry_step(self, h):
+        """The step size a new stepper starts with: ``h`` capped by max_step (``_ListRungeKutta.restart``)."""
+        S = self.S
+        S[H_ABS] = S[MAX_STEP] if S[MAX_STEP] < h else h
 
     def start(self, t_bound, law, reset_counters):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
         torque law, f at the start, the carried-over step size (or the initial one)."""
-        sim = self.sim
-        self.loop.begin(self.method_code, sim.stance_leg, sim.pin[0], sim.pin[1], _hook_argument(law), sim._u[0],
-                        sim._u[1], sim.t, sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound, sim._h,
-                        reset_counters)
-        self.t_bound = t_bound
-        self.loop.state_stale = False
+        sim, S = self.sim, self.S
+        write(S, method=self.method_code, stance_leg=sim.stance_leg, pin=sim.pin, u_hold=sim._u, t=sim.t,
+              y=sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound=t_bound)
+        if sim._h is not None:
+            self._carry_step(sim._h)
+        if reset_counters:
+            S[NFEV] = S[NREJECTED] = S[NACCEPTED] = 0.0
+        self.loop.begin(_hook_argument(law))
+        self._dense = None
         if sim._h is None:
-            self._sync()
             h0 = integrators.initial_step(self.loop.rhs, self.t, self.y, self.f, t_bound, self.rtol, self.atol,
                                           self.ERROR_ORDER)
-            nfev, nrejected = self.loop.counts()
-            self.loop.set_counters(nfev + 1, nrejected, 0)
-            self.loop.set_h_abs(h0)
-
-    def _sync(self):
-        self.t, self.t_old, self.h, self.h_abs, self.y, self.y_old, self.f, _, _, _ = self.loop.state()
-        self._dense = None
-
-    def _push_locator(self):
-        sim = self.sim
-        locator = sim.locator
-        (t_feet, ft), (t_force, F) = locator._feet_end, locator._force_end
-        same = t_feet is not None and t_feet == t_force
-        (leg, scuff), = locator.active_scuffs.items() or ((0, [0.0, 0.0, 0.0]),)
-        self.loop.set_locator(locator.armed[0], locator.armed[1], t_feet if same else None,
-                              [v for foot in ft for v in foot] if same else None, F if same else None, leg, scuff,
-                              locator.deepest_scuff, locator.scuffs)
-        self.loop.set_history(sim.impacts.times[-4:], len(sim._mode_event_times),
-                              sim._mode_event_times[-49:])
-        self.loop.locator_stale = False
-
-    def _pull_locator(self):
-        """The armed feet and the scuff as the loop left them, into the Python locator."""
-        self.loop.pull_locator(self.sim.locator)
+            S[NFEV] += 1
+            S[NACCEPTED] = 0.0
+            self._carry_step(h0)
 
     def merge_stats(self, stats):
         """Add the loop's statistics since the last merge into the simulator's."""
@@ -208,39 +241,40 @@ class CompiledStepper(integrators._Stepper):
     def step(self):
         """One step taken in C and handled by the Python code (the simulator's view of its end's
         evaluation set, as the right-hand side's sink does)."""
-        fail = self.loop.step()
-        self._sync()
-        if fail is not None:
-            raise _step_failure(fail)
-        _, _, self.sim._last_u, self.sim._last_F, _, _ = self.loop.handed()
+        outcome = self.loop.step()
+        self._dense = None     # (the last step's dense output: made when asked)
+        if outcome == Outcome.RAISED:
+            self.loop.raise_error()
+        if outcome == Outcome.FAILED:
+            raise _step_failure(self.S)
+        self.sim._last_u, self.sim._last_F, _ = self.loop.handed()
 
     def run(self, t_end):
-        """The quiet steps to ``t_end`` in C. DONE (at t_end: the simulator's state is the last sample's),
-        PENDING (a step taken, not accepted: the Python code handles it), or PYTHON_STEPS (the locator
-        holds a latched guard or two scuffs, which only the Python code follows: step in Python)."""
+        """The quiet steps to ``t_end`` in C: an :class:`~biped_sim.engine.loop_state.Outcome`, DONE (at t_end:
+        the simulator's state is the last sample's), EVENT (a step taken, not accepted: the Python code handles
+        it), or PYTHON_STEPS (the locator holds a latched guard or two scuffs, which only the Python code
+        follows: step in Python)."""
         sim = self.sim
         if _python_only(sim.locator):
-            return PYTHON_STEPS
-        if self.loop.locator_stale:
-            self._push_locator()
-        while True:      # GROW: _make_room makes it, _after_run takes the events
+            return Outcome.PYTHON_STEPS
+        while True:      # NEED_ROOM: _make_room makes it, _after_run takes the events
             _make_room(sim._samples)
-            outcome = self._after_run(*self.loop.run(t_end, sim))
-            if outcome != GROW:
+            outcome = self._after_run(self.loop.run(t_end, sim._samples._data))
+            if outcome != Outcome.NEED_ROOM:
                 return outcome
 
     def command(self, controller):
         """The control period's command of a compiled law at the simulator's state, computed in C (the
         law's own torques bit for bit), or None where the Python controller must be called."""
         law = reference_law(controller, self.sim.model)
-        if law is None or self.loop.state_stale or self.sim._stepper is not self:
+        if law is None or not self.S[MODE_BEGUN] or self.sim._stepper is not self:
             return None
         return self.loop.law_torque(_hook_argument(law))
 
     def can_run_periods(self):
         """Whether ``periods`` can run now: the simulator's state is the loop's, and the locator holds
         nothing only the Python code follows."""
-        return not self.loop.state_stale and not _python_only(self.sim.locator)
+        return bool(self.S[MODE_BEGUN]) and not _python_only(self.sim.locator)
 
     def periods(self, period, law, t_final, t_stop):
         """Control periods held, as ``advance_period`` would run them, each command computed at its period's
@@ -252,74 +286,47 @@ class CompiledStepper(integrators._Stepper):
         begun: ``advance_period`` runs it with that command), else the outcome of the step handed back in the
         period ending at ``t_next`` (``can_run_periods`` first)."""
         sim = self.sim
-        if self.loop.locator_stale:
-            self._push_locator()
         _make_room(sim._samples)
-        result, sim.control_periods, t_next, u, refused = self.loop.periods(
-            law if callable(law) else _hook_argument(law), period, sim.control_periods, t_final, t_stop, sim)
-        sim._u = list(u)
-        outcome = self._after_run(*result)
-        if outcome == GROW:      # the period in progress goes on in run(), which makes room
+        outcome = self._after_run(self.loop.periods(law if callable(law) else _hook_argument(law), period, t_final,
+                                                    t_stop, sim._samples._data))
+        S = self.S
+        t_next = S[T_NEXT]
+        if outcome == Outcome.NEED_ROOM:      # the period in progress goes on in run(), which makes room
             return self.run(t_next), t_next, None
-        return outcome, t_next, refused
+        return outcome, t_next, [S[REFUSED_U], S[REFUSED_U + 1]] if outcome == Outcome.TORQUE_CHANGE else None
 
     def held_period(self, t_end):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""
         sim = self.sim
-        if self.loop.state_stale or self.loop.locator_stale or _python_only(sim.locator):
+        if not self.S[MODE_BEGUN] or _python_only(sim.locator):
             return None
-        # (no room made first: a full array comes back GROW before a step, and run() goes on)
-        return self.finish_held(self.loop.held(sim._u[0], sim._u[1], sim._h, t_end, sim), t_end)
+        # (no room made first: a full array comes back NEED_ROOM before a step, and run() goes on)
+        return self.finish_held(self.loop.held(t_end, sim._samples._data), t_end)
 
-    def finish_held(self, result, t_end):
-        """The outcome of a held period's run (``held``, ``period``) that came back with ``result``."""
-        outcome = self._after_run(*result)
-        return self.run(t_end) if outcome == GROW else outcome
+    def finish_held(self, outcome, t_end):
+        """The outcome of a held period's run (``held``, ``period``) that came back with ``outcome``."""
+        outcome = self._after_run(outcome)
+        return self.run(t_end) if outcome == Outcome.NEED_ROOM else outcome
 
-    def python_changed(self):
-        """The Python code changed the simulator's state or its locator (an event, a push, a step it
-        handles): the loop takes both again before it runs."""
-        self.loop.state_stale = self.loop.locator_stale = True
-
-    def _after_run(self, outcome, accepted, t, w, h_abs, changed, n_events, fail):
-        """A run's result (its samples are written and Samples' counters set): the simulator's state, the
-        Events of what the loop applied, then the outcome's own handling."""
+    def _after_run(self, outcome):
+        """A run's outcome (its samples are written, the Samples' counters and the simulator's time, work, step
+        size and state set in the state): the Events of what the loop applied, then the outcome's own
+        handling."""
         sim = self.sim
-        s, loc = sim._samples, sim.locator
-        if changed:
-            self._pull_locator()
-        for record in self.loop.take_events() if n_events else ():    # applied in C: their Events, in order
-            if record[0] == TOUCHDOWN:
-                _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, sim.energy_lost, pin = record
-                sim.stance_leg, sim.pin = new, list(pin)
-                sim._stats["impacts"] += 1
-                sim._add_event(Event(t_ev, "touchdown", new, np.array(q), np.array(dq_minus), np.array(dq_plus),
-                                     np.array(impulse), old, new, loss, []))
-                sim.impacts.record(t_ev)   # no Zeno stop: the loop hands back an impact that could make one
-            else:
-                _, leg, stance_leg, scuff, t_up, q, dq = record
-                sim._add_event(scuff_event(leg, stance_leg, scuff, t_up, q, dq, sim.opt.scuff_depth,
-                                           sim.opt.scuff_rule))
-        if accepted:
-            qdq = s._data[s.n - 1, 1:11].copy()
-            sim.t, sim.work, sim._h = t, w, h_abs
-            sim.q, sim.dq = qdq[:5], qdq[5:]
-        if outcome == RAISED:     # the Python controller raised: after the steps accepted before it
+        if self.S[N_RECORDS]:
+            sim._loop_records(self.loop.take_events())
+        if outcome == Outcome.RAISED:     # the torque law failed: after the steps accepted before it
             self.loop.raise_error()
-        if outcome == FAILED:
-            raise _step_failure(fail)
-        if outcome == PENDING:
-            self.python_changed()
-            self._sync()
-            start_feet, start_F, sim._last_u, sim._last_F, _, _ = self.loop.handed()
-            loc._feet_end = (self.t_old, (FootState(*start_feet[:4]), FootState(*start_feet[4:])))
-            loc._force_end = (self.t_old, start_F)
+        if outcome == Outcome.FAILED:
+            raise _step_failure(self.S)
+        if outcome == Outcome.EVENT:
+            self._dense = None     # (the last step's dense output: made when asked)
+            sim._last_u, sim._last_F, _ = self.loop.handed()     # (its start's feet and force: the state's)
         return outcome
 
     def replace_y(self, y):
-        self.loop.replace_y(y)
-        self.y = list(y)
+        self.y = y
 
     def dense_output(self):
         if self._dense is None:
@@ -351,6 +358,7 @@ def compiled_torque(controller, stance_leg, q, dq, model):
     if _core is None or law is None:
         return None
     loop = _new_loop(model)
-    loop.begin(METHOD_CODES["dop853"], stance_leg, 0.0, 0.0, None, 0.0, 0.0, 0.0, list(q) + list(dq) + [0.0], 0.0,
-               None, True)
+    write(memoryview(loop).cast("d"), method=METHOD_CODES["dop853"], stance_leg=stance_leg,
+          y=list(q) + list(dq) + [0.0])
+    loop.begin(None)
     return np.array(loop.law_torque(_hook_argument(law)))

@@ -33,8 +33,31 @@ from biped_sim.engine.controller_check import check_controller
 from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
 from biped_sim.engine.integrators import StepFailure, make_stepper, prepare as prepare_stepper
 from biped_sim.engine.invariants import ImpactHistory, check_impact, check_sample
-from biped_sim.engine.locator import EventLocator
-from biped_sim.engine.loop_state import STANCE_HOLDS, STANCE_LIFTS_OFF
+from biped_sim.engine.locator import EventLocator, scuff_event
+from biped_sim.engine.loop_state import (
+    CONTROL_PERIODS,
+    E0,
+    ENERGY_LOST,
+    INITIAL_SAMPLE_PENDING,
+    MODE_BEGUN,
+    MODE_EVENTS,
+    N_RECORDS,
+    PUSH_WORK,
+    RING,
+    RUNNING,
+    SIM_DQ,
+    SIM_H,
+    SIM_Q,
+    SIM_STATE_UNMADE,
+    SIM_T,
+    SIM_U,
+    SIM_WORK,
+    STANCE_HOLDS,
+    STANCE_LIFTS_OFF,
+    T_NEXT,
+    Outcome,
+    Record,
+)
 from biped_sim.engine.model import BipedModel, as_state_vector, short_repr
 from biped_sim.engine.modes import (
     bind_controller,
@@ -109,6 +132,9 @@ class HybridSimulator:
     def __init__(self, model: BipedModel, q0, dq0, stance_leg=1, rtol=1e-9, atol=1e-9,
                  method="dop853", mu=None, t0=0.0, on_step=None, **options):
         self.model = model
+        # the hybrid state, the simulator's for its life: the fields below that the compiled loop reads and
+        # writes are properties over it (loop_state.py: sim_t, e0, control_periods, ...)
+        self.S, self._loop = compiled_loop.run_state(model)
         self.opt = Options(**options)
         self.opt.check()
         stance_leg = check_run_arguments(self.opt, method, rtol, atol, mu, stance_leg)
@@ -132,10 +158,11 @@ class HybridSimulator:
         self.push_work = 0.0                # kinetic energy added by pushes (J)
         self.E0 = model.energy(q0, dq0)
         self.events: list[Event] = []
-        self.impacts = ImpactHistory(self.opt.zeno_count, self.opt.zeno_interval)
-        self.locator = EventLocator(model, self.ground, self.opt, mu, feet, stance_leg, self.impacts)
+        self.impacts = ImpactHistory(self.opt.zeno_count, self.opt.zeno_interval, self.S)
+        self.locator = EventLocator(model, self.ground, self.opt, mu, feet, stance_leg, self.impacts, self.S)
         self.pin = list(G.foot_xy(model, q0.tolist(), stance_leg)) if stance_leg else None
-        self.status, self.message = "running", ""
+        self.status, self.message = "running", ""    # (_stop changes it, and the state's running flag)
+        self.S[RUNNING] = 1.0
         self.controller_error = None        # what ended the run in the controller (SimulationResult's)
         self._signatures_checked = {}       # id -> the controllers whose signature was checked (held: no id reused)
         self.control_periods = 0            # advance_period calls so far
@@ -146,15 +173,14 @@ class HybridSimulator:
         self._stepper = None
         self._compiled = None               # the compiled loop's stepper, built at its first mode
         self._last_F, self._last_u = [0.0, 0.0], [0.0, 0.0]   # the last right-hand-side evaluation's
-        self._initial_sample_pending = True    # the t0 sample, redone under the first advance's torque
+        self._initial_sample_pending = True
         self._periods_outcome = None        # how the compiled loop's last periods() ended
-        self._mode_event_times: list[float] = []   # the events that changed the mode (not the scuffs)
         self._stats = dict(steps=0, compiled_loop_steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
                           max_constraint_drift_position=0.0, max_constraint_drift_velocity=0.0,
                           max_energy_balance_residual=0.0, pushes=0, scuffs_ignored=0, deepest_scuff=0.0, wall_time=0.0)
         self._nfev_base = 0
         self._rejected_base = 0
-        self._samples = Samples(keep=self.opt.keep_samples)
+        self._samples = Samples(keep=self.opt.keep_samples, S=self.S)
         self._record(self.q, self.dq, self.stance_leg, self._force_at(self.t, self.q.tolist(), self.dq.tolist()),
                      self.u)
 
@@ -177,40 +203,134 @@ class HybridSimulator:
     def q(self):
         """The coordinates now, ``[x, y, q1, q2, q3]`` (physical, leg 1 stays leg 1): a new array each time
         the state changes."""
-        if self._q is None:
+        if self.S[SIM_STATE_UNMADE]:
             self._state_from_loop()
         return self._q
 
     @q.setter
     def q(self, value):
+        S = self.S
+        if S[SIM_STATE_UNMADE]:
+            self._state_from_loop()
         self._q = value
+        S[MODE_BEGUN] = 0.0     # (the compiled loop begins its mode again from it)
 
     @property
     def dq(self):
         """The rates now (as ``q``)."""
-        if self._dq is None:
+        if self.S[SIM_STATE_UNMADE]:
             self._state_from_loop()
         return self._dq
 
     @dq.setter
     def dq(self, value):
+        S = self.S
+        if S[SIM_STATE_UNMADE]:
+            self._state_from_loop()
         self._dq = value
+        S[MODE_BEGUN] = 0.0
 
     def state_lists(self):
         """``(q.tolist(), dq.tolist())``, what a message takes, without making the arrays where a quiet
         period left them unmade (the node publishes the state every period)."""
-        if self._q is None and self._dq is None:
-            return self._compiled.loop.state_lists()
-        return self.q.tolist(), self.dq.tolist()
+        S = self.S
+        if S[SIM_STATE_UNMADE]:
+            return list(S[SIM_Q:SIM_Q + 5]), list(S[SIM_DQ:SIM_DQ + 5])
+        return self._q.tolist(), self._dq.tolist()
 
     def _state_from_loop(self):
-        # a quiet period run by the compiled loop (Loop.period) leaves q and dq (None) to be made when read:
-        # the node's engine period makes no arrays nobody reads
-        q, dq = self._compiled.loop.state_arrays(self._compiled.template)
-        if self._q is None:
-            self._q = q
-        if self._dq is None:
-            self._dq = dq
+        # a run of the compiled loop leaves q and dq in the state (sim_q, sim_dq) to be made when read: the
+        # node's engine period makes no arrays nobody reads
+        S = self.S
+        self._q, self._dq = np.array(S[SIM_Q:SIM_Q + 5]), np.array(S[SIM_DQ:SIM_DQ + 5])
+        S[SIM_STATE_UNMADE] = 0.0
+
+    # -- the fields of the state (loop_state.py) the compiled loop reads and writes
+    @property
+    def t(self):
+        """The time now (s): the last accepted state's."""
+        return self.S[SIM_T]
+
+    @t.setter
+    def t(self, value):
+        S = self.S
+        S[SIM_T] = value
+        S[MODE_BEGUN] = 0.0
+
+    @property
+    def work(self):
+        """The hip motors' work so far (J)."""
+        return self.S[SIM_WORK]
+
+    @work.setter
+    def work(self, value):
+        self.S[SIM_WORK] = value
+
+    @property
+    def E0(self):
+        """The energy at the run's start (J)."""
+        return self.S[E0]
+
+    @E0.setter
+    def E0(self, value):
+        self.S[E0] = value
+
+    @property
+    def push_work(self):
+        """The kinetic energy pushes added (J)."""
+        return self.S[PUSH_WORK]
+
+    @push_work.setter
+    def push_work(self, value):
+        self.S[PUSH_WORK] = value
+
+    @property
+    def energy_lost(self):
+        """The energy the impacts took out (J)."""
+        return self.S[ENERGY_LOST]
+
+    @energy_lost.setter
+    def energy_lost(self, value):
+        self.S[ENERGY_LOST] = value
+
+    @property
+    def control_periods(self):
+        """The control periods begun so far (``advance_period``)."""
+        return int(self.S[CONTROL_PERIODS])
+
+    @control_periods.setter
+    def control_periods(self, value):
+        self.S[CONTROL_PERIODS] = value
+
+    @property
+    def _initial_sample_pending(self):
+        # the t0 sample, redone under the first advance's torque
+        return bool(self.S[INITIAL_SAMPLE_PENDING])
+
+    @_initial_sample_pending.setter
+    def _initial_sample_pending(self, value):
+        self.S[INITIAL_SAMPLE_PENDING] = float(value)
+
+    @property
+    def _u(self):
+        # the torque held now, [u1, u2]
+        S = self.S
+        return [S[SIM_U], S[SIM_U + 1]]
+
+    @_u.setter
+    def _u(self, value):
+        S = self.S
+        S[SIM_U], S[SIM_U + 1] = value
+
+    @property
+    def _h(self):
+        # the step size the next stepper starts with, None for the initial one
+        h = self.S[SIM_H]
+        return None if h != h else h
+
+    @_h.setter
+    def _h(self, value):
+        self.S[SIM_H] = math.nan if value is None else value
 
     @property
     def u(self):
@@ -299,12 +419,14 @@ class HybridSimulator:
         if controller is not None:
             self._check_signature(controller)
         st = self._compiled
-        if controller is None and st is not None:
+        if controller is None and st is not None and self._stepper is st:
             # the node's period in one C call while the loop holds the state (Loop.period, _core.c: these
             # lines' twin); None when it cannot, having changed nothing
-            done = st.loop.period(period, u, t_final, self)
-            if done is not None:
-                return done if type(done) is list else self._advance(done[1], None, None, held=done[0])
+            outcome = st.loop.period(period, u, t_final, self._samples._data)
+            if outcome != Outcome.DECLINED:
+                if outcome == Outcome.DONE and not self.S[N_RECORDS]:
+                    return []
+                return self._advance(self.S[T_NEXT], None, None, held=outcome)
         if self.status != "running":
             return []
         check_number("period", period, 0.0, math.inf, "s", open_low=True)   # (refused: no period begun)
@@ -350,7 +472,7 @@ class HybridSimulator:
                 law = compiled_loop.reference_law(controller, self.model) or controller
             self._periods_outcome = None
             self.advance(t_final, _periods=(period, law, t_final, t_stop))
-            if self._periods_outcome is not None and self._periods_outcome[0] == compiled_loop.TORQUE_CHANGE \
+            if self._periods_outcome is not None and self._periods_outcome[0] == Outcome.TORQUE_CHANGE \
                     and self.status == "running":
                 # the stance guards refuse the next period's command at its start: its events are the Python
                 # code's (_check_torque_change), under that command (the controller is not called again)
@@ -359,7 +481,7 @@ class HybridSimulator:
     def _integrate_periods(self, period, law, t_final, t_stop):
         outcome, t_next, refused = self._compiled.periods(period, law, t_final, t_stop)
         self._periods_outcome = outcome, refused
-        if outcome not in (compiled_loop.DONE, compiled_loop.TORQUE_CHANGE):    # the rest of the period in
+        if outcome not in (Outcome.DONE, Outcome.TORQUE_CHANGE):    # the rest of the period in
             self._integrate(t_next, outcome)                                   # progress, as any
 
     def push(self, impulse):
@@ -367,8 +489,6 @@ class HybridSimulator:
         ``advance`` calls (so at the start of the next control period), as a velocity jump with
         the stance foot held (:mod:`biped_sim.engine.pushes`). Returns its events. A bad impulse
         (not two finite numbers, above ``PUSH_IMPULSE_LIMIT``) raises ValueError."""
-        if self._compiled is not None:
-            self._compiled.python_changed()
         n_events = len(self.events)
         try:
             return apply_push(self, impulse)
@@ -395,8 +515,6 @@ class HybridSimulator:
         if self._stepper is not None:
             self._nfev_base += self._stepper.nfev
             self._rejected_base += self._stepper.nrejected
-        if self._compiled is not None:
-            self._compiled.python_changed()     # (another stepper, or the loop's begun again)
         if law is not None:     # the mode stepped by the compiled loop (compiled_loop.py)
             if self._compiled is None:
                 self._compiled = compiled_loop.CompiledStepper(self)
@@ -438,12 +556,11 @@ class HybridSimulator:
             if st is self._compiled:    # its quiet steps in C; a step it hands back is handled below
                 if outcome is None:
                     outcome = st.run(t_end)
-                if outcome == compiled_loop.DONE:
+                if outcome == Outcome.DONE:
                     break
-                if outcome == compiled_loop.PYTHON_STEPS:
+                if outcome == Outcome.PYTHON_STEPS:
                     st.step()
-                outcome = None
-                st.python_changed()     # the Python code handles this step
+                outcome = None          # (the Python code handles this step)
             else:
                 st.step()
             self._stats["steps"] += 1
@@ -467,7 +584,7 @@ class HybridSimulator:
                 self._accept(st.t, q, dq, w, F_end, u_end)
                 if self.opt.check_invariants:
                     check_sample(self.t, q, dq, feet, self.stance_leg, self._samples.last_force(), self.ground, self.mu,
-                                 self.opt, self.locator.active_scuffs, self.last_impact)
+                                 self.opt, self.locator.scuffing_legs(), self.last_impact)
                 if self.opt.project_constraints and self.stance_leg and self.opt.base == "floating":
                     st.replace_y(q + dq + [w])  # continue from the projected state
                 continue
@@ -515,7 +632,8 @@ class HybridSimulator:
         """A sample of the arrays q, dq (``lists``: the same as lists, if at hand), the torque u applied
         there, and the energy balance."""
         T, V = gen.energy(*(lists or (q.tolist(), dq.tolist())), self.model.k["energy"])
-        residual = T + V - self.E0 - self.work - self.push_work + self.energy_lost
+        S = self.S
+        residual = T + V - S[E0] - S[SIM_WORK] - S[PUSH_WORK] + S[ENERGY_LOST]
         self._stats["max_energy_balance_residual"] = max(self._stats["max_energy_balance_residual"], abs(residual))
         self._samples.append(self.t, q, dq, leg, F, u, residual)
 
@@ -524,8 +642,6 @@ class HybridSimulator:
         """Apply the reset of the witness that fired (for the feet ``legs``) at the state (q, dq: lists) at t,
         take the new mode from its event."""
         self._samples.keep_last()       # the sample at the event, before its reset
-        if self._compiled is not None:
-            self._compiled.python_changed()
         old = self.stance_leg
         ev, stop = fired.reset(ResetContext(self.model, self.ground, self.mu, self.opt, self._force_at), t, q, dq,
                                legs, old)
@@ -535,10 +651,11 @@ class HybridSimulator:
         if ev.stance_leg_after != ev.stance_leg_before:    # the foot left the ground: flight
             self.stance_leg = ev.stance_leg_after
             self.pin = None
+            self.S[MODE_BEGUN] = 0.0    # (a mode the compiled loop does not run; a push's liftoff wrote dq)
             self.locator.after_reset(ev)
         self._push_event(ev)
         if fired.kind.latches:
-            self.locator.latched.add(fired)   # off until it is positive again: it must not fire at once
+            self.locator.latch(fired)   # off until it is positive again: it must not fire at once
         if stop is not None:
             self._stop("stopped", stop)
 
@@ -601,25 +718,49 @@ class HybridSimulator:
         if guard.name == "liftoff" and self.stance_leg == 0 and F is None:
             self._samples.set_last_in_flight()   # in flight from this very instant: so is the sample just taken
 
+    def _loop_records(self, records):
+        """The Events of what the compiled loop applied (``Loop.take_events``' records, in order): its touchdowns
+        (the energy lost and the impact history are the state's already) and the scuffs that ended."""
+        for record in records:
+            if record[0] == Record.TOUCHDOWN:
+                _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, _, pin = record
+                self.stance_leg, self.pin = new, list(pin)
+                self._stats["impacts"] += 1
+                self._add_event(Event(t_ev, "touchdown", new, np.array(q), np.array(dq_minus), np.array(dq_plus),
+                                      np.array(impulse), old, new, loss, []), applied_in_loop=True)
+                # (no Zeno stop: the loop hands back an impact that could make one)
+                self.impacts.record(t_ev, in_state=False)
+            else:
+                _, leg, stance_leg, scuff, t_up, q, dq = record
+                self._add_event(scuff_event(leg, stance_leg, scuff, t_up, q, dq, self.opt.scuff_depth,
+                                            self.opt.scuff_rule))
+
     def _push_event(self, ev):
         self._samples.keep_last()       # the sample after the event's reset
         self._add_event(ev)
 
-    def _add_event(self, ev):
+    def _add_event(self, ev, applied_in_loop=False):
+        """Keep the Event; count a change of mode (the state's mode_events and the ring of the last 49 times)
+        and stop the run at max_events or an event loop. ``applied_in_loop``: a touchdown the compiled loop
+        applied, which it counted itself (it hands back one that would stop the run)."""
         self.events.append(ev)
         self._stats["events"] = len(self.events)
-        if ev.kind == "scuff":      # a report, not a change of mode: max_events counts the changes
+        if ev.kind == "scuff" or applied_in_loop:    # a scuff is a report, not a change of mode
             return
-        times = self._mode_event_times
-        times.append(ev.time)
-        if rules.ev_over_budget(len(times), self.opt.max_events):
-            self._stop("stopped", f"stopped after {len(times)} events (max_events)")
-        if rules.ev_event_loop(len(times), times[max(len(times) - 50, 0)], times[-1]):
+        S = self.S
+        m = int(S[MODE_EVENTS])
+        t_first = S[RING + m % 49]      # the event 49 before this one (the ring keeps the last 49 times)
+        S[RING + m % 49] = ev.time
+        S[MODE_EVENTS] = m + 1
+        if rules.ev_over_budget(m + 1, self.opt.max_events):
+            self._stop("stopped", f"stopped after {m + 1} events (max_events)")
+        if rules.ev_event_loop(m + 1, t_first, ev.time):
             self._stop("stopped", f"event loop: 50 events within 1e-9 s ending at t={ev.time:.9g} s "
                                   f"(last: {ev.kind} of leg {ev.leg}); the run stops instead of hanging")
 
     def _stop(self, status, message):
         self.status, self.message = status, message
+        self.S[RUNNING] = float(status == "running")
 
     def _fail(self, message, status="failed", error=None):
         """The run ends (``status``) with an error event; ``error``: the exception that ended it (a

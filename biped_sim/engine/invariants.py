@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from biped_sim.engine import loop_rules as rules
 from biped_sim.engine.guards import normal_tangent, starts_scuff
+from biped_sim.engine.loop_state import LAST_IMPACT, N_IMPACTS, N_RECENT, RECENT_IMPACTS, new_state
 from biped_sim.engine.results import SceneAssumptionError, SimulationError
 
 
@@ -93,14 +94,34 @@ def check_impact(event, feet_after, ground, recent_gaps, impulse_tol, rest_tol):
 
 class ImpactHistory:
     """The times of the last impacts: ``zeno_count`` impacts in a row closer than ``zeno_interval``
-    are a Zeno stop (``record`` returns its message), and the gaps feed ``check_impact``."""
+    are a Zeno stop (``record`` returns its message), and the gaps feed ``check_impact``.
 
-    def __init__(self, zeno_count, zeno_interval):
+    The times are kept here (up to ``zeno_count`` + 1 of them: no fixed field holds that many); what the
+    compiled loop checks a touchdown against, the last impact and the last four, is the hybrid state's
+    (``last_impact``, ``n_impacts``, ``recent_impacts``, ``n_recent``), which ``record`` writes and a
+    touchdown the loop applies writes itself."""
+
+    def __init__(self, zeno_count, zeno_interval, S=None):
         self.count, self.interval = zeno_count, zeno_interval
         self.times: list[float] = []
+        self.S = new_state() if S is None else S
 
-    def record(self, t):
+    def record(self, t, in_state=True):
+        """Record an impact at t (``in_state`` False: one the compiled loop applied, which the state holds
+        already); the message of a Zeno stop, or None."""
         self.times.append(t)
+        if in_state:
+            S = self.S
+            S[LAST_IMPACT] = t
+            S[N_IMPACTS] += 1
+            n = int(S[N_RECENT])
+            if n == 4:
+                S[RECENT_IMPACTS], S[RECENT_IMPACTS + 1], S[RECENT_IMPACTS + 2] = (
+                    S[RECENT_IMPACTS + 1], S[RECENT_IMPACTS + 2], S[RECENT_IMPACTS + 3])
+            else:
+                n += 1
+                S[N_RECENT] = n
+            S[RECENT_IMPACTS + n - 1] = t
         if len(self.times) > max(self.count + 1, 5):
             del self.times[0]
         last = self.times[-(self.count + 1):]

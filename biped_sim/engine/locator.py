@@ -22,9 +22,29 @@ import numpy as np
 
 from biped_sim.engine import guards as G, loop_rules as rules
 from biped_sim.engine.grazing import dip_bracket
-from biped_sim.engine.loop_state import DEEPEST_TRIAL, FEET, RESULT, SCUFF_TRIAL, T_OLD, new_state
+from biped_sim.engine.loop_state import (
+    ARMED,
+    DEEPEST_SCUFF,
+    DEEPEST_TRIAL,
+    FEET,
+    FEET_END,
+    FEET_END_T,
+    FORCE_END,
+    FORCE_END_T,
+    N_LATCHED,
+    RESULT,
+    SCUFF,
+    SCUFF_TRIAL,
+    SCUFFING,
+    SCUFFS,
+    T_OLD,
+    new_state,
+    put,
+)
 from biped_sim.engine.results import Event, SceneAssumptionError
 from biped_sim.engine.witnesses import triggered, witness, witnesses
+
+_tuple_new = tuple.__new__     # a FootState from the state's four floats, without namedtuple's Python __new__
 
 
 class EventLocator:
@@ -36,25 +56,90 @@ class EventLocator:
     step's end). The caller hands in, per step, the stepper ``st`` (``t_old``, ``t``, ``y_old``,
     ``dense_at``), ``to_phys(y) -> (q, dq, work)``, the state and feet at the step's end, and
     ``force_at(t, q, dq) -> [Fx, Fy]`` for the stance guards.
+
+    The armed feet, the scuffs followed, and the feet and force kept of the last step's end are fields of the
+    hybrid state ``S`` (loop_state.py: the simulator's, which the compiled loop reads and writes too).
     """
 
-    def __init__(self, model, ground, opt, mu, feet, stance_leg, impacts):
+    def __init__(self, model, ground, opt, mu, feet, stance_leg, impacts, S=None):
         self.model, self.ground, self.opt, self.mu = model, ground, opt, mu
+        self.S = new_state() if S is None else S
         self.impacts = impacts   # the run's ImpactHistory: a crossing in the Zeno limit is an impact
         # at the start no reset has just happened, so a free foot above the ground, however little,
         # is armed at once: its crossing is found (a foot on it arms when it rises above arm_height)
-        self.armed = [feet[0].height > 0.0, feet[1].height > 0.0]
-        if stance_leg:
-            self.armed[stance_leg - 1] = False
-        self.latched: set = set()
+        for leg in (1, 2):
+            self.S[ARMED + leg - 1] = float(leg != stance_leg and feet[leg - 1].height > 0.0)
+            self.S[SCUFFING + leg - 1] = 0.0
+        self.latched: set = set()       # (how many: the state's n_latched, which the compiled loop reads)
+        self.S[N_LATCHED] = 0.0
         self.scuffs = 0          # touchdowns behind the stance foot ignored under touchdown_rule "front"
         self.deepest_scuff = 0.0  # m, the deepest dip of any scuff so far
-        self.active_scuffs: dict = {}   # leg -> [t_start, deepest, t_deepest] while that foot is under
         self.scuff_events: list = []    # finished scuffs, for the simulator to report
         self._feet_end = self._force_end = (None, None)   # (t, value) at the last step's end
         # the state the scuffs are followed on (loop_rules.ev_track_scuff): the scuff options
         self._scuff_state = new_state(front_tol=opt.front_tol, scuff_depth=opt.scuff_depth,
                                       forward_rule=float(opt.scuff_rule == "forward"))
+
+    @property
+    def armed(self):
+        """[foot 1, foot 2]: whether a foot's touchdown counts (it has been higher than arm_height)."""
+        return [self.S[ARMED] != 0.0, self.S[ARMED + 1] != 0.0]
+
+    def _set_armed(self, leg, value):
+        self.S[ARMED + leg - 1] = float(value)
+
+    @property
+    def active_scuffs(self):
+        """{leg: [t_start, deepest, t_deepest]} of the feet in a scuff (under the ground, passing through)."""
+        S = self.S
+        return {leg: list(S[SCUFF + 3 * (leg - 1):SCUFF + 3 * leg]) for leg in (1, 2) if S[SCUFFING + leg - 1]}
+
+    def scuffing_legs(self):
+        """The feet in a scuff, as a tuple (what an invariant's check asks, every step)."""
+        S = self.S
+        return (1,) * (S[SCUFFING] != 0.0) + (2,) * (S[SCUFFING + 1] != 0.0)
+
+    scuffs = property(lambda self: int(self.S[SCUFFS]), lambda self, v: self.S.__setitem__(SCUFFS, v),
+                      doc="touchdowns behind the stance foot ignored under touchdown_rule 'front'")
+    deepest_scuff = property(lambda self: self.S[DEEPEST_SCUFF], lambda self, v: self.S.__setitem__(DEEPEST_SCUFF, v),
+                             doc="the deepest dip of any scuff so far (m)")
+
+    @property
+    def _feet_end(self):
+        # (t, (foot 1, foot 2)) kept of the last step's end, or (None, None)
+        S = self.S
+        t = S[FEET_END_T]
+        if t != t:
+            return None, None
+        return t, (_tuple_new(G.FootState, S[FEET_END:FEET_END + 4]),
+                   _tuple_new(G.FootState, S[FEET_END + 4:FEET_END + 8]))
+
+    @_feet_end.setter
+    def _feet_end(self, value):
+        t, feet = value
+        self.S[FEET_END_T] = math.nan if t is None else t
+        if t is not None:
+            put(self.S, FEET_END, [*feet[0], *feet[1]])
+
+    @property
+    def _force_end(self):
+        # (t, [Fx, Fy]) kept of the last step's end, or (None, None)
+        S = self.S
+        t = S[FORCE_END_T]
+        return (None, None) if t != t else (t, [S[FORCE_END], S[FORCE_END + 1]])
+
+    @_force_end.setter
+    def _force_end(self, value):
+        t, F = value
+        S = self.S
+        S[FORCE_END_T] = math.nan if t is None else t
+        if t is not None:
+            S[FORCE_END], S[FORCE_END + 1] = F
+
+    def latch(self, guard):
+        """Hold ``guard`` off until it is positive at a step's end (a guard that fired and was not reset)."""
+        self.latched.add(guard)
+        self.S[N_LATCHED] = len(self.latched)
 
     def witnesses(self, stance_leg):
         """The witnesses of the mode (:func:`~biped_sim.engine.witnesses.witnesses`) with the feet armed now."""
@@ -74,7 +159,7 @@ class EventLocator:
         for leg in (1, 2):
             if rules.ev_disarmed_by_reset(leg, event.kind == "double_touchdown", event.stance_leg_before or 0,
                                           event.stance_leg_after or 0):
-                self.armed[leg - 1] = False
+                self._set_armed(leg, False)
 
     def restart(self, t, feet, F):
         """The state changed at ``t`` without a step (a push): the next step starts from it, whose feet
@@ -94,21 +179,27 @@ class EventLocator:
             return None, None
         # the step's start is the last step's end: its feet and force are known (the projection
         # since moved the state by the drift only, ~1e-14)
+        S = self.S
         q0 = dq0 = None
-        feet0 = self._feet_end[1] if self._feet_end[0] == st.t_old else None
-        if feet0 is None:
+        if S[FEET_END_T] == st.t_old:
+            feet0 = (_tuple_new(G.FootState, S[FEET_END:FEET_END + 4]),
+                     _tuple_new(G.FootState, S[FEET_END + 4:FEET_END + 8]))
+        else:
             q0, dq0, _ = to_phys(st.y_old)
             feet0 = G.foot_states(self.model, q0, dq0, self.ground.tan)
-        self._feet_end = (st.t, feet1)
+        S[FEET_END_T] = st.t
+        put(S, FEET_END, [*feet1[0], *feet1[1]])
         F0 = F1 = None
         if stance_leg:
-            F0 = self._force_end[1] if self._force_end[0] == st.t_old else None
-            if F0 is None:
+            if S[FORCE_END_T] == st.t_old:
+                F0 = [S[FORCE_END], S[FORCE_END + 1]]
+            else:
                 if q0 is None:
                     q0, dq0, _ = to_phys(st.y_old)
                 F0 = force_at(st.t_old, q0, dq0)
             F1 = F_end if F_end is not None else force_at(st.t, q1, dq1)
-            self._force_end = (st.t, F1)
+            S[FORCE_END_T] = st.t
+            S[FORCE_END], S[FORCE_END + 1] = F1
         if q0 is None and any(w.kind.reads == "state" for w in rows):
             q0, dq0, _ = to_phys(st.y_old)
         roots = []
@@ -117,6 +208,7 @@ class EventLocator:
             if guard in self.latched:
                 if g1 > 0:
                     self.latched.discard(guard)
+                    self.S[N_LATCHED] = len(self.latched)
                 continue
             g0 = guard.value(self, st.t_old, q0, dq0, force_at, feet0, F0)
             guard_at = self._on_dense_output(st, to_phys, guard, force_at)
@@ -141,7 +233,7 @@ class EventLocator:
             if not self._is_scuff(st, to_phys, guard, stance_leg, t_root):
                 roots.append((t_root, guard))
         t_end = min(roots)[0] if roots else st.t
-        if self.active_scuffs:
+        if self.S[SCUFFING] or self.S[SCUFFING + 1]:
             self._track_scuffs(st, to_phys, stance_leg, t_end)
         if not roots:
             self._arm(feet1, stance_leg)
@@ -182,14 +274,17 @@ class EventLocator:
         if not G.starts_scuff(fr[guard.leg - 1], fr[stance_leg - 1], self.opt) or self.impacts.accumulating(t_root):
             return False
         self.scuffs += 1
-        self.active_scuffs[guard.leg] = [t_root, 0.0, t_root]
+        S, leg = self.S, guard.leg
+        S[SCUFFING + leg - 1] = 1.0
+        put(S, SCUFF + 3 * (leg - 1), [t_root, 0.0, t_root])
         return True
 
     def _resting_feet_pushed_in(self, feet, stance_leg):
         if "impact" not in self.opt.phases:
             return []
-        return [leg for leg in (1, 2) if leg != stance_leg and not self.armed[leg - 1]
-                and leg not in self.active_scuffs and rules.ev_violated(feet[leg - 1].height, self.opt.ground_tol)]
+        S = self.S
+        return [leg for leg in (1, 2) if leg != stance_leg and not S[ARMED + leg - 1]
+                and not S[SCUFFING + leg - 1] and rules.ev_violated(feet[leg - 1].height, self.opt.ground_tol)]
 
     def _track_scuffs(self, st, to_phys, stance_leg, t_end):
         """Follow each scuffing foot over the step up to ``t_end`` (the rule ``loop_rules.ev_track_scuff``):
@@ -203,6 +298,7 @@ class EventLocator:
             S[DEEPEST_TRIAL] = self.deepest_scuff
             outcome = rules.ev_track_scuff(S, _feet_into_state, (self, st, to_phys), leg, stance_leg, t_end)
             scuff[:] = S[SCUFF_TRIAL:SCUFF_TRIAL + 3]
+            put(self.S, SCUFF + 3 * (leg - 1), scuff)
             if outcome == -1:
                 t, depth, foot = S[RESULT], S[RESULT + 1], G.FootState(*S[FEET + 4 * (leg - 1):FEET + 4 * leg])
                 raise SceneAssumptionError(scuff_left_model(leg, scuff[0], depth, t, foot, self.opt.scuff_rule))
@@ -214,7 +310,7 @@ class EventLocator:
                     "falling onto that foot, which the model (touchdown_rule='front') does not let touch down "
                     "(a larger scuff_depth, or inf, lets deeper scuffs pass)")
             if outcome == 1:     # the foot is above the ground at t_end
-                del self.active_scuffs[leg]
+                self.S[SCUFFING + leg - 1] = 0.0
                 self.scuff_events.append(self._scuff_event(st, to_phys, leg, stance_leg, scuff, t_end))
 
     def _scuff_event(self, st, to_phys, leg, stance_leg, scuff, t_up):
@@ -227,9 +323,10 @@ class EventLocator:
         return G.foot_states(self.model, q, dq, self.ground.tan)
 
     def _arm(self, feet, stance_leg):
+        S = self.S
         for leg in (1, 2):
-            if not self.armed[leg - 1] and rules.ev_arms(leg != stance_leg, feet[leg - 1].height, self.opt.arm_height):
-                self.armed[leg - 1] = True
+            if not S[ARMED + leg - 1] and rules.ev_arms(leg != stance_leg, feet[leg - 1].height, self.opt.arm_height):
+                S[ARMED + leg - 1] = 1.0
 
 
 def landing_bracket(height_at, t_old, t, n=16):

@@ -22,6 +22,8 @@ end holds the constants of the closed forms an impact evaluates (loop_rules.ev_i
 from __future__ import annotations
 
 import math
+from array import array
+from enum import IntEnum
 from typing import NamedTuple
 
 NMAX = 11           # the floating base's integrated state: q (5), dq (5), motor work
@@ -59,6 +61,31 @@ FIELDS = (
     Field("forward_rule", (), "1 under scuff_rule forward, 0 under behind"),
     Field("k_pos", (32,), "the constants of the closed form foot_positions (BipedModel.k; room for any)"),
     Field("to_power_basis", (8, 8), "dop853's dense row to its power-basis coefficients (integrators)"),
+    # -- the options of the compiled loop's steps and events (Options: CompiledStepper writes them)
+    Field("max_speed", (), "a rate beyond this is a diverging state (Options.max_speed)"),
+    Field("ground_tol", (), "how far a free foot may be under the ground (m)"),
+    Field("force_tol", (), "how far the ground may pull or the force leave the cone (N)"),
+    Field("arm_height", (), "a foot's touchdown counts once it has been higher than this (m)"),
+    Field("has_mu", (), "1 with a friction coefficient (the slip witness is a row)"),
+    Field("stop_on_slip", (), "1: a slip stops the run (Options.stop_on_slip)"),
+    Field("project", (), "1: the state is projected onto the pin after each step (project_constraints)"),
+    Field("check_invariants", (), "1: the invariants are checked after each step and impact"),
+    Field("impact_phase", (), "1 when the scene has impacts (\"impact\" in phases)"),
+    Field("front_rule", (), "1 under touchdown_rule front"),
+    Field("compute_grf", (), "1: the event's sample has its ground force"),
+    Field("zeno_interval", (), "impacts closer than this may accumulate (s)"),
+    Field("impulse_tol", (), "how far an impact's impulse may pull (N s)"),
+    Field("contact_tol", (), "an old stance foot slower than this after an impact stays down (m/s)"),
+    Field("max_events", (), "the run stops after this many mode events"),
+    # -- the mode the compiled loop steps (CompiledStepper.start writes it, a touchdown changes it)
+    Field("stance_leg", (), "the stance foot: 1 or 2"),
+    Field("pin", (2,), "where the stance foot is pinned (m)"),
+    Field("u_hold", (2,), "the torque held while the torque law is held (N m)"),
+    # -- what an entry point of the compiled loop leaves besides its Outcome
+    Field("t_next", (), "period(), periods(): the end of the control period under way (s)"),
+    Field("refused_u", (2,), "periods() ending TORQUE_CHANGE: the command refused at its period's start (N m)"),
+    Field("n_records", (), "the touchdowns and ended scuffs applied in C whose Events the Python code takes "
+                           "(Loop.take_events)"),
     # -- the stepper (integrators._ListRungeKutta)
     Field("t", (), "time (s) at the end of the last step"),
     Field("t_bound", (), "the end of the interval the stepper runs to (s)"),
@@ -83,6 +110,45 @@ FIELDS = (
     Field("scuff_trial", (3,), "a scuff followed over a step: t_start, deepest, t_deepest (ev_track_scuff)"),
     Field("deepest_trial", (), "the deepest of any scuff so far, with this step's (ev_track_scuff)"),
     Field("feet", (2, 4), "the feet on the dense output: x, height across the slope, and their rates, a row a foot"),
+    # -- the run: the simulator's, its Samples' and its locator's fields that both loops read and write (the
+    #    simulator owns the state for its life: compiled_loop.run_state)
+    Field("e0", (), "the energy at the run's start (J)"),
+    Field("push_work", (), "the kinetic energy pushes added (J)"),
+    Field("energy_lost", (), "the energy the impacts took out (J)"),
+    Field("sim_t", (), "the simulator's time: its last accepted state's (s)"),
+    Field("sim_work", (), "the hip motors' work up to sim_t (J)"),
+    Field("sim_h", (), "the step size the next stepper starts with (NaN: none yet, the initial one is computed)"),
+    Field("sim_u", (2,), "the torque held now (N m)"),
+    Field("sim_q", (5,), "q at sim_t, where a quiet period left it (sim_state_unmade)"),
+    Field("sim_dq", (5,), "dq at sim_t, alike"),
+    Field("sim_state_unmade", (), "1 when sim_q and sim_dq are the simulator's state and its arrays not yet made"),
+    Field("mode_begun", (), "1 while the compiled loop's mode was begun (Loop.begin) at the simulator's state: a "
+                            "write of the simulator's time, q or dq by the Python code, or its reset to flight, "
+                            "clears it, and the next period begins the mode again"),
+    Field("control_periods", (), "the control periods begun so far"),
+    Field("running", (), "1 while the run's status is running"),
+    Field("initial_sample_pending", (), "1 until the first advance redoes the t0 sample under its torque"),
+    Field("n_samples", (), "the Samples' rows in use"),
+    Field("appended", (), "the samples appended so far"),
+    Field("provisional", (), "1 when the newest sample is overwritten by the next (ev_provisional)"),
+    Field("every", (), "keep every this many samples (0: only the events' and the last)"),
+    Field("last_only", (), "1 when the Samples keep the last sample only (one row)"),
+    Field("last_impact", (), "the last impact's time (s): ImpactHistory, a touchdown the loop applies"),
+    Field("n_impacts", (), "the impacts so far"),
+    Field("recent_impacts", (4,), "the last (up to) 4 impact times, oldest first"),
+    Field("n_recent", (), "how many of recent_impacts are in use"),
+    Field("mode_events", (), "the events that changed the mode so far (max_events counts them)"),
+    Field("ring", (49,), "the times of the last 49 of them, event i at i % 49 (50 within 1e-9 s: an event loop)"),
+    Field("n_latched", (), "the guards the locator holds latched (off until positive again: only Python follows)"),
+    Field("armed", (2,), "1 for a foot whose touchdown counts (it has been higher than arm_height): EventLocator"),
+    Field("scuffing", (2,), "1 for a foot in a scuff (under the ground, passing through it)"),
+    Field("scuff", (2, 3), "a foot's scuff: t_start, deepest, t_deepest"),
+    Field("deepest_scuff", (), "the deepest dip of any scuff so far (m)"),
+    Field("scuffs", (), "the scuffs so far (crossings behind the stance foot that did not touch down)"),
+    Field("feet_end_t", (), "the time of feet_end (NaN: none kept): the last step's end, the next one's start"),
+    Field("feet_end", (2, 4), "the feet there (x, height, and their rates, a row a foot)"),
+    Field("force_end_t", (), "the time of force_end (NaN: none kept)"),
+    Field("force_end", (2,), "the stance force there (N)"),
     # -- scratch
     Field("out", (2 * NMAX + 1 + MAX_STAGES * NMAX,), "a trial step: y_new, f_new, err, stages; between steps "
                                                       "the dense state (dense_state)"),
@@ -119,6 +185,51 @@ CODES = {
 }
 
 
+class Outcome(IntEnum):
+    """How an entry point of the compiled loop (``run``, ``held``, ``period``, ``periods``, ``step``) ended; what
+    it leaves besides is in the state (the samples and their counters, the simulator's time and state,
+    t_next, refused_u, n_records, the failure's fail_kind, fail_value, fail_t)."""
+    DONE = 0            # at its end: the state is the last sample's
+    EVENT = 1           # a step taken and not accepted: the Python code handles it (a step handed back)
+    NEED_ROOM = 2       # the Samples' array or the event records are full: make room, call again
+    FAILED = 3          # the step failed (fail_kind: the step size underflowed, or a non-finite state)
+    RAISED = 4          # the torque law failed: Loop.raise_error() raises its exception
+    TORQUE_CHANGE = 5   # periods(): the stance guards refuse the next period's command at its start (refused_u)
+    DECLINED = 6        # period(): not run, nothing changed: the Python code runs the period
+    PYTHON_STEPS = 7    # CompiledStepper.run, never C: the locator holds what only the Python code follows
+
+
+class Record(IntEnum):
+    """The kinds of Loop.take_events' records: what the loop applied, whose Events the Python code makes."""
+    SCUFF_ENDED = 1
+    TOUCHDOWN = 2
+
+
+class Reason(IntEnum):
+    """Why the compiled loop handed a step back to the Python code (``Loop.handed()``'s last value, ``L->why``)."""
+    DIVERGING = 1               # a rate beyond max_speed
+    CROSSING_IN_PYTHON = 2      # a touchdown crossing brentq gives up on, or touchdown_rule "any"
+    TOUCHDOWN_WHILE_SCUFFING = 3
+    LIFTOFF = 4                 # the liftoff witness triggered
+    SLIP = 5                    # the slip witness triggered
+    FOOT_PUSHED_IN = 6          # a resting free foot pushed into the ground
+    SCUFF_LEAVES_MODEL = 7      # a scuff that stops passing through, or deeper than scuff_depth
+    NON_FINITE = 8              # invariant: a non-finite state
+    FOOT_BELOW_GROUND = 9       # invariant: a free foot below the ground
+    GROUND_PULLS = 10           # invariant: the normal force beyond force_tol below zero
+    OUTSIDE_CONE = 11           # invariant: the force outside the cone (stop_on_slip)
+    LAW_FAILED = 12             # the torque law failed in the step
+    CALLED_BACK_LAW = 13        # a touchdown under a Python controller
+    IMPACTS_CLOSE = 14          # a touchdown within zeno_interval of the last impact
+    MAX_EVENTS = 15             # a touchdown that reaches max_events
+    EVENT_LOOP = 16             # a touchdown that makes 50 mode events within 1e-9 s
+    OLD_FOOT_SINKS = 18         # after the impact the old stance foot moves into the ground
+    IMPULSE_CHECK = 19          # the impulse pulls, or lies outside the friction cone
+    OLD_FOOT_STAYS = 20         # the old stance foot stays on the ground (check_invariants)
+    STANCE_REFUSED = 21         # the new stance starts with the ground pulling or outside the cone
+    ACCUMULATING = 22           # a crossing behind the stance foot while the impacts accumulate (Zeno)
+
+
 def _size(shape):
     return math.prod(shape)
 
@@ -132,24 +243,38 @@ def _offsets():
 
 
 OFFSETS, SIZE = _offsets()
+SIZES = {field.name: _size(field.shape) for field in FIELDS}    # the values a field holds
 globals().update(OFFSETS)       # T, Y, STAGES, ...: the offsets the rules index S with when they run as Python
 globals().update(CODES)
 
 
+def put(S, at, values):
+    """Write ``values`` into ``S`` from the offset ``at`` (S a list, or the compiled loop's memoryview of doubles,
+    which takes a slice as a buffer)."""
+    S[at:at + len(values)] = values if type(S) is list else array("d", values)
+
+
 def new_state(**values) -> list:
-    """A state as a list of SIZE floats, zero but for ``values`` (field name: a float, or a sequence of
-    floats filling the field from its start)."""
-    S = [0.0] * SIZE
+    """A state as a list of SIZE floats, zero but for ``values`` (as :func:`write` takes them)."""
+    return write([0.0] * SIZE, **values)
+
+
+def write(S, **values):
+    """Write ``values`` into the state S by field name (a float, a bool, or a sequence of floats filling the field
+    from its start); returns S."""
     for name, value in values.items():
         at = OFFSETS[name.upper()]
         if isinstance(value, (int, float)):
             S[at] = float(value)
         else:
             value = [float(v) for v in value]
-            size = _size(next(f.shape for f in FIELDS if f.name == name))
+            size = SIZES[name]
             if len(value) > size:
                 raise ValueError(f"the state's field {name} holds {size} values, got {len(value)}")
-            S[at:at + len(value)] = value
+            if type(S) is list:
+                S[at:at + len(value)] = value
+            else:
+                put(S, at, value)
     return S
 
 
@@ -163,6 +288,9 @@ def c_header() -> str:
              f"#define LOOP_STATE_SIZE {SIZE}", f"#define LS_NMAX {NMAX}", f"#define LS_MAX_DEPTH {MAX_DEPTH}"]
     lines += [f"#define LS_{name} {at}" for name, at in OFFSETS.items()]
     lines += [f"#define {name} {code}" for name, code in CODES.items()]
+    lines += ["", "/* Outcome, Record and Reason (loop_state.py) */"]
+    for enum, prefix in ((Outcome, "OUTCOME"), (Record, "RECORD"), (Reason, "WHY")):
+        lines += [f"#define {prefix}_{member.name} {member.value}" for member in enum]
     lines += ["", "/* the right-hand side f(ctx, t, y) -> dy the generated steps take, and a guard's value at t: the",
               " * functions the rules take as arguments */",
               "typedef int (*rhs_t)(void *ctx, double t, const double *y, double *dy);",

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from biped_sim.engine import loop_rules as rules
+from biped_sim.engine.loop_state import APPENDED, EVERY, LAST_ONLY, N_SAMPLES, PROVISIONAL, new_state
 
 EVENT_KINDS = ("touchdown", "double_touchdown", "liftoff", "slip", "scuff", "error", "zeno", "push")
 IMPACT_KINDS = ("touchdown", "double_touchdown")
@@ -131,29 +132,46 @@ class Samples:
     of each event (before and after its reset) and the last one; ``"events"`` keeps only the first, the
     event samples and the last one;
     False keeps the last sample only (a node that runs for hours). The newest sample is always the
-    last row: one that will not be kept is overwritten by the next (``provisional``)."""
+    last row: one that will not be kept is overwritten by the next (``provisional``).
+
+    The counters are fields of the hybrid state ``S`` (the simulator's, which the compiled loop writes samples
+    with: loop_state.py's n_samples, appended, provisional, every, last_only); by default a state of its own."""
     WIDTH = 17
 
-    def __init__(self, keep=True):
+    def __init__(self, keep=True, S=None):
+        self.S = new_state() if S is None else S
         self.keep = keep
         self.every = 1 if keep is True else 0 if keep is False or keep == "events" else keep
+        self.S[LAST_ONLY] = float(keep is False)
         self._data = np.empty((256 if keep is not False else 1, self.WIDTH))
         self.n = 0
         self.appended = 0
         self.provisional = False
 
+    n = property(lambda self: int(self.S[N_SAMPLES]), lambda self, v: self.S.__setitem__(N_SAMPLES, v),
+                 doc="the rows in use")
+    appended = property(lambda self: int(self.S[APPENDED]), lambda self, v: self.S.__setitem__(APPENDED, v),
+                        doc="the samples appended so far")
+    every = property(lambda self: int(self.S[EVERY]), lambda self, v: self.S.__setitem__(EVERY, v),
+                     doc="every how many samples one is kept (0: only the events' and the last)")
+    provisional = property(lambda self: bool(self.S[PROVISIONAL]),
+                           lambda self, v: self.S.__setitem__(PROVISIONAL, float(v)),
+                           doc="the newest sample is overwritten by the next")
+
     def append(self, t, q, dq, leg, F, u, residual):
+        S = self.S
+        n = int(S[N_SAMPLES])
         if self.keep is False:
-            self.n = 0
-        elif self.provisional:
-            self.n -= 1
-        elif self.n == len(self._data):
+            n = 0
+        elif S[PROVISIONAL]:
+            n -= 1
+        elif n == len(self._data):
             self.grow()
-        self._data[self.n] = [t, *q, *dq, leg, F[0], F[1], u[0], u[1], residual]
-        self.n += 1
-        self.appended += 1
+        self._data[n] = [t, *q, *dq, leg, F[0], F[1], u[0], u[1], residual]
+        S[N_SAMPLES] = n + 1
+        S[APPENDED] += 1
         # the first sample (the initial state) is always kept
-        self.provisional = rules.ev_provisional(self.appended, self.every)
+        S[PROVISIONAL] = float(rules.ev_provisional(int(S[APPENDED]), int(S[EVERY])))
 
     def grow(self):
         """Twice the room (the compiled loop writes into ``_data`` directly and asks for this when full)."""

@@ -6,6 +6,7 @@ touchdown rule), and its compiled walking laws give the Python laws' torques bit
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -17,7 +18,7 @@ from hypothesis import event, example, given, settings, strategies as st
 import biped_sim as bs
 from biped_sim.analysis.edge_cases import on_both_loops, pd_walk_without_clearance, rocking_v, walk_that_scuffs
 from biped_sim.control.walking import PDWalkingController, WalkingController
-from biped_sim.engine import compiled_loop, guards as G, hybrid
+from biped_sim.engine import compiled_loop, guards as G, hybrid, loop_state
 from biped_sim.engine.model import BipedModel
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -347,7 +348,7 @@ def test_a_quiet_held_period_is_one_c_call_and_its_state_a_new_array():
     quiet, before, kept = 0, None, None
     for _ in range(300):
         events = sim.advance_period(1e-3, u=sim.command(ctrl))
-        quiet += not events and sim._q is None
+        quiet += not events and bool(sim.S[loop_state.SIM_STATE_UNMADE])
         lists = sim.state_lists()
         q = sim.q
         assert lists == (q.tolist(), sim.dq.tolist())
@@ -618,7 +619,7 @@ def test_a_run_from_a_late_t0_begins_the_period_under_way_on_both_loops(t0):
             sim.advance_period(period, [0.0, 0.0])
             k = sim.control_periods - 1
             assert sim.status == "running" and sim.t == (k + 1) * period > t_start >= k * period
-            out.append((sim.t, sim.control_periods, sim._q is None))
+            out.append((sim.t, sim.control_periods, bool(sim.S[loop_state.SIM_STATE_UNMADE])))
         return out
 
     compiled, python = both_loops(run)
@@ -631,3 +632,140 @@ def test_a_period_too_short_to_count_up_to_t_is_refused():
     with pytest.raises(ValueError, match=r"period=1e-12 s is too short for a run at t=100000.0 s"):
         sim.advance_period(1e-12, [0.0, 0.0])
     assert sim.control_periods == 0 and sim.status == "running"
+
+
+def test_the_simulator_its_samples_and_the_compiled_loop_share_one_state():
+    """The run's fields that the compiled loop reads and writes (the Samples' counters, the energy terms, the
+    control periods, the simulator's time, work, torque and step size, the locator's armed feet and the feet
+    kept of the last step's end) are fields of one state, the
+    simulator's for its life (loop_state.py): with the compiled loop built its S is the Loop's own memory, so
+    that the periods the loop ran in C are read in Python from where C wrote them, with nothing handed over."""
+    ls = loop_state
+
+    def run():
+        sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state(), keep_samples=3)
+        for _ in range(40):
+            sim.advance_period(1e-3, u=[0.5, -0.5])
+        S, s = sim.S, sim._samples
+        assert s.S is S and (sim.t, sim.work, sim._h, sim.control_periods, sim.u, sim.E0, sim.energy_lost) == (
+            S[ls.SIM_T], S[ls.SIM_WORK], S[ls.SIM_H], S[ls.CONTROL_PERIODS], [S[ls.SIM_U], S[ls.SIM_U + 1]],
+            S[ls.E0], S[ls.ENERGY_LOST])
+        assert (s.n, s.appended, s.provisional, s.every) == (S[ls.N_SAMPLES], S[ls.APPENDED], S[ls.PROVISIONAL], 3)
+        loc = sim.locator
+        assert loc.S is S and loc.armed == [S[ls.ARMED] == 1.0, S[ls.ARMED + 1] == 1.0] and loc._feet_end[0] == sim.t
+        return sim, sim.result()
+
+    (sim_c, compiled), (sim_p, python) = both_loops(run)
+    if compiled_loop.AVAILABLE:
+        assert sim_c.S.obj is sim_c._loop and sim_c._compiled.loop is sim_c._loop
+        assert sim_c.stats["compiled_loop_steps"] > 20       # the periods ran in C
+    assert compiled.t.tolist() == python.t.tolist() and np.array_equal(compiled.q, python.q)
+    assert sim_c.control_periods == sim_p.control_periods == 40
+
+
+@pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=compiled_loop.WHY_NOT or "no compiled loop")
+def test_the_loop_takes_its_options_and_its_mode_from_the_state():
+    """No positional lists of options or of a mode's start: the compiled loop runs with the options and the mode
+    (stance leg, pin, held torque) that the Python code wrote by name into the state, and begin() takes the
+    torque law only."""
+    ls = loop_state
+    sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state(), mu=0.6, arm_height=0.02,
+                             stop_on_slip=False, slope=0.01)
+    for _ in range(5):
+        sim.advance_period(1e-3, [0.5, -0.5])
+    S = sim.S
+    assert sim.stats["compiled_loop_steps"] > 0
+    assert (S[ls.ARM_HEIGHT], S[ls.HAS_MU], S[ls.MU], S[ls.STOP_ON_SLIP], S[ls.SIN_S]) == (
+        0.02, 1.0, 0.6, 0.0, math.sin(0.01))
+    assert (S[ls.STANCE_LEG], [S[ls.PIN], S[ls.PIN + 1]], [S[ls.U_HOLD], S[ls.U_HOLD + 1]]) == (
+        sim.stance_leg, sim.pin, [0.5, -0.5])
+    assert not any(hasattr(sim._loop, name) for name in ("set_options", "set_events", "set_counters", "state"))
+    with pytest.raises(TypeError):
+        sim._loop.begin(None, 1, 0.0)
+
+
+@pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=compiled_loop.WHY_NOT or "no compiled loop")
+def test_every_entry_point_of_the_loop_ends_with_one_outcome():
+    """run, held, period, periods and step return a loop_state.Outcome and leave the rest in the state (the end of
+    the period under way, the failure, the records waiting); the outcomes, the kinds of records and the reasons
+    a step is handed back are named once, in loop_state.py, and generated into _loop_state.h."""
+    ls = loop_state
+    header = (Path(compiled_loop.__file__).parent / "_loop_state.h").read_text()
+    core = (Path(compiled_loop.__file__).parent / "_core.c").read_text()
+    for enum, prefix in ((ls.Outcome, "OUTCOME"), (ls.Record, "RECORD"), (ls.Reason, "WHY")):
+        assert all(f"#define {prefix}_{m.name} {m.value}\n" in header for m in enum)
+    assert not re.search(r"why = \d", core)
+    sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+    for _ in range(3):
+        sim.advance_period(1e-3, [0.5, -0.5])
+    loop, data = sim._loop, sim._samples._data
+    assert ls.Outcome(loop.period(1e-3, [0.5, -0.5], 0.0, data)) == ls.Outcome.DONE and sim.S[ls.T_NEXT] == 4e-3
+    assert ls.Outcome(loop.held(4.5e-3, data)) == ls.Outcome.DONE
+    assert ls.Outcome(loop.run(4.5e-3, data)) == ls.Outcome.DONE and sim.S[ls.T] == 4.5e-3     # (at its t_bound)
+    assert ls.Outcome(loop.step()) == ls.Outcome.DONE
+    assert ls.Outcome(loop.period(1e-3, "not a torque", 0.0, data)) == ls.Outcome.DECLINED
+
+
+@pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=compiled_loop.WHY_NOT or "no compiled loop")
+def test_the_compiled_steppers_fields_are_views_of_the_state():
+    """The compiled stepper copies nothing out of the loop: after periods run quiet in C its t, y and step size
+    are where C left them (the last sample's), and what the Python code writes into them the loop steps from."""
+    sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+    for _ in range(20):
+        sim.advance_period(1e-3, [0.5, -0.5])
+    st, S = sim._compiled, sim.S
+    assert sim.stats["compiled_loop_steps"] > 10 and st.t == sim.t == S[loop_state.T] == 0.02
+    assert st.y[:10] == sim.q.tolist() + sim.dq.tolist() and st.h_abs == sim._h
+    st.y = [*st.y[:10], 5.0]
+    assert S[loop_state.Y + 10] == 5.0
+
+
+def test_the_impact_history_and_the_mode_events_are_the_states():
+    """What a touchdown is checked against (the last impacts, the mode events and the ring of the last 49 of
+    their times) is the state's, written where an impact or a mode event happens, by the Python code or by the
+    compiled loop, so that nothing is handed over between them (no set_history, no history_stale)."""
+    ls = loop_state
+
+    def run():
+        sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+        ctrl = PDWalkingController(MODEL)
+        while sim.t < 3.0 and sim.status == "running":
+            sim.advance_period(1e-3, sim.command(ctrl))
+        S, impacts = sim.S, [e.time for e in sim.events if e.kind == "touchdown"]
+        modes = [e.time for e in sim.events if e.kind != "scuff"]
+        assert len(impacts) >= 5 and (S[ls.N_IMPACTS], S[ls.LAST_IMPACT], S[ls.N_RECENT]) == (
+            len(impacts), impacts[-1], min(4, len(impacts)))
+        recent = list(S[ls.RECENT_IMPACTS:ls.RECENT_IMPACTS + 4])
+        assert recent == impacts[-4:] == sim.impacts.times[-4:]
+        assert S[ls.MODE_EVENTS] == len(modes) and all(S[ls.RING + i % 49] == t for i, t in enumerate(modes))
+        return sim.result()
+
+    compiled, python = both_loops(run)
+    assert_same_run(compiled, python, "the walk")
+    if compiled_loop.AVAILABLE:
+        assert not any(hasattr(compiled_loop._core.Loop, name) for name in ("set_history", "history_stale"))
+
+
+def test_a_change_of_the_simulators_state_in_python_begins_the_loops_mode_again():
+    """No hand-over flag: the loop's mode is begun at the simulator's state (mode_begun), and any write of that
+    state by the Python code (a push's velocities here) clears it, so that the next period begins the mode again
+    from the new state, as the Python loop's new stepper does: the same run on both loops."""
+    ls = loop_state
+
+    def run():
+        sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+        for _ in range(20):
+            sim.advance_period(1e-3, [0.5, -0.5])
+        begun = sim.S[ls.MODE_BEGUN]
+        sim.push([3.0, 0.0])
+        assert sim.S[ls.MODE_BEGUN] == 0.0
+        for _ in range(20):
+            sim.advance_period(1e-3, [0.5, -0.5])
+        return begun, sim.result()
+
+    (begun_c, compiled), (_, python) = both_loops(run)
+    assert_same_run(compiled, python, "a push between periods")
+    assert begun_c == float(compiled_loop.AVAILABLE)
+    assert not hasattr(compiled_loop.CompiledStepper, "python_changed")
+    if compiled_loop.AVAILABLE:
+        assert not hasattr(compiled_loop._core.Loop, "state_stale")

@@ -21,7 +21,7 @@ from biped_sim.analysis.edge_cases import (
     walk_that_scuffs,
 )
 from biped_sim.analysis.verify import result_violations, violations
-from biped_sim.engine import compiled_loop
+from biped_sim.engine import compiled_loop, loop_state
 from biped_sim.engine.guards import foot_states
 
 MODEL = bs.BipedModel()
@@ -142,7 +142,8 @@ def test_a_held_torque_of_bools_or_complex_numbers_begins_no_period_on_either_lo
     sim = bs.HybridSimulator(MODEL, Q0, DQ0)
     for _ in range(2):
         sim.advance_period(1e-3, [0.5, -0.5])
-    quiet = sim._q is None    # the second period ran in one C call (Loop.period), which sees the next one first
+    # the second period ran in one C call (Loop.period), which sees the next one first
+    quiet = bool(sim.S[loop_state.SIM_STATE_UNMADE])
     assert quiet == (loop == "compiled loop")
     with pytest.raises(ValueError, match=r"u must be two finite torques .*got " + re.escape(repr(bad))):
         sim.advance_period(1e-3, bad)

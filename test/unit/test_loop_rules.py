@@ -285,3 +285,13 @@ def test_the_impact_history_predicates_are_written_once():
     assert not ImpactHistory(3, 1e-3).accumulating(0.75)                    # no impacts yet
     assert [history.record(0.7 + k * 1e-4) for k in (1, 2)] == [None, None]
     assert "3 impacts in a row less than 0.001 s apart" in history.record(0.7 + 3e-4)
+
+
+def test_the_compiled_loop_reads_no_python_attribute_by_name():
+    """_core.c reads and writes the run's fields in the state (the simulator's, which its Samples and its locator
+    view: loop_state.py) and takes the samples' array as an argument, so that renaming a Python attribute cannot
+    break the compiled loop at run time: no attribute of a Python object is read, written or called by name."""
+    core = (ENGINE / "_core.c").read_text()
+    by_name = re.findall(r"PyObject_(?:Get|Set|Has|Del)Attr\w*|PyObject_CallMethod\w*|PyUnicode_InternFromString"
+                         r"|_PyObject_\w*Id\b", core)
+    assert by_name == []
