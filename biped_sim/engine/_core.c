@@ -839,33 +839,16 @@ refused_at_start(Loop *L)
     return 1;
 }
 
-/* The end of the control period that starts at t, the *k-th (as HybridSimulator.advance_period computes
- * it, operation for operation): period k ends at (k + 1) period, or at t_final (> 0) where that comes first
- * or within 1e-9 of a period. *k becomes the count of periods begun. NAN (and *k unchanged) where the
- * index would pass 2^53 (hybrid.period_index refuses it). */
+/* The end of the control period under way at t, *k the periods begun so far (loop_rules.ev_period_index and
+ * ev_period_end, as HybridSimulator.advance_period calls them): *k becomes the count of periods begun. NAN (and *k
+ * unchanged) where the index would pass 2^53 (hybrid.period_index refuses it). */
 static double
 period_end(double t, double period, double t_final, long *k)
 {
-    long j = *k;
-    if ((j + 1) * period <= t) {     /* a run that starts between two periods (t0 > 0): hybrid.period_index */
-        if (!(t / period < 9007199254740992.0)) return NAN;
-        long lo = j, hi = (long)(t / period);
-        if (hi < j + 1) hi = j + 1;
-        while ((hi + 1) * period <= t) {
-            lo = hi;
-            hi *= 2;
-        }
-        while (hi - lo > 1) {
-            long mid = lo + (hi - lo) / 2;
-            if ((mid + 1) * period <= t) lo = mid;
-            else hi = mid;
-        }
-        j = hi;
-    }
-    double t_next = (j + 1) * period;
-    if (t_final > 0 && t_next >= t_final - 1e-9 * period) t_next = t_final;
+    long j = ev_period_index(t, period, *k);
+    if (j < 0) return NAN;
     *k = j + 1;
-    return t_next;
+    return ev_period_end(j, period, t_final);
 }
 
 /* periods(law, period, t_final, t_stop, data) -> an Outcome (and t_next, refused_u): control periods held (as

@@ -91,31 +91,15 @@ def held_torque(u):
     return checked
 
 
-#: more control periods than this before t: (k + 1) * period no longer tells period k from its neighbours
-MAX_PERIOD_INDEX = 2 ** 53
-
 
 def period_index(t, period, k):
-    """The index of the control period under way at t: the smallest j >= k (the periods begun so far) with
-    (j + 1) * period > t, where period j ends. Found in a few operations, not counted from k: a run can
-    start at a late t0 (the C loop's twin: period_end in _core.c)."""
-    if (k + 1) * period > t:
-        return k
-    if not t / period < MAX_PERIOD_INDEX:
+    """The index of the control period under way at t (loop_rules.ev_period_index), k the periods begun so far;
+    a ValueError where it would pass 2^53."""
+    j = rules.ev_period_index(t, period, k)
+    if j < 0:
         raise ValueError(f"period={period!r} s is too short for a run at t={t!r} s: more than 2**53 control "
                          "periods would end before it")
-    # (j + 1) * period, a rounded product, never decreases with j: bisect between lo, whose period ends at or
-    # before t, and hi, whose period ends after it
-    lo, hi = k, max(k + 1, int(t / period))
-    while (hi + 1) * period <= t:
-        lo, hi = hi, 2 * hi
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if (mid + 1) * period <= t:
-            lo = mid
-        else:
-            hi = mid
-    return hi
+    return j
 
 
 class HybridSimulator:
@@ -434,9 +418,7 @@ class HybridSimulator:
         if controller is None and u is not None:
             u = held_torque(u)
         k = period_index(self.t, period, self.control_periods)
-        t_next = (k + 1) * period
-        if t_final > 0 and t_next >= t_final - 1e-9 * period:
-            t_next = t_final          # the last period ends exactly at the run's end
+        t_next = rules.ev_period_end(k, period, t_final)
         self.control_periods = k + 1
         if controller is not None:
             # a compiled law on the compiled loop: its torque computed in C, the same bits

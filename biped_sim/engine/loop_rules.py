@@ -738,3 +738,43 @@ def ev_accumulating(times, n, t):
     g1: cython.double = times[2] - times[1]
     g2: cython.double = times[3] - times[2]
     return g0 > g1 and g1 > g2 and g2 <= 0.5 * g0 and t - times[3] < g2
+
+
+# -- the control periods (hybrid.advance_period, advance_periods) -------------------------------------------
+def ev_period_index(t, period, k):
+    """The index of the control period under way at t: the smallest j >= k (the periods begun so far) with
+    (j + 1) period > t, where period j ends; -1 where t / period reaches 2^53, beyond which (j + 1) period no longer
+    tells period j from its neighbours (the run refuses such a period).
+    Found in a few operations, not counted from k: a run can start at a late t0."""
+    lo: cython.long
+    hi: cython.long
+    mid: cython.long
+    if (k + 1) * period > t:
+        return k
+    if not t / period < 9007199254740992.0:
+        return -1
+    # (j + 1) period, a rounded product, never decreases with j: bisect between lo, whose period ends at or before
+    # t, and hi, whose period ends after it
+    lo = k
+    hi = int(t / period)
+    if hi < k + 1:
+        hi = k + 1
+    while (hi + 1) * period <= t:
+        lo = hi
+        hi = 2 * hi
+    while hi - lo > 1:
+        mid = lo + (hi - lo) // 2
+        if (mid + 1) * period <= t:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+def ev_period_end(j, period, t_final):
+    """When control period j ends: at (j + 1) period, or at t_final (> 0; 0: no end) where that comes first or
+    within 1e-9 of a period (the run's last period ends exactly at its end)."""
+    t_next: cython.double = (j + 1) * period
+    if t_final > 0 and t_next >= t_final - 1e-9 * period:
+        return t_final
+    return t_next

@@ -149,7 +149,7 @@ def test_the_compiled_rules_touch_no_python_object():
     names = re.findall(r"^cdef (?:public )?\w+ (\w+)\(", (ENGINE / "loop_rules.pxd").read_text(), re.M)
     assert len(names) >= 10
     for name in names:
-        head = rf"\n(?:static )?(?:int|void|double) (?:__pyx_f_\w+_)?{name}\("
+        head = rf"\n(?:static )?(?:int|long|void|double) (?:__pyx_f_\w+_)?{name}\("
         m = re.search(head + r"(?:double \*|double |int |long )__pyx_v_\w+[^)]*\) {\n(.*?)\n}\n", c, re.S)
         assert m, name
         code = [line for line in m.group(1).splitlines() if not line.lstrip().startswith(("/*", "*"))]
@@ -295,3 +295,15 @@ def test_the_compiled_loop_reads_no_python_attribute_by_name():
     by_name = re.findall(r"PyObject_(?:Get|Set|Has|Del)Attr\w*|PyObject_CallMethod\w*|PyUnicode_InternFromString"
                          r"|_PyObject_\w*Id\b", core)
     assert by_name == []
+
+
+def test_the_control_periods_rules_are_written_once():
+    """The control period under way at t (a bisection: a run may start late) and when it ends are the rules'
+    (loop_rules.py): HybridSimulator.advance_period and _core.c's periods and period call them."""
+    assert_written_once(("if (k + 1) * period > t:", "if t_final > 0 and t_next >= t_final - 1e-9 * period:"),
+                        r"\(\w+ \+ 1\) \* period <= t|>= t_final - 1e-9 \* period")
+    from biped_sim.engine import loop_rules as rules
+    assert rules.ev_period_index(0.3, 0.1, 0) == 2          # 3 * 0.1 > 0.3 in floating point: period 2 is under way
+    assert rules.ev_period_index(1e5, 1e-3, 7) == 100000000 and rules.ev_period_index(0.05, 0.1, 4) == 4
+    assert rules.ev_period_index(2.0 ** 60, 1.0, 0) == -1   # refused: beyond 2^53 periods
+    assert rules.ev_period_end(2, 0.1, 0.0) == 3 * 0.1 and rules.ev_period_end(9, 0.1, 1.0 + 1e-12) == 1.0 + 1e-12
