@@ -450,9 +450,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     double q[5], dq[5], w = L->y[10], ft1[8], ft0[8], F0[2], F1[2];
     memcpy(q, L->y, sizeof q);
     memcpy(dq, L->y + 5, sizeof dq);
-    double top = 0.0;
-    for (int i = 0; i < 5; i++) top = fabs(dq[i]) > top ? fabs(dq[i]) : top;
-    if (!(top <= L->max_speed)) { L->why = WHY_DIVERGING; return 0; }
+    if (ev_diverging(dq, 5, L->max_speed)) { L->why = WHY_DIVERGING; return 0; }
     feet(L, q, dq, ft1);
     /* the torque and force of the step's last evaluation, at its end (FSAL) */
     L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];

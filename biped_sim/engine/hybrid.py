@@ -548,7 +548,7 @@ class HybridSimulator:
             self._stats["steps"] += 1
             self._h = getattr(st, "h_abs", None) or getattr(st, "h", None)
             q, dq, w = self._to_phys(st.y)
-            if max(map(abs, dq)) > self.opt.max_speed:
+            if rules.ev_diverging(dq, len(dq), self.opt.max_speed):
                 raise SimulationError(f"diverging state at t={st.t:.9g} s: a velocity exceeds "
                                       f"{self.opt.max_speed:g} (dq={np.round(dq, 3).tolist()})")
             feet = self.feet(q, dq)   # the end state's feet, shared by the checks below

@@ -52,3 +52,4 @@ cdef public bint ev_event_loop(long n_events, double t_first, double t_last) noe
 cdef public bint ev_accumulating(double *times, Py_ssize_t n, double t) noexcept nogil
 cdef public long ev_period_index(double t, double period, long k) noexcept nogil
 cdef public double ev_period_end(long j, double period, double t_final) noexcept nogil
+cdef public bint ev_diverging(double *dq, Py_ssize_t n, double max_speed) noexcept nogil

@@ -740,6 +740,20 @@ def ev_accumulating(times, n, t):
     return g0 > g1 and g1 > g2 and g2 <= 0.5 * g0 and t - times[3] < g2
 
 
+# -- a diverging state and the energy balance (hybrid.py: _integrate, _record) --------------------------------
+def ev_diverging(dq, n, max_speed):
+    """Whether a state diverges: its largest speed |dq_i| (of its n entries) exceeds max_speed. The largest as
+    Python's max takes it: the first of equal ones, an entry replacing it only where greater (a NaN first hides
+    the rest; the step's own check has refused a non-finite state before)."""
+    top: cython.double = fabs(dq[0])
+    v: cython.double
+    i: cython.Py_ssize_t
+    for i in range(1, n):
+        v = fabs(dq[i])
+        if v > top:
+            top = v
+    return top > max_speed
+
 # -- the control periods (hybrid.advance_period, advance_periods) -------------------------------------------
 def ev_period_index(t, period, k):
     """The index of the control period under way at t: the smallest j >= k (the periods begun so far) with

@@ -307,3 +307,12 @@ def test_the_control_periods_rules_are_written_once():
     assert rules.ev_period_index(1e5, 1e-3, 7) == 100000000 and rules.ev_period_index(0.05, 0.1, 4) == 4
     assert rules.ev_period_index(2.0 ** 60, 1.0, 0) == -1   # refused: beyond 2^53 periods
     assert rules.ev_period_end(2, 0.1, 0.0) == 3 * 0.1 and rules.ev_period_end(9, 0.1, 1.0 + 1e-12) == 1.0 + 1e-12
+
+
+def test_the_divergence_check_is_written_once():
+    """A diverging state (a speed beyond max_speed) is the rules' (loop_rules.py): HybridSimulator._integrate and
+    _core.c's quiet step call it."""
+    assert_written_once(("return top > max_speed",), r"max\(map\(abs, dq\)\)|top <= L->max_speed|fabs\(dq\[i\]\) > top")
+    from biped_sim.engine import loop_rules as rules
+    assert rules.ev_diverging([0.0, -2.0, 1.0, 0.5, 0.0], 5, 1.5) and not rules.ev_diverging([1.5, -1.5], 2, 1.5)
+    assert not rules.ev_diverging([0.0, 0.0, 0.0, 0.0, 2.0], 4, 1.5)      # the first n entries only
