@@ -380,8 +380,8 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     if (stance_start(L, Fp) != STANCE_HOLDS) { L->why = WHY_STANCE_REFUSED; return 0; }
     /* applied */
     double lost = energy_lost + loss;
-    double res_e = L->energy_before - E0 - w - push_work + energy_lost;
-    double res_p = L->energy_after - E0 - w - push_work + lost;
+    double res_e = ev_energy_residual(L->energy_before, E0, w, push_work, energy_lost);
+    double res_p = ev_energy_residual(L->energy_after, E0, w, push_work, lost);
     rows[0] = t_ev;
     for (int i = 0; i < 5; i++) { rows[1 + i] = q[i]; rows[6 + i] = dqm[i]; }
     rows[11] = old;
@@ -567,7 +567,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         if (!L->armed[leg - 1] && ev_arms(leg != st, ft1[4 * (leg - 1) + 1], L->arm_height)) L->armed[leg - 1] = 1;
     double TV[2];
     k_energy(q, dq, L->k_energy, TV);
-    double residual = TV[0] + TV[1] - E0 - w - push_work + energy_lost;
+    double residual = ev_energy_residual(TV[0] + TV[1], E0, w, push_work, energy_lost);
     row[0] = L->t;
     for (int i = 0; i < 5; i++) row[1 + i] = q[i];
     for (int i = 0; i < 5; i++) row[6 + i] = dq[i];

@@ -615,7 +615,7 @@ class HybridSimulator:
         there, and the energy balance."""
         T, V = gen.energy(*(lists or (q.tolist(), dq.tolist())), self.model.k["energy"])
         S = self.S
-        residual = T + V - S[E0] - S[SIM_WORK] - S[PUSH_WORK] + S[ENERGY_LOST]
+        residual = rules.ev_energy_residual(T + V, S[E0], S[SIM_WORK], S[PUSH_WORK], S[ENERGY_LOST])
         self._stats["max_energy_balance_residual"] = max(self._stats["max_energy_balance_residual"], abs(residual))
         self._samples.append(self.t, q, dq, leg, F, u, residual)
 

@@ -53,3 +53,5 @@ cdef public bint ev_accumulating(double *times, Py_ssize_t n, double t) noexcept
 cdef public long ev_period_index(double t, double period, long k) noexcept nogil
 cdef public double ev_period_end(long j, double period, double t_final) noexcept nogil
 cdef public bint ev_diverging(double *dq, Py_ssize_t n, double max_speed) noexcept nogil
+cdef public double ev_energy_residual(double energy, double e0, double work, double push_work,
+                                      double energy_lost) noexcept nogil

@@ -754,6 +754,13 @@ def ev_diverging(dq, n, max_speed):
             top = v
     return top > max_speed
 
+
+def ev_energy_residual(energy, e0, work, push_work, energy_lost):
+    """The energy balance's residual E - E(0) - W - W_push + E_lost (docs/model.md): energy E = T + V now, e0 at
+    the start, work W the motors', push_work the pushes', energy_lost what the impacts took so far. Zero up to
+    the integration's error."""
+    return energy - e0 - work - push_work + energy_lost
+
 # -- the control periods (hybrid.advance_period, advance_periods) -------------------------------------------
 def ev_period_index(t, period, k):
     """The index of the control period under way at t: the smallest j >= k (the periods begun so far) with

@@ -316,3 +316,13 @@ def test_the_divergence_check_is_written_once():
     from biped_sim.engine import loop_rules as rules
     assert rules.ev_diverging([0.0, -2.0, 1.0, 0.5, 0.0], 5, 1.5) and not rules.ev_diverging([1.5, -1.5], 2, 1.5)
     assert not rules.ev_diverging([0.0, 0.0, 0.0, 0.0, 2.0], 4, 1.5)      # the first n entries only
+
+
+def test_the_energy_balance_residual_is_written_once():
+    """The energy balance's residual is the rules' (loop_rules.py): HybridSimulator._record and _core.c's quiet step
+    and touchdown (before and after the impact) call it."""
+    assert_written_once(("return energy - e0 - work - push_work + energy_lost",),
+                        r"S\[E0\] - |- E0 - w\b|- e0 - |- push_work \+ ")
+    from biped_sim.engine import loop_rules as rules
+    assert rules.ev_energy_residual(10.0, 9.0, 0.75, 0.5, 0.25) == 0.0
+    assert rules.ev_energy_residual(1.0, 0.1, 0.2, 0.3, 0.0) == ((1.0 - 0.1) - 0.2) - 0.3   # in this order
