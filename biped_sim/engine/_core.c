@@ -390,7 +390,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     for (int i = 0; i < 5; i++) { rows[18 + i] = q[i]; rows[23 + i] = dqp[i]; }
     rows[28] = nw;
     rows[29] = Fp[0]; rows[30] = Fp[1]; rows[31] = up[0]; rows[32] = up[1]; rows[33] = res_p;
-    *residual_out = fabs(res_e) > fabs(res_p) ? res_e : res_p;
+    *residual_out = ev_running_max(fabs(res_e), fabs(res_p));
     double p[4];
     k_foot_positions(q, L->k_pos, p);
     L->pin[0] = p[2 * nw - 2];
@@ -735,16 +735,15 @@ quiet_until(Loop *L, double t_end, RunState *rs)
             rs->n = at + 1;
             rs->appended += 1;
             rs->provisional = ev_provisional(rs->appended, rs->every);
-            L->max_drift = drift > L->max_drift ? drift : L->max_drift;
-            L->max_rate = rate > L->max_rate ? rate : L->max_rate;
+            L->max_drift = ev_running_max(L->max_drift, drift);
+            L->max_rate = ev_running_max(L->max_rate, rate);
         }
         rs->t_accepted = L->t;
         rs->w_accepted = L->y[10];
         rs->h_accepted = L->h_abs;
         rs->accepted++;
         L->steps += 1;
-        residual = fabs(residual);
-        L->max_residual = residual > L->max_residual ? residual : L->max_residual;
+        L->max_residual = ev_running_max(L->max_residual, fabs(residual));
     }
     return OUTCOME_DONE;
 }

@@ -591,8 +591,8 @@ class HybridSimulator:
         q, dq, drift, rate = project_onto_pin(q, dq, feet[self.stance_leg - 1], self.pin, self.ground.tan,
                                               self.opt.project_constraints)
         s = self._stats
-        s["max_constraint_drift_position"] = max(s["max_constraint_drift_position"], drift)
-        s["max_constraint_drift_velocity"] = max(s["max_constraint_drift_velocity"], rate)
+        s["max_constraint_drift_position"] = rules.ev_running_max(s["max_constraint_drift_position"], drift)
+        s["max_constraint_drift_velocity"] = rules.ev_running_max(s["max_constraint_drift_velocity"], rate)
         return q, dq
 
     def _accept(self, t, q, dq, w, F=None, u=None):
@@ -616,7 +616,8 @@ class HybridSimulator:
         T, V = gen.energy(*(lists or (q.tolist(), dq.tolist())), self.model.k["energy"])
         S = self.S
         residual = rules.ev_energy_residual(T + V, S[E0], S[SIM_WORK], S[PUSH_WORK], S[ENERGY_LOST])
-        self._stats["max_energy_balance_residual"] = max(self._stats["max_energy_balance_residual"], abs(residual))
+        self._stats["max_energy_balance_residual"] = rules.ev_running_max(self._stats["max_energy_balance_residual"],
+                                                                           abs(residual))
         self._samples.append(self.t, q, dq, leg, F, u, residual)
 
     # -- resets -------------------------------------------------------------------------------

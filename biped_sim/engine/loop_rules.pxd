@@ -55,3 +55,4 @@ cdef public double ev_period_end(long j, double period, double t_final) noexcept
 cdef public bint ev_diverging(double *dq, Py_ssize_t n, double max_speed) noexcept nogil
 cdef public double ev_energy_residual(double energy, double e0, double work, double push_work,
                                       double energy_lost) noexcept nogil
+cdef public double ev_running_max(double m, double v) noexcept nogil

@@ -761,6 +761,12 @@ def ev_energy_residual(energy, e0, work, push_work, energy_lost):
     the integration's error."""
     return energy - e0 - work - push_work + energy_lost
 
+
+def ev_running_max(m, v):
+    """A run's statistic m (the largest constraint drift, its rate, |residual| so far) after the value v: v where it
+    is greater, else m (Python's max(m, v): a NaN v leaves m)."""
+    return v if v > m else m
+
 # -- the control periods (hybrid.advance_period, advance_periods) -------------------------------------------
 def ev_period_index(t, period, k):
     """The index of the control period under way at t: the smallest j >= k (the periods begun so far) with

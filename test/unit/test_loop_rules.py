@@ -326,3 +326,13 @@ def test_the_energy_balance_residual_is_written_once():
     from biped_sim.engine import loop_rules as rules
     assert rules.ev_energy_residual(10.0, 9.0, 0.75, 0.5, 0.25) == 0.0
     assert rules.ev_energy_residual(1.0, 0.1, 0.2, 0.3, 0.0) == ((1.0 - 0.1) - 0.2) - 0.3   # in this order
+
+
+def test_the_runs_running_maxima_are_written_once():
+    """The run's statistics (the largest constraint drift, its rate, |residual|) are kept by the rules'
+    (loop_rules.py) running maximum: HybridSimulator._project and _record and _core.c's quiet steps call it."""
+    assert_written_once(("return v if v > m else m",),
+                        r"\bmax\(s\[\"max_|\bmax\(self\._stats\[|(drift|rate|residual) > L->max_|fabs\(res_e\) > ")
+    from biped_sim.engine import loop_rules as rules
+    assert rules.ev_running_max(1.0, 2.0) == 2.0 and rules.ev_running_max(2.0, 1.0) == 2.0
+    assert rules.ev_running_max(1.0, math.nan) == 1.0     # as max(m, v)
