@@ -382,14 +382,8 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     double lost = energy_lost + loss;
     double res_e = ev_energy_residual(L->energy_before, E0, w, push_work, energy_lost);
     double res_p = ev_energy_residual(L->energy_after, E0, w, push_work, lost);
-    rows[0] = t_ev;
-    for (int i = 0; i < 5; i++) { rows[1 + i] = q[i]; rows[6 + i] = dqm[i]; }
-    rows[11] = old;
-    rows[12] = Fe[0]; rows[13] = Fe[1]; rows[14] = ue[0]; rows[15] = ue[1]; rows[16] = res_e;
-    rows[17] = t_ev;
-    for (int i = 0; i < 5; i++) { rows[18 + i] = q[i]; rows[23 + i] = dqp[i]; }
-    rows[28] = nw;
-    rows[29] = Fp[0]; rows[30] = Fp[1]; rows[31] = up[0]; rows[32] = up[1]; rows[33] = res_p;
+    ev_sample_row(rows, t_ev, q, dqm, old, Fe, ue, res_e);
+    ev_sample_row(rows + 17, t_ev, q, dqp, nw, Fp, up, res_p);
     *residual_out = ev_running_max(fabs(res_e), fabs(res_p));
     double p[4];
     k_foot_positions(q, L->k_pos, p);
@@ -568,13 +562,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     double TV[2];
     k_energy(q, dq, L->k_energy, TV);
     double residual = ev_energy_residual(TV[0] + TV[1], E0, w, push_work, energy_lost);
-    row[0] = L->t;
-    for (int i = 0; i < 5; i++) row[1 + i] = q[i];
-    for (int i = 0; i < 5; i++) row[6 + i] = dq[i];
-    row[11] = st;
-    row[12] = F1[0]; row[13] = F1[1];
-    row[14] = L->end_u[0]; row[15] = L->end_u[1];
-    row[16] = residual;
+    ev_sample_row(row, L->t, q, dq, st, F1, L->end_u, residual);
     if (L->project) {
         memcpy(L->y, q, sizeof q);
         memcpy(L->y + 5, dq, sizeof dq);

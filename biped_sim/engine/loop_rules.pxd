@@ -56,3 +56,5 @@ cdef public bint ev_diverging(double *dq, Py_ssize_t n, double max_speed) noexce
 cdef public double ev_energy_residual(double energy, double e0, double work, double push_work,
                                       double energy_lost) noexcept nogil
 cdef public double ev_running_max(double m, double v) noexcept nogil
+cdef public void ev_sample_row(double *row, double t, double *q, double *dq, double leg, double *F, double *u,
+                               double residual) noexcept nogil

@@ -767,6 +767,22 @@ def ev_running_max(m, v):
     is greater, else m (Python's max(m, v): a NaN v leaves m)."""
     return v if v > m else m
 
+
+def ev_sample_row(row, t, q, dq, leg, F, u, residual):
+    """What a sample holds, into row (results.Samples' row of 17): t, q (5), dq (5), the stance leg (0: flight),
+    the ground force F on the stance foot (2), the torque u applied (2), the energy balance's residual."""
+    i: cython.Py_ssize_t
+    row[0] = t
+    for i in range(5):
+        row[1 + i] = q[i]
+        row[6 + i] = dq[i]
+    row[11] = leg
+    row[12] = F[0]
+    row[13] = F[1]
+    row[14] = u[0]
+    row[15] = u[1]
+    row[16] = residual
+
 # -- the control periods (hybrid.advance_period, advance_periods) -------------------------------------------
 def ev_period_index(t, period, k):
     """The index of the control period under way at t: the smallest j >= k (the periods begun so far) with

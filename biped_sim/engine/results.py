@@ -167,7 +167,9 @@ class Samples:
             n -= 1
         elif n == len(self._data):
             self.grow()
-        self._data[n] = [t, *q, *dq, leg, F[0], F[1], u[0], u[1], residual]
+        row = [0.0] * self.WIDTH        # (a list filled, then copied into the array: faster than the array's items)
+        rules.ev_sample_row(row, t, q, dq, leg, F, u, residual)
+        self._data[n] = row
         S[N_SAMPLES] = n + 1
         S[APPENDED] += 1
         # the first sample (the initial state) is always kept

@@ -336,3 +336,16 @@ def test_the_runs_running_maxima_are_written_once():
     from biped_sim.engine import loop_rules as rules
     assert rules.ev_running_max(1.0, 2.0) == 2.0 and rules.ev_running_max(2.0, 1.0) == 2.0
     assert rules.ev_running_max(1.0, math.nan) == 1.0     # as max(m, v)
+
+
+def test_what_a_sample_holds_is_written_once():
+    """A sample's row (t, q, dq, the stance leg, F, u, the residual) is composed by the rules (loop_rules.py):
+    results.Samples.append and _core.c's quiet step and touchdown call it."""
+    assert_written_once(("row[16] = residual",), r"\[t, \*q, \*dq|\brows?\[1[1-6]\] = |rows\[(1[7-9]|2\d|3[0-3])\] = ")
+    import numpy as np
+
+    from biped_sim.engine.results import Samples
+    samples = Samples()
+    samples.append(0.5, np.arange(5.0), [5.0, 6.0, 7.0, 8.0, 9.0], 2, [10.0, 11.0], [12.0, 13.0], 14.0)
+    assert samples.rows().tolist() == [[0.5, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 2.0, 10.0, 11.0, 12.0,
+                                        13.0, 14.0]]
