@@ -130,7 +130,7 @@ two_finite_array(PyObject *u, double *out)
              && strcmp(b.format, "d") == 0;
     if (ok) memcpy(out, b.buf, 2 * sizeof(double));
     PyBuffer_Release(&b);
-    return ok && isfinite(out[0] + out[1]) ? 0 : -1;
+    return ok && ev_finite_torques(out[0], out[1]) ? 0 : -1;
 }
 
 /* u = controller(t, q, dq, stance_leg), a Python controller called straight from here with lists q and dq and
@@ -950,7 +950,7 @@ two_finite(PyObject *u, double *out)
             return -1;
         }
     }
-    return isfinite(out[0] + out[1]) ? 0 : -1;     /* as two_finite_floats: nan + x, inf - inf, 1e308 + 1e308 */
+    return ev_finite_torques(out[0], out[1]) ? 0 : -1;
 }
 
 static double

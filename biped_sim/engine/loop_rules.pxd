@@ -58,3 +58,4 @@ cdef public double ev_energy_residual(double energy, double e0, double work, dou
 cdef public double ev_running_max(double m, double v) noexcept nogil
 cdef public void ev_sample_row(double *row, double t, double *q, double *dq, double leg, double *F, double *u,
                                double residual) noexcept nogil
+cdef public bint ev_finite_torques(double u0, double u1) noexcept nogil

@@ -783,6 +783,13 @@ def ev_sample_row(row, t, q, dq, leg, F, u, residual):
     row[15] = u[1]
     row[16] = residual
 
+
+# -- the torque a law returns, or a run holds (modes.two_finite_floats, _core.c's two_finite) -----------------
+def ev_finite_torques(u0, u1):
+    """Whether the torques (u0, u1) are taken: finite, and so is their sum (a NaN, inf - inf or 1e308 + 1e308
+    makes it not)."""
+    return isfinite(u0 + u1)
+
 # -- the control periods (hybrid.advance_period, advance_periods) -------------------------------------------
 def ev_period_index(t, period, k):
     """The index of the control period under way at t: the smallest j >= k (the periods begun so far) with

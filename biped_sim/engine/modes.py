@@ -34,17 +34,17 @@ def two_finite_floats(u):
     if tu is list or tu is tuple:
         if len(u) == 2:
             u0, u1 = u
-            if type(u0) is float and type(u1) is float and math.isfinite(u0 + u1):   # nan + x, inf - inf: nan
+            if type(u0) is float and type(u1) is float and rules.ev_finite_torques(u0, u1):
                 return [u0, u1]
     elif tu is np.ndarray and u.shape == (2,) and u.dtype.char == "d":
         u0, u1 = u.tolist()
-        if math.isfinite(u0 + u1):
+        if rules.ev_finite_torques(u0, u1):
             return [u0, u1]
     a, _ = real_vector(u, 2)     # anything else
     if a is None:
         return None
     u0, u1 = a.tolist()
-    return [u0, u1] if math.isfinite(u0 + u1) else None    # (1e308 + 1e308: as the C loop's check)
+    return [u0, u1] if rules.ev_finite_torques(u0, u1) else None
 
 
 def checked_torques(u, t):

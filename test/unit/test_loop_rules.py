@@ -349,3 +349,14 @@ def test_what_a_sample_holds_is_written_once():
     samples.append(0.5, np.arange(5.0), [5.0, 6.0, 7.0, 8.0, 9.0], 2, [10.0, 11.0], [12.0, 13.0], 14.0)
     assert samples.rows().tolist() == [[0.5, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 2.0, 10.0, 11.0, 12.0,
                                         13.0, 14.0]]
+
+
+def test_the_torques_check_is_written_once():
+    """Two torques are taken where they and their sum are finite, by the rules' check (loop_rules.py):
+    modes.two_finite_floats (a law's command, a held torque) and _core.c's two_finite and two_finite_array call it."""
+    assert_written_once(("return isfinite(u0 + u1)",), r"isfinite\(u0 \+ u1\)|isfinite\(out\[0\] \+ out\[1\]\)")
+    from biped_sim.engine import loop_rules as rules
+    from biped_sim.engine.modes import two_finite_floats
+    assert rules.ev_finite_torques(1.0, -2.0) and not rules.ev_finite_torques(1e308, 1e308)
+    assert not rules.ev_finite_torques(math.inf, -math.inf) and not rules.ev_finite_torques(math.nan, 0.0)
+    assert two_finite_floats((1e308, 1e308)) is None and two_finite_floats([1.0, 2]) == [1.0, 2.0]
