@@ -872,8 +872,8 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     Py_buffer buf;
     if (run_state(L, args[4], &rs, &buf) < 0) return NULL;
     int outcome = OUTCOME_DONE;
-    double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, refused[2] = {NAN, NAN}, tol = 1e-9 * period;
-    while (L->t < t_final && t_stop > L->t + tol) {
+    double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, refused[2] = {NAN, NAN};
+    while (ev_next_period_runs(L->t, t_final, t_stop, period)) {
         long k = k0;
         double t_end = period_end(L->t, period, t_final, &k), u_now[2];
         if (command != NULL) call_controller(L, command, L->t, L->y, L->y + 5, u_now);

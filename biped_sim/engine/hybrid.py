@@ -443,9 +443,8 @@ class HybridSimulator:
         on the compiled loop a compiled law's periods run in C, their commands computed there."""
         check_number("period", period, 0.0, math.inf, "s", open_low=True)
         self._check_signature(controller)
-        tol = 1e-9 * period
         law = None      # the periods' law on the compiled loop, found once: a compiled law or the controller
-        while self.status == "running" and self.t < t_final and t_stop > self.t + tol:
+        while self.status == "running" and rules.ev_next_period_runs(self.t, t_final, t_stop, period):
             st = self._compiled
             if st is None or self._stepper is not st or self._initial_sample_pending or not st.can_run_periods():
                 self.advance_period(period, controller=controller, t_final=t_final)

@@ -59,3 +59,4 @@ cdef public double ev_running_max(double m, double v) noexcept nogil
 cdef public void ev_sample_row(double *row, double t, double *q, double *dq, double leg, double *F, double *u,
                                double residual) noexcept nogil
 cdef public bint ev_finite_torques(double u0, double u1) noexcept nogil
+cdef public bint ev_next_period_runs(double t, double t_final, double t_stop, double period) noexcept nogil

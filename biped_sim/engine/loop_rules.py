@@ -828,3 +828,9 @@ def ev_period_end(j, period, t_final):
     if t_final > 0 and t_next >= t_final - 1e-9 * period:
         return t_final
     return t_next
+
+
+def ev_next_period_runs(t, t_final, t_stop, period):
+    """Whether a run of control periods begins another at t: before t_final, and not at or after t_stop within 1e-9
+    of a period (a push due then, applied between two periods)."""
+    return t < t_final and t_stop > t + 1e-9 * period

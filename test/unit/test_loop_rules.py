@@ -360,3 +360,14 @@ def test_the_torques_check_is_written_once():
     assert rules.ev_finite_torques(1.0, -2.0) and not rules.ev_finite_torques(1e308, 1e308)
     assert not rules.ev_finite_torques(math.inf, -math.inf) and not rules.ev_finite_torques(math.nan, 0.0)
     assert two_finite_floats((1e308, 1e308)) is None and two_finite_floats([1.0, 2]) == [1.0, 2.0]
+
+
+def test_whether_another_control_period_runs_is_written_once():
+    """A run of control periods goes on before t_final and before a push due at t_stop (within 1e-9 period): the
+    rules' (loop_rules.py), which HybridSimulator.advance_periods and _core.c's periods call."""
+    assert_written_once(("return t < t_final and t_stop > t + 1e-9 * period",), r"t_stop > (self|L->)\.?t \+ tol")
+    from biped_sim.engine import loop_rules as rules
+    assert rules.ev_next_period_runs(0.0, 1.0, math.inf, 1e-3)
+    assert not rules.ev_next_period_runs(1.0, 1.0, math.inf, 1e-3)         # t_final reached
+    assert not rules.ev_next_period_runs(0.5 - 1e-13, 1.0, 0.5, 1e-3)      # the push is due: within 1e-12 s
+    assert rules.ev_next_period_runs(0.5 - 1e-11, 1.0, 0.5, 1e-3)
