@@ -352,7 +352,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     long m = (long)L->mode_events;
     if (ev_impacts_close(L->n_impacts, L->last_impact, t_ev, L->zeno_interval)) { L->why = WHY_IMPACTS_CLOSE; return 0; }
     if (ev_over_budget(m + 1, L->max_events)) { L->why = WHY_MAX_EVENTS; return 0; }
-    if (ev_event_loop(m + 1, L->ring[m % 49], t_ev)) { L->why = WHY_EVENT_LOOP; return 0; }
+    if (ev_event_loop(m + 1, ev_ring_oldest(L->S), t_ev)) { L->why = WHY_EVENT_LOOP; return 0; }
     double y[N], ue[2], Fe[2] = {0.0, 0.0}, out[7];
     for (int j = 0; j < N; j++) y[j] = rk_dense_at(L->S, j, t_ev);
     double *q = y, *dqm = y + 5, w = y[10];
@@ -411,8 +411,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     if (L->n_recent == 4) memmove(L->recent_impacts, L->recent_impacts + 1, 3 * sizeof(double));
     else L->n_recent++;
     L->recent_impacts[(int)L->n_recent - 1] = t_ev;
-    L->ring[(long)L->mode_events % 49] = t_ev;
-    L->mode_events++;
+    ev_count_mode_event(L->S, t_ev);
     /* the next mode's start (begin): f at the state after the impact, the step size carried over */
     memcpy(L->y, q, 5 * sizeof(double));
     memcpy(L->y + 5, dqp, 5 * sizeof(double));

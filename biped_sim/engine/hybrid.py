@@ -43,7 +43,6 @@ from biped_sim.engine.loop_state import (
     MODE_EVENTS,
     N_RECORDS,
     PUSH_WORK,
-    RING,
     RUNNING,
     SIM_DQ,
     SIM_H,
@@ -730,13 +729,12 @@ class HybridSimulator:
         if ev.kind == "scuff" or applied_in_loop:    # a scuff is a report, not a change of mode
             return
         S = self.S
-        m = int(S[MODE_EVENTS])
-        t_first = S[RING + m % 49]      # the event 49 before this one (the ring keeps the last 49 times)
-        S[RING + m % 49] = ev.time
-        S[MODE_EVENTS] = m + 1
-        if rules.ev_over_budget(m + 1, self.opt.max_events):
-            self._stop("stopped", f"stopped after {m + 1} events (max_events)")
-        if rules.ev_event_loop(m + 1, t_first, ev.time):
+        t_first = rules.ev_ring_oldest(S)      # the event 49 before this one
+        rules.ev_count_mode_event(S, ev.time)
+        m = int(S[MODE_EVENTS])                # this one's count
+        if rules.ev_over_budget(m, self.opt.max_events):
+            self._stop("stopped", f"stopped after {m} events (max_events)")
+        if rules.ev_event_loop(m, t_first, ev.time):
             self._stop("stopped", f"event loop: 50 events within 1e-9 s ending at t={ev.time:.9g} s "
                                   f"(last: {ev.kind} of leg {ev.leg}); the run stops instead of hanging")
 

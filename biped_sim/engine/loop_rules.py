@@ -88,6 +88,7 @@ if not cython.compiled:
         MAX_DEPTH,
         MAX_STEP,
         METHOD,
+        MODE_EVENTS,
         MU,
         N_Y,
         NACCEPTED,
@@ -99,6 +100,7 @@ if not cython.compiled:
         Q_IMPACT,
         QS,
         RESULT,
+        RING,
         RTOL,
         SCUFF_DEPTH,
         SCUFF_TRIAL,
@@ -725,6 +727,20 @@ def ev_event_loop(n_events, t_first, t_last):
     """Whether the last 50 of n_events changes of mode, the first of them at t_first and the last at t_last, came
     within 1e-9 s: an event loop, which stops the run instead of hanging."""
     return n_events >= 50 and t_last - t_first < 1e-9
+
+
+def ev_ring_oldest(S):
+    """The time of the change of mode 49 before the next one (the ring holds the last 49, event i at i % 49): the
+    first of the 50 that ev_event_loop looks at."""
+    m: cython.long = int(S[MODE_EVENTS])
+    return S[RING + m % 49]
+
+
+def ev_count_mode_event(S, t):
+    """A change of mode at t counted: mode_events one more, its time in the ring over the oldest's."""
+    m: cython.long = int(S[MODE_EVENTS])
+    S[RING + m % 49] = t
+    S[MODE_EVENTS] = m + 1
 
 
 def ev_accumulating(times, n, t):

@@ -371,3 +371,15 @@ def test_whether_another_control_period_runs_is_written_once():
     assert not rules.ev_next_period_runs(1.0, 1.0, math.inf, 1e-3)         # t_final reached
     assert not rules.ev_next_period_runs(0.5 - 1e-13, 1.0, 0.5, 1e-3)      # the push is due: within 1e-12 s
     assert rules.ev_next_period_runs(0.5 - 1e-11, 1.0, 0.5, 1e-3)
+
+
+def test_counting_a_change_of_mode_is_written_once():
+    """A change of mode is counted, and the time 49 events before the next one read, on the state's ring by the
+    rules (loop_rules.py): HybridSimulator._add_event and _core.c's touchdown call them."""
+    assert_written_once(("S[RING + m % 49] = t",), r"% 49\] = |\[RING \+ |ring\[")
+    from biped_sim.engine import loop_rules as rules
+    S = loop_state.new_state()
+    for i in range(60):
+        assert rules.ev_ring_oldest(S) == (float(i - 49) if i >= 49 else 0.0)
+        rules.ev_count_mode_event(S, float(i))
+    assert S[loop_state.MODE_EVENTS] == 60
