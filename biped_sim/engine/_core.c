@@ -406,11 +406,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     for (int leg = 1; leg <= 2; leg++)
         if (ev_disarmed_by_reset(leg, 0, old, nw)) L->armed[leg - 1] = 0;
     L->feet_end_t = L->force_end_t = NAN;   /* EventLocator.after_reset: the step end's are not the new state's */
-    L->last_impact = t_ev;
-    L->n_impacts++;
-    if (L->n_recent == 4) memmove(L->recent_impacts, L->recent_impacts + 1, 3 * sizeof(double));
-    else L->n_recent++;
-    L->recent_impacts[(int)L->n_recent - 1] = t_ev;
+    ev_count_impact(L->S, t_ev);
     ev_count_mode_event(L->S, t_ev);
     /* the next mode's start (begin): f at the state after the impact, the step size carried over */
     memcpy(L->y, q, 5 * sizeof(double));

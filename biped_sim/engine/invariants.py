@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from biped_sim.engine import loop_rules as rules
 from biped_sim.engine.guards import normal_tangent, starts_scuff
-from biped_sim.engine.loop_state import LAST_IMPACT, N_IMPACTS, N_RECENT, RECENT_IMPACTS, new_state
+from biped_sim.engine.loop_state import new_state
 from biped_sim.engine.results import SceneAssumptionError, SimulationError
 
 
@@ -111,17 +111,7 @@ class ImpactHistory:
         already); the message of a Zeno stop, or None."""
         self.times.append(t)
         if in_state:
-            S = self.S
-            S[LAST_IMPACT] = t
-            S[N_IMPACTS] += 1
-            n = int(S[N_RECENT])
-            if n == 4:
-                S[RECENT_IMPACTS], S[RECENT_IMPACTS + 1], S[RECENT_IMPACTS + 2] = (
-                    S[RECENT_IMPACTS + 1], S[RECENT_IMPACTS + 2], S[RECENT_IMPACTS + 3])
-            else:
-                n += 1
-                S[N_RECENT] = n
-            S[RECENT_IMPACTS + n - 1] = t
+            rules.ev_count_impact(self.S, t)
         if len(self.times) > max(self.count + 1, 5):
             del self.times[0]
         last = self.times[-(self.count + 1):]

@@ -50,6 +50,7 @@ cdef public bint ev_impacts_close(long n_before, double t_before, double t, doub
 cdef public bint ev_over_budget(long n_events, long max_events) noexcept nogil
 cdef public bint ev_event_loop(long n_events, double t_first, double t_last) noexcept nogil
 cdef public bint ev_accumulating(double *times, Py_ssize_t n, double t) noexcept nogil
+cdef public void ev_count_impact(double *S, double t) noexcept nogil
 cdef public double ev_ring_oldest(double *S) noexcept nogil
 cdef public void ev_count_mode_event(double *S, double t) noexcept nogil
 cdef public long ev_period_index(double t, double period, long k) noexcept nogil

@@ -85,11 +85,14 @@ if not cython.compiled:
         IMPULSE,
         KINEMATICS,
         L_LEG,
+        LAST_IMPACT,
         MAX_DEPTH,
         MAX_STEP,
         METHOD,
         MODE_EVENTS,
         MU,
+        N_IMPACTS,
+        N_RECENT,
         N_Y,
         NACCEPTED,
         NFEV,
@@ -99,6 +102,7 @@ if not cython.compiled:
         PS,
         Q_IMPACT,
         QS,
+        RECENT_IMPACTS,
         RESULT,
         RING,
         RTOL,
@@ -727,6 +731,22 @@ def ev_event_loop(n_events, t_first, t_last):
     """Whether the last 50 of n_events changes of mode, the first of them at t_first and the last at t_last, came
     within 1e-9 s: an event loop, which stops the run instead of hanging."""
     return n_events >= 50 and t_last - t_first < 1e-9
+
+
+def ev_count_impact(S, t):
+    """An impact at t counted in the state's impact history: the last impact's time, their count, and the last
+    four impacts' times (oldest first: the oldest leaves for the newest)."""
+    n: cython.Py_ssize_t = int(S[N_RECENT])
+    S[LAST_IMPACT] = t
+    S[N_IMPACTS] += 1
+    if n == 4:
+        S[RECENT_IMPACTS] = S[RECENT_IMPACTS + 1]
+        S[RECENT_IMPACTS + 1] = S[RECENT_IMPACTS + 2]
+        S[RECENT_IMPACTS + 2] = S[RECENT_IMPACTS + 3]
+    else:
+        n += 1
+        S[N_RECENT] = n
+    S[RECENT_IMPACTS + n - 1] = t
 
 
 def ev_ring_oldest(S):

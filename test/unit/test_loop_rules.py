@@ -383,3 +383,17 @@ def test_counting_a_change_of_mode_is_written_once():
         assert rules.ev_ring_oldest(S) == (float(i - 49) if i >= 49 else 0.0)
         rules.ev_count_mode_event(S, float(i))
     assert S[loop_state.MODE_EVENTS] == 60
+
+
+def test_counting_an_impact_is_written_once():
+    """An impact is counted in the state's impact history (the last one, their count, the last four) by the rules
+    (loop_rules.py): ImpactHistory.record and _core.c's touchdown call it."""
+    assert_written_once(("S[RECENT_IMPACTS + n - 1] = t",), r"RECENT_IMPACTS \+ n - 1\] = |recent_impacts\[[^]]*\] = "
+                                                           r"|n_impacts\+\+|last_impact = t")
+    from biped_sim.engine import loop_rules as rules
+    S = loop_state.new_state()
+    for t in (1.0, 2.0, 3.0, 4.0, 5.0, 6.0):
+        rules.ev_count_impact(S, t)
+    R = loop_state.RECENT_IMPACTS
+    assert S[R:R + 4] == [3.0, 4.0, 5.0, 6.0] and S[loop_state.N_RECENT] == 4
+    assert S[loop_state.N_IMPACTS] == 6 and S[loop_state.LAST_IMPACT] == 6.0
