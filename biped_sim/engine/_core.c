@@ -268,7 +268,7 @@ rhs(void *ctx, double t, const double *y, double *dy)
     L->last_u[0] = u[0]; L->last_u[1] = u[1];
     for (int i = 0; i < 5; i++) dy[i] = y[5 + i];
     for (int i = 0; i < 5; i++) dy[5 + i] = out[i];
-    dy[10] = u[0] * y[7] + u[1] * y[8];
+    dy[10] = ev_motor_power(u, y[7], y[8]);
     return 0;
 }
 

@@ -826,6 +826,12 @@ def ev_finite_torques(u0, u1):
     makes it not)."""
     return isfinite(u0 + u1)
 
+
+def ev_motor_power(u, dq1, dq2):
+    """The motors' power u . (dq1, dq2), the torques u on the hips times the legs' joint rates: the integrand of the
+    motor work W, the last entry of every mode's state."""
+    return u[0] * dq1 + u[1] * dq2
+
 # -- the control periods (hybrid.advance_period, advance_periods) -------------------------------------------
 def ev_period_index(t, period, k):
     """The index of the control period under way at t: the smallest j >= k (the periods begun so far) with

@@ -132,14 +132,14 @@ def mode_functions(model, stance_leg, base, pin, u_hold, control, sink):
             u = u_hold if control is None else control(t, y[0:5], y[5:10])   # (lists of its own)
             ddq, F = stance(q, dq, u, k_stance)
             sink(F, u)
-            return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
+            return dq + ddq + [rules.ev_motor_power(u, dq[2], dq[3])]
     else:
         def rhs(t, y):
             q, dq = y[0:5], y[5:10]
             u = u_hold if control is None else control(t, y[0:5], y[5:10])
             ddq = flight_fast(model, q, dq, u)
             sink(None, u)
-            return dq + ddq + [u[0] * dq[2] + u[1] * dq[3]]
+            return dq + ddq + [rules.ev_motor_power(u, dq[2], dq[3])]
     return rhs, to_phys, from_phys
 
 
@@ -168,7 +168,7 @@ def _fixed_base_functions(model, stance_leg, pin, u_hold, control, sink):
             u = control(t, q, dq)
         dds = stance_fixed_accel_fast(model, qs, dqs, u, stance_leg)   # no force: guards ask for it
         sink(None, u)
-        return dqs + dds + [u[0] * dqs[0] + u[1] * dqs[1]]
+        return dqs + dds + [rules.ev_motor_power(u, dqs[0], dqs[1])]
     return rhs, to_phys, from_phys
 
 

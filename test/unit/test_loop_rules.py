@@ -397,3 +397,11 @@ def test_counting_an_impact_is_written_once():
     R = loop_state.RECENT_IMPACTS
     assert S[R:R + 4] == [3.0, 4.0, 5.0, 6.0] and S[loop_state.N_RECENT] == 4
     assert S[loop_state.N_IMPACTS] == 6 and S[loop_state.LAST_IMPACT] == 6.0
+
+
+def test_the_motor_power_is_written_once():
+    """The motors' power u . (dq1, dq2), the motor work's integrand, is the rules' (loop_rules.py): the Python modes'
+    right-hand sides (modes.py) and _core.c's call it."""
+    assert_written_once(("return u[0] * dq1 + u[1] * dq2",), r"u\[0\] \* \w+\[\d\] \+ u\[1\] \* \w+\[\d\]")
+    from biped_sim.engine import loop_rules as rules
+    assert rules.ev_motor_power([2.0, -3.0], 0.5, 0.25) == 0.25
