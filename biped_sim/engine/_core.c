@@ -697,12 +697,12 @@ quiet_until(Loop *L, double t_end, RunState *rs)
         double drift = 0.0, rate = 0.0, residual, row[34];
         int accepted_how = quiet_step(L, row, rs->E0, rs->push_work, rs->energy_lost, &drift, &rate, &residual);
         if (!accepted_how) return OUTCOME_EVENT;
-        long at = rs->last_only ? 0 : rs->provisional ? rs->n - 1 : rs->n;
+        long at = ev_sample_slot(rs->n, rs->provisional, rs->last_only);
         if (accepted_how == 3) {
             /* the event's sample (kept: _reset's keep_last), then the one after the impact (kept) */
             memcpy(rs->data + 17 * at, row, 17 * sizeof(double));
             rs->n = at + 1;
-            at = rs->last_only ? 0 : rs->n;
+            at = ev_sample_slot(rs->n, 0, rs->last_only);
             memcpy(rs->data + 17 * at, row + 17, 17 * sizeof(double));
             rs->n = at + 1;
             rs->appended += 2;
@@ -712,7 +712,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
             if (accepted_how == 2) {
                 /* the scuff's Event comes before this step's sample (HybridSimulator._push_event: keep_last) */
                 rs->provisional = 0;
-                at = rs->last_only ? 0 : rs->n;
+                at = ev_sample_slot(rs->n, 0, rs->last_only);
             }
             memcpy(rs->data + 17 * at, row, 17 * sizeof(double));
             rs->n = at + 1;

@@ -64,3 +64,4 @@ cdef public void ev_sample_row(double *row, double t, double *q, double *dq, dou
 cdef public bint ev_finite_torques(double u0, double u1) noexcept nogil
 cdef public bint ev_next_period_runs(double t, double t_final, double t_stop, double period) noexcept nogil
 cdef public double ev_motor_power(double *u, double dq1, double dq2) noexcept nogil
+cdef public long ev_sample_slot(long n, bint provisional, bint last_only) noexcept nogil

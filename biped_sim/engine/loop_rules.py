@@ -804,6 +804,16 @@ def ev_running_max(m, v):
     return v if v > m else m
 
 
+def ev_sample_slot(n, provisional, last_only):
+    """The row a new sample goes to in a run's samples of n rows: the first (last_only: the last sample only kept),
+    the newest's (provisional: thinned out, overwritten by the next), else a new one."""
+    if last_only:
+        return 0
+    if provisional:
+        return n - 1
+    return n
+
+
 def ev_sample_row(row, t, q, dq, leg, F, u, residual):
     """What a sample holds, into row (results.Samples' row of 17): t, q (5), dq (5), the stance leg (0: flight),
     the ground force F on the stance foot (2), the torque u applied (2), the energy balance's residual."""

@@ -160,12 +160,8 @@ class Samples:
 
     def append(self, t, q, dq, leg, F, u, residual):
         S = self.S
-        n = int(S[N_SAMPLES])
-        if self.keep is False:
-            n = 0
-        elif S[PROVISIONAL]:
-            n -= 1
-        elif n == len(self._data):
+        n = rules.ev_sample_slot(int(S[N_SAMPLES]), S[PROVISIONAL] != 0.0, self.keep is False)
+        if n == len(self._data):
             self.grow()
         row = [0.0] * self.WIDTH        # (a list filled, then copied into the array: faster than the array's items)
         rules.ev_sample_row(row, t, q, dq, leg, F, u, residual)

@@ -405,3 +405,11 @@ def test_the_motor_power_is_written_once():
     assert_written_once(("return u[0] * dq1 + u[1] * dq2",), r"u\[0\] \* \w+\[\d\] \+ u\[1\] \* \w+\[\d\]")
     from biped_sim.engine import loop_rules as rules
     assert rules.ev_motor_power([2.0, -3.0], 0.5, 0.25) == 0.25
+
+
+def test_where_a_sample_goes_is_written_once():
+    """The row a new sample takes (the only one, the provisional one's, or a new one) is the rules' (loop_rules.py):
+    results.Samples.append and _core.c's quiet steps call it."""
+    assert_written_once(("return n - 1",), r"last_only \? 0 : |elif S\[PROVISIONAL\]:\n\s+n -= 1")
+    from biped_sim.engine import loop_rules as rules
+    assert [rules.ev_sample_slot(5, p, o) for p, o in ((False, False), (True, False), (True, True))] == [5, 4, 0]
