@@ -366,7 +366,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     memcpy(L->q_impact, q, 5 * sizeof(double));
     memcpy(L->dq_minus, dqm, 5 * sizeof(double));
     int checks = ev_impact(L->S, nw, old, L->has_mu);
-    double *dqp = L->dq_plus, *imp = L->impulse, loss = L->energy_before - L->energy_after;
+    double *dqp = L->dq_plus, *imp = L->impulse, loss = ev_impact_loss(L->S);
     if (checks & IMPACT_OLD_FOOT_SINKS) { L->why = WHY_OLD_FOOT_SINKS; return 0; }
     if (checks & (IMPACT_PULLS | IMPACT_OUTSIDE_CONE)) { L->why = WHY_IMPULSE_CHECK; return 0; }
     if (L->check_invariants && ev_stays_down(L->feet_after[old - 1][3], L->contact_tol)) { L->why = WHY_OLD_FOOT_STAYS; return 0; }

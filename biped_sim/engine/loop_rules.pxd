@@ -45,6 +45,7 @@ cdef public bint ev_outside_cone(double mu, double n, double tg, double tol) noe
 cdef public bint ev_stays_down(double dheight, double tol) noexcept nogil
 cdef public int ev_impulse_checks(bint has_mu, double mu, double n, double tg) noexcept nogil
 cdef public int ev_impact(double *S, int leg, int old, bint has_mu) noexcept nogil
+cdef public double ev_impact_loss(double *S) noexcept nogil
 cdef public int ev_stance_start(bint slip_watched, double mu, double n, double tg) noexcept nogil
 cdef public bint ev_impacts_close(long n_before, double t_before, double t, double interval) noexcept nogil
 cdef public bint ev_over_budget(long n_events, long max_events) noexcept nogil

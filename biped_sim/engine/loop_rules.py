@@ -703,6 +703,11 @@ def ev_impact(S, leg, old, has_mu):
     return code
 
 
+def ev_impact_loss(S):
+    """The energy the impact ev_impact computed took: T + V before it minus after it."""
+    return S[ENERGY_BEFORE] - S[ENERGY_AFTER]
+
+
 def ev_stance_start(slip_watched, mu, n, tg):
     """How a stance starts (after an impact, at its first instant, where the held torque changes) under the ground
     force with normal component n and tangential tg: STANCE_LIFTS_OFF where the ground would pull (n < 0: the

@@ -24,8 +24,6 @@ from biped_sim.engine.guards import foot_states, normal_tangent
 from biped_sim.engine.loop_state import (
     DQ_MINUS,
     DQ_PLUS,
-    ENERGY_AFTER,
-    ENERGY_BEFORE,
     FEET_AFTER,
     IMPACT_OLD_FOOT_SINKS,
     IMPACT_OUTSIDE_CONE,
@@ -62,7 +60,7 @@ def touchdown_reset(model, t, q, dq, legs, stance_leg, ground, mu=None) -> Event
         S[DQ_MINUS:DQ_MINUS + 5] = dq.tolist()
         checks = rules.ev_impact(S, legs[0], stance_leg, mu is not None)
         dq_plus, impulse = np.array(S[DQ_PLUS:DQ_PLUS + 5]), np.array(S[IMPULSE:IMPULSE + 2])
-        loss = S[ENERGY_BEFORE] - S[ENERGY_AFTER]
+        loss = rules.ev_impact_loss(S)
         dheight = S[FEET_AFTER + 4 * (stance_leg - 1) + 3] if stance_leg else 0.0
         warnings = impact_warnings([checks & ~IMPACT_OLD_FOOT_SINKS], checks & IMPACT_OLD_FOOT_SINKS, dheight,
                                    impulse, legs, stance_leg, ground, mu)

@@ -413,3 +413,14 @@ def test_where_a_sample_goes_is_written_once():
     assert_written_once(("return n - 1",), r"last_only \? 0 : |elif S\[PROVISIONAL\]:\n\s+n -= 1")
     from biped_sim.engine import loop_rules as rules
     assert [rules.ev_sample_slot(5, p, o) for p, o in ((False, False), (True, False), (True, True))] == [5, 4, 0]
+
+
+def test_the_energy_an_impact_takes_is_written_once():
+    """The energy an impact took (T + V before minus after) is the rules' (loop_rules.py): resets.touchdown_reset
+    and _core.c's touchdown call it on the state ev_impact wrote."""
+    assert_written_once(("return S[ENERGY_BEFORE] - S[ENERGY_AFTER]",),
+                        r"S\[ENERGY_BEFORE\] - S\[ENERGY_AFTER\]|energy_before - L->energy_after")
+    from biped_sim.engine import loop_rules as rules
+    S = loop_state.new_state()
+    S[loop_state.ENERGY_BEFORE], S[loop_state.ENERGY_AFTER] = 10.0, 9.25
+    assert rules.ev_impact_loss(S) == 0.75
