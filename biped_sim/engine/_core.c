@@ -549,7 +549,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         memcpy(ev->v, scuff, sizeof scuff);
         ev->v[3] = L->t;
         for (int j = 0; j < 10; j++)
-            ev->v[4 + j] = L->t_old <= scuff[2] && scuff[2] <= L->t ? rk_dense_at(L->S, j, scuff[2]) : NAN;
+            ev->v[4 + j] = ev_within_step(L->t_old, L->t, scuff[2]) ? rk_dense_at(L->S, j, scuff[2]) : NAN;
     }
     cache_step_end(L, L->t, ft1, F1);
     for (int leg = 1; leg <= 2; leg++)

@@ -315,7 +315,7 @@ class EventLocator:
 
     def _scuff_event(self, st, to_phys, leg, stance_leg, scuff, t_up):
         t_deep = scuff[2]
-        q, dq, _ = to_phys(st.dense_at(t_deep)) if st.t_old <= t_deep <= st.t else (None, None, None)
+        q, dq, _ = to_phys(st.dense_at(t_deep)) if rules.ev_within_step(st.t_old, st.t, t_deep) else (None, None, None)
         return scuff_event(leg, stance_leg, scuff, t_up, q, dq, self.opt.scuff_depth, self.opt.scuff_rule)
 
     def _feet_at(self, st, to_phys, t):

@@ -40,6 +40,7 @@ cdef public bint ev_starts_scuff(bint forward, double front_tol, double x, doubl
                                  double x_stance) noexcept nogil
 cdef public bint ev_passes_through(bint forward, double front_tol, double x, double dx, double dheight,
                                    double x_stance) noexcept nogil
+cdef public bint ev_within_step(double t_old, double t, double tt) noexcept nogil
 cdef public int ev_track_scuff(double *S, feet_t feet_at, void *ctx, int leg, int stance_leg, double t_end) noexcept nogil
 cdef public bint ev_outside_cone(double mu, double n, double tg, double tol) noexcept nogil
 cdef public bint ev_stays_down(double dheight, double tol) noexcept nogil

@@ -620,6 +620,12 @@ def ev_passes_through(forward, front_tol, x, dx, dheight, x_stance):
     return x <= x_stance + front_tol
 
 
+def ev_within_step(t_old, t, tt):
+    """Whether tt lies in the last step [t_old, t], where its dense output holds (an ended scuff's deepest point:
+    the state there is recorded, else NaN)."""
+    return t_old <= tt and tt <= t
+
+
 def ev_track_scuff(S, feet_at, ctx, leg, stance_leg, t_end):
     """Follow foot leg's scuff (S[SCUFF_TRIAL]: t_start, deepest, t_deepest) over the last step up to t_end, on
     9 even points from max(t_start, t_old) (numpy.linspace's), the feet there by feet_at(S, ctx, t) into

@@ -424,3 +424,12 @@ def test_the_energy_an_impact_takes_is_written_once():
     S = loop_state.new_state()
     S[loop_state.ENERGY_BEFORE], S[loop_state.ENERGY_AFTER] = 10.0, 9.25
     assert rules.ev_impact_loss(S) == 0.75
+
+
+def test_whether_a_time_lies_in_the_last_step_is_written_once():
+    """Whether an ended scuff's deepest point lies in the last step (its state then recorded from the dense output)
+    is the rules' (loop_rules.py): EventLocator._scuff_event and _core.c's quiet step call it."""
+    assert_written_once(("return t_old <= tt and tt <= t",), r"t_old <= \w+(\[\d\])? (<=|&& )")
+    from biped_sim.engine import loop_rules as rules
+    assert rules.ev_within_step(1.0, 2.0, 1.0) and rules.ev_within_step(1.0, 2.0, 2.0)
+    assert not rules.ev_within_step(1.0, 2.0, 0.5) and not rules.ev_within_step(1.0, 2.0, math.nan)
