@@ -642,6 +642,7 @@ class HybridSimulator:
         """Apply the reset of the witness that fired (for the feet ``legs``) at the state (q, dq: lists) at t,
         take the new mode from its event."""
         self._samples.keep_last()       # the sample at the event, before its reset
+        self.S[MODE_BEGUN] = 0.0        # the compiled loop begins its mode again after any reset the Python code applies
         old = self.stance_leg
         ev, stop = fired.reset(ResetContext(self.model, self.ground, self.mu, self.opt, self._force_at), t, q, dq,
                                legs, old)
@@ -651,7 +652,6 @@ class HybridSimulator:
         if ev.stance_leg_after != ev.stance_leg_before:    # the foot left the ground: flight
             self.stance_leg = ev.stance_leg_after
             self.pin = None
-            self.S[MODE_BEGUN] = 0.0    # (a mode the compiled loop does not run; a push's liftoff wrote dq)
             self.locator.after_reset(ev)
         self._push_event(ev)
         if fired.kind.latches:
