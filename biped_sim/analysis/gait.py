@@ -331,7 +331,7 @@ def format_gait(g: Gait) -> str:
         ("eigenvalues", ", ".join(_c(e) for e in g.eigenvalues)),
         ("|eigenvalues|", ", ".join(f"{abs(e):.4g}" for e in g.eigenvalues)),
         ("Jacobian", _method(g)),
-        ("stable", f"{'yes' if g.stable else 'NO'} (all inside the unit circle: max |lambda| = "
+        ("stable", f"{'yes (all' if g.stable else 'NO (not all'} inside the unit circle: max |lambda| = "
                    f"{np.max(np.abs(g.eigenvalues)):.4f})"),
     ]
     w = max(len(k) for k, _ in rows)

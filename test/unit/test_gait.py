@@ -172,3 +172,15 @@ def test_the_docs_table_has_the_multipliers_of_every_shipped_gait():
         printed = [complex(v.replace(" ", "")) for v in rows[name][3].split(", ")]
         assert np.max(np.abs(np.sort_complex(printed) - np.sort_complex(g.multipliers))) < 1e-6
     assert "compass_gait" in rows
+
+
+def test_the_stable_line_says_what_the_multipliers_say(walk_gait):
+    """format_gait's last line: 'yes (all inside ...)' for a stable gait, 'NO (not all inside ...)' when a
+    multiplier is on or outside the unit circle (the compass gait's neutral rotor)."""
+    from dataclasses import replace
+
+    from biped_sim.analysis.gait import format_gait
+    assert format_gait(walk_gait).splitlines()[-1].split(None, 1)[1].startswith("yes (all inside the unit circle")
+    neutral = replace(walk_gait, eigenvalues=np.array([1.0000002, 0.9999998, 0.5, 0.1, 0.01]))
+    last = format_gait(neutral).splitlines()[-1]
+    assert "NO (not all inside the unit circle: max |lambda| = 1.0000)" in last, last
