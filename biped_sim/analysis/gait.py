@@ -292,18 +292,17 @@ def _figures(smap, z, eig, residual, iterations) -> Gait:
 
 
 def scene_gait(scene, jacobian=EXACT, controller=None, **newton) -> Gait:
-    """The periodic gait of a scene with a controller (a Scene of ``load_scene(...)``, or its name): the
-    scene's, or ``controller`` (an object, a class or factory made on the scene's model, or
-    ``"MODULE:ATTR"``). Newton starts from the controller's ``initial_state()`` if it has one, else from
-    the scene's initial state."""
+    """The periodic gait of a scene (a Scene of ``load_scene(...)``, or its name) under a controller: the
+    scene's (u = 0 for a scene without a walk_controller section: the passive gait), or ``controller``
+    (an object, a class or factory made on the scene's model, or ``"MODULE:ATTR"``). Newton starts from the
+    controller's ``initial_state()`` if it has one, else from the scene's initial state."""
     if isinstance(scene, str):
         from biped_sim.config.scenes import load_scene
         scene = load_scene(scene)
     if controller is None:
-        ctrl = scene.controller()
-        if ctrl is None:
-            raise ValueError(f"scene {scene.name!r} has no walk_controller section: there is no gait to find "
-                             "(give a controller)")
+        # a scene without a walk_controller section runs with u = 0: its gait is the passive one
+        from biped_sim.config.controllers import no_torque
+        ctrl = scene.controller() or no_torque
     else:
         from biped_sim.config.controllers import make_controller
         ctrl = make_controller(controller, scene.engine_arguments()["model"])

@@ -80,9 +80,7 @@ def test_find_gait_takes_a_scene_name_or_a_model_and_controller(walk_gait):
         bs.find_gait(kw["model"])
 
 
-def test_scene_without_controller_or_impacts_is_refused():
-    with pytest.raises(ValueError, match="no walk_controller"):
-        scene_gait(load_scene("passive"))
+def test_scene_without_impacts_is_refused():
     with pytest.raises(ValueError, match="needs the 'impact' phase"):
         scene_gait(load_scene("stance_fixed"))
 
@@ -184,3 +182,21 @@ def test_the_stable_line_says_what_the_multipliers_say(walk_gait):
     neutral = replace(walk_gait, eigenvalues=np.array([1.0000002, 0.9999998, 0.5, 0.1, 0.01]))
     last = format_gait(neutral).splitlines()[-1]
     assert "NO (not all inside the unit circle: max |lambda| = 1.0000)" in last, last
+
+
+def test_a_scene_without_controller_has_the_passive_gait(capsys):
+    """A scene without a walk_controller section runs with u = 0, so its gait is the passive one:
+    bs.find_gait("compass_gait") and 'biped-sim gait --scene compass_gait' find the compass gait's limit cycle
+    (the legs' multipliers of issue 32's reference), the law's derivative exact (zero); the passive scene's
+    steps end with the legs together: no gait, in one line."""
+    import biped_sim as bs
+    from biped_sim.analysis.gait import NoGait
+    g = bs.find_gait("compass_gait")
+    assert g.law_derivative == "exact" and abs(g.period - 0.734460621336) < 1e-8
+    for r in (-0.2022161 + 0.5434150j, 0.1313867):
+        assert min(abs(m - r) for m in g.multipliers) < 1e-6
+    with pytest.raises(NoGait, match="the legs together"):
+        scene_gait(load_scene("passive"))
+    assert cli_main(["gait", "--scene", "compass_gait"]) == 1     # the torso rotor's neutral multipliers at 1
+    out = capsys.readouterr().out
+    assert "step period  0.7345 s" in out and "law derivative: exact" in out, out
