@@ -100,10 +100,19 @@ class Gait:
         r = smap.sensitivity(self.z, parameters)
         J, k = r.jacobian[RELABELED_ROWS], len(parameters)
         A = U.T @ J[:, :6] @ U
-        dz = U @ np.linalg.solve(np.eye(U.shape[1]) - A, U.T @ J[:, 6:])
+        I_A, b = np.eye(U.shape[1]) - A, U.T @ J[:, 6:]
+        s = np.linalg.svd(I_A, compute_uv=False)
+        neutral = int(np.sum(s < NEUTRAL_RCOND * s[0]))
+        if neutral:
+            # a multiplier at 1 (the compass gait's free torso rotor): the gaits form a family along the null
+            # space of I - A, and the least-squares solution of least norm is the one without a component there
+            dz_section = np.linalg.lstsq(I_A, b, rcond=NEUTRAL_RCOND)[0]
+        else:
+            dz_section = np.linalg.solve(I_A, b)
+        dz = U @ dz_section
         dT = r.time_derivative[:6] @ dz + r.time_derivative[6:]
         return GaitDerivatives(parameters=parameters, fixed_point=dz.reshape(6, k), period=np.asarray(dT).reshape(k),
-                               law_derivative=r.law_derivative, gain_derivative=r.gain_derivative)
+                               law_derivative=r.law_derivative, gain_derivative=r.gain_derivative, neutral=neutral)
 
 
 @dataclass
@@ -114,6 +123,14 @@ class GaitDerivatives:
     period: np.ndarray            # dT/dtheta (s per unit), len(parameters)
     law_derivative: str           # the law's derivative by the state (sensitivity.LAW_*)
     gain_derivative: str          # by its gains (sensitivity.LAW_*; "" without gains)
+    neutral: int = 0              # directions of the section along which the gait is a family (multipliers at
+    #                               1, singular values of I - A below NEUTRAL_RCOND of the largest): fixed_point
+    #                               has no component along them, the period's derivative does not depend on them
+
+
+#: Gait.derivatives: a singular value of I - A below this fraction of the largest is a neutral direction (the
+#: compass gait's rotor angle is one to rounding; a gait whose multipliers all stay 1e-5 from 1 has none)
+NEUTRAL_RCOND = 1e-5
 
 
 class NoGait(ValueError):

@@ -200,3 +200,23 @@ def test_a_scene_without_controller_has_the_passive_gait(capsys):
     assert cli_main(["gait", "--scene", "compass_gait"]) == 1     # the torso rotor's neutral multipliers at 1
     out = capsys.readouterr().out
     assert "step period  0.7345 s" in out and "law derivative: exact" in out, out
+
+
+def test_the_derivatives_of_a_gait_with_a_neutral_direction():
+    """The compass gait's torso rotor angle is neutral (a multiplier at 1): its gaits are a family along the null
+    space n of I - A, where Newton's fixed points with a parameter moved wander. Gait.derivatives gives the
+    member without a component along n (it had one of 1e-2, rounding amplified by 1 / sigma_min), which
+    central differences of Newton's fixed points confirm once their own component along n is removed."""
+    import biped_sim as bs
+    g = bs.find_gait("compass_gait")
+    d = g.derivatives(["m_leg"])
+    U, _ = g.step_map.basis(g.z)
+    A = U.T @ g.step_map.full_jacobian(g.z)[0] @ U
+    n = U @ np.linalg.svd(np.eye(5) - A)[2][-1]           # the neutral direction on the section
+    assert abs(n @ d.fixed_point[:, 0]) < 1e-9 and d.neutral == 1
+    e = 1e-3
+    gp, gm = (bs.find_gait(load_scene("compass_gait", overrides={"model.m_leg": 5.0 + s * e})) for s in (1, -1))
+    fd = (gp.fixed_point - gm.fixed_point) / (2 * e)
+    fd -= n * (n @ fd)
+    assert np.allclose(d.fixed_point[:, 0], fd, rtol=0, atol=3e-6), (d.fixed_point[:, 0], fd)
+    assert abs(d.period[0] - (gp.period - gm.period) / (2 * e)) < 1e-6
