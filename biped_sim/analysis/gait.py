@@ -274,7 +274,7 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
             break
         if A is None or jacobian == EXACT or it % 4 == 0:   # (chord Newton for the costlier differences)
             A = linearised(z, U)[0]
-        delta = np.linalg.solve(A - np.eye(U.shape[1]), -(U.T @ r))
+        delta = _newton_step(A - np.eye(U.shape[1]), -(U.T @ r))
         z = smap.project(z + U @ delta, grad)
     U, _ = smap.basis(z)
     z_next, _sim = smap.run(z)
@@ -285,6 +285,16 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
     g = _figures(smap, z, eig, residual, it)
     g.jacobian, g.jacobian_method, g.law_derivative, g.step_map = A, jacobian, how, smap
     return g
+
+
+def _newton_step(A_I, rhs):
+    """Newton's step on the section: (A - I) delta = rhs; where A has a multiplier at 1 (the compass gait's
+    rotor angle: the gaits are a family), the least-squares step of least norm, which does not move along
+    the family (solve() would, by rounding over a singular value of 1e-14)."""
+    s = np.linalg.svd(A_I, compute_uv=False)
+    if s[-1] < NEUTRAL_RCOND * s[0]:
+        return np.linalg.lstsq(A_I, rhs, rcond=NEUTRAL_RCOND)[0]
+    return np.linalg.solve(A_I, rhs)
 
 
 def _figures(smap, z, eig, residual, iterations) -> Gait:

@@ -204,9 +204,8 @@ def test_a_scene_without_controller_has_the_passive_gait(capsys):
 
 def test_the_derivatives_of_a_gait_with_a_neutral_direction():
     """The compass gait's torso rotor angle is neutral (a multiplier at 1): its gaits are a family along the null
-    space n of I - A, where Newton's fixed points with a parameter moved wander. Gait.derivatives gives the
-    member without a component along n (it had one of 1e-2, rounding amplified by 1 / sigma_min), which
-    central differences of Newton's fixed points confirm once their own component along n is removed."""
+    space n of I - A. Gait.derivatives gives the member without a component along n, which central differences
+    of Newton's fixed points confirm once their own component along n is removed; and the period's."""
     import biped_sim as bs
     g = bs.find_gait("compass_gait")
     d = g.derivatives(["m_leg"])
@@ -220,3 +219,15 @@ def test_the_derivatives_of_a_gait_with_a_neutral_direction():
     fd -= n * (n @ fd)
     assert np.allclose(d.fixed_point[:, 0], fd, rtol=0, atol=3e-6), (d.fixed_point[:, 0], fd)
     assert abs(d.period[0] - (gp.period - gm.period) / (2 * e)) < 1e-6
+
+
+def test_newton_does_not_wander_along_a_neutral_direction():
+    """Newton's steps on the compass gait, whose rotor angle is neutral (A - I singular): the least-norm step
+    keeps the rotor angle where the start has it (0) and converges, at a tight tolerance, to issue 32's
+    reference limit cycle."""
+    import biped_sim as bs
+    g = bs.find_gait("compass_gait", tol=1e-11)
+    assert abs(g.fixed_point[2]) < 1e-9 and g.residual < 1e-11
+    # the legs' angle just after touchdown: 2 stance - 2 slope of issue 32's reference (stance = -0.218774617980)
+    assert abs(g.fixed_point[0] - g.fixed_point[1] - (2 * -0.218774617980 - 2 * 0.0525)) < 1e-9
+    assert abs(g.period - 0.734460621336) < 1e-10
