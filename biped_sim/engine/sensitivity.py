@@ -380,6 +380,12 @@ event, after the reset (a step map): the
     augmented system is integrated on its own by scipy's DOP853."""
     parameters = tuple(parameters)
     model_names, gains = _split_parameters(parameters, controller)
+    if "l_leg" in model_names and stance_leg:
+        # the stance foot's place and rate follow from (q, dq) and l_leg: another l_leg makes the initial state
+        # one the engine refuses (or re-places), so the run from the same (q, dq) has no derivative by it
+        raise ValueError("parameter 'l_leg': a run that starts in stance cannot be differentiated by l_leg (it moves "
+                         "the stance foot of the initial state); start in flight (stance_leg=0), or give the other "
+                         "parameters")
     if controller is None and u is None:
         u = (0.0, 0.0)
     q0, dq0 = np.asarray(q0, float), np.asarray(dq0, float)

@@ -385,3 +385,16 @@ def test_the_stacked_law_derivatives_are_the_law_point_by_point():
 
     assert Halved(MODEL).jacobian_batch(np.zeros(6), Q, DQ, 1) is None
     assert Halved(MODEL).gain_jacobian_batch(np.zeros(6), Q, DQ, 1, names) is None
+
+
+def test_l_leg_is_refused_in_stance_and_differentiated_in_flight():
+    """l_leg moves the stance foot of an initial state in stance (the engine then refuses or re-places it), so a
+    run that starts in stance has no derivative by it: one line. From flight the run by l_leg agrees with central
+    differences of the engine's runs (a landing and a liftoff on each foot)."""
+    ctrl = WalkingController(MODEL)
+    q0, dq0 = ctrl.initial_state()
+    with pytest.raises(ValueError, match="parameter 'l_leg': a run that starts in stance"):
+        run_jacobian(MODEL, q0, dq0, 0.05, controller=ctrl, parameters=("m_torso", "l_leg"))
+    q, dq = bouncing_landing()
+    check_run_jacobian(MODEL, np.concatenate([q, dq]), 0.1, stance_leg=0, u=(0.0, 0.0), phases=FLIGHT,
+                       differences=richardson, parameters=("l_leg",))
