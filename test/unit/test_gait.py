@@ -231,3 +231,12 @@ def test_newton_does_not_wander_along_a_neutral_direction():
     # the legs' angle just after touchdown: 2 stance - 2 slope of issue 32's reference (stance = -0.218774617980)
     assert abs(g.fixed_point[0] - g.fixed_point[1] - (2 * -0.218774617980 - 2 * 0.0525)) < 1e-9
     assert abs(g.period - 0.734460621336) < 1e-10
+
+
+def test_basin_of_a_scene_without_a_gait_says_so_in_one_line(tmp_path, capsys):
+    """biped-sim basin of the passive scene (u = 0: its steps end with the legs together) names the scene and
+    says it has no periodic gait, one line, exit 2, before any run."""
+    assert cli_main(["basin", "passive", "-o", str(tmp_path / "basin.csv"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "scene 'passive' has no periodic gait to take the basin of: " in err[0], err
+    assert not (tmp_path / "basin.csv").exists()
