@@ -232,8 +232,8 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
               jacobian=EXACT, **options) -> Gait:
     """The periodic gait: the fixed point of the step map, its figures and the Floquet multipliers.
 
-    ``scene``: a scene name or a Scene (``load_scene``; its model, controller, slope and touchdown rule; with
-    ``controller``, yours instead: an object, a class or factory, or ``"MODULE:ATTR"``), or a BipedModel with
+    ``scene``: a scene name or a Scene (``load_scene``; its model, controller, slope, touchdown and scuff rules;
+    with ``controller``, yours instead: an object, a class or factory, or ``"MODULE:ATTR"``), or a BipedModel with
     ``controller`` (and ``z0``, the initial guess on the section; by default the controller's
     ``initial_state``, and ``slope``). ``jacobian``: ``EXACT`` (default) or ``FINITE_DIFFERENCES``, the one
     Newton's method and the multipliers use; ``Gait.jacobian_fd()`` is always at hand as a check."""
@@ -339,8 +339,9 @@ def scene_gait(scene, jacobian=EXACT, controller=None, **newton) -> Gait:
         raise ValueError(f"scene {scene.name!r} has no impacts (phases {sorted(scene.phases)}): a gait needs "
                          "the 'impact' phase")
     kw = scene.engine_arguments()
-    return find_gait(kw["model"], ctrl, slope=kw["slope"], touchdown_rule=kw["touchdown_rule"], jacobian=jacobian,
-                     **newton)
+    # the scene's rules for a swing foot under the ground decide whether a step is a step, as in its runs
+    return find_gait(kw["model"], ctrl, slope=kw["slope"], touchdown_rule=kw["touchdown_rule"],
+                     scuff_rule=kw["scuff_rule"], scuff_depth=kw["scuff_depth"], jacobian=jacobian, **newton)
 
 
 def format_gait(g: Gait) -> str:

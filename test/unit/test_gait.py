@@ -240,3 +240,15 @@ def test_basin_of_a_scene_without_a_gait_says_so_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "scene 'passive' has no periodic gait to take the basin of: " in err[0], err
     assert not (tmp_path / "basin.csv").exists()
+
+
+def test_a_scenes_gait_takes_its_scuff_rules():
+    """scene_gait runs the step map under the scene's scuff_rule and scuff_depth, as the scene's runs: the
+    compass gait scene with scuff_rule 'behind' is compass_gait()'s gait, and a scuff_depth the mid-stance
+    scuff exceeds stops every step (no gait)."""
+    from biped_sim.analysis.gait import NoGait, compass_gait
+    g = scene_gait(load_scene("compass_gait", overrides={"scuff_rule": "behind"}))
+    assert g.step_map.kw["scuff_rule"] == "behind"
+    assert abs(g.period - compass_gait().period) < 1e-9
+    with pytest.raises(NoGait):
+        scene_gait(load_scene("compass_gait", overrides={"scuff_depth": 1e-4}))
