@@ -384,10 +384,8 @@ def gaits_along(scene, parameter, values, jacobian=EXACT):
     out, z = [], None
     for v in values:
         s = load_scene(scene, {parameter: v})
-        kw = s.engine_arguments()
         try:
-            g = find_gait(kw["model"], s.controller(), z0=z, slope=kw["slope"], touchdown_rule=kw["touchdown_rule"],
-                          jacobian=jacobian)
+            g = scene_gait(s, jacobian=jacobian, z0=z)
         except (ValueError, np.linalg.LinAlgError) as exc:     # NoGait among them
             out.append((v, None, str(exc).splitlines()[0]))
             continue

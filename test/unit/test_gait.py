@@ -252,3 +252,15 @@ def test_a_scenes_gait_takes_its_scuff_rules():
     assert abs(g.period - compass_gait().period) < 1e-9
     with pytest.raises(NoGait):
         scene_gait(load_scene("compass_gait", overrides={"scuff_depth": 1e-4}))
+
+
+def test_the_compass_gaits_multipliers_along_its_slope_reach_the_period_doubling():
+    """gaits_along on a scene without a controller (u = 0, the scene's scuff rules): the compass gait continued
+    down steeper slopes, one real multiplier past -1 between 0.075 and 0.0775 rad (a period doubling)."""
+    from biped_sim.analysis.gait import gaits_along
+    (_, g0, why0), (_, g1, why1), (_, g2, why2) = gaits_along("compass_gait", "slope", [0.0525, 0.075, 0.0775])
+    assert g0 is not None and g1 is not None and g2 is not None, (why0, why1, why2)
+    assert abs(g0.period - 0.734460621336) < 1e-8
+    legs = [np.sort_complex(g.multipliers[np.abs(g.multipliers - 1.0) > 1e-3]) for g in (g1, g2)]
+    assert -1.0 < legs[0][0].real < -0.85 and abs(legs[0][0].imag) < 1e-12
+    assert -1.1 < legs[1][0].real < -1.0 and abs(legs[1][0].imag) < 1e-12
