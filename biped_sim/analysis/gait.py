@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from biped_sim.engine.hybrid import HybridSimulator
-from biped_sim.engine.sensitivity import run_jacobian
+from biped_sim.engine.sensitivity import parameter_names, run_jacobian
 from biped_sim.engine.simulate import stance_state
 
 #: the rows of the physical state (q, dq) after a touchdown of leg 2 that make the next section point: leg 2
@@ -91,7 +91,7 @@ class Gait:
         "controller.NAME", or a model parameter but ``l_leg``, which moves the section itself), exact: the
         fixed point's dz*/dtheta = U (I - A)^-1 U^T dP/dtheta and the period's dT/dtheta = T_z dz*/dtheta + T_theta,
         from one run of the step's variational equations at z*."""
-        parameters = tuple(parameters)
+        parameters = parameter_names(parameters)
         if "l_leg" in parameters:
             raise ValueError("Gait.derivatives: l_leg moves the section (both feet on the ground) itself; the "
                              "other model parameters and the controller's gains are at hand")

@@ -264,3 +264,9 @@ def test_the_compass_gaits_multipliers_along_its_slope_reach_the_period_doubling
     legs = [np.sort_complex(g.multipliers[np.abs(g.multipliers - 1.0) > 1e-3]) for g in (g1, g2)]
     assert -1.0 < legs[0][0].real < -0.85 and abs(legs[0][0].imag) < 1e-12
     assert -1.1 < legs[1][0].real < -1.0 and abs(legs[1][0].imag) < 1e-12
+
+
+def test_gait_derivatives_take_one_name_as_a_string(walk_gait):
+    d = walk_gait.derivatives("controller.kp")
+    assert d.parameters == ("controller.kp",) and d.period.shape == (1,)
+    assert d.period[0] == walk_gait.derivatives(["controller.kp"]).period[0]
