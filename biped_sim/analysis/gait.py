@@ -256,6 +256,13 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
         if slope:   # rotate the flat-ground start onto the slope
             z0[2] += slope
     z = np.asarray(z0, float)
+    if z.shape != (6,) or not np.all(np.isfinite(z)):
+        raise ValueError(f"z0 must be 6 finite numbers, the post-impact state [q_st, q_sw, q3, dq_st, dq_sw, dq3], "
+                         f"got {np.round(z, 6).tolist() if z.size <= 12 else f'shape {z.shape}'}")
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not tol > 0 \
+            or isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
+        raise ValueError(f"tol must be a positive number and max_iter a positive integer, got tol={tol!r}, "
+                         f"max_iter={max_iter!r}")
     for _ in range(warmup_steps):
         z = smap(z)
 
@@ -279,6 +286,10 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
     U, _ = smap.basis(z)
     z_next, _sim = smap.run(z)
     residual = float(np.linalg.norm(z_next - z))
+    if not residual < tol:
+        raise NoGait(f"Newton's method did not converge in {max_iter} iterations: |P(z) - z| = {residual:.2e} at "
+                     f"z={np.round(z, 6).tolist()}, above tol={tol:g} (a looser tol, a start nearer the gait, or "
+                     "no gait there)")
     A, how = linearised(z, U)
     eig = np.linalg.eigvals(A)
     eig = eig[np.argsort(-np.abs(eig))]

@@ -270,3 +270,17 @@ def test_gait_derivatives_take_one_name_as_a_string(walk_gait):
     d = walk_gait.derivatives("controller.kp")
     assert d.parameters == ("controller.kp",) and d.period.shape == (1,)
     assert d.period[0] == walk_gait.derivatives(["controller.kp"]).period[0]
+
+
+def test_newton_that_does_not_converge_is_no_gait_and_a_bad_start_is_named():
+    """find_gait returns a gait only where Newton's method reached tol: one iteration from the walk scene's start
+    is NoGait naming the residual; a z0 of another length, and tol or max_iter out of range, are one line."""
+    import biped_sim as bs
+    from biped_sim.analysis.gait import NoGait
+    with pytest.raises(NoGait, match=r"did not converge in 1 iterations: \|P\(z\) - z\| = "):
+        bs.find_gait("walk", max_iter=1)
+    for kwargs, message in ((dict(z0=[1.0, 2.0, 3.0]), r"z0 must be 6 finite numbers.*got \[1.0, 2.0, 3.0\]"),
+                            (dict(tol=-1.0), "tol must be a positive number"),
+                            (dict(max_iter=0), "max_iter a positive integer")):
+        with pytest.raises(ValueError, match=message):
+            bs.find_gait("walk", **kwargs)
