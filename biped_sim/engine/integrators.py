@@ -30,17 +30,21 @@ import numpy as np
 from biped_sim.engine import loop_rules as rules, loop_state
 from biped_sim.engine.compiled import rk as _rk
 from biped_sim.engine.loop_state import (
+    ATOL,
     DENSE,
     FAIL_KIND,
     FAIL_T,
     FAIL_VALUE,
     H_ABS,
+    MAX_STEP,
+    METHOD,
     N_Y,
     NACCEPTED,
     NFEV,
     NMAX,
     NREJECTED,
     OUT,
+    RTOL,
     T_BOUND,
     T_OLD,
     Y_OLD,
@@ -182,9 +186,15 @@ class _ListRungeKutta(_Stepper):
     naccepted = _count(NACCEPTED, "accepted steps")
     nrejected = _count(NREJECTED, "rejected steps")
 
-    def __init__(self, fun, t0, y0, t_bound, rtol=1e-9, atol=1e-9, h0=None, max_step=np.inf):
+    def __init__(self, fun, t0, y0, t_bound, rtol=1e-9, atol=1e-9, h0=None, max_step=np.inf, S=None):
         self.rtol, self.atol, self.max_step = rtol, atol, max_step
-        self.S = new_state(method=loop_state.METHODS[self.METHOD], rtol=rtol, atol=atol, max_step=max_step)
+        if S is None:
+            S = new_state()
+        else:   # the simulator's state (a list): the stepper's fields start as a new list's
+            S[NFEV] = S[NACCEPTED] = S[NREJECTED] = S[H_ABS] = S[H] = 0.0
+        S[METHOD], S[RTOL], S[ATOL] = float(loop_state.METHODS[self.METHOD]), float(rtol), float(atol)
+        S[MAX_STEP] = float(max_step)
+        self.S = S
         self.n = 0
         self._h_unset = h0 is None
         if h0 is not None:
@@ -511,12 +521,14 @@ class ScipyStepper(_Stepper):
 
 
 def make_stepper(method, fun, t0, y0, t_bound, rtol=1e-9, atol=1e-9, step=None, n_positions=None,
-                 h0=None, max_step=np.inf):
-    """The stepper for ``method`` (see the module doc); ``step`` is the fixed-step size."""
+                 h0=None, max_step=np.inf, S=None):
+    """The stepper for ``method`` (see the module doc); ``step`` is the fixed-step size. ``S``: a hybrid state
+    (a list, ``loop_state``) whose stepper fields dop853 and dopri5 take as theirs (the simulator's: no
+    state of their own is made and filled each mode); others ignore it."""
     if method == "dop853":
-        return DOP853Stepper(fun, t0, y0, t_bound, rtol, atol, h0=h0, max_step=max_step)
+        return DOP853Stepper(fun, t0, y0, t_bound, rtol, atol, h0=h0, max_step=max_step, S=S)
     if method == "dopri5":
-        return DOPRI5Stepper(fun, t0, y0, t_bound, rtol, atol, h0=h0, max_step=max_step)
+        return DOPRI5Stepper(fun, t0, y0, t_bound, rtol, atol, h0=h0, max_step=max_step, S=S)
     if method == "rk4":
         return RK4Stepper(fun, t0, y0, t_bound, step)
     if method == "semi_implicit_euler":
