@@ -79,6 +79,7 @@ from biped_sim.engine.results import (
     SimulationError,
     SimulationResult,
 )
+from biped_sim.engine.torque_hook import reference_law
 from biped_sim.engine.witnesses import ResetContext, witness
 
 
@@ -473,7 +474,7 @@ class HybridSimulator:
                 self.advance_period(period, controller=controller, t_final=t_final)
                 continue
             if law is None:
-                law = compiled_loop.reference_law(controller, self.model) or controller
+                law = reference_law(controller, self.model) or controller
             self._periods_outcome = None
             self.advance(t_final, _periods=(period, law, t_final, t_stop))
             if self._periods_outcome is not None and self._periods_outcome[0] == Outcome.TORQUE_CHANGE \
@@ -796,8 +797,14 @@ class HybridSimulator:
     def stats(self) -> dict:
         """The run's statistics so far (the compiled loop's and the stepper's counters brought in when read)."""
         s = self._stats
-        if self._compiled is not None:
-            self._compiled.merge_stats(s)
+        if self._compiled is not None:     # the compiled loop's since the last read
+            steps, drift, rate, residual, wall_time = self._compiled.loop.stats()
+            s["steps"] += steps
+            s["compiled_loop_steps"] += steps
+            s["wall_time"] += wall_time     # (of the periods run whole in C: Loop.period)
+            for key, v in (("max_constraint_drift_position", drift), ("max_constraint_drift_velocity", rate),
+                           ("max_energy_balance_residual", residual)):
+                s[key] = max(s[key], v)
         if self._stepper is not None:
             s["rhs_evaluations"] = self._nfev_base + self._stepper.nfev
             s["rejected_steps"] = self._rejected_base + self._stepper.nrejected

@@ -107,6 +107,12 @@ def initial_step(fun, t, y, f, t_bound, rtol, atol, error_order):
     return min(100 * h0, h1)
 
 
+def state_failure(S):
+    """The StepFailure of a step that failed, from the state's fail_kind, fail_value and fail_t (either loop's)."""
+    kind, value, t = S[FAIL_KIND], S[FAIL_VALUE], S[FAIL_T]
+    return StepFailure(step_size_message(value, t) if kind == 1.0 else non_finite_message(value))
+
+
 class _Stepper:
     #: True when the last right-hand-side evaluation of ``step()`` is at the new (t, y)
     last_eval_at_end = True
@@ -240,8 +246,7 @@ class _ListRungeKutta(_Stepper):
         rc = rules.rk_step(self.S, self.fun, self)
         self._dense = None
         if rc < 0:
-            kind, value, t = self.S[FAIL_KIND], self.S[FAIL_VALUE], self.S[FAIL_T]
-            raise StepFailure(step_size_message(value, t) if kind == 1.0 else non_finite_message(value))
+            raise state_failure(self.S)
 
     def dense_output(self):
         """The last step's dense output as an interpolant that keeps its rows (valid after the next step)."""

@@ -141,6 +141,10 @@ class EventLocator:
         self.latched.add(guard)
         self.S[N_LATCHED] = len(self.latched)
 
+    def python_only(self):
+        """Whether the locator holds what only the Python loop follows: a latched guard, or two scuffs."""
+        return bool(self.latched) or len(self.active_scuffs) > 1
+
     def witnesses(self, stance_leg):
         """The witnesses of the mode (:func:`~biped_sim.engine.witnesses.witnesses`) with the feet armed now."""
         return witnesses(stance_leg, self.armed, self.opt.phases, self.mu)
