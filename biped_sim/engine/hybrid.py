@@ -185,6 +185,14 @@ class HybridSimulator:
         self._record(self.q, self.dq, self.stance_leg, self._force_at(self.t, self.q.tolist(), self.dq.tolist()),
                      self.u)
 
+    def __reduce_ex__(self, protocol):
+        # the one place that says why a simulator is not pickled: its state is the compiled loop's memory
+        # (a C Loop, with the law it was begun with and the records it keeps) and its mode's right-hand side
+        # is a closure; a run is remade from what made it
+        raise TypeError("a HybridSimulator cannot be pickled or copied: it holds the compiled loop's memory and "
+                        "its mode's functions; pickle what makes it (the model, q0, dq0, the options) or its "
+                        "result()")
+
     def feet(self, q, dq):
         """(foot 1, foot 2) as :class:`~biped_sim.engine.guards.FootState` at a physical state (lists)."""
         return G.foot_states(self.model, q, dq, self.ground.tan)
