@@ -47,6 +47,7 @@ from biped_sim.engine.loop_state import (
     RTOL,
     T_BOUND,
     T_OLD,
+    TO_POWER_BASIS,
     Y_OLD,
     F,
     H,
@@ -248,6 +249,15 @@ class _ListRungeKutta(_Stepper):
         if rc < 0:
             raise state_failure(self.S)
 
+    def dense_state(self):
+        """The state with the last step's dense output in it (valid until the next step), where the dip search
+        reads its rows and writes its scratch: no interpolant, with its state of its own, made a step."""
+        S = self.S
+        rules.rk_dense(S, self.fun, self)
+        if S[METHOD] == 0.0:    # (dop853's rows to the power basis: a constant a simulator's state may lack)
+            S[TO_POWER_BASIS:TO_POWER_BASIS + 64] = _TO_POWER_BASIS
+        return S
+
     def dense_output(self):
         """The last step's dense output as an interpolant that keeps its rows (valid after the next step)."""
         if self._dense is None:
@@ -297,8 +307,8 @@ class DOP853Stepper(_ListRungeKutta):
 class DOPRI5Stepper(_ListRungeKutta):
     """Dormand-Prince 5(4), the algorithm of scipy's RK45 (six evaluations per step, the seventh
     reused as the next step's first), with its free 4th-order dense output. For steps capped by a
-    short control period (the node's 1 ms) it reaches the tolerance with about half the
-    evaluations of DOP853, whose order pays off only on long steps."""
+    short control period (the node's 1 ms) it reaches the tolerance with fewer evaluations than
+    DOP853, whose order pays off only on long steps (docs/performance.md has the counts)."""
     STEPS, GENERIC_STEP, ERROR_ORDER = _rk.DOPRI5_STEPS, staticmethod(_rk.dopri5_step), 4
     N_STAGES, METHOD = _rk.N_STAGES["dopri5"], "dopri5"
 
@@ -377,6 +387,7 @@ class _DOP853Interpolant(_RowInterpolant):
 
 
 DOP853Stepper.INTERPOLANT = _DOP853Interpolant
+_TO_POWER_BASIS = _DOP853Interpolant.TO_POWER_BASIS.ravel().tolist()
 DOPRI5Stepper.INTERPOLANT = _DOPRI5Interpolant
 
 
