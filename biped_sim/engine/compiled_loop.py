@@ -21,6 +21,7 @@ from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.loop_state import (
     H_ABS,
     MAX_STEP,
+    METHODS,
     MODE_BEGUN,
     N_RECORDS,
     NACCEPTED,
@@ -70,13 +71,12 @@ AVAILABLE = _core is not None
 #: False makes every mode run in the Python loop (with the compiled twin of the generated code): the
 #: benchmarks compare the two loops this way
 enabled = True
-METHOD_CODES = {"dop853": 0, "dopri5": 1}
 
 
 def covers(sim, controller):
     """The torque law when the compiled loop can run the simulator's current mode, else None."""
     if (_core is None or not enabled or not sim.stance_leg or sim.opt.base != "floating"
-            or sim.method not in METHOD_CODES or sim.on_step is not None or not all_compiled()):
+            or sim.method not in METHODS or sim.on_step is not None or not all_compiled()):
         return None
     return law_in_mode(controller, sim.model)
 
@@ -136,7 +136,7 @@ class CompiledStepper(integrators._Stepper):
               forward_rule=opt.scuff_rule == "forward", compute_grf=opt.compute_grf, zeno_interval=opt.zeno_interval,
               impulse_tol=opt.impulse_tol, contact_tol=opt.contact_tol, max_events=opt.max_events)
         self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
-        self.method, self.method_code = sim.method, METHOD_CODES[sim.method]
+        self.method, self.method_code = sim.method, METHODS[sim.method]
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
 
     @property
