@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from biped_sim.analysis.gait import scene_gait
+from biped_sim.analysis.gait import NoGait, scene_gait
 from biped_sim.analysis.sweep import sweep
 from biped_sim.config.scenes import load_scene
 from biped_sim.engine.simulate import stance_state
@@ -33,7 +33,10 @@ def basin(scene, span=(1.0, 2.0), num=11, duration=None, workers=None, backend="
     if len(spans) != 2 or any(not s > 0 for s in spans):
         raise ValueError(f"span must be two positive rates (rad/s), got {span!r}")
     s = load_scene(scene)
-    gait = scene_gait(s, controller=controller)
+    try:
+        gait = scene_gait(s, controller=controller)
+    except NoGait as exc:
+        raise NoGait(f"scene {s.name!r} has no periodic gait to take the basin of: {exc}") from None
     z = gait.z
     offsets = [[a * (2 * i - (num - 1)) / (num - 1) for i in range(num)] for a in spans]
     q0, _ = stance_state(s.engine_arguments()["model"], z[0:3], z[3:6], stance_leg=1)

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from biped_sim.engine.hybrid import HybridSimulator
-from biped_sim.engine.sensitivity import run_jacobian
+from biped_sim.engine.sensitivity import parameter_names, run_jacobian
 from biped_sim.engine.simulate import stance_state
 
 #: the rows of the physical state (q, dq) after a touchdown of leg 2 that make the next section point: leg 2
@@ -91,7 +91,7 @@ class Gait:
         "controller.NAME", or a model parameter but ``l_leg``, which moves the section itself), exact: the
         fixed point's dz*/dtheta = U (I - A)^-1 U^T dP/dtheta and the period's dT/dtheta = T_z dz*/dtheta + T_theta,
         from one run of the step's variational equations at z*."""
-        parameters = tuple(parameters)
+        parameters = parameter_names(parameters)
         if "l_leg" in parameters:
             raise ValueError("Gait.derivatives: l_leg moves the section (both feet on the ground) itself; the "
                              "other model parameters and the controller's gains are at hand")
@@ -100,10 +100,19 @@ class Gait:
         r = smap.sensitivity(self.z, parameters)
         J, k = r.jacobian[RELABELED_ROWS], len(parameters)
         A = U.T @ J[:, :6] @ U
-        dz = U @ np.linalg.solve(np.eye(U.shape[1]) - A, U.T @ J[:, 6:])
+        I_A, b = np.eye(U.shape[1]) - A, U.T @ J[:, 6:]
+        s = np.linalg.svd(I_A, compute_uv=False)
+        neutral = int(np.sum(s < NEUTRAL_RCOND * s[0]))
+        if neutral:
+            # a multiplier at 1 (the compass gait's free torso rotor): the gaits form a family along the null
+            # space of I - A, and the least-squares solution of least norm is the one without a component there
+            dz_section = np.linalg.lstsq(I_A, b, rcond=NEUTRAL_RCOND)[0]
+        else:
+            dz_section = np.linalg.solve(I_A, b)
+        dz = U @ dz_section
         dT = r.time_derivative[:6] @ dz + r.time_derivative[6:]
         return GaitDerivatives(parameters=parameters, fixed_point=dz.reshape(6, k), period=np.asarray(dT).reshape(k),
-                               law_derivative=r.law_derivative, gain_derivative=r.gain_derivative)
+                               law_derivative=r.law_derivative, gain_derivative=r.gain_derivative, neutral=neutral)
 
 
 @dataclass
@@ -114,6 +123,14 @@ class GaitDerivatives:
     period: np.ndarray            # dT/dtheta (s per unit), len(parameters)
     law_derivative: str           # the law's derivative by the state (sensitivity.LAW_*)
     gain_derivative: str          # by its gains (sensitivity.LAW_*; "" without gains)
+    neutral: int = 0              # directions of the section along which the gait is a family (multipliers at
+    #                               1, singular values of I - A below NEUTRAL_RCOND of the largest): fixed_point
+    #                               has no component along them, the period's derivative does not depend on them
+
+
+#: Gait.derivatives: a singular value of I - A below this fraction of the largest is a neutral direction (the
+#: compass gait's rotor angle is one to rounding; a gait whose multipliers all stay 1e-5 from 1 has none)
+NEUTRAL_RCOND = 1e-5
 
 
 class NoGait(ValueError):
@@ -215,8 +232,8 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
               jacobian=EXACT, **options) -> Gait:
     """The periodic gait: the fixed point of the step map, its figures and the Floquet multipliers.
 
-    ``scene``: a scene name or a Scene (``load_scene``; its model, controller, slope and touchdown rule; with
-    ``controller``, yours instead: an object, a class or factory, or ``"MODULE:ATTR"``), or a BipedModel with
+    ``scene``: a scene name or a Scene (``load_scene``; its model, controller, slope, touchdown and scuff rules;
+    with ``controller``, yours instead: an object, a class or factory, or ``"MODULE:ATTR"``), or a BipedModel with
     ``controller`` (and ``z0``, the initial guess on the section; by default the controller's
     ``initial_state``, and ``slope``). ``jacobian``: ``EXACT`` (default) or ``FINITE_DIFFERENCES``, the one
     Newton's method and the multipliers use; ``Gait.jacobian_fd()`` is always at hand as a check."""
@@ -239,6 +256,13 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
         if slope:   # rotate the flat-ground start onto the slope
             z0[2] += slope
     z = np.asarray(z0, float)
+    if z.shape != (6,) or not np.all(np.isfinite(z)):
+        raise ValueError(f"z0 must be 6 finite numbers, the post-impact state [q_st, q_sw, q3, dq_st, dq_sw, dq3], "
+                         f"got {np.round(z, 6).tolist() if z.size <= 12 else f'shape {z.shape}'}")
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not tol > 0 \
+            or isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
+        raise ValueError(f"tol must be a positive number and max_iter a positive integer, got tol={tol!r}, "
+                         f"max_iter={max_iter!r}")
     for _ in range(warmup_steps):
         z = smap(z)
 
@@ -257,17 +281,31 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
             break
         if A is None or jacobian == EXACT or it % 4 == 0:   # (chord Newton for the costlier differences)
             A = linearised(z, U)[0]
-        delta = np.linalg.solve(A - np.eye(U.shape[1]), -(U.T @ r))
+        delta = _newton_step(A - np.eye(U.shape[1]), -(U.T @ r))
         z = smap.project(z + U @ delta, grad)
     U, _ = smap.basis(z)
     z_next, _sim = smap.run(z)
     residual = float(np.linalg.norm(z_next - z))
+    if not residual < tol:
+        raise NoGait(f"Newton's method did not converge in {max_iter} iterations: |P(z) - z| = {residual:.2e} at "
+                     f"z={np.round(z, 6).tolist()}, above tol={tol:g} (a looser tol, a start nearer the gait, or "
+                     "no gait there)")
     A, how = linearised(z, U)
     eig = np.linalg.eigvals(A)
     eig = eig[np.argsort(-np.abs(eig))]
     g = _figures(smap, z, eig, residual, it)
     g.jacobian, g.jacobian_method, g.law_derivative, g.step_map = A, jacobian, how, smap
     return g
+
+
+def _newton_step(A_I, rhs):
+    """Newton's step on the section: (A - I) delta = rhs; where A has a multiplier at 1 (the compass gait's
+    rotor angle: the gaits are a family), the least-squares step of least norm, which does not move along
+    the family (solve() would, by rounding over a singular value of 1e-14)."""
+    s = np.linalg.svd(A_I, compute_uv=False)
+    if s[-1] < NEUTRAL_RCOND * s[0]:
+        return np.linalg.lstsq(A_I, rhs, rcond=NEUTRAL_RCOND)[0]
+    return np.linalg.solve(A_I, rhs)
 
 
 def _figures(smap, z, eig, residual, iterations) -> Gait:
@@ -292,18 +330,17 @@ def _figures(smap, z, eig, residual, iterations) -> Gait:
 
 
 def scene_gait(scene, jacobian=EXACT, controller=None, **newton) -> Gait:
-    """The periodic gait of a scene with a controller (a Scene of ``load_scene(...)``, or its name): the
-    scene's, or ``controller`` (an object, a class or factory made on the scene's model, or
-    ``"MODULE:ATTR"``). Newton starts from the controller's ``initial_state()`` if it has one, else from
-    the scene's initial state."""
+    """The periodic gait of a scene (a Scene of ``load_scene(...)``, or its name) under a controller: the
+    scene's (u = 0 for a scene without a walk_controller section: the passive gait), or ``controller``
+    (an object, a class or factory made on the scene's model, or ``"MODULE:ATTR"``). Newton starts from the
+    controller's ``initial_state()`` if it has one, else from the scene's initial state."""
     if isinstance(scene, str):
         from biped_sim.config.scenes import load_scene
         scene = load_scene(scene)
     if controller is None:
-        ctrl = scene.controller()
-        if ctrl is None:
-            raise ValueError(f"scene {scene.name!r} has no walk_controller section: there is no gait to find "
-                             "(give a controller)")
+        # a scene without a walk_controller section runs with u = 0: its gait is the passive one
+        from biped_sim.config.controllers import no_torque
+        ctrl = scene.controller() or no_torque
     else:
         from biped_sim.config.controllers import make_controller
         ctrl = make_controller(controller, scene.engine_arguments()["model"])
@@ -313,8 +350,9 @@ def scene_gait(scene, jacobian=EXACT, controller=None, **newton) -> Gait:
         raise ValueError(f"scene {scene.name!r} has no impacts (phases {sorted(scene.phases)}): a gait needs "
                          "the 'impact' phase")
     kw = scene.engine_arguments()
-    return find_gait(kw["model"], ctrl, slope=kw["slope"], touchdown_rule=kw["touchdown_rule"], jacobian=jacobian,
-                     **newton)
+    # the scene's rules for a swing foot under the ground decide whether a step is a step, as in its runs
+    return find_gait(kw["model"], ctrl, slope=kw["slope"], touchdown_rule=kw["touchdown_rule"],
+                     scuff_rule=kw["scuff_rule"], scuff_depth=kw["scuff_depth"], jacobian=jacobian, **newton)
 
 
 def format_gait(g: Gait) -> str:
@@ -331,7 +369,7 @@ def format_gait(g: Gait) -> str:
         ("eigenvalues", ", ".join(_c(e) for e in g.eigenvalues)),
         ("|eigenvalues|", ", ".join(f"{abs(e):.4g}" for e in g.eigenvalues)),
         ("Jacobian", _method(g)),
-        ("stable", f"{'yes' if g.stable else 'NO'} (all inside the unit circle: max |lambda| = "
+        ("stable", f"{'yes (all' if g.stable else 'NO (not all'} inside the unit circle: max |lambda| = "
                    f"{np.max(np.abs(g.eigenvalues)):.4f})"),
     ]
     w = max(len(k) for k, _ in rows)
@@ -357,10 +395,8 @@ def gaits_along(scene, parameter, values, jacobian=EXACT):
     out, z = [], None
     for v in values:
         s = load_scene(scene, {parameter: v})
-        kw = s.engine_arguments()
         try:
-            g = find_gait(kw["model"], s.controller(), z0=z, slope=kw["slope"], touchdown_rule=kw["touchdown_rule"],
-                          jacobian=jacobian)
+            g = scene_gait(s, jacobian=jacobian, z0=z)
         except (ValueError, np.linalg.LinAlgError) as exc:     # NoGait among them
             out.append((v, None, str(exc).splitlines()[0]))
             continue

@@ -101,6 +101,7 @@ def check_sweep(scene, grid, duration=None, run_options=None) -> list[dict]:
         for value in values:
             point_scene, point_ctrl = controller_arguments(dict(runs[0], **{name: value}))
             loaded = load_scene(scene, overrides=point_scene)
+            loaded.engine_arguments()   # a robot the engine cannot run is refused here, not in every run
             if point_ctrl:
                 if run_options.get("controller") is None:
                     raise ValueError(f"grid name {name!r} sets an argument of the controller: give the controller "

@@ -19,7 +19,8 @@ def register(sub):
                     "per run (biped-sim sweep's columns) and a map of the distance walked, z*, falls and refused "
                     "starts marked.",
         formatter_class=HelpFormatter)
-    p.add_argument("scene", help="a scene with a walk_controller section (walk, slope, ...)")
+    p.add_argument("scene", help="a scene (walk, slope, compass_gait, ...): its controller, or u = 0 "
+                   "without a walk_controller section")
     p.add_argument("--span", default="1.0,2.0", help="largest offsets of the stance-leg rate and the torso rate "
                                                      "(rad/s), as DQ_STANCE,DQ_TORSO")
     p.add_argument("--controller", metavar="MODULE:ATTR|walk|none", help=CLI_HELP + " [default: the scene's]")

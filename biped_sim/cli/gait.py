@@ -16,8 +16,8 @@ def register(sub):
                     "linearised map, its Floquet multipliers (all inside the unit circle: the gait is locally "
                     "stable). The Jacobian is exact by default: the variational equations of the step and the "
                     "saltation matrix of its impact (docs/gait.md).")
-    p.add_argument("--scene", default="walk", metavar="NAME|PATH", help="scene with a walk_controller section "
-                   "(default: walk)")
+    p.add_argument("--scene", default="walk", metavar="NAME|PATH", help="the scene: its controller, or u = 0 "
+                   "(the passive gait) for a scene without a walk_controller section (default: walk)")
     p.add_argument("--controller", metavar="MODULE:ATTR|walk|none", help=CLI_HELP + " [default: the scene's]")
     p.add_argument("--jacobian", choices=("exact", "fd"), default="exact",
                    help="the Jacobian of the step map for Newton's method and the eigenvalues: exact (default; "

@@ -205,6 +205,15 @@ def no_torque(t, q, dq, stance_leg):
     return [0.0, 0.0]
 
 
+def _no_torque_jacobian(t, q, dq, stance_leg):
+    """d u / d(q, dq) of u = 0: zero (so that the exact step Jacobian says 'law derivative: exact')."""
+    import numpy as np
+    return np.zeros((2, 10))
+
+
+no_torque.jacobian = _no_torque_jacobian
+
+
 def cli_law(text):
     """``--controller`` where a tool takes a controller to call itself (gait, basin): None for the scene's
     (not given, or "walk"), :func:`no_torque` for "none", else the checked ``"MODULE:ATTR"``."""

@@ -50,9 +50,16 @@ def description_path(name_or_path) -> Path:
         return ROBOTS_DIR / f"{text}.yaml"
     p = Path(text)
     if p.suffix.lower() in (".yaml", ".yml", ".urdf") or p.parent != Path("."):
+        if p.is_dir():
+            _fail_line(f"robot description {text!r} is a folder: give a .yaml or .urdf file in it, or a shipped "
+                       f"model: {', '.join(SHIPPED)}")
         if not p.is_file():
             _fail_line(f"robot description {text!r} does not exist: give a .yaml or .urdf file, or a shipped "
                        f"model: {', '.join(SHIPPED)}")
+        if p.suffix.lower() not in (".yaml", ".yml", ".urdf"):
+            # read as YAML it would fail with a parser's message about the wrong format
+            _fail_line(f"robot description {text!r}: a description is a .yaml, .yml or .urdf file, not "
+                       f"{p.suffix or 'a file without a suffix'}")
         return p
     _fail_line(f"unknown model {text!r}; shipped: {', '.join(SHIPPED)}, or give a path to a .yaml or .urdf file")
 

@@ -215,7 +215,7 @@ torque(Loop *L, double t, const double *q, const double *dq, double *u)
     else { u[0] = L->u_hold[0]; u[1] = L->u_hold[1]; }
 }
 
-/* A compiled law from its description (address, parameters, name) (compiled_loop._hook_argument);
+/* A compiled law from its description (address, parameters, name) (torque_hook.hook_argument);
  * 0, or -1 with an exception */
 static int
 compiled_law_from(PyObject *spec, CompiledLaw *law)

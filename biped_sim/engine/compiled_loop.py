@@ -1,23 +1,16 @@
-"""The compiled hybrid loop (``_core.c``) as the hybrid simulator steps with it.
+"""The choice of hybrid loop, and the compiled loop's stepper.
 
-Owns the choice of loop and the compiled stepper. The choice: a mode runs on the compiled loop when it is
-floating-base stance, stepped by dop853 or dopri5, with no ``on_step`` observer, every witness of the
-model one that the loop decides (``witnesses.all_compiled``), and the extension was built from the current
-generated kernels; its torque is held, a compiled law that the controller
-offers through the torque-law hook (``controller.compiled_law(model)``, :mod:`~biped_sim.engine.torque_hook`),
-or any other Python controller, called back. Else, and always with
-``BIPED_SIM_PURE_PYTHON=1``, the Python loop of ``hybrid.py`` runs, the readable reference. Both give
-the same run (test/unit/test_compiled_loop.py).
+The choice (:func:`covers`): a mode runs on the compiled loop (``_core.c``) when it is floating-base stance,
+stepped by dop853 or dopri5, with no ``on_step`` observer, every witness of the model one that the loop decides
+(``witnesses.all_compiled``), and the extension was built from the current generated kernels; its torque
+comes through the hook (:mod:`~biped_sim.engine.torque_hook`). Else, and always with
+``BIPED_SIM_PURE_PYTHON=1``, the Python loop of ``hybrid.py`` runs, the readable reference. Both give the same
+run (test/unit/test_compiled_loop.py).
 
-The stepper: :class:`CompiledStepper` is the mode's stepper (the interface of
-``integrators._ListRungeKutta``), its fields views of the simulator's state (``loop_state.py``: the
-simulator owns it, the C ``Loop``'s memory, :func:`run_state`), which the loop reads and writes in place:
-nothing is handed over. ``run`` (and ``held_period``, ``periods``: a control period, many control periods)
-lets the C loop take and accept the steps it can decide, writing their samples straight into the run's
-``Samples`` array, and returns a :class:`~biped_sim.engine.loop_state.Outcome`; the touchdowns it applied and
-the scuffs that ended are kept in the loop and taken when a run returns, for the simulator to make their
-Events (``HybridSimulator._loop_records``); a step in which anything else may happen comes back taken and
-not accepted (EVENT), and ``hybrid.HybridSimulator._integrate`` handles it with the Python code, as any step.
+The stepper (:class:`CompiledStepper`): the interface of ``integrators._ListRungeKutta`` over the simulator's
+state (``loop_state.py``; :func:`run_state`), which the C ``Loop`` reads and writes in place. Its entry points
+return an :class:`~biped_sim.engine.loop_state.Outcome`; a step in which anything but a quiet step may happen
+comes back taken and not accepted (EVENT), and ``hybrid.HybridSimulator._integrate`` handles it as any step.
 """
 from __future__ import annotations
 
@@ -26,11 +19,9 @@ import numpy as np
 from biped_sim.engine import integrators
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.loop_state import (
-    FAIL_KIND,
-    FAIL_T,
-    FAIL_VALUE,
     H_ABS,
     MAX_STEP,
+    METHODS,
     MODE_BEGUN,
     N_RECORDS,
     NACCEPTED,
@@ -53,6 +44,7 @@ from biped_sim.engine.loop_state import (
 )
 from biped_sim.engine.modes import checked_torques, controller_failure
 from biped_sim.engine.results import ControllerError
+from biped_sim.engine.torque_hook import hook_argument, law_in_mode, reference_law
 from biped_sim.engine.witnesses import all_compiled
 
 
@@ -79,52 +71,17 @@ AVAILABLE = _core is not None
 #: False makes every mode run in the Python loop (with the compiled twin of the generated code): the
 #: benchmarks compare the two loops this way
 enabled = True
-METHOD_CODES = {"dop853": 0, "dopri5": 1}
-
-
-def torque_law(controller, model):
-    """("held", None) for no controller, the :class:`~biped_sim.engine.torque_hook.CompiledLaw` a controller
-    offers on ``model`` (the simulator's: ``controller.compiled_law(model)``), else None."""
-    if controller is None:
-        return "held", None
-    law = getattr(controller, "compiled_law", None)
-    return law(model) if callable(law) else None
-
-
-def reference_law(controller, model):
-    """The :class:`~biped_sim.engine.torque_hook.CompiledLaw` a controller offers on ``model``, else None (no
-    controller: a held torque; or one called back)."""
-    law = torque_law(controller, model)
-    return law if law is not None and law[0] != "held" else None
-
-
-def _torque_in_mode(controller, stance_leg, model):
-    """The loop's torque law in a mode: held, compiled, or the controller called back from C with the stance
-    leg the loop runs, checked as the Python loop's call checks it (``modes.bind_controller``; ``_core.c``
-    call_controller)."""
-    law = torque_law(controller, model)
-    return law if law is not None else ("callback", controller)
-
-
-def _hook_argument(law):
-    """What the C loop takes for a law: None (held), the Python callable (called back), or a compiled law's
-    (address, parameters, name)."""
-    if law[0] == "held":
-        return None
-    if law[0] == "callback":
-        return law[1]
-    return law.address, law.params, law.name
 
 
 def covers(sim, controller):
     """The torque law when the compiled loop can run the simulator's current mode, else None."""
     if (_core is None or not enabled or not sim.stance_leg or sim.opt.base != "floating"
-            or sim.method not in METHOD_CODES or sim.on_step is not None or not all_compiled()):
+            or sim.method not in METHODS or sim.on_step is not None or not all_compiled()):
         return None
-    return _torque_in_mode(controller, sim.stance_leg, sim.model)
+    return law_in_mode(controller, sim.model)
 
 
-def _new_loop(model):
+def new_loop(model):
     """A C ``Loop`` with the model's closed-form constants."""
     loop = _core.Loop()
     loop.set_model(model.k_stance, model.k["foot_kinematics"], model.k["foot_positions"], model.k["energy"],
@@ -138,21 +95,8 @@ def run_state(model):
     Samples and its locator read and write what the loop reads and writes); else a list of floats and None."""
     if _core is None:
         return new_state(), None
-    loop = _new_loop(model)
+    loop = new_loop(model)
     return memoryview(loop).cast("d"), loop
-
-
-def _python_only(locator):
-    """Whether the locator holds what only the Python code follows: a latched guard, or two scuffs."""
-    return bool(locator.latched) or len(locator.active_scuffs) > 1
-
-
-def _step_failure(S):
-    """The StepFailure of a step that failed (the state's fail_kind, fail_value, fail_t)."""
-    kind, value, t = S[FAIL_KIND], S[FAIL_VALUE], S[FAIL_T]
-    if kind == 1:
-        return integrators.StepFailure(integrators.step_size_message(value, t))
-    return integrators.StepFailure(integrators.non_finite_message(value))
 
 
 class CompiledStepper(integrators._Stepper):
@@ -192,7 +136,7 @@ class CompiledStepper(integrators._Stepper):
               forward_rule=opt.scuff_rule == "forward", compute_grf=opt.compute_grf, zeno_interval=opt.zeno_interval,
               impulse_tol=opt.impulse_tol, contact_tol=opt.contact_tol, max_events=opt.max_events)
         self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
-        self.method, self.method_code = sim.method, METHOD_CODES[sim.method]
+        self.method, self.method_code = sim.method, METHODS[sim.method]
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
 
     @property
@@ -218,7 +162,7 @@ class CompiledStepper(integrators._Stepper):
             self._carry_step(sim._h)
         if reset_counters:
             S[NFEV] = S[NREJECTED] = S[NACCEPTED] = 0.0
-        self.loop.begin(_hook_argument(law))
+        self.loop.begin(hook_argument(law))
         self._dense = None
         if sim._h is None:
             h0 = integrators.initial_step(self.loop.rhs, self.t, self.y, self.f, t_bound, self.rtol, self.atol,
@@ -226,17 +170,6 @@ class CompiledStepper(integrators._Stepper):
             S[NFEV] += 1
             S[NACCEPTED] = 0.0
             self._carry_step(h0)
-
-    def merge_stats(self, stats):
-        """Add the loop's statistics since the last merge into the simulator's."""
-        steps, drift, rate, residual, wall_time = self.loop.stats()
-        stats["steps"] += steps
-        stats["compiled_loop_steps"] += steps
-        stats["wall_time"] += wall_time     # (of the periods run whole in C: Loop.period)
-        for key, v in (("max_constraint_drift_position", drift), ("max_constraint_drift_velocity", rate),
-                       ("max_energy_balance_residual", residual)):
-            if v > stats[key]:
-                stats[key] = v
 
     def step(self):
         """One step taken in C and handled by the Python code (the simulator's view of its end's
@@ -246,7 +179,7 @@ class CompiledStepper(integrators._Stepper):
         if outcome == Outcome.RAISED:
             self.loop.raise_error()
         if outcome == Outcome.FAILED:
-            raise _step_failure(self.S)
+            raise integrators.state_failure(self.S)
         self.sim._last_u, self.sim._last_F, _ = self.loop.handed()
 
     def run(self, t_end):
@@ -255,10 +188,10 @@ class CompiledStepper(integrators._Stepper):
         it), or PYTHON_STEPS (the locator holds a latched guard or two scuffs, which only the Python code
         follows: step in Python)."""
         sim = self.sim
-        if _python_only(sim.locator):
+        if sim.locator.python_only():
             return Outcome.PYTHON_STEPS
-        while True:      # NEED_ROOM: _make_room makes it, _after_run takes the events
-            _make_room(sim._samples)
+        while True:      # NEED_ROOM: make_room makes it, _after_run takes the events
+            sim._samples.make_room()
             outcome = self._after_run(self.loop.run(t_end, sim._samples._data))
             if outcome != Outcome.NEED_ROOM:
                 return outcome
@@ -269,12 +202,12 @@ class CompiledStepper(integrators._Stepper):
         law = reference_law(controller, self.sim.model)
         if law is None or not self.S[MODE_BEGUN] or self.sim._stepper is not self:
             return None
-        return self.loop.law_torque(_hook_argument(law))
+        return self.loop.law_torque(hook_argument(law))
 
     def can_run_periods(self):
         """Whether ``periods`` can run now: the simulator's state is the loop's, and the locator holds
         nothing only the Python code follows."""
-        return bool(self.S[MODE_BEGUN]) and not _python_only(self.sim.locator)
+        return bool(self.S[MODE_BEGUN]) and not self.sim.locator.python_only()
 
     def periods(self, period, law, t_final, t_stop):
         """Control periods held, as ``advance_period`` would run them, each command computed at its period's
@@ -286,8 +219,8 @@ class CompiledStepper(integrators._Stepper):
         begun: ``advance_period`` runs it with that command), else the outcome of the step handed back in the
         period ending at ``t_next`` (``can_run_periods`` first)."""
         sim = self.sim
-        _make_room(sim._samples)
-        outcome = self._after_run(self.loop.periods(law if callable(law) else _hook_argument(law), period, t_final,
+        sim._samples.make_room()
+        outcome = self._after_run(self.loop.periods(law if callable(law) else hook_argument(law), period, t_final,
                                                     t_stop, sim._samples._data))
         S = self.S
         t_next = S[T_NEXT]
@@ -299,7 +232,7 @@ class CompiledStepper(integrators._Stepper):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""
         sim = self.sim
-        if not self.S[MODE_BEGUN] or _python_only(sim.locator):
+        if not self.S[MODE_BEGUN] or sim.locator.python_only():
             return None
         # (no room made first: a full array comes back NEED_ROOM before a step, and run() goes on)
         return self.finish_held(self.loop.held(t_end, sim._samples._data), t_end)
@@ -319,7 +252,7 @@ class CompiledStepper(integrators._Stepper):
         if outcome == Outcome.RAISED:     # the torque law failed: after the steps accepted before it
             self.loop.raise_error()
         if outcome == Outcome.FAILED:
-            raise _step_failure(self.S)
+            raise integrators.state_failure(self.S)
         if outcome == Outcome.EVENT:
             self._dense = None     # (the last step's dense output: made when asked)
             sim._last_u, sim._last_F, _ = self.loop.handed()     # (its start's feet and force: the state's)
@@ -344,21 +277,3 @@ class CompiledStepper(integrators._Stepper):
         """The dense output at t, from C (the interpolant's own arithmetic: the same bits)."""
         return self.loop.dense_at(t)
 
-
-def _make_room(samples):
-    """Room for two more samples (an impact's) before a run: the C loop writes into the array."""
-    if samples.keep is not False and samples.n + 2 > len(samples._data):
-        samples.grow()
-
-
-def compiled_torque(controller, stance_leg, q, dq, model):
-    """The compiled law's torque at (q, dq) (lists) in stance on ``stance_leg``, for comparing it with
-    the controller's own (tests); None when the loop does not compile this controller on ``model``."""
-    law = reference_law(controller, model)
-    if _core is None or law is None:
-        return None
-    loop = _new_loop(model)
-    write(memoryview(loop).cast("d"), method=METHOD_CODES["dop853"], stance_leg=stance_leg,
-          y=list(q) + list(dq) + [0.0])
-    loop.begin(None)
-    return np.array(loop.law_torque(_hook_argument(law)))

@@ -39,9 +39,10 @@ def dip_bracket(st, to_phys, height_at, leg, stance_leg, fixed_base, l_leg, tan_
     h0, h1: the heights at the step's ends (both > 0). The search and its bound are the rule
     ``loop_rules.ev_dip_search``; on the floating base, the coefficients of a dop853 or dopri5 step are
     ``loop_rules.ev_dip_coefficients``' (the compiled loop's rules, the same bits)."""
-    interpolant = st.dense_output()
-    S = getattr(interpolant, "state", None)
-    if S is not None and not fixed_base:     # dop853's or dopri5's rows, in the interpolant's state
+    dense_state = None if fixed_base else getattr(st, "dense_state", None)
+    interpolant = None if dense_state is not None else st.dense_output()
+    S = dense_state() if dense_state is not None else getattr(interpolant, "state", None)
+    if S is not None and not fixed_base:     # dop853's or dopri5's rows, in the stepper's or interpolant's state
         rules.ev_dip_coefficients(S, leg)
     else:
         t_old, h_step = st.t_old, st.t - st.t_old

@@ -78,6 +78,7 @@ from biped_sim.engine.results import (
     SimulationError,
     SimulationResult,
 )
+from biped_sim.engine.torque_hook import reference_law
 from biped_sim.engine.witnesses import ResetContext, witness
 
 
@@ -166,6 +167,14 @@ class HybridSimulator:
         self._samples = Samples(keep=self.opt.keep_samples, S=self.S)
         self._record(self.q, self.dq, self.stance_leg, self._force_at(self.t, self.q.tolist(), self.dq.tolist()),
                      self.u)
+
+    def __reduce_ex__(self, protocol):
+        # the one place that says why a simulator is not pickled: its state is the compiled loop's memory
+        # (a C Loop, with the law it was begun with and the records it keeps) and its mode's right-hand side
+        # is a closure; a run is remade from what made it
+        raise TypeError("a HybridSimulator cannot be pickled or copied: it holds the compiled loop's memory and "
+                        "its mode's functions; pickle what makes it (the model, q0, dq0, the options) or its "
+                        "result()")
 
     def feet(self, q, dq):
         """(foot 1, foot 2) as :class:`~biped_sim.engine.guards.FootState` at a physical state (lists)."""
@@ -338,7 +347,10 @@ class HybridSimulator:
 
     def _torque_at(self, t, q, dq):
         """The torque applied at a physical state (lists): the held one, or the controller's."""
-        return list(self._u) if self._controller is None else self._call_controller(t, q, dq)
+        if self._controller is None:
+            S = self.S
+            return [S[SIM_U], S[SIM_U + 1]]
+        return self._call_controller(t, q, dq)
 
     def _force_at(self, t, q, dq, u=None):
         """Ground force on the stance foot at a physical state under torque u (by default the one
@@ -443,13 +455,14 @@ class HybridSimulator:
         check_number("period", period, 0.0, math.inf, "s", open_low=True)
         self._check_signature(controller)
         law = None      # the periods' law on the compiled loop, found once: a compiled law or the controller
-        while self.status == "running" and rules.ev_next_period_runs(self.t, t_final, t_stop, period):
+        S = self.S
+        while self.status == "running" and rules.ev_next_period_runs(S[SIM_T], t_final, t_stop, period):
             st = self._compiled
             if st is None or self._stepper is not st or self._initial_sample_pending or not st.can_run_periods():
                 self.advance_period(period, controller=controller, t_final=t_final)
                 continue
             if law is None:
-                law = compiled_loop.reference_law(controller, self.model) or controller
+                law = reference_law(controller, self.model) or controller
             self._periods_outcome = None
             self.advance(t_final, _periods=(period, law, t_final, t_stop))
             if self._periods_outcome is not None and self._periods_outcome[0] == Outcome.TORQUE_CHANGE \
@@ -501,14 +514,17 @@ class HybridSimulator:
             self._compiled.start(t_bound, law, True)
             self._stepper, self._to_phys = self._compiled, floating_to_phys
             return
+        S = self.S
         rhs, to_phys, from_phys = mode_functions(
-            self.model, self.stance_leg, self.opt.base, self.pin, self._u,
+            self.model, self.stance_leg, self.opt.base, self.pin, [S[SIM_U], S[SIM_U + 1]],
             bind_controller(self._controller, self.stance_leg), self._keep_evaluation)
-        y0 = from_phys(self.q.tolist(), self.dq.tolist(), self.work)
+        y0 = from_phys(self.q.tolist(), self.dq.tolist(), S[SIM_WORK])
         self._to_phys = to_phys
-        self._stepper = make_stepper(self.method, rhs, self.t, y0, t_bound, self.rtol, self.atol,
+        # a Python stepper's fields are the simulator's state's where it is a list (pure Python); beside the
+        # compiled loop's memory (a memoryview, slower to index and slice) it keeps a list of its own
+        self._stepper = make_stepper(self.method, rhs, S[SIM_T], y0, t_bound, self.rtol, self.atol,
                                      step=self.opt.step, n_positions=(len(y0) - 1) // 2, h0=self._h,
-                                     max_step=self.opt.max_step)
+                                     max_step=self.opt.max_step, S=S if type(S) is list else None)
 
     def _keep_evaluation(self, F, u):
         if F is not None:
@@ -532,7 +548,8 @@ class HybridSimulator:
         if outcome is None:
             self._new_stepper(t_end)
             st = self._stepper
-        while self.t < t_end and self.status == "running":
+        S = self.S      # (its fields read directly on this hot path: sim_t, sim_h)
+        while S[SIM_T] < t_end and self.status == "running":
             if st is self._compiled:    # its quiet steps in C; a step it hands back is handled below
                 if outcome is None:
                     outcome = st.run(t_end)
@@ -544,7 +561,8 @@ class HybridSimulator:
             else:
                 st.step()
             self._stats["steps"] += 1
-            self._h = getattr(st, "h_abs", None) or getattr(st, "h", None)
+            h = getattr(st, "h_abs", None) or getattr(st, "h", None)
+            S[SIM_H] = math.nan if h is None else h     # (the _h property's write)
             q, dq, w = self._to_phys(st.y)
             if rules.ev_diverging(dq, len(dq), self.opt.max_speed):
                 raise SimulationError(f"diverging state at t={st.t:.9g} s: a velocity exceeds "
@@ -599,14 +617,16 @@ class HybridSimulator:
         st = self._stepper
         if self.on_step is not None and st is not None and t > st.t_old:
             self.on_step(st.t_old, float(t), st.dense_output())
-        self.t = float(t)
-        self.q, self.dq, self.work = np.array(q), np.array(dq), float(w)
+        # (the t, q, dq and work properties' writes, on the state's fields directly: this runs every step)
+        S, t = self.S, float(t)
+        S[SIM_T], S[SIM_WORK], S[MODE_BEGUN], S[SIM_STATE_UNMADE] = t, float(w), 0.0, 0.0
+        self._q, self._dq = np.array(q), np.array(dq)
         if u is None:
-            u = self._torque_at(self.t, list(q), list(dq))
+            u = self._torque_at(t, list(q), list(dq))
         if F is None:
             grf = self.opt.compute_grf and self.stance_leg
-            F = self._force_at(self.t, list(q), list(dq), u) if grf else [0.0, 0.0]
-        self._record(self.q, self.dq, self.stance_leg, F, u, (q, dq))
+            F = self._force_at(t, list(q), list(dq), u) if grf else [0.0, 0.0]
+        self._record(self._q, self._dq, self.stance_leg, F, u, (q, dq))
 
     def _record(self, q, dq, leg, F, u, lists=None):
         """A sample of the arrays q, dq (``lists``: the same as lists, if at hand), the torque u applied
@@ -616,13 +636,14 @@ class HybridSimulator:
         residual = rules.ev_energy_residual(T + V, S[E0], S[SIM_WORK], S[PUSH_WORK], S[ENERGY_LOST])
         self._stats["max_energy_balance_residual"] = rules.ev_running_max(self._stats["max_energy_balance_residual"],
                                                                            abs(residual))
-        self._samples.append(self.t, q, dq, leg, F, u, residual)
+        self._samples.append(S[SIM_T], q, dq, leg, F, u, residual)
 
     # -- resets -------------------------------------------------------------------------------
     def _reset(self, fired, legs, t, q, dq):
         """Apply the reset of the witness that fired (for the feet ``legs``) at the state (q, dq: lists) at t,
         take the new mode from its event."""
         self._samples.keep_last()       # the sample at the event, before its reset
+        self.S[MODE_BEGUN] = 0.0        # the compiled loop begins its mode again after any reset Python applies
         old = self.stance_leg
         ev, stop = fired.reset(ResetContext(self.model, self.ground, self.mu, self.opt, self._force_at), t, q, dq,
                                legs, old)
@@ -632,7 +653,6 @@ class HybridSimulator:
         if ev.stance_leg_after != ev.stance_leg_before:    # the foot left the ground: flight
             self.stance_leg = ev.stance_leg_after
             self.pin = None
-            self.S[MODE_BEGUN] = 0.0    # (a mode the compiled loop does not run; a push's liftoff wrote dq)
             self.locator.after_reset(ev)
         self._push_event(ev)
         if fired.kind.latches:
@@ -671,7 +691,8 @@ class HybridSimulator:
         period back before it changes anything: ``Loop.period``, ``Loop.periods``.)"""
         if self.stance_leg:
             q, dq = self.state_lists()
-            self._check_stance_start(self.t, self._force_at(self.t, q, dq))
+            t = self.S[SIM_T]
+            self._check_stance_start(t, self._force_at(t, q, dq))
 
     def _check_stance_start(self, t, F=None):
         """A stance that starts with the ground pulling on the foot (normal force < 0), or with the
@@ -764,8 +785,14 @@ class HybridSimulator:
     def stats(self) -> dict:
         """The run's statistics so far (the compiled loop's and the stepper's counters brought in when read)."""
         s = self._stats
-        if self._compiled is not None:
-            self._compiled.merge_stats(s)
+        if self._compiled is not None:     # the compiled loop's since the last read
+            steps, drift, rate, residual, wall_time = self._compiled.loop.stats()
+            s["steps"] += steps
+            s["compiled_loop_steps"] += steps
+            s["wall_time"] += wall_time     # (of the periods run whole in C: Loop.period)
+            for key, v in (("max_constraint_drift_position", drift), ("max_constraint_drift_velocity", rate),
+                           ("max_energy_balance_residual", residual)):
+                s[key] = rules.ev_running_max(s[key], v)
         if self._stepper is not None:
             s["rhs_evaluations"] = self._nfev_base + self._stepper.nfev
             s["rejected_steps"] = self._rejected_base + self._stepper.nrejected

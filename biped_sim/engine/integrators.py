@@ -30,19 +30,24 @@ import numpy as np
 from biped_sim.engine import loop_rules as rules, loop_state
 from biped_sim.engine.compiled import rk as _rk
 from biped_sim.engine.loop_state import (
+    ATOL,
     DENSE,
     FAIL_KIND,
     FAIL_T,
     FAIL_VALUE,
     H_ABS,
+    MAX_STEP,
+    METHOD,
     N_Y,
     NACCEPTED,
     NFEV,
     NMAX,
     NREJECTED,
     OUT,
+    RTOL,
     T_BOUND,
     T_OLD,
+    TO_POWER_BASIS,
     Y_OLD,
     F,
     H,
@@ -101,6 +106,12 @@ def initial_step(fun, t, y, f, t_bound, rtol, atol, error_order):
     else:
         h1 = (0.01 / max(d1, d2)) ** (1.0 / (error_order + 1))
     return min(100 * h0, h1)
+
+
+def state_failure(S):
+    """The StepFailure of a step that failed, from the state's fail_kind, fail_value and fail_t (either loop's)."""
+    kind, value, t = S[FAIL_KIND], S[FAIL_VALUE], S[FAIL_T]
+    return StepFailure(step_size_message(value, t) if kind == 1.0 else non_finite_message(value))
 
 
 class _Stepper:
@@ -182,9 +193,15 @@ class _ListRungeKutta(_Stepper):
     naccepted = _count(NACCEPTED, "accepted steps")
     nrejected = _count(NREJECTED, "rejected steps")
 
-    def __init__(self, fun, t0, y0, t_bound, rtol=1e-9, atol=1e-9, h0=None, max_step=np.inf):
+    def __init__(self, fun, t0, y0, t_bound, rtol=1e-9, atol=1e-9, h0=None, max_step=np.inf, S=None):
         self.rtol, self.atol, self.max_step = rtol, atol, max_step
-        self.S = new_state(method=loop_state.METHODS[self.METHOD], rtol=rtol, atol=atol, max_step=max_step)
+        if S is None:
+            S = new_state()
+        else:   # the simulator's state (a list): the stepper's fields start as a new list's
+            S[NFEV] = S[NACCEPTED] = S[NREJECTED] = S[H_ABS] = S[H] = 0.0
+        S[METHOD], S[RTOL], S[ATOL] = float(loop_state.METHODS[self.METHOD]), float(rtol), float(atol)
+        S[MAX_STEP] = float(max_step)
+        self.S = S
         self.n = 0
         self._h_unset = h0 is None
         if h0 is not None:
@@ -230,8 +247,16 @@ class _ListRungeKutta(_Stepper):
         rc = rules.rk_step(self.S, self.fun, self)
         self._dense = None
         if rc < 0:
-            kind, value, t = self.S[FAIL_KIND], self.S[FAIL_VALUE], self.S[FAIL_T]
-            raise StepFailure(step_size_message(value, t) if kind == 1.0 else non_finite_message(value))
+            raise state_failure(self.S)
+
+    def dense_state(self):
+        """The state with the last step's dense output in it (valid until the next step), where the dip search
+        reads its rows and writes its scratch: no interpolant, with its state of its own, made a step."""
+        S = self.S
+        rules.rk_dense(S, self.fun, self)
+        if S[METHOD] == 0.0:    # (dop853's rows to the power basis: a constant a simulator's state may lack)
+            S[TO_POWER_BASIS:TO_POWER_BASIS + 64] = _TO_POWER_BASIS
+        return S
 
     def dense_output(self):
         """The last step's dense output as an interpolant that keeps its rows (valid after the next step)."""
@@ -282,8 +307,8 @@ class DOP853Stepper(_ListRungeKutta):
 class DOPRI5Stepper(_ListRungeKutta):
     """Dormand-Prince 5(4), the algorithm of scipy's RK45 (six evaluations per step, the seventh
     reused as the next step's first), with its free 4th-order dense output. For steps capped by a
-    short control period (the node's 1 ms) it reaches the tolerance with about half the
-    evaluations of DOP853, whose order pays off only on long steps."""
+    short control period (the node's 1 ms) it reaches the tolerance with fewer evaluations than
+    DOP853, whose order pays off only on long steps (docs/performance.md has the counts)."""
     STEPS, GENERIC_STEP, ERROR_ORDER = _rk.DOPRI5_STEPS, staticmethod(_rk.dopri5_step), 4
     N_STAGES, METHOD = _rk.N_STAGES["dopri5"], "dopri5"
 
@@ -362,6 +387,7 @@ class _DOP853Interpolant(_RowInterpolant):
 
 
 DOP853Stepper.INTERPOLANT = _DOP853Interpolant
+_TO_POWER_BASIS = _DOP853Interpolant.TO_POWER_BASIS.ravel().tolist()
 DOPRI5Stepper.INTERPOLANT = _DOPRI5Interpolant
 
 
@@ -511,12 +537,14 @@ class ScipyStepper(_Stepper):
 
 
 def make_stepper(method, fun, t0, y0, t_bound, rtol=1e-9, atol=1e-9, step=None, n_positions=None,
-                 h0=None, max_step=np.inf):
-    """The stepper for ``method`` (see the module doc); ``step`` is the fixed-step size."""
+                 h0=None, max_step=np.inf, S=None):
+    """The stepper for ``method`` (see the module doc); ``step`` is the fixed-step size. ``S``: a hybrid state
+    (a list, ``loop_state``) whose stepper fields dop853 and dopri5 take as theirs (the simulator's: no
+    state of their own is made and filled each mode); others ignore it."""
     if method == "dop853":
-        return DOP853Stepper(fun, t0, y0, t_bound, rtol, atol, h0=h0, max_step=max_step)
+        return DOP853Stepper(fun, t0, y0, t_bound, rtol, atol, h0=h0, max_step=max_step, S=S)
     if method == "dopri5":
-        return DOPRI5Stepper(fun, t0, y0, t_bound, rtol, atol, h0=h0, max_step=max_step)
+        return DOPRI5Stepper(fun, t0, y0, t_bound, rtol, atol, h0=h0, max_step=max_step, S=S)
     if method == "rk4":
         return RK4Stepper(fun, t0, y0, t_bound, step)
     if method == "semi_implicit_euler":

@@ -141,6 +141,10 @@ class EventLocator:
         self.latched.add(guard)
         self.S[N_LATCHED] = len(self.latched)
 
+    def python_only(self):
+        """Whether the locator holds what only the Python loop follows: a latched guard, or two scuffs."""
+        return bool(self.latched) or len(self.active_scuffs) > 1
+
     def witnesses(self, stance_leg):
         """The witnesses of the mode (:func:`~biped_sim.engine.witnesses.witnesses`) with the feet armed now."""
         return witnesses(stance_leg, self.armed, self.opt.phases, self.mu)
@@ -172,49 +176,50 @@ class EventLocator:
         ``F_end``: the stance force at the step's end if the caller has it (the stepper's last
         evaluation), else it is computed here."""
         rows = self.witnesses(stance_leg)
+        t_old, t = st.t_old, st.t       # (read once: a stepper's fields are the state's, behind properties)
         if not rows and not self._resting_feet_pushed_in(feet1, stance_leg):
             self._arm(feet1, stance_leg)
             # the step's end is the next step's start: what is kept of the step before is no longer its state
-            self._feet_end, self._force_end = (st.t, feet1), (None, None)
+            self._feet_end, self._force_end = (t, feet1), (None, None)
             return None, None
         # the step's start is the last step's end: its feet and force are known (the projection
         # since moved the state by the drift only, ~1e-14)
         S = self.S
         q0 = dq0 = None
-        if S[FEET_END_T] == st.t_old:
+        if S[FEET_END_T] == t_old:
             feet0 = (_tuple_new(G.FootState, S[FEET_END:FEET_END + 4]),
                      _tuple_new(G.FootState, S[FEET_END + 4:FEET_END + 8]))
         else:
             q0, dq0, _ = to_phys(st.y_old)
             feet0 = G.foot_states(self.model, q0, dq0, self.ground.tan)
-        S[FEET_END_T] = st.t
+        S[FEET_END_T] = t
         put(S, FEET_END, [*feet1[0], *feet1[1]])
         F0 = F1 = None
         if stance_leg:
-            if S[FORCE_END_T] == st.t_old:
+            if S[FORCE_END_T] == t_old:
                 F0 = [S[FORCE_END], S[FORCE_END + 1]]
             else:
                 if q0 is None:
                     q0, dq0, _ = to_phys(st.y_old)
-                F0 = force_at(st.t_old, q0, dq0)
-            F1 = F_end if F_end is not None else force_at(st.t, q1, dq1)
-            S[FORCE_END_T] = st.t
+                F0 = force_at(t_old, q0, dq0)
+            F1 = F_end if F_end is not None else force_at(t, q1, dq1)
+            S[FORCE_END_T] = t
             S[FORCE_END], S[FORCE_END + 1] = F1
         if q0 is None and any(w.kind.reads == "state" for w in rows):
             q0, dq0, _ = to_phys(st.y_old)
         roots = []
         for guard in rows:
-            g1 = guard.value(self, st.t, q1, dq1, force_at, feet1, F1)
+            g1 = guard.value(self, t, q1, dq1, force_at, feet1, F1)
             if guard in self.latched:
                 if g1 > 0:
                     self.latched.discard(guard)
                     self.S[N_LATCHED] = len(self.latched)
                 continue
-            g0 = guard.value(self, st.t_old, q0, dq0, force_at, feet0, F0)
+            g0 = guard.value(self, t_old, q0, dq0, force_at, feet0, F0)
             guard_at = self._on_dense_output(st, to_phys, guard, force_at)
             bracket = None
             if triggered(g0, g1, guard.direction):
-                bracket = (st.t_old, st.t)
+                bracket = (t_old, t)
             elif guard.name == "touchdown" and g0 > 0 and g1 > 0:
                 # both ends above the ground: a dip in between is found with its guarantee
                 bracket = dip_bracket(st, to_phys, guard_at, guard.leg, stance_leg, self.opt.base == "fixed",
@@ -229,10 +234,10 @@ class EventLocator:
             # and that the dynamics push into it: a touchdown from where it rests, not a crossing
             guard = witness("touchdown", leg)
             guard_at = self._on_dense_output(st, to_phys, guard, force_at)
-            t_root = self._crossing(st, guard, guard_at, landing_bracket(guard_at, st.t_old, st.t))
+            t_root = self._crossing(st, guard, guard_at, landing_bracket(guard_at, t_old, t))
             if not self._is_scuff(st, to_phys, guard, stance_leg, t_root):
                 roots.append((t_root, guard))
-        t_end = min(roots)[0] if roots else st.t
+        t_end = min(roots)[0] if roots else t
         if self.S[SCUFFING] or self.S[SCUFFING + 1]:
             self._track_scuffs(st, to_phys, stance_leg, t_end)
         if not roots:

@@ -12,7 +12,7 @@ floats too (whole numbers, exact below 2^53). From :data:`FIELDS` come
 
 Both files are written by ``tools/generate_loop.py`` (``make generate-loop``) and checked against this
 declaration by test/unit/test_loop_rules.py. Run as Python, a state is a list of floats
-(:func:`new_state`): the interpreter indexes a list several times faster than a numpy array.
+(:func:`new_state`): the interpreter indexes a list faster than a buffer (docs/engine.md, the plan's step 5).
 
 Fields whose size depends on the integrated state have room for ``NMAX`` entries (the floating base's
 11); a smaller state (the fixed base's 7) uses the first entries of each. The scratch fields hold

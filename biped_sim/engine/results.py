@@ -175,6 +175,11 @@ class Samples:
         """Twice the room (the compiled loop writes into ``_data`` directly and asks for this when full)."""
         self._data = np.concatenate([self._data, np.empty_like(self._data)])
 
+    def make_room(self):
+        """Room for two more samples (an impact's) before the compiled loop writes into ``_data``."""
+        if self.keep is not False and self.n + 2 > len(self._data):
+            self.grow()
+
     def keep_last(self):
         """Keep the newest sample (an event's) whatever ``keep`` thins out."""
         self.provisional = False

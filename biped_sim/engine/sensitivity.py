@@ -114,6 +114,12 @@ def law_gain_jacobian(controller, t, q, dq, stance_leg, names):
     return np.column_stack(cols) if cols else np.zeros((2, 0)), LAW_FD
 
 
+def parameter_names(parameters) -> tuple:
+    """``run_jacobian``'s ``parameters`` as a tuple of names: one name given as a string is that name (a tuple
+    of its letters would be refused letter by letter)."""
+    return (parameters,) if isinstance(parameters, str) else tuple(parameters)
+
+
 def _split_parameters(parameters, controller):
     """(the model's names, the controller's gain names) of ``run_jacobian``'s ``parameters``, checked."""
     model_names, gains = [], []
@@ -378,12 +384,22 @@ event, after the reset (a step map): the
     where the run allows it (engine/variational.py: DOP853 on the floating base, stance phases joined by
     touchdowns, continuous feedback or a constant torque), else and with ``SOLVE_IVP`` the
     augmented system is integrated on its own by scipy's DOP853."""
-    parameters = tuple(parameters)
+    parameters = parameter_names(parameters)
+    if isinstance(t_final, bool) or not isinstance(t_final, (int, float, np.floating)) or not np.isfinite(t_final):
+        raise ValueError(f"t_final must be a finite number of seconds, got {t_final!r}")
     model_names, gains = _split_parameters(parameters, controller)
+    if "l_leg" in model_names and stance_leg:
+        # the stance foot's place and rate follow from (q, dq) and l_leg: another l_leg makes the initial state
+        # one the engine refuses (or re-places), so the run from the same (q, dq) has no derivative by it
+        raise ValueError("parameter 'l_leg': a run that starts in stance cannot be differentiated by l_leg (it moves "
+                         "the stance foot of the initial state); start in flight (stance_leg=0), or give the other "
+                         "parameters")
     if controller is None and u is None:
         u = (0.0, 0.0)
     q0, dq0 = np.asarray(q0, float), np.asarray(dq0, float)
     sim = HybridSimulator(model, q0, dq0, stance_leg=stance_leg, rtol=rtol, atol=atol, method=method, **options)
+    if not t_final > sim.t:
+        raise ValueError(f"t_final must be after the run's start (t = {sim.t:g} s), got {t_final!r}")
     if control_period is not None:
         sim.advance_periods(control_period, controller, t_final)
     elif controller is not None:
@@ -406,6 +422,9 @@ event, after the reset (a step map): the
     if directions is None:
         directions = lin.stance_tangent(q0, dq0, stance_leg) if stance_leg else np.eye(10)
     directions = np.asarray(directions, float)
+    if directions.ndim != 2 or directions.shape[0] != 10:
+        raise ValueError(f"directions must be a 10 x m array (one column per initial perturbation of (q, dq)), "
+                         f"got shape {directions.shape}")
     m0 = directions.shape[1]
     m = m0 + len(parameters)
     S = np.zeros((10, m))

@@ -41,3 +41,36 @@ def c_prototype():
     import ctypes
     p = ctypes.POINTER(ctypes.c_double)
     return ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_double, p, p, ctypes.c_int, p, p)
+
+
+def offered_law(controller, model):
+    """The law a mode's torque comes from on the compiled loop: ``("held", None)`` for no controller, the
+    :class:`CompiledLaw` a controller offers on ``model`` (the simulator's: ``controller.compiled_law(model)``),
+    else None (the controller is called back)."""
+    if controller is None:
+        return "held", None
+    law = getattr(controller, "compiled_law", None)
+    return law(model) if callable(law) else None
+
+
+def reference_law(controller, model):
+    """The :class:`CompiledLaw` a controller offers on ``model``, else None (no controller: a held torque; or
+    one called back)."""
+    law = offered_law(controller, model)
+    return law if law is not None and law[0] != "held" else None
+
+
+def law_in_mode(controller, model):
+    """The torque law of a mode on the compiled loop: held, compiled, or ``("callback", controller)``."""
+    law = offered_law(controller, model)
+    return law if law is not None else ("callback", controller)
+
+
+def hook_argument(law):
+    """What the C loop takes for a law (``Loop.begin``, ``Loop.law_torque``, ``Loop.periods``): None (held), the
+    Python callable (called back), or a compiled law's (address, parameters, name)."""
+    if law[0] == "held":
+        return None
+    if law[0] == "callback":
+        return law[1]
+    return law.address, law.params, law.name

@@ -144,7 +144,8 @@ class SimNode(Node):
             self._open_recorder()
         self.watch = run_watch.RunWatch(self)     # other nodes on our topics, a silent lockstep controller
         self.get_logger().info(
-            f"biped_sim: time_mode={self.mode}, control_period={self.period:g} s, duration={self.duration:g} s, "
+            f"biped_sim: robot={prm['robot']}, time_mode={self.mode}, control_period={self.period:g} s, "
+            f"duration={self.duration:g} s, "
             f"outputs={sorted(out)}, phases={sorted(prm['phases'])}, base={prm['base']}, "
             f"method={self.sim.method}" + (" (auto)" if prm["method"] == "auto" else "")
             + f", generated code in {GENERATED_CODE}" + (f" ({WHY_PYTHON})" if WHY_PYTHON else "")

@@ -121,12 +121,14 @@ class WalkControllerNode(Node):
         self.pub = self.create_publisher(Float64MultiArray, "hip_torque", COMMAND_QOS)
         self.sub = self.create_subscription(JointState, "joint_states", self._on_state, STATE_QOS)
         self.timer = self.create_timer(0.01, self._flush_pending)
+        # the robot first: the sim node's names the same joints for every three-link robot, so a controller
+        # started for another robot than the sim's runs without a word
         self.get_logger().info(
-            "walk_controller: " + (", ".join(f"{k}={v[k]!r}" for k in ("torso_pitch", "step_angle", "clearance",
-                                                                        "lag", "kp", "kd", "slope", "stance_source"))
-                                   if v["controller"] == "walk" else
-                                   f"controller={v['controller']!r}, slope={v['slope']!r}, "
-                                   f"stance_source={v['stance_source']!r}"))
+            f"walk_controller: robot={v['robot']!r}, "
+            + (", ".join(f"{k}={v[k]!r}" for k in ("torso_pitch", "step_angle", "clearance", "lag", "kp", "kd",
+                                                   "slope", "stance_source"))
+               if v["controller"] == "walk" else
+               f"controller={v['controller']!r}, slope={v['slope']!r}, stance_source={v['stance_source']!r}"))
 
     def _matched(self):
         """Every hip_torque subscriber known to the graph (the sim node's among them) is matched."""

@@ -344,7 +344,9 @@ def test_a_stop_signal_during_a_long_realtime_period_ends_the_node_and_answers_a
         code = proc.wait(5)
         took = time.monotonic() - signalled
         c.spin_until(lambda: any(s.name == "biped_sim/run" for a in diag for s in a.status), timeout=5)
-    assert code == 0 and took < 3.0, (code, took, proc.output())
+    # (before, the node ended when its 20 s period did; a loaded 2-core machine takes 3 s or more to close the
+    # node and its bag, so the bound tells the two apart without timing the machine)
+    assert code == 0 and took < 10.0, (code, took, proc.output())
     # the waiting reset is answered either way: done, where the loop took it between its slices of sleep
     # (a run still at t = 0), or refused as the node shuts down; never left waiting
     answer = reset.result()

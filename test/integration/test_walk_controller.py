@@ -187,3 +187,19 @@ def test_a_compass_gait_lockstep_run_carries_its_robots_joint_names_and_the_cont
     (bag,) = [p for p in tmp_path.iterdir() if p.is_dir()]
     recorded = bag_messages(bag)["/joint_states"]
     assert len(recorded) == len(js) and all(list(m.name) == names for _t_ns, m in recorded)
+
+
+def test_both_nodes_name_their_robot_when_they_start():
+    """The sim node and walk_controller each name their robot in their first line: the joint names are the same
+    for every three-link robot, so the log is where a controller started for another robot shows."""
+    with ros_domain() as dom:
+        with start_node({"robot": "three_link_hip_mass"}, dom, executable="walk_controller") as ctl, \
+                start_node({"robot": "three_link_hip_mass", "record": False, "time_mode": "fast", "duration": 0.05},
+                           dom) as sim:
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline and not ("walk_controller: robot=" in ctl.output()
+                                                       and "biped_sim: robot=" in sim.output()):
+                time.sleep(0.2)
+            ctl_out, sim_out = ctl.output(), sim.output()
+    assert "walk_controller: robot='three_link_hip_mass', torso_pitch=" in ctl_out, ctl_out
+    assert "biped_sim: robot=three_link_hip_mass, time_mode=fast" in sim_out, sim_out

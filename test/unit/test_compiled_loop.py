@@ -18,7 +18,7 @@ from hypothesis import event, example, given, settings, strategies as st
 import biped_sim as bs
 from biped_sim.analysis.edge_cases import on_both_loops, pd_walk_without_clearance, rocking_v, walk_that_scuffs
 from biped_sim.control.walking import PDWalkingController, WalkingController
-from biped_sim.engine import compiled_loop, guards as G, hybrid, loop_state
+from biped_sim.engine import compiled_loop, guards as G, hybrid, loop_state, torque_hook
 from biped_sim.engine.model import BipedModel
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -359,6 +359,15 @@ def test_a_quiet_held_period_is_one_c_call_and_its_state_a_new_array():
     assert sim.status == "running" and quiet >= 250
 
 
+def compiled_torque(controller, stance_leg, q, dq):
+    """The compiled law's torque at (q, dq) (lists) in stance on ``stance_leg``, computed by a C Loop."""
+    loop = compiled_loop.new_loop(MODEL)
+    loop_state.write(memoryview(loop).cast("d"), method=loop_state.METHODS["dop853"], stance_leg=stance_leg,
+                     y=list(q) + list(dq) + [0.0])
+    loop.begin(None)
+    return np.array(loop.law_torque(torque_hook.hook_argument(torque_hook.reference_law(controller, MODEL))))
+
+
 @pytest.mark.parametrize("cls", [WalkingController, PDWalkingController])
 def test_the_compiled_laws_give_the_python_torques_bit_for_bit(cls):
     rng = np.random.default_rng(3)
@@ -370,7 +379,7 @@ def test_the_compiled_laws_give_the_python_torques_bit_for_bit(cls):
             dq = rng.uniform(-4, 4, 5).tolist()
             for leg in (1, 2):
                 expected = np.asarray(ctrl(0.0, q, dq, leg), dtype=float)
-                got = compiled_loop.compiled_torque(ctrl, leg, q, dq, MODEL)
+                got = compiled_torque(ctrl, leg, q, dq)
                 assert got.tobytes() == expected.tobytes(), (q, dq, leg, got, expected)
 
 
@@ -378,9 +387,9 @@ def test_a_changed_law_is_not_compiled():
     class Mine(PDWalkingController):
         def __call__(self, t, q, dq, stance_leg):
             return [0.0, 0.0]
-    assert compiled_loop.torque_law(Mine(MODEL), MODEL) is None
-    assert compiled_loop.torque_law(lambda t, q, dq, leg: (0.0, 0.0), MODEL) is None
-    assert compiled_loop.torque_law(PDWalkingController(MODEL), MODEL)[0] == "pd_walking"
+    assert torque_hook.offered_law(Mine(MODEL), MODEL) is None
+    assert torque_hook.offered_law(lambda t, q, dq, leg: (0.0, 0.0), MODEL) is None
+    assert torque_hook.offered_law(PDWalkingController(MODEL), MODEL)[0] == "pd_walking"
 
 
 # -- issue 28, R2: a law runs compiled only where the result is the controller's own ------------------------
@@ -464,7 +473,7 @@ def test_a_law_that_is_not_the_compiled_one_gives_the_controllers_own_torques_on
 @pytest.mark.parametrize("cls", [WalkingController, PDWalkingController])
 def test_the_reference_laws_on_the_simulators_model_still_run_compiled(cls, mode):
     ctrl = cls(BipedModel())      # another object, the same parameters: the same constants
-    assert compiled_loop.reference_law(ctrl, MODEL)[0] == {WalkingController: "walking"}.get(cls, "pd_walking")
+    assert torque_hook.reference_law(ctrl, MODEL)[0] == {WalkingController: "walking"}.get(cls, "pd_walking")
     a, b = both_loops(lambda: _commanded(ctrl, mode))
     assert a.stats["compiled_loop_steps"] > 0
     _assert_the_controllers_own_torques(ctrl, a, 1e-3 if mode else None)
@@ -473,17 +482,17 @@ def test_the_reference_laws_on_the_simulators_model_still_run_compiled(cls, mode
 
 def test_which_controllers_the_loop_compiles():
     other = BipedModel(m_leg=4.0)
-    assert compiled_loop.reference_law(WalkingController(other), MODEL) is None
-    assert compiled_loop.reference_law(WalkingController(other), other)[0] == "walking"
+    assert torque_hook.reference_law(WalkingController(other), MODEL) is None
+    assert torque_hook.reference_law(WalkingController(other), other)[0] == "walking"
     # the PD law in stance uses no model constant: the same torques on any model
-    assert compiled_loop.reference_law(PDWalkingController(other), MODEL)[0] == "pd_walking"
+    assert torque_hook.reference_law(PDWalkingController(other), MODEL)[0] == "pd_walking"
     for make in OWN_LAWS.values():
-        assert compiled_loop.reference_law(make(), MODEL) is None
+        assert torque_hook.reference_law(make(), MODEL) is None
     changed = WalkingController(MODEL)
     changed.kp = 120        # a gain set after __init__: the law's parameters are read at each use
-    assert compiled_loop.reference_law(changed, MODEL)[1][5] == 120
+    assert torque_hook.reference_law(changed, MODEL)[1][5] == 120
     changed.kd = np.float32(20.0)       # another precision than C's doubles: called back
-    assert compiled_loop.reference_law(changed, MODEL) is None
+    assert torque_hook.reference_law(changed, MODEL) is None
 
 
 WALK = """

@@ -80,9 +80,7 @@ def test_find_gait_takes_a_scene_name_or_a_model_and_controller(walk_gait):
         bs.find_gait(kw["model"])
 
 
-def test_scene_without_controller_or_impacts_is_refused():
-    with pytest.raises(ValueError, match="no walk_controller"):
-        scene_gait(load_scene("passive"))
+def test_scene_without_impacts_is_refused():
     with pytest.raises(ValueError, match="needs the 'impact' phase"):
         scene_gait(load_scene("stance_fixed"))
 
@@ -172,3 +170,117 @@ def test_the_docs_table_has_the_multipliers_of_every_shipped_gait():
         printed = [complex(v.replace(" ", "")) for v in rows[name][3].split(", ")]
         assert np.max(np.abs(np.sort_complex(printed) - np.sort_complex(g.multipliers))) < 1e-6
     assert "compass_gait" in rows
+
+
+def test_the_stable_line_says_what_the_multipliers_say(walk_gait):
+    """format_gait's last line: 'yes (all inside ...)' for a stable gait, 'NO (not all inside ...)' when a
+    multiplier is on or outside the unit circle (the compass gait's neutral rotor)."""
+    from dataclasses import replace
+
+    from biped_sim.analysis.gait import format_gait
+    assert format_gait(walk_gait).splitlines()[-1].split(None, 1)[1].startswith("yes (all inside the unit circle")
+    neutral = replace(walk_gait, eigenvalues=np.array([1.0000002, 0.9999998, 0.5, 0.1, 0.01]))
+    last = format_gait(neutral).splitlines()[-1]
+    assert "NO (not all inside the unit circle: max |lambda| = 1.0000)" in last, last
+
+
+def test_a_scene_without_controller_has_the_passive_gait(capsys):
+    """A scene without a walk_controller section runs with u = 0, so its gait is the passive one:
+    bs.find_gait("compass_gait") and 'biped-sim gait --scene compass_gait' find the compass gait's limit cycle
+    (the legs' multipliers of issue 32's reference), the law's derivative exact (zero); the passive scene's
+    steps end with the legs together: no gait, in one line."""
+    import biped_sim as bs
+    from biped_sim.analysis.gait import NoGait
+    g = bs.find_gait("compass_gait")
+    assert g.law_derivative == "exact" and abs(g.period - 0.734460621336) < 1e-8
+    for r in (-0.2022161 + 0.5434150j, 0.1313867):
+        assert min(abs(m - r) for m in g.multipliers) < 1e-6
+    with pytest.raises(NoGait, match="the legs together"):
+        scene_gait(load_scene("passive"))
+    assert cli_main(["gait", "--scene", "compass_gait"]) == 1     # the torso rotor's neutral multipliers at 1
+    out = capsys.readouterr().out
+    assert "step period  0.7345 s" in out and "law derivative: exact" in out, out
+
+
+def test_the_derivatives_of_a_gait_with_a_neutral_direction():
+    """The compass gait's torso rotor angle is neutral (a multiplier at 1): its gaits are a family along the null
+    space n of I - A. Gait.derivatives gives the member without a component along n, which central differences
+    of Newton's fixed points confirm once their own component along n is removed; and the period's."""
+    import biped_sim as bs
+    g = bs.find_gait("compass_gait")
+    d = g.derivatives(["m_leg"])
+    U, _ = g.step_map.basis(g.z)
+    A = U.T @ g.step_map.full_jacobian(g.z)[0] @ U
+    n = U @ np.linalg.svd(np.eye(5) - A)[2][-1]           # the neutral direction on the section
+    assert abs(n @ d.fixed_point[:, 0]) < 1e-9 and d.neutral == 1
+    e = 1e-3
+    gp, gm = (bs.find_gait(load_scene("compass_gait", overrides={"model.m_leg": 5.0 + s * e})) for s in (1, -1))
+    fd = (gp.fixed_point - gm.fixed_point) / (2 * e)
+    fd -= n * (n @ fd)
+    assert np.allclose(d.fixed_point[:, 0], fd, rtol=0, atol=3e-6), (d.fixed_point[:, 0], fd)
+    assert abs(d.period[0] - (gp.period - gm.period) / (2 * e)) < 1e-6
+
+
+def test_newton_does_not_wander_along_a_neutral_direction():
+    """Newton's steps on the compass gait, whose rotor angle is neutral (A - I singular): the least-norm step
+    keeps the rotor angle where the start has it (0) and converges, at a tight tolerance, to issue 32's
+    reference limit cycle."""
+    import biped_sim as bs
+    g = bs.find_gait("compass_gait", tol=1e-11)
+    assert abs(g.fixed_point[2]) < 1e-9 and g.residual < 1e-11
+    # the legs' angle just after touchdown: 2 stance - 2 slope of issue 32's reference (stance = -0.218774617980)
+    assert abs(g.fixed_point[0] - g.fixed_point[1] - (2 * -0.218774617980 - 2 * 0.0525)) < 1e-9
+    assert abs(g.period - 0.734460621336) < 1e-10
+
+
+def test_basin_of_a_scene_without_a_gait_says_so_in_one_line(tmp_path, capsys):
+    """biped-sim basin of the passive scene (u = 0: its steps end with the legs together) names the scene and
+    says it has no periodic gait, one line, exit 2, before any run."""
+    assert cli_main(["basin", "passive", "-o", str(tmp_path / "basin.csv"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "scene 'passive' has no periodic gait to take the basin of: " in err[0], err
+    assert not (tmp_path / "basin.csv").exists()
+
+
+def test_a_scenes_gait_takes_its_scuff_rules():
+    """scene_gait runs the step map under the scene's scuff_rule and scuff_depth, as the scene's runs: the
+    compass gait scene with scuff_rule 'behind' is compass_gait()'s gait, and a scuff_depth the mid-stance
+    scuff exceeds stops every step (no gait)."""
+    from biped_sim.analysis.gait import NoGait, compass_gait
+    g = scene_gait(load_scene("compass_gait", overrides={"scuff_rule": "behind"}))
+    assert g.step_map.kw["scuff_rule"] == "behind"
+    assert abs(g.period - compass_gait().period) < 1e-9
+    with pytest.raises(NoGait):
+        scene_gait(load_scene("compass_gait", overrides={"scuff_depth": 1e-4}))
+
+
+def test_the_compass_gaits_multipliers_along_its_slope_reach_the_period_doubling():
+    """gaits_along on a scene without a controller (u = 0, the scene's scuff rules): the compass gait continued
+    down steeper slopes, one real multiplier past -1 between 0.075 and 0.0775 rad (a period doubling)."""
+    from biped_sim.analysis.gait import gaits_along
+    (_, g0, why0), (_, g1, why1), (_, g2, why2) = gaits_along("compass_gait", "slope", [0.0525, 0.075, 0.0775])
+    assert g0 is not None and g1 is not None and g2 is not None, (why0, why1, why2)
+    assert abs(g0.period - 0.734460621336) < 1e-8
+    legs = [np.sort_complex(g.multipliers[np.abs(g.multipliers - 1.0) > 1e-3]) for g in (g1, g2)]
+    assert -1.0 < legs[0][0].real < -0.85 and abs(legs[0][0].imag) < 1e-12
+    assert -1.1 < legs[1][0].real < -1.0 and abs(legs[1][0].imag) < 1e-12
+
+
+def test_gait_derivatives_take_one_name_as_a_string(walk_gait):
+    d = walk_gait.derivatives("controller.kp")
+    assert d.parameters == ("controller.kp",) and d.period.shape == (1,)
+    assert d.period[0] == walk_gait.derivatives(["controller.kp"]).period[0]
+
+
+def test_newton_that_does_not_converge_is_no_gait_and_a_bad_start_is_named():
+    """find_gait returns a gait only where Newton's method reached tol: one iteration from the walk scene's start
+    is NoGait naming the residual; a z0 of another length, and tol or max_iter out of range, are one line."""
+    import biped_sim as bs
+    from biped_sim.analysis.gait import NoGait
+    with pytest.raises(NoGait, match=r"did not converge in 1 iterations: \|P\(z\) - z\| = "):
+        bs.find_gait("walk", max_iter=1)
+    for kwargs, message in ((dict(z0=[1.0, 2.0, 3.0]), r"z0 must be 6 finite numbers.*got \[1.0, 2.0, 3.0\]"),
+                            (dict(tol=-1.0), "tol must be a positive number"),
+                            (dict(max_iter=0), "max_iter a positive integer")):
+        with pytest.raises(ValueError, match=message):
+            bs.find_gait("walk", **kwargs)

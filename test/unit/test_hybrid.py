@@ -129,6 +129,20 @@ def test_zero_order_hold_equals_stepping_the_simulator(model, walker):
             assert np.ptp(r.u[inside], axis=0).max() == 0.0
 
 
+def test_a_simulator_is_not_pickled_or_copied_and_says_why(model, walker):
+    """One clear refusal, before and after its first period, on either loop (its state is the compiled loop's
+    memory, its mode's right-hand side a closure); its result pickles."""
+    import copy
+    import pickle
+    sim = HybridSimulator(model, *walker.initial_state())
+    for _ in range(2):
+        for make_copy in (pickle.dumps, copy.deepcopy, copy.copy):
+            with pytest.raises(TypeError, match="a HybridSimulator cannot be pickled or copied: .* its result"):
+                make_copy(sim)
+        sim.advance_period(1e-3, u=[0.0, 0.0])
+    assert pickle.loads(pickle.dumps(sim.result())).t.tolist() == sim.result().t.tolist()
+
+
 @pytest.mark.parametrize("bad", [[math.nan, 0.0], [1.0], [math.inf, -math.inf], "ab", [1e308, 1e308], None])
 def test_a_refused_torque_loses_nothing(model, walker, bad):
     """A torque the engine refuses (ValueError) begins no period and keeps the torque held: the run goes

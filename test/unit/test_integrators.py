@@ -68,3 +68,25 @@ def test_method_auto_picks_dopri5_for_short_control_periods():
     assert resolve_method(validate({"control_period": 0.001, "method": "dop853"})) == "dop853"
     with pytest.raises(ValueError, match="method"):
         validate({"method": "rk45"})
+
+
+@pytest.mark.parametrize("cls", [DOP853Stepper, DOPRI5Stepper])
+def test_a_stepper_on_a_given_state_takes_the_steps_of_one_on_its_own(cls):
+    """A stepper given a hybrid state (the pure-Python simulator's: make_stepper(S=...)) runs on it, and
+    what an earlier stepper left there (counters, step sizes, another method's options) changes no bit."""
+    from biped_sim.engine.loop_state import new_state
+    y0 = [1.0, 0.0, 0.5, 0.2] + [0.1 * (i + 1) for i in range(7)]
+    S = new_state()
+    old = DOP853Stepper(oscillator_list, 0.0, [v + 1.0 for v in y0], 3.0, rtol=1e-6, atol=1e-6, max_step=0.01, S=S)
+    for _ in range(5):
+        old.step()
+    old.dense_at(old.t - 0.001)
+    own = cls(oscillator_list, 0.5, y0, 2.0, rtol=1e-8, atol=1e-8)
+    shared = cls(oscillator_list, 0.5, y0, 2.0, rtol=1e-8, atol=1e-8, S=S)
+    assert shared.S is S and own.S is not S
+    while own.t < 2.0:
+        own.step()
+        shared.step()
+        assert (shared.t, shared.y, shared.h_abs) == (own.t, own.y, own.h_abs)
+        assert shared.dense_at(shared.t - 0.3 * shared.h) == own.dense_at(own.t - 0.3 * own.h)
+    assert (shared.nfev, shared.naccepted, shared.nrejected) == (own.nfev, own.naccepted, own.nrejected)

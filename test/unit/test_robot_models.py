@@ -295,3 +295,17 @@ def test_the_compass_gait_scene_meets_drakes_impacts():
     assert ours.shape == drake.shape == (14, 5)
     assert np.abs(ours[:, 0] - drake[:, 0]).max() < 1e-9
     assert np.abs(ours[:, 1:] - drake[:, 1:]).max() < 1e-9
+
+
+def test_a_description_path_that_is_a_folder_or_another_format_is_named_so(tmp_path):
+    """bs.load_model of a folder says it is a folder (not 'does not exist'), and of a file of another format
+    (an SDF) names the formats it reads, each in one line; a missing file 'does not exist'."""
+    import biped_sim as bs
+    sdf = tmp_path / "robot.sdf"
+    sdf.write_text("<sdf version='1.9'><model name='biped'/></sdf>\n")
+    for path, message in ((tmp_path, "is a folder: give a .yaml or .urdf file in it"),
+                          (sdf, "a description is a .yaml, .yml or .urdf file, not .sdf"),
+                          (tmp_path / "none.urdf", "does not exist")):
+        with pytest.raises(ValueError, match=message) as exc:
+            bs.load_model(str(path))
+        assert "\n" not in str(exc.value)

@@ -385,3 +385,33 @@ def test_the_stacked_law_derivatives_are_the_law_point_by_point():
 
     assert Halved(MODEL).jacobian_batch(np.zeros(6), Q, DQ, 1) is None
     assert Halved(MODEL).gain_jacobian_batch(np.zeros(6), Q, DQ, 1, names) is None
+
+
+def test_l_leg_is_refused_in_stance_and_differentiated_in_flight():
+    """l_leg moves the stance foot of an initial state in stance (the engine then refuses or re-places it), so a
+    run that starts in stance has no derivative by it: one line. From flight the run by l_leg agrees with central
+    differences of the engine's runs (a landing and a liftoff on each foot)."""
+    ctrl = WalkingController(MODEL)
+    q0, dq0 = ctrl.initial_state()
+    with pytest.raises(ValueError, match="parameter 'l_leg': a run that starts in stance"):
+        run_jacobian(MODEL, q0, dq0, 0.05, controller=ctrl, parameters=("m_torso", "l_leg"))
+    q, dq = bouncing_landing()
+    check_run_jacobian(MODEL, np.concatenate([q, dq]), 0.1, stance_leg=0, u=(0.0, 0.0), phases=FLIGHT,
+                       differences=richardson, parameters=("l_leg",))
+
+
+def test_bad_arguments_of_run_jacobian_are_one_line_each():
+    """A parameter name given as a string is that name (not its letters), for run_jacobian and Gait.derivatives;
+    directions of another shape than 10 x m and a t_final not after the start are refused naming the argument."""
+    ctrl = WalkingController(MODEL)
+    q0, dq0 = ctrl.initial_state()
+    one = run_jacobian(MODEL, q0, dq0, 0.02, controller=ctrl, parameters="controller.kp")
+    assert one.parameters == ("controller.kp",) and one.jacobian.shape == (10, 7)
+    for kwargs, message in ((dict(directions=np.eye(10)[:3]), r"directions must be a 10 x m array.*\(3, 10\)"),
+                            (dict(directions=np.ones(10)), r"directions must be a 10 x m array.*\(10,\)"),
+                            (dict(t_final=-1.0), r"t_final must be after the run's start \(t = 0 s\), got -1.0"),
+                            (dict(t_final=float("nan")), "t_final must be a finite number of seconds")):
+        kwargs = dict(dict(t_final=0.02), **kwargs)
+        with pytest.raises(ValueError, match=message) as exc:
+            run_jacobian(MODEL, q0, dq0, kwargs.pop("t_final"), controller=ctrl, **kwargs)
+        assert "\n" not in str(exc.value)
