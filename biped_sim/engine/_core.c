@@ -307,7 +307,7 @@ restart(Loop *L, double t, double t_bound)
 static void
 carry_step(Loop *L, double h)
 {
-    L->h_abs = L->max_step < h ? L->max_step : h;
+    L->h_abs = rk_carried_step(h, L->max_step);
 }
 
 /* EventLocator._feet_at: the feet on the dense output at tt */

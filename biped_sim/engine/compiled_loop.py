@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from biped_sim.engine import integrators
+from biped_sim.engine import integrators, loop_rules as rules
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.loop_state import (
     H_ABS,
@@ -150,7 +150,7 @@ class CompiledStepper(integrators._Stepper):
     def _carry_step(self, h):
         """The step size a new stepper starts with: ``h`` capped by max_step (``_ListRungeKutta.restart``)."""
         S = self.S
-        S[H_ABS] = S[MAX_STEP] if S[MAX_STEP] < h else h
+        S[H_ABS] = rules.rk_carried_step(h, S[MAX_STEP])
 
     def start(self, t_bound, law, reset_counters):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the

@@ -227,7 +227,7 @@ class _ListRungeKutta(_Stepper):
             self._h_unset = False
         # a Python float: a numpy scalar here would make every entry of the state one, and the
         # scalar closed forms several times slower
-        S[H_ABS] = float(min(S[H_ABS], self.max_step))
+        S[H_ABS] = float(rules.rk_carried_step(S[H_ABS], self.max_step))
         self._dense = None
 
     def replace_y(self, y):

@@ -7,6 +7,7 @@ from biped_sim.engine.loop_kernels cimport (feet_t, guard_t, k_copy, k_dense, k_
                                             k_foot_positions, k_impact_map, k_rhs, k_step, k_ulp, rhs_t)
 
 cdef public void rk_begin(double *S, rhs_t fun, void *ctx) noexcept nogil
+cdef public double rk_carried_step(double h, double max_step) noexcept nogil
 cdef public int rk_step(double *S, rhs_t fun, void *ctx) noexcept nogil
 cdef public void rk_dense(double *S, rhs_t fun, void *ctx) noexcept nogil
 cdef public double rk_dense_at(double *S, Py_ssize_t i, double tt) noexcept nogil

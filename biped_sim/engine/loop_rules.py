@@ -137,6 +137,12 @@ def rk_begin(S, fun, ctx):
     S[DENSE_READY] = 0.0
 
 
+def rk_carried_step(h, max_step):
+    """The step size a mode starts with: h, the one carried over from the mode before, capped by max_step
+    (Python's min(h, max_step))."""
+    return max_step if max_step < h else h
+
+
 def rk_step(S, fun, ctx):
     """One accepted step (0), none at t_bound (1), or a failure (-1: S[FAIL_*] say which, the state
     unchanged) with scipy's step control (Hairer's: safety 0.9, factors 0.2 to 10)."""

@@ -433,3 +433,12 @@ def test_whether_a_time_lies_in_the_last_step_is_written_once():
     from biped_sim.engine import loop_rules as rules
     assert rules.ev_within_step(1.0, 2.0, 1.0) and rules.ev_within_step(1.0, 2.0, 2.0)
     assert not rules.ev_within_step(1.0, 2.0, 0.5) and not rules.ev_within_step(1.0, 2.0, math.nan)
+
+
+def test_the_carried_step_size_is_written_once():
+    """The step size a mode starts with, the one carried over capped by max_step, is the rules' (loop_rules.py):
+    the Python steppers' restart, the compiled stepper's start and _core.c's carry_step call it."""
+    assert_written_once(("return max_step if max_step < h else h",),
+                        r"\bmin\(S\[H_ABS\], self\.max_step\)|MAX_STEP\] if S\[MAX_STEP\] < |max_step < h \?")
+    from biped_sim.engine import loop_rules as rules
+    assert rules.rk_carried_step(1e-3, math.inf) == 1e-3 and rules.rk_carried_step(1e-3, 1e-4) == 1e-4
