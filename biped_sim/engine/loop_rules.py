@@ -429,6 +429,7 @@ def ev_locate_crossing(S, g, ctx, ta, tb):
     dpre: cython.double
     dblk: cython.double
     lim: cython.double
+    tried: cython.bint
     _iteration: cython.int
     if isnan(fpre) or isnan(fcur):
         return -1
@@ -458,14 +459,22 @@ def ev_locate_crossing(S, g, ctx, ta, tb):
             S[RESULT] = xcur
             return 0
         if fabs(spre) > delta and fabs(fcur) < fabs(fpre):
+            # A zero denominator (equal values, or a product that underflows: a guard of 1e-150) gives scipy's
+            # C an infinite or NaN trial step, which the test below refuses (a bisection): so does this, without
+            # dividing (Python would raise where C goes on)
+            tried = False
             if xpre == xblk:        # interpolate
-                stry = -fcur * (xcur - xpre) / (fcur - fpre)
-            else:                   # extrapolate
+                if fcur != fpre:
+                    stry = -fcur * (xcur - xpre) / (fcur - fpre)
+                    tried = True
+            elif xpre != xcur and xblk != xcur:     # extrapolate
                 dpre = (fpre - fcur) / (xpre - xcur)
                 dblk = (fblk - fcur) / (xblk - xcur)
-                stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
+                if dblk * dpre * (fblk - fpre) != 0:
+                    stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
+                    tried = True
             lim = 3 * fabs(sbis) - delta
-            if 2 * fabs(stry) < (fabs(spre) if fabs(spre) < lim else lim):
+            if tried and 2 * fabs(stry) < (fabs(spre) if fabs(spre) < lim else lim):
                 spre = scur
                 scur = stry
             else:
