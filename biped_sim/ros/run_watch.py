@@ -52,6 +52,10 @@ BURST_SUMMARY_INTERVAL = 2.0
 REOFFER_AFTER = 0.5
 
 
+#: the node name rclpy gives an endpoint whose node is not discovered yet
+UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
+
+
 def endpoint_name(info) -> str:
     """The fully qualified node name of a ``TopicEndpointInfo``."""
     ns = info.node_namespace.rstrip("/")
@@ -302,8 +306,10 @@ class RunWatch:
         new, self.offered = volatile - self.offered, volatile
         if new and self.silence.silent_for() >= REOFFER_AFTER:
             node.offer_state_again()
+            # (a subscription can be discovered before its node's name: rclpy says _NODE_NAME_UNKNOWN_)
+            names = sorted("a node not yet named" if UNKNOWN_NODE in name else name for name in new)
             node.get_logger().info(
-                f"lockstep: {', '.join(sorted(new))} subscribed to {node.pub_js.topic_name} (volatile) after the "
+                f"lockstep: {', '.join(names)} subscribed to {node.pub_js.topic_name} (volatile) after the "
                 f"state at t={node.sim.t:.6f} s was published: offered it again (the run waits for its answer)")
 
     def silence_cause(self):

@@ -1,6 +1,7 @@
 """Any ROS client drives the node: a plain rclpy controller (rclpy's default QoS: volatile, depth 10)
 started after sim_node in lockstep gets the state it must answer, and a controller that listens but
 does not command is named for what it does."""
+import re
 import sys
 import time
 from pathlib import Path
@@ -29,7 +30,8 @@ def test_a_default_qos_controller_started_late_drives_a_lockstep_run():
                 ctrl.stop()
     log = sim.output()
     assert code == 0, log + ctrl.output()
-    assert "/minimal_controller subscribed to /joint_states (volatile)" in log, log
+    # (on a loaded machine the subscription can be discovered before its node's name)
+    assert re.search(r"(/minimal_controller|a node not yet named) subscribed to /joint_states \(volatile\)", log), log
     assert "offered it again" in log and "duration 0.2 s reached" in log, log
     assert "100 control periods" in log, log
 
