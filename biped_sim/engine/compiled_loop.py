@@ -147,19 +147,14 @@ class CompiledStepper(integrators._Stepper):
     def nrejected(self):
         return int(self.S[NREJECTED])
 
-    def _carry_step(self, h):
-        """The step size a new stepper starts with: ``h`` capped by max_step (``_ListRungeKutta.restart``)."""
-        S = self.S
-        S[H_ABS] = rules.rk_carried_step(h, S[MAX_STEP])
-
     def start(self, t_bound, law, reset_counters):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
         torque law, f at the start, the carried-over step size (or the initial one)."""
         sim, S = self.sim, self.S
         write(S, method=self.method_code, stance_leg=sim.stance_leg, pin=sim.pin, u_hold=sim._u, t=sim.t,
               y=sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound=t_bound)
-        if sim._h is not None:
-            self._carry_step(sim._h)
+        if sim._h is not None:     # (the carried-over step size, as _ListRungeKutta.restart caps it)
+            S[H_ABS] = rules.rk_carried_step(sim._h, S[MAX_STEP])
         if reset_counters:
             S[NFEV] = S[NREJECTED] = S[NACCEPTED] = 0.0
         self.loop.begin(hook_argument(law))
@@ -169,18 +164,12 @@ class CompiledStepper(integrators._Stepper):
                                           self.ERROR_ORDER)
             S[NFEV] += 1
             S[NACCEPTED] = 0.0
-            self._carry_step(h0)
+            S[H_ABS] = rules.rk_carried_step(h0, S[MAX_STEP])
 
     def step(self):
         """One step taken in C and handled by the Python code (the simulator's view of its end's
         evaluation set, as the right-hand side's sink does)."""
-        outcome = self.loop.step()
-        self._dense = None     # (the last step's dense output: made when asked)
-        if outcome == Outcome.RAISED:
-            self.loop.raise_error()
-        if outcome == Outcome.FAILED:
-            raise integrators.state_failure(self.S)
-        self.sim._last_u, self.sim._last_F, _ = self.loop.handed()
+        self._handed(self._raise_failure(self.loop.step()))
 
     def run(self, t_end):
         """The quiet steps to ``t_end`` in C: an :class:`~biped_sim.engine.loop_state.Outcome`, DONE (at t_end:
@@ -249,14 +238,24 @@ class CompiledStepper(integrators._Stepper):
         sim = self.sim
         if self.S[N_RECORDS]:
             sim._loop_records(self.loop.take_events())
-        if outcome == Outcome.RAISED:     # the torque law failed: after the steps accepted before it
+        if self._raise_failure(outcome) == Outcome.EVENT:     # (its start's feet and force: the state's)
+            self._handed(outcome)
+        return outcome
+
+    def _raise_failure(self, outcome):
+        """``outcome``, unless it is RAISED (the torque law's exception, after the steps accepted before it) or
+        FAILED (the step's :class:`~biped_sim.engine.integrators.StepFailure`)."""
+        if outcome == Outcome.RAISED:
             self.loop.raise_error()
         if outcome == Outcome.FAILED:
             raise integrators.state_failure(self.S)
-        if outcome == Outcome.EVENT:
-            self._dense = None     # (the last step's dense output: made when asked)
-            sim._last_u, sim._last_F, _ = self.loop.handed()     # (its start's feet and force: the state's)
         return outcome
+
+    def _handed(self, outcome):
+        """A step taken in C and handed to the Python code: its dense output made anew when asked, the torque
+        and force of its end the simulator's last evaluation's."""
+        self._dense = None
+        self.sim._last_u, self.sim._last_F, _ = self.loop.handed()
 
     def replace_y(self, y):
         self.y = y
