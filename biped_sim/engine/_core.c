@@ -785,17 +785,6 @@ run_result(Loop *L, int outcome, RunState *rs, Py_buffer *buf)
     return PyLong_FromLong(L->callback_failed ? OUTCOME_RAISED : outcome);
 }
 
-/* run(t_end, data) -> the Outcome of the quiet steps to t_end */
-static PyObject *
-run_quiet(Loop *L, PyObject *t_end_arg, PyObject *data)
-{
-    RunState rs;
-    Py_buffer buf;
-    double t_end = PyFloat_AsDouble(t_end_arg);
-    if (PyErr_Occurred() || run_state(L, data, &rs, &buf) < 0) return NULL;
-    return run_result(L, quiet_until(L, t_end, &rs), &rs, &buf);
-}
-
 /* the start of a control period under a held torque (begin() in the same mode) */
 static void
 hold(Loop *L, double u0, double u1, double t_bound)
@@ -831,6 +820,15 @@ period_end(double t, double period, double t_final, long *k)
     return ev_period_end(j, period, t_final);
 }
 
+/* Whether a METH_FASTCALL entry point got other than n arguments (then its TypeError is set) */
+static int
+wrong_nargs(Py_ssize_t nargs, Py_ssize_t n, const char *name)
+{
+    if (nargs == n) return 0;
+    PyErr_Format(PyExc_TypeError, "%s() takes %zd arguments (%zd given)", name, n, nargs);
+    return 1;
+}
+
 /* periods(law, period, t_final, t_stop, data) -> an Outcome (and t_next, refused_u): control periods held (as
  * HybridSimulator.advance_period computes them, the command at each period's start: a compiled law's
  * (address, parameters, name), or a Python controller, called once a period and checked by
@@ -844,10 +842,7 @@ period_end(double t, double period, double t_final, long *k)
 static PyObject *
 Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 5) {
-        PyErr_SetString(PyExc_TypeError, "periods() takes 5 arguments");
-        return NULL;
-    }
+    if (wrong_nargs(nargs, 5, "periods")) return NULL;
     double period = PyFloat_AsDouble(args[1]), t_final = PyFloat_AsDouble(args[2]), t_stop = PyFloat_AsDouble(args[3]);
     long k0 = (long)L->control_periods;
     if (PyErr_Occurred()) return NULL;
@@ -901,14 +896,16 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     return run_result(L, outcome, &rs, &buf);
 }
 
+/* run(t_end, data) -> the Outcome of the quiet steps to t_end */
 static PyObject *
 Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 2) {
-        PyErr_SetString(PyExc_TypeError, "run() takes 2 arguments");
-        return NULL;
-    }
-    return run_quiet(L, args[0], args[1]);
+    RunState rs;
+    Py_buffer buf;
+    if (wrong_nargs(nargs, 2, "run")) return NULL;
+    double t_end = PyFloat_AsDouble(args[0]);
+    if (PyErr_Occurred() || run_state(L, args[1], &rs, &buf) < 0) return NULL;
+    return run_result(L, quiet_until(L, t_end, &rs), &rs, &buf);
 }
 
 /* held(t_end, data): a control period under the state's held torque sim_u from where the last run left the
@@ -917,16 +914,13 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 static PyObject *
 Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 2) {
-        PyErr_SetString(PyExc_TypeError, "held() takes 2 arguments");
-        return NULL;
-    }
+    if (wrong_nargs(nargs, 2, "held")) return NULL;
     double t_bound = PyFloat_AsDouble(args[0]);
     if (PyErr_Occurred()) return NULL;
     if (!isnan(L->sim_h)) carry_step(L, L->sim_h);
     hold(L, L->sim_u[0], L->sim_u[1], t_bound);
     if (L->callback_failed) return raise_callback_error(L);
-    return run_quiet(L, args[0], args[1]);
+    return Loop_run(L, args, nargs);
 }
 
 
@@ -968,10 +962,7 @@ seconds_now(void)
 static PyObject *
 Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 4) {
-        PyErr_SetString(PyExc_TypeError, "period() takes 4 arguments");
-        return NULL;
-    }
+    if (wrong_nargs(nargs, 4, "period")) return NULL;
     double wall0 = seconds_now(), u[2];
     if (L->mode_begun == 0.0 || L->n_latched != 0.0 || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
         || two_finite(args[1], u) < 0)   /* (a latched guard, two scuffs: the Python code follows them) */
@@ -1182,10 +1173,6 @@ static PyMethodDef Loop_methods[] = {
     {NULL, NULL, 0, NULL},
 };
 
-static PyMemberDef Loop_members[] = {
-    {NULL, 0, 0, 0, NULL},
-};
-
 /* The state S exported as bytes (memoryview(loop).cast("d") is S: compiled_loop.run_state): the simulator, its
  * Samples and its locator read and write the same memory as the loop */
 static int
@@ -1214,7 +1201,6 @@ static PyTypeObject LoopType = {
     .tp_flags = Py_TPFLAGS_DEFAULT,
     .tp_new = PyType_GenericNew,
     .tp_methods = Loop_methods,
-    .tp_members = Loop_members,
     .tp_as_buffer = &Loop_as_buffer,
     .tp_doc = "The compiled hybrid loop's state (see biped_sim/engine/compiled_loop.py).",
 };
