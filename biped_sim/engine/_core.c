@@ -1057,24 +1057,15 @@ Loop_begin(Loop *L, PyObject *law)
     Py_RETURN_NONE;
 }
 
+/* dense(): the last step's dense output into the state's dense rows (rk_dense: a row of the method's width per
+ * entry of y, packed), which the Python code reads */
 static PyObject *
-Loop_dense_rows(Loop *L, PyObject *unused)
+Loop_dense(Loop *L, PyObject *unused)
 {
     (void)unused;
     rk_dense(L->S, rhs, L);
     if (L->callback_failed) return raise_callback_error(L);
-    int width = L->method == DOP853 ? 8 : 5;
-    PyObject *rows = PyList_New(N);
-    if (rows == NULL) return NULL;
-    for (int i = 0; i < N; i++) {
-        PyObject *r = list_of(L->dense + width * i, width);
-        if (r == NULL) {
-            Py_DECREF(rows);
-            return NULL;
-        }
-        PyList_SET_ITEM(rows, i, r);
-    }
-    return rows;
+    Py_RETURN_NONE;
 }
 
 /* dense_at(t) -> the dense output of the last step at t (a list), as integrators' interpolants give it */
@@ -1166,7 +1157,7 @@ static PyMethodDef Loop_methods[] = {
     {"take_events", (PyCFunction)Loop_take_events, METH_NOARGS, NULL},
     {"raise_error", (PyCFunction)Loop_raise_error, METH_NOARGS, NULL},
     {"locate_crossing", (PyCFunction)Loop_locate_crossing, METH_VARARGS, NULL},
-    {"dense_rows", (PyCFunction)Loop_dense_rows, METH_NOARGS, NULL},
+    {"dense", (PyCFunction)Loop_dense, METH_NOARGS, NULL},
     {"dense_at", (PyCFunction)Loop_dense_at, METH_O, NULL},
     {"handed", (PyCFunction)Loop_handed, METH_NOARGS, NULL},
     {"law_torque", (PyCFunction)Loop_law_torque, METH_O, NULL},

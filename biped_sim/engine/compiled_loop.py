@@ -19,6 +19,7 @@ import numpy as np
 from biped_sim.engine import integrators, loop_rules as rules
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.loop_state import (
+    DENSE,
     H_ABS,
     MAX_STEP,
     METHODS,
@@ -135,8 +136,7 @@ class CompiledStepper(integrators._Stepper):
               scuff_depth=opt.scuff_depth, event_tol=opt.event_tol, front_rule=opt.touchdown_rule == "front",
               forward_rule=opt.scuff_rule == "forward", compute_grf=opt.compute_grf, zeno_interval=opt.zeno_interval,
               impulse_tol=opt.impulse_tol, contact_tol=opt.contact_tol, max_events=opt.max_events)
-        self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
-        self.method, self.method_code = sim.method, METHODS[sim.method]
+        self.rtol, self.atol, self.method = sim.rtol, sim.atol, sim.method
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
 
     @property
@@ -151,7 +151,7 @@ class CompiledStepper(integrators._Stepper):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
         torque law, f at the start, the carried-over step size (or the initial one)."""
         sim, S = self.sim, self.S
-        write(S, method=self.method_code, stance_leg=sim.stance_leg, pin=sim.pin, u_hold=sim._u, t=sim.t,
+        write(S, method=METHODS[self.method], stance_leg=sim.stance_leg, pin=sim.pin, u_hold=sim._u, t=sim.t,
               y=sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound=t_bound)
         if sim._h is not None:     # (the carried-over step size, as _ListRungeKutta.restart caps it)
             S[H_ABS] = rules.rk_carried_step(sim._h, S[MAX_STEP])
@@ -262,7 +262,9 @@ class CompiledStepper(integrators._Stepper):
 
     def dense_output(self):
         if self._dense is None:
-            rows = self.loop.dense_rows()
+            self.loop.dense()
+            S, width = self.S, 8 if self.method == "dop853" else 5
+            rows = [S[DENSE + width * i:DENSE + width * (i + 1)].tolist() for i in range(NMAX)]
             cls = integrators._DOP853Interpolant if self.method == "dop853" else integrators._DOPRI5Interpolant
             self._dense = cls(self.t_old, self.t, rows)
         return self._dense
