@@ -102,7 +102,7 @@ typedef struct {
 
 /* -- the torque law: held, compiled (the hook) or called back ------------------------------------- */
 
-/* the type of the exception a compiled law's failure raises (set_failure_type: the engine's SimulationError) */
+/* the type of the exception a compiled law's failure raises (set_python_checks: the engine's ControllerError) */
 static PyObject *law_failure_type;
 
 static PyObject *list_of(const double *v, Py_ssize_t n);
@@ -110,7 +110,7 @@ static int doubles(PyObject *seq, double *out, Py_ssize_t lo, Py_ssize_t hi, con
 
 static int two_finite(PyObject *u, double *out);
 
-/* the engine's Python side of a controller's call (set_controller_checks: modes.controller_failure and
+/* the engine's Python side of a controller's call (set_python_checks: modes.controller_failure and
  * modes.checked_torques, for what this file does not judge itself, and numpy's ndarray type) */
 static PyObject *controller_failure_fn, *checked_torques_fn, *ndarray_type;
 
@@ -146,7 +146,7 @@ call_controller(Loop *L, PyObject *controller, double t, const double *q, const 
     u[0] = u[1] = 0.0;
     if (L->callback_failed) return;
     if (controller_failure_fn == NULL || checked_torques_fn == NULL) {     /* (compiled_loop sets them at import) */
-        PyErr_SetString(PyExc_RuntimeError, "a Python controller needs set_controller_checks() first");
+        PyErr_SetString(PyExc_RuntimeError, "a Python controller needs set_python_checks() first");
         L->callback_failed = 1;
         PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
         return;
@@ -1101,45 +1101,31 @@ Loop_law_torque(Loop *L, PyObject *spec)
     return Py_BuildValue("[dd]", u[0], u[1]);
 }
 
-/* set_controller_checks(controller_failure, checked_torques, ndarray): modes.controller_failure(exc, t) -> the
- * ControllerError of a controller that raised exc at t, modes.checked_torques(u, t) -> [u1, u2] or raises, and
- * numpy.ndarray */
+/* set_python_checks(failure_type, controller_failure, checked_torques, ndarray): the exception type a compiled
+ * law's failure raises (a subclass of Exception); modes.controller_failure(exc, t) -> the ControllerError of a
+ * controller that raised exc at t, modes.checked_torques(u, t) -> [u1, u2] or raises; and numpy.ndarray */
 static PyObject *
-set_controller_checks(PyObject *module, PyObject *args)
+set_python_checks(PyObject *module, PyObject *args)
 {
     (void)module;
-    PyObject *failure, *checked, *array_type;
-    if (!PyArg_ParseTuple(args, "OOO", &failure, &checked, &array_type)) return NULL;
-    if (!PyCallable_Check(failure) || !PyCallable_Check(checked) || !PyType_Check(array_type)) {
-        PyErr_SetString(PyExc_TypeError, "set_controller_checks(): two callables and a type");
+    PyObject *cls, *failure, *checked, *array_type;
+    if (!PyArg_ParseTuple(args, "OOOO", &cls, &failure, &checked, &array_type)) return NULL;
+    if (!PyExceptionClass_Check(cls) || !PyCallable_Check(failure) || !PyCallable_Check(checked)
+        || !PyType_Check(array_type)) {
+        PyErr_SetString(PyExc_TypeError, "set_python_checks(): an exception class, two callables and a type");
         return NULL;
     }
-    Py_INCREF(array_type);
-    Py_XSETREF(ndarray_type, array_type);
-    Py_INCREF(failure);
-    Py_XSETREF(controller_failure_fn, failure);
-    Py_INCREF(checked);
-    Py_XSETREF(checked_torques_fn, checked);
-    Py_RETURN_NONE;
-}
-
-/* set_failure_type(cls): the exception type a compiled law's failure raises (a subclass of Exception) */
-static PyObject *
-set_failure_type(PyObject *module, PyObject *cls)
-{
-    (void)module;
-    if (!PyExceptionClass_Check(cls)) {
-        PyErr_SetString(PyExc_TypeError, "set_failure_type(): an exception class");
-        return NULL;
+    PyObject **slots[] = {&law_failure_type, &controller_failure_fn, &checked_torques_fn, &ndarray_type};
+    PyObject *values[] = {cls, failure, checked, array_type};
+    for (int i = 0; i < 4; i++) {
+        Py_INCREF(values[i]);
+        Py_XSETREF(*slots[i], values[i]);
     }
-    Py_INCREF(cls);
-    Py_XSETREF(law_failure_type, cls);
     Py_RETURN_NONE;
 }
 
 static PyMethodDef module_methods[] = {
-    {"set_failure_type", set_failure_type, METH_O, NULL},
-    {"set_controller_checks", set_controller_checks, METH_VARARGS, NULL},
+    {"set_python_checks", set_python_checks, METH_VARARGS, NULL},
     {NULL, NULL, 0, NULL},
 };
 

@@ -61,8 +61,8 @@ def _compiled_core():
                       "then make venv")
     if _core.KERNELS_SHA256 != twin.SOURCE_SHA256:
         return None, "the compiled loop is older than the generated code; rebuild it: make venv"
-    _core.set_failure_type(ControllerError)     # a compiled law's failure ends the run "failed"
-    _core.set_controller_checks(controller_failure, checked_torques, np.ndarray)    # a Python controller's, alike
+    # a compiled law's failure ends the run "failed", and a Python controller's alike
+    _core.set_python_checks(ControllerError, controller_failure, checked_torques, np.ndarray)
     return _core, ""
 
 

@@ -717,15 +717,17 @@ def test_every_entry_point_of_the_loop_ends_with_one_outcome():
 
 @pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=compiled_loop.WHY_NOT or "no compiled loop")
 def test_every_method_of_the_loop_is_one_the_engine_calls():
-    """The C Loop's methods are entry points the engine's Python calls by name, none kept for tests only; the last
-    step's dense rows are read from the state, where Loop.dense writes them; a wrong count of arguments to an
-    entry point says how many were given."""
+    """The C Loop's methods are entry points the engine's Python calls by name, none kept for tests only, and the
+    module sets its Python checks in one call; the last step's dense rows are read from the state, where
+    Loop.dense writes them; a wrong count of arguments to an entry point says how many were given."""
     engine = Path(compiled_loop.__file__).parent
     source = "".join(path.read_text() for path in sorted(engine.glob("*.py")))
     methods = {name for name in dir(compiled_loop._core.Loop) if not name.startswith("_")}
     assert methods == {"begin", "dense", "dense_at", "handed", "held", "law_torque", "locate_crossing", "period",
                        "periods", "raise_error", "rhs", "run", "set_model", "stats", "step", "take_events"}
     assert [name for name in sorted(methods) if not re.search(rf"loop\.{name}\b", source)] == []
+    assert {name for name in dir(compiled_loop._core) if not name.startswith("_")} == {
+        "KERNELS_SHA256", "Loop", "set_python_checks"}
     sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
     sim.advance_period(1e-3, [0.5, -0.5])
     stepper = sim._compiled
