@@ -18,6 +18,7 @@ import numpy as np
 
 from biped_sim.engine import integrators, loop_rules as rules
 from biped_sim.engine.compiled import _compiled_twin
+from biped_sim.engine.integrators import _count, _entry
 from biped_sim.engine.loop_state import (
     DENSE,
     H_ABS,
@@ -107,21 +108,22 @@ class CompiledStepper(integrators._Stepper):
     the step end's feet and force."""
     takes_lists = True
 
-    def _view(at, size=None, doc=""):
-        """A stepper field that is the state's field at offset ``at``: a float, or a list of ``size`` floats."""
-        if size is None:
-            return property(lambda self: self.S[at], lambda self, v: self.S.__setitem__(at, v), doc=doc)
-        return property(lambda self: list(self.S[at:at + size]), lambda self, v: put(self.S, at, v), doc=doc)
+    t = _entry(T, "time at the end of the last step (s)")
+    t_old = _entry(T_OLD, "time at its start (s)")
+    t_bound = _entry(T_BOUND, "the end of the interval the mode runs to (s)")
+    h = _entry(H, "the last step's size (s)")
+    h_abs = _entry(H_ABS, "the step size the next step tries (s)")
+    nfev = _count(NFEV, "right-hand-side evaluations")
+    nrejected = _count(NREJECTED, "rejected steps")
 
-    t = _view(T, doc="time at the end of the last step (s)")
-    t_old = _view(T_OLD, doc="time at its start (s)")
-    t_bound = _view(T_BOUND, doc="the end of the interval the mode runs to (s)")
-    h = _view(H, doc="the last step's size (s)")
-    h_abs = _view(H_ABS, doc="the step size the next step tries (s)")
-    y = _view(Y, NMAX, doc="the state at t: q, dq, the motors' work")
-    y_old = _view(Y_OLD, NMAX, doc="the state at t_old")
-    f = _view(F, NMAX, doc="the right-hand side at (t, y)")
-    del _view
+    def _entries(at, doc):
+        """A field of NMAX floats of the state (a memoryview) as a list."""
+        return property(lambda self: self.S[at:at + NMAX].tolist(), lambda self, v: put(self.S, at, v), doc=doc)
+
+    y = _entries(Y, "the state at t: q, dq, the motors' work")
+    y_old = _entries(Y_OLD, "the state at t_old")
+    f = _entries(F, "the right-hand side at (t, y)")
+    del _entries
 
     def __init__(self, sim):
         self.sim = sim
@@ -138,14 +140,6 @@ class CompiledStepper(integrators._Stepper):
               impulse_tol=opt.impulse_tol, contact_tol=opt.contact_tol, max_events=opt.max_events)
         self.rtol, self.atol, self.method = sim.rtol, sim.atol, sim.method
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
-
-    @property
-    def nfev(self):
-        return int(self.S[NFEV])
-
-    @property
-    def nrejected(self):
-        return int(self.S[NREJECTED])
 
     def start(self, t_bound, law, reset_counters):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
