@@ -102,7 +102,7 @@ typedef struct {
 
 /* -- the torque law: held, compiled (the hook) or called back ------------------------------------- */
 
-/* the type of the exception a compiled law's failure raises (set_failure_type: the engine's SimulationError) */
+/* the type of the exception a compiled law's failure raises (set_python_checks: the engine's ControllerError) */
 static PyObject *law_failure_type;
 
 static PyObject *list_of(const double *v, Py_ssize_t n);
@@ -110,7 +110,7 @@ static int doubles(PyObject *seq, double *out, Py_ssize_t lo, Py_ssize_t hi, con
 
 static int two_finite(PyObject *u, double *out);
 
-/* the engine's Python side of a controller's call (set_controller_checks: modes.controller_failure and
+/* the engine's Python side of a controller's call (set_python_checks: modes.controller_failure and
  * modes.checked_torques, for what this file does not judge itself, and numpy's ndarray type) */
 static PyObject *controller_failure_fn, *checked_torques_fn, *ndarray_type;
 
@@ -146,7 +146,7 @@ call_controller(Loop *L, PyObject *controller, double t, const double *q, const 
     u[0] = u[1] = 0.0;
     if (L->callback_failed) return;
     if (controller_failure_fn == NULL || checked_torques_fn == NULL) {     /* (compiled_loop sets them at import) */
-        PyErr_SetString(PyExc_RuntimeError, "a Python controller needs set_controller_checks() first");
+        PyErr_SetString(PyExc_RuntimeError, "a Python controller needs set_python_checks() first");
         L->callback_failed = 1;
         PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
         return;
@@ -785,17 +785,6 @@ run_result(Loop *L, int outcome, RunState *rs, Py_buffer *buf)
     return PyLong_FromLong(L->callback_failed ? OUTCOME_RAISED : outcome);
 }
 
-/* run(t_end, data) -> the Outcome of the quiet steps to t_end */
-static PyObject *
-run_quiet(Loop *L, PyObject *t_end_arg, PyObject *data)
-{
-    RunState rs;
-    Py_buffer buf;
-    double t_end = PyFloat_AsDouble(t_end_arg);
-    if (PyErr_Occurred() || run_state(L, data, &rs, &buf) < 0) return NULL;
-    return run_result(L, quiet_until(L, t_end, &rs), &rs, &buf);
-}
-
 /* the start of a control period under a held torque (begin() in the same mode) */
 static void
 hold(Loop *L, double u0, double u1, double t_bound)
@@ -831,6 +820,15 @@ period_end(double t, double period, double t_final, long *k)
     return ev_period_end(j, period, t_final);
 }
 
+/* Whether a METH_FASTCALL entry point got other than n arguments (then its TypeError is set) */
+static int
+wrong_nargs(Py_ssize_t nargs, Py_ssize_t n, const char *name)
+{
+    if (nargs == n) return 0;
+    PyErr_Format(PyExc_TypeError, "%s() takes %zd arguments (%zd given)", name, n, nargs);
+    return 1;
+}
+
 /* periods(law, period, t_final, t_stop, data) -> an Outcome (and t_next, refused_u): control periods held (as
  * HybridSimulator.advance_period computes them, the command at each period's start: a compiled law's
  * (address, parameters, name), or a Python controller, called once a period and checked by
@@ -844,10 +842,7 @@ period_end(double t, double period, double t_final, long *k)
 static PyObject *
 Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 5) {
-        PyErr_SetString(PyExc_TypeError, "periods() takes 5 arguments");
-        return NULL;
-    }
+    if (wrong_nargs(nargs, 5, "periods")) return NULL;
     double period = PyFloat_AsDouble(args[1]), t_final = PyFloat_AsDouble(args[2]), t_stop = PyFloat_AsDouble(args[3]);
     long k0 = (long)L->control_periods;
     if (PyErr_Occurred()) return NULL;
@@ -901,14 +896,16 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     return run_result(L, outcome, &rs, &buf);
 }
 
+/* run(t_end, data) -> the Outcome of the quiet steps to t_end */
 static PyObject *
 Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 2) {
-        PyErr_SetString(PyExc_TypeError, "run() takes 2 arguments");
-        return NULL;
-    }
-    return run_quiet(L, args[0], args[1]);
+    RunState rs;
+    Py_buffer buf;
+    if (wrong_nargs(nargs, 2, "run")) return NULL;
+    double t_end = PyFloat_AsDouble(args[0]);
+    if (PyErr_Occurred() || run_state(L, args[1], &rs, &buf) < 0) return NULL;
+    return run_result(L, quiet_until(L, t_end, &rs), &rs, &buf);
 }
 
 /* held(t_end, data): a control period under the state's held torque sim_u from where the last run left the
@@ -917,16 +914,13 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 static PyObject *
 Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 2) {
-        PyErr_SetString(PyExc_TypeError, "held() takes 2 arguments");
-        return NULL;
-    }
+    if (wrong_nargs(nargs, 2, "held")) return NULL;
     double t_bound = PyFloat_AsDouble(args[0]);
     if (PyErr_Occurred()) return NULL;
     if (!isnan(L->sim_h)) carry_step(L, L->sim_h);
     hold(L, L->sim_u[0], L->sim_u[1], t_bound);
     if (L->callback_failed) return raise_callback_error(L);
-    return run_quiet(L, args[0], args[1]);
+    return Loop_run(L, args, nargs);
 }
 
 
@@ -968,10 +962,7 @@ seconds_now(void)
 static PyObject *
 Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 4) {
-        PyErr_SetString(PyExc_TypeError, "period() takes 4 arguments");
-        return NULL;
-    }
+    if (wrong_nargs(nargs, 4, "period")) return NULL;
     double wall0 = seconds_now(), u[2];
     if (L->mode_begun == 0.0 || L->n_latched != 0.0 || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
         || two_finite(args[1], u) < 0)   /* (a latched guard, two scuffs: the Python code follows them) */
@@ -1066,24 +1057,15 @@ Loop_begin(Loop *L, PyObject *law)
     Py_RETURN_NONE;
 }
 
+/* dense(): the last step's dense output into the state's dense rows (rk_dense: a row of the method's width per
+ * entry of y, packed), which the Python code reads */
 static PyObject *
-Loop_dense_rows(Loop *L, PyObject *unused)
+Loop_dense(Loop *L, PyObject *unused)
 {
     (void)unused;
     rk_dense(L->S, rhs, L);
     if (L->callback_failed) return raise_callback_error(L);
-    int width = L->method == DOP853 ? 8 : 5;
-    PyObject *rows = PyList_New(N);
-    if (rows == NULL) return NULL;
-    for (int i = 0; i < N; i++) {
-        PyObject *r = list_of(L->dense + width * i, width);
-        if (r == NULL) {
-            Py_DECREF(rows);
-            return NULL;
-        }
-        PyList_SET_ITEM(rows, i, r);
-    }
-    return rows;
+    Py_RETURN_NONE;
 }
 
 /* dense_at(t) -> the dense output of the last step at t (a list), as integrators' interpolants give it */
@@ -1119,45 +1101,31 @@ Loop_law_torque(Loop *L, PyObject *spec)
     return Py_BuildValue("[dd]", u[0], u[1]);
 }
 
-/* set_controller_checks(controller_failure, checked_torques, ndarray): modes.controller_failure(exc, t) -> the
- * ControllerError of a controller that raised exc at t, modes.checked_torques(u, t) -> [u1, u2] or raises, and
- * numpy.ndarray */
+/* set_python_checks(failure_type, controller_failure, checked_torques, ndarray): the exception type a compiled
+ * law's failure raises (a subclass of Exception); modes.controller_failure(exc, t) -> the ControllerError of a
+ * controller that raised exc at t, modes.checked_torques(u, t) -> [u1, u2] or raises; and numpy.ndarray */
 static PyObject *
-set_controller_checks(PyObject *module, PyObject *args)
+set_python_checks(PyObject *module, PyObject *args)
 {
     (void)module;
-    PyObject *failure, *checked, *array_type;
-    if (!PyArg_ParseTuple(args, "OOO", &failure, &checked, &array_type)) return NULL;
-    if (!PyCallable_Check(failure) || !PyCallable_Check(checked) || !PyType_Check(array_type)) {
-        PyErr_SetString(PyExc_TypeError, "set_controller_checks(): two callables and a type");
+    PyObject *cls, *failure, *checked, *array_type;
+    if (!PyArg_ParseTuple(args, "OOOO", &cls, &failure, &checked, &array_type)) return NULL;
+    if (!PyExceptionClass_Check(cls) || !PyCallable_Check(failure) || !PyCallable_Check(checked)
+        || !PyType_Check(array_type)) {
+        PyErr_SetString(PyExc_TypeError, "set_python_checks(): an exception class, two callables and a type");
         return NULL;
     }
-    Py_INCREF(array_type);
-    Py_XSETREF(ndarray_type, array_type);
-    Py_INCREF(failure);
-    Py_XSETREF(controller_failure_fn, failure);
-    Py_INCREF(checked);
-    Py_XSETREF(checked_torques_fn, checked);
-    Py_RETURN_NONE;
-}
-
-/* set_failure_type(cls): the exception type a compiled law's failure raises (a subclass of Exception) */
-static PyObject *
-set_failure_type(PyObject *module, PyObject *cls)
-{
-    (void)module;
-    if (!PyExceptionClass_Check(cls)) {
-        PyErr_SetString(PyExc_TypeError, "set_failure_type(): an exception class");
-        return NULL;
+    PyObject **slots[] = {&law_failure_type, &controller_failure_fn, &checked_torques_fn, &ndarray_type};
+    PyObject *values[] = {cls, failure, checked, array_type};
+    for (int i = 0; i < 4; i++) {
+        Py_INCREF(values[i]);
+        Py_XSETREF(*slots[i], values[i]);
     }
-    Py_INCREF(cls);
-    Py_XSETREF(law_failure_type, cls);
     Py_RETURN_NONE;
 }
 
 static PyMethodDef module_methods[] = {
-    {"set_failure_type", set_failure_type, METH_O, NULL},
-    {"set_controller_checks", set_controller_checks, METH_VARARGS, NULL},
+    {"set_python_checks", set_python_checks, METH_VARARGS, NULL},
     {NULL, NULL, 0, NULL},
 };
 
@@ -1175,15 +1143,11 @@ static PyMethodDef Loop_methods[] = {
     {"take_events", (PyCFunction)Loop_take_events, METH_NOARGS, NULL},
     {"raise_error", (PyCFunction)Loop_raise_error, METH_NOARGS, NULL},
     {"locate_crossing", (PyCFunction)Loop_locate_crossing, METH_VARARGS, NULL},
-    {"dense_rows", (PyCFunction)Loop_dense_rows, METH_NOARGS, NULL},
+    {"dense", (PyCFunction)Loop_dense, METH_NOARGS, NULL},
     {"dense_at", (PyCFunction)Loop_dense_at, METH_O, NULL},
     {"handed", (PyCFunction)Loop_handed, METH_NOARGS, NULL},
     {"law_torque", (PyCFunction)Loop_law_torque, METH_O, NULL},
     {NULL, NULL, 0, NULL},
-};
-
-static PyMemberDef Loop_members[] = {
-    {NULL, 0, 0, 0, NULL},
 };
 
 /* The state S exported as bytes (memoryview(loop).cast("d") is S: compiled_loop.run_state): the simulator, its
@@ -1214,7 +1178,6 @@ static PyTypeObject LoopType = {
     .tp_flags = Py_TPFLAGS_DEFAULT,
     .tp_new = PyType_GenericNew,
     .tp_methods = Loop_methods,
-    .tp_members = Loop_members,
     .tp_as_buffer = &Loop_as_buffer,
     .tp_doc = "The compiled hybrid loop's state (see biped_sim/engine/compiled_loop.py).",
 };

@@ -18,7 +18,9 @@ import numpy as np
 
 from biped_sim.engine import integrators, loop_rules as rules
 from biped_sim.engine.compiled import _compiled_twin
+from biped_sim.engine.integrators import _count, _entry
 from biped_sim.engine.loop_state import (
+    DENSE,
     H_ABS,
     MAX_STEP,
     METHODS,
@@ -60,8 +62,8 @@ def _compiled_core():
                       "then make venv")
     if _core.KERNELS_SHA256 != twin.SOURCE_SHA256:
         return None, "the compiled loop is older than the generated code; rebuild it: make venv"
-    _core.set_failure_type(ControllerError)     # a compiled law's failure ends the run "failed"
-    _core.set_controller_checks(controller_failure, checked_torques, np.ndarray)    # a Python controller's, alike
+    # a compiled law's failure ends the run "failed", and a Python controller's alike
+    _core.set_python_checks(ControllerError, controller_failure, checked_torques, np.ndarray)
     return _core, ""
 
 
@@ -106,21 +108,22 @@ class CompiledStepper(integrators._Stepper):
     the step end's feet and force."""
     takes_lists = True
 
-    def _view(at, size=None, doc=""):
-        """A stepper field that is the state's field at offset ``at``: a float, or a list of ``size`` floats."""
-        if size is None:
-            return property(lambda self: self.S[at], lambda self, v: self.S.__setitem__(at, v), doc=doc)
-        return property(lambda self: list(self.S[at:at + size]), lambda self, v: put(self.S, at, v), doc=doc)
+    t = _entry(T, "time at the end of the last step (s)")
+    t_old = _entry(T_OLD, "time at its start (s)")
+    t_bound = _entry(T_BOUND, "the end of the interval the mode runs to (s)")
+    h = _entry(H, "the last step's size (s)")
+    h_abs = _entry(H_ABS, "the step size the next step tries (s)")
+    nfev = _count(NFEV, "right-hand-side evaluations")
+    nrejected = _count(NREJECTED, "rejected steps")
 
-    t = _view(T, doc="time at the end of the last step (s)")
-    t_old = _view(T_OLD, doc="time at its start (s)")
-    t_bound = _view(T_BOUND, doc="the end of the interval the mode runs to (s)")
-    h = _view(H, doc="the last step's size (s)")
-    h_abs = _view(H_ABS, doc="the step size the next step tries (s)")
-    y = _view(Y, NMAX, doc="the state at t: q, dq, the motors' work")
-    y_old = _view(Y_OLD, NMAX, doc="the state at t_old")
-    f = _view(F, NMAX, doc="the right-hand side at (t, y)")
-    del _view
+    def _entries(at, doc):
+        """A field of NMAX floats of the state (a memoryview) as a list."""
+        return property(lambda self: self.S[at:at + NMAX].tolist(), lambda self, v: put(self.S, at, v), doc=doc)
+
+    y = _entries(Y, "the state at t: q, dq, the motors' work")
+    y_old = _entries(Y_OLD, "the state at t_old")
+    f = _entries(F, "the right-hand side at (t, y)")
+    del _entries
 
     def __init__(self, sim):
         self.sim = sim
@@ -135,31 +138,17 @@ class CompiledStepper(integrators._Stepper):
               scuff_depth=opt.scuff_depth, event_tol=opt.event_tol, front_rule=opt.touchdown_rule == "front",
               forward_rule=opt.scuff_rule == "forward", compute_grf=opt.compute_grf, zeno_interval=opt.zeno_interval,
               impulse_tol=opt.impulse_tol, contact_tol=opt.contact_tol, max_events=opt.max_events)
-        self.rtol, self.atol, self.max_step = sim.rtol, sim.atol, opt.max_step
-        self.method, self.method_code = sim.method, METHODS[sim.method]
+        self.rtol, self.atol, self.method = sim.rtol, sim.atol, sim.method
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
-
-    @property
-    def nfev(self):
-        return int(self.S[NFEV])
-
-    @property
-    def nrejected(self):
-        return int(self.S[NREJECTED])
-
-    def _carry_step(self, h):
-        """The step size a new stepper starts with: ``h`` capped by max_step (``_ListRungeKutta.restart``)."""
-        S = self.S
-        S[H_ABS] = rules.rk_carried_step(h, S[MAX_STEP])
 
     def start(self, t_bound, law, reset_counters):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
         torque law, f at the start, the carried-over step size (or the initial one)."""
         sim, S = self.sim, self.S
-        write(S, method=self.method_code, stance_leg=sim.stance_leg, pin=sim.pin, u_hold=sim._u, t=sim.t,
+        write(S, method=METHODS[self.method], stance_leg=sim.stance_leg, pin=sim.pin, u_hold=sim._u, t=sim.t,
               y=sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound=t_bound)
-        if sim._h is not None:
-            self._carry_step(sim._h)
+        if sim._h is not None:     # (the carried-over step size, as _ListRungeKutta.restart caps it)
+            S[H_ABS] = rules.rk_carried_step(sim._h, S[MAX_STEP])
         if reset_counters:
             S[NFEV] = S[NREJECTED] = S[NACCEPTED] = 0.0
         self.loop.begin(hook_argument(law))
@@ -169,18 +158,12 @@ class CompiledStepper(integrators._Stepper):
                                           self.ERROR_ORDER)
             S[NFEV] += 1
             S[NACCEPTED] = 0.0
-            self._carry_step(h0)
+            S[H_ABS] = rules.rk_carried_step(h0, S[MAX_STEP])
 
     def step(self):
         """One step taken in C and handled by the Python code (the simulator's view of its end's
         evaluation set, as the right-hand side's sink does)."""
-        outcome = self.loop.step()
-        self._dense = None     # (the last step's dense output: made when asked)
-        if outcome == Outcome.RAISED:
-            self.loop.raise_error()
-        if outcome == Outcome.FAILED:
-            raise integrators.state_failure(self.S)
-        self.sim._last_u, self.sim._last_F, _ = self.loop.handed()
+        self._handed(self._raise_failure(self.loop.step()))
 
     def run(self, t_end):
         """The quiet steps to ``t_end`` in C: an :class:`~biped_sim.engine.loop_state.Outcome`, DONE (at t_end:
@@ -249,21 +232,33 @@ class CompiledStepper(integrators._Stepper):
         sim = self.sim
         if self.S[N_RECORDS]:
             sim._loop_records(self.loop.take_events())
-        if outcome == Outcome.RAISED:     # the torque law failed: after the steps accepted before it
+        if self._raise_failure(outcome) == Outcome.EVENT:     # (its start's feet and force: the state's)
+            self._handed(outcome)
+        return outcome
+
+    def _raise_failure(self, outcome):
+        """``outcome``, unless it is RAISED (the torque law's exception, after the steps accepted before it) or
+        FAILED (the step's :class:`~biped_sim.engine.integrators.StepFailure`)."""
+        if outcome == Outcome.RAISED:
             self.loop.raise_error()
         if outcome == Outcome.FAILED:
             raise integrators.state_failure(self.S)
-        if outcome == Outcome.EVENT:
-            self._dense = None     # (the last step's dense output: made when asked)
-            sim._last_u, sim._last_F, _ = self.loop.handed()     # (its start's feet and force: the state's)
         return outcome
+
+    def _handed(self, outcome):
+        """A step taken in C and handed to the Python code: its dense output made anew when asked, the torque
+        and force of its end the simulator's last evaluation's."""
+        self._dense = None
+        self.sim._last_u, self.sim._last_F, _ = self.loop.handed()
 
     def replace_y(self, y):
         self.y = y
 
     def dense_output(self):
         if self._dense is None:
-            rows = self.loop.dense_rows()
+            self.loop.dense()
+            S, width = self.S, 8 if self.method == "dop853" else 5
+            rows = [S[DENSE + width * i:DENSE + width * (i + 1)].tolist() for i in range(NMAX)]
             cls = integrators._DOP853Interpolant if self.method == "dop853" else integrators._DOPRI5Interpolant
             self._dense = cls(self.t_old, self.t, rows)
         return self._dense

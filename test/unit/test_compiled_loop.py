@@ -716,6 +716,29 @@ def test_every_entry_point_of_the_loop_ends_with_one_outcome():
 
 
 @pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=compiled_loop.WHY_NOT or "no compiled loop")
+def test_every_method_of_the_loop_is_one_the_engine_calls():
+    """The C Loop's methods are entry points the engine's Python calls by name, none kept for tests only, and the
+    module sets its Python checks in one call; the last step's dense rows are read from the state, where
+    Loop.dense writes them; a wrong count of arguments to an entry point says how many were given."""
+    engine = Path(compiled_loop.__file__).parent
+    source = "".join(path.read_text() for path in sorted(engine.glob("*.py")))
+    methods = {name for name in dir(compiled_loop._core.Loop) if not name.startswith("_")}
+    assert methods == {"begin", "dense", "dense_at", "handed", "held", "law_torque", "locate_crossing", "period",
+                       "periods", "raise_error", "rhs", "run", "set_model", "stats", "step", "take_events"}
+    assert [name for name in sorted(methods) if not re.search(rf"loop\.{name}\b", source)] == []
+    assert {name for name in dir(compiled_loop._core) if not name.startswith("_")} == {
+        "KERNELS_SHA256", "Loop", "set_python_checks"}
+    sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+    sim.advance_period(1e-3, [0.5, -0.5])
+    stepper = sim._compiled
+    t = 0.5 * (stepper.t_old + stepper.t)
+    assert stepper.t_old < t < stepper.t
+    assert np.asarray(stepper.dense_output()(t)).tolist() == stepper.dense_at(t)
+    with pytest.raises(TypeError, match=r"run\(\) takes 2 arguments \(1 given\)"):
+        sim._loop.run(1.0)
+
+
+@pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=compiled_loop.WHY_NOT or "no compiled loop")
 def test_the_compiled_steppers_fields_are_views_of_the_state():
     """The compiled stepper copies nothing out of the loop: after periods run quiet in C its t, y and step size
     are where C left them (the last sample's), and what the Python code writes into them the loop steps from."""
