@@ -281,14 +281,13 @@ force_at(Loop *L, double t, const double *q, const double *dq, double *F)
     F[0] = out[5]; F[1] = out[6];
 }
 
-/* guards.foot_states: per foot x, height across the slope, and their rates */
+/* guards.foot_states: per foot x, height across the slope, and their rates (loop_rules.ev_foot_states) */
 static void
 feet(const Loop *L, const double *q, const double *dq, double *ft)
 {
-    double p[8], t = L->tan_s;
+    double p[8];
     k_foot_kinematics(q, dq, L->k_feet, p);
-    ft[0] = p[0]; ft[1] = ev_across(t, p[0], p[1]); ft[2] = p[4]; ft[3] = ev_across(t, p[4], p[5]);
-    ft[4] = p[2]; ft[5] = ev_across(t, p[2], p[3]); ft[6] = p[6]; ft[7] = ev_across(t, p[6], p[7]);
+    ev_foot_states(p, 0, L->tan_s, ft, 0);
 }
 
 /* -- the stepper: the rules of loop_rules.py (integrators._ListRungeKutta), compiled -------------------- */
@@ -387,8 +386,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     *residual_out = ev_running_max(fabs(res_e), fabs(res_p));
     double p[4];
     k_foot_positions(q, L->k_pos, p);
-    L->pin[0] = p[2 * nw - 2];
-    L->pin[1] = p[2 * nw - 1];
+    ev_foot_point(p, nw, L->pin);
     EventRecord *ev = L->events + (int)L->n_records++;
     ev->kind = RECORD_TOUCHDOWN;
     ev->a = old;

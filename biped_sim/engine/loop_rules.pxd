@@ -21,6 +21,8 @@ cdef int ev_locate_crossing(double *S, guard_t g, void *ctx, double ta, double t
 cdef public int ev_locate_height_crossing(double *S, rhs_t fun, void *ctx, int leg, double ta, double tb) noexcept nogil
 cdef public bint ev_triggered(double w0, double w1) noexcept nogil
 cdef public double ev_across(double tan_s, double x, double y) noexcept nogil
+cdef public void ev_foot_states(double *p, Py_ssize_t i, double tan_s, double *ft, Py_ssize_t j) noexcept nogil
+cdef public void ev_foot_point(double *p, int leg, double *point) noexcept nogil
 cdef public double ev_normal(double sin_s, double cos_s, double fx, double fy) noexcept nogil
 cdef public double ev_tangential(double sin_s, double cos_s, double fx, double fy) noexcept nogil
 cdef public double ev_slip_margin(double mu, double normal, double tangential) noexcept nogil

@@ -506,6 +506,25 @@ def ev_across(tan_s, x, y):
     return y + tan_s * x
 
 
+def ev_foot_states(p, i, tan_s, ft, j):
+    """The feet's states laid out from their kinematics p[i:i + 8] (k_foot_kinematics': foot 1's (x, y), foot
+    2's, then their velocities) into ft[j:j + 8]: per foot its x, its height across the ground, and their rates
+    (the touchdown witness is a free foot's height)."""
+    k: cython.Py_ssize_t
+    for k in range(2):
+        ft[j + 4 * k] = p[i + 2 * k]
+        ft[j + 4 * k + 1] = ev_across(tan_s, p[i + 2 * k], p[i + 2 * k + 1])
+        ft[j + 4 * k + 2] = p[i + 2 * k + 4]
+        ft[j + 4 * k + 3] = ev_across(tan_s, p[i + 2 * k + 4], p[i + 2 * k + 5])
+
+
+def ev_foot_point(p, leg, point):
+    """Foot leg's (x, y) (1 or 2) taken from the feet's positions p (k_foot_positions': foot 1's, then foot 2's)
+    into point: the pin of a stance that starts on it."""
+    point[0] = p[2 * leg - 2]
+    point[1] = p[2 * leg - 1]
+
+
 def ev_normal(sin_s, cos_s, fx, fy):
     """The normal component (into the ground line, up) of a ground force or impulse (fx, fy)."""
     return fx * sin_s + fy * cos_s
@@ -693,8 +712,6 @@ def ev_impact(S, leg, old, has_mu):
     their difference) and the feet after it (FEET_AFTER). Returns the bits of the assumptions it violates:
     ev_impulse_checks' on the impulse, and IMPACT_OLD_FOOT_SINKS where the old stance foot moves into the
     ground."""
-    i: cython.Py_ssize_t
-    p: cython.Py_ssize_t
     code: cython.int
     k_impact_map(S, leg, Q_IMPACT, DQ_MINUS, DQ_PLUS)
     k_energy(S, Q_IMPACT, DQ_MINUS, TV)
@@ -702,12 +719,7 @@ def ev_impact(S, leg, old, has_mu):
     k_energy(S, Q_IMPACT, DQ_PLUS, TV)
     S[ENERGY_AFTER] = S[TV] + S[TV + 1]
     k_foot_kinematics(S, Q_IMPACT, DQ_PLUS, KINEMATICS)
-    for i in range(2):
-        p = KINEMATICS + 2 * i
-        S[FEET_AFTER + 4 * i] = S[p]
-        S[FEET_AFTER + 4 * i + 1] = ev_across(S[TAN_S], S[p], S[p + 1])
-        S[FEET_AFTER + 4 * i + 2] = S[p + 4]
-        S[FEET_AFTER + 4 * i + 3] = ev_across(S[TAN_S], S[p + 4], S[p + 5])
+    ev_foot_states(S, KINEMATICS, S[TAN_S], S, FEET_AFTER)
     code = ev_impulse_checks(has_mu, S[MU], ev_normal_force(S, S[IMPULSE], S[IMPULSE + 1]),
                              ev_tangential_force(S, S[IMPULSE], S[IMPULSE + 1]))
     if old != 0 and old != leg and ev_stays_down(S[FEET_AFTER + 4 * (old - 1) + 3], 0.0):

@@ -442,3 +442,21 @@ def test_the_carried_step_size_is_written_once():
                         r"\bmin\(S\[H_ABS\], self\.max_step\)|MAX_STEP\] if S\[MAX_STEP\] < |max_step < h \?")
     from biped_sim.engine import loop_rules as rules
     assert rules.rk_carried_step(1e-3, math.inf) == 1e-3 and rules.rk_carried_step(1e-3, 1e-4) == 1e-4
+
+
+def test_the_feet_layout_and_the_new_pin_are_written_once():
+    """How the feet's states are laid out from their kinematics (per foot x, height across the ground, their rates)
+    and the pin taken from the feet's positions are the rules' (loop_rules.py): guards.foot_states, ev_impact,
+    guards.foot_xy and _core.c's feet() and touchdown() call them. The layout is the kinematics' across the slope."""
+    assert_written_once(("ft[j + 4 * k + 1] = ev_across(", "point[0] = p[2 * leg - 2]"),
+                        r"ev_across\(\w+, p\[\d\]|across\(t, p\dx|FEET_AFTER \+ 4 \* i|\[0\] = p\[2 \* \w+ - 2\]"
+                        r"|return p\[2 \* leg - 2\]")
+    import biped_sim as bs
+    from biped_sim.engine import guards as G
+    from biped_sim.engine.compiled import gen
+    model, tan_s = bs.BipedModel(), math.tan(0.04)
+    q, dq = [0.1, 0.2, math.pi + 0.2, math.pi - 0.25, 0.1], [0.3, -0.1, 0.3, -0.4, 0.5]
+    p1x, p1y, p2x, p2y, v1x, v1y, v2x, v2y = gen.foot_kinematics(q, dq, model.k["foot_kinematics"])
+    assert G.foot_states(model, q, dq, tan_s) == ((p1x, p1y + tan_s * p1x, v1x, v1y + tan_s * v1x),
+                                                  (p2x, p2y + tan_s * p2x, v2x, v2y + tan_s * v2x))
+    assert G.foot_xy(model, q, 2) == (p2x, p2y) and G.foot_xy(model, q, 1) == (p1x, p1y)
