@@ -378,7 +378,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     Fp[0] = out[5]; Fp[1] = out[6];
     if (stance_start(L, Fp) != STANCE_HOLDS) { L->why = WHY_STANCE_REFUSED; return 0; }
     /* applied */
-    double lost = energy_lost + loss;
+    double lost = ev_energy_lost_after(energy_lost, loss);
     double res_e = ev_energy_residual(L->energy_before, E0, w, push_work, energy_lost);
     double res_p = ev_energy_residual(L->energy_after, E0, w, push_work, lost);
     ev_sample_row(rows, t_ev, q, dqm, old, Fe, ue, res_e);
@@ -484,10 +484,8 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
                 /* ImpactHistory.accumulating: a crossing that continues impacts whose gaps shrink is the Python
                  * code's to decide (an impact of the Zeno limit) */
                 if (ev_accumulating(L->recent_impacts, L->n_recent, t_root)) { L->why = WHY_ACCUMULATING; return 0; }
-                scuffs++;
                 scuffing = 1;
-                scuff[0] = scuff[2] = t_root;
-                scuff[1] = 0.0;
+                scuffs = ev_start_scuff(scuff, 0, t_root, scuffs);
             }
         }
     }

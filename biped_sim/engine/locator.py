@@ -278,10 +278,9 @@ class EventLocator:
         fr = self._feet_at(st, to_phys, t_root)
         if not G.starts_scuff(fr[guard.leg - 1], fr[stance_leg - 1], self.opt) or self.impacts.accumulating(t_root):
             return False
-        self.scuffs += 1
         S, leg = self.S, guard.leg
         S[SCUFFING + leg - 1] = 1.0
-        put(S, SCUFF + 3 * (leg - 1), [t_root, 0.0, t_root])
+        self.scuffs = rules.ev_start_scuff(S, SCUFF + 3 * (leg - 1), t_root, self.scuffs)
         return True
 
     def _resting_feet_pushed_in(self, feet, stance_leg):

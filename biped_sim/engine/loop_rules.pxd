@@ -41,6 +41,7 @@ cdef public bint ev_provisional(long appended, long every) noexcept nogil
 cdef public bint ev_swinging_through(double dx, double dheight) noexcept nogil
 cdef public bint ev_starts_scuff(bint forward, double front_tol, double x, double dx, double dheight,
                                  double x_stance) noexcept nogil
+cdef public double ev_start_scuff(double *scuff, Py_ssize_t i, double t, double scuffs) noexcept nogil
 cdef public bint ev_passes_through(bint forward, double front_tol, double x, double dx, double dheight,
                                    double x_stance) noexcept nogil
 cdef public bint ev_within_step(double t_old, double t, double tt) noexcept nogil
@@ -61,6 +62,7 @@ cdef public void ev_count_mode_event(double *S, double t) noexcept nogil
 cdef public long ev_period_index(double t, double period, long k) noexcept nogil
 cdef public double ev_period_end(long j, double period, double t_final) noexcept nogil
 cdef public bint ev_diverging(double *dq, Py_ssize_t n, double max_speed) noexcept nogil
+cdef public double ev_energy_lost_after(double energy_lost, double loss) noexcept nogil
 cdef public double ev_energy_residual(double energy, double e0, double work, double push_work,
                                       double energy_lost) noexcept nogil
 cdef public double ev_running_max(double m, double v) noexcept nogil

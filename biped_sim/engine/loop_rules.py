@@ -637,6 +637,16 @@ def ev_starts_scuff(forward, front_tol, x, dx, dheight, x_stance):
     return not forward or ev_swinging_through(dx, dheight)
 
 
+def ev_start_scuff(scuff, i, t, scuffs):
+    """A scuff that starts at t (a crossing that passes through the ground, ev_starts_scuff): its row
+    scuff[i:i + 3] (t_start, the deepest dip so far, its time t_deepest) begun, and the count of the scuffs,
+    scuffs, one more (returned)."""
+    scuff[i] = t
+    scuff[i + 1] = 0.0
+    scuff[i + 2] = t
+    return scuffs + 1
+
+
 def ev_passes_through(forward, front_tol, x, dx, dheight, x_stance):
     """Whether a swing foot under the ground still passes through it: under "forward" while it swings
     through, under "behind" while it is behind the stance foot."""
@@ -818,6 +828,11 @@ def ev_diverging(dq, n, max_speed):
         if v > top:
             top = v
     return top > max_speed
+
+
+def ev_energy_lost_after(energy_lost, loss):
+    """The energy the impacts took out so far (energy_lost) after one more impact, which took loss (ev_impact_loss)."""
+    return energy_lost + loss
 
 
 def ev_energy_residual(energy, e0, work, push_work, energy_lost):

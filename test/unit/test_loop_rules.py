@@ -460,3 +460,22 @@ def test_the_feet_layout_and_the_new_pin_are_written_once():
     assert G.foot_states(model, q, dq, tan_s) == ((p1x, p1y + tan_s * p1x, v1x, v1y + tan_s * v1x),
                                                   (p2x, p2y + tan_s * p2x, v2x, v2y + tan_s * v2x))
     assert G.foot_xy(model, q, 2) == (p2x, p2y) and G.foot_xy(model, q, 1) == (p1x, p1y)
+
+
+def test_the_energy_lost_so_far_is_written_once():
+    """The running sum of the energy the impacts took out is the rules' (loop_rules.py): HybridSimulator._take_impact
+    and _core.c's touchdown() call it."""
+    assert_written_once(("return energy_lost + loss",), r"energy_lost \+= |energy_lost \+ loss")
+    from biped_sim.engine import loop_rules as rules
+    assert rules.ev_energy_lost_after(1.5, 0.25) == 1.75
+
+
+def test_how_a_scuff_starts_is_written_once():
+    """A scuff's start (its row t_start, deepest, t_deepest and the count of the scuffs) is the rules'
+    (loop_rules.py): EventLocator._is_scuff and _core.c's quiet step call it."""
+    assert_written_once(("scuff[i + 1] = 0.0",),
+                        r"scuffs\+\+|scuffs \+= 1|\[t_root, 0\.0, t_root\]|\[0\] = scuff\[2\] = t_root")
+    from biped_sim.engine import loop_rules as rules
+    S = loop_state.new_state()
+    assert rules.ev_start_scuff(S, loop_state.SCUFF + 3, 0.5, 2) == 3
+    assert S[loop_state.SCUFF + 3:loop_state.SCUFF + 6] == [0.5, 0.0, 0.5]
