@@ -416,14 +416,12 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
 }
 
 /* The feet and the force at the step's end, kept for the next step's start (EventLocator's _feet_end
- * and _force_end) */
+ * and _force_end: loop_rules.ev_keep_feet_end, ev_keep_force_end) */
 static void
-cache_step_end(Loop *L, double t, const double *feet8, const double *F)
+cache_step_end(Loop *L, double t, double *feet8, const double *F)
 {
-    L->feet_end_t = L->force_end_t = t;
-    memcpy(L->feet_end, feet8, 8 * sizeof(double));
-    L->force_end[0] = F[0];
-    L->force_end[1] = F[1];
+    ev_keep_feet_end(L->S, t, feet8, 0);
+    ev_keep_force_end(L->S, t, F[0], F[1]);
 }
 
 /* The body of HybridSimulator._integrate for the step just taken, when nothing happens in it but a

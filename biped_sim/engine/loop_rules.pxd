@@ -44,6 +44,8 @@ cdef public bint ev_starts_scuff(bint forward, double front_tol, double x, doubl
 cdef public double ev_start_scuff(double *scuff, Py_ssize_t i, double t, double scuffs) noexcept nogil
 cdef public bint ev_passes_through(bint forward, double front_tol, double x, double dx, double dheight,
                                    double x_stance) noexcept nogil
+cdef public void ev_keep_feet_end(double *S, double t, double *ft, Py_ssize_t i) noexcept nogil
+cdef public void ev_keep_force_end(double *S, double t, double fx, double fy) noexcept nogil
 cdef public bint ev_within_step(double t_old, double t, double tt) noexcept nogil
 cdef public int ev_track_scuff(double *S, feet_t feet_at, void *ctx, int leg, int stance_leg, double t_end) noexcept nogil
 cdef public bint ev_outside_cone(double mu, double n, double tg, double tol) noexcept nogil

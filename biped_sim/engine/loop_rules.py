@@ -73,7 +73,11 @@ if not cython.compiled:
         FAIL_VALUE,
         FEET,
         FEET_AFTER,
+        FEET_END,
+        FEET_END_T,
         FIXED_BASE,
+        FORCE_END,
+        FORCE_END_T,
         FORWARD_RULE,
         FRONT_TOL,
         GRAZE_TOL,
@@ -653,6 +657,23 @@ def ev_passes_through(forward, front_tol, x, dx, dheight, x_stance):
     if forward:
         return ev_swinging_through(dx, dheight)
     return x <= x_stance + front_tol
+
+
+def ev_keep_feet_end(S, t, ft, i):
+    """The feet at the step's end t (ft[i:i + 8], ev_foot_states' layout) kept in S (FEET_END, its time
+    FEET_END_T) for the next step's start."""
+    k: cython.Py_ssize_t
+    S[FEET_END_T] = t
+    for k in range(8):
+        S[FEET_END + k] = ft[i + k]
+
+
+def ev_keep_force_end(S, t, fx, fy):
+    """The stance force (fx, fy) at the step's end t kept in S (FORCE_END, its time FORCE_END_T) for the next
+    step's start."""
+    S[FORCE_END_T] = t
+    S[FORCE_END] = fx
+    S[FORCE_END + 1] = fy
 
 
 def ev_within_step(t_old, t, tt):

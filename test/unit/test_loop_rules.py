@@ -479,3 +479,18 @@ def test_how_a_scuff_starts_is_written_once():
     S = loop_state.new_state()
     assert rules.ev_start_scuff(S, loop_state.SCUFF + 3, 0.5, 2) == 3
     assert S[loop_state.SCUFF + 3:loop_state.SCUFF + 6] == [0.5, 0.0, 0.5]
+
+
+def test_the_step_ends_cache_is_written_once():
+    """The feet and the stance force kept at a step's end for the next step's start (their layout in the state, with
+    their times) are the rules' (loop_rules.py): EventLocator.locate, its setters and _core.c's cache_step_end call
+    them."""
+    assert_written_once(("S[FEET_END + k] = ft[i + k]", "S[FORCE_END + 1] = fy"),
+                        r"put\(\w+(\.S)?, FEET_END,|S\[FORCE_END\], S\[FORCE_END \+ 1\] = |memcpy\(L->feet_end,"
+                        r"|L->force_end\[\d\] = ")
+    from biped_sim.engine import loop_rules as rules
+    S = loop_state.new_state()
+    rules.ev_keep_feet_end(S, 0.5, [9.0, *range(8)], 1)
+    rules.ev_keep_force_end(S, 0.25, 3.0, 4.0)
+    assert S[loop_state.FEET_END:loop_state.FEET_END + 8] == list(range(8)) and S[loop_state.FEET_END_T] == 0.5
+    assert S[loop_state.FORCE_END:loop_state.FORCE_END + 2] == [3.0, 4.0] and S[loop_state.FORCE_END_T] == 0.25
