@@ -340,7 +340,7 @@ stance_start(Loop *L, const double *F)
  * sample after it, the next mode's start. Whatever the Python code would report or act on (a warning of the
  * impact, an invariant of check_impact, a possible Zeno stop, max_events, an event loop, a new stance that the
  * ground pulls or that slips at once: the rules' answers; a Python controller) hands the step back instead: 0.
- * Else 3, two samples in rows (34 values), residual_out the larger |residual|, the record in L->events. */
+ * Else 3, two samples in rows (2 ROW_WIDTH values), residual_out the larger |residual|, the record in L->events. */
 static int
 touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, double energy_lost, double *residual_out)
 {
@@ -382,7 +382,7 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     double res_e = ev_energy_residual(L->energy_before, E0, w, push_work, energy_lost);
     double res_p = ev_energy_residual(L->energy_after, E0, w, push_work, lost);
     ev_sample_row(rows, t_ev, q, dqm, old, Fe, ue, res_e);
-    ev_sample_row(rows + 17, t_ev, q, dqp, nw, Fp, up, res_p);
+    ev_sample_row(rows + ROW_WIDTH, t_ev, q, dqp, nw, Fp, up, res_p);
     *residual_out = ev_running_max(fabs(res_e), fabs(res_p));
     double p[4];
     k_foot_positions(q, L->k_pos, p);
@@ -688,16 +688,16 @@ quiet_until(Loop *L, double t_end, RunState *rs)
     while (L->t < t_end) {
         if ((!rs->last_only && rs->n + 2 > rs->cap) || (int)L->n_records == EVENT_ROOM) return OUTCOME_NEED_ROOM;
         if (rk_step(L->S, rhs, L) < 0) return OUTCOME_FAILED;
-        double drift = 0.0, rate = 0.0, residual, row[34];
+        double drift = 0.0, rate = 0.0, residual, row[2 * ROW_WIDTH];
         int accepted_how = quiet_step(L, row, rs->E0, rs->push_work, rs->energy_lost, &drift, &rate, &residual);
         if (!accepted_how) return OUTCOME_EVENT;
         long at = ev_sample_slot(rs->n, rs->provisional, rs->last_only);
         if (accepted_how == 3) {
             /* the event's sample (kept: _reset's keep_last), then the one after the impact (kept) */
-            memcpy(rs->data + 17 * at, row, 17 * sizeof(double));
+            memcpy(rs->data + ROW_WIDTH * at, row, ROW_WIDTH * sizeof(double));
             rs->n = at + 1;
             at = ev_sample_slot(rs->n, 0, rs->last_only);
-            memcpy(rs->data + 17 * at, row + 17, 17 * sizeof(double));
+            memcpy(rs->data + ROW_WIDTH * at, row + ROW_WIDTH, ROW_WIDTH * sizeof(double));
             rs->n = at + 1;
             rs->appended += 2;
             rs->provisional = 0;
@@ -708,7 +708,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
                 rs->provisional = 0;
                 at = ev_sample_slot(rs->n, 0, rs->last_only);
             }
-            memcpy(rs->data + 17 * at, row, 17 * sizeof(double));
+            memcpy(rs->data + ROW_WIDTH * at, row, ROW_WIDTH * sizeof(double));
             rs->n = at + 1;
             rs->appended += 1;
             rs->provisional = ev_provisional(rs->appended, rs->every);
@@ -726,7 +726,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
 }
 
 /* A run's state: its energy terms and the Samples' counters from the state, and the Samples' array ``data``
- * (a writable C-contiguous buffer of rows of 17 doubles), whose counters end_run writes back. 0, or -1 with
+ * (a writable C-contiguous buffer of rows of ROW_WIDTH doubles), whose counters end_run writes back. 0, or -1 with
  * an exception. */
 static int
 run_state(Loop *L, PyObject *data, RunState *rs, Py_buffer *buf)
@@ -741,7 +741,7 @@ run_state(Loop *L, PyObject *data, RunState *rs, Py_buffer *buf)
     rs->provisional = L->provisional != 0.0;
     rs->last_only = L->last_only != 0.0;
     rs->data = buf->buf;
-    rs->cap = (long)(buf->len / (Py_ssize_t)(17 * sizeof(double)));
+    rs->cap = (long)(buf->len / (Py_ssize_t)(ROW_WIDTH * sizeof(double)));
     rs->accepted = 0;
     rs->t_accepted = L->t_old;
     rs->w_accepted = 0.0;
@@ -763,8 +763,8 @@ end_run(Loop *L, RunState *rs, Py_buffer *buf)
         L->sim_t = rs->t_accepted;
         L->sim_work = rs->w_accepted;
         L->sim_h = rs->h_accepted;
-        memcpy(L->sim_q, rs->data + 17 * (rs->n - 1) + 1, 5 * sizeof(double));
-        memcpy(L->sim_dq, rs->data + 17 * (rs->n - 1) + 6, 5 * sizeof(double));
+        memcpy(L->sim_q, rs->data + ROW_WIDTH * (rs->n - 1) + ROW_Q, 5 * sizeof(double));
+        memcpy(L->sim_dq, rs->data + ROW_WIDTH * (rs->n - 1) + ROW_DQ, 5 * sizeof(double));
         L->sim_state_unmade = 1.0;
     }
     PyBuffer_Release(buf);

@@ -109,6 +109,13 @@ if not cython.compiled:
         RECENT_IMPACTS,
         RESULT,
         RING,
+        ROW_DQ,
+        ROW_F,
+        ROW_LEG,
+        ROW_Q,
+        ROW_RESIDUAL,
+        ROW_T,
+        ROW_U,
         RTOL,
         SCUFF_DEPTH,
         SCUFF_TRIAL,
@@ -880,19 +887,20 @@ def ev_sample_slot(n, provisional, last_only):
 
 
 def ev_sample_row(row, t, q, dq, leg, F, u, residual):
-    """What a sample holds, into row (results.Samples' row of 17): t, q (5), dq (5), the stance leg (0: flight),
-    the ground force F on the stance foot (2), the torque u applied (2), the energy balance's residual."""
+    """What a sample holds, into row (results.Samples' row, loop_state.SAMPLE_ROW's layout): t, q (5), dq (5), the
+    stance leg (0: flight), the ground force F on the stance foot (2), the torque u applied (2), the energy
+    balance's residual."""
     i: cython.Py_ssize_t
-    row[0] = t
+    row[ROW_T] = t
     for i in range(5):
-        row[1 + i] = q[i]
-        row[6 + i] = dq[i]
-    row[11] = leg
-    row[12] = F[0]
-    row[13] = F[1]
-    row[14] = u[0]
-    row[15] = u[1]
-    row[16] = residual
+        row[ROW_Q + i] = q[i]
+        row[ROW_DQ + i] = dq[i]
+    row[ROW_LEG] = leg
+    row[ROW_F] = F[0]
+    row[ROW_F + 1] = F[1]
+    row[ROW_U] = u[0]
+    row[ROW_U + 1] = u[1]
+    row[ROW_RESIDUAL] = residual
 
 
 # -- the torque a law returns, or a run holds (modes.two_finite_floats, _core.c's two_finite) -----------------

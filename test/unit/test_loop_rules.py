@@ -341,7 +341,8 @@ def test_the_runs_running_maxima_are_written_once():
 def test_what_a_sample_holds_is_written_once():
     """A sample's row (t, q, dq, the stance leg, F, u, the residual) is composed by the rules (loop_rules.py):
     results.Samples.append and _core.c's quiet step and touchdown call it."""
-    assert_written_once(("row[16] = residual",), r"\[t, \*q, \*dq|\brows?\[1[1-6]\] = |rows\[(1[7-9]|2\d|3[0-3])\] = ")
+    assert_written_once(("row[ROW_RESIDUAL] = residual",),
+                        r"\[t, \*q, \*dq|\brows?\[1[1-6]\] = |rows\[(1[7-9]|2\d|3[0-3])\] = ")
     import numpy as np
 
     from biped_sim.engine.results import Samples
@@ -494,3 +495,22 @@ def test_the_step_ends_cache_is_written_once():
     rules.ev_keep_force_end(S, 0.25, 3.0, 4.0)
     assert S[loop_state.FEET_END:loop_state.FEET_END + 8] == list(range(8)) and S[loop_state.FEET_END_T] == 0.5
     assert S[loop_state.FORCE_END:loop_state.FORCE_END + 2] == [3.0, 4.0] and S[loop_state.FORCE_END_T] == 0.25
+
+
+def test_the_sample_rows_layout_is_declared_once():
+    """A sample row's layout (where t, q, dq, the leg, F, u and the residual lie, and its width) is declared once
+    (loop_state.SAMPLE_ROW, generated into _loop_state.h): ev_sample_row, results.Samples and _core.c's runs
+    (the rows they copy, the last sample's q and dq read back) use its names."""
+    assert re.search(r'"ROW_WIDTH": 17\b', (ENGINE / "loop_state.py").read_text())
+    written_again = r"\b17 \*|[*+=] 17\b|\[1:6\]|\[6:11\]|row\[1\d\] = |\[34\]"
+    for path in [*ENGINE.glob("*.py"), ENGINE / "_core.c"]:
+        if path.name != "loop_state.py":
+            assert not re.search(written_again, path.read_text()), path.name
+    from biped_sim.engine import loop_rules as rules, results
+    row = [0.0] * loop_state.ROW_WIDTH
+    rules.ev_sample_row(row, 0.5, [1.0, 2.0, 3.0, 4.0, 5.0], [6.0, 7.0, 8.0, 9.0, 10.0], 2, [11.0, 12.0], [13.0, 14.0],
+                        15.0)
+    samples = results.Samples()
+    samples.append(0.5, [1.0, 2.0, 3.0, 4.0, 5.0], [6.0, 7.0, 8.0, 9.0, 10.0], 2, [11.0, 12.0], [13.0, 14.0], 15.0)
+    t, q, dq, leg, F, u, residual = samples.last()
+    assert [t, *q, *dq, leg, *F, *u, residual] == row == [0.5, *range(1, 11), 2, *range(11, 16)]
