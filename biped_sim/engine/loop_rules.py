@@ -521,12 +521,14 @@ def ev_foot_states(p, i, tan_s, ft, j):
     """The feet's states laid out from their kinematics p[i:i + 8] (k_foot_kinematics': foot 1's (x, y), foot
     2's, then their velocities) into ft[j:j + 8]: per foot its x, its height across the ground, and their rates
     (the touchdown witness is a free foot's height)."""
-    k: cython.Py_ssize_t
-    for k in range(2):
-        ft[j + 4 * k] = p[i + 2 * k]
-        ft[j + 4 * k + 1] = ev_across(tan_s, p[i + 2 * k], p[i + 2 * k + 1])
-        ft[j + 4 * k + 2] = p[i + 2 * k + 4]
-        ft[j + 4 * k + 3] = ev_across(tan_s, p[i + 2 * k + 4], p[i + 2 * k + 5])
+    ft[j] = p[i]                                        # (written out: the Python loop calls it every step)
+    ft[j + 1] = ev_across(tan_s, p[i], p[i + 1])
+    ft[j + 2] = p[i + 4]
+    ft[j + 3] = ev_across(tan_s, p[i + 4], p[i + 5])
+    ft[j + 4] = p[i + 2]
+    ft[j + 5] = ev_across(tan_s, p[i + 2], p[i + 3])
+    ft[j + 6] = p[i + 6]
+    ft[j + 7] = ev_across(tan_s, p[i + 6], p[i + 7])
 
 
 def ev_foot_point(p, leg, point):

@@ -449,7 +449,7 @@ def test_the_feet_layout_and_the_new_pin_are_written_once():
     """How the feet's states are laid out from their kinematics (per foot x, height across the ground, their rates)
     and the pin taken from the feet's positions are the rules' (loop_rules.py): guards.foot_states, ev_impact,
     guards.foot_xy and _core.c's feet() and touchdown() call them. The layout is the kinematics' across the slope."""
-    assert_written_once(("ft[j + 4 * k + 1] = ev_across(", "point[0] = p[2 * leg - 2]"),
+    assert_written_once(("ft[j + 1] = ev_across(", "point[0] = p[2 * leg - 2]"),
                         r"ev_across\(\w+, p\[\d\]|across\(t, p\dx|FEET_AFTER \+ 4 \* i|\[0\] = p\[2 \* \w+ - 2\]"
                         r"|return p\[2 \* leg - 2\]")
     import biped_sim as bs
