@@ -403,7 +403,8 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     L->stance_leg = nw;
     for (int leg = 1; leg <= 2; leg++)
         if (ev_disarmed_by_reset(leg, 0, old, nw)) L->armed[leg - 1] = 0;
-    L->feet_end_t = L->force_end_t = NAN;   /* EventLocator.after_reset: the step end's are not the new state's */
+    ev_forget_feet_end(L->S);     /* EventLocator.after_reset: the step end's are not the new state's */
+    ev_forget_force_end(L->S);
     ev_count_impact(L->S, t_ev);
     ev_count_mode_event(L->S, t_ev);
     /* the next mode's start (begin): f at the state after the impact, the step size carried over */
@@ -441,7 +442,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
     F1[0] = L->end_F[0] = L->last_F[0];
     F1[1] = L->end_F[1] = L->last_F[1];
-    if (L->feet_end_t == L->t_old && L->force_end_t == L->t_old) {
+    if (ev_feet_kept_at(L->S, L->t_old) && ev_force_kept_at(L->S, L->t_old)) {
         memcpy(ft0, L->feet_end, sizeof ft0);
         F0[0] = L->force_end[0]; F0[1] = L->force_end[1];
     } else {

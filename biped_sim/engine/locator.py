@@ -118,7 +118,7 @@ class EventLocator:
     def _feet_end(self, value):
         t, feet = value
         if t is None:
-            self.S[FEET_END_T] = math.nan
+            rules.ev_forget_feet_end(self.S)
         else:
             rules.ev_keep_feet_end(self.S, t, [*feet[0], *feet[1]], 0)
 
@@ -133,7 +133,7 @@ class EventLocator:
     def _force_end(self, value):
         t, F = value
         if t is None:
-            self.S[FORCE_END_T] = math.nan
+            rules.ev_forget_force_end(self.S)
         else:
             rules.ev_keep_force_end(self.S, t, F[0], F[1])
 
@@ -187,7 +187,7 @@ class EventLocator:
         # since moved the state by the drift only, ~1e-14)
         S = self.S
         q0 = dq0 = None
-        if S[FEET_END_T] == t_old:
+        if rules.ev_feet_kept_at(S, t_old):
             feet0 = (_tuple_new(G.FootState, S[FEET_END:FEET_END + 4]),
                      _tuple_new(G.FootState, S[FEET_END + 4:FEET_END + 8]))
         else:
@@ -196,7 +196,7 @@ class EventLocator:
         rules.ev_keep_feet_end(S, t, [*feet1[0], *feet1[1]], 0)
         F0 = F1 = None
         if stance_leg:
-            if S[FORCE_END_T] == t_old:
+            if rules.ev_force_kept_at(S, t_old):
                 F0 = [S[FORCE_END], S[FORCE_END + 1]]
             else:
                 if q0 is None:

@@ -1,6 +1,6 @@
 # The signatures of loop_rules.py's rules when Cython compiles it (an augmenting .pxd): C functions on the state
 # S. The compiled loop (_core.c) includes the generated _loop_rules.c and calls the public ones by these names.
-from libc.math cimport fabs, hypot, isfinite, isnan, pow
+from libc.math cimport NAN, fabs, hypot, isfinite, isnan, pow
 
 from biped_sim.engine._loop_state cimport *
 from biped_sim.engine.loop_kernels cimport (feet_t, guard_t, k_copy, k_dense, k_energy, k_foot_kinematics,
@@ -46,6 +46,10 @@ cdef public bint ev_passes_through(bint forward, double front_tol, double x, dou
                                    double x_stance) noexcept nogil
 cdef public void ev_keep_feet_end(double *S, double t, double *ft, Py_ssize_t i) noexcept nogil
 cdef public void ev_keep_force_end(double *S, double t, double fx, double fy) noexcept nogil
+cdef public void ev_forget_feet_end(double *S) noexcept nogil
+cdef public void ev_forget_force_end(double *S) noexcept nogil
+cdef public bint ev_feet_kept_at(double *S, double t) noexcept nogil
+cdef public bint ev_force_kept_at(double *S, double t) noexcept nogil
 cdef public bint ev_within_step(double t_old, double t, double tt) noexcept nogil
 cdef public int ev_track_scuff(double *S, feet_t feet_at, void *ctx, int leg, int stance_leg, double t_end) noexcept nogil
 cdef public bint ev_outside_cone(double mu, double n, double tg, double tol) noexcept nogil

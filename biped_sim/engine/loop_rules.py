@@ -42,7 +42,7 @@ else:
             sys.modules["cython"] = _entry
 
 if not cython.compiled:
-    from math import fabs, hypot, isfinite, isnan, pow
+    from math import fabs, hypot, isfinite, isnan, nan as NAN, pow
 
     from biped_sim.engine.loop_kernels import (
         k_copy,
@@ -683,6 +683,26 @@ def ev_keep_force_end(S, t, fx, fy):
     S[FORCE_END_T] = t
     S[FORCE_END] = fx
     S[FORCE_END + 1] = fy
+
+
+def ev_forget_feet_end(S):
+    """The feet kept of the last step's end forgotten (FEET_END_T NaN): a reset changed the state they were of."""
+    S[FEET_END_T] = NAN
+
+
+def ev_forget_force_end(S):
+    """The stance force kept of the last step's end forgotten (FORCE_END_T NaN)."""
+    S[FORCE_END_T] = NAN
+
+
+def ev_feet_kept_at(S, t):
+    """Whether the feet kept are of time t (the step's start: the last step's end), so need not be computed."""
+    return S[FEET_END_T] == t
+
+
+def ev_force_kept_at(S, t):
+    """Whether the stance force kept is of time t (the step's start)."""
+    return S[FORCE_END_T] == t
 
 
 def ev_within_step(t_old, t, tt):

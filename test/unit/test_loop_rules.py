@@ -514,3 +514,21 @@ def test_the_sample_rows_layout_is_declared_once():
     samples.append(0.5, [1.0, 2.0, 3.0, 4.0, 5.0], [6.0, 7.0, 8.0, 9.0, 10.0], 2, [11.0, 12.0], [13.0, 14.0], 15.0)
     t, q, dq, leg, F, u, residual = samples.last()
     assert [t, *q, *dq, leg, *F, *u, residual] == row == [0.5, *range(1, 11), 2, *range(11, 16)]
+
+
+def test_forgetting_and_finding_the_step_ends_cache_is_written_once():
+    """Whether the feet and the force kept are of the step's start, and their forgetting on a reset (NaN times),
+    are the rules' (loop_rules.py): EventLocator.locate, its setters and _core.c's quiet step and touchdown() call
+    them."""
+    assert_written_once(("S[FEET_END_T] = NAN", "return S[FORCE_END_T] == t"),
+                        r"(feet|force)_end_t = |(feet|force)_end_t == |S\[(FEET|FORCE)_END_T\] == "
+                        r"|S\[(FEET|FORCE)_END_T\] = math\.nan")
+    from biped_sim.engine import loop_rules as rules
+    S = loop_state.new_state()
+    rules.ev_keep_feet_end(S, 0.5, [0.0] * 8, 0)
+    rules.ev_keep_force_end(S, 0.5, 1.0, 2.0)
+    assert rules.ev_feet_kept_at(S, 0.5) and rules.ev_force_kept_at(S, 0.5) and not rules.ev_feet_kept_at(S, 0.25)
+    rules.ev_forget_feet_end(S)
+    rules.ev_forget_force_end(S)
+    assert math.isnan(S[loop_state.FEET_END_T]) and math.isnan(S[loop_state.FORCE_END_T])
+    assert not rules.ev_feet_kept_at(S, 0.5) and not rules.ev_force_kept_at(S, 0.5)
