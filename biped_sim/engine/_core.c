@@ -281,14 +281,13 @@ force_at(Loop *L, double t, const double *q, const double *dq, double *F)
     F[0] = out[5]; F[1] = out[6];
 }
 
-/* guards.foot_states: per foot x, height across the slope, and their rates */
+/* guards.foot_states: per foot x, height across the slope, and their rates (loop_rules.ev_foot_states) */
 static void
 feet(const Loop *L, const double *q, const double *dq, double *ft)
 {
-    double p[8], t = L->tan_s;
+    double p[8];
     k_foot_kinematics(q, dq, L->k_feet, p);
-    ft[0] = p[0]; ft[1] = ev_across(t, p[0], p[1]); ft[2] = p[4]; ft[3] = ev_across(t, p[4], p[5]);
-    ft[4] = p[2]; ft[5] = ev_across(t, p[2], p[3]); ft[6] = p[6]; ft[7] = ev_across(t, p[6], p[7]);
+    ev_foot_states(p, 0, L->tan_s, ft, 0);
 }
 
 /* -- the stepper: the rules of loop_rules.py (integrators._ListRungeKutta), compiled -------------------- */
@@ -341,7 +340,7 @@ stance_start(Loop *L, const double *F)
  * sample after it, the next mode's start. Whatever the Python code would report or act on (a warning of the
  * impact, an invariant of check_impact, a possible Zeno stop, max_events, an event loop, a new stance that the
  * ground pulls or that slips at once: the rules' answers; a Python controller) hands the step back instead: 0.
- * Else 3, two samples in rows (34 values), residual_out the larger |residual|, the record in L->events. */
+ * Else 3, two samples in rows (2 ROW_WIDTH values), residual_out the larger |residual|, the record in L->events. */
 static int
 touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, double energy_lost, double *residual_out)
 {
@@ -379,16 +378,15 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     Fp[0] = out[5]; Fp[1] = out[6];
     if (stance_start(L, Fp) != STANCE_HOLDS) { L->why = WHY_STANCE_REFUSED; return 0; }
     /* applied */
-    double lost = energy_lost + loss;
+    double lost = ev_energy_lost_after(energy_lost, loss);
     double res_e = ev_energy_residual(L->energy_before, E0, w, push_work, energy_lost);
     double res_p = ev_energy_residual(L->energy_after, E0, w, push_work, lost);
     ev_sample_row(rows, t_ev, q, dqm, old, Fe, ue, res_e);
-    ev_sample_row(rows + 17, t_ev, q, dqp, nw, Fp, up, res_p);
+    ev_sample_row(rows + ROW_WIDTH, t_ev, q, dqp, nw, Fp, up, res_p);
     *residual_out = ev_running_max(fabs(res_e), fabs(res_p));
     double p[4];
     k_foot_positions(q, L->k_pos, p);
-    L->pin[0] = p[2 * nw - 2];
-    L->pin[1] = p[2 * nw - 1];
+    ev_foot_point(p, nw, L->pin);
     EventRecord *ev = L->events + (int)L->n_records++;
     ev->kind = RECORD_TOUCHDOWN;
     ev->a = old;
@@ -405,7 +403,8 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     L->stance_leg = nw;
     for (int leg = 1; leg <= 2; leg++)
         if (ev_disarmed_by_reset(leg, 0, old, nw)) L->armed[leg - 1] = 0;
-    L->feet_end_t = L->force_end_t = NAN;   /* EventLocator.after_reset: the step end's are not the new state's */
+    ev_forget_feet_end(L->S);     /* EventLocator.after_reset: the step end's are not the new state's */
+    ev_forget_force_end(L->S);
     ev_count_impact(L->S, t_ev);
     ev_count_mode_event(L->S, t_ev);
     /* the next mode's start (begin): f at the state after the impact, the step size carried over */
@@ -418,14 +417,12 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
 }
 
 /* The feet and the force at the step's end, kept for the next step's start (EventLocator's _feet_end
- * and _force_end) */
+ * and _force_end: loop_rules.ev_keep_feet_end, ev_keep_force_end) */
 static void
-cache_step_end(Loop *L, double t, const double *feet8, const double *F)
+cache_step_end(Loop *L, double t, double *feet8, const double *F)
 {
-    L->feet_end_t = L->force_end_t = t;
-    memcpy(L->feet_end, feet8, 8 * sizeof(double));
-    L->force_end[0] = F[0];
-    L->force_end[1] = F[1];
+    ev_keep_feet_end(L->S, t, feet8, 0);
+    ev_keep_force_end(L->S, t, F[0], F[1]);
 }
 
 /* The body of HybridSimulator._integrate for the step just taken, when nothing happens in it but a
@@ -445,7 +442,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
     F1[0] = L->end_F[0] = L->last_F[0];
     F1[1] = L->end_F[1] = L->last_F[1];
-    if (L->feet_end_t == L->t_old && L->force_end_t == L->t_old) {
+    if (ev_feet_kept_at(L->S, L->t_old) && ev_force_kept_at(L->S, L->t_old)) {
         memcpy(ft0, L->feet_end, sizeof ft0);
         F0[0] = L->force_end[0]; F0[1] = L->force_end[1];
     } else {
@@ -486,10 +483,8 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
                 /* ImpactHistory.accumulating: a crossing that continues impacts whose gaps shrink is the Python
                  * code's to decide (an impact of the Zeno limit) */
                 if (ev_accumulating(L->recent_impacts, L->n_recent, t_root)) { L->why = WHY_ACCUMULATING; return 0; }
-                scuffs++;
                 scuffing = 1;
-                scuff[0] = scuff[2] = t_root;
-                scuff[1] = 0.0;
+                scuffs = ev_start_scuff(scuff, 0, t_root, scuffs);
             }
         }
     }
@@ -694,16 +689,16 @@ quiet_until(Loop *L, double t_end, RunState *rs)
     while (L->t < t_end) {
         if ((!rs->last_only && rs->n + 2 > rs->cap) || (int)L->n_records == EVENT_ROOM) return OUTCOME_NEED_ROOM;
         if (rk_step(L->S, rhs, L) < 0) return OUTCOME_FAILED;
-        double drift = 0.0, rate = 0.0, residual, row[34];
+        double drift = 0.0, rate = 0.0, residual, row[2 * ROW_WIDTH];
         int accepted_how = quiet_step(L, row, rs->E0, rs->push_work, rs->energy_lost, &drift, &rate, &residual);
         if (!accepted_how) return OUTCOME_EVENT;
         long at = ev_sample_slot(rs->n, rs->provisional, rs->last_only);
         if (accepted_how == 3) {
             /* the event's sample (kept: _reset's keep_last), then the one after the impact (kept) */
-            memcpy(rs->data + 17 * at, row, 17 * sizeof(double));
+            memcpy(rs->data + ROW_WIDTH * at, row, ROW_WIDTH * sizeof(double));
             rs->n = at + 1;
             at = ev_sample_slot(rs->n, 0, rs->last_only);
-            memcpy(rs->data + 17 * at, row + 17, 17 * sizeof(double));
+            memcpy(rs->data + ROW_WIDTH * at, row + ROW_WIDTH, ROW_WIDTH * sizeof(double));
             rs->n = at + 1;
             rs->appended += 2;
             rs->provisional = 0;
@@ -714,7 +709,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
                 rs->provisional = 0;
                 at = ev_sample_slot(rs->n, 0, rs->last_only);
             }
-            memcpy(rs->data + 17 * at, row, 17 * sizeof(double));
+            memcpy(rs->data + ROW_WIDTH * at, row, ROW_WIDTH * sizeof(double));
             rs->n = at + 1;
             rs->appended += 1;
             rs->provisional = ev_provisional(rs->appended, rs->every);
@@ -732,7 +727,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
 }
 
 /* A run's state: its energy terms and the Samples' counters from the state, and the Samples' array ``data``
- * (a writable C-contiguous buffer of rows of 17 doubles), whose counters end_run writes back. 0, or -1 with
+ * (a writable C-contiguous buffer of rows of ROW_WIDTH doubles), whose counters end_run writes back. 0, or -1 with
  * an exception. */
 static int
 run_state(Loop *L, PyObject *data, RunState *rs, Py_buffer *buf)
@@ -747,7 +742,7 @@ run_state(Loop *L, PyObject *data, RunState *rs, Py_buffer *buf)
     rs->provisional = L->provisional != 0.0;
     rs->last_only = L->last_only != 0.0;
     rs->data = buf->buf;
-    rs->cap = (long)(buf->len / (Py_ssize_t)(17 * sizeof(double)));
+    rs->cap = (long)(buf->len / (Py_ssize_t)(ROW_WIDTH * sizeof(double)));
     rs->accepted = 0;
     rs->t_accepted = L->t_old;
     rs->w_accepted = 0.0;
@@ -769,8 +764,8 @@ end_run(Loop *L, RunState *rs, Py_buffer *buf)
         L->sim_t = rs->t_accepted;
         L->sim_work = rs->w_accepted;
         L->sim_h = rs->h_accepted;
-        memcpy(L->sim_q, rs->data + 17 * (rs->n - 1) + 1, 5 * sizeof(double));
-        memcpy(L->sim_dq, rs->data + 17 * (rs->n - 1) + 6, 5 * sizeof(double));
+        memcpy(L->sim_q, rs->data + ROW_WIDTH * (rs->n - 1) + ROW_Q, 5 * sizeof(double));
+        memcpy(L->sim_dq, rs->data + ROW_WIDTH * (rs->n - 1) + ROW_DQ, 5 * sizeof(double));
         L->sim_state_unmade = 1.0;
     }
     PyBuffer_Release(buf);

@@ -127,6 +127,14 @@
 #define STANCE_HOLDS 0
 #define STANCE_LIFTS_OFF 1
 #define STANCE_SLIPS 2
+#define ROW_T 0
+#define ROW_Q 1
+#define ROW_DQ 6
+#define ROW_LEG 11
+#define ROW_F 12
+#define ROW_U 14
+#define ROW_RESIDUAL 16
+#define ROW_WIDTH 17
 
 /* Outcome, Record and Reason (loop_state.py) */
 #define OUTCOME_DONE 0

@@ -41,16 +41,16 @@ class FootState(NamedTuple):
 
 def foot_states(model, q, dq, tan_slope=0.0) -> tuple[FootState, FootState]:
     """(foot 1, foot 2) at the physical state (lists q, dq); heights measured across the slope."""
-    p1x, p1y, p2x, p2y, v1x, v1y, v2x, v2y = gen.foot_kinematics(q, dq, model.k["foot_kinematics"])
-    t, across = tan_slope, rules.ev_across
-    return (FootState(p1x, across(t, p1x, p1y), v1x, across(t, v1x, v1y)),
-            FootState(p2x, across(t, p2x, p2y), v2x, across(t, v2x, v2y)))
+    ft = [0.0] * 8
+    rules.ev_foot_states(gen.foot_kinematics(q, dq, model.k["foot_kinematics"]), 0, tan_slope, ft, 0)
+    return FootState._make(ft[:4]), FootState._make(ft[4:])
 
 
 def foot_xy(model, q, leg):
     """(x, y) of foot ``leg`` (1 or 2) at the configuration q (a list)."""
-    p = gen.foot_positions(q, model.k["foot_positions"])
-    return p[2 * leg - 2], p[2 * leg - 1]
+    point = [0.0, 0.0]
+    rules.ev_foot_point(gen.foot_positions(q, model.k["foot_positions"]), leg, point)
+    return point[0], point[1]
 
 
 def foot_height(model, q, leg, tan_slope=0.0) -> float:

@@ -663,7 +663,7 @@ class HybridSimulator:
     def _take_impact(self, ev, t, q):
         """The new stance of an impact's Event at the state (q, dq+), its sample, and the checks of the
         impact: a Zeno stop, its invariants, an impulse outside the friction cone, the new stance's start."""
-        self.energy_lost += ev.energy_loss
+        self.energy_lost = rules.ev_energy_lost_after(self.energy_lost, ev.energy_loss)
         self.stance_leg = ev.stance_leg_after
         self.pin = list(G.foot_xy(self.model, list(q), ev.stance_leg_after))
         self.locator.after_reset(ev)

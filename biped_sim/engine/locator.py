@@ -117,9 +117,10 @@ class EventLocator:
     @_feet_end.setter
     def _feet_end(self, value):
         t, feet = value
-        self.S[FEET_END_T] = math.nan if t is None else t
-        if t is not None:
-            put(self.S, FEET_END, [*feet[0], *feet[1]])
+        if t is None:
+            rules.ev_forget_feet_end(self.S)
+        else:
+            rules.ev_keep_feet_end(self.S, t, [*feet[0], *feet[1]], 0)
 
     @property
     def _force_end(self):
@@ -131,10 +132,10 @@ class EventLocator:
     @_force_end.setter
     def _force_end(self, value):
         t, F = value
-        S = self.S
-        S[FORCE_END_T] = math.nan if t is None else t
-        if t is not None:
-            S[FORCE_END], S[FORCE_END + 1] = F
+        if t is None:
+            rules.ev_forget_force_end(self.S)
+        else:
+            rules.ev_keep_force_end(self.S, t, F[0], F[1])
 
     def latch(self, guard):
         """Hold ``guard`` off until it is positive at a step's end (a guard that fired and was not reset)."""
@@ -186,25 +187,23 @@ class EventLocator:
         # since moved the state by the drift only, ~1e-14)
         S = self.S
         q0 = dq0 = None
-        if S[FEET_END_T] == t_old:
+        if rules.ev_feet_kept_at(S, t_old):
             feet0 = (_tuple_new(G.FootState, S[FEET_END:FEET_END + 4]),
                      _tuple_new(G.FootState, S[FEET_END + 4:FEET_END + 8]))
         else:
             q0, dq0, _ = to_phys(st.y_old)
             feet0 = G.foot_states(self.model, q0, dq0, self.ground.tan)
-        S[FEET_END_T] = t
-        put(S, FEET_END, [*feet1[0], *feet1[1]])
+        rules.ev_keep_feet_end(S, t, [*feet1[0], *feet1[1]], 0)
         F0 = F1 = None
         if stance_leg:
-            if S[FORCE_END_T] == t_old:
+            if rules.ev_force_kept_at(S, t_old):
                 F0 = [S[FORCE_END], S[FORCE_END + 1]]
             else:
                 if q0 is None:
                     q0, dq0, _ = to_phys(st.y_old)
                 F0 = force_at(t_old, q0, dq0)
             F1 = F_end if F_end is not None else force_at(t, q1, dq1)
-            S[FORCE_END_T] = t
-            S[FORCE_END], S[FORCE_END + 1] = F1
+            rules.ev_keep_force_end(S, t, F1[0], F1[1])
         if q0 is None and any(w.kind.reads == "state" for w in rows):
             q0, dq0, _ = to_phys(st.y_old)
         roots = []
@@ -278,10 +277,9 @@ class EventLocator:
         fr = self._feet_at(st, to_phys, t_root)
         if not G.starts_scuff(fr[guard.leg - 1], fr[stance_leg - 1], self.opt) or self.impacts.accumulating(t_root):
             return False
-        self.scuffs += 1
         S, leg = self.S, guard.leg
         S[SCUFFING + leg - 1] = 1.0
-        put(S, SCUFF + 3 * (leg - 1), [t_root, 0.0, t_root])
+        self.scuffs = rules.ev_start_scuff(S, SCUFF + 3 * (leg - 1), t_root, self.scuffs)
         return True
 
     def _resting_feet_pushed_in(self, feet, stance_leg):

@@ -1,6 +1,6 @@
 # The signatures of loop_rules.py's rules when Cython compiles it (an augmenting .pxd): C functions on the state
 # S. The compiled loop (_core.c) includes the generated _loop_rules.c and calls the public ones by these names.
-from libc.math cimport fabs, hypot, isfinite, isnan, pow
+from libc.math cimport NAN, fabs, hypot, isfinite, isnan, pow
 
 from biped_sim.engine._loop_state cimport *
 from biped_sim.engine.loop_kernels cimport (feet_t, guard_t, k_copy, k_dense, k_energy, k_foot_kinematics,
@@ -21,6 +21,8 @@ cdef int ev_locate_crossing(double *S, guard_t g, void *ctx, double ta, double t
 cdef public int ev_locate_height_crossing(double *S, rhs_t fun, void *ctx, int leg, double ta, double tb) noexcept nogil
 cdef public bint ev_triggered(double w0, double w1) noexcept nogil
 cdef public double ev_across(double tan_s, double x, double y) noexcept nogil
+cdef public void ev_foot_states(double *p, Py_ssize_t i, double tan_s, double *ft, Py_ssize_t j) noexcept nogil
+cdef public void ev_foot_point(double *p, int leg, double *point) noexcept nogil
 cdef public double ev_normal(double sin_s, double cos_s, double fx, double fy) noexcept nogil
 cdef public double ev_tangential(double sin_s, double cos_s, double fx, double fy) noexcept nogil
 cdef public double ev_slip_margin(double mu, double normal, double tangential) noexcept nogil
@@ -39,8 +41,15 @@ cdef public bint ev_provisional(long appended, long every) noexcept nogil
 cdef public bint ev_swinging_through(double dx, double dheight) noexcept nogil
 cdef public bint ev_starts_scuff(bint forward, double front_tol, double x, double dx, double dheight,
                                  double x_stance) noexcept nogil
+cdef public double ev_start_scuff(double *scuff, Py_ssize_t i, double t, double scuffs) noexcept nogil
 cdef public bint ev_passes_through(bint forward, double front_tol, double x, double dx, double dheight,
                                    double x_stance) noexcept nogil
+cdef public void ev_keep_feet_end(double *S, double t, double *ft, Py_ssize_t i) noexcept nogil
+cdef public void ev_keep_force_end(double *S, double t, double fx, double fy) noexcept nogil
+cdef public void ev_forget_feet_end(double *S) noexcept nogil
+cdef public void ev_forget_force_end(double *S) noexcept nogil
+cdef public bint ev_feet_kept_at(double *S, double t) noexcept nogil
+cdef public bint ev_force_kept_at(double *S, double t) noexcept nogil
 cdef public bint ev_within_step(double t_old, double t, double tt) noexcept nogil
 cdef public int ev_track_scuff(double *S, feet_t feet_at, void *ctx, int leg, int stance_leg, double t_end) noexcept nogil
 cdef public bint ev_outside_cone(double mu, double n, double tg, double tol) noexcept nogil
@@ -59,6 +68,7 @@ cdef public void ev_count_mode_event(double *S, double t) noexcept nogil
 cdef public long ev_period_index(double t, double period, long k) noexcept nogil
 cdef public double ev_period_end(long j, double period, double t_final) noexcept nogil
 cdef public bint ev_diverging(double *dq, Py_ssize_t n, double max_speed) noexcept nogil
+cdef public double ev_energy_lost_after(double energy_lost, double loss) noexcept nogil
 cdef public double ev_energy_residual(double energy, double e0, double work, double push_work,
                                       double energy_lost) noexcept nogil
 cdef public double ev_running_max(double m, double v) noexcept nogil

@@ -42,7 +42,7 @@ else:
             sys.modules["cython"] = _entry
 
 if not cython.compiled:
-    from math import fabs, hypot, isfinite, isnan, pow
+    from math import fabs, hypot, isfinite, isnan, nan as NAN, pow
 
     from biped_sim.engine.loop_kernels import (
         k_copy,
@@ -73,7 +73,11 @@ if not cython.compiled:
         FAIL_VALUE,
         FEET,
         FEET_AFTER,
+        FEET_END,
+        FEET_END_T,
         FIXED_BASE,
+        FORCE_END,
+        FORCE_END_T,
         FORWARD_RULE,
         FRONT_TOL,
         GRAZE_TOL,
@@ -105,6 +109,13 @@ if not cython.compiled:
         RECENT_IMPACTS,
         RESULT,
         RING,
+        ROW_DQ,
+        ROW_F,
+        ROW_LEG,
+        ROW_Q,
+        ROW_RESIDUAL,
+        ROW_T,
+        ROW_U,
         RTOL,
         SCUFF_DEPTH,
         SCUFF_TRIAL,
@@ -515,6 +526,27 @@ def ev_across(tan_s, x, y):
     return y + tan_s * x
 
 
+def ev_foot_states(p, i, tan_s, ft, j):
+    """The feet's states laid out from their kinematics p[i:i + 8] (k_foot_kinematics': foot 1's (x, y), foot
+    2's, then their velocities) into ft[j:j + 8]: per foot its x, its height across the ground, and their rates
+    (the touchdown witness is a free foot's height)."""
+    ft[j] = p[i]                                        # (written out: the Python loop calls it every step)
+    ft[j + 1] = ev_across(tan_s, p[i], p[i + 1])
+    ft[j + 2] = p[i + 4]
+    ft[j + 3] = ev_across(tan_s, p[i + 4], p[i + 5])
+    ft[j + 4] = p[i + 2]
+    ft[j + 5] = ev_across(tan_s, p[i + 2], p[i + 3])
+    ft[j + 6] = p[i + 6]
+    ft[j + 7] = ev_across(tan_s, p[i + 6], p[i + 7])
+
+
+def ev_foot_point(p, leg, point):
+    """Foot leg's (x, y) (1 or 2) taken from the feet's positions p (k_foot_positions': foot 1's, then foot 2's)
+    into point: the pin of a stance that starts on it."""
+    point[0] = p[2 * leg - 2]
+    point[1] = p[2 * leg - 1]
+
+
 def ev_normal(sin_s, cos_s, fx, fy):
     """The normal component (into the ground line, up) of a ground force or impulse (fx, fy)."""
     return fx * sin_s + fy * cos_s
@@ -627,12 +659,59 @@ def ev_starts_scuff(forward, front_tol, x, dx, dheight, x_stance):
     return not forward or ev_swinging_through(dx, dheight)
 
 
+def ev_start_scuff(scuff, i, t, scuffs):
+    """A scuff that starts at t (a crossing that passes through the ground, ev_starts_scuff): its row
+    scuff[i:i + 3] (t_start, the deepest dip so far, its time t_deepest) begun, and the count of the scuffs,
+    scuffs, one more (returned)."""
+    scuff[i] = t
+    scuff[i + 1] = 0.0
+    scuff[i + 2] = t
+    return scuffs + 1
+
+
 def ev_passes_through(forward, front_tol, x, dx, dheight, x_stance):
     """Whether a swing foot under the ground still passes through it: under "forward" while it swings
     through, under "behind" while it is behind the stance foot."""
     if forward:
         return ev_swinging_through(dx, dheight)
     return x <= x_stance + front_tol
+
+
+def ev_keep_feet_end(S, t, ft, i):
+    """The feet at the step's end t (ft[i:i + 8], ev_foot_states' layout) kept in S (FEET_END, its time
+    FEET_END_T) for the next step's start."""
+    k: cython.Py_ssize_t
+    S[FEET_END_T] = t
+    for k in range(8):
+        S[FEET_END + k] = ft[i + k]
+
+
+def ev_keep_force_end(S, t, fx, fy):
+    """The stance force (fx, fy) at the step's end t kept in S (FORCE_END, its time FORCE_END_T) for the next
+    step's start."""
+    S[FORCE_END_T] = t
+    S[FORCE_END] = fx
+    S[FORCE_END + 1] = fy
+
+
+def ev_forget_feet_end(S):
+    """The feet kept of the last step's end forgotten (FEET_END_T NaN): a reset changed the state they were of."""
+    S[FEET_END_T] = NAN
+
+
+def ev_forget_force_end(S):
+    """The stance force kept of the last step's end forgotten (FORCE_END_T NaN)."""
+    S[FORCE_END_T] = NAN
+
+
+def ev_feet_kept_at(S, t):
+    """Whether the feet kept are of time t (the step's start: the last step's end), so need not be computed."""
+    return S[FEET_END_T] == t
+
+
+def ev_force_kept_at(S, t):
+    """Whether the stance force kept is of time t (the step's start)."""
+    return S[FORCE_END_T] == t
 
 
 def ev_within_step(t_old, t, tt):
@@ -702,8 +781,6 @@ def ev_impact(S, leg, old, has_mu):
     their difference) and the feet after it (FEET_AFTER). Returns the bits of the assumptions it violates:
     ev_impulse_checks' on the impulse, and IMPACT_OLD_FOOT_SINKS where the old stance foot moves into the
     ground."""
-    i: cython.Py_ssize_t
-    p: cython.Py_ssize_t
     code: cython.int
     k_impact_map(S, leg, Q_IMPACT, DQ_MINUS, DQ_PLUS)
     k_energy(S, Q_IMPACT, DQ_MINUS, TV)
@@ -711,12 +788,7 @@ def ev_impact(S, leg, old, has_mu):
     k_energy(S, Q_IMPACT, DQ_PLUS, TV)
     S[ENERGY_AFTER] = S[TV] + S[TV + 1]
     k_foot_kinematics(S, Q_IMPACT, DQ_PLUS, KINEMATICS)
-    for i in range(2):
-        p = KINEMATICS + 2 * i
-        S[FEET_AFTER + 4 * i] = S[p]
-        S[FEET_AFTER + 4 * i + 1] = ev_across(S[TAN_S], S[p], S[p + 1])
-        S[FEET_AFTER + 4 * i + 2] = S[p + 4]
-        S[FEET_AFTER + 4 * i + 3] = ev_across(S[TAN_S], S[p + 4], S[p + 5])
+    ev_foot_states(S, KINEMATICS, S[TAN_S], S, FEET_AFTER)
     code = ev_impulse_checks(has_mu, S[MU], ev_normal_force(S, S[IMPULSE], S[IMPULSE + 1]),
                              ev_tangential_force(S, S[IMPULSE], S[IMPULSE + 1]))
     if old != 0 and old != leg and ev_stays_down(S[FEET_AFTER + 4 * (old - 1) + 3], 0.0):
@@ -817,6 +889,11 @@ def ev_diverging(dq, n, max_speed):
     return top > max_speed
 
 
+def ev_energy_lost_after(energy_lost, loss):
+    """The energy the impacts took out so far (energy_lost) after one more impact, which took loss (ev_impact_loss)."""
+    return energy_lost + loss
+
+
 def ev_energy_residual(energy, e0, work, push_work, energy_lost):
     """The energy balance's residual E - E(0) - W - W_push + E_lost (docs/model.md): energy E = T + V now, e0 at
     the start, work W the motors', push_work the pushes', energy_lost what the impacts took so far. Zero up to
@@ -841,19 +918,20 @@ def ev_sample_slot(n, provisional, last_only):
 
 
 def ev_sample_row(row, t, q, dq, leg, F, u, residual):
-    """What a sample holds, into row (results.Samples' row of 17): t, q (5), dq (5), the stance leg (0: flight),
-    the ground force F on the stance foot (2), the torque u applied (2), the energy balance's residual."""
+    """What a sample holds, into row (results.Samples' row, loop_state.SAMPLE_ROW's layout): t, q (5), dq (5), the
+    stance leg (0: flight), the ground force F on the stance foot (2), the torque u applied (2), the energy
+    balance's residual."""
     i: cython.Py_ssize_t
-    row[0] = t
+    row[ROW_T] = t
     for i in range(5):
-        row[1 + i] = q[i]
-        row[6 + i] = dq[i]
-    row[11] = leg
-    row[12] = F[0]
-    row[13] = F[1]
-    row[14] = u[0]
-    row[15] = u[1]
-    row[16] = residual
+        row[ROW_Q + i] = q[i]
+        row[ROW_DQ + i] = dq[i]
+    row[ROW_LEG] = leg
+    row[ROW_F] = F[0]
+    row[ROW_F + 1] = F[1]
+    row[ROW_U] = u[0]
+    row[ROW_U + 1] = u[1]
+    row[ROW_RESIDUAL] = residual
 
 
 # -- the torque a law returns, or a run holds (modes.two_finite_floats, _core.c's two_finite) -----------------

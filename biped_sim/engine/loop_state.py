@@ -184,6 +184,12 @@ CODES = {
     "STANCE_SLIPS": 2,              # the force is outside the friction cone (the slip witness watched): a slip at once
 }
 
+#: a sample's row (results.Samples' array, loop_rules.ev_sample_row, the compiled loop's runs): where t, q (5), dq (5),
+#: the stance leg, the ground force F (2), the torque u (2) and the energy balance's residual lie, and its width.
+#: _loop_state.h and .pxd carry them by these names.
+SAMPLE_ROW = {"ROW_T": 0, "ROW_Q": 1, "ROW_DQ": 6, "ROW_LEG": 11, "ROW_F": 12, "ROW_U": 14, "ROW_RESIDUAL": 16,
+              "ROW_WIDTH": 17}
+
 
 class Outcome(IntEnum):
     """How an entry point of the compiled loop (``run``, ``held``, ``period``, ``periods``, ``step``) ended; what
@@ -246,6 +252,7 @@ OFFSETS, SIZE = _offsets()
 SIZES = {field.name: _size(field.shape) for field in FIELDS}    # the values a field holds
 globals().update(OFFSETS)       # T, Y, STAGES, ...: the offsets the rules index S with when they run as Python
 globals().update(CODES)
+globals().update(SAMPLE_ROW)
 
 
 def put(S, at, values):
@@ -288,6 +295,7 @@ def c_header() -> str:
              f"#define LOOP_STATE_SIZE {SIZE}", f"#define LS_NMAX {NMAX}", f"#define LS_MAX_DEPTH {MAX_DEPTH}"]
     lines += [f"#define LS_{name} {at}" for name, at in OFFSETS.items()]
     lines += [f"#define {name} {code}" for name, code in CODES.items()]
+    lines += [f"#define {name} {at}" for name, at in SAMPLE_ROW.items()]
     lines += ["", "/* Outcome, Record and Reason (loop_state.py) */"]
     for enum, prefix in ((Outcome, "OUTCOME"), (Record, "RECORD"), (Reason, "WHY")):
         lines += [f"#define {prefix}_{member.name} {member.value}" for member in enum]
@@ -314,5 +322,6 @@ def cython_pxd() -> str:
              '        SIZE "LOOP_STATE_SIZE"', '        NMAX "LS_NMAX"', '        MAX_DEPTH "LS_MAX_DEPTH"']
     lines += [f'        {name} "LS_{name}"' for name in OFFSETS]
     lines += [f'        {name} "{name}"' for name in CODES]
+    lines += [f'        {name} "{name}"' for name in SAMPLE_ROW]
     lines.append("")
     return "\n".join(lines)

@@ -10,7 +10,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from biped_sim.engine import loop_rules as rules
-from biped_sim.engine.loop_state import APPENDED, EVERY, LAST_ONLY, N_SAMPLES, PROVISIONAL, new_state
+from biped_sim.engine.loop_state import (
+    APPENDED,
+    EVERY,
+    LAST_ONLY,
+    N_SAMPLES,
+    PROVISIONAL,
+    ROW_DQ,
+    ROW_F,
+    ROW_LEG,
+    ROW_Q,
+    ROW_RESIDUAL,
+    ROW_T,
+    ROW_U,
+    ROW_WIDTH,
+    new_state,
+)
 
 EVENT_KINDS = ("touchdown", "double_touchdown", "liftoff", "slip", "scuff", "error", "zeno", "push")
 IMPACT_KINDS = ("touchdown", "double_touchdown")
@@ -76,9 +91,10 @@ class SimulationResult:
     def from_samples(cls, samples, events, stats, status, message, options, model=None, controller_error=None):
         """From the simulator's :class:`Samples`."""
         d = samples.rows()
-        return cls(t=d[:, 0].copy(), q=d[:, 1:6].copy(), dq=d[:, 6:11].copy(), stance_leg=d[:, 11].astype(int),
-                   grf=d[:, 12:14].copy(), u=d[:, 14:16].copy(), events=events, stats=stats, status=status,
-                   message=message, energy_balance=d[:, 16].copy(), options=options, model=model,
+        return cls(t=d[:, ROW_T].copy(), q=d[:, ROW_Q:ROW_Q + 5].copy(), dq=d[:, ROW_DQ:ROW_DQ + 5].copy(),
+                   stance_leg=d[:, ROW_LEG].astype(int), grf=d[:, ROW_F:ROW_F + 2].copy(),
+                   u=d[:, ROW_U:ROW_U + 2].copy(), events=events, stats=stats, status=status, message=message,
+                   energy_balance=d[:, ROW_RESIDUAL].copy(), options=options, model=model,
                    controller_error=controller_error)
 
     def plot(self, path=None, title=None, frames=14):
@@ -136,7 +152,7 @@ class Samples:
 
     The counters are fields of the hybrid state ``S`` (the simulator's, which the compiled loop writes samples
     with: loop_state.py's n_samples, appended, provisional, every, last_only); by default a state of its own."""
-    WIDTH = 17
+    WIDTH = ROW_WIDTH
 
     def __init__(self, keep=True, S=None):
         self.S = new_state() if S is None else S
@@ -192,16 +208,16 @@ class Samples:
     def last(self):
         """(t, q, dq, stance_leg, F, u, residual) of the last sample: arrays q, dq; lists F, u."""
         r = self._data[self.n - 1]
-        return (float(r[0]), r[1:6].copy(), r[6:11].copy(), int(r[11]), r[12:14].tolist(), r[14:16].tolist(),
-                float(r[16]))
+        return (float(r[ROW_T]), r[ROW_Q:ROW_Q + 5].copy(), r[ROW_DQ:ROW_DQ + 5].copy(), int(r[ROW_LEG]),
+                r[ROW_F:ROW_F + 2].tolist(), r[ROW_U:ROW_U + 2].tolist(), float(r[ROW_RESIDUAL]))
 
     def set_last_in_flight(self):
         """The last sample is a flight sample (a stance that ended the instant it began)."""
-        self._data[self.n - 1, 11] = 0
-        self._data[self.n - 1, 12:14] = 0.0
+        self._data[self.n - 1, ROW_LEG] = 0
+        self._data[self.n - 1, ROW_F:ROW_F + 2] = 0.0
 
     def last_force(self):
-        return self._data[self.n - 1, 12:14].tolist()
+        return self._data[self.n - 1, ROW_F:ROW_F + 2].tolist()
 
     def rows(self):
         return self._data[:self.n]

@@ -341,7 +341,8 @@ def test_the_runs_running_maxima_are_written_once():
 def test_what_a_sample_holds_is_written_once():
     """A sample's row (t, q, dq, the stance leg, F, u, the residual) is composed by the rules (loop_rules.py):
     results.Samples.append and _core.c's quiet step and touchdown call it."""
-    assert_written_once(("row[16] = residual",), r"\[t, \*q, \*dq|\brows?\[1[1-6]\] = |rows\[(1[7-9]|2\d|3[0-3])\] = ")
+    assert_written_once(("row[ROW_RESIDUAL] = residual",),
+                        r"\[t, \*q, \*dq|\brows?\[1[1-6]\] = |rows\[(1[7-9]|2\d|3[0-3])\] = ")
     import numpy as np
 
     from biped_sim.engine.results import Samples
@@ -442,3 +443,92 @@ def test_the_carried_step_size_is_written_once():
                         r"\bmin\(S\[H_ABS\], self\.max_step\)|MAX_STEP\] if S\[MAX_STEP\] < |max_step < h \?")
     from biped_sim.engine import loop_rules as rules
     assert rules.rk_carried_step(1e-3, math.inf) == 1e-3 and rules.rk_carried_step(1e-3, 1e-4) == 1e-4
+
+
+def test_the_feet_layout_and_the_new_pin_are_written_once():
+    """How the feet's states are laid out from their kinematics (per foot x, height across the ground, their rates)
+    and the pin taken from the feet's positions are the rules' (loop_rules.py): guards.foot_states, ev_impact,
+    guards.foot_xy and _core.c's feet() and touchdown() call them. The layout is the kinematics' across the slope."""
+    assert_written_once(("ft[j + 1] = ev_across(", "point[0] = p[2 * leg - 2]"),
+                        r"ev_across\(\w+, p\[\d\]|across\(t, p\dx|FEET_AFTER \+ 4 \* i|\[0\] = p\[2 \* \w+ - 2\]"
+                        r"|return p\[2 \* leg - 2\]")
+    import biped_sim as bs
+    from biped_sim.engine import guards as G
+    from biped_sim.engine.compiled import gen
+    model, tan_s = bs.BipedModel(), math.tan(0.04)
+    q, dq = [0.1, 0.2, math.pi + 0.2, math.pi - 0.25, 0.1], [0.3, -0.1, 0.3, -0.4, 0.5]
+    p1x, p1y, p2x, p2y, v1x, v1y, v2x, v2y = gen.foot_kinematics(q, dq, model.k["foot_kinematics"])
+    assert G.foot_states(model, q, dq, tan_s) == ((p1x, p1y + tan_s * p1x, v1x, v1y + tan_s * v1x),
+                                                  (p2x, p2y + tan_s * p2x, v2x, v2y + tan_s * v2x))
+    assert G.foot_xy(model, q, 2) == (p2x, p2y) and G.foot_xy(model, q, 1) == (p1x, p1y)
+
+
+def test_the_energy_lost_so_far_is_written_once():
+    """The running sum of the energy the impacts took out is the rules' (loop_rules.py): HybridSimulator._take_impact
+    and _core.c's touchdown() call it."""
+    assert_written_once(("return energy_lost + loss",), r"energy_lost \+= |energy_lost \+ loss")
+    from biped_sim.engine import loop_rules as rules
+    assert rules.ev_energy_lost_after(1.5, 0.25) == 1.75
+
+
+def test_how_a_scuff_starts_is_written_once():
+    """A scuff's start (its row t_start, deepest, t_deepest and the count of the scuffs) is the rules'
+    (loop_rules.py): EventLocator._is_scuff and _core.c's quiet step call it."""
+    assert_written_once(("scuff[i + 1] = 0.0",),
+                        r"scuffs\+\+|scuffs \+= 1|\[t_root, 0\.0, t_root\]|\[0\] = scuff\[2\] = t_root")
+    from biped_sim.engine import loop_rules as rules
+    S = loop_state.new_state()
+    assert rules.ev_start_scuff(S, loop_state.SCUFF + 3, 0.5, 2) == 3
+    assert S[loop_state.SCUFF + 3:loop_state.SCUFF + 6] == [0.5, 0.0, 0.5]
+
+
+def test_the_step_ends_cache_is_written_once():
+    """The feet and the stance force kept at a step's end for the next step's start (their layout in the state, with
+    their times) are the rules' (loop_rules.py): EventLocator.locate, its setters and _core.c's cache_step_end call
+    them."""
+    assert_written_once(("S[FEET_END + k] = ft[i + k]", "S[FORCE_END + 1] = fy"),
+                        r"put\(\w+(\.S)?, FEET_END,|S\[FORCE_END\], S\[FORCE_END \+ 1\] = |memcpy\(L->feet_end,"
+                        r"|L->force_end\[\d\] = ")
+    from biped_sim.engine import loop_rules as rules
+    S = loop_state.new_state()
+    rules.ev_keep_feet_end(S, 0.5, [9.0, *range(8)], 1)
+    rules.ev_keep_force_end(S, 0.25, 3.0, 4.0)
+    assert S[loop_state.FEET_END:loop_state.FEET_END + 8] == list(range(8)) and S[loop_state.FEET_END_T] == 0.5
+    assert S[loop_state.FORCE_END:loop_state.FORCE_END + 2] == [3.0, 4.0] and S[loop_state.FORCE_END_T] == 0.25
+
+
+def test_the_sample_rows_layout_is_declared_once():
+    """A sample row's layout (where t, q, dq, the leg, F, u and the residual lie, and its width) is declared once
+    (loop_state.SAMPLE_ROW, generated into _loop_state.h): ev_sample_row, results.Samples and _core.c's runs
+    (the rows they copy, the last sample's q and dq read back) use its names."""
+    assert re.search(r'"ROW_WIDTH": 17\b', (ENGINE / "loop_state.py").read_text())
+    written_again = r"\b17 \*|[*+=] 17\b|\[1:6\]|\[6:11\]|row\[1\d\] = |\[34\]"
+    for path in [*ENGINE.glob("*.py"), ENGINE / "_core.c"]:
+        if path.name != "loop_state.py":
+            assert not re.search(written_again, path.read_text()), path.name
+    from biped_sim.engine import loop_rules as rules, results
+    row = [0.0] * loop_state.ROW_WIDTH
+    rules.ev_sample_row(row, 0.5, [1.0, 2.0, 3.0, 4.0, 5.0], [6.0, 7.0, 8.0, 9.0, 10.0], 2, [11.0, 12.0], [13.0, 14.0],
+                        15.0)
+    samples = results.Samples()
+    samples.append(0.5, [1.0, 2.0, 3.0, 4.0, 5.0], [6.0, 7.0, 8.0, 9.0, 10.0], 2, [11.0, 12.0], [13.0, 14.0], 15.0)
+    t, q, dq, leg, F, u, residual = samples.last()
+    assert [t, *q, *dq, leg, *F, *u, residual] == row == [0.5, *range(1, 11), 2, *range(11, 16)]
+
+
+def test_forgetting_and_finding_the_step_ends_cache_is_written_once():
+    """Whether the feet and the force kept are of the step's start, and their forgetting on a reset (NaN times),
+    are the rules' (loop_rules.py): EventLocator.locate, its setters and _core.c's quiet step and touchdown() call
+    them."""
+    assert_written_once(("S[FEET_END_T] = NAN", "return S[FORCE_END_T] == t"),
+                        r"(feet|force)_end_t = |(feet|force)_end_t == |S\[(FEET|FORCE)_END_T\] == "
+                        r"|S\[(FEET|FORCE)_END_T\] = math\.nan")
+    from biped_sim.engine import loop_rules as rules
+    S = loop_state.new_state()
+    rules.ev_keep_feet_end(S, 0.5, [0.0] * 8, 0)
+    rules.ev_keep_force_end(S, 0.5, 1.0, 2.0)
+    assert rules.ev_feet_kept_at(S, 0.5) and rules.ev_force_kept_at(S, 0.5) and not rules.ev_feet_kept_at(S, 0.25)
+    rules.ev_forget_feet_end(S)
+    rules.ev_forget_force_end(S)
+    assert math.isnan(S[loop_state.FEET_END_T]) and math.isnan(S[loop_state.FORCE_END_T])
+    assert not rules.ev_feet_kept_at(S, 0.5) and not rules.ev_force_kept_at(S, 0.5)
