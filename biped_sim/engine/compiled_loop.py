@@ -18,7 +18,6 @@ import numpy as np
 
 from biped_sim.engine import integrators, loop_rules as rules
 from biped_sim.engine.compiled import _compiled_twin
-from biped_sim.engine.integrators import _count, _entry
 from biped_sim.engine.loop_state import (
     DENSE,
     H_ABS,
@@ -31,14 +30,10 @@ from biped_sim.engine.loop_state import (
     NMAX,
     NREJECTED,
     REFUSED_U,
-    T_BOUND,
     T_NEXT,
-    T_OLD,
     Y_OLD,
     F,
-    H,
     Outcome,
-    T,
     Y,
     new_state,
     put,
@@ -101,20 +96,12 @@ def run_state(model):
     return memoryview(loop).cast("d"), loop
 
 
-class CompiledStepper(integrators._Stepper):
+class CompiledStepper(integrators._OnState):
     """The stepper of a mode the compiled loop runs (the interface of ``integrators._ListRungeKutta``): its
     fields (``t``, ``y``, ``t_old``, ``y_old``, ``f``, ``h``, ``h_abs``, ``t_bound``, the counters) are views of
     the simulator's state, which the C ``Loop`` steps in place; so are the locator's armed feet, its scuffs and
     the step end's feet and force."""
     takes_lists = True
-
-    t = _entry(T, "time at the end of the last step (s)")
-    t_old = _entry(T_OLD, "time at its start (s)")
-    t_bound = _entry(T_BOUND, "the end of the interval the mode runs to (s)")
-    h = _entry(H, "the last step's size (s)")
-    h_abs = _entry(H_ABS, "the step size the next step tries (s)")
-    nfev = _count(NFEV, "right-hand-side evaluations")
-    nrejected = _count(NREJECTED, "rejected steps")
 
     def _entries(at, doc):
         """A field of NMAX floats of the state (a memoryview) as a list."""

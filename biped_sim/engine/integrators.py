@@ -166,7 +166,19 @@ def _entries(offset, doc):
     return property(lambda self: self.S[offset:offset + self.n], set_entries, doc=doc)
 
 
-class _ListRungeKutta(_Stepper):
+class _OnState(_Stepper):
+    """A stepper whose time, step sizes and counters are fields of the hybrid state S (``loop_state``): the Python
+    Runge-Kutta steppers' S, or the simulator's, which the compiled loop steps in place."""
+    t = _entry(T, "time at the end of the last step (s)")
+    t_old = _entry(T_OLD, "time at its start (s)")
+    t_bound = _entry(T_BOUND, "the end of the interval the mode runs to (s)")
+    h = _entry(H, "the last step's size (s)")
+    h_abs = _entry(H_ABS, "the step size the next step tries (s)")
+    nfev = _count(NFEV, "right-hand-side evaluations")
+    nrejected = _count(NREJECTED, "rejected steps")
+
+
+class _ListRungeKutta(_OnState):
     """An embedded explicit Runge-Kutta pair on lists, with scipy's step control (Hairer's).
 
     Its state is the hybrid loop's (``loop_state``: a list of floats S), and its step, its dense output
@@ -181,17 +193,10 @@ class _ListRungeKutta(_Stepper):
     STEPS, GENERIC_STEP, ERROR_ORDER, N_STAGES, METHOD = {}, None, None, None, None
     SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0     # (the step control's, as loop_rules.rk_step has them)
 
-    t = _entry(T, "time at the end of the last step")
-    t_old = _entry(T_OLD, "time at its start")
-    t_bound = _entry(T_BOUND, "the end of the interval")
-    h = _entry(H, "the last step's size")
-    h_abs = _entry(H_ABS, "the step size the next step tries")
     y = _entries(Y, "the state at t")
     y_old = _entries(Y_OLD, "the state at t_old")
     f = _entries(F, "the right-hand side at (t, y)")
-    nfev = _count(NFEV, "right-hand-side evaluations")
     naccepted = _count(NACCEPTED, "accepted steps")
-    nrejected = _count(NREJECTED, "rejected steps")
 
     def __init__(self, fun, t0, y0, t_bound, rtol=1e-9, atol=1e-9, h0=None, max_step=np.inf, S=None):
         self.rtol, self.atol, self.max_step = rtol, atol, max_step
