@@ -369,11 +369,29 @@ def format_gait(g: Gait) -> str:
         ("eigenvalues", ", ".join(_c(e) for e in g.eigenvalues)),
         ("|eigenvalues|", ", ".join(f"{abs(e):.4g}" for e in g.eigenvalues)),
         ("Jacobian", _method(g)),
-        ("stable", f"{'yes (all' if g.stable else 'NO (not all'} inside the unit circle: max |lambda| = "
-                   f"{np.max(np.abs(g.eigenvalues)):.4f})"),
+        ("stable", _stability_line(g)),
     ]
     w = max(len(k) for k, _ in rows)
     return "\n".join(f"{k:>{w}}  {v}" for k, v in rows)
+
+
+#: a multiplier within this of 1 is neutral: the gaits form a family along it (the compass gait's free torso rotor,
+#: its angle and rate), and a perturbation there neither grows nor decays but drifts
+NEUTRAL_MULTIPLIER = 1e-6
+
+
+def _stability_line(g):
+    """The verdict on the multipliers, naming the neutral ones (at 1) apart from the others."""
+    moduli = np.abs(g.eigenvalues)
+    line = (f"{'yes (all' if g.stable else 'NO (not all'} inside the unit circle: max |lambda| = "
+            f"{np.max(moduli):.4f})")
+    at_one = np.abs(g.eigenvalues - 1.0) < NEUTRAL_MULTIPLIER
+    if at_one.any() and not at_one.all():
+        rest = moduli[~at_one]
+        line += (f"; {int(at_one.sum())} at 1 (neutral: the gaits form a family along them, e.g. a free torso "
+                 f"rotor), the other {rest.size} {'inside' if np.all(rest < 1.0) else 'NOT all inside'}: "
+                 f"max |lambda| = {np.max(rest):.4f}")
+    return line
 
 
 def _method(g):

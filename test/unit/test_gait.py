@@ -182,6 +182,9 @@ def test_the_stable_line_says_what_the_multipliers_say(walk_gait):
     neutral = replace(walk_gait, eigenvalues=np.array([1.0000002, 0.9999998, 0.5, 0.1, 0.01]))
     last = format_gait(neutral).splitlines()[-1]
     assert "NO (not all inside the unit circle: max |lambda| = 1.0000)" in last, last
+    # the two at 1 are named apart: the legs' gait is stable, the family along the rotor neutral
+    assert "; 2 at 1 (neutral: the gaits form a family along them" in last, last
+    assert "the other 3 inside: max |lambda| = 0.5000" in last, last
 
 
 def test_a_scene_without_controller_has_the_passive_gait(capsys):
