@@ -4,9 +4,10 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 1190
+#define LOOP_STATE_SIZE 1990
 #define LS_NMAX 11
 #define LS_MAX_DEPTH 30
+#define LS_EVENT_ROOM 32
 #define LS_METHOD 0
 #define LS_N_Y 1
 #define LS_RTOL 2
@@ -121,6 +122,7 @@
 #define LS_ENERGY_AFTER 1173
 #define LS_KINEMATICS 1174
 #define LS_FEET_AFTER 1182
+#define LS_RECORDS 1190
 #define IMPACT_OLD_FOOT_SINKS 1
 #define IMPACT_PULLS 2
 #define IMPACT_OUTSIDE_CONE 4
@@ -135,6 +137,23 @@
 #define ROW_U 14
 #define ROW_RESIDUAL 16
 #define ROW_WIDTH 17
+#define REC_KIND 0
+#define REC_A 1
+#define REC_B 2
+#define REC_V 3
+#define REC_WIDTH 25
+#define REC_TD_T 0
+#define REC_TD_Q 1
+#define REC_TD_DQ_MINUS 6
+#define REC_TD_DQ_PLUS 11
+#define REC_TD_IMPULSE 16
+#define REC_TD_LOSS 18
+#define REC_TD_LOST 19
+#define REC_TD_PIN 20
+#define REC_SCUFF_SCUFF 0
+#define REC_SCUFF_T_UP 3
+#define REC_SCUFF_Q 4
+#define REC_SCUFF_DQ 9
 
 /* Outcome, Record and Reason (loop_state.py) */
 #define OUTCOME_DONE 0
@@ -215,7 +234,7 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double u_hold[2];  /* the torque held while the torque law is held (N m) */ \
     double t_next;  /* period(), periods(): the end of the control period under way (s) */ \
     double refused_u[2];  /* periods() ending TORQUE_CHANGE: the command refused at its period's start (N m) */ \
-    double n_records;  /* the touchdowns and ended scuffs applied in C whose Events the Python code takes (Loop.take_events) */ \
+    double n_records;  /* the touchdowns and ended scuffs applied in C whose Events the Python code makes (records, in order) */ \
     double t;  /* time (s) at the end of the last step */ \
     double t_bound;  /* the end of the interval the stepper runs to (s) */ \
     double h_abs;  /* the step size the next step tries (s) */ \
@@ -290,6 +309,7 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double energy_before;  /* T + V before the impact (J) */ \
     double energy_after;  /* T + V after the impact (J) */ \
     double kinematics[8];  /* foot_kinematics after the impact: p_1, p_2, dp_1/dt, dp_2/dt */ \
-    double feet_after[2][4];  /* the feet after the impact: x, height across the ground, their rates, a row a foot */
+    double feet_after[2][4];  /* the feet after the impact: x, height across the ground, their rates, a row a foot */ \
+    double records[32][25];  /* the touchdowns and ended scuffs applied in C, a row a record (RECORD_ROW), the first n_records in use */
 
 #endif

@@ -29,11 +29,20 @@ from biped_sim.engine.loop_state import (
     NFEV,
     NMAX,
     NREJECTED,
+    REC_A,
+    REC_B,
+    REC_KIND,
+    REC_V,
+    REC_WIDTH,
+    RECORD_OFFSETS,
+    RECORD_VALUES,
+    RECORDS,
     REFUSED_U,
     T_NEXT,
     Y_OLD,
     F,
     Outcome,
+    Record,
     Y,
     new_state,
     put,
@@ -94,6 +103,31 @@ def run_state(model):
         return new_state(), None
     loop = new_loop(model)
     return memoryview(loop).cast("d"), loop
+
+
+def take_records(S):
+    """The touchdowns and ended scuffs the compiled loop applied, in order, from the state's records (RECORD_ROW,
+    RECORD_VALUES), as tuples: (TOUCHDOWN, t, old leg, new leg, q, dq-, dq+, impulse, energy loss, energy lost so
+    far, pin) or (SCUFF_ENDED, foot, stance leg, [t_start, deepest, t_deepest], t_up, q, dq); then none are left."""
+    out = []
+    for i in range(int(S[N_RECORDS])):
+        r = RECORDS + REC_WIDTH * i
+        kind, a, b = int(S[r + REC_KIND]), int(S[r + REC_A]), int(S[r + REC_B])
+        values = [S[r + REC_V + at:r + REC_V + at + size].tolist()
+                  for at, size in _VALUE_SLICES["TD" if kind == Record.TOUCHDOWN else "SCUFF"]]
+        if kind == Record.TOUCHDOWN:
+            (t,), q, dq_minus, dq_plus, impulse, (loss,), (lost,), pin = values
+            out.append((kind, t, a, b, q, dq_minus, dq_plus, impulse, loss, lost, tuple(pin)))
+        else:
+            scuff, (t_up,), q, dq = values
+            out.append((kind, a, b, scuff, t_up, q, dq))
+    S[N_RECORDS] = 0.0
+    return out
+
+
+#: where a record's values lie from REC_V (loop_state.RECORD_VALUES): (offset, size) each
+_VALUE_SLICES = {kind: [(RECORD_OFFSETS[f"REC_{kind}_{name.upper()}"], size) for name, size in values]
+                 for kind, values in RECORD_VALUES.items()}
 
 
 class CompiledStepper(integrators._OnState):
@@ -218,7 +252,7 @@ class CompiledStepper(integrators._OnState):
         handling."""
         sim = self.sim
         if self.S[N_RECORDS]:
-            sim._loop_records(self.loop.take_events())
+            sim._loop_records(take_records(self.S))
         if self._raise_failure(outcome) == Outcome.EVENT:     # (its start's feet and force: the state's)
             self._handed(outcome)
         return outcome

@@ -721,7 +721,7 @@ class HybridSimulator:
             self._samples.set_last_in_flight()   # in flight from this very instant: so is the sample just taken
 
     def _loop_records(self, records):
-        """The Events of what the compiled loop applied (``Loop.take_events``' records, in order): its touchdowns
+        """The Events of what the compiled loop applied (``compiled_loop.take_records``, in order): its touchdowns
         (the energy lost and the impact history are the state's already) and the scuffs that ended."""
         for record in records:
             if record[0] == Record.TOUCHDOWN:

@@ -31,6 +31,37 @@ MAX_STAGES = 13     # dop853's stages k0..k12 (dopri5 uses k0..k6)
 DENSE_WIDTH = 8     # coefficients a dense-output row: dop853's 8 (dopri5 uses 5)
 MAX_DEPTH = 30      # the dip search's halvings (grazing.MAX_DEPTH)
 METHODS = {"dop853": 0, "dopri5": 1}
+EVENT_ROOM = 32     # the event records a run may make before the Python code takes them (a step makes at most one)
+
+
+#: a record's values, in order, with their sizes: a touchdown's (a, b: the old and the new stance leg) and an ended
+#: scuff's (a, b: the foot and the stance leg; q and dq at t_deepest, NaN outside the step). _loop_state.h carries
+#: their offsets from REC_V as REC_TD_<NAME> and REC_SCUFF_<NAME>.
+RECORD_VALUES = {
+    "TD": (("t", 1), ("q", 5), ("dq_minus", 5), ("dq_plus", 5), ("impulse", 2), ("loss", 1), ("lost", 1),
+           ("pin", 2)),
+    "SCUFF": (("scuff", 3), ("t_up", 1), ("q", 5), ("dq", 5)),
+}
+
+
+#: an event record's row (the state's records, made by the compiled loop, read by compiled_loop.take_records): its kind
+#: (Record), the legs a and b, and from REC_V its values (RECORD_VALUES); its width holds the longer kind's values.
+#: _loop_state.h and .pxd carry them by these names.
+RECORD_ROW = {"REC_KIND": 0, "REC_A": 1, "REC_B": 2, "REC_V": 3,
+              "REC_WIDTH": 3 + max(sum(size for _, size in values) for values in RECORD_VALUES.values())}
+
+
+def _record_offsets():
+    out = {}
+    for kind, values in RECORD_VALUES.items():
+        at = 0
+        for name, size in values:
+            out[f"REC_{kind}_{name.upper()}"] = at
+            at += size
+    return out
+
+
+RECORD_OFFSETS = _record_offsets()
 
 
 class Field(NamedTuple):
@@ -84,8 +115,8 @@ FIELDS = (
     # -- what an entry point of the compiled loop leaves besides its Outcome
     Field("t_next", (), "period(), periods(): the end of the control period under way (s)"),
     Field("refused_u", (2,), "periods() ending TORQUE_CHANGE: the command refused at its period's start (N m)"),
-    Field("n_records", (), "the touchdowns and ended scuffs applied in C whose Events the Python code takes "
-                           "(Loop.take_events)"),
+    Field("n_records", (), "the touchdowns and ended scuffs applied in C whose Events the Python code makes "
+                           "(records, in order)"),
     # -- the stepper (integrators._ListRungeKutta)
     Field("t", (), "time (s) at the end of the last step"),
     Field("t_bound", (), "the end of the interval the stepper runs to (s)"),
@@ -171,6 +202,9 @@ FIELDS = (
     Field("energy_after", (), "T + V after the impact (J)"),
     Field("kinematics", (8,), "foot_kinematics after the impact: p_1, p_2, dp_1/dt, dp_2/dt"),
     Field("feet_after", (2, 4), "the feet after the impact: x, height across the ground, their rates, a row a foot"),
+    # -- what the compiled loop applied, for the Python code to make Events of (compiled_loop.take_records)
+    Field("records", (EVENT_ROOM, RECORD_ROW["REC_WIDTH"]), "the touchdowns and ended scuffs applied in C, a row "
+                                                          "a record (RECORD_ROW), the first n_records in use"),
 )
 
 #: the codes the touchdown's rules return (loop_rules.py): the bits of an impact's checks (ev_impact,
@@ -194,7 +228,7 @@ SAMPLE_ROW = {"ROW_T": 0, "ROW_Q": 1, "ROW_DQ": 6, "ROW_LEG": 11, "ROW_F": 12, "
 class Outcome(IntEnum):
     """How an entry point of the compiled loop (``run``, ``held``, ``period``, ``periods``, ``step``) ended; what
     it leaves besides is in the state (the samples and their counters, the simulator's time and state,
-    t_next, refused_u, n_records, the failure's fail_kind, fail_value, fail_t)."""
+    t_next, refused_u, n_records and the records, the failure's fail_kind, fail_value, fail_t)."""
     DONE = 0            # at its end: the state is the last sample's
     EVENT = 1           # a step taken and not accepted: the Python code handles it (a step handed back)
     NEED_ROOM = 2       # the Samples' array or the event records are full: make room, call again
@@ -206,7 +240,8 @@ class Outcome(IntEnum):
 
 
 class Record(IntEnum):
-    """The kinds of Loop.take_events' records: what the loop applied, whose Events the Python code makes."""
+    """The kinds of the state's event records (RECORD_ROW): what the loop applied, whose Events the Python code
+    makes."""
     SCUFF_ENDED = 1
     TOUCHDOWN = 2
 
@@ -253,6 +288,8 @@ SIZES = {field.name: _size(field.shape) for field in FIELDS}    # the values a f
 globals().update(OFFSETS)       # T, Y, STAGES, ...: the offsets the rules index S with when they run as Python
 globals().update(CODES)
 globals().update(SAMPLE_ROW)
+globals().update(RECORD_ROW)
+globals().update(RECORD_OFFSETS)
 
 
 def put(S, at, values):
@@ -292,10 +329,13 @@ def c_header() -> str:
              " * edit). LOOP_STATE_MEMBERS are the fields as doubles in the order of the offsets LS_*, so that a",
              " * union of double S[LOOP_STATE_SIZE] with a struct of these members reads the same memory both ways. */",
              "#ifndef BIPED_SIM_LOOP_STATE_H", "#define BIPED_SIM_LOOP_STATE_H", "",
-             f"#define LOOP_STATE_SIZE {SIZE}", f"#define LS_NMAX {NMAX}", f"#define LS_MAX_DEPTH {MAX_DEPTH}"]
+             f"#define LOOP_STATE_SIZE {SIZE}", f"#define LS_NMAX {NMAX}", f"#define LS_MAX_DEPTH {MAX_DEPTH}",
+             f"#define LS_EVENT_ROOM {EVENT_ROOM}"]
     lines += [f"#define LS_{name} {at}" for name, at in OFFSETS.items()]
     lines += [f"#define {name} {code}" for name, code in CODES.items()]
     lines += [f"#define {name} {at}" for name, at in SAMPLE_ROW.items()]
+    lines += [f"#define {name} {at}" for name, at in RECORD_ROW.items()]
+    lines += [f"#define {name} {at}" for name, at in RECORD_OFFSETS.items()]
     lines += ["", "/* Outcome, Record and Reason (loop_state.py) */"]
     for enum, prefix in ((Outcome, "OUTCOME"), (Record, "RECORD"), (Reason, "WHY")):
         lines += [f"#define {prefix}_{member.name} {member.value}" for member in enum]
@@ -319,9 +359,11 @@ def cython_pxd() -> str:
     lines = ["# The hybrid loop's state's offsets for the compiled rules (biped_sim/engine/loop_state.py, written by",
              "# tools/generate_loop.py: do not edit).",
              'cdef extern from "_loop_state.h":', "    enum:",
-             '        SIZE "LOOP_STATE_SIZE"', '        NMAX "LS_NMAX"', '        MAX_DEPTH "LS_MAX_DEPTH"']
+             '        SIZE "LOOP_STATE_SIZE"', '        NMAX "LS_NMAX"', '        MAX_DEPTH "LS_MAX_DEPTH"',
+             '        EVENT_ROOM "LS_EVENT_ROOM"']
     lines += [f'        {name} "LS_{name}"' for name in OFFSETS]
     lines += [f'        {name} "{name}"' for name in CODES]
     lines += [f'        {name} "{name}"' for name in SAMPLE_ROW]
+    lines += [f'        {name} "{name}"' for name in RECORD_ROW]
     lines.append("")
     return "\n".join(lines)

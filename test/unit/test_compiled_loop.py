@@ -724,7 +724,7 @@ def test_every_method_of_the_loop_is_one_the_engine_calls():
     source = "".join(path.read_text() for path in sorted(engine.glob("*.py")))
     methods = {name for name in dir(compiled_loop._core.Loop) if not name.startswith("_")}
     assert methods == {"begin", "dense", "dense_at", "handed", "held", "law_torque", "locate_crossing", "period",
-                       "periods", "raise_error", "rhs", "run", "set_model", "stats", "step", "take_events"}
+                       "periods", "raise_error", "rhs", "run", "set_model", "stats", "step"}
     assert [name for name in sorted(methods) if not re.search(rf"loop\.{name}\b", source)] == []
     assert {name for name in dir(compiled_loop._core) if not name.startswith("_")} == {
         "KERNELS_SHA256", "Loop", "set_python_checks"}
@@ -776,6 +776,30 @@ def test_the_impact_history_and_the_mode_events_are_the_states():
     assert_same_run(compiled, python, "the walk")
     if compiled_loop.AVAILABLE:
         assert not any(hasattr(compiled_loop._core.Loop, name) for name in ("set_history", "history_stale"))
+
+
+@pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=compiled_loop.WHY_NOT or "no compiled loop")
+def test_the_touchdowns_the_loop_applies_are_records_in_the_state():
+    """A touchdown the compiled loop applies is a row of the state's records (loop_state.RECORD_ROW), which the
+    Python code reads to make its Event: a touchdown's row holds its legs, time, q, dq- and dq+;
+    no records wait once a period is done, and the Loop keeps none of its own (no take_events)."""
+    ls = loop_state
+    sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+    ctrl = PDWalkingController(MODEL)
+    S, rows = sim.S, {}
+    while sim.t < 1.5 and sim.status == "running":
+        sim.advance_period(1e-3, sim.command(ctrl))
+        row = S[ls.RECORDS:ls.RECORDS + ls.REC_WIDTH].tolist()     # the first record of the period's run
+        rows[row[ls.REC_KIND], row[ls.REC_V]] = row
+    touchdowns = [e for e in sim.events if e.kind == "touchdown"]
+    applied = [e for e in touchdowns if (ls.Record.TOUCHDOWN, e.time) in rows]
+    assert len(touchdowns) >= 2 and applied == touchdowns
+    for e in applied:
+        row = rows[ls.Record.TOUCHDOWN, e.time]
+        v = row[ls.REC_V:]
+        assert (row[ls.REC_A], row[ls.REC_B]) == (e.stance_leg_before, e.stance_leg_after)
+        assert v[1:6] == e.q.tolist() and v[6:11] == e.dq_minus.tolist() and v[11:16] == e.dq_plus.tolist()
+    assert S[ls.N_RECORDS] == 0.0 and not hasattr(compiled_loop._core.Loop, "take_events")
 
 
 def test_a_change_of_the_simulators_state_in_python_begins_the_loops_mode_again():
