@@ -97,12 +97,8 @@ typedef struct {
     double last_F[2], last_u[2];
     /* (the locator's armed feet, scuffs and the step end's feet and force are the state's: armed, scuffing,
      * scuff, deepest_scuff, scuffs, feet_end, force_end) */
-    int why;                 /* which check handed the last step back (a debugging aid: the return in quiet_step) */
-    /* the run's statistics since the last stats() (HybridSimulator.stats) */
-    long steps;
-    double max_drift, max_rate, max_residual, wall_time;
-    /* the step handed back: its end's torque and force */
-    double end_u[2], end_F[2];
+    /* (why the last step was handed back, its end's torque and force, and the run's statistics are the state's: why,
+     * end_u, end_F, steps, max_drift, max_rate, max_residual, wall_time) */
 } Loop;
 
 /* -- the torque law: held, compiled (the hook) or called back ------------------------------------- */
@@ -960,18 +956,6 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     return r;
 }
 
-/* stats() -> (steps, max drift, max drift rate, max |residual|, wall time of period() calls) since the last
- * call; then zero */
-static PyObject *
-Loop_stats(Loop *L, PyObject *unused)
-{
-    (void)unused;
-    PyObject *r = Py_BuildValue("(ldddd)", L->steps, L->max_drift, L->max_rate, L->max_residual, L->wall_time);
-    L->steps = 0;
-    L->max_drift = L->max_rate = L->max_residual = L->wall_time = 0.0;
-    return r;
-}
-
 /* locate_crossing(leg, ta, tb) -> the time foot leg's height crosses zero on the last step's dense output
  * (guards.locate_crossing, by the same brentq), or None where brentq would raise */
 static PyObject *
@@ -1048,14 +1032,6 @@ Loop_dense_at(Loop *L, PyObject *arg)
     return list_of(v, N);
 }
 
-/* handed() -> (end u (2), end F (2), why) of the step handed back */
-static PyObject *
-Loop_handed(Loop *L, PyObject *unused)
-{
-    (void)unused;
-    return Py_BuildValue("(NNi)", list_of(L->end_u, 2), list_of(L->end_F, 2), L->why);
-}
-
 /* law_torque(law) -> [u1, u2]: a compiled law's (address, parameters, name) torque at the loop's current
  * state and stance leg (the command of a control period); the law is not kept (a held period follows) */
 static PyObject *
@@ -1107,12 +1083,10 @@ static PyMethodDef Loop_methods[] = {
     {"held", (PyCFunction)(void (*)(void))Loop_held, METH_FASTCALL, NULL},
     {"periods", (PyCFunction)(void (*)(void))Loop_periods, METH_FASTCALL, NULL},
     {"period", (PyCFunction)(void (*)(void))Loop_period, METH_FASTCALL, NULL},
-    {"stats", (PyCFunction)Loop_stats, METH_NOARGS, NULL},
     {"raise_error", (PyCFunction)Loop_raise_error, METH_NOARGS, NULL},
     {"locate_crossing", (PyCFunction)Loop_locate_crossing, METH_VARARGS, NULL},
     {"dense", (PyCFunction)Loop_dense, METH_NOARGS, NULL},
     {"dense_at", (PyCFunction)Loop_dense_at, METH_O, NULL},
-    {"handed", (PyCFunction)Loop_handed, METH_NOARGS, NULL},
     {"law_torque", (PyCFunction)Loop_law_torque, METH_O, NULL},
     {NULL, NULL, 0, NULL},
 };

@@ -4,7 +4,7 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 1990
+#define LOOP_STATE_SIZE 2000
 #define LS_NMAX 11
 #define LS_MAX_DEPTH 30
 #define LS_EVENT_ROOM 32
@@ -47,82 +47,90 @@
 #define LS_T_NEXT 132
 #define LS_REFUSED_U 133
 #define LS_N_RECORDS 135
-#define LS_T 136
-#define LS_T_BOUND 137
-#define LS_H_ABS 138
-#define LS_T_OLD 139
-#define LS_H 140
-#define LS_Y 141
-#define LS_F 152
-#define LS_Y_OLD 163
-#define LS_STAGES 174
-#define LS_NFEV 317
-#define LS_NREJECTED 318
-#define LS_NACCEPTED 319
-#define LS_DENSE_READY 320
-#define LS_DENSE 321
-#define LS_FAIL_KIND 409
-#define LS_FAIL_VALUE 410
-#define LS_FAIL_T 411
-#define LS_CALLBACK_FAILED 412
-#define LS_GUARD_LEG 413
-#define LS_SCUFF_TRIAL 414
-#define LS_DEEPEST_TRIAL 417
-#define LS_FEET 418
-#define LS_E0 426
-#define LS_PUSH_WORK 427
-#define LS_ENERGY_LOST 428
-#define LS_SIM_T 429
-#define LS_SIM_WORK 430
-#define LS_SIM_H 431
-#define LS_SIM_U 432
-#define LS_SIM_Q 434
-#define LS_SIM_DQ 439
-#define LS_SIM_STATE_UNMADE 444
-#define LS_MODE_BEGUN 445
-#define LS_CONTROL_PERIODS 446
-#define LS_RUNNING 447
-#define LS_INITIAL_SAMPLE_PENDING 448
-#define LS_N_SAMPLES 449
-#define LS_APPENDED 450
-#define LS_PROVISIONAL 451
-#define LS_EVERY 452
-#define LS_LAST_ONLY 453
-#define LS_LAST_IMPACT 454
-#define LS_N_IMPACTS 455
-#define LS_RECENT_IMPACTS 456
-#define LS_N_RECENT 460
-#define LS_MODE_EVENTS 461
-#define LS_RING 462
-#define LS_N_LATCHED 511
-#define LS_ARMED 512
-#define LS_SCUFFING 514
-#define LS_SCUFF 516
-#define LS_DEEPEST_SCUFF 522
-#define LS_SCUFFS 523
-#define LS_FEET_END_T 524
-#define LS_FEET_END 525
-#define LS_FORCE_END_T 533
-#define LS_FORCE_END 534
-#define LS_OUT 536
-#define LS_RESULT 702
-#define LS_COEF 704
-#define LS_QS 728
-#define LS_PS 733
-#define LS_STACK 737
-#define LS_K_IMPACT 1057
-#define LS_K_ENERGY 1089
-#define LS_K_FEET 1121
-#define LS_Q_IMPACT 1153
-#define LS_DQ_MINUS 1158
-#define LS_DQ_PLUS 1163
-#define LS_IMPULSE 1168
-#define LS_TV 1170
-#define LS_ENERGY_BEFORE 1172
-#define LS_ENERGY_AFTER 1173
-#define LS_KINEMATICS 1174
-#define LS_FEET_AFTER 1182
-#define LS_RECORDS 1190
+#define LS_WHY 136
+#define LS_END_U 137
+#define LS_END_F 139
+#define LS_STEPS 141
+#define LS_MAX_DRIFT 142
+#define LS_MAX_RATE 143
+#define LS_MAX_RESIDUAL 144
+#define LS_WALL_TIME 145
+#define LS_T 146
+#define LS_T_BOUND 147
+#define LS_H_ABS 148
+#define LS_T_OLD 149
+#define LS_H 150
+#define LS_Y 151
+#define LS_F 162
+#define LS_Y_OLD 173
+#define LS_STAGES 184
+#define LS_NFEV 327
+#define LS_NREJECTED 328
+#define LS_NACCEPTED 329
+#define LS_DENSE_READY 330
+#define LS_DENSE 331
+#define LS_FAIL_KIND 419
+#define LS_FAIL_VALUE 420
+#define LS_FAIL_T 421
+#define LS_CALLBACK_FAILED 422
+#define LS_GUARD_LEG 423
+#define LS_SCUFF_TRIAL 424
+#define LS_DEEPEST_TRIAL 427
+#define LS_FEET 428
+#define LS_E0 436
+#define LS_PUSH_WORK 437
+#define LS_ENERGY_LOST 438
+#define LS_SIM_T 439
+#define LS_SIM_WORK 440
+#define LS_SIM_H 441
+#define LS_SIM_U 442
+#define LS_SIM_Q 444
+#define LS_SIM_DQ 449
+#define LS_SIM_STATE_UNMADE 454
+#define LS_MODE_BEGUN 455
+#define LS_CONTROL_PERIODS 456
+#define LS_RUNNING 457
+#define LS_INITIAL_SAMPLE_PENDING 458
+#define LS_N_SAMPLES 459
+#define LS_APPENDED 460
+#define LS_PROVISIONAL 461
+#define LS_EVERY 462
+#define LS_LAST_ONLY 463
+#define LS_LAST_IMPACT 464
+#define LS_N_IMPACTS 465
+#define LS_RECENT_IMPACTS 466
+#define LS_N_RECENT 470
+#define LS_MODE_EVENTS 471
+#define LS_RING 472
+#define LS_N_LATCHED 521
+#define LS_ARMED 522
+#define LS_SCUFFING 524
+#define LS_SCUFF 526
+#define LS_DEEPEST_SCUFF 532
+#define LS_SCUFFS 533
+#define LS_FEET_END_T 534
+#define LS_FEET_END 535
+#define LS_FORCE_END_T 543
+#define LS_FORCE_END 544
+#define LS_OUT 546
+#define LS_RESULT 712
+#define LS_COEF 714
+#define LS_QS 738
+#define LS_PS 743
+#define LS_STACK 747
+#define LS_K_IMPACT 1067
+#define LS_K_ENERGY 1099
+#define LS_K_FEET 1131
+#define LS_Q_IMPACT 1163
+#define LS_DQ_MINUS 1168
+#define LS_DQ_PLUS 1173
+#define LS_IMPULSE 1178
+#define LS_TV 1180
+#define LS_ENERGY_BEFORE 1182
+#define LS_ENERGY_AFTER 1183
+#define LS_KINEMATICS 1184
+#define LS_FEET_AFTER 1192
+#define LS_RECORDS 1200
 #define IMPACT_OLD_FOOT_SINKS 1
 #define IMPACT_PULLS 2
 #define IMPACT_OUTSIDE_CONE 4
@@ -235,6 +243,14 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double t_next;  /* period(), periods(): the end of the control period under way (s) */ \
     double refused_u[2];  /* periods() ending TORQUE_CHANGE: the command refused at its period's start (N m) */ \
     double n_records;  /* the touchdowns and ended scuffs applied in C whose Events the Python code makes (records, in order) */ \
+    double why;  /* why the compiled loop handed the last step back (Reason) */ \
+    double end_u[2];  /* the step handed back: the torque of its end (N m) */ \
+    double end_F[2];  /* the step handed back: the stance force of its end (N) */ \
+    double steps;  /* the quiet steps accepted in C */ \
+    double max_drift;  /* the largest drift of the stance foot from the pin (m) */ \
+    double max_rate;  /* the largest rate of that drift (m/s) */ \
+    double max_residual;  /* the largest |energy balance residual| (J) */ \
+    double wall_time;  /* the wall time of the control periods run whole in C (Loop.period, s) */ \
     double t;  /* time (s) at the end of the last step */ \
     double t_bound;  /* the end of the interval the stepper runs to (s) */ \
     double h_abs;  /* the step size the next step tries (s) */ \

@@ -20,7 +20,12 @@ from biped_sim.engine import integrators, loop_rules as rules
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.loop_state import (
     DENSE,
+    END_F,
+    END_U,
     H_ABS,
+    MAX_DRIFT,
+    MAX_RATE,
+    MAX_RESIDUAL,
     MAX_STEP,
     METHODS,
     MODE_BEGUN,
@@ -38,7 +43,9 @@ from biped_sim.engine.loop_state import (
     RECORD_VALUES,
     RECORDS,
     REFUSED_U,
+    STEPS,
     T_NEXT,
+    WALL_TIME,
     Y_OLD,
     F,
     Outcome,
@@ -123,6 +130,15 @@ def take_records(S):
             out.append((kind, a, b, scuff, t_up, q, dq))
     S[N_RECORDS] = 0.0
     return out
+
+
+def take_stats(S):
+    """(steps, max drift, max drift rate, max |residual|, wall time of the periods run whole in C) of the compiled
+    loop since the last call, from the state; then zero."""
+    stats = int(S[STEPS]), S[MAX_DRIFT], S[MAX_RATE], S[MAX_RESIDUAL], S[WALL_TIME]
+    for at in (STEPS, MAX_DRIFT, MAX_RATE, MAX_RESIDUAL, WALL_TIME):
+        S[at] = 0.0
+    return stats
 
 
 #: where a record's values lie from REC_V (loop_state.RECORD_VALUES): (offset, size) each
@@ -270,7 +286,8 @@ class CompiledStepper(integrators._OnState):
         """A step taken in C and handed to the Python code: its dense output made anew when asked, the torque
         and force of its end the simulator's last evaluation's."""
         self._dense = None
-        self.sim._last_u, self.sim._last_F, _ = self.loop.handed()
+        S = self.S
+        self.sim._last_u, self.sim._last_F = S[END_U:END_U + 2].tolist(), S[END_F:END_F + 2].tolist()
 
     def replace_y(self, y):
         self.y = y

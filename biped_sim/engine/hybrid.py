@@ -786,7 +786,7 @@ class HybridSimulator:
         """The run's statistics so far (the compiled loop's and the stepper's counters brought in when read)."""
         s = self._stats
         if self._compiled is not None:     # the compiled loop's since the last read
-            steps, drift, rate, residual, wall_time = self._compiled.loop.stats()
+            steps, drift, rate, residual, wall_time = compiled_loop.take_stats(self.S)
             s["steps"] += steps
             s["compiled_loop_steps"] += steps
             s["wall_time"] += wall_time     # (of the periods run whole in C: Loop.period)

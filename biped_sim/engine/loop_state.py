@@ -117,6 +117,15 @@ FIELDS = (
     Field("refused_u", (2,), "periods() ending TORQUE_CHANGE: the command refused at its period's start (N m)"),
     Field("n_records", (), "the touchdowns and ended scuffs applied in C whose Events the Python code makes "
                            "(records, in order)"),
+    Field("why", (), "why the compiled loop handed the last step back (Reason)"),
+    Field("end_u", (2,), "the step handed back: the torque of its end (N m)"),
+    Field("end_F", (2,), "the step handed back: the stance force of its end (N)"),
+    # -- the compiled loop's statistics since the Python code last took them (compiled_loop.take_stats)
+    Field("steps", (), "the quiet steps accepted in C"),
+    Field("max_drift", (), "the largest drift of the stance foot from the pin (m)"),
+    Field("max_rate", (), "the largest rate of that drift (m/s)"),
+    Field("max_residual", (), "the largest |energy balance residual| (J)"),
+    Field("wall_time", (), "the wall time of the control periods run whole in C (Loop.period, s)"),
     # -- the stepper (integrators._ListRungeKutta)
     Field("t", (), "time (s) at the end of the last step"),
     Field("t_bound", (), "the end of the interval the stepper runs to (s)"),
@@ -228,7 +237,8 @@ SAMPLE_ROW = {"ROW_T": 0, "ROW_Q": 1, "ROW_DQ": 6, "ROW_LEG": 11, "ROW_F": 12, "
 class Outcome(IntEnum):
     """How an entry point of the compiled loop (``run``, ``held``, ``period``, ``periods``, ``step``) ended; what
     it leaves besides is in the state (the samples and their counters, the simulator's time and state,
-    t_next, refused_u, n_records and the records, the failure's fail_kind, fail_value, fail_t)."""
+    t_next, refused_u, n_records and the records, the failure's fail_kind, fail_value, fail_t, a step handed back's
+    why, end_u and end_F, the statistics)."""
     DONE = 0            # at its end: the state is the last sample's
     EVENT = 1           # a step taken and not accepted: the Python code handles it (a step handed back)
     NEED_ROOM = 2       # the Samples' array or the event records are full: make room, call again
@@ -247,7 +257,7 @@ class Record(IntEnum):
 
 
 class Reason(IntEnum):
-    """Why the compiled loop handed a step back to the Python code (``Loop.handed()``'s last value, ``L->why``)."""
+    """Why the compiled loop handed a step back to the Python code (the state's ``why``)."""
     DIVERGING = 1               # a rate beyond max_speed
     CROSSING_IN_PYTHON = 2      # a touchdown crossing brentq gives up on, or touchdown_rule "any"
     TOUCHDOWN_WHILE_SCUFFING = 3
