@@ -237,8 +237,8 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double impulse_tol;  /* how far an impact's impulse may pull (N s) */ \
     double contact_tol;  /* an old stance foot slower than this after an impact stays down (m/s) */ \
     double max_events;  /* the run stops after this many mode events */ \
-    double stance_leg;  /* the stance foot: 1 or 2 */ \
-    double pin[2];  /* where the stance foot is pinned (m) */ \
+    double stance_leg;  /* the stance foot: 1 or 2, 0 in flight (the simulator's stance_leg) */ \
+    double pin[2];  /* where the stance foot is pinned (m; the simulator's pin, not read in flight) */ \
     double u_hold[2];  /* the torque held while the torque law is held (N m) */ \
     double t_next;  /* period(), periods(): the end of the control period under way (s) */ \
     double refused_u[2];  /* periods() ending TORQUE_CHANGE: the command refused at its period's start (N m) */ \

@@ -182,7 +182,7 @@ class CompiledStepper(integrators._OnState):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
         torque law, f at the start, the carried-over step size (or the initial one)."""
         sim, S = self.sim, self.S
-        write(S, method=METHODS[self.method], stance_leg=sim.stance_leg, pin=sim.pin, u_hold=sim._u, t=sim.t,
+        write(S, method=METHODS[self.method], u_hold=sim._u, t=sim.t,     # (the stance leg and pin: the state's)
               y=sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound=t_bound)
         if sim._h is not None:     # (the carried-over step size, as _ListRungeKutta.restart caps it)
             S[H_ABS] = rules.rk_carried_step(sim._h, S[MAX_STEP])

@@ -108,9 +108,9 @@ FIELDS = (
     Field("impulse_tol", (), "how far an impact's impulse may pull (N s)"),
     Field("contact_tol", (), "an old stance foot slower than this after an impact stays down (m/s)"),
     Field("max_events", (), "the run stops after this many mode events"),
-    # -- the mode the compiled loop steps (CompiledStepper.start writes it, a touchdown changes it)
-    Field("stance_leg", (), "the stance foot: 1 or 2"),
-    Field("pin", (2,), "where the stance foot is pinned (m)"),
+    # -- the mode: the simulator's, which the compiled loop steps (a touchdown in either loop changes it)
+    Field("stance_leg", (), "the stance foot: 1 or 2, 0 in flight (the simulator's stance_leg)"),
+    Field("pin", (2,), "where the stance foot is pinned (m; the simulator's pin, not read in flight)"),
     Field("u_hold", (2,), "the torque held while the torque law is held (N m)"),
     # -- what an entry point of the compiled loop leaves besides its Outcome
     Field("t_next", (), "period(), periods(): the end of the control period under way (s)"),

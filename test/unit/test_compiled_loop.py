@@ -820,6 +820,31 @@ def test_the_loops_statistics_and_the_step_it_hands_back_are_the_states():
     assert not any(hasattr(compiled_loop._core.Loop, name) for name in ("stats", "handed"))
 
 
+def test_the_simulators_stance_leg_and_pin_are_the_states():
+    """The stance leg and the pin are one copy, the state's fields, on both loops: the simulator's stance_leg and
+    pin read and write them (no copy into the state when a mode begins, none back after the compiled loop's
+    touchdowns), across touchdowns and a push into flight (where the pin is None)."""
+    ls = loop_state
+
+    def run():
+        sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+        ctrl = PDWalkingController(MODEL)
+        S, legs = sim.S, set()
+        while sim.t < 1.2 and sim.status == "running":
+            sim.advance_period(1e-3, sim.command(ctrl))
+            pin = [S[ls.PIN], S[ls.PIN + 1]]
+            assert (sim.stance_leg, sim.pin) == (S[ls.STANCE_LEG], pin)
+            legs.add(sim.stance_leg)
+        assert legs == {1, 2}
+        sim.stance_leg, sim.pin = 0, None
+        assert S[ls.STANCE_LEG] == 0.0 and sim.pin is None
+        return sim.result()
+
+    compiled, python = both_loops(run)
+    assert_same_run(compiled, python, "the walk")
+    assert all(isinstance(vars(hybrid.HybridSimulator)[name], property) for name in ("stance_leg", "pin"))
+
+
 def test_a_change_of_the_simulators_state_in_python_begins_the_loops_mode_again():
     """No hand-over flag: the loop's mode is begun at the simulator's state (mode_begun), and any write of that
     state by the Python code (a push's velocities here) clears it, so that the next period begins the mode again
