@@ -45,12 +45,18 @@ enum { FAIL_NONE = 0, FAIL_STEP_SIZE = 1, FAIL_NON_FINITE = 2, FAIL_CALLBACK = 3
 
 typedef struct { double x, height, dx, dheight; } Foot;
 
-/* A touchdown (kind TOUCHDOWN; a, b: the old and the new stance leg; v: t, q, dq-, dq+, impulse, energy loss,
- * energy lost so far, the new pin) or an ended scuff (SCUFF_ENDED; a, b: the foot, the stance leg; v: t_start,
- * deepest, t_deepest, t_up, q and dq at t_deepest, NaN outside the step). A run returns OUTCOME_NEED_ROOM when the room is
- * full: a step makes at most one. */
-#define EVENT_ROOM 32
-typedef struct { int kind, a, b; double v[22]; } EventRecord;
+/* The touchdowns applied and the scuffs ended are rows of the state's records (loop_state.RECORD_ROW: kind, a, b,
+ * v), the first n_records in use. A run returns OUTCOME_NEED_ROOM when they are full: a step makes at most one. */
+static double *
+new_record(double *S, int kind, int a, int b)
+{
+    double *r = S + LS_RECORDS + REC_WIDTH * (int)S[LS_N_RECORDS];
+    S[LS_N_RECORDS] += 1.0;
+    r[REC_KIND] = kind;
+    r[REC_A] = a;
+    r[REC_B] = b;
+    return r + REC_V;
+}
 
 /* A compiled torque law (biped_sim/engine/torque_hook.py's SIGNATURE): u from t, q, dq, the stance leg and
  * its parameters; nonzero: it failed */
@@ -78,9 +84,8 @@ typedef struct {
      * stance_leg, pin, u_hold) */
     /* (the impact history and the mode events are the state's: last_impact, n_impacts, recent_impacts,
      * n_recent, mode_events, ring) */
-    /* the touchdowns applied and the scuffs ended since the Python code last took them (take_events),
-     * in order: their Events are the Python code's to make */
-    EventRecord events[EVENT_ROOM];     /* (how many: the state's n_records) */
+    /* (the touchdowns applied and the scuffs ended, whose Events the Python code makes, are the state's: records,
+     * n_records) */
     /* the torque law */
     int law_kind;     /* HELD (the state's u_hold), COMPILED (law) or CALLBACK (callback) */
     CompiledLaw law;
@@ -92,12 +97,8 @@ typedef struct {
     double last_F[2], last_u[2];
     /* (the locator's armed feet, scuffs and the step end's feet and force are the state's: armed, scuffing,
      * scuff, deepest_scuff, scuffs, feet_end, force_end) */
-    int why;                 /* which check handed the last step back (a debugging aid: the return in quiet_step) */
-    /* the run's statistics since the last stats() (HybridSimulator.stats) */
-    long steps;
-    double max_drift, max_rate, max_residual, wall_time;
-    /* the step handed back: its end's torque and force */
-    double end_u[2], end_F[2];
+    /* (why the last step was handed back, its end's torque and force, and the run's statistics are the state's: why,
+     * end_u, end_F, steps, max_drift, max_rate, max_residual, wall_time) */
 } Loop;
 
 /* -- the torque law: held, compiled (the hook) or called back ------------------------------------- */
@@ -340,7 +341,7 @@ stance_start(Loop *L, const double *F)
  * sample after it, the next mode's start. Whatever the Python code would report or act on (a warning of the
  * impact, an invariant of check_impact, a possible Zeno stop, max_events, an event loop, a new stance that the
  * ground pulls or that slips at once: the rules' answers; a Python controller) hands the step back instead: 0.
- * Else 3, two samples in rows (2 ROW_WIDTH values), residual_out the larger |residual|, the record in L->events. */
+ * Else 3, two samples in rows (2 ROW_WIDTH values), residual_out the larger |residual|, the record in the state's records. */
 static int
 touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, double energy_lost, double *residual_out)
 {
@@ -387,19 +388,15 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     double p[4];
     k_foot_positions(q, L->k_pos, p);
     ev_foot_point(p, nw, L->pin);
-    EventRecord *ev = L->events + (int)L->n_records++;
-    ev->kind = RECORD_TOUCHDOWN;
-    ev->a = old;
-    ev->b = nw;
-    ev->v[0] = t_ev;
-    memcpy(ev->v + 1, q, 5 * sizeof(double));
-    memcpy(ev->v + 6, dqm, 5 * sizeof(double));
-    memcpy(ev->v + 11, dqp, 5 * sizeof(double));
-    memcpy(ev->v + 16, imp, 2 * sizeof(double));
-    ev->v[18] = loss;
-    ev->v[19] = lost;
-    ev->v[20] = L->pin[0];
-    ev->v[21] = L->pin[1];
+    double *v = new_record(L->S, RECORD_TOUCHDOWN, old, nw);
+    v[REC_TD_T] = t_ev;
+    memcpy(v + REC_TD_Q, q, 5 * sizeof(double));
+    memcpy(v + REC_TD_DQ_MINUS, dqm, 5 * sizeof(double));
+    memcpy(v + REC_TD_DQ_PLUS, dqp, 5 * sizeof(double));
+    memcpy(v + REC_TD_IMPULSE, imp, 2 * sizeof(double));
+    v[REC_TD_LOSS] = loss;
+    v[REC_TD_LOST] = lost;
+    memcpy(v + REC_TD_PIN, L->pin, 2 * sizeof(double));
     L->stance_leg = nw;
     for (int leg = 1; leg <= 2; leg++)
         if (ev_disarmed_by_reset(leg, 0, old, nw)) L->armed[leg - 1] = 0;
@@ -427,7 +424,7 @@ cache_step_end(Loop *L, double t, double *feet8, const double *F)
 
 /* The body of HybridSimulator._integrate for the step just taken, when nothing happens in it but a
  * scuff (its start, its end): 1 and the step accepted (sample written to row, state projected), 2 the
- * same and a scuff ended in it (kept in L->events, its Event the Python code's to make), or 0 (pending:
+ * same and a scuff ended in it (its record in the state's records, its Event the Python code's to make), or 0 (pending:
  * nothing changed but the cache of the step's start). */
 static int
 quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost, double *drift_out,
@@ -537,14 +534,11 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     L->scuffs = scuffs;
     L->scuffing[sw - 1] = scuffing && !ended;
     if (ended) {     /* EventLocator._scuff_event's data */
-        EventRecord *ev = L->events + (int)L->n_records++;
-        ev->kind = RECORD_SCUFF_ENDED;
-        ev->a = sw;
-        ev->b = st;
-        memcpy(ev->v, scuff, sizeof scuff);
-        ev->v[3] = L->t;
-        for (int j = 0; j < 10; j++)
-            ev->v[4 + j] = ev_within_step(L->t_old, L->t, scuff[2]) ? rk_dense_at(L->S, j, scuff[2]) : NAN;
+        double *v = new_record(L->S, RECORD_SCUFF_ENDED, sw, st);
+        memcpy(v + REC_SCUFF_SCUFF, scuff, sizeof scuff);
+        v[REC_SCUFF_T_UP] = L->t;
+        for (int j = 0; j < 10; j++)     /* q, then dq */
+            v[REC_SCUFF_Q + j] = ev_within_step(L->t_old, L->t, scuff[2]) ? rk_dense_at(L->S, j, scuff[2]) : NAN;
     }
     cache_step_end(L, L->t, ft1, F1);
     for (int leg = 1; leg <= 2; leg++)
@@ -618,31 +612,6 @@ Loop_set_model(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* take_events() -> the touchdowns and ended scuffs since the last call, in order, as tuples:
- * (TOUCHDOWN, t, old leg, new leg, q, dq-, dq+, impulse, energy loss, energy lost so far, pin) or
- * (SCUFF_ENDED, foot, stance leg, [t_start, deepest, t_deepest], t_up, q, dq) */
-static PyObject *
-Loop_take_events(Loop *L, PyObject *unused)
-{
-    (void)unused;
-    int n = (int)L->n_records;
-    PyObject *out = PyList_New(n);
-    for (int i = 0; out != NULL && i < n; i++) {
-        const EventRecord *ev = L->events + i;
-        const double *v = ev->v;
-        PyObject *item = ev->kind == RECORD_TOUCHDOWN
-            ? Py_BuildValue("(idiiNNNNdd(dd))", RECORD_TOUCHDOWN, v[0], ev->a, ev->b, list_of(v + 1, 5), list_of(v + 6, 5),
-                            list_of(v + 11, 5), list_of(v + 16, 2), v[18], v[19], v[20], v[21])
-            : Py_BuildValue("(iii[ddd]dNN)", RECORD_SCUFF_ENDED, ev->a, ev->b, v[0], v[1], v[2], v[3], list_of(v + 4, 5),
-                            list_of(v + 9, 5));
-        if (item == NULL) Py_CLEAR(out);
-        else PyList_SET_ITEM(out, i, item);
-    }
-    L->n_records = 0;
-    return out;
-}
-
-
 /* rhs(t, y) -> dy, for the initial step size */
 static PyObject *
 Loop_rhs(Loop *L, PyObject *args)
@@ -682,12 +651,12 @@ typedef struct {
 
 /* The quiet steps to t_end (the loop of HybridSimulator._integrate), writing samples as Samples.append
  * does: OUTCOME_DONE, OUTCOME_EVENT, OUTCOME_NEED_ROOM (no room for a step's samples or its event: the Python code makes room and calls
- * again) or OUTCOME_FAILED. Touchdowns and ended scuffs are applied and kept in L->events, and the steps go on. */
+ * again) or OUTCOME_FAILED. Touchdowns and ended scuffs are applied and recorded in the state's records, and the steps go on. */
 static int
 quiet_until(Loop *L, double t_end, RunState *rs)
 {
     while (L->t < t_end) {
-        if ((!rs->last_only && rs->n + 2 > rs->cap) || (int)L->n_records == EVENT_ROOM) return OUTCOME_NEED_ROOM;
+        if ((!rs->last_only && rs->n + 2 > rs->cap) || (int)L->n_records == LS_EVENT_ROOM) return OUTCOME_NEED_ROOM;
         if (rk_step(L->S, rhs, L) < 0) return OUTCOME_FAILED;
         double drift = 0.0, rate = 0.0, residual, row[2 * ROW_WIDTH];
         int accepted_how = quiet_step(L, row, rs->E0, rs->push_work, rs->energy_lost, &drift, &rate, &residual);
@@ -702,7 +671,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
             rs->n = at + 1;
             rs->appended += 2;
             rs->provisional = 0;
-            rs->energy_lost = L->events[(int)L->n_records - 1].v[19];
+            rs->energy_lost = L->records[(int)L->n_records - 1][REC_V + REC_TD_LOST];
         } else {
             if (accepted_how == 2) {
                 /* the scuff's Event comes before this step's sample (HybridSimulator._push_event: keep_last) */
@@ -987,18 +956,6 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     return r;
 }
 
-/* stats() -> (steps, max drift, max drift rate, max |residual|, wall time of period() calls) since the last
- * call; then zero */
-static PyObject *
-Loop_stats(Loop *L, PyObject *unused)
-{
-    (void)unused;
-    PyObject *r = Py_BuildValue("(ldddd)", L->steps, L->max_drift, L->max_rate, L->max_residual, L->wall_time);
-    L->steps = 0;
-    L->max_drift = L->max_rate = L->max_residual = L->wall_time = 0.0;
-    return r;
-}
-
 /* locate_crossing(leg, ta, tb) -> the time foot leg's height crosses zero on the last step's dense output
  * (guards.locate_crossing, by the same brentq), or None where brentq would raise */
 static PyObject *
@@ -1075,14 +1032,6 @@ Loop_dense_at(Loop *L, PyObject *arg)
     return list_of(v, N);
 }
 
-/* handed() -> (end u (2), end F (2), why) of the step handed back */
-static PyObject *
-Loop_handed(Loop *L, PyObject *unused)
-{
-    (void)unused;
-    return Py_BuildValue("(NNi)", list_of(L->end_u, 2), list_of(L->end_F, 2), L->why);
-}
-
 /* law_torque(law) -> [u1, u2]: a compiled law's (address, parameters, name) torque at the loop's current
  * state and stance leg (the command of a control period); the law is not kept (a held period follows) */
 static PyObject *
@@ -1134,13 +1083,10 @@ static PyMethodDef Loop_methods[] = {
     {"held", (PyCFunction)(void (*)(void))Loop_held, METH_FASTCALL, NULL},
     {"periods", (PyCFunction)(void (*)(void))Loop_periods, METH_FASTCALL, NULL},
     {"period", (PyCFunction)(void (*)(void))Loop_period, METH_FASTCALL, NULL},
-    {"stats", (PyCFunction)Loop_stats, METH_NOARGS, NULL},
-    {"take_events", (PyCFunction)Loop_take_events, METH_NOARGS, NULL},
     {"raise_error", (PyCFunction)Loop_raise_error, METH_NOARGS, NULL},
     {"locate_crossing", (PyCFunction)Loop_locate_crossing, METH_VARARGS, NULL},
     {"dense", (PyCFunction)Loop_dense, METH_NOARGS, NULL},
     {"dense_at", (PyCFunction)Loop_dense_at, METH_O, NULL},
-    {"handed", (PyCFunction)Loop_handed, METH_NOARGS, NULL},
     {"law_torque", (PyCFunction)Loop_law_torque, METH_O, NULL},
     {NULL, NULL, 0, NULL},
 };

@@ -4,9 +4,10 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 1190
+#define LOOP_STATE_SIZE 2000
 #define LS_NMAX 11
 #define LS_MAX_DEPTH 30
+#define LS_EVENT_ROOM 32
 #define LS_METHOD 0
 #define LS_N_Y 1
 #define LS_RTOL 2
@@ -46,81 +47,90 @@
 #define LS_T_NEXT 132
 #define LS_REFUSED_U 133
 #define LS_N_RECORDS 135
-#define LS_T 136
-#define LS_T_BOUND 137
-#define LS_H_ABS 138
-#define LS_T_OLD 139
-#define LS_H 140
-#define LS_Y 141
-#define LS_F 152
-#define LS_Y_OLD 163
-#define LS_STAGES 174
-#define LS_NFEV 317
-#define LS_NREJECTED 318
-#define LS_NACCEPTED 319
-#define LS_DENSE_READY 320
-#define LS_DENSE 321
-#define LS_FAIL_KIND 409
-#define LS_FAIL_VALUE 410
-#define LS_FAIL_T 411
-#define LS_CALLBACK_FAILED 412
-#define LS_GUARD_LEG 413
-#define LS_SCUFF_TRIAL 414
-#define LS_DEEPEST_TRIAL 417
-#define LS_FEET 418
-#define LS_E0 426
-#define LS_PUSH_WORK 427
-#define LS_ENERGY_LOST 428
-#define LS_SIM_T 429
-#define LS_SIM_WORK 430
-#define LS_SIM_H 431
-#define LS_SIM_U 432
-#define LS_SIM_Q 434
-#define LS_SIM_DQ 439
-#define LS_SIM_STATE_UNMADE 444
-#define LS_MODE_BEGUN 445
-#define LS_CONTROL_PERIODS 446
-#define LS_RUNNING 447
-#define LS_INITIAL_SAMPLE_PENDING 448
-#define LS_N_SAMPLES 449
-#define LS_APPENDED 450
-#define LS_PROVISIONAL 451
-#define LS_EVERY 452
-#define LS_LAST_ONLY 453
-#define LS_LAST_IMPACT 454
-#define LS_N_IMPACTS 455
-#define LS_RECENT_IMPACTS 456
-#define LS_N_RECENT 460
-#define LS_MODE_EVENTS 461
-#define LS_RING 462
-#define LS_N_LATCHED 511
-#define LS_ARMED 512
-#define LS_SCUFFING 514
-#define LS_SCUFF 516
-#define LS_DEEPEST_SCUFF 522
-#define LS_SCUFFS 523
-#define LS_FEET_END_T 524
-#define LS_FEET_END 525
-#define LS_FORCE_END_T 533
-#define LS_FORCE_END 534
-#define LS_OUT 536
-#define LS_RESULT 702
-#define LS_COEF 704
-#define LS_QS 728
-#define LS_PS 733
-#define LS_STACK 737
-#define LS_K_IMPACT 1057
-#define LS_K_ENERGY 1089
-#define LS_K_FEET 1121
-#define LS_Q_IMPACT 1153
-#define LS_DQ_MINUS 1158
-#define LS_DQ_PLUS 1163
-#define LS_IMPULSE 1168
-#define LS_TV 1170
-#define LS_ENERGY_BEFORE 1172
-#define LS_ENERGY_AFTER 1173
-#define LS_KINEMATICS 1174
-#define LS_FEET_AFTER 1182
+#define LS_WHY 136
+#define LS_END_U 137
+#define LS_END_F 139
+#define LS_STEPS 141
+#define LS_MAX_DRIFT 142
+#define LS_MAX_RATE 143
+#define LS_MAX_RESIDUAL 144
+#define LS_WALL_TIME 145
+#define LS_T 146
+#define LS_T_BOUND 147
+#define LS_H_ABS 148
+#define LS_T_OLD 149
+#define LS_H 150
+#define LS_Y 151
+#define LS_F 162
+#define LS_Y_OLD 173
+#define LS_STAGES 184
+#define LS_NFEV 327
+#define LS_NREJECTED 328
+#define LS_NACCEPTED 329
+#define LS_DENSE_READY 330
+#define LS_DENSE 331
+#define LS_FAIL_KIND 419
+#define LS_FAIL_VALUE 420
+#define LS_FAIL_T 421
+#define LS_CALLBACK_FAILED 422
+#define LS_GUARD_LEG 423
+#define LS_SCUFF_TRIAL 424
+#define LS_DEEPEST_TRIAL 427
+#define LS_FEET 428
+#define LS_E0 436
+#define LS_PUSH_WORK 437
+#define LS_ENERGY_LOST 438
+#define LS_SIM_T 439
+#define LS_SIM_WORK 440
+#define LS_SIM_H 441
+#define LS_SIM_U 442
+#define LS_SIM_Q 444
+#define LS_SIM_DQ 449
+#define LS_SIM_STATE_UNMADE 454
+#define LS_MODE_BEGUN 455
+#define LS_CONTROL_PERIODS 456
+#define LS_RUNNING 457
+#define LS_INITIAL_SAMPLE_PENDING 458
+#define LS_N_SAMPLES 459
+#define LS_APPENDED 460
+#define LS_PROVISIONAL 461
+#define LS_EVERY 462
+#define LS_LAST_ONLY 463
+#define LS_LAST_IMPACT 464
+#define LS_N_IMPACTS 465
+#define LS_RECENT_IMPACTS 466
+#define LS_N_RECENT 470
+#define LS_MODE_EVENTS 471
+#define LS_RING 472
+#define LS_N_LATCHED 521
+#define LS_ARMED 522
+#define LS_SCUFFING 524
+#define LS_SCUFF 526
+#define LS_DEEPEST_SCUFF 532
+#define LS_SCUFFS 533
+#define LS_FEET_END_T 534
+#define LS_FEET_END 535
+#define LS_FORCE_END_T 543
+#define LS_FORCE_END 544
+#define LS_OUT 546
+#define LS_RESULT 712
+#define LS_COEF 714
+#define LS_QS 738
+#define LS_PS 743
+#define LS_STACK 747
+#define LS_K_IMPACT 1067
+#define LS_K_ENERGY 1099
+#define LS_K_FEET 1131
+#define LS_Q_IMPACT 1163
+#define LS_DQ_MINUS 1168
+#define LS_DQ_PLUS 1173
+#define LS_IMPULSE 1178
+#define LS_TV 1180
+#define LS_ENERGY_BEFORE 1182
+#define LS_ENERGY_AFTER 1183
+#define LS_KINEMATICS 1184
+#define LS_FEET_AFTER 1192
+#define LS_RECORDS 1200
 #define IMPACT_OLD_FOOT_SINKS 1
 #define IMPACT_PULLS 2
 #define IMPACT_OUTSIDE_CONE 4
@@ -135,6 +145,23 @@
 #define ROW_U 14
 #define ROW_RESIDUAL 16
 #define ROW_WIDTH 17
+#define REC_KIND 0
+#define REC_A 1
+#define REC_B 2
+#define REC_V 3
+#define REC_WIDTH 25
+#define REC_TD_T 0
+#define REC_TD_Q 1
+#define REC_TD_DQ_MINUS 6
+#define REC_TD_DQ_PLUS 11
+#define REC_TD_IMPULSE 16
+#define REC_TD_LOSS 18
+#define REC_TD_LOST 19
+#define REC_TD_PIN 20
+#define REC_SCUFF_SCUFF 0
+#define REC_SCUFF_T_UP 3
+#define REC_SCUFF_Q 4
+#define REC_SCUFF_DQ 9
 
 /* Outcome, Record and Reason (loop_state.py) */
 #define OUTCOME_DONE 0
@@ -210,12 +237,20 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double impulse_tol;  /* how far an impact's impulse may pull (N s) */ \
     double contact_tol;  /* an old stance foot slower than this after an impact stays down (m/s) */ \
     double max_events;  /* the run stops after this many mode events */ \
-    double stance_leg;  /* the stance foot: 1 or 2 */ \
-    double pin[2];  /* where the stance foot is pinned (m) */ \
+    double stance_leg;  /* the stance foot: 1 or 2, 0 in flight (the simulator's stance_leg) */ \
+    double pin[2];  /* where the stance foot is pinned (m; the simulator's pin, not read in flight) */ \
     double u_hold[2];  /* the torque held while the torque law is held (N m) */ \
     double t_next;  /* period(), periods(): the end of the control period under way (s) */ \
     double refused_u[2];  /* periods() ending TORQUE_CHANGE: the command refused at its period's start (N m) */ \
-    double n_records;  /* the touchdowns and ended scuffs applied in C whose Events the Python code takes (Loop.take_events) */ \
+    double n_records;  /* the touchdowns and ended scuffs applied in C whose Events the Python code makes (records, in order) */ \
+    double why;  /* why the compiled loop handed the last step back (Reason) */ \
+    double end_u[2];  /* the step handed back: the torque of its end (N m) */ \
+    double end_F[2];  /* the step handed back: the stance force of its end (N) */ \
+    double steps;  /* the quiet steps accepted in C */ \
+    double max_drift;  /* the largest drift of the stance foot from the pin (m) */ \
+    double max_rate;  /* the largest rate of that drift (m/s) */ \
+    double max_residual;  /* the largest |energy balance residual| (J) */ \
+    double wall_time;  /* the wall time of the control periods run whole in C (Loop.period, s) */ \
     double t;  /* time (s) at the end of the last step */ \
     double t_bound;  /* the end of the interval the stepper runs to (s) */ \
     double h_abs;  /* the step size the next step tries (s) */ \
@@ -290,6 +325,7 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double energy_before;  /* T + V before the impact (J) */ \
     double energy_after;  /* T + V after the impact (J) */ \
     double kinematics[8];  /* foot_kinematics after the impact: p_1, p_2, dp_1/dt, dp_2/dt */ \
-    double feet_after[2][4];  /* the feet after the impact: x, height across the ground, their rates, a row a foot */
+    double feet_after[2][4];  /* the feet after the impact: x, height across the ground, their rates, a row a foot */ \
+    double records[32][25];  /* the touchdowns and ended scuffs applied in C, a row a record (RECORD_ROW), the first n_records in use */
 
 #endif

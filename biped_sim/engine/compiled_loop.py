@@ -20,7 +20,12 @@ from biped_sim.engine import integrators, loop_rules as rules
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.loop_state import (
     DENSE,
+    END_F,
+    END_U,
     H_ABS,
+    MAX_DRIFT,
+    MAX_RATE,
+    MAX_RESIDUAL,
     MAX_STEP,
     METHODS,
     MODE_BEGUN,
@@ -29,11 +34,22 @@ from biped_sim.engine.loop_state import (
     NFEV,
     NMAX,
     NREJECTED,
+    REC_A,
+    REC_B,
+    REC_KIND,
+    REC_V,
+    REC_WIDTH,
+    RECORD_OFFSETS,
+    RECORD_VALUES,
+    RECORDS,
     REFUSED_U,
+    STEPS,
     T_NEXT,
+    WALL_TIME,
     Y_OLD,
     F,
     Outcome,
+    Record,
     Y,
     new_state,
     put,
@@ -96,6 +112,40 @@ def run_state(model):
     return memoryview(loop).cast("d"), loop
 
 
+def take_records(S):
+    """The touchdowns and ended scuffs the compiled loop applied, in order, from the state's records (RECORD_ROW,
+    RECORD_VALUES), as tuples: (TOUCHDOWN, t, old leg, new leg, q, dq-, dq+, impulse, energy loss, energy lost so
+    far, pin) or (SCUFF_ENDED, foot, stance leg, [t_start, deepest, t_deepest], t_up, q, dq); then none are left."""
+    out = []
+    for i in range(int(S[N_RECORDS])):
+        r = RECORDS + REC_WIDTH * i
+        kind, a, b = int(S[r + REC_KIND]), int(S[r + REC_A]), int(S[r + REC_B])
+        values = [S[r + REC_V + at:r + REC_V + at + size].tolist()
+                  for at, size in _VALUE_SLICES["TD" if kind == Record.TOUCHDOWN else "SCUFF"]]
+        if kind == Record.TOUCHDOWN:
+            (t,), q, dq_minus, dq_plus, impulse, (loss,), (lost,), pin = values
+            out.append((kind, t, a, b, q, dq_minus, dq_plus, impulse, loss, lost, tuple(pin)))
+        else:
+            scuff, (t_up,), q, dq = values
+            out.append((kind, a, b, scuff, t_up, q, dq))
+    S[N_RECORDS] = 0.0
+    return out
+
+
+def take_stats(S):
+    """(steps, max drift, max drift rate, max |residual|, wall time of the periods run whole in C) of the compiled
+    loop since the last call, from the state; then zero."""
+    stats = int(S[STEPS]), S[MAX_DRIFT], S[MAX_RATE], S[MAX_RESIDUAL], S[WALL_TIME]
+    for at in (STEPS, MAX_DRIFT, MAX_RATE, MAX_RESIDUAL, WALL_TIME):
+        S[at] = 0.0
+    return stats
+
+
+#: where a record's values lie from REC_V (loop_state.RECORD_VALUES): (offset, size) each
+_VALUE_SLICES = {kind: [(RECORD_OFFSETS[f"REC_{kind}_{name.upper()}"], size) for name, size in values]
+                 for kind, values in RECORD_VALUES.items()}
+
+
 class CompiledStepper(integrators._OnState):
     """The stepper of a mode the compiled loop runs (the interface of ``integrators._ListRungeKutta``): its
     fields (``t``, ``y``, ``t_old``, ``y_old``, ``f``, ``h``, ``h_abs``, ``t_bound``, the counters) are views of
@@ -132,7 +182,7 @@ class CompiledStepper(integrators._OnState):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
         torque law, f at the start, the carried-over step size (or the initial one)."""
         sim, S = self.sim, self.S
-        write(S, method=METHODS[self.method], stance_leg=sim.stance_leg, pin=sim.pin, u_hold=sim._u, t=sim.t,
+        write(S, method=METHODS[self.method], u_hold=sim._u, t=sim.t,     # (the stance leg and pin: the state's)
               y=sim.q.tolist() + sim.dq.tolist() + [sim.work], t_bound=t_bound)
         if sim._h is not None:     # (the carried-over step size, as _ListRungeKutta.restart caps it)
             S[H_ABS] = rules.rk_carried_step(sim._h, S[MAX_STEP])
@@ -218,7 +268,7 @@ class CompiledStepper(integrators._OnState):
         handling."""
         sim = self.sim
         if self.S[N_RECORDS]:
-            sim._loop_records(self.loop.take_events())
+            sim._loop_records(take_records(self.S))
         if self._raise_failure(outcome) == Outcome.EVENT:     # (its start's feet and force: the state's)
             self._handed(outcome)
         return outcome
@@ -236,7 +286,8 @@ class CompiledStepper(integrators._OnState):
         """A step taken in C and handed to the Python code: its dense output made anew when asked, the torque
         and force of its end the simulator's last evaluation's."""
         self._dense = None
-        self.sim._last_u, self.sim._last_F, _ = self.loop.handed()
+        S = self.S
+        self.sim._last_u, self.sim._last_F = S[END_U:END_U + 2].tolist(), S[END_F:END_F + 2].tolist()
 
     def replace_y(self, y):
         self.y = y

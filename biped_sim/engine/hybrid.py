@@ -42,6 +42,7 @@ from biped_sim.engine.loop_state import (
     MODE_BEGUN,
     MODE_EVENTS,
     N_RECORDS,
+    PIN,
     PUSH_WORK,
     RUNNING,
     SIM_DQ,
@@ -52,6 +53,7 @@ from biped_sim.engine.loop_state import (
     SIM_U,
     SIM_WORK,
     STANCE_HOLDS,
+    STANCE_LEG,
     STANCE_LIFTS_OFF,
     T_NEXT,
     Outcome,
@@ -248,6 +250,30 @@ class HybridSimulator:
         S = self.S
         S[SIM_T] = value
         S[MODE_BEGUN] = 0.0
+
+    @property
+    def stance_leg(self):
+        """The stance foot: 1 or 2, 0 in flight."""
+        return int(self.S[STANCE_LEG])
+
+    @stance_leg.setter
+    def stance_leg(self, leg):
+        self.S[STANCE_LEG] = float(leg)
+
+    @property
+    def pin(self):
+        """Where the stance foot is pinned, [x, y] (m); None in flight."""
+        S = self.S
+        if not S[STANCE_LEG]:
+            return None
+        pin = S[PIN:PIN + 2]
+        return pin if type(pin) is list else pin.tolist()
+
+    @pin.setter
+    def pin(self, value):
+        if value is not None:       # (in flight the state's pin is not read)
+            S = self.S
+            S[PIN], S[PIN + 1] = value
 
     @property
     def work(self):
@@ -572,8 +598,9 @@ class HybridSimulator:
             # torque and stance force (the fixed-base right-hand side computes no force)
             at_end = st.last_eval_at_end
             u_end = list(self._last_u) if at_end else None
-            fsal = self.stance_leg and at_end and self.opt.base == "floating"
-            event, F_end = self.locator.locate(st, self._to_phys, self.stance_leg, q, dq, feet, self._force_at,
+            leg = self.stance_leg       # (the state's: read once, a quiet step does not change it)
+            fsal = leg and at_end and self.opt.base == "floating"
+            event, F_end = self.locator.locate(st, self._to_phys, leg, q, dq, feet, self._force_at,
                                                list(self._last_F) if fsal else None)
             while self.locator.scuff_events:
                 self._push_event(self.locator.scuff_events.pop(0))
@@ -581,9 +608,9 @@ class HybridSimulator:
                 q, dq = self._project(q, dq, feet)
                 self._accept(st.t, q, dq, w, F_end, u_end)
                 if self.opt.check_invariants:
-                    check_sample(self.t, q, dq, feet, self.stance_leg, self._samples.last_force(), self.ground, self.mu,
+                    check_sample(self.t, q, dq, feet, leg, self._samples.last_force(), self.ground, self.mu,
                                  self.opt, self.locator.scuffing_legs(), self.last_impact)
-                if self.opt.project_constraints and self.stance_leg and self.opt.base == "floating":
+                if self.opt.project_constraints and leg and self.opt.base == "floating":
                     st.replace_y(q + dq + [w])  # continue from the projected state
                 continue
             t_ev, fired, legs = event
@@ -602,9 +629,10 @@ class HybridSimulator:
 
     def _project(self, q, dq, feet):
         """Measure the stance constraint drift and (by default) remove it; ``feet`` at (q, dq)."""
-        if not self.stance_leg or self.opt.base == "fixed":
+        leg = self.stance_leg
+        if not leg or self.opt.base == "fixed":
             return q, dq
-        q, dq, drift, rate = project_onto_pin(q, dq, feet[self.stance_leg - 1], self.pin, self.ground.tan,
+        q, dq, drift, rate = project_onto_pin(q, dq, feet[leg - 1], self.pin, self.ground.tan,
                                               self.opt.project_constraints)
         s = self._stats
         s["max_constraint_drift_position"] = rules.ev_running_max(s["max_constraint_drift_position"], drift)
@@ -721,12 +749,12 @@ class HybridSimulator:
             self._samples.set_last_in_flight()   # in flight from this very instant: so is the sample just taken
 
     def _loop_records(self, records):
-        """The Events of what the compiled loop applied (``Loop.take_events``' records, in order): its touchdowns
+        """The Events of what the compiled loop applied (``compiled_loop.take_records``, in order): its touchdowns
         (the energy lost and the impact history are the state's already) and the scuffs that ended."""
         for record in records:
             if record[0] == Record.TOUCHDOWN:
-                _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, _, pin = record
-                self.stance_leg, self.pin = new, list(pin)
+                _, t_ev, old, new, q, dq_minus, dq_plus, impulse, loss, _, _ = record   # (the new stance leg and pin
+                # are the state's already)
                 self._stats["impacts"] += 1
                 self._add_event(Event(t_ev, "touchdown", new, np.array(q), np.array(dq_minus), np.array(dq_plus),
                                       np.array(impulse), old, new, loss, []), applied_in_loop=True)
@@ -786,7 +814,7 @@ class HybridSimulator:
         """The run's statistics so far (the compiled loop's and the stepper's counters brought in when read)."""
         s = self._stats
         if self._compiled is not None:     # the compiled loop's since the last read
-            steps, drift, rate, residual, wall_time = self._compiled.loop.stats()
+            steps, drift, rate, residual, wall_time = compiled_loop.take_stats(self.S)
             s["steps"] += steps
             s["compiled_loop_steps"] += steps
             s["wall_time"] += wall_time     # (of the periods run whole in C: Loop.period)

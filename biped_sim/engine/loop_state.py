@@ -31,6 +31,37 @@ MAX_STAGES = 13     # dop853's stages k0..k12 (dopri5 uses k0..k6)
 DENSE_WIDTH = 8     # coefficients a dense-output row: dop853's 8 (dopri5 uses 5)
 MAX_DEPTH = 30      # the dip search's halvings (grazing.MAX_DEPTH)
 METHODS = {"dop853": 0, "dopri5": 1}
+EVENT_ROOM = 32     # the event records a run may make before the Python code takes them (a step makes at most one)
+
+
+#: a record's values, in order, with their sizes: a touchdown's (a, b: the old and the new stance leg) and an ended
+#: scuff's (a, b: the foot and the stance leg; q and dq at t_deepest, NaN outside the step). _loop_state.h carries
+#: their offsets from REC_V as REC_TD_<NAME> and REC_SCUFF_<NAME>.
+RECORD_VALUES = {
+    "TD": (("t", 1), ("q", 5), ("dq_minus", 5), ("dq_plus", 5), ("impulse", 2), ("loss", 1), ("lost", 1),
+           ("pin", 2)),
+    "SCUFF": (("scuff", 3), ("t_up", 1), ("q", 5), ("dq", 5)),
+}
+
+
+#: an event record's row (the state's records, made by the compiled loop, read by compiled_loop.take_records): its kind
+#: (Record), the legs a and b, and from REC_V its values (RECORD_VALUES); its width holds the longer kind's values.
+#: _loop_state.h and .pxd carry them by these names.
+RECORD_ROW = {"REC_KIND": 0, "REC_A": 1, "REC_B": 2, "REC_V": 3,
+              "REC_WIDTH": 3 + max(sum(size for _, size in values) for values in RECORD_VALUES.values())}
+
+
+def _record_offsets():
+    out = {}
+    for kind, values in RECORD_VALUES.items():
+        at = 0
+        for name, size in values:
+            out[f"REC_{kind}_{name.upper()}"] = at
+            at += size
+    return out
+
+
+RECORD_OFFSETS = _record_offsets()
 
 
 class Field(NamedTuple):
@@ -77,15 +108,24 @@ FIELDS = (
     Field("impulse_tol", (), "how far an impact's impulse may pull (N s)"),
     Field("contact_tol", (), "an old stance foot slower than this after an impact stays down (m/s)"),
     Field("max_events", (), "the run stops after this many mode events"),
-    # -- the mode the compiled loop steps (CompiledStepper.start writes it, a touchdown changes it)
-    Field("stance_leg", (), "the stance foot: 1 or 2"),
-    Field("pin", (2,), "where the stance foot is pinned (m)"),
+    # -- the mode: the simulator's, which the compiled loop steps (a touchdown in either loop changes it)
+    Field("stance_leg", (), "the stance foot: 1 or 2, 0 in flight (the simulator's stance_leg)"),
+    Field("pin", (2,), "where the stance foot is pinned (m; the simulator's pin, not read in flight)"),
     Field("u_hold", (2,), "the torque held while the torque law is held (N m)"),
     # -- what an entry point of the compiled loop leaves besides its Outcome
     Field("t_next", (), "period(), periods(): the end of the control period under way (s)"),
     Field("refused_u", (2,), "periods() ending TORQUE_CHANGE: the command refused at its period's start (N m)"),
-    Field("n_records", (), "the touchdowns and ended scuffs applied in C whose Events the Python code takes "
-                           "(Loop.take_events)"),
+    Field("n_records", (), "the touchdowns and ended scuffs applied in C whose Events the Python code makes "
+                           "(records, in order)"),
+    Field("why", (), "why the compiled loop handed the last step back (Reason)"),
+    Field("end_u", (2,), "the step handed back: the torque of its end (N m)"),
+    Field("end_F", (2,), "the step handed back: the stance force of its end (N)"),
+    # -- the compiled loop's statistics since the Python code last took them (compiled_loop.take_stats)
+    Field("steps", (), "the quiet steps accepted in C"),
+    Field("max_drift", (), "the largest drift of the stance foot from the pin (m)"),
+    Field("max_rate", (), "the largest rate of that drift (m/s)"),
+    Field("max_residual", (), "the largest |energy balance residual| (J)"),
+    Field("wall_time", (), "the wall time of the control periods run whole in C (Loop.period, s)"),
     # -- the stepper (integrators._ListRungeKutta)
     Field("t", (), "time (s) at the end of the last step"),
     Field("t_bound", (), "the end of the interval the stepper runs to (s)"),
@@ -171,6 +211,9 @@ FIELDS = (
     Field("energy_after", (), "T + V after the impact (J)"),
     Field("kinematics", (8,), "foot_kinematics after the impact: p_1, p_2, dp_1/dt, dp_2/dt"),
     Field("feet_after", (2, 4), "the feet after the impact: x, height across the ground, their rates, a row a foot"),
+    # -- what the compiled loop applied, for the Python code to make Events of (compiled_loop.take_records)
+    Field("records", (EVENT_ROOM, RECORD_ROW["REC_WIDTH"]), "the touchdowns and ended scuffs applied in C, a row "
+                                                          "a record (RECORD_ROW), the first n_records in use"),
 )
 
 #: the codes the touchdown's rules return (loop_rules.py): the bits of an impact's checks (ev_impact,
@@ -194,7 +237,8 @@ SAMPLE_ROW = {"ROW_T": 0, "ROW_Q": 1, "ROW_DQ": 6, "ROW_LEG": 11, "ROW_F": 12, "
 class Outcome(IntEnum):
     """How an entry point of the compiled loop (``run``, ``held``, ``period``, ``periods``, ``step``) ended; what
     it leaves besides is in the state (the samples and their counters, the simulator's time and state,
-    t_next, refused_u, n_records, the failure's fail_kind, fail_value, fail_t)."""
+    t_next, refused_u, n_records and the records, the failure's fail_kind, fail_value, fail_t, a step handed back's
+    why, end_u and end_F, the statistics)."""
     DONE = 0            # at its end: the state is the last sample's
     EVENT = 1           # a step taken and not accepted: the Python code handles it (a step handed back)
     NEED_ROOM = 2       # the Samples' array or the event records are full: make room, call again
@@ -206,13 +250,14 @@ class Outcome(IntEnum):
 
 
 class Record(IntEnum):
-    """The kinds of Loop.take_events' records: what the loop applied, whose Events the Python code makes."""
+    """The kinds of the state's event records (RECORD_ROW): what the loop applied, whose Events the Python code
+    makes."""
     SCUFF_ENDED = 1
     TOUCHDOWN = 2
 
 
 class Reason(IntEnum):
-    """Why the compiled loop handed a step back to the Python code (``Loop.handed()``'s last value, ``L->why``)."""
+    """Why the compiled loop handed a step back to the Python code (the state's ``why``)."""
     DIVERGING = 1               # a rate beyond max_speed
     CROSSING_IN_PYTHON = 2      # a touchdown crossing brentq gives up on, or touchdown_rule "any"
     TOUCHDOWN_WHILE_SCUFFING = 3
@@ -253,6 +298,8 @@ SIZES = {field.name: _size(field.shape) for field in FIELDS}    # the values a f
 globals().update(OFFSETS)       # T, Y, STAGES, ...: the offsets the rules index S with when they run as Python
 globals().update(CODES)
 globals().update(SAMPLE_ROW)
+globals().update(RECORD_ROW)
+globals().update(RECORD_OFFSETS)
 
 
 def put(S, at, values):
@@ -292,10 +339,13 @@ def c_header() -> str:
              " * edit). LOOP_STATE_MEMBERS are the fields as doubles in the order of the offsets LS_*, so that a",
              " * union of double S[LOOP_STATE_SIZE] with a struct of these members reads the same memory both ways. */",
              "#ifndef BIPED_SIM_LOOP_STATE_H", "#define BIPED_SIM_LOOP_STATE_H", "",
-             f"#define LOOP_STATE_SIZE {SIZE}", f"#define LS_NMAX {NMAX}", f"#define LS_MAX_DEPTH {MAX_DEPTH}"]
+             f"#define LOOP_STATE_SIZE {SIZE}", f"#define LS_NMAX {NMAX}", f"#define LS_MAX_DEPTH {MAX_DEPTH}",
+             f"#define LS_EVENT_ROOM {EVENT_ROOM}"]
     lines += [f"#define LS_{name} {at}" for name, at in OFFSETS.items()]
     lines += [f"#define {name} {code}" for name, code in CODES.items()]
     lines += [f"#define {name} {at}" for name, at in SAMPLE_ROW.items()]
+    lines += [f"#define {name} {at}" for name, at in RECORD_ROW.items()]
+    lines += [f"#define {name} {at}" for name, at in RECORD_OFFSETS.items()]
     lines += ["", "/* Outcome, Record and Reason (loop_state.py) */"]
     for enum, prefix in ((Outcome, "OUTCOME"), (Record, "RECORD"), (Reason, "WHY")):
         lines += [f"#define {prefix}_{member.name} {member.value}" for member in enum]
@@ -319,9 +369,11 @@ def cython_pxd() -> str:
     lines = ["# The hybrid loop's state's offsets for the compiled rules (biped_sim/engine/loop_state.py, written by",
              "# tools/generate_loop.py: do not edit).",
              'cdef extern from "_loop_state.h":', "    enum:",
-             '        SIZE "LOOP_STATE_SIZE"', '        NMAX "LS_NMAX"', '        MAX_DEPTH "LS_MAX_DEPTH"']
+             '        SIZE "LOOP_STATE_SIZE"', '        NMAX "LS_NMAX"', '        MAX_DEPTH "LS_MAX_DEPTH"',
+             '        EVENT_ROOM "LS_EVENT_ROOM"']
     lines += [f'        {name} "LS_{name}"' for name in OFFSETS]
     lines += [f'        {name} "{name}"' for name in CODES]
     lines += [f'        {name} "{name}"' for name in SAMPLE_ROW]
+    lines += [f'        {name} "{name}"' for name in RECORD_ROW]
     lines.append("")
     return "\n".join(lines)

@@ -129,7 +129,7 @@ def test_the_loop_steps_in_c():
     for _ in range(200):
         sim.advance_period(1e-3, controller=ctrl)
     assert isinstance(sim._stepper, compiled_loop.CompiledStepper)
-    steps, *_ = sim._compiled.loop.stats()
+    steps, *_ = compiled_loop.take_stats(sim.S)
     assert steps >= 150
     # a control period's command of a reference law is computed in C, with the law's own torque
     u = sim._compiled.command(ctrl)
@@ -259,7 +259,7 @@ def test_a_python_controller_runs_inside_the_compiled_loop():
     sim = bs.HybridSimulator(MODEL, q0, dq0)
     sim.advance(0.3, controller=ctrl)
     assert isinstance(sim._stepper, compiled_loop.CompiledStepper)
-    assert sim._compiled.loop.stats()[0] > 10 and ctrl.calls > 100
+    assert compiled_loop.take_stats(sim.S)[0] > 10 and ctrl.calls > 100
 
 
 @settings(max_examples=30, deadline=None)
@@ -723,8 +723,8 @@ def test_every_method_of_the_loop_is_one_the_engine_calls():
     engine = Path(compiled_loop.__file__).parent
     source = "".join(path.read_text() for path in sorted(engine.glob("*.py")))
     methods = {name for name in dir(compiled_loop._core.Loop) if not name.startswith("_")}
-    assert methods == {"begin", "dense", "dense_at", "handed", "held", "law_torque", "locate_crossing", "period",
-                       "periods", "raise_error", "rhs", "run", "set_model", "stats", "step", "take_events"}
+    assert methods == {"begin", "dense", "dense_at", "held", "law_torque", "locate_crossing", "period", "periods",
+                       "raise_error", "rhs", "run", "set_model", "step"}
     assert [name for name in sorted(methods) if not re.search(rf"loop\.{name}\b", source)] == []
     assert {name for name in dir(compiled_loop._core) if not name.startswith("_")} == {
         "KERNELS_SHA256", "Loop", "set_python_checks"}
@@ -776,6 +776,73 @@ def test_the_impact_history_and_the_mode_events_are_the_states():
     assert_same_run(compiled, python, "the walk")
     if compiled_loop.AVAILABLE:
         assert not any(hasattr(compiled_loop._core.Loop, name) for name in ("set_history", "history_stale"))
+
+
+@pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=compiled_loop.WHY_NOT or "no compiled loop")
+def test_the_touchdowns_the_loop_applies_are_records_in_the_state():
+    """A touchdown the compiled loop applies is a row of the state's records (loop_state.RECORD_ROW), which the
+    Python code reads to make its Event: a touchdown's row holds its legs, time, q, dq- and dq+;
+    no records wait once a period is done, and the Loop keeps none of its own (no take_events)."""
+    ls = loop_state
+    sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+    ctrl = PDWalkingController(MODEL)
+    S, rows = sim.S, {}
+    while sim.t < 1.5 and sim.status == "running":
+        sim.advance_period(1e-3, sim.command(ctrl))
+        row = S[ls.RECORDS:ls.RECORDS + ls.REC_WIDTH].tolist()     # the first record of the period's run
+        rows[row[ls.REC_KIND], row[ls.REC_V]] = row
+    touchdowns = [e for e in sim.events if e.kind == "touchdown"]
+    applied = [e for e in touchdowns if (ls.Record.TOUCHDOWN, e.time) in rows]
+    assert len(touchdowns) >= 2 and applied == touchdowns
+    for e in applied:
+        row = rows[ls.Record.TOUCHDOWN, e.time]
+        v = row[ls.REC_V:]
+        assert (row[ls.REC_A], row[ls.REC_B]) == (e.stance_leg_before, e.stance_leg_after)
+        assert v[1:6] == e.q.tolist() and v[6:11] == e.dq_minus.tolist() and v[11:16] == e.dq_plus.tolist()
+    assert S[ls.N_RECORDS] == 0.0 and not hasattr(compiled_loop._core.Loop, "take_events")
+
+
+@pytest.mark.skipif(not compiled_loop.AVAILABLE, reason=compiled_loop.WHY_NOT or "no compiled loop")
+def test_the_loops_statistics_and_the_step_it_hands_back_are_the_states():
+    """Why the compiled loop handed a step back, that step's end torque and force, and the loop's statistics
+    (steps, the maxima, the wall time) are fields of the state, which the Python code reads (the Loop has no
+    stats() or handed()): a touchdown under a Python controller is handed back (CALLED_BACK_LAW), and the
+    simulator's statistics take the loop's steps once, zeroing the state's count."""
+    ls = loop_state
+    sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+    sim.advance(0.6, controller=UsersController())
+    S = sim.S
+    assert [e.kind for e in sim.events if e.kind == "touchdown"] and S[ls.WHY] == ls.Reason.CALLED_BACK_LAW
+    steps = S[ls.STEPS]
+    assert steps > 10 and S[ls.MAX_DRIFT] >= 0.0 and S[ls.MAX_RESIDUAL] > 0.0
+    assert sim.stats["compiled_loop_steps"] == steps and S[ls.STEPS] == 0.0 and S[ls.MAX_RESIDUAL] == 0.0
+    assert sim.stats["compiled_loop_steps"] == steps
+    assert not any(hasattr(compiled_loop._core.Loop, name) for name in ("stats", "handed"))
+
+
+def test_the_simulators_stance_leg_and_pin_are_the_states():
+    """The stance leg and the pin are one copy, the state's fields, on both loops: the simulator's stance_leg and
+    pin read and write them (no copy into the state when a mode begins, none back after the compiled loop's
+    touchdowns), across touchdowns and a push into flight (where the pin is None)."""
+    ls = loop_state
+
+    def run():
+        sim = bs.HybridSimulator(MODEL, *PDWalkingController(MODEL).initial_state())
+        ctrl = PDWalkingController(MODEL)
+        S, legs = sim.S, set()
+        while sim.t < 1.2 and sim.status == "running":
+            sim.advance_period(1e-3, sim.command(ctrl))
+            pin = [S[ls.PIN], S[ls.PIN + 1]]
+            assert (sim.stance_leg, sim.pin) == (S[ls.STANCE_LEG], pin)
+            legs.add(sim.stance_leg)
+        assert legs == {1, 2}
+        sim.stance_leg, sim.pin = 0, None
+        assert S[ls.STANCE_LEG] == 0.0 and sim.pin is None
+        return sim.result()
+
+    compiled, python = both_loops(run)
+    assert_same_run(compiled, python, "the walk")
+    assert all(isinstance(vars(hybrid.HybridSimulator)[name], property) for name in ("stance_leg", "pin"))
 
 
 def test_a_change_of_the_simulators_state_in_python_begins_the_loops_mode_again():
