@@ -31,7 +31,7 @@ from biped_sim.engine import compiled_loop, guards as G, loop_rules as rules
 from biped_sim.engine.compiled import IMPLEMENTATION as GENERATED_CODE, gen
 from biped_sim.engine.controller_check import check_controller
 from biped_sim.engine.dynamics import stance_fixed_fast, stance_floating_fast
-from biped_sim.engine.integrators import StepFailure, make_stepper, prepare as prepare_stepper
+from biped_sim.engine.integrators import StepFailure, _count, _entry, make_stepper, prepare as prepare_stepper
 from biped_sim.engine.invariants import ImpactHistory, check_impact, check_sample
 from biped_sim.engine.locator import EventLocator, scuff_event
 from biped_sim.engine.loop_state import (
@@ -251,14 +251,7 @@ class HybridSimulator:
         S[SIM_T] = value
         S[MODE_BEGUN] = 0.0
 
-    @property
-    def stance_leg(self):
-        """The stance foot: 1 or 2, 0 in flight."""
-        return int(self.S[STANCE_LEG])
-
-    @stance_leg.setter
-    def stance_leg(self, leg):
-        self.S[STANCE_LEG] = float(leg)
+    stance_leg = _count(STANCE_LEG, "The stance foot: 1 or 2, 0 in flight.")
 
     @property
     def pin(self):
@@ -275,50 +268,11 @@ class HybridSimulator:
             S = self.S
             S[PIN], S[PIN + 1] = value
 
-    @property
-    def work(self):
-        """The hip motors' work so far (J)."""
-        return self.S[SIM_WORK]
-
-    @work.setter
-    def work(self, value):
-        self.S[SIM_WORK] = value
-
-    @property
-    def E0(self):
-        """The energy at the run's start (J)."""
-        return self.S[E0]
-
-    @E0.setter
-    def E0(self, value):
-        self.S[E0] = value
-
-    @property
-    def push_work(self):
-        """The kinetic energy pushes added (J)."""
-        return self.S[PUSH_WORK]
-
-    @push_work.setter
-    def push_work(self, value):
-        self.S[PUSH_WORK] = value
-
-    @property
-    def energy_lost(self):
-        """The energy the impacts took out (J)."""
-        return self.S[ENERGY_LOST]
-
-    @energy_lost.setter
-    def energy_lost(self, value):
-        self.S[ENERGY_LOST] = value
-
-    @property
-    def control_periods(self):
-        """The control periods begun so far (``advance_period``)."""
-        return int(self.S[CONTROL_PERIODS])
-
-    @control_periods.setter
-    def control_periods(self, value):
-        self.S[CONTROL_PERIODS] = value
+    work = _entry(SIM_WORK, "The hip motors' work so far (J).")
+    E0 = _entry(E0, "The energy at the run's start (J).")
+    push_work = _entry(PUSH_WORK, "The kinetic energy pushes added (J).")
+    energy_lost = _entry(ENERGY_LOST, "The energy the impacts took out (J).")
+    control_periods = _count(CONTROL_PERIODS, "The control periods begun so far (``advance_period``).")
 
     @property
     def _initial_sample_pending(self):
