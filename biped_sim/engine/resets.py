@@ -139,9 +139,12 @@ def friction_cone_stop(ev, ground, mu, opt) -> str | None:
     for j, leg in enumerate(legs):
         n, tg = normal_tangent(ev.impulse[2 * j: 2 * j + 2], ground)
         if rules.ev_outside_cone(mu, n, tg, opt.impulse_tol):
-            ratio = f"|Lambda_t|/Lambda_n = {abs(tg) / n:.6g}" if n > 0 else f"Lambda_n = {n:.6g} N s"
-            return (f"{what}: the ground's impulse on foot {leg} is outside the friction cone ({ratio} > "
-                    f"mu = {mu:g}: |Lambda_t| = {abs(tg):.6g} N s > mu Lambda_n = {mu * n:.6g} N s); the model "
+            if n > 0:
+                why = (f"|Lambda_t|/Lambda_n = {abs(tg) / n:.6g} > mu = {mu:g}: |Lambda_t| = {abs(tg):.6g} N s > "
+                       f"mu Lambda_n = {mu * n:.6g} N s")
+            else:       # (no ratio to give: the cone's apex is behind it)
+                why = f"its normal part pulls: Lambda_n = {n:.6g} N s, |Lambda_t| = {abs(tg):.6g} N s, mu = {mu:g}"
+            return (f"{what}: the ground's impulse on foot {leg} is outside the friction cone ({why}); the model "
                     f"has no sliding phase (raise mu, or set stop_on_slip=False to {keep} with a warning)")
     return None
 
