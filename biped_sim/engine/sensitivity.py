@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from biped_sim.engine import variational
+from biped_sim.engine import loop_rules as rules, variational
 from biped_sim.engine._gen import derivatives as dgen
 from biped_sim.engine.compiled import gen
 from biped_sim.engine.dynamics import stance_floating_fast
@@ -298,12 +298,13 @@ class Linearization:
         p = gen.foot_positions(list(map(float, q)), m.k["foot_positions"])
         J = np.array((gen.foot_jacobian_1 if leg == 1 else gen.foot_jacobian_2)(
             list(map(float, q)), m.k[f"foot_jacobian_{leg}"])).reshape(2, 5)
-        g = p[2 * leg - 1] + self.tan * p[2 * leg - 2]
-        gx = np.concatenate([J[1] + self.tan * J[0], np.zeros(5)])
+        # (the witness's value and its derivatives: the one rule of a height across the ground, on rows too)
+        g = rules.ev_across(self.tan, p[2 * leg - 2], p[2 * leg - 1])
+        gx = np.concatenate([rules.ev_across(self.tan, J[0], J[1]), np.zeros(5)])
         gp = None
         if parameters:
             feet = self._parameters(list(map(float, q)), [0.0] * 5)[6]
-            gp = feet[2 * leg - 1] + self.tan * feet[2 * leg - 2]
+            gp = rules.ev_across(self.tan, feet[2 * leg - 2], feet[2 * leg - 1])
         return g, gx, gp
 
     def normal_force(self, force):
