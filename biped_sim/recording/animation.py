@@ -3,7 +3,7 @@
 Owns the frames (drawn with Pillow's ImageDraw, much faster than the same figure in matplotlib: the
 figures in docs/cli.md) and the files (GIF through Pillow, MP4 through imageio-ffmpeg
 when it is installed). A run comes from a bag (:func:`track_from_bag`) or from a headless
-``simulate`` (:func:`track_from_result`); the points are :mod:`biped_sim.recording.drawing`'s (any chain)
+``simulate`` (:func:`track_from_result`); the points are :mod:`biped_sim.engine.drawing`'s (any chain)
 and the arrow scale, colours and impact flash those of the markers (:mod:`biped_sim.recording.markers`).
 """
 from __future__ import annotations
@@ -36,7 +36,7 @@ class Track:
 
 def track_from_result(result, model, slope=0.0) -> Track:
     """The Track of a ``SimulationResult`` (``simulate`` or ``Scene.simulate``)."""
-    from biped_sim.recording.drawing import RobotDrawing
+    from biped_sim.engine.drawing import RobotDrawing
     foot = RobotDrawing(model).foot
     impacts = [(e.time, tuple(foot(e.q, e.leg))) for e in result.impacts]
     return Track(result.t, result.q, result.stance_leg, result.grf, impacts, model, slope)
@@ -102,7 +102,7 @@ class FrameDrawer:
     def __init__(self, track: Track, width=WIDTH, height=HEIGHT, scale=PIXELS_PER_METRE):
         from PIL import ImageFont
 
-        from biped_sim.recording.drawing import RobotDrawing
+        from biped_sim.engine.drawing import RobotDrawing
         self.track, self.w, self.h, self.s = track, width, height, scale
         self.drawing = RobotDrawing(track.model)     # any chain: its description's links (drawing.py)
         colours = [_PALETTE["background"], _PALETTE["ground"], _PALETTE["tick"], _PALETTE["text"]] + [

@@ -2,7 +2,7 @@
 
 Owns the marker message (built here, so that the node, ``simulate --record`` and a bag tool make the
 same one) and what the animation shares with it: the arrow scale of the ground force, the colours,
-the impact flash. The points come from :mod:`biped_sim.recording.drawing` (a three-link ``BipedModel``'s
+the impact flash. The points come from :mod:`biped_sim.engine.drawing` (a three-link ``BipedModel``'s
 ``stick_figure``; any other chain from its description's links), so that a five-link robot with knees
 draws each leg as a polyline hip - knee - foot.
 
@@ -104,7 +104,7 @@ def _lines_marker(header, mid, colour, width, lines):
 def marker_array(t, figure, stance_leg, force, slope=0.0, flash_at=None):
     """The MarkerArray of one state at simulated time ``t`` (the header stamp).
 
-    ``figure``: the robot drawn (:meth:`biped_sim.recording.drawing.RobotDrawing.figure`, any chain), or a
+    ``figure``: the robot drawn (:meth:`biped_sim.engine.drawing.RobotDrawing.figure`, any chain), or a
     three-link ``BipedModel.stick_figure(q)``; ``stance_leg`` 1, 2 or 0 (flight); ``force`` the
     ground's force on the stance foot [Fx, Fy] (N; ignored in flight); ``slope`` the ground's angle
     (rad); ``flash_at``: the (x, y) of a touchdown to flash, or None.
@@ -113,7 +113,7 @@ def marker_array(t, figure, stance_leg, force, slope=0.0, flash_at=None):
     from std_msgs.msg import Header
     from visualization_msgs.msg import Marker, MarkerArray
 
-    from biped_sim.recording.drawing import Figure, from_stick_figure
+    from biped_sim.engine.drawing import Figure, from_stick_figure
     from biped_sim.recording.messages import stamp
     if not isinstance(figure, Figure):
         figure = from_stick_figure(figure)
@@ -165,7 +165,7 @@ class MarkerStream:
     """
 
     def __init__(self, model, slope: float, rate: float):
-        from biped_sim.recording.drawing import RobotDrawing
+        from biped_sim.engine.drawing import RobotDrawing
         self.model, self.slope, self.interval = model, float(slope), 1.0 / float(rate)
         self.drawing = RobotDrawing(model)      # any chain: its description's links (drawing.py)
         self.restart()

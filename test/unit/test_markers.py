@@ -207,7 +207,7 @@ def test_rabbit_is_drawn_from_its_descriptions_links_a_polyline_hip_knee_foot_pe
     """No simulation: RABBIT (five links, knees) at a given q; each marker's points against forward
     kinematics written in this test from the description."""
     from biped_sim.config.models import load_model
-    from biped_sim.recording.drawing import RobotDrawing
+    from biped_sim.engine.drawing import RobotDrawing
     rabbit = load_model("rabbit")
     fk = forward_kinematics(rabbit.description, RABBIT_Q)
     m = by_id(MK.marker_array(0.5, RobotDrawing(rabbit).figure(RABBIT_Q), 1, [10.0, 300.0]))
@@ -230,7 +230,7 @@ def test_rabbit_is_drawn_from_its_descriptions_links_a_polyline_hip_knee_foot_pe
 
 
 def test_the_three_link_markers_are_unchanged_by_the_chain_drawing():
-    from biped_sim.recording.drawing import RobotDrawing
+    from biped_sim.engine.drawing import RobotDrawing
     via_stick = MK.marker_array(1.25, MODEL.stick_figure(Q), 2, [5.0, 150.0], 0.03, flash_at=(0.3, -0.03))
     via_chain = MK.marker_array(1.25, RobotDrawing(MODEL).figure(Q), 2, [5.0, 150.0], 0.03, flash_at=(0.3, -0.03))
     assert via_stick == via_chain

@@ -9,7 +9,7 @@ from PIL import Image
 import biped_sim as bs
 from biped_sim.cli import main as biped_sim
 
-PANEL_TITLES = ("joint angles", "ground reaction force", "hip torques", "gait")
+PANEL_TITLES = ("joint angles", "ground reaction force", "motor torques", "gait")
 
 
 def distinct_colours(png):
@@ -28,6 +28,27 @@ def test_a_result_plots_the_figure_inspect_draws(tmp_path):
     with Image.open(png) as im:
         assert im.size == (1080, 1080)
     assert distinct_colours(png) > 100                                  # lines drawn, not an empty canvas
+
+
+def test_the_run_figure_draws_a_described_robot_with_its_names_and_links(tmp_path):
+    """RABBIT (7 coordinates, 4 motors, knees): the panels name its joints and motors, each stick figure draws a
+    leg as hip - knee - foot and the torso, and an impact is marked at its foot."""
+    from biped_sim.engine.figure import impact_foot_x, run_figure
+    rabbit = bs.load_model("rabbit")
+    t = np.linspace(0.0, 1.0, 20)
+    q0 = np.array([0.0, 0.75, 3.3, 2.9, 0.35, 0.1, 0.2])
+    q = q0 + np.outer(t, [0.3, 0, 0.1, -0.1, 0.2, 0, 0])
+    u = np.outer(np.sin(t), [1.0, -1.0, 0.5, 0.0])
+    fig = run_figure(t, q, u, t, np.zeros((20, 2)), [(0.5, 2, q[10])], rabbit, "rabbit", frames=4,
+                     path=tmp_path / "rabbit.png")
+    labels = [line.get_label() for line in fig.axes[0].lines if not line.get_label().startswith("_")]
+    assert labels[:5] == ["hip_1", "hip_2", "knee_1", "knee_2", "torso_pitch"]
+    assert [line.get_label() for line in fig.axes[2].lines][:4] == ["hip_1", "hip_2", "knee_1", "knee_2"]
+    legs = [line for line in fig.axes[3].lines if len(line.get_xdata()) == 3]    # hip, knee, foot
+    assert len(legs) == 2 * 4
+    x = impact_foot_x(rabbit, 2, q[10])
+    assert np.isclose(x, rabbit.contact_position(q[10], 2)[0])
+    assert distinct_colours(tmp_path / "rabbit.png") > 100
 
 
 def test_simulate_plot_writes_scene_png_in_the_current_folder(tmp_path, monkeypatch, capsys):
