@@ -1,14 +1,22 @@
 """The generated derivatives of any described robot (config/codegen.py, GeneratedModel's ``*_jacobian``
 methods, issue 32): each against central differences of the method it differentiates, for the four shipped
-robots, and for the three-link against the closed-form derivatives of ``_gen/derivatives.py``."""
+robots, and for the three-link against the closed-form derivatives of ``_gen/derivatives.py``; and the
+linearisation of a run from a model's terms (engine/model_derivatives.py): the three-link description's
+generated terms give the BipedModel's run Jacobian."""
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
+import biped_sim as bs
+from biped_sim.analysis.edge_cases import bouncing_landing
 from biped_sim.config import models
+from biped_sim.control.walking import WalkingController
 from biped_sim.engine._gen import closed_forms as cf, derivatives as dgen
+from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.engine.model import BipedModel
-from biped_sim.engine.sensitivity import Linearization
+from biped_sim.engine.model_derivatives import ClosedFormDerivatives, GeneratedDerivatives, derivatives
+from biped_sim.engine.sensitivity import Linearization, run_jacobian
+from biped_sim.engine.simulate import stance_state
 
 ROBOTS = {name: models.generated_model(name) for name in models.SHIPPED}
 EPS = 1e-5   # (truncation ~EPS^2 |f'''| / 6, rounding ~1e-16 |f| / EPS: both near 1e-11 of the terms here)
@@ -129,3 +137,116 @@ def test_the_three_link_description_has_the_closed_forms_derivatives():
         _s, dsq, dsv, dsu, _ = lin.accelerations(q, dq, u, 0)
         A_q, A_dq, A_u = g.flight_dynamics_jacobian(q, dq, u)
         assert rel(A_q, dsq) < 1e-10 and rel(A_dq, dsv) < 1e-10 and rel(A_u, dsu) < 1e-10
+
+
+# ---- the run Jacobian from a model's derivatives (model_derivatives.derivatives) ------------------------------
+
+def walk_touchdown_start(model):
+    """The walk law's state 80 ms before a touchdown of leg 2 (the step map's last stretch)."""
+    q0, dq0 = WalkingController(model).initial_state()
+    sim = HybridSimulator(model, q0, dq0, rtol=1e-12, atol=1e-12)
+    sim.advance(0.4, controller=WalkingController(model))
+    return sim.q.copy(), sim.dq.copy()
+
+
+STANCE_IMPACT = frozenset({"stance", "impact"})
+
+
+@pytest.mark.parametrize("case", ["steps", "solve_ivp", "held", "flight"])
+def test_the_run_jacobian_from_the_generated_three_link_terms_is_the_closed_forms(case):
+    """A run of the BipedModel linearised with the generated terms of the three-link description
+    (``derivatives=derivatives(generated_model("three_link"))``, the same robot) gives today's run Jacobian
+    (the closed forms') to 1e-9 relative: through a touchdown on the engine's own steps and by solve_ivp, held
+    torques, and landings from flight with their liftoffs; and it is the generated terms that were used
+    (the two differ in rounding)."""
+    m = BipedModel()
+    generated = derivatives(ROBOTS["three_link"])
+    assert isinstance(generated, GeneratedDerivatives) and isinstance(derivatives(m), ClosedFormDerivatives)
+    if case == "flight":
+        q0, dq0 = bouncing_landing()
+        run = dict(stance_leg=0, u=(0.0, 0.0), phases=frozenset({"stance", "impact", "flight"}))
+        t_final = 0.1
+    else:
+        q0, dq0 = walk_touchdown_start(m)
+        run = dict(controller=WalkingController(m), phases=STANCE_IMPACT, end_at_event=(case == "steps"))
+        t_final = 0.12
+        if case == "solve_ivp":
+            run["integration"] = "solve_ivp"
+        elif case == "held":
+            run["control_period"] = 1e-3
+    today = run_jacobian(m, q0, dq0, t_final, **run)
+    other = run_jacobian(m, q0, dq0, t_final, derivatives=generated, **run)
+    assert other.integration == today.integration == ("steps" if case == "steps" else "solve_ivp")
+    assert today.events == other.events and len(today.events) >= 1
+    assert rel(other.jacobian, today.jacobian) < 1e-9
+    assert not np.array_equal(other.jacobian, today.jacobian)
+    if case == "steps":
+        assert rel(other.time_derivative, today.time_derivative) < 1e-9
+
+
+def test_the_compass_gaits_step_jacobian_from_its_generated_terms():
+    """The compass gait's passive step (slope 0.0525 rad, to its touchdown) linearised with the compass_gait
+    description's generated terms is the BipedModel's (its special case) to 1e-9."""
+    m = bs.load_model("compass_gait")
+    z = np.array([2.92075575, 3.46742955, 0.0, 1.09644226, 0.37368084, 0.0])
+    q0, dq0 = stance_state(m, z[:3], z[3:], 1)
+    run = dict(u=(0.0, 0.0), slope=0.0525, scuff_rule="behind", end_at_event=True, phases=STANCE_IMPACT)
+    today = run_jacobian(m, q0, dq0, 1.0, **run)
+    other = run_jacobian(m, q0, dq0, 1.0, derivatives=derivatives(ROBOTS["compass_gait"]), **run)
+    assert [kind for _t, kind, _leg in today.events] == ["touchdown"] and other.integration == "steps"
+    assert rel(other.jacobian, today.jacobian) < 1e-9 and rel(other.time_derivative, today.time_derivative) < 1e-9
+
+
+def test_generated_terms_refuse_what_they_cannot_give_in_one_line():
+    """Model parameters (a generated model's numbers are in its module), another robot's terms, the fixed
+    base's derivatives: one line each."""
+    m = BipedModel()
+    q0, dq0 = walk_touchdown_start(m)
+    cases = [
+        (dict(derivatives=derivatives(ROBOTS["three_link"]), parameters=("m_torso",)),
+         "parameter 'm_torso': this model's numbers are generated into its module"),
+        (dict(derivatives=derivatives(ROBOTS["rabbit"])), "derivatives: of a robot with 7 coordinates"),
+    ]
+    for kwargs, match in cases:
+        with pytest.raises(ValueError, match=match) as e:
+            run_jacobian(m, q0, dq0, 0.05, controller=WalkingController(m), **kwargs)
+        assert "\n" not in str(e.value)
+    lin = Linearization(m, derivatives=derivatives(ROBOTS["three_link"]))
+    with pytest.raises(ValueError, match="fixed base's derivatives are the three-link's only") as e:
+        lin.fixed_base_jacobian(q0[2:], dq0[2:], (0.0, 0.0))
+    assert "\n" not in str(e.value)
+    with pytest.raises(ValueError, match="no derivatives for a model of type str"):
+        derivatives("three_link")
+
+
+def test_the_linearization_of_rabbit_is_its_phase_jacobians():
+    """What the variational code asks of a GeneratedModel (Linearization's flow, impact, guard, stance tangent)
+    at a RABBIT state, against its phase Jacobians and central differences."""
+    rabbit = ROBOTS["rabbit"]
+    lin = Linearization(rabbit, slope=0.02)
+    q, dq, u = state(rabbit, np.random.default_rng(2))
+    n = rabbit.n
+    for leg in (1, 2, 0):
+        f, A, fu, _fp, force = lin.flow(q, dq, u, leg)
+        if leg:
+            A_q, A_dq, A_u, F_q, F_dq, F_u = rabbit.stance_dynamics_jacobian(q, dq, u, leg)
+            assert np.allclose(force[0], rabbit.stance_dynamics(q, dq, u, leg)[1], rtol=1e-12, atol=1e-9)
+            assert rel(force[1], np.hstack([F_q, F_dq])) < 1e-12 and rel(force[2], F_u) < 1e-12
+        else:
+            A_q, A_dq, A_u = rabbit.flight_dynamics_jacobian(q, dq, u)
+        assert A.shape == (2 * n, 2 * n) and fu.shape == (2 * n, 4)
+        assert rel(A[n:], np.hstack([A_q, A_dq])) < 1e-12 and rel(fu[n:], A_u) < 1e-12
+        assert np.array_equal(A[:n], np.hstack([np.zeros((n, n)), np.eye(n)])) and np.array_equal(f[:n], dq)
+    for leg in (1, 2):
+        dqp, imp, Rq, Rv, _ = lin.impact(q, dq, leg)
+        P_q, P_dq, _I_q, _I_dq = rabbit.impact_map_jacobian(q, dq, leg)
+        assert rel(Rq, P_q) < 1e-12 and rel(Rv, P_dq) < 1e-12
+        g, gx, _ = lin.touchdown_guard(q, leg)
+        height = lambda v: np.array([lin.touchdown_guard(v, leg)[0]])   # noqa: E731
+        assert rel(gx[:n], central(height, q)[0]) < 1e-8 and not gx[n:].any()
+        T = lin.stance_tangent(q, dq, leg)
+        assert T.shape == (2 * n, 2 * (n - 2))
+        # the stance foot stays put along the tangent: J_c dq and its rate's derivative vanish on it
+        J = rabbit.contact_jacobian(q, leg)
+        v_q, v_dq = rabbit.contact_velocity_jacobian(q, dq, leg)
+        assert np.allclose(J @ T[:n], 0, atol=1e-12) and np.allclose(v_q @ T[:n] + v_dq @ T[n:], 0, atol=1e-12)
