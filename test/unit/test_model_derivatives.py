@@ -15,7 +15,7 @@ from biped_sim.engine._gen import closed_forms as cf, derivatives as dgen
 from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.engine.model import BipedModel
 from biped_sim.engine.model_derivatives import ClosedFormDerivatives, GeneratedDerivatives, derivatives
-from biped_sim.engine.sensitivity import Linearization, run_jacobian
+from biped_sim.engine.sensitivity import Linearization, _Integration, run_jacobian
 from biped_sim.engine.simulate import stance_state
 
 ROBOTS = {name: models.generated_model(name) for name in models.SHIPPED}
@@ -250,3 +250,90 @@ def test_the_linearization_of_rabbit_is_its_phase_jacobians():
         J = rabbit.contact_jacobian(q, leg)
         v_q, v_dq = rabbit.contact_velocity_jacobian(q, dq, leg)
         assert np.allclose(J @ T[:n], 0, atol=1e-12) and np.allclose(v_q @ T[:n] + v_dq @ T[n:], 0, atol=1e-12)
+
+
+def rabbit_before_touchdown():
+    """RABBIT on foot 1 (pinned at the origin), foot 2 3 cm up and ahead, falling forward with no torque: foot 2
+    lands 0.205 s later (normal impulse 2.7 N s, the stance force positive to the end)."""
+    rabbit = ROBOTS["rabbit"]
+    q = np.array([0.0, 0.0, np.pi + 0.25, np.pi - 0.3, 0.05, -0.3, 0.05])
+    q[:2] -= rabbit.contact_position(q, 1)
+    dq = np.array([0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0])
+    dq[:2] = -rabbit.contact_jacobian(q, 1)[:, 2:] @ dq[2:]
+    return rabbit, q, dq
+
+
+def test_rabbits_run_jacobian_through_a_touchdown():
+    """The variational equations and the saltation matrix of the run code (sensitivity._Integration, as
+    run_jacobian drives it) on RABBIT's generated terms: from a stance state on foot 1 through the touchdown
+    and impact of foot 2 and 30 ms of stance on it, against central differences of the same hybrid map
+    (scipy's DOP853 on GeneratedModel.stance_dynamics to the foot's crossing, GeneratedModel.impact_map),
+    to 1e-7 relative; so too the state just after the impact and the touchdown's time."""
+    from scipy.integrate import solve_ivp
+
+    rabbit, q0, dq0 = rabbit_before_touchdown()
+    n, u = rabbit.n, np.zeros(4)
+
+    def flow(leg):
+        return lambda t, x: np.concatenate([x[n:], rabbit.stance_dynamics(x[:n], x[n:], u, leg)[0]])
+
+    def height_2(t, x):
+        return rabbit.contact_position(x[:n], 2)[1]
+    height_2.terminal, height_2.direction = True, -1
+
+    def hybrid(x0, t_end):
+        """(touchdown time, state just after the impact, state at t_end on foot 2)."""
+        a = solve_ivp(flow(1), (0.0, 1.0), x0, method="DOP853", rtol=1e-12, atol=1e-12, events=height_2)
+        te, x = a.t_events[0][0], a.y_events[0][0]
+        plus = np.concatenate([x[:n], rabbit.impact_map(x[:n], x[n:], 2)[0]])
+        b = solve_ivp(flow(2), (te, t_end), plus, method="DOP853", rtol=1e-12, atol=1e-12)
+        return te, plus, b.y[:, -1]
+
+    x0 = np.concatenate([q0, dq0])
+    te, plus, end = hybrid(x0, 1.0)
+    assert 0.2 < te < 0.21 and rabbit.impact_map(plus[:n], x0[n:], 2)[1][1] != 0
+    t_end = te + 0.03
+    lin = Linearization(rabbit)
+    T = lin.stance_tangent(q0, dq0, 1)          # 14 x 10: the joint angles and rates, foot 1 kept in place
+    m = T.shape[1]
+    Su, Sp = np.zeros((4, m)), np.zeros((0, m))
+    integ = _Integration(lin, None, u, None, False, (), 1e-12, 1e-12)
+    t, x, S = integ._piece(0.0, te, x0, T, Su, Sp, 1, guard=("touchdown", 2))
+    x_plus, S_plus, leg, dtau = integ._event(t, x, S, Su, Sp, 1, "touchdown", 2, last=True)
+    _x, S_jump, leg, _ = integ._event(t, x, S, Su, Sp, 1, "touchdown", 2, last=False)
+    t1, x_end, S_end = integ._piece(t, t_end, x_plus, S_jump, Su, Sp, leg)
+    assert leg == 2 and abs(t - te) < 1e-12 and np.allclose(x_plus, plus, rtol=0, atol=1e-10)
+
+    eps = 1e-6
+    runs = [(hybrid(x0 + eps * d, t_end), hybrid(x0 - eps * d, t_end)) for d in T.T]
+    fd_time = np.array([(a[0] - b[0]) / (2 * eps) for a, b in runs])
+    fd_plus = np.column_stack([(a[1] - b[1]) / (2 * eps) for a, b in runs])
+    fd_end = np.column_stack([(a[2] - b[2]) / (2 * eps) for a, b in runs])
+    assert rel(dtau, fd_time) < 1e-7
+    assert rel(S_plus, fd_plus) < 1e-7
+    assert rel(S_end, fd_end) < 1e-7
+
+
+def test_rabbits_dop853_steps_are_differentiated_as_they_stand():
+    """variational.steps_transition on RABBIT (n = 7, M = 4): each DOP853 step's Phi is the derivative of its end
+    state by its start (central differences of the step itself, 1e-7), under a held torque and under a law
+    without a ``jacobian`` (its central differences inside, M x 2n)."""
+    from biped_sim.engine import variational
+    from biped_sim.engine.sensitivity import LAW_FD, LAW_NONE
+
+    rabbit, q0, dq0 = rabbit_before_touchdown()
+    deriv = derivatives(rabbit)
+    X0 = np.array([np.concatenate([q0, dq0]), np.concatenate([q0, dq0 + 0.1])])
+    t0, H = np.array([0.0, 0.01]), np.array([0.004, 0.007])
+
+    def posture(t, q, dq, stance_leg):       # a PD law on the four joints, no derivative given
+        return -50.0 * (q[2:6] - np.array([np.pi + 0.2, np.pi - 0.2, 0.1, -0.2])) - 5.0 * dq[2:6]
+
+    for controller, u_held, how in ((None, np.array([5.0, -3.0, 2.0, 1.0]), LAW_NONE), (posture, None, LAW_FD)):
+        X1, Phi, _G, got, _ = variational.steps_transition(deriv, controller, u_held, t0, X0, H, 1)
+        assert got == how and Phi.shape == (2, 14, 14)
+        for p in range(2):
+            def step(x):
+                return variational.steps_transition(deriv, controller, u_held, t0[p:p + 1], x[None], H[p:p + 1],
+                                                    1)[0][0]
+            assert rel(Phi[p], central(step, X0[p], eps=1e-6)) < 1e-7
