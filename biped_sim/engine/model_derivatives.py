@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from biped_sim.engine import loop_rules as _rules
 from biped_sim.engine._gen import closed_forms as _closed_forms, derivatives as _dgen
 from biped_sim.engine.compiled import gen
 from biped_sim.engine.model import B as _B
@@ -107,8 +108,9 @@ class ClosedFormDerivatives:
 
     def foot_position(self, q, leg):
         """(x, y) of foot ``leg``."""
-        p = gen.foot_positions(q, self.model.k["foot_positions"])
-        return p[2 * leg - 2], p[2 * leg - 1]
+        point = [0.0, 0.0]
+        _rules.ev_foot_point(gen.foot_positions(q, self.model.k["foot_positions"]), leg, point)
+        return point[0], point[1]
 
     def foot_jacobian(self, q, leg):
         """J of foot ``leg`` (2 x 5)."""
