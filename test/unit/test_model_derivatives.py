@@ -337,3 +337,38 @@ def test_rabbits_dop853_steps_are_differentiated_as_they_stand():
                 return variational.steps_transition(deriv, controller, u_held, t0[p:p + 1], x[None], H[p:p + 1],
                                                     1)[0][0]
             assert rel(Phi[p], central(step, X0[p], eps=1e-6)) < 1e-7
+
+
+def test_a_users_description_is_generated_with_its_derivatives_not_taken_from_an_older_cache(tmp_path, monkeypatch):
+    """A user's description (a three-link on stilts) is generated with the derivative terms on first use, and a
+    module an older generator cached for it (without them) is not used: the generator's version keys the cache."""
+    pytest.importorskip("sympy")
+    import re
+    from pathlib import Path
+
+    import yaml
+
+    from biped_sim.config import codegen
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    data = yaml.safe_load(models.description_path("three_link").read_text())
+    data["name"] = "stilts"
+    data["links"]["leg_1"]["length"] = data["links"]["leg_2"]["length"] = 1.2
+    data["links"]["torso"]["mass"] = 12.0
+    path = tmp_path / "stilts.yaml"
+    path.write_text(yaml.safe_dump(data))
+    desc = models.load_description(str(path))
+    # (an older generator's module of this description: the shipped three-link's without the derivative terms,
+    # under this description's digest; its numbers do not matter, as it must not be read)
+    shipped = Path(ROBOTS["three_link"].module.__file__).read_text()
+    older = re.sub(r"\n\n\ndef (mass_matrix_jacobian|bias_forces_jacobian|contact_jacobian_jacobians|"
+                   r"contact_bias_jacobians)\(.*?(?=\n\n\ndef )", "", shipped, flags=re.S)
+    older = re.sub(r"DIGEST = '\w+'", f"DIGEST = {desc.digest()!r}", older)
+    assert "def mass_matrix_jacobian" not in older and "def mass_matrix(" in older
+    models.cache_dir().mkdir(parents=True)
+    (models.cache_dir() / f"stilts-{desc.digest()}-g{codegen.GENERATOR_VERSION - 1}.py").write_text(
+        older.replace(f"GENERATOR_VERSION = {codegen.GENERATOR_VERSION}", f"GENERATOR_VERSION = "
+                      f"{codegen.GENERATOR_VERSION - 1}"))
+    stilts = bs.load_model(str(path))
+    assert stilts.module.GENERATOR_VERSION == codegen.GENERATOR_VERSION >= 2
+    assert len(list(models.cache_dir().glob("stilts-*.py"))) == 2
+    check_phase_jacobians(stilts, *state(stilts, np.random.default_rng(5)))
