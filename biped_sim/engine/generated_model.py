@@ -4,7 +4,9 @@ Owns :class:`GeneratedModel`, which evaluates a module written by :mod:`biped_si
 :class:`~biped_sim.engine.description.RobotDescription` and solves the phases of docs/model.md for N
 coordinates with numpy: stance on contact c, ``[D -J_c^T; J_c 0] [ddq; F] = [-C dq - G + B u; -Jdot_c dq]``;
 the impact of contact c, ``[D -J_c^T; J_c 0] [dq+; F_imp] = [D dq-; 0]``; the relabeling R (a permutation
-from the description's mirror, R R = I). The hybrid engine runs the three-link chain only (BipedModel):
+from the description's mirror, R R = I); and the exact derivatives of these phases from the generated
+derivative terms, each KKT system differentiated as it stands, ``K ds = dr - (dK) s`` (docs/gait.md
+"Derivatives for any robot"). The hybrid engine runs the three-link chain only (BipedModel):
 a GeneratedModel given to it is refused with one line (:data:`ENGINE_REFUSAL`).
 """
 from __future__ import annotations
