@@ -12,7 +12,11 @@ rows of each group measured in alternation:
   steps) against one step without (the engine's run, ``StepMap.run``, on the compiled loop where it is
   built): the row "step with its Jacobian / step" is issue 32's second ratio (its goal: <= 3, n = 10);
   and the same step by scipy's DOP853 on x alone in Python (the right-hand side the solve_ivp path
-  integrates, without S).
+  integrates, without S);
+* the same step's exact Jacobian from the three-link's closed forms (``derivatives(BipedModel)``, the
+  default) against the three_link description's generated terms (``run_jacobian(..., derivatives=...)``,
+  config/codegen.py's module run in Python), on the engine's steps and by solve_ivp: what the derivatives
+  of any described robot cost against hand-kept closed forms of the same robot.
 """
 from __future__ import annotations
 
@@ -22,8 +26,10 @@ import time
 import numpy as np
 
 from biped_sim.analysis.gait import RELABELED_ROWS, scene_gait
+from biped_sim.config.models import generated_model
 from biped_sim.engine.compiled import IMPLEMENTATION
 from biped_sim.engine.dynamics import stance_floating_fast
+from biped_sim.engine.model_derivatives import derivatives
 from biped_sim.engine.sensitivity import SOLVE_IVP, STEPS, run_jacobian
 
 
@@ -65,9 +71,9 @@ def main():
     q, dq = smap.state(z)
     kw = smap.kw
 
-    def exact(integration):
+    def exact(integration, terms=None):
         run_jacobian(smap.model, q, dq, 5.0, controller=smap.controller, end_at_event=True, integration=integration,
-                     **kw)
+                     derivatives=terms, **kw)
     m = alternating({"exact": lambda: smap.jacobian(z, U), "fd": lambda: smap.jacobian_fd(z, U),
                      "exact_ivp": lambda: U.T @ run_jacobian(smap.model, q, dq, 5.0, controller=smap.controller,
                                                              end_at_event=True, integration=SOLVE_IVP,
@@ -86,8 +92,19 @@ def main():
     print(f"  without, on the engine           {s['engine'] * 1e3:8.2f} ms")
     print(f"  without, scipy DOP853 in Python  {s['python'] * 1e3:8.2f} ms")
     print(f"  step with its Jacobian / step    {s['with'] / s['engine']:8.2f}     (issue 32's goal: <= 3)")
+    terms = derivatives(generated_model("three_link"))
+    d = alternating({"closed": lambda: exact(STEPS), "generated": lambda: exact(STEPS, terms),
+                     "closed_ivp": lambda: exact(SOLVE_IVP), "generated_ivp": lambda: exact(SOLVE_IVP, terms)}, repeats)
+    print("one step of the walk gait with its Jacobian, by whose derivatives (the same robot):")
+    print(f"  closed forms, engine's steps     {d['closed'] * 1e3:8.2f} ms")
+    print(f"  generated terms, engine's steps  {d['generated'] * 1e3:8.2f} ms   ({d['generated'] / d['closed']:.2f} x)")
+    print(f"  closed forms, solve_ivp          {d['closed_ivp'] * 1e3:8.2f} ms")
+    print(f"  generated terms, solve_ivp       {d['generated_ivp'] * 1e3:8.2f} ms   "
+          f"({d['generated_ivp'] / d['closed_ivp']:.2f} x)")
     return dict(exact_s=m["exact"], exact_solve_ivp_s=m["exact_ivp"], fd_s=m["fd"], step_with_jacobian_s=s["with"],
-                engine_step_s=s["engine"], python_step_s=s["python"])
+                engine_step_s=s["engine"], python_step_s=s["python"], closed_forms_step_jacobian_s=d["closed"],
+                generated_step_jacobian_s=d["generated"], closed_forms_solve_ivp_s=d["closed_ivp"],
+                generated_solve_ivp_s=d["generated_ivp"])
 
 
 if __name__ == "__main__":

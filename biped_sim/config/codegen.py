@@ -7,6 +7,9 @@ coordinates, M actuators and L contact points it derives (docs/models.md, "The g
     D = d^2T/d dq^2,  C from the Christoffel symbols of D,  G = dV/dq,  B (a unit column per actuator),
     p_c (each contact point),  J_c = dp_c/dq,  Jdot_c = sum_k dJ_c/dq_k dq_k,
 
+and the derivatives the linearisation of the phases needs (engine/sensitivity.py, docs/gait.md "Derivatives
+for any robot"): dD/dq_k, d(C dq + G)/dq and d(C dq + G)/d dq, and per contact dJ_c/dq_k, d(Jdot_c dq)/dq
+and d(Jdot_c dq)/d dq,
 and writes them as straight-line scalar code with shared subexpressions (``sympy.cse``) into one module
 per description, with the description's numbers in it. The three-link biped's engine keeps its own
 closed forms (tools/generate_model.py); this generator's three-link output agrees with them to 1e-12
@@ -20,7 +23,7 @@ import re
 from biped_sim.engine.description import RobotDescription
 
 #: bumps when the emitted code changes, so that cached modules of an older generator are rebuilt
-GENERATOR_VERSION = 1
+GENERATOR_VERSION = 2
 
 
 def _sympy():
@@ -90,13 +93,21 @@ def symbolic(desc: RobotDescription):
         B[2 + [link.joint for link in desc.links].index(j), col] = 1
     feet = [point(*frame(c.link), c.point) for c in desc.contacts]
     J = [f.jacobian(Q) for f in feet]
-    Jdot = [sum((sp.diff(Ji, q[k]) * dq[k] for k in range(n)), sp.zeros(2, n)) for Ji in J]
+    dJ = [[Ji.diff(q[k]) for k in range(n)] for Ji in J]
+    Jdot = [sum((dJc[k] * dq[k] for k in range(n)), sp.zeros(2, n)) for dJc in dJ]
     joints = []      # the drawing: each link's joint and tip
     for link in desc.links:
         o, a = frame(link.name)
         joints.append((o, point(o, a, (0.0, link.length))))
-    return dict(q=q, dq=dq, T=T, V=V, D=D, C=C, G=G, B=B, h=C * DQ + G, feet=feet, J=J, Jdot=Jdot,
-                com=com_sum / total, total_mass=total, segments=joints)
+    h = C * DQ + G
+    Jdot_dq = [Jd * DQ for Jd in Jdot]
+    return dict(q=q, dq=dq, T=T, V=V, D=D, C=C, G=G, B=B, h=h, feet=feet, J=J, Jdot=Jdot,
+                com=com_sum / total, total_mass=total, segments=joints,
+                # the derivatives of the phases (docs/gait.md "Derivatives for any robot"): dD/dq_k, dh/dq and
+                # dh/d dq, and per contact dJ_c/dq_k, Jdot_c dq with d(Jdot_c dq)/dq and d(Jdot_c dq)/d dq
+                dD=[D.diff(q[k]) for k in range(n)], dh_dq=h.jacobian(Q), dh_ddq=h.jacobian(DQ),
+                dJ=dJ, Jdot_dq=Jdot_dq, dJdot_dq=[j.jacobian(Q) for j in Jdot_dq],
+                dJdot_ddq=[j.jacobian(DQ) for j in Jdot_dq])
 
 
 POW2 = re.compile(r"\b([A-Za-z_]\w*)\*\*2\b")
@@ -140,6 +151,17 @@ def generate_source(desc: RobotDescription) -> str:
         _function(sp, "contact_jacobians", ["q"], J, f"J_c = dp_c/dq of every contact point, 2x{n} row-major each.", n),
         _function(sp, "contact_jacobian_dots", ["q", "dq"], Jdot, f"dJ_c/dt of every contact point, 2x{n} each.", n),
         _function(sp, "contact_velocities", ["q", "dq"], [Ji * DQ for Ji in J], "dp_c/dt of every contact point.", n),
+        _function(sp, "mass_matrix_jacobian", ["q"], s["dD"],
+                  f"dD/dq_k for k = 0..{n - 1}, each {n}x{n} row-major: [k, i, j], {n ** 3} values.", n),
+        _function(sp, "bias_forces_jacobian", ["q", "dq"], [s["dh_dq"], s["dh_ddq"]],
+                  f"dh/dq ({n}x{n}), then dh/d dq ({n}x{n}), row-major, h = C dq + G.", n),
+        _function(sp, "contact_jacobian_jacobians", ["q"], [m for dJc in s["dJ"] for m in dJc],
+                  f"dJ_c/dq_k of every contact point: for each contact, for k = 0..{n - 1}, 2x{n} row-major "
+                  f"([c, k, a, j], {2 * n * n} values a contact).", n),
+        _function(sp, "contact_bias_jacobians", ["q", "dq"],
+                  [m for c in range(len(J)) for m in (s["Jdot_dq"][c], s["dJdot_dq"][c], s["dJdot_ddq"][c])],
+                  f"Jdot_c dq (2), d(Jdot_c dq)/dq (2x{n}), d(Jdot_c dq)/d dq (2x{n}) of every contact point, "
+                  f"row-major ({2 + 4 * n} values a contact).", n),
         _function(sp, "energy", ["q", "dq"], [s["T"], s["V"]], "(T, V): kinetic and potential energy.", n),
         _function(sp, "com_position", ["q"], [s["com"]], "The centre of mass of the whole robot.", n),
         _function(sp, "segments", ["q"], [p for seg in s["segments"] for pt in seg for p in pt],

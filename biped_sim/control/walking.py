@@ -203,7 +203,7 @@ class WalkingController:
         y = np.stack([Q[:, 4] - self.torso_pitch, Q[:, w] + Q[:, 4] - math.pi - f], axis=1)
         dy = np.einsum("pij,pj->pi", H, DQ[:, 2:5])
         bias = np.stack([np.zeros(P), -ddf * dphi * dphi], axis=1)
-        _K, s0, su, derivative = variational.stance_stack(self.model, lin.k, Q, DQ, stance_leg)
+        _K, s0, su, derivative = variational.stance_stack(lin.derivatives, Q, DQ, stance_leg)
         HB = H @ su[:, 2:5, :]
         rhs = -self.kp * y - self.kd * dy - np.einsum("pij,pj->pi", H, s0[:, 2:5]) - bias
         u_star = np.linalg.solve(HB, rhs[:, :, None])[:, :, 0]

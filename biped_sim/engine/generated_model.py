@@ -4,7 +4,9 @@ Owns :class:`GeneratedModel`, which evaluates a module written by :mod:`biped_si
 :class:`~biped_sim.engine.description.RobotDescription` and solves the phases of docs/model.md for N
 coordinates with numpy: stance on contact c, ``[D -J_c^T; J_c 0] [ddq; F] = [-C dq - G + B u; -Jdot_c dq]``;
 the impact of contact c, ``[D -J_c^T; J_c 0] [dq+; F_imp] = [D dq-; 0]``; the relabeling R (a permutation
-from the description's mirror, R R = I). The hybrid engine runs the three-link chain only (BipedModel):
+from the description's mirror, R R = I); and the exact derivatives of these phases from the generated
+derivative terms, each KKT system differentiated as it stands, ``K ds = dr - (dK) s`` (docs/gait.md
+"Derivatives for any robot"). The hybrid engine runs the three-link chain only (BipedModel):
 a GeneratedModel given to it is refused with one line (:data:`ENGINE_REFUSAL`).
 """
 from __future__ import annotations
@@ -151,6 +153,89 @@ class GeneratedModel:
         K[:n, :n], K[:n, n:], K[n:, :n] = D, -J.T, J
         x = np.linalg.solve(K, np.concatenate([D @ as_state_vector(dq, "dq", n), np.zeros(2)]))
         return x[:n], x[n:]
+
+    # -- derivatives (docs/gait.md "Derivatives for any robot") -----------------------------------------
+    def mass_matrix_jacobian(self, q) -> np.ndarray:
+        """dD/dq_k as an array [k, i, j] (n x n x n)."""
+        n = self.n
+        return np.array(self.module.mass_matrix_jacobian(self._q(q)), dtype=float).reshape(n, n, n)
+
+    def bias_forces_jacobian(self, q, dq):
+        """(dh/dq, dh/d dq), n x n each, h = C dq + G."""
+        n = self.n
+        v = np.array(self.module.bias_forces_jacobian(*self._qdq(q, dq)), dtype=float)
+        return v[:n * n].reshape(n, n), v[n * n:].reshape(n, n)
+
+    def contact_jacobian_jacobian(self, q, contact) -> np.ndarray:
+        """dJ_c/dq_k of ``contact`` as an array [k, a, j] (n x 2 x n)."""
+        i, n = self.contact_index(contact), self.n
+        w = 2 * n * n
+        return np.array(self.module.contact_jacobian_jacobians(self._q(q))[w * i: w * i + w],
+                        dtype=float).reshape(n, 2, n)
+
+    def contact_bias_jacobian(self, q, dq, contact):
+        """(Jdot_c dq (2), d(Jdot_c dq)/dq (2 x n), d(Jdot_c dq)/d dq (2 x n)) of ``contact``."""
+        i, n = self.contact_index(contact), self.n
+        w = 2 + 4 * n
+        v = np.array(self.module.contact_bias_jacobians(*self._qdq(q, dq))[w * i: w * i + w], dtype=float)
+        return v[:2], v[2:2 + 2 * n].reshape(2, n), v[2 + 2 * n:].reshape(2, n)
+
+    def _kkt(self, q, contact):
+        """K = [D -J_c^T; J_c 0], D, J_c, dD/dq_k [k, i, j], dJ_c/dq_k [k, a, j]."""
+        n = self.n
+        D, J = self.mass_matrix(q), self.contact_jacobian(q, contact)
+        K = np.zeros((n + 2, n + 2))
+        K[:n, :n], K[:n, n:], K[n:, :n] = D, -J.T, J
+        return K, D, J, self.mass_matrix_jacobian(q), self.contact_jacobian_jacobian(q, contact)
+
+    def flight_dynamics_jacobian(self, q, dq, u):
+        """(A_q, A_dq, A_u): d ddq/dq (n x n), d ddq/d dq (n x n), d ddq/du (n x M) of D ddq = B u - (C dq + G),
+        differentiated: D d ddq/dq_k = -dh/dq_k - (dD/dq_k) ddq, D d ddq/d dq = -dh/d dq, D d ddq/du = B."""
+        n = self.n
+        ddq = self.flight_dynamics(q, dq, u)
+        D, dD = self.mass_matrix(q), self.mass_matrix_jacobian(q)
+        dhq, dhv = self.bias_forces_jacobian(q, dq)
+        d = np.linalg.solve(D, np.hstack([-dhq - np.einsum("kij,j->ik", dD, ddq), -dhv, self.B]))
+        return d[:, :n], d[:, n:2 * n], d[:, 2 * n:]
+
+    def stance_dynamics_jacobian(self, q, dq, u, contact=1):
+        """(A_q, A_dq, A_u, F_q, F_dq, F_u): the derivatives of ddq (n x ...) and of the contact force F
+        (2 x ...) of ``stance_dynamics`` by q, dq and u. With K s = r, K = [D -J_c^T; J_c 0], s = [ddq; F],
+        r = [B u - h; -Jdot_c dq]: K ds/dv = dr/dv - (dK/dv) s for each variable v, where
+        (dK/dq_k) s = [dD/dq_k ddq - (dJ_c/dq_k)^T F; dJ_c/dq_k ddq]; one solve with K takes every column."""
+        n = self.n
+        ddq, F = self.stance_dynamics(q, dq, u, contact)
+        K, _D, _J, dD, dJ = self._kkt(q, contact)
+        dhq, dhv = self.bias_forces_jacobian(q, dq)
+        _jb, djbq, djbv = self.contact_bias_jacobian(q, dq, contact)
+        dKs = np.vstack([np.einsum("kij,j->ik", dD, ddq) - np.einsum("kaj,a->jk", dJ, F),
+                         np.einsum("kaj,j->ak", dJ, ddq)])
+        cols = [np.vstack([-dhq, -djbq]) - dKs, np.vstack([-dhv, -djbv]),
+                np.vstack([self.B, np.zeros((2, self.B.shape[1]))])]
+        d = np.linalg.solve(K, np.hstack(cols))
+        q_, v_, u_ = d[:, :n], d[:, n:2 * n], d[:, 2 * n:]
+        return q_[:n], v_[:n], u_[:n], q_[n:], v_[n:], u_[n:]
+
+    def impact_map_jacobian(self, q, dq_minus, contact=2):
+        """(P_q, P_dq, I_q, I_dq): the derivatives of dq+ (n x n) and of the impulse (2 x n) of ``impact_map``
+        by q and dq-. With K [dq+; I] = [D dq-; 0]: K d[dq+; I]/dq_k = [dD/dq_k (dq- - dq+) + (dJ_c/dq_k)^T I;
+        -dJ_c/dq_k dq+] and K d[dq+; I]/d dq- = [D; 0]."""
+        n = self.n
+        dqm = as_state_vector(dq_minus, "dq", n)
+        dqp, imp = self.impact_map(q, dqm, contact)
+        K, D, _J, dD, dJ = self._kkt(q, contact)
+        cols = [np.vstack([np.einsum("kij,j->ik", dD, dqm - dqp) + np.einsum("kaj,a->jk", dJ, imp),
+                           -np.einsum("kaj,j->ak", dJ, dqp)]),
+                np.vstack([D, np.zeros((2, n))])]
+        d = np.linalg.solve(K, np.hstack(cols))
+        return d[:n, :n], d[:n, n:], d[n:, :n], d[n:, n:]
+
+    def contact_velocity_jacobian(self, q, dq, contact):
+        """(dv_c/dq, dv_c/d dq), 2 x n each, of the contact point's velocity v_c = J_c dq: column k of the
+        first is (dJ_c/dq_k) dq, the second is J_c (the touchdown guard's rate dg/dt = n . v_c, differentiated)."""
+        dq = as_state_vector(dq, "dq", self.n)
+        return (np.einsum("kaj,j->ak", self.contact_jacobian_jacobian(q, contact), dq),
+                self.contact_jacobian(q, contact))
 
     def check_positive_definite(self, q) -> None:
         """ValueError unless D(q) is positive definite (a link with no mass or inertia where it needs one)."""

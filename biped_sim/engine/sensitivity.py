@@ -2,9 +2,10 @@
 state transition matrix of a run through its events.
 
 Owns the sensitivities of a run (docs/gait.md "How the Jacobian is computed"). The state is
-x = (q, dq) in physical coordinates (10 numbers, leg 1 stays leg 1) in every mode; w = (u, p, theta) are
-the inputs a run may depend on besides x: a held torque u, the model parameters p (``PARAMETER_NAMES``) and
-the controller's gains theta ("controller.NAME": the law's torque depends on them, u = law(x; theta)).
+x = (q, dq) in physical coordinates (2n numbers, 10 for the three-link; leg 1 stays leg 1) in every mode;
+w = (u, p, theta) are the inputs a run may depend on besides x: a held torque u, the model parameters p
+(``PARAMETER_NAMES``) and the controller's gains theta ("controller.NAME": the law's torque depends on them,
+u = law(x; theta)).
 
 * Stance on foot i: f(x) = (dq, ddq) with the KKT system of docs/model.md, K s = r,
   K = [D -J_i^T; J_i 0], s = [ddq; F], r = [-h + B u; -Jdot_i dq] (h = C dq + G). For each variable v
@@ -26,10 +27,13 @@ the controller's gains theta ("controller.NAME": the law's torque depends on the
   zero-order hold the torque of a period is u_k = law(x(t_k); theta), so at t_k the torque's sensitivity
   becomes u_x S + u_theta W_theta and stays over the period.
 
-The derivatives of D, h, J, Jdot dq come from the generator (``_gen/derivatives.py``, tools/generate_model.py);
-a controller's from its ``jacobian(t, q, dq, stance_leg)`` (a 2 x 10 array, d u / d(q, dq)) where it has one,
-else from central differences of the law alone (``law_jacobian`` says which); by its gains from its
-``gain_jacobian(t, q, dq, stance_leg, names)`` (2 x len(names)) where it has one, else from central differences
+The derivatives of D, h, J, Jdot dq come from a generator, through ``model_derivatives.derivatives(model)``:
+a BipedModel's from the three-link closed forms' (``_gen/derivatives.py``, tools/generate_model.py), a
+GeneratedModel's from the functions the generic generator wrote for its description (config/codegen.py);
+a controller's from its ``jacobian(t, q, dq, stance_leg)`` (an M x 2n array, 2 x 10 for the three-link,
+d u / d(q, dq)) where it has one, else from central differences of the law alone (``law_jacobian`` says
+which); by its gains from its ``gain_jacobian(t, q, dq, stance_leg, names)`` (M x len(names)) where it has one,
+else from central differences
 of the law alone, each gain an attribute of the controller set to theta +- e and back (``law_gain_jacobian``).
 
 The run itself is the engine's (``HybridSimulator``: it decides which events happen). S is carried along
@@ -46,12 +50,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from biped_sim.engine import loop_rules as rules, variational
+from biped_sim.engine import loop_rules as rules, model_derivatives, variational
 from biped_sim.engine._gen import derivatives as dgen
-from biped_sim.engine.compiled import gen
-from biped_sim.engine.dynamics import stance_floating_fast
 from biped_sim.engine.hybrid import HybridSimulator
-from biped_sim.engine.model import B
 
 #: the model parameters a run can be differentiated by, in the order of BipedModel.p
 PARAMETER_NAMES = dgen.PARAMETER_NAMES
@@ -65,40 +66,42 @@ LAW_NONE = "none (torque held constant)"
 STEPS, SOLVE_IVP = "steps", "solve_ivp"
 #: the event kinds a run is linearised through (a scuff is a report, not a change of mode)
 LINEARISED_EVENTS = ("touchdown", "liftoff")
-#: (the last model parameters and state asked, Linearization._affine's terms there): shared by every
-#: Linearization, so that a law's ``jacobian`` on its own model of the same parameters and the flow share it
+#: (the last model terms (``derivatives(model).key``) and state asked, Linearization._affine's terms there): shared
+#: by every Linearization, so that a law's ``jacobian`` on its own model of the same parameters and the flow share it
 _AFFINE = [None, None]
 
 
 def law_jacobian(controller, t, q, dq, stance_leg):
-    """(u, d u / d(q, dq) as a 2 x 10 array, how): the law's own ``jacobian`` (``LAW_EXACT``) where it has
-    one, else central differences of the law alone (``LAW_FD``), steps 1e-6 (1 + |x_k|)."""
+    """(u, d u / d(q, dq) as an M x 2n array (2 x 10 for the three-link), how): the law's own ``jacobian``
+    (``LAW_EXACT``) where it has one, else central differences of the law alone (``LAW_FD``), steps
+    1e-6 (1 + |x_k|)."""
     q, dq = np.asarray(q, float), np.asarray(dq, float)
     u = np.asarray(controller(t, q, dq, stance_leg), float)
     jac = getattr(controller, "jacobian", None)
     if jac is not None:
         return u, np.asarray(jac(t, q, dq, stance_leg), float), LAW_EXACT
     x = np.concatenate([q, dq])
+    n = len(q)
     cols = []
-    for k in range(10):
+    for k in range(2 * n):
         e = 1e-6 * (1.0 + abs(x[k]))
         xp, xm = x.copy(), x.copy()
         xp[k] += e
         xm[k] -= e
-        up = np.asarray(controller(t, xp[:5], xp[5:], stance_leg), float)
-        um = np.asarray(controller(t, xm[:5], xm[5:], stance_leg), float)
+        up = np.asarray(controller(t, xp[:n], xp[n:], stance_leg), float)
+        um = np.asarray(controller(t, xm[:n], xm[n:], stance_leg), float)
         cols.append((up - um) / (2 * e))
     return u, np.column_stack(cols), LAW_FD
 
 
 def law_gain_jacobian(controller, t, q, dq, stance_leg, names):
-    """(d u / d(gains ``names``) as a 2 x len(names) array, how): the law's own ``gain_jacobian`` (``LAW_EXACT``)
+    """(d u / d(gains ``names``) as an M x len(names) array, how): the law's own ``gain_jacobian`` (``LAW_EXACT``)
     where it has one, else central differences of the law alone (``LAW_FD``): each gain, an attribute of the
     controller, set to theta +- 1e-6 (1 + |theta|) and back."""
     q, dq = np.asarray(q, float), np.asarray(dq, float)
     jac = getattr(controller, "gain_jacobian", None)
     if jac is not None:
-        return np.asarray(jac(t, q, dq, stance_leg, list(names)), float).reshape(2, len(names)), LAW_EXACT
+        return np.asarray(jac(t, q, dq, stance_leg, list(names)), float).reshape(-1, len(names)), LAW_EXACT
     cols = []
     for name in names:
         value = getattr(controller, name)
@@ -120,8 +123,9 @@ def parameter_names(parameters) -> tuple:
     return (parameters,) if isinstance(parameters, str) else tuple(parameters)
 
 
-def _split_parameters(parameters, controller):
-    """(the model's names, the controller's gain names) of ``run_jacobian``'s ``parameters``, checked."""
+def _split_parameters(parameters, controller, model_parameters=PARAMETER_NAMES):
+    """(the model's names, the controller's gain names) of ``run_jacobian``'s ``parameters``, checked against
+    the model's ``model_parameters`` (``derivatives(model).parameter_names``)."""
     model_names, gains = [], []
     for name in parameters:
         if name.startswith(CONTROLLER_PREFIX):
@@ -139,60 +143,48 @@ def _split_parameters(parameters, controller):
                     raise ValueError(f"parameter {name!r}: the controller has no number attribute {gain!r} to "
                                      "differentiate by (and no gain_jacobian)")
             gains.append(gain)
-        elif name in PARAMETER_NAMES:
+        elif name in model_parameters:
             model_names.append(name)
+        elif not model_parameters:
+            raise ValueError(f"parameter {name!r}: this model's numbers are generated into its module, so a run "
+                             f"has no derivative by them; a controller's gain is '{CONTROLLER_PREFIX}NAME'")
         else:
-            raise ValueError(f"unknown parameter {name!r}: the model's are {list(PARAMETER_NAMES)}, a controller's "
+            raise ValueError(f"unknown parameter {name!r}: the model's are {list(model_parameters)}, a controller's "
                              f"gain is '{CONTROLLER_PREFIX}NAME'")
     return model_names, gains
 
 
 class Linearization:
-    """The Jacobians of one model's phases, guards and resets (``model``: a BipedModel; ``slope``: the
-    ground's, rad)."""
+    """The Jacobians of one model's phases, guards and resets (``model``: a BipedModel or a GeneratedModel;
+    ``slope``: the ground's, rad; ``derivatives``: the model's terms, ``model_derivatives.derivatives(model)``
+    unless given: another description of the same robot's, to check one derivation against the other)."""
 
-    def __init__(self, model, slope=0.0):
+    def __init__(self, model, slope=0.0, derivatives=None):
         self.model = model
-        self.k = {name: constants(model.p) for name, constants in dgen.CONSTANTS.items()}
+        self.derivatives = derivatives if derivatives is not None else model_derivatives.derivatives(model)
+        self.n, self.B = self.derivatives.n, self.derivatives.B
+        self.k = self.derivatives.k     # (the closed forms' derivative constants; None for generated terms)
         self.slope = float(slope)
         self.sin, self.cos, self.tan = math.sin(self.slope), math.cos(self.slope), math.tan(self.slope)
 
     # -- the terms of the equations and their partial derivatives --------------------------------
     def _mass_and_bias(self, q, dq):
-        m = self.model
-        D = np.array(gen.mass_matrix(q, m.k["mass_matrix"])).reshape(5, 5)
-        h = np.array(gen.bias_forces(q, dq, m.k["bias_forces"]))
-        dD = np.array(dgen.mass_matrix_jacobian(q, self.k["mass_matrix_jacobian"])).reshape(5, 5, 5)  # [k, i, j]
-        dh = np.array(dgen.bias_forces_jacobian(q, dq, self.k["bias_forces_jacobian"])).reshape(2, 5, 5)
-        return D, h, dD, dh[0], dh[1]
+        """D, h, dD/dq_k ([k, i, j]), dh/dq, dh/ddq."""
+        return self.derivatives.mass_and_bias(q, dq)
 
     def _foot(self, q, dq, leg):
-        """J_i (2x5), dJ_i/dq_k ([k, a, j]), Jdot_i dq (2), d(Jdot_i dq)/dq (2x5), d(Jdot_i dq)/ddq (2x5)."""
-        m = self.model
-        J = np.array((gen.foot_jacobian_1 if leg == 1 else gen.foot_jacobian_2)(q, m.k[f"foot_jacobian_{leg}"]))
-        dJf = dgen.foot_jacobian_jacobian_1 if leg == 1 else dgen.foot_jacobian_jacobian_2
-        dJ = np.array(dJf(q, self.k[f"foot_jacobian_jacobian_{leg}"])).reshape(5, 2, 5)
-        jbf = dgen.foot_bias_jacobian_1 if leg == 1 else dgen.foot_bias_jacobian_2
-        jb = np.array(jbf(q, dq, self.k[f"foot_bias_jacobian_{leg}"]))
-        return J.reshape(2, 5), dJ, jb[0:2], jb[2:12].reshape(2, 5), jb[12:22].reshape(2, 5)
+        """J_i (2xn), dJ_i/dq_k ([k, a, j]), Jdot_i dq (2), d(Jdot_i dq)/dq (2xn), d(Jdot_i dq)/ddq (2xn)."""
+        return self.derivatives.foot(q, dq, leg)
 
     def _parameters(self, q, dq):
         """d/dp of D ([j, i, l]), h (5x9), J_1, J_2 ([j, a, l]), Jdot_1 dq, Jdot_2 dq (2x9), (p_1, p_2) (4x9)."""
-        v = np.array(dgen.parameter_jacobian(q, dq, self.k["parameter_jacobian"]))
-        n = len(PARAMETER_NAMES)
-        o = 0
-        out = []
-        for shape in ((n, 5, 5), (5, n), (n, 2, 5), (n, 2, 5), (2, n), (2, n), (4, n)):
-            size = int(np.prod(shape))
-            out.append(v[o:o + size].reshape(shape))
-            o += size
-        return out
+        return self.derivatives.parameters(q, dq)
 
     # -- the phases ----------------------------------------------------------------------------
     def accelerations(self, q, dq, u, stance_leg, parameters=False):
         """The phase's solution s and its derivatives: (s, ds/dq, ds/ddq, ds/du, ds/dp or None).
 
-        In stance on ``stance_leg`` (1, 2) s = [ddq (5); F (2)] of the KKT system (F the force of the ground
+        In stance on ``stance_leg`` (1, 2) s = [ddq (n); F (2)] of the KKT system (F the force of the ground
         on the foot, world axes); in flight (``stance_leg`` 0) s = ddq. q, dq, u: sequences.
 
         s is affine in u, s = s0 + s_u u, and so is ds/dq: K ds/dq_k = dr/dq_k - (dK/dq_k) s with r - B u and K
@@ -207,26 +199,28 @@ class Linearization:
             return s, dsq0, dsv, su, dsp0
         cols = [dKs(delta)] + ([dKsp(delta)] if parameters else [])
         corr = -np.linalg.solve(M, np.hstack(cols))
-        dsq = dsq0 + corr[:, :5]
-        return s, dsq, dsv, su, (dsp0 + corr[:, 5:] if parameters else None)
+        n = self.n
+        dsq = dsq0 + corr[:, :n]
+        return s, dsq, dsv, su, (dsp0 + corr[:, n:] if parameters else None)
 
     def _affine(self, q, dq, stance_leg, parameters):
         """(K or D, s0, s_u, ds0/dq, ds/ddq, ds0/dp, v -> (dK/dq) v, v -> (dK/dp) v) at u = 0."""
-        key = (self.model.p, tuple(q), tuple(dq), stance_leg, parameters)
+        key = (self.derivatives.key, tuple(q), tuple(dq), stance_leg, parameters)
         if _AFFINE[0] == key:
             return _AFFINE[1]
+        n, B = self.n, self.B
         D, h, dD, dhq, dhv = self._mass_and_bias(q, dq)
         pj = self._parameters(q, dq) if parameters else None
         if stance_leg:
             J, dJ, jb, djbq, djbv = self._foot(q, dq, stance_leg)
-            M = np.zeros((7, 7))
-            M[:5, :5], M[:5, 5:], M[5:, :5] = D, -J.T, J
-            rhs0, Bw = np.concatenate([-h, -jb]), np.vstack([B, np.zeros((2, 2))])
+            M = np.zeros((n + 2, n + 2))
+            M[:n, :n], M[:n, n:], M[n:, :n] = D, -J.T, J
+            rhs0, Bw = np.concatenate([-h, -jb]), np.vstack([B, np.zeros((2, B.shape[1]))])
             rq, rv = np.vstack([-dhq, -djbq]), np.vstack([-dhv, -djbv])
 
             def dKs(s):     # column k: (dK/dq_k) s = [dD/dq_k ddq - (dJ/dq_k)^T F; dJ/dq_k ddq]
-                return np.vstack([np.einsum("kij,j->ik", dD, s[:5]) - np.einsum("kaj,a->jk", dJ, s[5:]),
-                                  np.einsum("kaj,j->ak", dJ, s[:5])])
+                return np.vstack([np.einsum("kij,j->ik", dD, s[:n]) - np.einsum("kaj,a->jk", dJ, s[n:]),
+                                  np.einsum("kaj,j->ak", dJ, s[:n])])
             dKsp = rp = None
             if parameters:
                 dDp, dhp, dJ1p, dJ2p, djb1p, djb2p, _feet = pj
@@ -234,8 +228,8 @@ class Linearization:
                 rp = np.vstack([-dhp, -djbp])
 
                 def dKsp(s):
-                    return np.vstack([np.einsum("pij,j->ip", dDp, s[:5]) - np.einsum("paj,a->jp", dJp, s[5:]),
-                                      np.einsum("paj,j->ap", dJp, s[:5])])
+                    return np.vstack([np.einsum("pij,j->ip", dDp, s[:n]) - np.einsum("paj,a->jp", dJp, s[n:]),
+                                      np.einsum("paj,j->ap", dJp, s[:n])])
         else:
             M, rhs0, Bw, rq, rv = D, -h, B, -dhq, -dhv
 
@@ -251,27 +245,30 @@ class Linearization:
         s0 = np.linalg.solve(M, rhs0)
         cols = [rq - dKs(s0), rv, Bw] + ([rp - dKsp(s0)] if parameters else [])
         sol = np.linalg.solve(M, np.hstack(cols))
-        data = (M, s0, sol[:, 10:12], sol[:, 0:5], sol[:, 5:10], sol[:, 12:] if parameters else None, dKs, dKsp)
+        m = B.shape[1]
+        data = (M, s0, sol[:, 2 * n:2 * n + m], sol[:, 0:n], sol[:, n:2 * n],
+                sol[:, 2 * n + m:] if parameters else None, dKs, dKsp)
         _AFFINE[:] = key, data
         return data
 
     def flow(self, q, dq, u, stance_leg, u_x=None, parameters=False):
-        """f = (dq, ddq) of the mode, A = df/dx (10x10; with the law's u_x (2x10) the torque's dependence
-        on the state is in it), f_u (10x2), f_p (10x9 or None), and the ground force F with dF/dx, dF/du,
+        """f = (dq, ddq) of the mode, A = df/dx (2n x 2n; with the law's u_x (M x 2n) the torque's dependence
+        on the state is in it), f_u (2n x M), f_p (2n x 9 or None), and the ground force F with dF/dx, dF/du,
         dF/dp (stance; None in flight)."""
         s, dsq, dsv, dsu, dsp = self.accelerations(q, dq, u, stance_leg, parameters)
         dsx = np.hstack([dsq, dsv])
         if u_x is not None:
             dsx = dsx + dsu @ u_x
-        A = np.zeros((10, 10))
-        A[:5, 5:] = np.eye(5)
-        A[5:] = dsx[:5]
-        f = np.concatenate([np.asarray(dq, float), s[:5]])
-        fu = np.vstack([np.zeros((5, 2)), dsu[:5]])
-        fp = None if dsp is None else np.vstack([np.zeros((5, dsp.shape[1])), dsp[:5]])
+        n = self.n
+        A = np.zeros((2 * n, 2 * n))
+        A[:n, n:] = np.eye(n)
+        A[n:] = dsx[:n]
+        f = np.concatenate([np.asarray(dq, float), s[:n]])
+        fu = np.vstack([np.zeros((n, dsu.shape[1])), dsu[:n]])
+        fp = None if dsp is None else np.vstack([np.zeros((n, dsp.shape[1])), dsp[:n]])
         force = None
         if stance_leg:
-            force = (s[5:], dsx[5:], dsu[5:], None if dsp is None else dsp[5:])
+            force = (s[n:], dsx[n:], dsu[n:], None if dsp is None else dsp[n:])
         return f, A, fu, fp, force
 
     def fixed_base_jacobian(self, qs, dqs, u, stance_leg=1):
@@ -281,11 +278,7 @@ class Linearization:
             P = np.array([[0.0, 1, 0], [1, 0, 0], [0, 0, 1]])
             a, aq, av, au = self.fixed_base_jacobian(P @ qs, P @ dqs, np.asarray(u)[::-1], 1)
             return P @ a, P @ aq @ P, P @ av @ P, P @ au[:, ::-1]
-        v = np.array(dgen.fixed_base_jacobian_1(list(map(float, qs)), list(map(float, dqs)),
-                                               self.k["fixed_base_jacobian_1"]))
-        Ds, hs = v[0:9].reshape(3, 3), v[9:12]
-        dDs = v[12:39].reshape(3, 3, 3)
-        dhq, dhv = v[39:48].reshape(3, 3), v[48:57].reshape(3, 3)
+        Ds, hs, dDs, dhq, dhv = self.derivatives.fixed_base(qs, dqs)
         Bs = np.array([[1.0, 0], [0, 1], [0, 0]])
         a = np.linalg.solve(Ds, Bs @ np.asarray(u, float) - hs)
         d = np.linalg.solve(Ds, np.hstack([-dhq - np.einsum("kij,j->ik", dDs, a), -dhv, Bs]))
@@ -293,17 +286,16 @@ class Linearization:
 
     # -- the guards and the resets ---------------------------------------------------------------
     def touchdown_guard(self, q, leg, parameters=False):
-        """(g, g_x (10), g_p (9 or None)): foot ``leg``'s height above the ground, g = p_y + tan(slope) p_x."""
-        m = self.model
-        p = gen.foot_positions(list(map(float, q)), m.k["foot_positions"])
-        J = np.array((gen.foot_jacobian_1 if leg == 1 else gen.foot_jacobian_2)(
-            list(map(float, q)), m.k[f"foot_jacobian_{leg}"])).reshape(2, 5)
+        """(g, g_x (2n), g_p (9 or None)): foot ``leg``'s height above the ground, g = p_y + tan(slope) p_x."""
+        ql = list(map(float, q))
+        px, py = self.derivatives.foot_position(ql, leg)
+        J = self.derivatives.foot_jacobian(ql, leg)
         # (the witness's value and its derivatives: the one rule of a height across the ground, on rows too)
-        g = rules.ev_across(self.tan, p[2 * leg - 2], p[2 * leg - 1])
-        gx = np.concatenate([rules.ev_across(self.tan, J[0], J[1]), np.zeros(5)])
+        g = rules.ev_across(self.tan, px, py)
+        gx = np.concatenate([rules.ev_across(self.tan, J[0], J[1]), np.zeros(self.n)])
         gp = None
         if parameters:
-            feet = self._parameters(list(map(float, q)), [0.0] * 5)[6]
+            feet = self._parameters(ql, [0.0] * self.n)[6]
             gp = rules.ev_across(self.tan, feet[2 * leg - 2], feet[2 * leg - 1])
         return g, gx, gp
 
@@ -314,39 +306,43 @@ class Linearization:
         return float(n @ F), n @ Fx, n @ Fu, None if Fp is None else n @ Fp
 
     def impact(self, q, dq_minus, leg, parameters=False):
-        """(dq+, impulse, d dq+/dq (5x5), d dq+/d dq- (5x5), d dq+/dp (5x9 or None)) of the rigid impact of foot
+        """(dq+, impulse, d dq+/dq (nxn), d dq+/d dq- (nxn), d dq+/dp (nx9 or None)) of the rigid impact of foot
         ``leg``: [D -J^T; J 0][dq+; L] = [D dq-; 0] differentiated as the stance system is."""
         q, dqm = list(map(float, q)), np.asarray(dq_minus, float)
         D, _h, dD, _a, _b = self._mass_and_bias(q, dqm.tolist())
         J, dJ = self._foot(q, dqm.tolist(), leg)[:2]
-        K = np.zeros((7, 7))
-        K[:5, :5], K[:5, 5:], K[5:, :5] = D, -J.T, J
+        n = self.n
+        K = np.zeros((n + 2, n + 2))
+        K[:n, :n], K[:n, n:], K[n:, :n] = D, -J.T, J
         s = np.linalg.solve(K, np.concatenate([D @ dqm, np.zeros(2)]))
-        dqp, L = s[:5], s[5:]
+        dqp, L = s[:n], s[n:]
         cols = [np.vstack([np.einsum("kij,j->ik", dD, dqm - dqp) + np.einsum("kaj,a->jk", dJ, L),
                            -np.einsum("kaj,j->ak", dJ, dqp)]),
-                np.vstack([D, np.zeros((2, 5))])]
+                np.vstack([D, np.zeros((2, n))])]
         if parameters:
             dDp, _hp, dJ1p, dJ2p = self._parameters(q, dqm.tolist())[:4]
             dJp = dJ1p if leg == 1 else dJ2p
             cols.append(np.vstack([np.einsum("pij,j->ip", dDp, dqm - dqp) + np.einsum("paj,a->jp", dJp, L),
                                    -np.einsum("paj,j->ap", dJp, dqp)]))
         d = np.linalg.solve(K, np.hstack(cols))
-        return dqp, L, d[:5, 0:5], d[:5, 5:10], (d[:5, 10:] if parameters else None)
+        return dqp, L, d[:n, 0:n], d[:n, n:2 * n], (d[:n, 2 * n:] if parameters else None)
 
     def stance_tangent(self, q, dq, stance_leg):
-        """The 10 x 6 derivative of the stance state (``stance_state``: the hip placed so that the stance foot
-        stays where it is, at rest) by the joint coordinates (q1, q2, q3, dq1, dq2, dq3): with J = [I2 | A]
-        the base moves as -A dq_r, so d(x, y)/dq_r = -A and d(dx, dy)/dq_r,k = -(dA/dq_k) dq_r."""
+        """The 2n x 2(n - 2) derivative of the stance state (``stance_state``: the base placed so that the stance
+        foot stays where it is, at rest) by the joint coordinates q_r = q[2:] and their rates (10 x 6 for the
+        three-link: (q1, q2, q3, dq1, dq2, dq3)): with J = [I2 | A] the base moves as -A dq_r, so
+        d(x, y)/dq_r = -A and d(dx, dy)/dq_r,k = -(dA/dq_k) dq_r."""
         q, dq = list(map(float, q)), np.asarray(dq, float)
         J, dJ = self._foot(q, dq.tolist(), stance_leg)[:2]
+        n = self.n
+        r = n - 2
         A = J[:, 2:]
-        T = np.zeros((10, 6))
-        T[0:2, 0:3] = -A
-        T[2:5, 0:3] = np.eye(3)
-        T[5:7, 0:3] = -np.column_stack([dJ[k][:, 2:] @ dq[2:] for k in (2, 3, 4)])
-        T[5:7, 3:6] = -A
-        T[7:10, 3:6] = np.eye(3)
+        T = np.zeros((2 * n, 2 * r))
+        T[0:2, 0:r] = -A
+        T[2:n, 0:r] = np.eye(r)
+        T[n:n + 2, 0:r] = -np.column_stack([dJ[k][:, 2:] @ dq[2:] for k in range(2, n)])
+        T[n:n + 2, r:2 * r] = -A
+        T[n + 2:2 * n, r:2 * r] = np.eye(r)
         return T
 
 
@@ -356,7 +352,7 @@ class RunSensitivity:
     t: float                    # s, where the run ends (t_final, or its last event's time with ``end_at_event``)
     q: np.ndarray               # the end state of the integration of (x, S) (physical; after the last event's reset)
     dq: np.ndarray
-    jacobian: np.ndarray        # d(q, dq)(t) / d(inputs): 10 x (directions + parameters)
+    jacobian: np.ndarray        # d(q, dq)(t) / d(inputs): 2n x (directions + parameters), 10 x ... for the three-link
     time_derivative: np.ndarray | None   # d(end time)/d(inputs) with ``end_at_event``, else None
     events: list                # (t, kind, leg) of the engine's run, each linearised through
     law_derivative: str         # LAW_EXACT, LAW_FD or LAW_NONE
@@ -368,12 +364,13 @@ class RunSensitivity:
 
 def run_jacobian(model, q0, dq0, t_final, controller=None, u=None, stance_leg=1, control_period=None,
                  directions=None, parameters=(), rtol=1e-12, atol=1e-12, end_at_event=False, method="dop853",
-                 integration=STEPS, **options) -> RunSensitivity:
+                 integration=STEPS, derivatives=None, **options) -> RunSensitivity:
     """The state transition matrix of a run: d(q, dq)(t_final) / d(initial state, parameters).
 
     The run is the engine's (``HybridSimulator`` with ``options``, the same arguments as ``simulate``): under
     ``controller`` at every evaluation (continuous feedback), or once per ``control_period`` and held, or under
-    the constant torque ``u``. ``directions`` (10 x m) are the initial perturbations; by default the joint
+    the constant torque ``u``. ``directions`` (2n x m, 10 x m for the three-link) are the initial perturbations;
+    by default the joint
     coordinates of the stance state (``Linearization.stance_tangent``: the stance foot stays where it is), or
     the identity in flight. ``parameters``: names of ``PARAMETER_NAMES`` (the plant's; the controller keeps its
     own model) and "controller.NAME", the controller's gain NAME (its ``gain_jacobian``, else central differences of
@@ -384,11 +381,22 @@ event, after the reset (a step map): the
     ValueError says so. ``integration``: ``STEPS`` (default) differentiates the engine's own accepted steps
     where the run allows it (engine/variational.py: DOP853 on the floating base, stance phases joined by
     touchdowns, continuous feedback or a constant torque), else and with ``SOLVE_IVP`` the
-    augmented system is integrated on its own by scipy's DOP853."""
+    augmented system is integrated on its own by scipy's DOP853. ``derivatives``: the model's terms
+    (``model_derivatives.derivatives(model)`` by default: the closed forms of a BipedModel, the generated terms
+    of a GeneratedModel); those of another description of the same robot check one derivation against the
+    other."""
     parameters = parameter_names(parameters)
     if isinstance(t_final, bool) or not isinstance(t_final, (int, float, np.floating)) or not np.isfinite(t_final):
         raise ValueError(f"t_final must be a finite number of seconds, got {t_final!r}")
-    model_names, gains = _split_parameters(parameters, controller)
+    own = model_derivatives.derivatives(model)
+    if derivatives is None:
+        derivatives = own
+    elif (getattr(derivatives, "n", None), np.shape(getattr(derivatives, "B", None))) != (own.n, own.B.shape):
+        raise ValueError(f"derivatives: of a robot with {getattr(derivatives, 'n', '?')} coordinates and B of shape "
+                         f"{np.shape(getattr(derivatives, 'B', None))}, but the model has {own.n} and {own.B.shape}: "
+                         "give the terms of the same robot (model_derivatives.derivatives(model))")
+    n = derivatives.n
+    model_names, gains = _split_parameters(parameters, controller, derivatives.parameter_names)
     if "l_leg" in model_names and stance_leg:
         # the stance foot's place and rate follow from (q, dq) and l_leg: another l_leg makes the initial state
         # one the engine refuses (or re-places), so the run from the same (q, dq) has no derivative by it
@@ -396,7 +404,7 @@ event, after the reset (a step map): the
                          "the stance foot of the initial state); start in flight (stance_leg=0), or give the other "
                          "parameters")
     if controller is None and u is None:
-        u = (0.0, 0.0)
+        u = (0.0,) * derivatives.B.shape[1]
     q0, dq0 = np.asarray(q0, float), np.asarray(dq0, float)
     sim = HybridSimulator(model, q0, dq0, stance_leg=stance_leg, rtol=rtol, atol=atol, method=method, **options)
     if not t_final > sim.t:
@@ -417,26 +425,26 @@ event, after the reset (a step map): the
     if end_at_event and not events:
         raise ValueError(f"end_at_event: the run has no event before t={t_final} s")
     t_end = events[-1][0] if end_at_event else sim.t
-    lin = Linearization(model, options.get("slope", 0.0))
+    lin = Linearization(model, options.get("slope", 0.0), derivatives)
     integ = _Integration(lin, controller, u, control_period, bool(model_names), gains, rtol, atol)
     x = np.concatenate([q0, dq0])
     if directions is None:
-        directions = lin.stance_tangent(q0, dq0, stance_leg) if stance_leg else np.eye(10)
+        directions = lin.stance_tangent(q0, dq0, stance_leg) if stance_leg else np.eye(2 * n)
     directions = np.asarray(directions, float)
-    if directions.ndim != 2 or directions.shape[0] != 10:
-        raise ValueError(f"directions must be a 10 x m array (one column per initial perturbation of (q, dq)), "
+    if directions.ndim != 2 or directions.shape[0] != 2 * n:
+        raise ValueError(f"directions must be a {2 * n} x m array (one column per initial perturbation of (q, dq)), "
                          f"got shape {directions.shape}")
     m0 = directions.shape[1]
     m = m0 + len(parameters)
-    S = np.zeros((10, m))
+    S = np.zeros((2 * n, m))
     S[:, :m0] = directions
-    Sp = np.zeros((len(PARAMETER_NAMES), m))
+    Sp = np.zeros((len(derivatives.parameter_names), m))
     integ.Sg = np.zeros((len(gains), m))
     for j, name in enumerate(parameters):
         if name.startswith(CONTROLLER_PREFIX):
             integ.Sg[gains.index(name[len(CONTROLLER_PREFIX):]), m0 + j] = 1.0
         else:
-            Sp[PARAMETER_NAMES.index(name), m0 + j] = 1.0
+            Sp[derivatives.parameter_names.index(name), m0 + j] = 1.0
     if integration not in (STEPS, SOLVE_IVP):
         raise ValueError(f"integration must be {STEPS!r} or {SOLVE_IVP!r}, got {integration!r}")
     if integration == STEPS and variational.eligible(sim, method, control_period, stance_leg, events, options):
@@ -444,7 +452,7 @@ event, after the reset (a step map): the
     else:
         integration = SOLVE_IVP
         x, S, dtau = integ.run(sim.t0, x, S, Sp, stance_leg, events, t_end, end_at_event)
-    return RunSensitivity(t=t_end, q=x[:5], dq=x[5:], jacobian=S, time_derivative=dtau, events=events,
+    return RunSensitivity(t=t_end, q=x[:n], dq=x[n:], jacobian=S, time_derivative=dtau, events=events,
                           law_derivative=integ.law_derivative, parameters=parameters,
                           gain_derivative=integ.gain_derivative, integration=integration, simulator=sim)
 
@@ -463,23 +471,26 @@ class _Integration:
         self.gain_derivative = ""
 
     def _gain_sensitivity(self, t, x, leg):
-        """u_theta W_theta (2 x m): the torque's sensitivity through the gains, at fixed x."""
-        ug, self.gain_derivative = law_gain_jacobian(self.controller, t, x[:5], x[5:], leg, self.gains)
+        """u_theta W_theta (M x m): the torque's sensitivity through the gains, at fixed x."""
+        n = self.lin.n
+        ug, self.gain_derivative = law_gain_jacobian(self.controller, t, x[:n], x[n:], leg, self.gains)
         return ug @ self.Sg
 
     def _torque(self, t, x, leg, Su):
-        """(u, u_x or None, the torque's sensitivity W_u (2 x m)): the law's at every evaluation (continuous
+        """(u, u_x or None, the torque's sensitivity W_u (M x m)): the law's at every evaluation (continuous
         feedback: u_x folded into A, W_u = u_theta W_theta, None without gains), or the held one with its
         sensitivity."""
         if self.controller is not None and self.period is None:
-            u, ux, how = law_jacobian(self.controller, t, x[:5], x[5:], leg)
+            n = self.lin.n
+            u, ux, how = law_jacobian(self.controller, t, x[:n], x[n:], leg)
             self.law_derivative = how
             return u, ux, (self._gain_sensitivity(t, x, leg) if self.gains else None)
         return self.u_held, None, Su
 
     def _flow(self, t, x, leg, S, Su, Sp):
         u, ux, Wu = self._torque(t, x, leg, Su)
-        f, A, fu, fp, force = self.lin.flow(x[:5], x[5:], u, leg, ux, self.parameters)
+        n = self.lin.n
+        f, A, fu, fp, force = self.lin.flow(x[:n], x[n:], u, leg, ux, self.parameters)
         dS = A @ S
         if Wu is not None:
             dS += fu @ Wu
@@ -492,7 +503,7 @@ class _Integration:
         to t1 (the engine's event time) and return that time too."""
         from scipy.integrate import solve_ivp  # (here: its import costs ~1.5 s, which no command pays unused)
 
-        n, m = 10, S.shape[1]
+        n, m = 2 * self.lin.n, S.shape[1]
 
         def rhs(t, y):
             f, dS, _ = self._flow(t, y[:n], leg, y[n:].reshape(n, m), Su, Sp)
@@ -511,7 +522,7 @@ class _Integration:
 
         def g(t, y):
             if kind == "touchdown":
-                return self.lin.touchdown_guard(y[:5], gleg)[0]
+                return self.lin.touchdown_guard(y[:self.lin.n], gleg)[0]
             u = self._torque(t, y[:n], leg, Su)[0]
             return self.lin.sin * self._force(y[:n], u, leg)[0] + self.lin.cos * self._force(y[:n], u, leg)[1]
 
@@ -528,18 +539,20 @@ class _Integration:
         return te, y[:n], y[n:].reshape(n, m)
 
     def _force(self, x, u, leg):
-        return stance_floating_fast(self.lin.model, x[:5].tolist(), x[5:].tolist(), list(map(float, u)), leg)[1]
+        n = self.lin.n
+        return self.lin.derivatives.stance_force(x[:n].tolist(), x[n:].tolist(), list(map(float, u)), leg)
 
     def _hold(self, t, x, leg, S):
         """A control period starts: u_k = law(x(t_k); theta), its sensitivity u_x S + u_theta W_theta."""
-        u, ux, how = law_jacobian(self.controller, t, x[:5], x[5:], leg)
+        n = self.lin.n
+        u, ux, how = law_jacobian(self.controller, t, x[:n], x[n:], leg)
         self.law_derivative = how
         self.u_held = u
         return ux @ S + (self._gain_sensitivity(t, x, leg) if self.gains else 0.0)
 
     def run(self, t, x, S, Sp, leg, events, t_end, end_at_event):
         m = S.shape[1]
-        Su = np.zeros((2, m))
+        Su = np.zeros((self.lin.B.shape[1], m))
         breaks = []
         if self.period is not None:
             k = 0
@@ -580,19 +593,19 @@ class _Integration:
         last event of an ``end_at_event`` run the state just after it, DR (S + F- dtau) + R_w W, and dtau."""
         lin = self.lin
         f_minus, _dS, (u, ux, Wu, _fu, _fp, force) = self._flow(t, x, leg, S, Su, Sp)
-        n_par = Sp.shape[0]
+        n_par, n = Sp.shape[0], lin.n
         if kind == "touchdown":
-            g, gx, gp = lin.touchdown_guard(x[:5], gleg, self.parameters)
-            gu = np.zeros(2)
-            dqp, _L, Rq, Rv, Rp = lin.impact(x[:5], x[5:], gleg, self.parameters)
-            DR = np.eye(10)
-            DR[5:, :5], DR[5:, 5:] = Rq, Rv
-            Rw = np.zeros((10, n_par)) if Rp is None else np.vstack([np.zeros((5, n_par)), Rp])
-            x_plus = np.concatenate([x[:5], dqp])
+            g, gx, gp = lin.touchdown_guard(x[:n], gleg, self.parameters)
+            gu = np.zeros(lin.B.shape[1])
+            dqp, _L, Rq, Rv, Rp = lin.impact(x[:n], x[n:], gleg, self.parameters)
+            DR = np.eye(2 * n)
+            DR[n:, :n], DR[n:, n:] = Rq, Rv
+            Rw = np.zeros((2 * n, n_par)) if Rp is None else np.vstack([np.zeros((n, n_par)), Rp])
+            x_plus = np.concatenate([x[:n], dqp])
             new_leg = gleg
         else:   # liftoff: the normal force reaches zero; the state goes on unchanged, in flight
             g, gx, gu, gp = lin.normal_force(force)   # (gx has u_x folded in under continuous feedback)
-            DR, Rw, x_plus, new_leg = np.eye(10), np.zeros((10, n_par)), x.copy(), 0
+            DR, Rw, x_plus, new_leg = np.eye(2 * n), np.zeros((2 * n, n_par)), x.copy(), 0
         dg = gx @ S
         if Wu is not None:
             dg = dg + gu @ Wu

@@ -13,8 +13,9 @@ S_{k+1} = Phi_k S_k with
 Gamma_k = h sum_i b_i Gamma_i, Gamma_i = A(x_ki) h sum_j a_ij Gamma_j + f_p W_p + f_u u_theta W_theta (at
 x_ki). The steps are the
 engine's (its samples: every accepted step from its start, tolerances and error control), so no step is
-taken for S alone, and the stages of all the steps of a phase are evaluated together: the closed forms
-(``_gen/closed_forms.py``, ``_gen/derivatives.py``) run on numpy arrays of every step's stage state, the
+taken for S alone, and the stages of all the steps of a phase are evaluated together: the model's terms
+(engine/model_derivatives.py: the three-link's closed forms ``_gen/closed_forms.py`` and ``_gen/derivatives.py``,
+or a GeneratedModel's generated functions) run on numpy arrays of every step's stage state, the
 stance KKT system and its derivative columns are solved as one stack, and the law gives its torque and
 its derivative for the whole stack (``jacobian_batch(t, Q, DQ, stance_leg)``) where it offers that, else
 point by point (``law_jacobian``). From the last sample before an event to the event's time, one DOP853
@@ -23,71 +24,32 @@ path.
 """
 from __future__ import annotations
 
-import inspect
-
 import numpy as np
 
-from biped_sim.engine._gen import closed_forms as _closed_forms, derivatives as _derivatives
-from biped_sim.engine.model import B
-
-#: the closed forms' and their derivatives' Python code, run on numpy arrays (built on first use)
-_VECTORIZED = {}
 #: (key, the last stack's ``stance_stack`` result): the law's ``jacobian_batch`` on its own model of the same
 #: parameters and the flow ask for the same stack in turn
 _STACK = [None, None]
 
 
-def _vectorized(name):
-    """The generated function ``name`` of closed_forms.py or derivatives.py, whose scalar code (arithmetic,
-    sin and cos) runs unchanged on numpy arrays of the points."""
-    if not _VECTORIZED:
-        for module in (_closed_forms, _derivatives):
-            source = inspect.getsource(module).replace("from math import sin, cos", "from numpy import sin, cos")
-            namespace = {}
-            exec(compile(source, f"{module.__file__} (on arrays)", "exec"), namespace)
-            for key, value in namespace.items():
-                if callable(value) and key not in _VECTORIZED:
-                    _VECTORIZED[key] = value
-    return _VECTORIZED[name]
-
-
-def _stacked(values, P):
-    """A generated function's list of values (arrays of the P points, or numbers) as an array (P, n)."""
-    out = np.empty((len(values), P))
-    for i, v in enumerate(values):
-        out[i] = v
-    return out.T
-
-
-def stance_stack(model, k_derivatives, Q, DQ, leg):
-    """The stance KKT system on foot ``leg`` at the points (Q, DQ) (P x 5 each), for the stack:
-    (K (P,7,7), s0 (P,7) and s_u (P,7,2): s = s0 + s_u u, and ``derivative(s, parameters=False)`` ->
-    (ds/dq, ds/ddq (P,7,5 each), ds/dp (P,7,9) or None) at solutions s (P,7) of the same K:
-    K ds/dq_k = dr/dq_k - (dK/dq_k) s, K ds/ddq = dr/ddq, K ds/dp = dr/dp - (dK/dp) s).
-    ``k_derivatives``: the derivatives' constants (``Linearization.k``)."""
-    key = (model.p, leg, Q.tobytes(), DQ.tobytes())
+def stance_stack(deriv, Q, DQ, leg):
+    """The stance KKT system on foot ``leg`` at the points (Q, DQ) (P x n each), for the stack, from the model's
+    terms ``deriv`` (``model_derivatives.derivatives(model)``, ``Linearization.derivatives``):
+    (K (P,n+2,n+2), s0 (P,n+2) and s_u (P,n+2,M): s = s0 + s_u u, and ``derivative(s, parameters=False)`` ->
+    (ds/dq, ds/ddq (P,n+2,n each), ds/dp (P,n+2,9) or None) at solutions s (P,n+2) of the same K:
+    K ds/dq_k = dr/dq_k - (dK/dq_k) s, K ds/ddq = dr/ddq, K ds/dp = dr/dp - (dK/dp) s)."""
+    key = (deriv.key, leg, Q.tobytes(), DQ.tobytes())
     if _STACK[0] == key:
         return _STACK[1]
-    P = Q.shape[0]
-    q, dq = list(Q.T), list(DQ.T)
-    D = _stacked(_vectorized("mass_matrix")(q, model.k["mass_matrix"]), P).reshape(P, 5, 5)
-    h = _stacked(_vectorized("bias_forces")(q, dq, model.k["bias_forces"]), P)
-    dD = _stacked(_vectorized("mass_matrix_jacobian")(q, k_derivatives["mass_matrix_jacobian"]), P).reshape(
-        P, 5, 5, 5)     # [p, k, i, j]
-    dh = _stacked(_vectorized("bias_forces_jacobian")(q, dq, k_derivatives["bias_forces_jacobian"]), P).reshape(
-        P, 2, 5, 5)
-    J = _stacked(_vectorized(f"foot_jacobian_{leg}")(q, model.k[f"foot_jacobian_{leg}"]), P).reshape(P, 2, 5)
-    dJ = _stacked(_vectorized(f"foot_jacobian_jacobian_{leg}")(q, k_derivatives[f"foot_jacobian_jacobian_{leg}"]),
-                  P).reshape(P, 5, 2, 5)    # [p, k, a, j]
-    jb = _stacked(_vectorized(f"foot_bias_jacobian_{leg}")(q, dq, k_derivatives[f"foot_bias_jacobian_{leg}"]), P)
-    K = np.zeros((P, 7, 7))
-    K[:, :5, :5], K[:, :5, 5:], K[:, 5:, :5] = D, -np.transpose(J, (0, 2, 1)), J
-    rhs = np.zeros((P, 7, 3))
-    rhs[:, :5, 0], rhs[:, 5:, 0] = -h, -jb[:, 0:2]
-    rhs[:, :5, 1:] = B
+    P, n, m = Q.shape[0], deriv.n, deriv.B.shape[1]
+    D, h, dD, dh, J, dJ, jb = deriv.stack(Q, DQ, leg)      # dD [p, k, i, j], dJ [p, k, a, j]
+    K = np.zeros((P, n + 2, n + 2))
+    K[:, :n, :n], K[:, :n, n:], K[:, n:, :n] = D, -np.transpose(J, (0, 2, 1)), J
+    rhs = np.zeros((P, n + 2, 1 + m))
+    rhs[:, :n, 0], rhs[:, n:, 0] = -h, -jb[:, 0:2]
+    rhs[:, :n, 1:] = deriv.B
     sol = np.linalg.solve(K, rhs)
-    rq = np.concatenate([-dh[:, 0], -jb[:, 2:12].reshape(P, 2, 5)], axis=1)     # dr/dq (P,7,5)
-    rv = np.concatenate([-dh[:, 1], -jb[:, 12:22].reshape(P, 2, 5)], axis=1)    # dr/ddq
+    rq = np.concatenate([-dh[:, 0], -jb[:, 2:2 + 2 * n].reshape(P, 2, n)], axis=1)             # dr/dq (P,n+2,n)
+    rv = np.concatenate([-dh[:, 1], -jb[:, 2 + 2 * n:2 + 4 * n].reshape(P, 2, n)], axis=1)     # dr/ddq
 
     last = [None, None, None]   # (a computed-torque law asks at its torque, the flow then at the same s)
     by_p = []                   # (dD/dp, dJ/dp, dr/dp), once asked
@@ -95,18 +57,18 @@ def stance_stack(model, k_derivatives, Q, DQ, leg):
     def derivative(s, parameters=False):
         if last[0] is not None and last[1] == parameters and np.array_equal(last[0], s):
             return last[2]
-        dKs = np.concatenate([np.einsum("pkij,pj->pik", dD, s[:, :5]) - np.einsum("pkaj,pa->pjk", dJ, s[:, 5:]),
-                              np.einsum("pkaj,pj->pak", dJ, s[:, :5])], axis=1)
+        dKs = np.concatenate([np.einsum("pkij,pj->pik", dD, s[:, :n]) - np.einsum("pkaj,pa->pjk", dJ, s[:, n:]),
+                              np.einsum("pkaj,pj->pak", dJ, s[:, :n])], axis=1)
         cols = [rq - dKs, rv]
         if parameters:
             if not by_p:
-                by_p.extend(_parameter_terms(k_derivatives, q, dq, leg, P))
+                by_p.extend(deriv.parameter_stack(Q, DQ, leg))
             dDp, dJp, rp = by_p
-            dKsp = np.concatenate([np.einsum("pnij,pj->pin", dDp, s[:, :5]) - np.einsum("pnaj,pa->pjn", dJp, s[:, 5:]),
-                                   np.einsum("pnaj,pj->pan", dJp, s[:, :5])], axis=1)
+            dKsp = np.concatenate([np.einsum("pnij,pj->pin", dDp, s[:, :n]) - np.einsum("pnaj,pa->pjn", dJp, s[:, n:]),
+                                   np.einsum("pnaj,pj->pan", dJp, s[:, :n])], axis=1)
             cols.append(rp - dKsp)
         d = np.linalg.solve(K, np.concatenate(cols, axis=2))
-        last[:] = s, parameters, (d[:, :, :5], d[:, :, 5:10], d[:, :, 10:] if parameters else None)
+        last[:] = s, parameters, (d[:, :, :n], d[:, :, n:2 * n], d[:, :, 2 * n:] if parameters else None)
         return last[2]
 
     out = (K, sol[:, :, 0], sol[:, :, 1:], derivative)
@@ -114,34 +76,20 @@ def stance_stack(model, k_derivatives, Q, DQ, leg):
     return out
 
 
-def _parameter_terms(k_derivatives, q, dq, leg, P):
-    """(dD/dp (P,n,5,5), dJ_leg/dp (P,n,2,5), dr/dp (P,7,n)) at the points (``Linearization._parameters``'s
-    layout of ``parameter_jacobian``)."""
-    n = len(_derivatives.PARAMETER_NAMES)
-    v = _stacked(_vectorized("parameter_jacobian")(q, dq, k_derivatives["parameter_jacobian"]), P)
-    out, o = [], 0
-    for shape in ((n, 5, 5), (5, n), (n, 2, 5), (n, 2, 5), (2, n), (2, n)):
-        size = int(np.prod(shape))
-        out.append(v[:, o:o + size].reshape((P,) + shape))
-        o += size
-    dDp, dhp, dJ1p, dJ2p, djb1p, djb2p = out
-    dJp, djbp = (dJ1p, djb1p) if leg == 1 else (dJ2p, djb2p)
-    return dDp, dJp, np.concatenate([-dhp, -djbp], axis=1)
-
-
-def torques(controller, u_held, t, Q, DQ, leg):
-    """(U (P,2), d u/d x (P,2,10) or None, how) of the law at the points: its ``jacobian_batch`` where it has
-    one, else point by point (``sensitivity.law_jacobian``); a constant torque ``u_held`` without a law."""
+def torques(controller, u_held, t, Q, DQ, leg, m=2):
+    """(U (P,M), d u/d x (P,M,2n) or None, how) of the law at the points: its ``jacobian_batch`` where it has
+    one, else point by point (``sensitivity.law_jacobian``); a constant torque ``u_held`` without a law
+    (M = ``m`` actuators)."""
     from biped_sim.engine.sensitivity import LAW_EXACT, LAW_NONE, law_jacobian
     P = Q.shape[0]
     if controller is None:
-        return np.broadcast_to(np.asarray(u_held, float), (P, 2)), None, LAW_NONE
+        return np.broadcast_to(np.asarray(u_held, float), (P, m)), None, LAW_NONE
     batch = getattr(controller, "jacobian_batch", None)
     if batch is not None:
         out = batch(t, Q, DQ, leg)
         if out is not None:
             return out[0], out[1], LAW_EXACT
-    U, UX = np.zeros((P, 2)), np.zeros((P, 2, 10))
+    U, UX = np.zeros((P, m)), np.zeros((P, m, 2 * Q.shape[1]))
     how = None
     for p in range(P):
         U[p], UX[p], how = law_jacobian(controller, t[p], Q[p], DQ[p], leg)
@@ -149,7 +97,7 @@ def torques(controller, u_held, t, Q, DQ, leg):
 
 
 def gain_torques(controller, t, Q, DQ, leg, gains):
-    """(d u/d(gains) (P,2,k), how) of the law at the points: its ``gain_jacobian_batch`` where it has one, else
+    """(d u/d(gains) (P,M,k), how) of the law at the points: its ``gain_jacobian_batch`` where it has one, else
     point by point (``sensitivity.law_gain_jacobian``)."""
     from biped_sim.engine.sensitivity import LAW_EXACT, law_gain_jacobian
     batch = getattr(controller, "gain_jacobian_batch", None)
@@ -157,34 +105,37 @@ def gain_torques(controller, t, Q, DQ, leg, gains):
         out = batch(t, Q, DQ, leg, gains)
         if out is not None:
             return out, LAW_EXACT
-    UG = np.zeros((Q.shape[0], 2, len(gains)))
-    how = None
+    UG, how = None, None
     for p in range(Q.shape[0]):
-        UG[p], how = law_gain_jacobian(controller, t[p], Q[p], DQ[p], leg, gains)
+        ug, how = law_gain_jacobian(controller, t[p], Q[p], DQ[p], leg, gains)
+        if UG is None:
+            UG = np.zeros((Q.shape[0],) + ug.shape)
+        UG[p] = ug
     return UG, how
 
 
-def flows(model, k_derivatives, controller, u_held, t, X, leg, parameters=False):
-    """(f (P,10), A (P,10,10), f_p (P,10,9) or None, f_u (P,10,2), how) of stance on ``leg`` at the points X
-    (P,10) at times t (P)."""
-    Q, DQ = np.ascontiguousarray(X[:, :5]), np.ascontiguousarray(X[:, 5:])
-    U, UX, how = torques(controller, u_held, t, Q, DQ, leg)
-    _K, s0, su, derivative = stance_stack(model, k_derivatives, Q, DQ, leg)
+def flows(deriv, controller, u_held, t, X, leg, parameters=False):
+    """(f (P,2n), A (P,2n,2n), f_p (P,2n,9) or None, f_u (P,2n,M), how) of stance on ``leg`` at the points X
+    (P,2n) at times t (P), from the model's terms ``deriv``."""
+    n, m = deriv.n, deriv.B.shape[1]
+    Q, DQ = np.ascontiguousarray(X[:, :n]), np.ascontiguousarray(X[:, n:])
+    U, UX, how = torques(controller, u_held, t, Q, DQ, leg, m)
+    _K, s0, su, derivative = stance_stack(deriv, Q, DQ, leg)
     s = s0 + np.einsum("pij,pj->pi", su, U)
     dsq, dsv, dsp = derivative(s, parameters)
     P = X.shape[0]
-    f = np.concatenate([DQ, s[:, :5]], axis=1)
-    A = np.zeros((P, 10, 10))
-    A[:, :5, 5:] = np.eye(5)
-    A[:, 5:, :5], A[:, 5:, 5:] = dsq[:, :5], dsv[:, :5]
+    f = np.concatenate([DQ, s[:, :n]], axis=1)
+    A = np.zeros((P, 2 * n, 2 * n))
+    A[:, :n, n:] = np.eye(n)
+    A[:, n:, :n], A[:, n:, n:] = dsq[:, :n], dsv[:, :n]
     if UX is not None:
-        A[:, 5:] += np.einsum("pik,pkj->pij", su[:, :5], UX)
+        A[:, n:] += np.einsum("pik,pkj->pij", su[:, :n], UX)
     fp = None
     if parameters:
-        fp = np.zeros((P, 10, dsp.shape[2]))
-        fp[:, 5:] = dsp[:, :5]
-    fu = np.zeros((P, 10, 2))
-    fu[:, 5:] = su[:, :5]
+        fp = np.zeros((P, 2 * n, dsp.shape[2]))
+        fp[:, n:] = dsp[:, :n]
+    fu = np.zeros((P, 2 * n, m))
+    fu[:, n:] = su[:, :n]
     return f, A, fp, fu, how
 
 
@@ -193,24 +144,24 @@ def _tableau():
     return c.A[:12, :12], c.B, c.C[:12]
 
 
-def steps_transition(model, k_derivatives, controller, u_held, t0, X0, H, leg, Wp=None, gains=(), Wg=None):
-    """The DOP853 steps of sizes H (N) from the states X0 (N,10) at times t0 (N), all on stance ``leg``:
-    (their end states (N,10), Phi (N,10,10) the derivative of each step's end state by its start, Gamma
-    (N,10,m) its derivative by the parameters' directions ``Wp`` (9 x m) and the controller's ``gains``'
-    ``Wg`` (k x m) (None without either), how, the gains' how)."""
+def steps_transition(deriv, controller, u_held, t0, X0, H, leg, Wp=None, gains=(), Wg=None):
+    """The DOP853 steps of sizes H (N) from the states X0 (N,2n) at times t0 (N), all on stance ``leg``, of the
+    model whose terms are ``deriv``: (their end states (N,2n), Phi (N,2n,2n) the derivative of each step's end
+    state by its start, Gamma (N,2n,m) its derivative by the parameters' directions ``Wp`` (9 x m) and the
+    controller's ``gains``' ``Wg`` (k x m) (None without either), how, the gains' how)."""
     a, b, c = _tableau()
-    N = X0.shape[0]
-    Kf = np.zeros((12, N, 10))
-    Psi = np.zeros((12, N, 10, 10))
+    N, nx = X0.shape
+    Kf = np.zeros((12, N, nx))
+    Psi = np.zeros((12, N, nx, nx))
     m = Wp.shape[1] if Wp is not None else (Wg.shape[1] if gains else 0)
-    Gam = np.zeros((12, N, 10, m)) if m else None
-    eye = np.eye(10)
+    Gam = np.zeros((12, N, nx, m)) if m else None
+    eye = np.eye(nx)
     how = gain_how = None
     for i in range(12):
         ti = t0 + c[i] * H
         Xi = X0 + H[:, None] * np.einsum("j,jpn->pn", a[i, :i], Kf[:i])
         Mi = eye + H[:, None, None] * np.einsum("j,jpmn->pmn", a[i, :i], Psi[:i])
-        f, A, fp, fu, how = flows(model, k_derivatives, controller, u_held, ti, Xi, leg, Wp is not None)
+        f, A, fp, fu, how = flows(deriv, controller, u_held, ti, Xi, leg, Wp is not None)
         Kf[i] = f
         Psi[i] = A @ Mi
         if Gam is not None:
@@ -218,7 +169,7 @@ def steps_transition(model, k_derivatives, controller, u_held, t0, X0, H, leg, W
             if Wp is not None:
                 Gam[i] += fp @ Wp
             if gains:
-                Q, DQ = np.ascontiguousarray(Xi[:, :5]), np.ascontiguousarray(Xi[:, 5:])
+                Q, DQ = np.ascontiguousarray(Xi[:, :nx // 2]), np.ascontiguousarray(Xi[:, nx // 2:])
                 UG, gain_how = gain_torques(controller, ti, Q, DQ, leg, gains)
                 Gam[i] += fu @ (UG @ Wg)
     X1 = X0 + H[:, None] * np.einsum("j,jpn->pn", b, Kf)
@@ -245,7 +196,7 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
     if np.any(legs == 0):
         raise ValueError("the run has a flight phase, which the engine's steps are not differentiated through: "
                          "run_jacobian(..., integration='solve_ivp')")
-    Su = np.zeros((2, S.shape[1]))
+    Su = np.zeros((lin.derivatives.B.shape[1], S.shape[1]))
     Wp = Sp if integ.parameters else None
     leg, t_start = int(legs[0]), float(t[0])
     stops = [(te, kind, lg) for te, kind, lg in events] + ([] if end_at_event else [(t_end, None, None)])
@@ -259,7 +210,7 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
         keep = H > 0
         if keep.any():
             X1, Phi, Gamma, how, gain_how = steps_transition(
-                lin.model, lin.k, integ.controller, integ.u_held, t[idx][keep], X[idx][keep], H[keep], leg, Wp,
+                lin.derivatives, integ.controller, integ.u_held, t[idx][keep], X[idx][keep], H[keep], leg, Wp,
                 integ.gains, integ.Sg)
             if how is not None:
                 integ.law_derivative = how

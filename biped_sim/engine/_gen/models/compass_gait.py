@@ -7,7 +7,7 @@ from math import cos, sin
 
 NAME = 'compass_gait'
 DIGEST = 'e9a75d331a4fd436'
-GENERATOR_VERSION = 1
+GENERATOR_VERSION = 2
 COORDINATES = ('base_x', 'base_y', 'hip_1', 'hip_2', 'hip_pitch')
 CONTACTS = ('foot_1', 'foot_2')
 ACTUATED = ('hip_1', 'hip_2')
@@ -126,6 +126,91 @@ def contact_velocities(q, dq):
     t5 = cos(t4)
     t6 = sin(t4)
     return (dq0 + dq2*t1 + dq4*t1, -dq2*t3 - dq4*t3 - t2, dq0 + dq3*t5 + dq4*t5, -dq3*t6 - dq4*t6 - t2,)
+
+
+def mass_matrix_jacobian(q):
+    """dD/dq_k for k = 0..4, each 5x5 row-major: [k, i, j], 125 values."""
+    q0, q1, q2, q3, q4, = q
+    t0 = q2 + q4
+    t1 = sin(t0)
+    t2 = -2.5*t1
+    t3 = cos(t0)
+    t4 = -2.5*t3
+    t5 = q3 + q4
+    t6 = sin(t5)
+    t7 = -2.5*t6
+    t8 = cos(t5)
+    t9 = -2.5*t8
+    t10 = -2.5*t1 - 2.5*t6
+    t11 = -2.5*t3 - 2.5*t8
+    return (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, t2, 0, t2, 0, 0, t4, 0, t4, t2, t4, 0, 0, 0, 0, 0, 0, 0, 0, t2, t4, 0, 0, 0, 0, 0, 0, t7, t7, 0, 0, 0, t9, t9, 0, 0, 0, 0, 0, t7, t9, 0, 0, 0, t7, t9, 0, 0, 0, 0, 0, t2, t7, t10, 0, 0, t4, t9, t11, t2, t4, 0, 0, 0, t7, t9, 0, 0, 0, t10, t11, 0, 0, 0,)
+
+
+def bias_forces_jacobian(q, dq):
+    """dh/dq (5x5), then dh/d dq (5x5), row-major, h = C dq + G."""
+    q0, q1, q2, q3, q4, = q
+    dq0, dq1, dq2, dq3, dq4, = dq
+    t0 = q2 + q4
+    t1 = cos(t0)
+    t2 = dq2 + dq4
+    t3 = 2.5*t2*t2
+    t4 = q3 + q4
+    t5 = cos(t4)
+    t6 = dq3 + dq4
+    t7 = 2.5*t6*t6
+    t8 = dq2*t1
+    t9 = dq3*t5
+    t10 = t1 + t5
+    t11 = dq4*t10 + t8 + t9
+    t12 = sin(t0)
+    t13 = sin(t4)
+    t14 = dq2*t12
+    t15 = dq3*t13
+    t16 = dq4*(t12 + t13) + t14 + t15
+    t17 = -24.525*t1
+    t18 = -24.525*t5
+    t19 = 5.0*t2
+    t20 = 5.0*t6
+    return (0, 0, -t1*t3, -t5*t7, -2.5*dq4*t11 - 2.5*t2*t8 - 2.5*t6*t9, 0, 0, t12*t3, t13*t7, 2.5*dq4*t16 + 2.5*t14*t2 + 2.5*t15*t6, 0, 0, t17, 0, t17, 0, 0, 0, t18, t18, 0, 0, t17, t18, -24.525*t10, 0, 0, -t12*t19, -t13*t20, -5.0*t16, 0, 0, -t1*t19, -t20*t5, -5.0*t11, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,)
+
+
+def contact_jacobian_jacobians(q):
+    """dJ_c/dq_k of every contact point: for each contact, for k = 0..4, 2x5 row-major ([c, k, a, j], 50 values a contact)."""
+    q0, q1, q2, q3, q4, = q
+    t0 = q2 + q4
+    t1 = -sin(t0)
+    t2 = -cos(t0)
+    t3 = q3 + q4
+    t4 = -sin(t3)
+    t5 = -cos(t3)
+    return (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, t1, 0, t1, 0, 0, t2, 0, t2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, t1, 0, t1, 0, 0, t2, 0, t2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, t4, t4, 0, 0, 0, t5, t5, 0, 0, 0, t4, t4, 0, 0, 0, t5, t5,)
+
+
+def contact_bias_jacobians(q, dq):
+    """Jdot_c dq (2), d(Jdot_c dq)/dq (2x5), d(Jdot_c dq)/d dq (2x5) of every contact point, row-major (22 values a contact)."""
+    q0, q1, q2, q3, q4, = q
+    dq0, dq1, dq2, dq3, dq4, = dq
+    t0 = q2 + q4
+    t1 = sin(t0)
+    t2 = dq2 + dq4
+    t3 = t2*t2
+    t4 = t1*t3
+    t5 = cos(t0)
+    t6 = -t3*t5
+    t7 = 2*t2
+    t8 = -t1*t7
+    t9 = -t5*t7
+    t10 = q3 + q4
+    t11 = sin(t10)
+    t12 = dq3 + dq4
+    t13 = t12*t12
+    t14 = t11*t13
+    t15 = cos(t10)
+    t16 = -t13*t15
+    t17 = 2*t12
+    t18 = -t11*t17
+    t19 = -t15*t17
+    return (-t4, t6, 0, 0, t6, 0, t6, 0, 0, t4, 0, t4, 0, 0, t8, 0, t8, 0, 0, t9, 0, t9, -t14, t16, 0, 0, 0, t16, t16, 0, 0, 0, t14, t14, 0, 0, 0, t18, t18, 0, 0, 0, t19, t19,)
 
 
 def energy(q, dq):

@@ -7,7 +7,7 @@ from math import cos, sin
 
 NAME = 'three_link_hip_mass'
 DIGEST = '0102eea4a6d17db6'
-GENERATOR_VERSION = 1
+GENERATOR_VERSION = 2
 COORDINATES = ('base_x', 'base_y', 'hip_1', 'hip_2', 'torso_pitch')
 CONTACTS = ('foot_1', 'foot_2')
 ACTUATED = ('hip_1', 'hip_2')
@@ -128,6 +128,99 @@ def contact_velocities(q, dq):
     t5 = cos(t4)
     t6 = sin(t4)
     return (dq0 + dq2*t1 + dq4*t1, -dq2*t3 - dq4*t3 - t2, dq0 + dq3*t5 + dq4*t5, -dq3*t6 - dq4*t6 - t2,)
+
+
+def mass_matrix_jacobian(q):
+    """dD/dq_k for k = 0..4, each 5x5 row-major: [k, i, j], 125 values."""
+    q0, q1, q2, q3, q4, = q
+    t0 = q2 + q4
+    t1 = 2.5*sin(t0)
+    t2 = -t1
+    t3 = 2.5*cos(t0)
+    t4 = -t3
+    t5 = q3 + q4
+    t6 = 2.5*sin(t5)
+    t7 = -t6
+    t8 = 2.5*cos(t5)
+    t9 = -t8
+    t10 = -t1 - t6 - 5.0*sin(q4)
+    t11 = -t3 - t8 - 5.0*cos(q4)
+    return (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, t2, 0, t2, 0, 0, t4, 0, t4, t2, t4, 0, 0, 0, 0, 0, 0, 0, 0, t2, t4, 0, 0, 0, 0, 0, 0, t7, t7, 0, 0, 0, t9, t9, 0, 0, 0, 0, 0, t7, t9, 0, 0, 0, t7, t9, 0, 0, 0, 0, 0, t2, t7, t10, 0, 0, t4, t9, t11, t2, t4, 0, 0, 0, t7, t9, 0, 0, 0, t10, t11, 0, 0, 0,)
+
+
+def bias_forces_jacobian(q, dq):
+    """dh/dq (5x5), then dh/d dq (5x5), row-major, h = C dq + G."""
+    q0, q1, q2, q3, q4, = q
+    dq0, dq1, dq2, dq3, dq4, = dq
+    t0 = dq2 + dq4
+    t1 = t0*t0
+    t2 = q2 + q4
+    t3 = cos(t2)
+    t4 = 2.5*t3
+    t5 = dq3 + dq4
+    t6 = t5*t5
+    t7 = q3 + q4
+    t8 = cos(t7)
+    t9 = 2.5*t8
+    t10 = dq2*t4
+    t11 = dq3*t9
+    t12 = cos(q4)
+    t13 = dq4*(5.0*t12 + t4 + t9)
+    t14 = sin(t2)
+    t15 = 2.5*t14
+    t16 = sin(t7)
+    t17 = 2.5*t16
+    t18 = dq2*t15
+    t19 = dq3*t17
+    t20 = dq4*(t15 + t17 + 5.0*sin(q4))
+    t21 = 24.525*t3
+    t22 = -t21
+    t23 = 24.525*t8
+    t24 = -t23
+    t25 = 5.0*t14
+    t26 = 5.0*t16
+    t27 = 5.0*t3
+    t28 = 5.0*t8
+    return (0, 0, -t1*t4, -t6*t9, -dq4*(t10 + t11 + t13) - t0*t10 - t11*t5, 0, 0, t1*t15, t17*t6, dq4*(t18 + t19 + t20) + t0*t18 + t19*t5, 0, 0, t22, 0, t22, 0, 0, 0, t24, t24, 0, 0, t22, t24, -49.05*t12 - t21 - t23, 0, 0, -t0*t25, -t26*t5, -dq2*t25 - dq3*t26 - 2*t20, 0, 0, -t0*t27, -t28*t5, -dq2*t27 - dq3*t28 - 2*t13, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,)
+
+
+def contact_jacobian_jacobians(q):
+    """dJ_c/dq_k of every contact point: for each contact, for k = 0..4, 2x5 row-major ([c, k, a, j], 50 values a contact)."""
+    q0, q1, q2, q3, q4, = q
+    t0 = q2 + q4
+    t1 = -sin(t0)
+    t2 = -cos(t0)
+    t3 = q3 + q4
+    t4 = -sin(t3)
+    t5 = -cos(t3)
+    return (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, t1, 0, t1, 0, 0, t2, 0, t2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, t1, 0, t1, 0, 0, t2, 0, t2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, t4, t4, 0, 0, 0, t5, t5, 0, 0, 0, t4, t4, 0, 0, 0, t5, t5,)
+
+
+def contact_bias_jacobians(q, dq):
+    """Jdot_c dq (2), d(Jdot_c dq)/dq (2x5), d(Jdot_c dq)/d dq (2x5) of every contact point, row-major (22 values a contact)."""
+    q0, q1, q2, q3, q4, = q
+    dq0, dq1, dq2, dq3, dq4, = dq
+    t0 = q2 + q4
+    t1 = sin(t0)
+    t2 = dq2 + dq4
+    t3 = t2*t2
+    t4 = t1*t3
+    t5 = cos(t0)
+    t6 = -t3*t5
+    t7 = 2*t2
+    t8 = -t1*t7
+    t9 = -t5*t7
+    t10 = q3 + q4
+    t11 = sin(t10)
+    t12 = dq3 + dq4
+    t13 = t12*t12
+    t14 = t11*t13
+    t15 = cos(t10)
+    t16 = -t13*t15
+    t17 = 2*t12
+    t18 = -t11*t17
+    t19 = -t15*t17
+    return (-t4, t6, 0, 0, t6, 0, t6, 0, 0, t4, 0, t4, 0, 0, t8, 0, t8, 0, 0, t9, 0, t9, -t14, t16, 0, 0, 0, t16, t16, 0, 0, 0, t14, t14, 0, 0, 0, t18, t18, 0, 0, 0, t19, t19,)
 
 
 def energy(q, dq):
