@@ -43,8 +43,8 @@ class BagRobot:
 
     @property
     def three_link(self) -> bool:
-        """Whether the rows are the three-link biped's (the names and sizes of docs/model.md)."""
-        return self.coordinates == JOINT_NAMES and self.actuators == THREE_LINK_ACTUATED
+        """Whether the run is of a three-link robot (:func:`is_three_link`)."""
+        return is_three_link(self.robot, self.coordinates, self.actuators)
 
     def model(self):
         """The robot's model: a ``BipedModel`` of the run's ``model.*`` parameters for a three-link robot, a
@@ -58,6 +58,17 @@ class BagRobot:
                                  "three-link biped's: its robot cannot be drawn")
             self._model = run_model(self.params, self.robot or THREE_LINK)
         return self._model
+
+
+def is_three_link(robot, coordinates, actuators) -> bool:
+    """Whether a run is of a three-link robot the engine runs as a ``BipedModel`` (``three_link``,
+    ``compass_gait``, whose base angle is ``hip_pitch``, ``three_link_hip_mass``; or another program's bag
+    with the three-link's names), its rows those of docs/model.md: the summary and the data frame keep its
+    names (u1, u2; x, y, q1, q2, q3)."""
+    from biped_sim.config.models import THREE_LINK_PARAMETERS
+    known = coordinates == JOINT_NAMES if robot is None else robot in THREE_LINK_PARAMETERS
+    return (known and len(coordinates) == 5 and tuple(coordinates[2:4]) == THREE_LINK_ACTUATED
+            and tuple(actuators) == THREE_LINK_ACTUATED)
 
 
 def run_model(params: dict | None, robot: str = THREE_LINK):

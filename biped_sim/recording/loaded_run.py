@@ -7,8 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from biped_sim.recording import inspect_bag
-from biped_sim.recording.bag_robot import THREE_LINK_ACTUATED
-from biped_sim.recording.messages import JOINT_NAMES
+from biped_sim.recording.bag_robot import is_three_link
 
 
 @dataclass
@@ -46,14 +45,14 @@ class RecordedRun:
     robot_problem: str = ""
 
     def to_dataframe(self):
-        """The samples as a pandas DataFrame indexed by t: the three-link biped's x, y, q1, q2, q3, their rates
+        """The samples as a pandas DataFrame indexed by t: a three-link robot's x, y, q1, q2, q3, their rates
         (dx ... dq3), u1, u2; a described robot's coordinates by name, their rates ``d_<name>``, its torques
         ``u_<actuator>``; then stance_leg (the ground force is on its own clock: ``grf_t``, ``grf``)."""
         try:
             import pandas as pd
         except ImportError:
             raise ImportError("RecordedRun.to_dataframe needs pandas: pip install pandas") from None
-        if self.coordinates == JOINT_NAMES and self.actuators == THREE_LINK_ACTUATED:
+        if is_three_link(self.robot, self.coordinates, self.actuators):
             names, rates, torques = ["x", "y", "q1", "q2", "q3"], ["dx", "dy", "dq1", "dq2", "dq3"], ["u1", "u2"]
         else:
             names = list(self.coordinates)

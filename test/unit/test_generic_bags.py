@@ -192,26 +192,29 @@ def test_a_bag_whose_robot_file_is_gone_reads_what_it_can(tmp_path, capsys):
     assert err[0].endswith("its links cannot be drawn") and "cannot re-simulate" in err[1], err
 
 
-def test_a_three_link_bag_of_a_version_that_recorded_no_robot_reads_as_before(tmp_path, capsys):
-    """The three-link biped's bag without a ``robot`` parameter (recorded before robots had names): q and dq of 5,
-    u the hips' two torques, the summary's torque line and figure as they were."""
+@pytest.mark.parametrize("robot", ["three_link", "compass_gait"])
+def test_a_three_link_robots_bag_reads_as_before(robot, tmp_path, capsys):
+    """A three-link robot's bag: the three-link biped's without a ``robot`` parameter (recorded before robots had
+    names), the compass gait's (its base angle named hip_pitch): q and dq of 5, u the hips' two torques, the
+    summary's lines and the figure as they were."""
     from biped_sim.config.joints import joint_layout
-    from biped_sim.recording.messages import JOINT_NAMES
-    params = scene_params("three_link")
-    del params["robot"]
+    params = scene_params(robot)
+    if robot == "three_link":
+        del params["robot"]
     t = np.arange(50) * 1_000_000 / 1e9
     q = np.array([0.0, 0.98, 2.9, 3.4, 0.1]) + np.outer(t, [0.8, 0.0, 0.5, -0.5, 0.1])
     dq = np.tile([0.8, 0.0, 0.5, -0.5, 0.1], (50, 1))
     u = np.column_stack([5 + t, -3 - t])
-    write_bag(tmp_path / "bag", params, joint_layout("three_link"), (t, q, dq, u))
+    write_bag(tmp_path / "bag", params, joint_layout(robot), (t, q, dq, u))
     run = bs.load_run(tmp_path / "bag")
-    assert run.robot == "three_link" and run.coordinates == JOINT_NAMES and run.actuators == ("hip_1", "hip_2")
-    assert run.q.shape == (50, 5) and run.u.shape == (50, 2)
+    assert run.robot == robot and run.coordinates == joint_layout(robot).coordinates
+    assert run.actuators == ("hip_1", "hip_2") and run.q.shape == (50, 5) and run.u.shape == (50, 2)
     np.testing.assert_array_equal(run.q, q)
     np.testing.assert_array_equal(run.u, u)
     assert biped_sim(["inspect", str(tmp_path / "bag"), "--frames", "2"]) == 0
     out = capsys.readouterr().out
-    assert "run         scene synthetic, time_mode realtime, control_period 0.001 s, method auto (dopri5)\n" in out, out
+    assert ("run         scene synthetic, time_mode realtime, control_period 0.001 s, method auto (dopri5)"
+            + ("" if robot == "three_link" else ", robot compass_gait") + "\n") in out, out
     assert f"hip height {q[:, 1].min():.3g} .. {q[:, 1].max():.3g} m" in out, out
     rms = np.sqrt(np.sum(u ** 2) / 100)
     assert f"torques     |u1| max {5.049:.4g} N m, |u2| max {3.049:.4g} N m, rms {rms:.4g} N m" in out, out
