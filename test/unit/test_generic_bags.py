@@ -241,3 +241,21 @@ def test_a_bag_of_another_program_is_read_by_its_joint_names(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "NOT RECORDED BY biped_sim" in out and "distance    0.2 m in 0.002 s (mean speed 100 m/s)\n" in out, out
     assert "figure      none (the bag does not say which robot it recorded" in out, out
+
+
+def test_biped_echo_prints_a_described_robots_torques_on_its_joints():
+    """biped_echo's joint_states line: a three-link robot's u1, u2 as before; RABBIT's effort (B u) whole, by
+    joint name (its knees' torques too), not entries 2 and 3 only."""
+    from sensor_msgs.msg import JointState
+
+    from biped_sim.config.joints import joint_layout
+    from biped_sim.ros.echo import format_message
+    for robot, u, shown in (("rabbit", [1.0, 2.0, 3.0, 4.0], "effort={base_x: 0.00, base_y: 0.00, hip_1: 1.00, "
+                             "hip_2: 2.00, knee_1: 3.00, knee_2: 4.00, torso_pitch: 0.00}"),
+                            ("compass_gait", [1.0, 2.0], "u=[1.00, 2.00]")):
+        layout = joint_layout(robot)
+        n = len(layout.coordinates)
+        msg = JointState(name=list(layout.coordinates), position=[0.0] * n, velocity=[0.0] * n,
+                         effort=layout.effort(u))
+        line = format_message("joint_states", msg)
+        assert line.endswith(" " + shown), line
