@@ -53,6 +53,12 @@ def run(args):
         if not len(run_["t"]):
             print("figure      none (no joint_states in this bag)")
             return 0
+        try:
+            run_["robot"].model()        # the figure draws the robot's links
+        except ValueError as exc:
+            print("figure      none (" + ("the robot cannot be loaded: see the robot line" if run_["robot"].problem
+                                          else str(exc)) + ")")
+            return 0
         plot(args.bag, str(png), run_, frames=args.frames)
         print(f"figure      {png}")
     return 0

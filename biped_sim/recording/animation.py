@@ -23,8 +23,8 @@ MP4_MISSING = "writing MP4 needs imageio-ffmpeg: pip install imageio-ffmpeg (or 
 
 @dataclass
 class Track:
-    """A run's states over time: t (N), q (N, 5), stance leg (N), ground force (N, 2); impacts
-    (time, (x, y) of the landing foot); the model and the ground slope."""
+    """A run's states over time: t (k), q (k, N) the model's coordinates, stance leg (k), ground force (k, 2);
+    impacts (time, (x, y) of the landing foot); the model and the ground slope."""
     t: np.ndarray
     q: np.ndarray
     leg: np.ndarray
@@ -35,11 +35,23 @@ class Track:
 
 
 def track_from_result(result, model, slope=0.0) -> Track:
-    """The Track of a ``SimulationResult`` (``simulate`` or ``Scene.simulate``)."""
-    from biped_sim.engine.drawing import RobotDrawing
-    foot = RobotDrawing(model).foot
-    impacts = [(e.time, tuple(foot(e.q, e.leg))) for e in result.impacts]
+    """The Track of a ``SimulationResult`` (``simulate`` or ``Scene.simulate``) of ``model``'s robot."""
+    impacts = [(e.time, foot) for e in result.impacts if (foot := _landing_foot(model, e.q, e.leg)) is not None]
     return Track(result.t, result.q, result.stance_leg, result.grf, impacts, model, slope)
+
+
+def _landing_foot(model, q, foot, drawing=None):
+    """(x, y) of foot ``foot`` at the impact state ``q`` (a state of the model's N coordinates), or None for
+    an impact without one (a state left empty, of another size, or a foot the robot does not have)."""
+    from biped_sim.engine.drawing import RobotDrawing
+    from biped_sim.engine.figure import coordinate_count
+    feet = len(getattr(model, "contacts", (1, 2)))        # a BipedModel's two feet, a description's contacts
+    if q is None or foot not in range(1, feet + 1) or len(q) != coordinate_count(model):
+        return None
+    q = np.asarray(q, dtype=float)
+    if not np.all(np.isfinite(q)):
+        return None
+    return tuple(float(v) for v in (drawing or RobotDrawing(model)).foot(q, foot))
 
 
 def track_from_bag(bag) -> Track:
@@ -56,15 +68,15 @@ def track_from_bag(bag) -> Track:
         raise ValueError(f"{bag} has no joint_states messages: not a biped_sim run (or an empty one); "
                          f"topics: {sorted(run['counts']) or 'none'}")
     params = run["params"] or {}
-    model = inspect_bag.run_model(params)
+    model = run["robot"].model()        # ValueError, one line: a robot that cannot be loaded is not drawn
     # the ground force has its own messages (in stance only), stamped like the state they belong to
     by_ns = dict(zip(np.round(run["grf_t"] * 1e9).astype(np.int64).tolist(), run["grf"].tolist()))
     force = np.array([by_ns.get(k, (0.0, 0.0)) for k in np.round(run["t"] * 1e9).astype(np.int64).tolist()])
     impacts = []
     for e in run["impacts"]:
-        q, foot = e.get("q"), e.get("foot")
-        if isinstance(q, list) and len(q) == 5 and foot in (1, 2):
-            impacts.append((float(e["time"]), tuple(model.foot_position(np.array(q), foot))))
+        at = _landing_foot(model, e.get("q") if isinstance(e.get("q"), list) else None, e.get("foot"))
+        if at is not None:
+            impacts.append((float(e["time"]), at))
     return Track(run["t"], run["q"], run["leg"], force.reshape(-1, 2), impacts, model,
                  float(params.get("slope", 0.0) or 0.0))
 
@@ -298,7 +310,8 @@ class BagStates:
     the file is incomplete ('' if whole; it is read up to its last complete chunk)."""
 
     def __init__(self, bag):
-        from biped_sim.recording import bagio, inspect_bag
+        from biped_sim.recording import bagio, messages as M
+        from biped_sim.recording.bag_robot import bag_robot
         self.bag = bag
         try:
             topics = bagio.channels(bag)
@@ -324,9 +337,14 @@ class BagStates:
         try:
             params = bagio.run_parameters(bag)
         except ValueError:
-            params = {}
-        self.model = inspect_bag.run_model(params)
-        self.slope = float(params.get("slope", 0.0) or 0.0)
+            params = None
+        names = ()
+        for _topic, typ, _t, data in bagio.messages(bag, topics=[self.t_js]):
+            names = M.joint_state_names_cdr(typ, data)
+            break
+        # the robot the bag recorded, drawn from its links (ValueError, one line, when it cannot be loaded)
+        self.model = bag_robot(params, names).model()
+        self.slope = float((params or {}).get("slope", 0.0) or 0.0)
 
     def frames(self, t0, step, n, progress=None):
         """Yield the image of frame k (time ``t0 + k * step``, k < n): the last state at or before it,
@@ -367,9 +385,10 @@ class BagStates:
                 grf = (t_ns, tuple(force))
             else:
                 for e in M.event_values(msg):
-                    q, foot = e.get("q"), e.get("foot")
-                    if isinstance(q, list) and len(q) == 5 and foot in (1, 2):
-                        impacts.append((float(e["time"]), tuple(drawer.drawing.foot(np.array(q), foot))))
+                    q = e.get("q") if isinstance(e.get("q"), list) else None
+                    at = _landing_foot(self.model, q, e.get("foot"), drawer.drawing)
+                    if at is not None:
+                        impacts.append((float(e["time"]), at))
                 impacts.sort(key=lambda i: i[0])
         if state is not None:
             yield from draw_until(None)

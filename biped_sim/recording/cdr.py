@@ -263,6 +263,23 @@ def read_joint_state(data):
     return sec * 1_000_000_000 + nanosec, frame_id, *seqs
 
 
+def read_joint_state_names(data):
+    """The names of the CDR of a ``sensor_msgs/JointState`` (q's coordinates, in order); None where it is not
+    little-endian plain CDR."""
+    if data[:2] != ENCAPSULATION_HEADER[:2]:
+        return None
+    b = memoryview(data)[4:]
+    off, _frame_id = _read_string(b, 8)
+    off += _pad(off, 4)
+    (n_names,) = _U32.unpack_from(b, off)
+    off += 4
+    names = []
+    for _ in range(n_names):
+        off, name = _read_string(b, off)
+        names.append(name)
+    return names
+
+
 def read_float64_multi_array(data):
     """(data, [dim labels]) of the CDR of a ``std_msgs/Float64MultiArray`` (a ``hip_torque`` command);
     None where it is not little-endian plain CDR (the caller then takes rclpy's deserialiser)."""

@@ -13,6 +13,7 @@ import numpy as np
 
 from biped_sim.config.parameters import method_label
 from biped_sim.recording import bagio, messages as M
+from biped_sim.recording.bag_robot import bag_robot
 
 #: the most samples of a time series ``load_run`` keeps for the figure (a bag longer than that is
 #: thinned evenly: every 2nd, 4th, ... state); the figures of the summary use every state
@@ -54,9 +55,11 @@ class Thinned:
 def load_run(bag, max_points=MAX_POINTS) -> dict:
     """A bag read as a stream, in memory that does not grow with it: the figures of the summary over
     every state (``stats``), and for the figure at most ``max_points`` samples of each series: t, q,
-    dq, u, leg (joint_states), grf (t, F), then impacts and events (diagnostics) and the commands'
-    count. ``max_points=None`` keeps every sample; ``all_events`` lists every engine event (those
-    with a ``kind``) of the impact and diagnostics topics in their order."""
+    dq (n columns), effort (n), u (M: effort at the actuated joints), leg (joint_states), grf (t, F), then
+    impacts and events (diagnostics) and the commands' count; ``robot``: the :class:`~biped_sim.recording.
+    bag_robot.BagRobot` whose coordinates and actuators the columns are. ``max_points=None`` keeps every
+    sample; ``all_events`` lists every engine event (those with a ``kind``) of the impact and diagnostics
+    topics in their order."""
     # the file in its own order (no merge of its chunks by time): the same run wherever each topic's
     # messages come in time order, as a recorder writes them; else read again in log-time order
     return _read_run(bag, max_points, log_time_order=False) or _read_run(bag, max_points, log_time_order=True)
@@ -71,11 +74,17 @@ def _read_run(bag, max_points, log_time_order):
     t_imp = bagio.find_topic(topics, "impact")
     t_diag = bagio.find_topic(topics, "diagnostics")
     t_cmd = bagio.find_topic(topics, "hip_torque")
-    js, grf = Thinned(1 + 5 + 5 + 2 + 1, max_points), Thinned(3, max_points)
+    try:
+        params = bagio.run_parameters(bag)
+    except ValueError:
+        params = None
+    # the rows' columns: the robot the bag recorded, named as its first joint_states names its coordinates
+    robot = js = None
+    grf = Thinned(3, max_points)
     impacts, events, all_events, commands = [], [], [], 0
     counts, first, last = {}, {}, {}
     st = dict(n=0, q_first=None, q_last=None, t_first=None, t_last=None, hip_min=math.inf, hip_max=-math.inf,
-              u1=0.0, u2=0.0, u_sq=0.0, fn_min=math.inf, fn_max=-math.inf, ratio=0.0, n_grf=0)
+              u_max=[], u_sq=0.0, fn_min=math.inf, fn_max=-math.inf, ratio=0.0, n_grf=0)
     for topic, typ, t_ns, data in bagio.messages(bag, log_time_order=log_time_order):
         if topic in last:
             if t_ns < last[topic]:
@@ -89,15 +98,27 @@ def _read_run(bag, max_points, log_time_order):
                 commands += 1
             continue
         if topic == t_js:
-            ts, q, dq, u, leg = M.joint_state_values_cdr(typ, data)
-            q, dq, u = (q + [math.nan] * 5)[:5], (dq + [math.nan] * 5)[:5], (u + [0.0, 0.0])[:2]
-            js.add([ts / 1e9, *q, *dq, *u, leg])
+            if robot is None:
+                robot = bag_robot(params, M.joint_state_names_cdr(typ, data))
+                n, slots = robot.n, robot.slots
+                js = Thinned(1 + 3 * n + 1, max_points)      # t, q, dq, effort, leg
+                unknown, none = [math.nan] * n, [0.0] * n
+                y = min(1, n - 1)         # base_y (the hip's height), where there is one
+                st["u_max"] = [0.0] * len(slots)
+            ts, q, dq, eff, leg = M.joint_state_fields_cdr(typ, data)
+            # a message of another length than the names (another program's bag) is cut or padded to them
+            q, dq, eff = (q + unknown)[:n], (dq + unknown)[:n], (eff + none)[:n]
+            js.add([ts / 1e9, *q, *dq, *eff, leg])
             if st["n"] == 0:
                 st["q_first"], st["t_first"] = q, ts / 1e9
             st["q_last"], st["t_last"], st["n"] = q, ts / 1e9, st["n"] + 1
-            st["hip_min"], st["hip_max"] = min(st["hip_min"], q[1]), max(st["hip_max"], q[1])
-            st["u1"], st["u2"] = max(st["u1"], abs(u[0])), max(st["u2"], abs(u[1]))
-            st["u_sq"] += u[0] * u[0] + u[1] * u[1]
+            st["hip_min"], st["hip_max"] = min(st["hip_min"], q[y]), max(st["hip_max"], q[y])
+            u_max, sq = st["u_max"], 0.0
+            for k, i in enumerate(slots):
+                v = eff[i]
+                u_max[k] = max(u_max[k], abs(v))
+                sq += v * v
+            st["u_sq"] += sq
         elif topic == t_grf:
             ts, (fx, fy), _leg = M.wrench_values_cdr(typ, data)
             grf.add([ts / 1e9, fx, fy])
@@ -117,15 +138,19 @@ def _read_run(bag, max_points, log_time_order):
     run = dict(topics=topics, counts=counts, first=first, last=last, impacts=impacts, events=events,
                all_events=all_events,
                commands=commands, stats=st, cut=bagio.cut_short(bag), being_written=bagio.being_written(bag))
+    if robot is None:           # no joint_states: the recorded robot's layout names the (empty) columns
+        robot = bag_robot(params, ())
+        js = Thinned(1 + 3 * robot.n + 1, max_points)
+        st["u_max"] = [0.0] * len(robot.slots)
+    n = robot.n
     rows = js.array()
-    run["t"], run["q"], run["dq"], run["u"] = rows[:, 0], rows[:, 1:6], rows[:, 6:11], rows[:, 11:13]
-    run["leg"] = rows[:, 13].astype(int)
+    run["t"], run["q"], run["dq"] = rows[:, 0], rows[:, 1:1 + n], rows[:, 1 + n:1 + 2 * n]
+    run["effort"] = rows[:, 1 + 2 * n:1 + 3 * n]
+    run["u"] = run["effort"][:, list(robot.slots)]
+    run["leg"] = rows[:, 1 + 3 * n].astype(int)
     rows = grf.array()
     run["grf_t"], run["grf"] = rows[:, 0], rows[:, 1:3]
-    try:
-        run["params"] = bagio.run_parameters(bag)
-    except ValueError:
-        run["params"] = None
+    run["params"], run["robot"] = params, robot
     return run
 
 
@@ -134,13 +159,6 @@ def _kept_event(e) -> bool:
     periodic status messages are not kept."""
     name = e.get("name", "")
     return e.get("kind") == "push" or name == "biped_sim/reset" or name.endswith("/run") or e.get("level", 0) >= 2
-
-
-def run_model(params):
-    """The BipedModel of a run's parameters (the defaults without them)."""
-    from biped_sim.config.parameters import model_arguments
-    from biped_sim.engine.model import BipedModel
-    return BipedModel(**model_arguments(params)) if params else BipedModel()
 
 
 def summary(bag, run=None) -> str:
@@ -157,9 +175,13 @@ def summary(bag, run=None) -> str:
                      f"run; run 'biped-sim recover {bag}' to repair the file")
     lines += [f"run         scene {p.get('scene', '?')}, time_mode {p.get('time_mode', '?')}, control_period "
               f"{p.get('control_period', float('nan')):g} s, method {method_label(p)}"
+              + (f", robot {p['robot']}" if p.get("robot", "three_link") != "three_link" else "")
               if p else "run         NOT RECORDED BY biped_sim (no biped_sim parameters record): its topics only",
               f"duration    {(t1 - t0) / 1e9:.6g} s of simulated time (t = {t0 / 1e9:.6g} .. {t1 / 1e9:.6g} s)",
               "topics"]
+    robot = run["robot"]
+    if robot.problem:
+        lines.insert(-2, f"robot       {robot.problem}")
     for topic in sorted(run["counts"]):
         n = run["counts"][topic]
         span = (run["last"][topic] - run["first"][topic]) / 1e9
@@ -172,15 +194,19 @@ def summary(bag, run=None) -> str:
     if st["n"]:
         dist = st["q_last"][0] - st["q_first"][0]
         span = st["t_last"] - st["t_first"]
-        lines.append(f"distance    {dist:.4g} m in {span:.4g} s (mean speed {dist / max(span, 1e-12):.3g} m/s), "
-                     f"hip height {st['hip_min']:.3g} .. {st['hip_max']:.3g} m")
+        height = "hip height" if robot.three_link else robot.coordinates[1] if robot.n > 1 else ""  # the base's y
+        lines.append(f"distance    {dist:.4g} m in {span:.4g} s (mean speed {dist / max(span, 1e-12):.3g} m/s)"
+                     + (f", {height} {st['hip_min']:.3g} .. {st['hip_max']:.3g} m" if height else ""))
         if len(imps) >= 2:
+            model = _model_or_none(robot)
             ti = np.array([e["time"] for e in imps])
-            xs = np.array([_foot_x(e, p) for e in imps])
+            xs = np.array([_foot_x(e, model) for e in imps])
             lines.append(f"steps       period {np.mean(np.diff(ti)):.4g} s (min {np.min(np.diff(ti)):.4g}, max "
                          f"{np.max(np.diff(ti)):.4g}), length {np.mean(np.diff(xs)):.4g} m")
-        lines.append(f"torques     |u1| max {st['u1']:.4g} N m, |u2| max {st['u2']:.4g} N m, "
-                     f"rms {math.sqrt(st['u_sq'] / (2 * st['n'])):.4g} N m")
+        names = ("u1", "u2") if robot.three_link else robot.actuators
+        if names:
+            lines.append("torques     " + ", ".join(f"|{name}| max {v:.4g} N m" for name, v in zip(names, st["u_max"]))
+                         + f", rms {math.sqrt(st['u_sq'] / (len(names) * st['n'])):.4g} N m")
         if st["n_grf"]:
             lines.append(f"ground      normal force {st['fn_min']:.4g} .. {st['fn_max']:.4g} N, "
                          f"max |F_t / F_n| {st['ratio']:.3g}")
@@ -203,9 +229,17 @@ def summary(bag, run=None) -> str:
     return "\n".join(lines)
 
 
-def _foot_x(e, params):
+def _model_or_none(robot):
+    """The bag's robot's model, or None when it cannot be loaded (the summary says why on its robot line)."""
+    try:
+        return robot.model()
+    except ValueError:
+        return None
+
+
+def _foot_x(e, model):
     from biped_sim.engine.figure import impact_foot_x
-    return impact_foot_x(run_model(params), e.get("foot"), e.get("q"))
+    return math.nan if model is None else impact_foot_x(model, e.get("foot"), e.get("q"))
 
 
 def plot(bag, png, run=None, frames=14):
@@ -219,7 +253,7 @@ def plot(bag, png, run=None, frames=14):
         F[np.concatenate([[False], np.diff(gt) > 1.5 * np.median(np.diff(gt))])] = np.nan
     impacts = [(e["time"], e.get("foot"), e.get("q")) for e in run["impacts"]]
     title = f"{p.get('scene', bag)}: {p.get('time_mode', '')} run, {len(impacts)} impacts"
-    return run_figure(run["t"], run["q"], run["u"], gt, F, impacts, run_model(p), title,
+    return run_figure(run["t"], run["q"], run["u"], gt, F, impacts, run["robot"].model(), title,
                       slope=float(p.get("slope", 0.0) or 0.0), path=png, frames=frames, outcome=run_end(run))
 
 

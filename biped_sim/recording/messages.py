@@ -27,6 +27,9 @@ import math
 #: the three-link biped's joint_states names (``config.joints.joint_layout("three_link").coordinates``, which
 #: a test checks); a run's names are its robot's layout (``NodeRun.layout``)
 JOINT_NAMES = ("base_x", "base_y", "hip_1", "hip_2", "torso_pitch")
+#: the columns of the three-link biped's ``effort`` that hold u1 and u2 (its hips'): a reader of a bag takes
+#: its robot's (:mod:`biped_sim.recording.bag_robot`)
+THREE_LINK_SLOTS = (2, 3)
 IMPACT_KINDS = ("touchdown", "double_touchdown")
 
 # topic (relative name) -> ROS type name, as rosbag2 writes it
@@ -187,29 +190,53 @@ def stamp_ns(stamp) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
-def joint_state_values(m):
-    """(t_ns, q, dq, u, stance_leg) of a JointState."""
+def torques_of_effort(effort, slots=THREE_LINK_SLOTS) -> list:
+    """u of a JointState's ``effort`` (``B u``): the values at ``slots``, the actuated joints' columns (the
+    three-link biped's hips by default); zeros for an effort too short to hold them (none recorded)."""
+    if slots and len(effort) > max(slots):
+        return [effort[i] for i in slots]
+    return [0.0] * len(slots)
+
+
+def joint_state_values(m, slots=THREE_LINK_SLOTS):
+    """(t_ns, q, dq, u, stance_leg) of a JointState; u is ``effort`` at ``slots`` (:func:`torques_of_effort`)."""
     fid = m.header.frame_id
     leg = int(fid.split("_")[1]) if fid.startswith("foot_") else 0
-    eff = list(m.effort)
-    u = [eff[2], eff[3]] if len(eff) >= 4 else [0.0, 0.0]
-    return stamp_ns(m.header.stamp), list(m.position), list(m.velocity), u, leg
+    return stamp_ns(m.header.stamp), list(m.position), list(m.velocity), torques_of_effort(list(m.effort), slots), leg
 
 
 def _leg_of_frame(frame_id) -> int:
     return int(frame_id.split("_")[1]) if frame_id.startswith("foot_") else 0
 
 
-def joint_state_values_cdr(type_name, data):
-    """:func:`joint_state_values` of a JointState's CDR bytes, read without building the message
+def joint_state_fields_cdr(type_name, data):
+    """(t_ns, q, dq, effort, stance_leg) of a JointState's CDR bytes, read without building the message
     (``cdr.read_joint_state``; rclpy's deserialiser for a form that reader does not take)."""
     from biped_sim.recording.cdr import read_joint_state
     fields = read_joint_state(data)
     if fields is None:
         from biped_sim.recording.bagio import decode
-        return joint_state_values(decode(type_name, data))
+        m = decode(type_name, data)
+        return (stamp_ns(m.header.stamp), list(m.position), list(m.velocity), list(m.effort),
+                _leg_of_frame(m.header.frame_id))
     t_ns, frame_id, position, velocity, effort = fields
-    return t_ns, position, velocity, effort[2:4] if len(effort) >= 4 else [0.0, 0.0], _leg_of_frame(frame_id)
+    return t_ns, position, velocity, effort, _leg_of_frame(frame_id)
+
+
+def joint_state_values_cdr(type_name, data, slots=THREE_LINK_SLOTS):
+    """:func:`joint_state_values` of a JointState's CDR bytes (:func:`joint_state_fields_cdr`)."""
+    t_ns, position, velocity, effort, leg = joint_state_fields_cdr(type_name, data)
+    return t_ns, position, velocity, torques_of_effort(effort, slots), leg
+
+
+def joint_state_names_cdr(type_name, data) -> list:
+    """The names of a JointState's CDR bytes: q's coordinates, in order (``cdr.read_joint_state_names``)."""
+    from biped_sim.recording.cdr import read_joint_state_names
+    names = read_joint_state_names(data)
+    if names is None:
+        from biped_sim.recording.bagio import decode
+        names = list(decode(type_name, data).name)
+    return names
 
 
 def wrench_values_cdr(type_name, data):
@@ -296,7 +323,8 @@ def answered_ns(m) -> int | None:
         return None
 
 
-def torque_values(m):
-    """The two torques of a command, or None if it is not two finite numbers."""
+def torque_values(m, count=2):
+    """The torques of a command (one per actuator: ``count``, two for the three-link biped), or None if it is
+    not ``count`` finite numbers."""
     d = [float(v) for v in m.data]
-    return d if len(d) == 2 and all(math.isfinite(v) for v in d) else None
+    return d if len(d) == count and all(math.isfinite(v) for v in d) else None

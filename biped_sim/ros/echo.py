@@ -25,9 +25,14 @@ def format_message(topic, msg, digits=4):
     """One readable line (or block, for impacts) of a message of this node."""
     if topic == "joint_states":
         eff = list(msg.effort)
-        u = eff[2:4] if len(eff) >= 4 else []
-        return (f"{_t(msg.header.stamp)} joint_states    stance={msg.header.frame_id:7s} q={_v(msg.position, digits)} "
-                f"dq={_v(msg.velocity, digits)} u={_v(u, 2)}")
+        head = (f"{_t(msg.header.stamp)} joint_states    stance={msg.header.frame_id:7s} q={_v(msg.position, digits)} "
+                f"dq={_v(msg.velocity, digits)}")
+        names = tuple(msg.name)
+        if not names or len(names) == 5 and names[2:4] == ("hip_1", "hip_2"):   # a three-link robot: u1, u2
+            return f"{head} u={_v(eff[2:4] if len(eff) >= 4 else [], 2)}"
+        # another robot: which joints have a motor is its description's, not the message's; effort is B u
+        # (each motor's torque on its joint), printed whole with the joints' names
+        return f"{head} effort={{{', '.join(f'{n}: {v:.2f}' for n, v in zip(msg.name, eff))}}}"
     if topic == "ground_reaction":
         f = msg.wrench.force
         return (f"{_t(msg.header.stamp)} ground_reaction {msg.header.frame_id:7s} "

@@ -75,6 +75,46 @@ def test_replay_delivers_every_message_in_order(tmp_path):
     assert wall >= params["duration"] / 2       # original timing at rate 2: not faster than 0.3 s
 
 
+def test_replay_publishes_a_rabbit_bag_as_recorded(tmp_path):
+    """A bag of RABBIT (7 coordinates, 4 motors; written by the node's serializer for its joint layout) is
+    published as it was recorded: joint_states of 7 names and values, commands of 4 torques."""
+    from biped_sim.config.joints import joint_layout
+    from biped_sim.recording import messages as M
+    from biped_sim.recording.cdr import StateSerializer, float64_multi_array_data
+    layout = joint_layout("rabbit")
+    serializer = StateSerializer(layout.coordinates, labels={n: "/" + n for n in M.TOPIC_TYPES},
+                                 effort=layout.effort_function())
+    rec = BagRecorder(tmp_path / "bag", parameters=P.validate(dict(scene="rabbitreplay", robot="rabbit")))
+    for name in ("joint_states", "hip_torque"):
+        rec.add_topic("/" + name, M.TOPIC_TYPES[name])
+    q0 = np.array([0.0, 0.75, 3.3, 2.9, 0.35, 0.1, 0.2])
+    for k in range(20):
+        t_ns, u = k * 10_000_000, [0.1 * k, -1.0, 2.0, 0.5 * k]
+        rec.write("/hip_torque", float64_multi_array_data(u), t_ns)
+        rec.write_messages(t_ns, serializer.period(t_ns, "foot_1", (q0 + 0.01 * k).tolist(), [0.1 * k] * 7, u,
+                                                   None, ground_reaction=False, clock=False))
+    rec.close()
+    recorded = bag_messages(tmp_path / "bag")
+    with ros_domain() as dom, Client(dom) as c:
+        js = c.collect("/joint_states", JointState, transient_local=False)
+        cmd = c.collect("/hip_torque", Float64MultiArray, transient_local=False)
+        proc = subprocess.Popen([str(BIN / "biped-sim"), "replay", str(tmp_path / "bag"), "--rate", "4", "-q",
+                                 "--wait-subscribers", "20"], env=ros_env(dom), stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True)
+        try:
+            c.spin_until(lambda: len(js) == 20 and len(cmd) == 20, timeout=40, what="every replayed message")
+            assert proc.wait(20) == 0, proc.stdout.read()
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+    assert tuple(js[0].name) == layout.coordinates and len(js[0].position) == 7
+    assert [(list(m.position), list(m.velocity), list(m.effort)) for m in js] == \
+        [(list(m.position), list(m.velocity), list(m.effort)) for _, m in recorded["/joint_states"]]
+    assert list(js[5].effort) == [0.0, 0.0, 0.5, -1.0, 2.0, 2.5, 0.0]          # B u: each motor on its joint
+    assert [list(m.data) for m in cmd] == [list(m.data) for _, m in recorded["/hip_torque"]]
+    assert len(cmd[0].data) == 4
+
+
 def test_node_lockstep_bag_holds_what_was_published_and_resims_exactly(tmp_path):
     ctrl = WalkingController(BipedModel())
     q0, dq0 = ctrl.initial_state()
