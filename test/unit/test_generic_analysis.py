@@ -134,3 +134,78 @@ def test_find_gait_takes_a_described_robot_as_far_as_the_engine_runs_it():
     assert "(hip_1, hip_2, knee_1, knee_2, torso_pitch and their rates after impact, leg 1 the new stance leg)" in text
     with pytest.raises(ValueError, match="^Gait.derivatives: the exact Jacobian of a described robot waits"):
         g.derivatives("controller.kp")
+
+
+def test_sweep_columns_are_sized_from_the_robot(tmp_path):
+    """A sweep's per-coordinate columns q_end[i], dq_end[i] run over the robot's n coordinates: a run's row has n
+    of each (NaN for a run that did not run: RABBIT's 7, the three-link's 5); a CSV of robots of different sizes
+    runs to the largest n and leaves a smaller robot's cells empty; the columns' line names each robot's q."""
+    import csv
+
+    from biped_sim.analysis import sweep as sw
+    refused = sw.run_one("walk", {"robot": "rabbit"}, 0.1)
+    assert refused["status"] == "error" and len(refused["q_end"]) == len(refused["dq_end"]) == 7
+    bad_start = sw.run_one("walk", {"initial_q[1]": -1.0}, 0.1)
+    assert bad_start["status"] == "error" and len(bad_start["q_end"]) == 5
+    rows = [dict(index=0, robot="three_link", **dict(bad_start, q_end=[0.5] * 5, dq_end=[1.5] * 5)),
+            dict(index=1, **refused)]
+    out = tmp_path / "mixed.csv"
+    sw.write_csv(rows, ["robot"], out)
+    with open(out) as f:
+        table = list(csv.DictReader(f))
+    assert [c for c in table[0] if "q_end[" in c] == [f"q_end[{i}]" for i in range(7)] + [f"dq_end[{i}]" for i in
+                                                                                          range(7)]
+    assert [table[0][f"q_end[{i}]"] for i in range(7)] == ["0.5"] * 5 + ["", ""]
+    assert [table[0][f"dq_end[{i}]"] for i in range(7)] == ["1.5"] * 5 + ["", ""]
+    assert [table[1][f"dq_end[{i}]"] for i in range(7)] == ["nan"] * 7
+    assert sw.csv_columns(["kp"], 5)[-10:] == [f"q_end[{i}]" for i in range(5)] + [f"dq_end[{i}]" for i in range(5)]
+    sw.write_csv([], ["kp"], tmp_path / "none.csv", 7)       # no rows (a sweep stopped at once): the robot's size
+    assert (tmp_path / "none.csv").read_text().rstrip().endswith("q_end[6],dq_end[0],dq_end[1],dq_end[2],dq_end[3],"
+                                                                   "dq_end[4],dq_end[5],dq_end[6]")
+    robots = sw.grid_robots("walk", {"robot": ["three_link", "rabbit", "three_link"], "kp": [1.0, 2.0]})
+    assert robots == {"three_link": BIPED_NAMES, "rabbit": RABBIT.coordinates}
+    line = sw.columns_line(robots)
+    assert line.startswith("q_end[i], dq_end[i] (i = 0..6) are q and dq of three_link: base_x, base_y, hip_1, hip_2, "
+                           "torso_pitch; rabbit: base_x, base_y, hip_1, hip_2, knee_1, knee_2, torso_pitch")
+    assert "the grid mixes robots of different sizes" in line and "\n" not in line
+    assert sw.columns_line(sw.grid_robots("compass_gait", {})) == ("q_end[i], dq_end[i] (i = 0..4) are q and dq of "
+                                                                   "compass_gait: base_x, base_y, hip_1, hip_2, "
+                                                                   "hip_pitch")
+
+
+BIPED_NAMES = ("base_x", "base_y", "hip_1", "hip_2", "torso_pitch")
+
+
+def test_the_basin_slice_of_any_robot():
+    """The basin's initial states around z*: the three-link description's are the BipedModel's; RABBIT's keep
+    contact 1 at the origin and at rest, with the offsets on the rates of hip_1 and of torso_pitch only."""
+    from biped_sim.analysis.basin import slice_states
+    z = np.array([2.79198, 3.190733, 0.150236, 0.635243, 0.467154, 0.307487])
+    offsets = [[-1.0, 0.0, 1.0], [-2.0, 2.0]]
+    q_b, points_b, dq_b = slice_states(BIPED, z, offsets)
+    q_g, points_g, dq_g = slice_states(THREE_LINK, z, offsets)
+    assert points_b == points_g == [(a, b) for a in offsets[0] for b in offsets[1]]
+    assert np.max(np.abs(q_b - q_g)) < 1e-12 and np.max(np.abs(np.array(dq_b) - dq_g)) < 1e-12
+    zr = np.concatenate([_rabbit_double_support(np.random.default_rng(3)), [0.6, 0.4, -0.2, 0.1, 0.3]])
+    q0, points, initial_dq = slice_states(RABBIT, zr, offsets)
+    assert np.max(np.abs(RABBIT.contact_position(q0, 1))) < 1e-12 and len(initial_dq) == 6
+    for (d_st, d_torso), dq in zip(points, initial_dq):
+        assert np.max(np.abs(RABBIT.contact_velocity(q0, dq, 1))) < 1e-12
+        assert np.allclose(np.array(dq[2:]) - zr[5:], [d_st, 0.0, 0.0, 0.0, d_torso], atol=1e-15)
+
+
+def test_cli_sweep_and_gait_name_the_robots_coordinates(tmp_path, capsys):
+    """biped-sim sweep's last line names the CSV's q_end[i], dq_end[i] by the scene robot's coordinates (the
+    compass gait's base angle is hip_pitch)."""
+    from biped_sim.cli import main as cli_main
+    out = tmp_path / "cg.csv"
+    assert cli_main(["sweep", "compass_gait", "--set", "slope=0.0525", "--duration", "0.2", "--workers", "1",
+                     "--no-progress", "-o", str(out)]) == 0
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert last == ("q_end[i], dq_end[i] (i = 0..4) are q and dq of compass_gait: base_x, base_y, hip_1, hip_2, "
+                    "hip_pitch")
+    assert out.read_text().splitlines()[0].endswith(",q_end[0],q_end[1],q_end[2],q_end[3],q_end[4],dq_end[0],"
+                                                    "dq_end[1],dq_end[2],dq_end[3],dq_end[4]")
+    assert cli_main(["gait", "--scene", "compass_gait"]) == 1      # (the free hip link's multipliers at 1)
+    text = capsys.readouterr().out      # a three-link chain (a BipedModel) keeps the names docs/gait.md uses
+    assert "(q_st, q_sw, q3, dq_st, dq_sw, dq3 after impact)" in text and "step period  0.7345 s" in text
