@@ -1,23 +1,30 @@
 """The periodic gait of a scene: fixed point and linearisation of the step-to-step Poincare map.
 
 Owns the gait analysis of ``biped-sim gait`` (the engine headless, continuous feedback of the
-scene's controller). The Poincare section is the set of post-impact states Delta(S), written in
-stance/swing labels (after the relabeling the new stance leg is called "stance" again):
+scene's controller), for any model: the three-link ``BipedModel`` and a described robot's
+``GeneratedModel`` (n coordinates q = [base_x, base_y, q[2:]], contact points 1 and 2 its feet, the
+relabeling R a permutation of q's indices). The Poincare section is the set of post-impact states
+Delta(S), written in stance-1 labels (after the relabeling R the new stance leg is called leg 1 again):
 
-  z = [q_st, q_sw, q3, dq_st, dq_sw, dq3]        (joint angles and rates, 6 numbers)
+  z = [(R q)[2:], (R dq)[2:]]        (joint angles and rates, 2 (n - 2) numbers)
 
-* the translation invariance in x (and the hip height) is removed by pinning the stance foot at the
-  origin: the hip follows from the joints (``stance_state``);
-* the section constraint -- both feet on the ground: h(q_st, q_sw, q3) = 0 -- leaves a
-  5-dimensional section. The map is linearised on it: with U (6 x 5) an orthonormal basis of the
-  section's tangent space (velocities free, configuration tangent to h = 0), A = U^T dP/dz U (5 x 5),
-  whose eigenvalues are the gait's Floquet multipliers. (The full 6 x 6 Jacobian has one more,
+which for the three-link biped (R swaps q1 and q2) is z = [q_st, q_sw, q3, dq_st, dq_sw, dq3].
+
+* the translation invariance in x (and the base's height) is removed by pinning the stance foot at
+  the origin: the base follows from the joints (``stance_state``);
+* the section constraint -- both feet on the ground: h(q[2:]) = 0, the height of contact 2 (the
+  swing foot) across the slope -- leaves a section of 2 (n - 2) - 1 dimensions (5 for the
+  three-link). The map is linearised on it: with U (2(n-2) x (2(n-2) - 1)) an orthonormal basis of
+  the section's tangent space (velocities free, configuration tangent to h = 0), A = U^T dP/dz U,
+  whose eigenvalues are the gait's Floquet multipliers. (The full Jacobian dP/dz has one more,
   zero, eigenvalue: a shift along the flow lands on the same next impact.)
 
 dP/dz is exact by default (``StepMap.jacobian``): the state transition matrix of the step through its
 touchdown (engine/sensitivity.py: the variational equations and the saltation matrix of the impact,
 then the relabeling), at the cost of about one run; ``StepMap.jacobian_fd`` takes central differences
-of the same map (2 x 5 runs), kept as a check.
+of the same map (2 x 5 runs), kept as a check. A described robot's exact Jacobian needs its generated
+derivatives in engine/sensitivity.py: until they are there, its gait takes central differences and says so
+(``exact_jacobian_unavailable``).
 
 The fixed point is found by Newton's method on U^T (P(z) - z) = 0 with the exact Jacobian, each
 iterate projected back onto h = 0. Its derivative by a parameter theta (a controller's gain
@@ -33,32 +40,110 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from biped_sim.engine._gen.models.three_link import RELABELING as THREE_LINK_RELABELING
 from biped_sim.engine.hybrid import HybridSimulator
+from biped_sim.engine.model import B as THREE_LINK_B, BipedModel
 from biped_sim.engine.sensitivity import parameter_names, run_jacobian
 from biped_sim.engine.simulate import stance_state
 
-#: the rows of the physical state (q, dq) after a touchdown of leg 2 that make the next section point: leg 2
-#: is the new stance leg, so z = (q2, q1, q3, dq2, dq1, dq3) (the relabeling R)
-RELABELED_ROWS = [3, 2, 4, 8, 7, 9]
 EXACT = "exact"
 FINITE_DIFFERENCES = "central differences"
+#: why a described robot's gait takes central differences where the exact Jacobian was asked for
+EXACT_WAITS = "the exact Jacobian of a described robot waits for its derivatives"
+
+
+# -- the section, from the model ---------------------------------------------------------------------------
+def relabeling(model) -> tuple[int, ...]:
+    """R as a permutation of q's indices (R R = I): the description's mirror; the three-link's swaps q1, q2."""
+    return tuple(getattr(model, "relabeling", THREE_LINK_RELABELING))
+
+
+def section_size(model) -> int:
+    """len(z) = 2 (n - 2): the joint angles and rates q[2:], dq[2:]."""
+    return 2 * (model.n - 2)
+
+
+def section_rows(model) -> list[int]:
+    """The rows of the physical state (q, dq) after a touchdown of contact 2 that make the next section point
+    z = [(R q)[2:], (R dq)[2:]]: contact 2's leg is the new stance leg, leg 1 in stance-1 labels."""
+    R, n = relabeling(model), model.n
+    return [R[i] for i in range(2, n)] + [n + R[i] for i in range(2, n)]
+
+
+#: the three-link's ``section_rows``: z = (q2, q1, q3, dq2, dq1, dq3) after a touchdown of leg 2
+RELABELED_ROWS = section_rows(BipedModel)
+
+
+def section_point(model, q, dq) -> np.ndarray:
+    """z of the physical post-impact state (q, dq) after a touchdown of contact 2: [(R q)[2:], (R dq)[2:]]."""
+    return np.concatenate([np.asarray(q, float), np.asarray(dq, float)])[section_rows(model)]
+
+
+def foot_position(model, q, leg) -> np.ndarray:
+    """Contact point ``leg`` (1 or 2) of either kind of model: the three-link's feet, a description's contacts."""
+    if isinstance(model, BipedModel):
+        return model.foot_position(q, leg)
+    return model.contact_position(q, leg)
+
+
+def section_height(model, joints, slope=0.0) -> float:
+    """h: the height of contact 2 (the swing foot) across the slope, y + tan(slope) x, with contact 1 (the
+    stance foot) at the origin and the joints q[2:] = ``joints``; h = 0 on the section."""
+    q, _ = stance_state(model, joints, np.zeros(model.n - 2), stance_leg=1)
+    p = foot_position(model, q, 2)
+    return float(p[1] + math.tan(slope) * p[0])
+
+
+def section_basis(model, z, slope=0.0, eps=1e-7):
+    """(U, grad h): U (2m x (2m - 1), m = n - 2) an orthonormal basis of the section's tangent space at z, the
+    rates free and the angles tangent to h = 0; grad h by central differences of ``section_height``."""
+    m = model.n - 2
+    qj = np.asarray(z[0:m], float)
+    grad = np.array([(section_height(model, qj + eps * e, slope) - section_height(model, qj - eps * e, slope))
+                     / (2 * eps) for e in np.eye(m)])
+    normal = np.concatenate([grad, np.zeros(m)])
+    normal /= np.linalg.norm(normal)
+    # the orthogonal complement of the normal: the last 2m - 1 left singular vectors of it
+    u, _s, _vt = np.linalg.svd(normal.reshape(2 * m, 1))
+    return u[:, 1:], grad
+
+
+def base_angle_index(model) -> int:
+    """The index in q of the floating base link's angle (the three-link's torso, q3): every other link's angle
+    is relative to its parent's, so adding theta to it turns the whole robot by theta."""
+    if isinstance(model, BipedModel):
+        return 4
+    d = model.description
+    return 2 + d.links.index(d.base)
+
+
+def actuated_coordinates(model) -> list[int]:
+    """For each actuator (column of B, a unit column), the index in q of the joint it turns."""
+    B = THREE_LINK_B if isinstance(model, BipedModel) else model.B
+    return [int(np.argmax(np.abs(B[:, j]))) for j in range(B.shape[1])]
+
+
+def exact_jacobian_unavailable(model) -> str:
+    """Why the exact step Jacobian (engine/sensitivity.py) cannot be had for ``model``, or "" where it can."""
+    return "" if isinstance(model, BipedModel) else EXACT_WAITS
 
 
 @dataclass
 class Gait:
-    z: np.ndarray                 # fixed point: post-impact [q_st, q_sw, q3, dq_st, dq_sw, dq3]
+    z: np.ndarray                 # fixed point: post-impact [(R q)[2:], (R dq)[2:]] (section_point), 2(n - 2)
     step_length: float            # m, between the feet at touchdown (along the ground)
     step_period: float            # s
     speed: float                  # m/s, step_length / step_period
     cost_of_transport: float      # sum over the hips of |u dq| integrated over a step / (m g step_length)
     motor_work: float             # J per step, signed (u . dq integrated)
-    eigenvalues: np.ndarray       # of the 5 x 5 linearised Poincare map, largest modulus first (the multipliers)
+    eigenvalues: np.ndarray       # of the linearised Poincare map (2(n-2) - 1 of them), largest modulus first
     residual: float               # |P(z) - z| at the fixed point
     newton_iterations: int
     max_torque: float             # N m, largest |u| over the step
     slope: float
-    jacobian: np.ndarray | None = None    # A = U^T dP/dz U (5 x 5) at the fixed point
+    jacobian: np.ndarray | None = None    # A = U^T dP/dz U (2(n-2) - 1 square) at the fixed point
     jacobian_method: str = EXACT          # EXACT or FINITE_DIFFERENCES
+    jacobian_note: str = ""               # why FINITE_DIFFERENCES where EXACT was asked for (EXACT_WAITS)
     law_derivative: str = ""              # the controller's derivative in the exact Jacobian (sensitivity.LAW_*)
     step_map: "StepMap | None" = field(default=None, repr=False, compare=False)
 
@@ -92,15 +177,18 @@ class Gait:
         fixed point's dz*/dtheta = U (I - A)^-1 U^T dP/dtheta and the period's dT/dtheta = T_z dz*/dtheta + T_theta,
         from one run of the step's variational equations at z*."""
         parameters = parameter_names(parameters)
+        smap = self.step_map
+        why = exact_jacobian_unavailable(smap.model)
+        if why:
+            raise ValueError(f"Gait.derivatives: {why} (they are exact, from the step's variational equations)")
         if "l_leg" in parameters:
             raise ValueError("Gait.derivatives: l_leg moves the section (both feet on the ground) itself; the "
                              "other model parameters and the controller's gains are at hand")
-        smap = self.step_map
         U, _ = smap.basis(self.z)
         r = smap.sensitivity(self.z, parameters)
-        J, k = r.jacobian[RELABELED_ROWS], len(parameters)
-        A = U.T @ J[:, :6] @ U
-        I_A, b = np.eye(U.shape[1]) - A, U.T @ J[:, 6:]
+        J, k, nz = r.jacobian[section_rows(smap.model)], len(parameters), section_size(smap.model)
+        A = U.T @ J[:, :nz] @ U
+        I_A, b = np.eye(U.shape[1]) - A, U.T @ J[:, nz:]
         s = np.linalg.svd(I_A, compute_uv=False)
         neutral = int(np.sum(s < NEUTRAL_RCOND * s[0]))
         if neutral:
@@ -110,8 +198,8 @@ class Gait:
         else:
             dz_section = np.linalg.solve(I_A, b)
         dz = U @ dz_section
-        dT = r.time_derivative[:6] @ dz + r.time_derivative[6:]
-        return GaitDerivatives(parameters=parameters, fixed_point=dz.reshape(6, k), period=np.asarray(dT).reshape(k),
+        dT = r.time_derivative[:nz] @ dz + r.time_derivative[nz:]
+        return GaitDerivatives(parameters=parameters, fixed_point=dz.reshape(nz, k), period=np.asarray(dT).reshape(k),
                                law_derivative=r.law_derivative, gain_derivative=r.gain_derivative, neutral=neutral)
 
 
@@ -119,7 +207,7 @@ class Gait:
 class GaitDerivatives:
     """``Gait.derivatives``: the gait's fixed point and period differentiated by ``parameters``."""
     parameters: tuple
-    fixed_point: np.ndarray       # dz*/dtheta, 6 x len(parameters)
+    fixed_point: np.ndarray       # dz*/dtheta, len(z) x len(parameters)
     period: np.ndarray            # dT/dtheta (s per unit), len(parameters)
     law_derivative: str           # the law's derivative by the state (sensitivity.LAW_*)
     gain_derivative: str          # by its gains (sensitivity.LAW_*; "" without gains)
@@ -139,7 +227,8 @@ class NoGait(ValueError):
 
 
 class StepMap:
-    """The step-to-step map of a controller on the engine (stance leg called leg 1)."""
+    """The step-to-step map of a controller on the engine (stance leg called leg 1), for any model: z's size,
+    the section constraint and the relabeling come from the model (``section_point``)."""
 
     def __init__(self, model, controller, rtol=1e-10, atol=1e-10, slope=0.0, method="dop853", **options):
         self.model, self.controller = model, controller
@@ -149,16 +238,17 @@ class StepMap:
 
     def state(self, z):
         """Physical (q, dq) of a section point, stance leg 1 with its foot at the origin."""
-        return stance_state(self.model, z[0:3], z[3:6], stance_leg=1)
+        m = self.model.n - 2
+        return stance_state(self.model, z[0:m], z[m:2 * m], stance_leg=1)
 
     def height(self, qj):
         """Height of the swing foot above the ground with the stance foot at the origin (h = 0 on S)."""
-        q, _ = stance_state(self.model, qj, [0.0, 0.0, 0.0], stance_leg=1)
-        p = self.model.foot_position(q, 2)
-        return float(p[1] + math.tan(self.slope) * p[0])
+        return section_height(self.model, qj, self.slope)
 
     def run(self, z, max_time=5.0, **extra):
         """Integrate one step from z; returns (z_next, simulator)."""
+        if not isinstance(self.model, BipedModel) and hasattr(type(self.model), "engine_refusal"):
+            raise ValueError(self.model.engine_refusal)   # (as simulate does) a robot the engine cannot run yet
         q, dq = self.state(np.asarray(z, float))
         sim = HybridSimulator(self.model, q, dq, stance_leg=1, **dict(self.kw, **extra))
         sim.advance(max_time, controller=self.controller)
@@ -167,41 +257,39 @@ class StepMap:
             why = sim.message or (ev.message if ev else f"no touchdown within {max_time} s")
             raise NoGait(f"the step from z={np.round(z, 6).tolist()} does not end in a touchdown: {why}")
         qe, dqp = ev.q, ev.dq_plus          # leg 2 is the new stance leg: relabel
-        if np.linalg.norm(self.model.foot_position(qe, 2) - self.model.foot_position(qe, 1)) < 1e-6:
+        if np.linalg.norm(foot_position(self.model, qe, 2) - foot_position(self.model, qe, 1)) < 1e-6:
             # both legs as one (q_st = q_sw): the swing foot is on the ground where the stance foot is, at once
             raise NoGait(f"the step from z={np.round(z, 6).tolist()} touches down where the stance foot is, "
                          f"at t={ev.time:.3g} s (the legs together): not a step")
-        return np.array([qe[3], qe[2], qe[4], dqp[3], dqp[2], dqp[4]]), sim
+        return section_point(self.model, qe, dqp), sim
 
     def __call__(self, z):
         return self.run(z)[0]
 
     def basis(self, z, eps=1e-7):
-        """Orthonormal basis (6 x 5) of the section's tangent space at z."""
-        qj = np.asarray(z[0:3], float)
-        grad = np.array([(self.height(qj + eps * e) - self.height(qj - eps * e)) / (2 * eps) for e in np.eye(3)])
-        n = np.concatenate([grad, np.zeros(3)])
-        n /= np.linalg.norm(n)
-        # the orthogonal complement of n: the last 5 left singular vectors of n
-        u, _s, _vt = np.linalg.svd(n.reshape(6, 1))
-        return u[:, 1:], grad
+        """(U, grad h): the orthonormal basis (6 x 5 for the three-link) of the section's tangent space at z
+        (``section_basis``)."""
+        return section_basis(self.model, z, self.slope, eps)
 
     def project(self, z, grad=None):
         """z moved along the configuration gradient of h until h = 0 (Newton)."""
-        z = np.array(z, float)
+        z, m = np.array(z, float), self.model.n - 2
         for _ in range(20):
-            h = self.height(z[0:3])
+            h = self.height(z[0:m])
             if abs(h) < 1e-14:
                 break
             if grad is None or _ > 0:
                 _U, grad = self.basis(z)
-            z[0:3] -= h * grad / (grad @ grad)
+            z[0:m] -= h * grad / (grad @ grad)
         return z
 
     def sensitivity(self, z, parameters=(), max_time=5.0):
         """The step's ``RunSensitivity`` (``engine.sensitivity.run_jacobian`` to the touchdown and through its
         impact map; the initial perturbations are z's own coordinates, the stance foot held at the origin, then
-        ``parameters``); its rows are physical: ``RELABELED_ROWS`` picks the next section point's."""
+        ``parameters``); its rows are physical: ``section_rows`` picks the next section point's."""
+        why = exact_jacobian_unavailable(self.model)
+        if why:
+            raise ValueError(f"StepMap.sensitivity: {why}; StepMap.jacobian_fd takes central differences")
         q, dq = self.state(np.asarray(z, float))
         r = run_jacobian(self.model, q, dq, max_time, controller=self.controller, stance_leg=1, end_at_event=True,
                          parameters=parameters, **self.kw)
@@ -212,16 +300,16 @@ class StepMap:
         return r
 
     def full_jacobian(self, z, max_time=5.0):
-        """(dP/dz (6 x 6), the law's derivative): exact (``sensitivity``)."""
+        """(dP/dz (len(z) square), the law's derivative): exact (``sensitivity``)."""
         r = self.sensitivity(z, max_time=max_time)
-        return r.jacobian[RELABELED_ROWS], r.law_derivative
+        return r.jacobian[section_rows(self.model)], r.law_derivative
 
     def jacobian(self, z, U):
         """A = U^T dP/dz U, exact (``full_jacobian``)."""
         return U.T @ self.full_jacobian(z)[0] @ U
 
     def jacobian_fd(self, z, U, eps=1e-6):
-        """A = U^T dP/dz U by central differences of the map along U's columns (2 x 5 steps)."""
+        """A = U^T dP/dz U by central differences of the map along U's columns (2 x 5 steps for the three-link)."""
         cols = []
         for i in range(U.shape[1]):
             cols.append((self(z + eps * U[:, i]) - self(z - eps * U[:, i])) / (2 * eps))
@@ -233,10 +321,12 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
     """The periodic gait: the fixed point of the step map, its figures and the Floquet multipliers.
 
     ``scene``: a scene name or a Scene (``load_scene``; its model, controller, slope, touchdown and scuff rules;
-    with ``controller``, yours instead: an object, a class or factory, or ``"MODULE:ATTR"``), or a BipedModel with
-    ``controller`` (and ``z0``, the initial guess on the section; by default the controller's
-    ``initial_state``, and ``slope``). ``jacobian``: ``EXACT`` (default) or ``FINITE_DIFFERENCES``, the one
-    Newton's method and the multipliers use; ``Gait.jacobian_fd()`` is always at hand as a check."""
+    with ``controller``, yours instead: an object, a class or factory, or ``"MODULE:ATTR"``), or a model (a
+    BipedModel, or a described robot's GeneratedModel) with ``controller`` (and ``z0``, the initial guess on the
+    section, 2 (n - 2) numbers; by default the controller's ``initial_state``, and ``slope``). ``jacobian``:
+    ``EXACT`` (default) or ``FINITE_DIFFERENCES``, the one Newton's method and the multipliers use (a described
+    robot's gait takes central differences until its exact Jacobian is at hand, and says so in
+    ``Gait.jacobian_note``); ``Gait.jacobian_fd()`` is always at hand as a check."""
     if isinstance(scene, str) or hasattr(scene, "engine_arguments"):
         return scene_gait(scene, jacobian=jacobian, controller=controller, z0=z0, warmup_steps=warmup_steps,
                           tol=tol, max_iter=max_iter)
@@ -245,20 +335,24 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
     if jacobian not in (EXACT, FINITE_DIFFERENCES):
         raise ValueError(f"jacobian must be {EXACT!r} or {FINITE_DIFFERENCES!r}, got {jacobian!r}")
     model = scene
+    note = ""
+    if jacobian == EXACT and exact_jacobian_unavailable(model):
+        jacobian, note = FINITE_DIFFERENCES, exact_jacobian_unavailable(model)
     smap = StepMap(model, controller, slope=slope, **options)
+    nz = section_size(model)
     if z0 is None:
         if not hasattr(controller, "initial_state"):
-            raise ValueError("find_gait(model, controller): give z0, the post-impact state [q_st, q_sw, q3, dq_st, "
-                             "dq_sw, dq3] to start Newton's method from (this controller has no initial_state()), "
+            raise ValueError(f"find_gait(model, controller): give z0, the post-impact state {_z_names(model)} to "
+                             "start Newton's method from (this controller has no initial_state()), "
                              "or a scene: find_gait('walk', controller=...) starts from the scene's state")
         q, dq = controller.initial_state()
         z0 = np.concatenate([q[2:], dq[2:]])
         if slope:   # rotate the flat-ground start onto the slope
-            z0[2] += slope
+            z0[base_angle_index(model) - 2] += slope
     z = np.asarray(z0, float)
-    if z.shape != (6,) or not np.all(np.isfinite(z)):
-        raise ValueError(f"z0 must be 6 finite numbers, the post-impact state [q_st, q_sw, q3, dq_st, dq_sw, dq3], "
-                         f"got {np.round(z, 6).tolist() if z.size <= 12 else f'shape {z.shape}'}")
+    if z.shape != (nz,) or not np.all(np.isfinite(z)):
+        raise ValueError(f"z0 must be {nz} finite numbers, the post-impact state {_z_names(model)}, "
+                         f"got {np.round(z, 6).tolist() if z.size <= 2 * nz else f'shape {z.shape}'}")
     if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not tol > 0 \
             or isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
         raise ValueError(f"tol must be a positive number and max_iter a positive integer, got tol={tol!r}, "
@@ -295,7 +389,16 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
     eig = eig[np.argsort(-np.abs(eig))]
     g = _figures(smap, z, eig, residual, it)
     g.jacobian, g.jacobian_method, g.law_derivative, g.step_map = A, jacobian, how, smap
+    g.jacobian_note = note
     return g
+
+
+def _z_names(model) -> str:
+    """z's entries in words: [q_st, q_sw, q3, dq_st, dq_sw, dq3] for the three-link, else the coordinates'."""
+    if isinstance(model, BipedModel):
+        return "[q_st, q_sw, q3, dq_st, dq_sw, dq3]"
+    joints = model.coordinates[2:]
+    return "[" + ", ".join([*joints, *(f"d{c}" for c in joints)]) + "] (leg 1 the new stance leg)"
 
 
 def _newton_step(A_I, rhs):
@@ -315,18 +418,22 @@ def _figures(smap, z, eig, residual, iterations) -> Gait:
     res = sim.result()
     ev = sim.events[-1]
     T = ev.time
-    p1, p2 = model.foot_position(ev.q, 1), model.foot_position(ev.q, 2)
+    p1, p2 = foot_position(model, ev.q, 1), foot_position(model, ev.q, 2)
     L = float(np.linalg.norm(p2 - p1))
     keep = res.t <= T
     t, q, dq = res.t[keep], res.q[keep], res.dq[keep]
-    u = np.array([ctrl(ti, qi, dqi, 1) for ti, qi, dqi in zip(t, q, dq)])
-    pw_abs = np.abs(u[:, 0] * dq[:, 2]) + np.abs(u[:, 1] * dq[:, 3])
+    u = np.array([ctrl(ti, qi, dqi, 1) for ti, qi, dqi in zip(t, q, dq)]).reshape(len(t), -1)
+    # |u_j dq_k| summed over the actuators j, k the joint each turns (B's unit columns)
+    pw_abs = sum(np.abs(u[:, j] * dq[:, k]) for j, k in enumerate(actuated_coordinates(model)))
     work_abs = float(np.trapezoid(pw_abs, t))
-    prm = model.parameters
-    mass = prm.m_torso + 2 * prm.m_leg
-    return Gait(z=z, step_length=L, step_period=T, speed=L / T, cost_of_transport=work_abs / (mass * prm.g * L),
+    mass, g = model.total_mass, _gravity(model)
+    return Gait(z=z, step_length=L, step_period=T, speed=L / T, cost_of_transport=work_abs / (mass * g * L),
                 motor_work=float(sim.work), eigenvalues=eig, residual=residual, newton_iterations=iterations,
                 max_torque=float(np.max(np.abs(u))), slope=smap.slope)
+
+
+def _gravity(model) -> float:
+    return model.parameters.g if isinstance(model, BipedModel) else model.description.gravity
 
 
 def scene_gait(scene, jacobian=EXACT, controller=None, **newton) -> Gait:
@@ -355,10 +462,11 @@ def scene_gait(scene, jacobian=EXACT, controller=None, **newton) -> Gait:
                      scuff_rule=kw["scuff_rule"], scuff_depth=kw["scuff_depth"], jacobian=jacobian, **newton)
 
 
-def format_gait(g: Gait) -> str:
+def format_gait(g: Gait, coordinates=None) -> str:
+    """The gait's figures, a line each. ``coordinates``: the robot's names of q (``config.joints.joint_layout``),
+    which name z*'s entries; by default a described robot's own, and q_st, q_sw, q3 for a BipedModel."""
     rows = [
-        ("fixed point z*", "[" + ", ".join(f"{v:.6f}" for v in g.z)
-         + "]  (q_st, q_sw, q3, dq_st, dq_sw, dq3 after impact)"),
+        ("fixed point z*", "[" + ", ".join(f"{v:.6f}" for v in g.z) + f"]  ({_section_label(g, coordinates)})"),
         ("|P(z*) - z*|", f"{g.residual:.2e}  ({g.newton_iterations} Newton iterations)"),
         ("step length", f"{g.step_length:.4f} m"),
         ("step period", f"{g.step_period:.4f} s"),
@@ -394,10 +502,19 @@ def _stability_line(g):
     return line
 
 
+def _section_label(g, coordinates):
+    model = g.step_map.model if g.step_map is not None else None
+    if coordinates is None and not isinstance(model, BipedModel) and model is not None:
+        coordinates = model.coordinates
+    if coordinates is None:
+        return "q_st, q_sw, q3, dq_st, dq_sw, dq3 after impact"
+    return f"{', '.join(coordinates[2:])} and their rates after impact, leg 1 the new stance leg"
+
+
 def _method(g):
     if g.jacobian_method == EXACT:
         return f"exact (variational equations and saltation matrix; law derivative: {g.law_derivative})"
-    return "central differences of the step map"
+    return "central differences of the step map" + (f" ({g.jacobian_note})" if g.jacobian_note else "")
 
 
 def _c(e):

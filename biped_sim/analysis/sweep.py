@@ -33,6 +33,7 @@ from dataclasses import fields
 from pathlib import Path
 
 from biped_sim.config.controllers import controller_arguments, make_controller, portable
+from biped_sim.config.joints import joint_layout
 from biped_sim.config.scenes import load_scene, scene_path
 from biped_sim.engine.options import Options
 from biped_sim.engine.simulate import simulate
@@ -142,7 +143,7 @@ def run_one(scene, overrides: dict, duration=None, run_options=None) -> dict:
             kwargs["controller_args"] = point_ctrl
         row.update(summary(s.simulate(**kwargs), s.params["initial_q"][0]))
     except Exception as exc:   # a sweep's rows say what failed; the sweep goes on
-        row.update(_empty_outcome("error", f"{type(exc).__name__}: {exc}"))
+        row.update(_empty_outcome("error", f"{type(exc).__name__}: {exc}", _coordinates(scene, overrides)))
     row["wall_time"] = time.perf_counter() - t0
     return row
 
@@ -259,7 +260,8 @@ def _run_processes(tasks, workers, _address):
 
 
 def _died(task, ended) -> dict:
-    return dict(task[1], **_empty_outcome("error", f"during this run or one beside it, {ended}"), wall_time=0.0)
+    return dict(task[1], **_empty_outcome("error", f"during this run or one beside it, {ended}",
+                                          _coordinates(task[0], task[1])), wall_time=0.0)
 
 
 def _what_ended(workers_seen) -> str:
@@ -539,7 +541,9 @@ def _run_ray(tasks, workers, address):
                 try:
                     yield index, ray.get(ref)
                 except ray.exceptions.RayError as exc:   # the worker died; run_one itself never raises
-                    yield index, dict(tasks[index][1], **_empty_outcome("error", f"Ray: {exc}"), wall_time=0.0)
+                    yield index, dict(tasks[index][1], **_empty_outcome("error", f"Ray: {exc}",
+                                                                        _coordinates(*tasks[index][:2])),
+                                      wall_time=0.0)
     finally:
         for ref in in_flight:
             ray.cancel(ref, force=True)
@@ -582,9 +586,44 @@ def _check_reachable(address, timeout=5.0):
                          "not gRPC); give the Ray head's GCS port, 6379 by default") from None
 
 
-def _empty_outcome(status, message) -> dict:
+def _empty_outcome(status, message, size) -> dict:
+    """The outcome of a run that did not run: q_end and dq_end are ``size`` NaNs (the run's robot's n)."""
     return dict(status=status, message=message, impacts=0, t_end=math.nan, x_end=math.nan, mean_speed=math.nan,
-                q_end=[math.nan] * 5, dq_end=[math.nan] * 5, energy_residual=math.nan, drift=math.nan)
+                q_end=[math.nan] * size, dq_end=[math.nan] * size, energy_residual=math.nan, drift=math.nan)
+
+
+def _coordinates(scene, overrides) -> int:
+    """n, the number of coordinates of the robot of a run (the scene's, or the grid point's ``robot``); 0 where
+    the point's scene does not load (its q_end and dq_end are then empty: the CSV's cells left empty)."""
+    try:
+        return len(joint_layout(load_scene(scene, overrides=controller_arguments(overrides)[0]).robot).coordinates)
+    except Exception:   # (the row already says why the run failed)
+        return 0
+
+
+def grid_robots(scene, grid) -> dict:
+    """{robot: its q's names (``config.joints.joint_layout``)} of the runs of ``grid`` on ``scene``: the scene's
+    robot, or each robot a swept ``robot`` (``biped_sim.robot``, ...) gives, in the order of the grid."""
+    scene = _scene_argument(scene)
+    swept = [name for name in grid if name.rpartition(".")[2].partition("[")[0] == "robot"]
+    robots = {}
+    for combo in itertools.product(*(grid[name] for name in swept)):
+        robot = load_scene(scene, overrides=dict(zip(swept, combo))).robot
+        robots.setdefault(robot, joint_layout(robot).coordinates)
+    return robots
+
+
+def columns_line(robots: dict) -> str:
+    """What the CSV's per-coordinate columns q_end[i], dq_end[i] are, in one line: the robot's names of q, or,
+    for a grid of robots of different sizes, each robot's and that a smaller robot's cells past its n are
+    empty."""
+    size = max((len(c) for c in robots.values()), default=0)
+    names = "; ".join(f"{robot}: {', '.join(c)}" for robot, c in robots.items())
+    line = f"q_end[i], dq_end[i] (i = 0..{size - 1}) are q and dq of {names}"
+    if len({len(c) for c in robots.values()}) > 1:
+        line += ("; the grid mixes robots of different sizes: a row's cells past its robot's n coordinates are "
+                 "left empty")
+    return line
 
 
 def _plain_value(v):
@@ -603,10 +642,11 @@ def _scene_argument(scene) -> str:
     return str(path.resolve()) if is_path else text
 
 
-def csv_columns(names) -> list[str]:
-    """The CSV's columns: the grid index, the swept names, the outcome, q_end[i] and dq_end[i]."""
+def csv_columns(names, size) -> list[str]:
+    """The CSV's columns: the grid index, the swept names, the outcome, q_end[i] and dq_end[i] for i < ``size``
+    (the robot's n coordinates; the largest n of a grid that mixes robots)."""
     scalars = [c for c in OUTCOME if c not in ("q_end", "dq_end")]
-    return ["index", *names, *scalars] + [f"q_end[{i}]" for i in range(5)] + [f"dq_end[{i}]" for i in range(5)]
+    return ["index", *names, *scalars] + [f"q_end[{i}]" for i in range(size)] + [f"dq_end[{i}]" for i in range(size)]
 
 
 def check_writable(path, what="-o"):
@@ -630,8 +670,12 @@ def check_writable(path, what="-o"):
         raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
 
 
-def write_csv(rows, names, path):
+def write_csv(rows, names, path, size=None):
     """One line per row (numbers as Python's repr: they read back to the same bits).
+
+    The columns q_end[i] and dq_end[i] run to ``size`` (default: the largest robot's n among the rows; give it
+    for a file that may have no rows): a row of a smaller robot (a grid over ``robot``) leaves its cells past
+    its n empty.
 
     The whole file or none: written to a new file beside ``path`` and renamed onto it (a full disk
     left a CSV cut mid-row where the result should be). Should that fail (a full disk, a removed
@@ -639,17 +683,18 @@ def write_csv(rows, names, path):
     names ``path``, the reason and that file. A device or a pipe (``/dev/stdout``) is written in
     place."""
     path = Path(path)
+    size = max([len(r["q_end"]) for r in rows] + ([size] if size is not None else []), default=0)
     if path.is_symlink():   # the file it points to is replaced, not the link
         path = Path(os.path.realpath(path))
     try:
         if path.exists() and not path.is_file():
             with open(path, "w", newline="") as f:
-                _write_rows(f, rows, names)
+                _write_rows(f, rows, names, size)
             return
         fd, temporary = _new_file_beside(path)
         try:
             with open(fd, "w", newline="") as f:
-                _write_rows(f, rows, names)
+                _write_rows(f, rows, names, size)
                 f.flush()
                 os.fsync(f.fileno())
             if path.exists():   # the result keeps the permissions of the file it replaces
@@ -660,7 +705,7 @@ def write_csv(rows, names, path):
                 os.unlink(temporary)
             raise
     except OSError as exc:
-        raise OSError(exc.errno, f"{exc.strerror or exc}; {_keep_rows(rows, names, path)}", str(path)) from exc
+        raise OSError(exc.errno, f"{exc.strerror or exc}; {_keep_rows(rows, names, path, size)}", str(path)) from exc
 
 
 def _new_file_beside(path: Path) -> tuple[int, Path]:
@@ -674,24 +719,25 @@ def _new_file_beside(path: Path) -> tuple[int, Path]:
             continue
 
 
-def _keep_rows(rows, names, path: Path) -> str:
+def _keep_rows(rows, names, path: Path, size) -> str:
     """The rows written to a new file in the system's temp folder; what became of them, as a clause."""
     try:
         fd, kept = tempfile.mkstemp(prefix=f"{path.stem}-", suffix=path.suffix or ".csv")
         with open(fd, "w", newline="") as f:
-            _write_rows(f, rows, names)
+            _write_rows(f, rows, names, size)
     except OSError as exc:
         return f"the {len(rows)} rows could not be kept in the temp folder either ({exc.strerror or exc})"
     return f"the {len(rows)} rows are kept in {kept}"
 
 
-def _write_rows(f, rows, names):
+def _write_rows(f, rows, names, size):
     import csv
     w = csv.writer(f)
-    w.writerow(csv_columns(names))
+    w.writerow(csv_columns(names, size))
     for r in rows:
+        empty = [""] * (size - len(r["q_end"]))    # a robot of fewer coordinates than the grid's largest
         w.writerow([r["index"], *(r[n] for n in names), *(r[c] for c in OUTCOME if c not in ("q_end", "dq_end")),
-                    *r["q_end"], *r["dq_end"]])
+                    *r["q_end"], *empty, *r["dq_end"], *empty])
 
 
 #: the quantity the maps colour by: the distance walked (m), a measure of the gait; the step count

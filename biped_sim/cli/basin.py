@@ -14,7 +14,8 @@ def register(sub):
         "basin", help="basin of attraction of a scene's periodic gait on a 2-D slice of initial states",
         description="Find the fixed point z* of the scene's step-to-step map (as biped-sim gait does), then "
                     "start a run from each point of a NUM x NUM grid of post-impact states around it: the "
-                    "stance-leg rate and the torso rate moved by up to +-SPAN rad/s (angles at z*, the hip "
+                    "stance-leg rate and the torso rate (the rates of q[2] and of the base link's angle) moved by up "
+                    "to +-SPAN rad/s (angles at z*, the hip "
                     "velocity consistent with the stance foot at rest), continuous feedback. Writes one CSV row "
                     "per run (biped-sim sweep's columns) and a map of the distance walked, z*, falls and refused "
                     "starts marked.",
@@ -50,10 +51,14 @@ def run(args):
                           backend=args.backend, progress=progress, controller=controller)
     if progress:
         progress.end()
-    sw.write_csv(rows, list(bn.AXES), args.output)
+    robots = sw.grid_robots(args.scene, {})
+    sw.write_csv(rows, list(bn.AXES), args.output, max(len(c) for c in robots.values()))
     ok = int(bn.walked(rows, 1).sum())
-    print(f"z* = [{', '.join(f'{v:.6f}' for v in gait.z)}]; {len(rows)} runs in {time.perf_counter() - t0:.1f} s, "
-          f"{ok} completed {args.duration:g} s; wrote {args.output}")
+    joints = next(iter(robots.values()))[2:]
+    print(f"z* = [{', '.join(f'{v:.6f}' for v in gait.z)}] ({', '.join(joints)} and their rates, leg 1 the stance "
+          f"leg); {len(rows)} runs in {time.perf_counter() - t0:.1f} s, {ok} completed {args.duration:g} s; "
+          f"wrote {args.output}")
+    print(sw.columns_line(robots))
     if args.plot:
         sw.plot(rows, list(bn.AXES), args.plot,
                 title=f"biped-sim basin {args.scene}: distance walked in {args.duration:g} s from z* + offsets (rad/s)",

@@ -11,7 +11,8 @@ def register(sub):
         "gait", help="find the periodic gait of a scene and the eigenvalues of its Poincare map",
         description="With the engine headless (continuous feedback of the scene's walking controller), find "
                     "the fixed point of the step-to-step Poincare map on the post-impact section (Newton's "
-                    "method on the 5-dimensional section: the x translation and the section constraint removed) and "
+                    "method on the section of 2(n-2) - 1 dimensions, 5 for the three-link: the x translation and the "
+                    "section constraint removed) and "
                     "print the step length, speed, step period, cost of transport and the eigenvalues of the "
                     "linearised map, its Floquet multipliers (all inside the unit circle: the gait is locally "
                     "stable). The Jacobian is exact by default: the variational equations of the step and the "
@@ -28,7 +29,9 @@ def register(sub):
 def run(args):
     from biped_sim.analysis.gait import EXACT, FINITE_DIFFERENCES, NoGait, format_gait, scene_gait
     from biped_sim.config.controllers import cli_law
+    from biped_sim.config.joints import joint_layout
     from biped_sim.config.scenes import load_scene
+    from biped_sim.engine.model import BipedModel
     scene = load_scene(args.scene)
     t0 = time.perf_counter()
     try:
@@ -38,5 +41,8 @@ def run(args):
         print(f"scene {scene.name}: no periodic gait: {exc}")
         return 1
     print(f"scene {scene.name}: periodic gait (slope {g.slope:g} rad), found in {time.perf_counter() - t0:.2f} s")
-    print(format_gait(g))
+    # a described robot's z* is named by its coordinates; the three-link chains (a BipedModel: three_link,
+    # compass_gait, three_link_hip_mass) keep q_st, q_sw, q3, the names docs/gait.md uses
+    model = g.step_map.model
+    print(format_gait(g, None if isinstance(model, BipedModel) else joint_layout(scene.robot).coordinates))
     return 0 if g.stable else 1

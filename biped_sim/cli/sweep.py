@@ -29,7 +29,9 @@ def register(sub):
         description="Run SCENE at every point of the product of the --set grids (row-major: the last --set "
                     "varies fastest), in parallel, and write one CSV row per run: the parameter values, status, "
                     "message, impacts (steps walked), t_end, x_end (distance the hip travelled), mean_speed, "
-                    "energy_residual and drift (the run's own error estimate), wall_time, q_end and dq_end. "
+                    "energy_residual and drift (the run's own error estimate), wall_time, q_end[i] and dq_end[i] "
+                    "(i = 0..n-1 over the robot's n coordinates, named in the last line; a grid over robot values of "
+                    "different sizes leaves a smaller robot's cells past its n empty). "
                     "Names are those of the scene file: kp, step_angle, duration, initial_q[0], "
                     "walk_controller.torque_limit, ..., and controller.NAME for an argument of --controller's class "
                     "(docs/sweeps.md). A failed run is a row; Ctrl-C, SIGTERM "
@@ -110,6 +112,8 @@ def run(args):
     if args.plot:
         sw.check_writable(args.plot, "--plot")
     total = math.prod(len(v) for v in grid.values())
+    robots = sw.grid_robots(args.scene, grid)     # the CSV's q_end[i], dq_end[i] run over their coordinates
+    size = max(len(c) for c in robots.values())
     options = {"hold": False} if args.continuous else {}
     choice = cli_controller(args.controller)
     if choice not in (None, "walk"):
@@ -128,17 +132,18 @@ def run(args):
         with _stop_signals_ignored():   # a second SIGTERM must not cut the CSV short
             if progress:
                 progress.end()
-            sw.write_csv(stop.rows, list(grid), out)
+            sw.write_csv(stop.rows, list(grid), out, size)
         how = "interrupted" if stop.signal == signal.SIGINT else f"stopped by {stop.signal.name}"
         _say(f"{how}: {len(stop.rows)} of {stop.total} runs done, written to {out}")
         return 128 + stop.signal
     if progress:
         progress.end()
     wall = time.perf_counter() - t0
-    sw.write_csv(rows, list(grid), out)
+    sw.write_csv(rows, list(grid), out, size)
     failed = sum(r["status"] != "completed" for r in rows)
     print(f"{len(rows)} runs of {args.scene} ({failed} not completed) in {wall:.1f} s, {len(rows) / wall:.2f} runs/s "
           f"({args.backend}, {args.workers or 'all'} workers); wrote {out}")
+    print(sw.columns_line(robots))
     if args.plot:
         title = f"biped-sim sweep {args.scene}" + (f", {args.duration:g} s a run" if args.duration else "")
         sw.plot(rows, list(grid), args.plot, title=title)
