@@ -106,8 +106,8 @@ def _user_description(tmp_path, name="stilts", leg_mass=4.0):
 def test_a_users_description_is_built_once_cached_next_to_its_module_and_runs(tmp_path, monkeypatch):
     pytest.importorskip("sympy")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
-    model = models.generated_model(str(_user_description(tmp_path)))
     builds = model_kernels.BUILDS
+    model = models.generated_model(str(_user_description(tmp_path)))
     twin = model_kernels.compiled_kernels(model)
     assert twin is not None and model_kernels.BUILDS == builds + 1
     cache = Path(model.module.__file__).parent
@@ -155,9 +155,9 @@ def test_without_a_compiler_the_python_path_runs_after_one_line(tmp_path, monkey
     pytest.importorskip("sympy")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
-    model = models.generated_model(str(_user_description(tmp_path, name="nocc")))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        model = models.generated_model(str(_user_description(tmp_path, name="nocc")))
         assert model_kernels.compiled_kernels(model) is None
         assert model_kernels.compiled_kernels(model) is None      # once per robot
     assert len(caught) == 1, [str(w.message) for w in caught]
@@ -171,3 +171,4 @@ def test_biped_sim_pure_python_forces_the_python_path_without_a_word(monkeypatch
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert model_kernels.compiled_kernels(models.generated_model("rabbit")) is None
+
