@@ -1,7 +1,8 @@
 """The described robots' kernels per call: the compiled twin (biped_sim/engine/model_kernels.py) against
 the numpy path (the generated Python and ``np.linalg.solve`` of the KKT system), lists in, lists out, as
-the hybrid loop calls them; for RABBIT (N = 7) and the three-link biped's description (N = 5); and the
-time a user's robot waits for its twin to be built on first use (the C compiler, once per description).
+the hybrid loop calls them; for RABBIT (N = 7) and the three-link biped's description (N = 5); each of
+the twin's six kernels for RABBIT; and the time a user's robot waits for its twin to be built on first
+use (the C compiler, once per description).
 
     python -m benchmarks.bench --only models
     python -m benchmarks.bench_models --numba      # adds numba.njit of the generated Python (option b)
@@ -110,6 +111,22 @@ def bench_stance(names=("rabbit", "three_link"), with_numba=False, number=20000)
             print(f"  {name:11s} (N = {n}) {label:44s} {us:8.2f} us  ({base / us:5.1f}x)")
 
 
+def bench_kernels(name="rabbit", number=20000):
+    """Each of the twin's six kernels per call (lists in and out)."""
+    model = generated_model(name)
+    twin = model_kernels.compiled_kernels(model)
+    if twin is None:
+        return
+    n, m = model.n, model.B.shape[1]
+    q, dq, u = [0.1, 0.9] + [3.0 + 0.1 * i for i in range(n - 2)], [0.3] * n, [1.0] * m
+    calls = {"k_stance": lambda: twin.k_stance(q, dq, u, 0), "k_flight": lambda: twin.k_flight(q, dq, u),
+             "k_impact": lambda: twin.k_impact(q, dq, 1), "k_foot_positions": lambda: twin.k_foot_positions(q),
+             "k_foot_kinematics": lambda: twin.k_foot_kinematics(q, dq), "k_energy": lambda: twin.k_energy(q, dq)}
+    print(f"\n== the compiled twin of {name} (N = {n}), each kernel per call (median of 7 repeats) ==")
+    for label, fn in calls.items():
+        print(f"  {label:20s} {_median_us(fn, number):6.2f} us")
+
+
 def bench_build(names=("rabbit", "three_link"), repeat=3):
     """Wall time of emitting and compiling a twin (what a user's description costs once, besides its sympy
     generation): the shipped modules' sources built into a temporary folder."""
@@ -132,6 +149,7 @@ def main(argv=None):
     parser.add_argument("--number", type=int, default=20000, help="calls per repeat")
     args = parser.parse_args(argv)
     bench_stance(with_numba=args.numba, number=args.number)
+    bench_kernels(number=args.number)
     bench_build()
     return 0
 

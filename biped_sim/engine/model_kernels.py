@@ -232,8 +232,8 @@ def _user_kernels(module, name: str, source: str):
 
 
 def _why_python(model, why: str) -> None:
-    warnings.warn(f"biped_sim: robot {model.name!r}: the Python path (numpy) runs its dynamics, several times "
-                  f"slower: its compiled kernels are not available: {why}", RuntimeWarning, stacklevel=3)
+    warnings.warn(f"biped_sim: robot {model.name!r} runs its dynamics on the Python path (numpy, slower): its "
+                  f"compiled kernels are not available: {why}", RuntimeWarning, stacklevel=3)
 
 
 def compiled_kernels(model):
