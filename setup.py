@@ -1,4 +1,5 @@
 from glob import glob
+from pathlib import Path
 
 from setuptools import Extension, find_packages, setup
 
@@ -37,7 +38,12 @@ setup(
                            extra_compile_args=["-O2", "-ffp-contract=off"], optional=True),
                  # the recorder's frame buffer (biped_sim/recording/frames.py: its Python twin is the fallback)
                  Extension("biped_sim.recording._frames", ["biped_sim/recording/_frames.c"],
-                           extra_compile_args=["-O2"], optional=True)],
+                           extra_compile_args=["-O2"], optional=True)]
+    # the shipped robots' compiled kernels (biped_sim/engine/model_kernels.py, written by make generate);
+    # without them those robots run their dynamics in Python (numpy)
+    + [Extension(f"biped_sim.engine._gen.models.{Path(c).stem}", [c],
+                 extra_compile_args=["-O2", "-ffp-contract=off"], optional=True)
+       for c in sorted(glob("biped_sim/engine/_gen/models/_kernels_*.c"))],
     # every third-party import of the installed package; ROS packages (rclpy, the message packages,
     # ament_index_python) come from a ROS installation and are declared in package.xml instead
     # zstandard and lz4 (chunk compression of the bag writer, recording/mcapfile.py) come with mcap;

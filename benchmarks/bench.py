@@ -1,5 +1,6 @@
 """``make bench``: speed figures of the engine (issue 2), then the node, recorder, scene, sweep, command-line,
-MuJoCo, user-law (benchmarks/bench_user_law.py) and Drake (benchmarks/bench_drake.py) benchmarks.
+MuJoCo, user-law (benchmarks/bench_user_law.py), Drake (benchmarks/bench_drake.py) and described robots'
+kernels (benchmarks/bench_models.py) benchmarks.
 
 Owns measurement only (no assertions: these machines are shared and noisy). Every figure is a
 median over repeats measured in this one process, and comparisons are made side by side.
@@ -405,7 +406,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench", description=__doc__.split("\n")[0])
     parser.add_argument("--only", help="run one group only",
                         choices=("engine", "node", "record", "scenes", "sweep", "cli", "sensitivity", "mujoco",
-                                 "userlaw", "drake"))
+                                 "userlaw", "drake", "models"))
     parser.add_argument("--repeats", type=int, default=7, help="timed repeats of each walk (alternating)")
     args = parser.parse_args(argv)
     model = BipedModel()
@@ -420,7 +421,8 @@ def main(argv=None):
         sys.stdout.flush()
     for group, module in (("node", "bench_node"), ("record", "bench_record"), ("scenes", "bench_scenes"),
                           ("sweep", "bench_sweep"), ("cli", "bench_cli"), ("sensitivity", "bench_sensitivity"),
-                          ("mujoco", "bench_mujoco"), ("userlaw", "bench_user_law"), ("drake", "bench_drake")):
+                          ("mujoco", "bench_mujoco"), ("userlaw", "bench_user_law"), ("drake", "bench_drake"),
+                          ("models", "bench_models")):
         if args.only in (None, group):
             try:
                 mod = importlib.import_module(f"benchmarks.{module}")

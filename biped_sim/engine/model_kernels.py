@@ -1,0 +1,611 @@
+"""The compiled twin of a described robot's kernels: stance, flight, impact, feet and energy in C.
+
+Owns :func:`compiled_kernels`, the C source it runs (:func:`kernel_source`, emitted from the robot's
+generated module, :mod:`biped_sim.config.codegen`'s output) and the build and cache of a user's robot.
+
+The twin is a Python extension with six functions that take and return lists of floats, the kernels of
+the hybrid loop for a :class:`~biped_sim.engine.generated_model.GeneratedModel` (N coordinates, M
+actuators, L contact points; docs/models.md):
+
+    k_stance(q, dq, u, c) -> (ddq, F)      [D -J_c^T; J_c 0] [ddq; F] = [B u - (C dq + G); -Jdot_c dq]
+    k_flight(q, dq, u) -> ddq               D ddq = B u - (C dq + G)
+    k_impact(q, dq_minus, c) -> (dq_plus, F_imp)   [D -J_c^T; J_c 0] [dq+; F_imp] = [D dq-; 0]
+    k_foot_positions(q) -> [p_1, p_2, ...]
+    k_foot_kinematics(q, dq) -> [p_1, p_2, ..., v_1, v_2, ...]
+    k_energy(q, dq) -> [T, V]
+
+(``c`` is a contact point's 0-based index, each p and v an (x, y) pair). D, C dq + G, p_c, J_c, Jdot_c,
+dp_c/dt and (T, V) are the generated module's statements translated one by one (same operations in the
+same order, built without floating-point contraction: the same bits as the Python functions). The
+KKT systems are solved by the Schur complement on D's Cholesky factor, D = L L^T:
+
+    a = D^-1 r,  Y = D^-1 J_c^T,  (J_c Y) F = b - J_c a,  x = a + Y F
+
+(r, b the two blocks of the right-hand side; for the impact a = dq-), which agrees with numpy's LU
+of the whole (N+2)x(N+2) system to rounding, not bit for bit.
+
+The shipped robots' twins (``biped_sim/engine/_gen/models/_kernels_<name>.c``, written by ``make
+generate``) are built by setup.py. A user's robot's twin is emitted and compiled on first use with the C
+compiler Python was built with and cached next to its generated module (``<module>.kernels-<hash>.so``;
+the hash is of the C source, so a new description, generator or template builds anew). Where it cannot
+be built or loaded, :func:`compiled_kernels` warns once per robot in one line and returns None: the
+Python path runs. ``BIPED_SIM_PURE_PYTHON=1`` returns None without a word.
+"""
+from __future__ import annotations
+
+import ast
+import hashlib
+import importlib
+import importlib.machinery
+import importlib.util
+import os
+import shlex
+import shutil
+import subprocess
+import sysconfig
+import tempfile
+import warnings
+from pathlib import Path
+
+#: the kernels' names, the methods of the object :func:`compiled_kernels` returns
+KERNELS = ("k_stance", "k_flight", "k_impact", "k_foot_positions", "k_foot_kinematics", "k_energy")
+SHIPPED_PACKAGE = "biped_sim.engine._gen.models"
+#: the generated module's functions the twin translates
+TRANSLATED = ("mass_matrix", "bias_forces", "contact_positions", "contact_jacobians", "contact_jacobian_dots",
+              "contact_velocities", "energy")
+_HASH_PLACEHOLDER = "@SOURCE_SHA256@"
+_FUNCTIONS = {"sin": "sin", "cos": "cos", "sqrt": "sqrt", "tan": "tan", "exp": "exp", "log": "log"}
+_BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/"}
+
+#: compiler runs in this process (a cached twin is loaded without one)
+BUILDS = 0
+#: loaded twins: (module file, its digest) -> extension or None
+_LOADED: dict = {}
+
+
+class KernelBuildError(RuntimeError):
+    """The twin of a user's robot could not be built; the message is one line."""
+
+
+# ---- the C source ------------------------------------------------------------------------------
+
+def _expression(node, fn) -> str:
+    if isinstance(node, ast.Name):
+        return node.id
+    if isinstance(node, ast.Constant) and type(node.value) in (int, float):
+        return repr(float(node.value))
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+        return f"(-{_expression(node.operand, fn)})"
+    if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+        return f"({_expression(node.left, fn)} {_BINARY[type(node.op)]} {_expression(node.right, fn)})"
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
+        # float ** int calls libm's pow with the exponent as a double, as this does (through a pointer, so
+        # that the compiler cannot make pow(x, 2.0) x * x, which may round otherwise)
+        return f"libm_pow({_expression(node.left, fn)}, {_expression(node.right, fn)})"
+    if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in _FUNCTIONS
+            and len(node.args) == 1 and not node.keywords):
+        return f"{_FUNCTIONS[node.func.id]}({_expression(node.args[0], fn)})"
+    raise ValueError(f"{fn.name}, line {node.lineno}: no C translation for {ast.unparse(node)!r}")
+
+
+def _c_function(fn: ast.FunctionDef) -> tuple[str, int]:
+    """(the C function ``static void <name>(const double *q[, const double *dq], double *out)``, the
+    number of outputs) of a generated function: unpacking, assignments, one returned tuple."""
+    params = [a.arg for a in fn.args.args]
+    used = {n.id for n in ast.walk(fn) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Load)}
+    lines = []
+    outputs = None
+    for s in fn.body:
+        if isinstance(s, ast.Expr) and isinstance(s.value, ast.Constant):
+            continue
+        if (isinstance(s, ast.Assign) and isinstance(s.targets[0], ast.Tuple) and isinstance(s.value, ast.Name)
+                and s.value.id in params):
+            lines += [f"    const double {e.id} = {s.value.id}[{i}];"
+                      for i, e in enumerate(s.targets[0].elts) if e.id in used]
+        elif isinstance(s, ast.Assign) and len(s.targets) == 1 and isinstance(s.targets[0], ast.Name):
+            lines.append(f"    const double {s.targets[0].id} = {_expression(s.value, fn)};")
+        elif isinstance(s, ast.Return) and isinstance(s.value, ast.Tuple):
+            outputs = len(s.value.elts)
+            lines += [f"    out[{i}] = {_expression(e, fn)};" for i, e in enumerate(s.value.elts)]
+        else:
+            raise ValueError(f"{fn.name}, line {s.lineno}: no C translation for {ast.unparse(s)!r}")
+    if outputs is None:
+        raise ValueError(f"{fn.name}: no returned tuple")
+    args = ", ".join(f"const double *{p}" for p in params) + ", double *out"
+    return f"static void\n{fn.name}({args})\n{{\n" + "\n".join(lines) + "\n}\n", outputs
+
+
+def kernel_source(module, module_name: str) -> str:
+    """The C source of the twin of a generated module (its ``__file__``), as an extension named
+    ``module_name`` (the last part of the import name)."""
+    text = Path(module.__file__).read_text()
+    tree = ast.parse(text)
+    functions = {f.name: f for f in tree.body if isinstance(f, ast.FunctionDef)}
+    missing = [name for name in TRANSLATED if name not in functions]
+    if missing:
+        raise ValueError(f"{module.__file__}: the generated module has no {', '.join(missing)}: regenerate it")
+    n, nc, nu = len(module.COORDINATES), len(module.CONTACTS), len(module.ACTUATED)
+    bodies, sizes = [], {}
+    for name in TRANSLATED:
+        body, sizes[name] = _c_function(functions[name])
+        bodies.append(body)
+    expected = {"mass_matrix": n * n, "bias_forces": n, "contact_positions": 2 * nc, "contact_jacobians": 2 * n * nc,
+                "contact_jacobian_dots": 2 * n * nc, "contact_velocities": 2 * nc, "energy": 2}
+    wrong = [f"{k} returns {sizes[k]}, not {v}" for k, v in expected.items() if sizes[k] != v]
+    if wrong:
+        raise ValueError(f"{module.__file__}: {'; '.join(wrong)}: regenerate it")
+    b_times_u = [f"    out[{i}] += {float(b)!r} * u[{j}];" for i, row in enumerate(module.B)
+                 for j, b in enumerate(row) if b]
+    head = (f"/* GENERATED by biped_sim.engine.model_kernels from the generated module of the robot {module.NAME!r}\n"
+            f" * (digest {module.DIGEST}, generator version {module.GENERATOR_VERSION}) -- do not edit. */\n"
+            "#define PY_SSIZE_T_CLEAN\n#include <Python.h>\n#include <math.h>\n\n"
+            "static double (*volatile libm_pow)(double, double) = pow;\n\n"
+            f"#define N {n}\n#define NC {nc}\n#define NU {nu}\n"
+            f"#define MODULE_NAME \"{module_name}\"\n#define INIT_FUNCTION PyInit_{module_name}\n"
+            f"#define ROBOT_NAME \"{module.NAME}\"\n#define ROBOT_DIGEST \"{module.DIGEST}\"\n"
+            f"#define GENERATOR_VERSION {int(module.GENERATOR_VERSION)}\n"
+            f"#define SOURCE_SHA256 \"{_HASH_PLACEHOLDER}\"\n\n")
+    generated = "\n".join(bodies) + ("\n/* out += B u: one unit column per actuator */\nstatic void\n"
+                                     "b_times_u(const double *u, double *out)\n{\n" + "\n".join(b_times_u)
+                                     + ("\n" if b_times_u else "    (void)u; (void)out;\n") + "}\n")
+    source = head + generated + _TEMPLATE
+    digest = hashlib.sha256(source.encode()).hexdigest()
+    return source.replace(_HASH_PLACEHOLDER, digest)
+
+
+def source_sha256(source: str) -> str:
+    """The digest a twin carries as SOURCE_SHA256 (of its source with the digest left out)."""
+    start = source.index('#define SOURCE_SHA256 "') + len('#define SOURCE_SHA256 "')
+    return source[start:start + 64]
+
+
+def shipped_extension(name: str) -> str:
+    """The import name of a shipped robot's twin."""
+    return f"{SHIPPED_PACKAGE}._kernels_{name}"
+
+
+# ---- build and load ------------------------------------------------------------------------------
+
+def _toolchain():
+    """(compile argv prefix, link argv prefix): Python's own compiler and flags (sysconfig), with the CC and
+    LDSHARED environment variables honoured as setuptools does; a KernelBuildError says what to install."""
+    cc = shlex.split(os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc")
+    if not cc or shutil.which(cc[0]) is None:
+        raise KernelBuildError(f"no C compiler ({cc[0] if cc else 'cc'}) found: install gcc (apt-get install gcc)")
+    include = sysconfig.get_paths()["include"]
+    if not (Path(include) / "Python.h").is_file():
+        raise KernelBuildError(f"the Python headers are missing ({include}/Python.h): install them "
+                               "(apt-get install python3-dev)")
+    ccshared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
+    if os.environ.get("LDSHARED"):
+        ldshared = shlex.split(os.environ["LDSHARED"])
+    else:
+        # Python's link line with the compiler of the compile line (setuptools does the same with CC)
+        ldshared = cc + shlex.split(sysconfig.get_config_var("LDSHARED") or "cc -shared")[1:]
+    return cc + ccshared + ["-O2", "-ffp-contract=off", "-I", include], ldshared
+
+
+def build(source: str, target: Path, source_copy: Path | None = None) -> None:
+    """Compile ``source`` into the extension ``target`` (and keep the source as ``source_copy``): built under a
+    temporary name in ``target``'s folder and renamed into place, so that two processes building the same
+    robot at once each load a whole file."""
+    global BUILDS
+    compile_argv, link_argv = _toolchain()
+    target.parent.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=".kernels-", dir=target.parent))
+    try:
+        src, obj, lib = work / "kernels.c", work / "kernels.o", work / target.name
+        src.write_text(source)
+        BUILDS += 1
+        for argv in (compile_argv + ["-c", str(src), "-o", str(obj)], link_argv + [str(obj), "-o", str(lib)]):
+            try:
+                out = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+            except (OSError, subprocess.TimeoutExpired) as e:
+                raise KernelBuildError(f"{argv[0]} did not run: {e}") from None
+            if out.returncode != 0:
+                first = next((line for line in out.stderr.splitlines() if "error" in line.lower()),
+                             (out.stderr.strip().splitlines() or ["no message"])[0])
+                raise KernelBuildError(f"{argv[0]} failed ({first.strip()})")
+        if source_copy is not None:
+            os.replace(src, source_copy)
+        os.replace(lib, target)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _load_extension(name: str, path: Path):
+    loader = importlib.machinery.ExtensionFileLoader(name, str(path))
+    spec = importlib.util.spec_from_file_location(name, str(path), loader=loader)
+    module = importlib.util.module_from_spec(spec)
+    loader.exec_module(module)
+    return module
+
+
+def _user_kernels(module, name: str, source: str):
+    """The twin of a user's robot from the cache next to its module, built now when it is not there."""
+    stem = Path(module.__file__).with_suffix("").name
+    base = f"{stem}.kernels-{source_sha256(source)[:16]}"
+    target = Path(module.__file__).with_name(base + (sysconfig.get_config_var("EXT_SUFFIX") or ".so"))
+    if not target.is_file():
+        build(source, target, target.with_name(base + ".c"))
+    return _load_extension(name, target)
+
+
+def _why_python(model, why: str) -> None:
+    warnings.warn(f"biped_sim: robot {model.name!r} runs its dynamics on the Python path (numpy, slower): its "
+                  f"compiled kernels are not available: {why}", RuntimeWarning, stacklevel=3)
+
+
+def compiled_kernels(model):
+    """The compiled twin of ``model``'s six kernels (:data:`KERNELS`; ``model`` a GeneratedModel), or None
+    where the Python path must run: ``BIPED_SIM_PURE_PYTHON`` is set (silently), or the twin cannot be
+    built or loaded (one warning per robot that says what to install)."""
+    if os.environ.get("BIPED_SIM_PURE_PYTHON", "") not in ("", "0"):
+        return None
+    module = model.module
+    key = (getattr(module, "__file__", None), module.DIGEST)
+    if key in _LOADED:
+        return _LOADED[key]
+    ext = None
+    try:
+        shipped = module.__name__.startswith(SHIPPED_PACKAGE + ".")
+        name = module.__name__.rsplit(".", 1)[-1]
+        ext_name = (f"_kernels_{name}" if shipped
+                    else f"_kernels_{module.NAME}_{module.DIGEST}_g{int(module.GENERATOR_VERSION)}")
+        source = kernel_source(module, ext_name)
+        if shipped:
+            try:
+                ext = importlib.import_module(shipped_extension(name))
+            except ImportError:
+                raise KernelBuildError(f"the shipped twin {shipped_extension(name)} was not built: install gcc and the "
+                                       "Python headers, then reinstall (make venv)") from None
+        else:
+            ext = _user_kernels(module, ext_name, source)
+        if ext.SOURCE_SHA256 != source_sha256(source):
+            ext = None
+            raise KernelBuildError("the compiled twin is older than its generated module: rebuild it (make venv)"
+                                   if shipped else "the cached twin is not of its source: delete it")
+    except (KernelBuildError, ValueError, OSError, ImportError) as e:
+        _why_python(model, str(e))
+        ext = None
+    _LOADED[key] = ext
+    return ext
+
+
+_TEMPLATE = r"""
+/* ---- the solves and the Python functions (the same for every robot) ---------------------------- */
+
+/* x of a sequence of n numbers (a list or tuple is read in place); -1 with the error set */
+static int
+read_vector(PyObject *obj, Py_ssize_t n, const char *kernel, const char *what, double *x)
+{
+    PyObject *seq;
+    Py_ssize_t i, len;
+    if (PyList_CheckExact(obj) || PyTuple_CheckExact(obj)) {
+        seq = obj;
+        Py_INCREF(seq);
+    } else {
+        seq = PySequence_Fast(obj, "");
+        if (seq == NULL) {
+            PyErr_Format(PyExc_TypeError, "%s: %s must be a sequence of %zd numbers, got %.100s",
+                         kernel, what, n, Py_TYPE(obj)->tp_name);
+            return -1;
+        }
+    }
+    len = PySequence_Fast_GET_SIZE(seq);
+    if (len != n) {
+        PyErr_Format(PyExc_ValueError, "%s: %s must have %zd numbers, got %zd", kernel, what, n, len);
+        Py_DECREF(seq);
+        return -1;
+    }
+    for (i = 0; i < n; i++) {
+        PyObject *item = PySequence_Fast_GET_ITEM(seq, i);
+        double v = PyFloat_CheckExact(item) ? PyFloat_AS_DOUBLE(item) : PyFloat_AsDouble(item);
+        if (v == -1.0 && PyErr_Occurred()) {
+            if (PyErr_ExceptionMatches(PyExc_TypeError)) {
+                PyErr_Clear();
+                PyErr_Format(PyExc_TypeError, "%s: %s[%zd] must be a number, got %.100s",
+                             kernel, what, i, Py_TYPE(item)->tp_name);
+            }
+            Py_DECREF(seq);
+            return -1;
+        }
+        x[i] = v;
+    }
+    Py_DECREF(seq);
+    return 0;
+}
+
+static int
+read_contact(PyObject *obj, const char *kernel, int *c)
+{
+    long v;
+    if (!PyLong_Check(obj) || PyBool_Check(obj)) {
+        PyErr_Format(PyExc_TypeError, "%s: the contact index must be an int 0..%d, got %.100s",
+                     kernel, NC - 1, Py_TYPE(obj)->tp_name);
+        return -1;
+    }
+    v = PyLong_AsLong(obj);
+    if (v == -1 && PyErr_Occurred())
+        return -1;
+    if (v < 0 || v >= NC) {
+        PyErr_Format(PyExc_ValueError, "%s: the contact index must be 0..%d, got %ld", kernel, NC - 1, v);
+        return -1;
+    }
+    *c = (int)v;
+    return 0;
+}
+
+static PyObject *
+list_of(const double *x, Py_ssize_t n)
+{
+    Py_ssize_t i;
+    PyObject *list = PyList_New(n);
+    if (list == NULL)
+        return NULL;
+    for (i = 0; i < n; i++) {
+        PyObject *v = PyFloat_FromDouble(x[i]);
+        if (v == NULL) {
+            Py_DECREF(list);
+            return NULL;
+        }
+        PyList_SET_ITEM(list, i, v);
+    }
+    return list;
+}
+
+static PyObject *
+pair_of(const double *x, Py_ssize_t n, const double *y, Py_ssize_t m)
+{
+    PyObject *a = list_of(x, n), *b, *pair;
+    if (a == NULL)
+        return NULL;
+    b = list_of(y, m);
+    if (b == NULL) {
+        Py_DECREF(a);
+        return NULL;
+    }
+    pair = PyTuple_New(2);
+    if (pair == NULL) {
+        Py_DECREF(a);
+        Py_DECREF(b);
+        return NULL;
+    }
+    PyTuple_SET_ITEM(pair, 0, a);
+    PyTuple_SET_ITEM(pair, 1, b);
+    return pair;
+}
+
+/* D = L L^T, L written over D's lower triangle; -1 when D is not positive definite */
+static int
+cholesky(double *A)
+{
+    int i, j, k;
+    for (j = 0; j < N; j++) {
+        double s = A[j * N + j], d;
+        for (k = 0; k < j; k++)
+            s -= A[j * N + k] * A[j * N + k];
+        if (!(s > 0.0))
+            return -1;
+        d = sqrt(s);
+        A[j * N + j] = d;
+        for (i = j + 1; i < N; i++) {
+            double t = A[i * N + j];
+            for (k = 0; k < j; k++)
+                t -= A[i * N + k] * A[j * N + k];
+            A[i * N + j] = t / d;
+        }
+    }
+    return 0;
+}
+
+/* x = (L L^T)^-1 x */
+static void
+cholesky_solve(const double *L, double *x)
+{
+    int i, k;
+    for (i = 0; i < N; i++) {
+        double s = x[i];
+        for (k = 0; k < i; k++)
+            s -= L[i * N + k] * x[k];
+        x[i] = s / L[i * N + i];
+    }
+    for (i = N - 1; i >= 0; i--) {
+        double s = x[i];
+        for (k = i + 1; k < N; k++)
+            s -= L[k * N + i] * x[k];
+        x[i] = s / L[i * N + i];
+    }
+}
+
+static PyObject *
+not_positive_definite(const char *kernel)
+{
+    PyErr_Format(PyExc_ValueError, "%s: D(q) of the robot " ROBOT_NAME " is not positive definite at this q", kernel);
+    return NULL;
+}
+
+/* With L the factor of D and J = J_c (2xN): x = a + Y F, (J Y) F = b - J a, Y = D^-1 J^T.
+   a is overwritten by x. -1 when J Y is singular (the contact's Jacobian has lost rank). */
+static int
+schur_solve(const char *kernel, const double *L, const double *J, const double *b, double *a, double *F)
+{
+    double Y[2][N], S[2][2], g[2], det;
+    int r, s, k;
+    for (r = 0; r < 2; r++) {
+        for (k = 0; k < N; k++)
+            Y[r][k] = J[r * N + k];
+        cholesky_solve(L, Y[r]);
+    }
+    for (r = 0; r < 2; r++) {
+        double ja = 0.0;
+        for (k = 0; k < N; k++)
+            ja += J[r * N + k] * a[k];
+        g[r] = b[r] - ja;
+        for (s = 0; s < 2; s++) {
+            double t = 0.0;
+            for (k = 0; k < N; k++)
+                t += J[r * N + k] * Y[s][k];
+            S[r][s] = t;
+        }
+    }
+    det = S[0][0] * S[1][1] - S[0][1] * S[1][0];
+    if (!(det != 0.0) || !isfinite(det)) {
+        PyErr_Format(PyExc_ValueError, "%s: the contact's Jacobian J_c D^-1 J_c^T is singular at this q", kernel);
+        return -1;
+    }
+    F[0] = (g[0] * S[1][1] - g[1] * S[0][1]) / det;
+    F[1] = (S[0][0] * g[1] - S[1][0] * g[0]) / det;
+    for (k = 0; k < N; k++)
+        a[k] += Y[0][k] * F[0] + Y[1][k] * F[1];
+    return 0;
+}
+
+#define CHECK_NARGS(kernel, want) \
+    if (nargs != (want)) { \
+        PyErr_Format(PyExc_TypeError, "%s takes %d arguments, got %zd", kernel, (want), nargs); \
+        return NULL; \
+    }
+
+static PyObject *
+k_stance(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double q[N], dq[N], u[NU > 0 ? NU : 1], D[N * N], x[N], J[NC * 2 * N], Jd[NC * 2 * N], b[2], F[2];
+    const double *Jc, *Jdc;
+    int c, r, k;
+    CHECK_NARGS("k_stance", 4)
+    if (read_vector(args[0], N, "k_stance", "q", q) || read_vector(args[1], N, "k_stance", "dq", dq)
+            || read_vector(args[2], NU, "k_stance", "u", u) || read_contact(args[3], "k_stance", &c))
+        return NULL;
+    mass_matrix(q, D);
+    bias_forces(q, dq, x);
+    for (k = 0; k < N; k++)
+        x[k] = -x[k];
+    b_times_u(u, x);
+    contact_jacobians(q, J);
+    contact_jacobian_dots(q, dq, Jd);
+    Jc = J + c * 2 * N;
+    Jdc = Jd + c * 2 * N;
+    for (r = 0; r < 2; r++) {
+        double s = 0.0;
+        for (k = 0; k < N; k++)
+            s += Jdc[r * N + k] * dq[k];
+        b[r] = -s;
+    }
+    if (cholesky(D))
+        return not_positive_definite("k_stance");
+    cholesky_solve(D, x);
+    if (schur_solve("k_stance", D, Jc, b, x, F))
+        return NULL;
+    return pair_of(x, N, F, 2);
+}
+
+static PyObject *
+k_flight(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double q[N], dq[N], u[NU > 0 ? NU : 1], D[N * N], x[N];
+    int k;
+    CHECK_NARGS("k_flight", 3)
+    if (read_vector(args[0], N, "k_flight", "q", q) || read_vector(args[1], N, "k_flight", "dq", dq)
+            || read_vector(args[2], NU, "k_flight", "u", u))
+        return NULL;
+    mass_matrix(q, D);
+    bias_forces(q, dq, x);
+    for (k = 0; k < N; k++)
+        x[k] = -x[k];
+    b_times_u(u, x);
+    if (cholesky(D))
+        return not_positive_definite("k_flight");
+    cholesky_solve(D, x);
+    return list_of(x, N);
+}
+
+static PyObject *
+k_impact(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double q[N], x[N], D[N * N], J[NC * 2 * N], zero[2] = {0.0, 0.0}, F[2];
+    int c;
+    CHECK_NARGS("k_impact", 3)
+    if (read_vector(args[0], N, "k_impact", "q", q) || read_vector(args[1], N, "k_impact", "dq_minus", x)
+            || read_contact(args[2], "k_impact", &c))
+        return NULL;
+    mass_matrix(q, D);
+    contact_jacobians(q, J);
+    if (cholesky(D))
+        return not_positive_definite("k_impact");
+    /* D^-1 (D dq-) = dq-: x starts at dq- */
+    if (schur_solve("k_impact", D, J + c * 2 * N, zero, x, F))
+        return NULL;
+    return pair_of(x, N, F, 2);
+}
+
+static PyObject *
+k_foot_positions(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double q[N], p[2 * NC];
+    CHECK_NARGS("k_foot_positions", 1)
+    if (read_vector(args[0], N, "k_foot_positions", "q", q))
+        return NULL;
+    contact_positions(q, p);
+    return list_of(p, 2 * NC);
+}
+
+static PyObject *
+k_foot_kinematics(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double q[N], dq[N], pv[4 * NC];
+    CHECK_NARGS("k_foot_kinematics", 2)
+    if (read_vector(args[0], N, "k_foot_kinematics", "q", q) || read_vector(args[1], N, "k_foot_kinematics", "dq", dq))
+        return NULL;
+    contact_positions(q, pv);
+    contact_velocities(q, dq, pv + 2 * NC);
+    return list_of(pv, 4 * NC);
+}
+
+static PyObject *
+k_energy(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double q[N], dq[N], e[2];
+    CHECK_NARGS("k_energy", 2)
+    if (read_vector(args[0], N, "k_energy", "q", q) || read_vector(args[1], N, "k_energy", "dq", dq))
+        return NULL;
+    energy(q, dq, e);
+    return list_of(e, 2);
+}
+
+static PyMethodDef methods[] = {
+    {"k_stance", (PyCFunction)(void (*)(void))k_stance, METH_FASTCALL,
+     "k_stance(q, dq, u, c) -> (ddq, F): stance on contact point c (0-based), its point pinned."},
+    {"k_flight", (PyCFunction)(void (*)(void))k_flight, METH_FASTCALL, "k_flight(q, dq, u) -> ddq."},
+    {"k_impact", (PyCFunction)(void (*)(void))k_impact, METH_FASTCALL,
+     "k_impact(q, dq_minus, c) -> (dq_plus, impulse): the rigid plastic impact of contact point c."},
+    {"k_foot_positions", (PyCFunction)(void (*)(void))k_foot_positions, METH_FASTCALL,
+     "k_foot_positions(q) -> [x1, y1, x2, y2, ...]."},
+    {"k_foot_kinematics", (PyCFunction)(void (*)(void))k_foot_kinematics, METH_FASTCALL,
+     "k_foot_kinematics(q, dq) -> [p_1, p_2, ..., v_1, v_2, ...]."},
+    {"k_energy", (PyCFunction)(void (*)(void))k_energy, METH_FASTCALL, "k_energy(q, dq) -> [T, V]."},
+    {NULL, NULL, 0, NULL}
+};
+
+static struct PyModuleDef module_def = {
+    PyModuleDef_HEAD_INIT, MODULE_NAME,
+    "The compiled kernels of the robot " ROBOT_NAME " (biped_sim.engine.model_kernels).", -1, methods
+};
+
+PyMODINIT_FUNC
+INIT_FUNCTION(void)
+{
+    PyObject *m = PyModule_Create(&module_def);
+    if (m == NULL)
+        return NULL;
+    if (PyModule_AddStringConstant(m, "NAME", ROBOT_NAME) || PyModule_AddStringConstant(m, "DIGEST", ROBOT_DIGEST)
+            || PyModule_AddIntConstant(m, "GENERATOR_VERSION", GENERATOR_VERSION)
+            || PyModule_AddStringConstant(m, "SOURCE_SHA256", SOURCE_SHA256)
+            || PyModule_AddIntConstant(m, "N", N) || PyModule_AddIntConstant(m, "CONTACTS", NC)
+            || PyModule_AddIntConstant(m, "ACTUATORS", NU)) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}
+"""
