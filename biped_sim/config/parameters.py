@@ -33,6 +33,7 @@ class Param:
     choices: tuple | None = None
     item: type | None = None      # element type of a list
     length: int | None = None     # fixed list length
+    per_coordinate: bool = False  # a list of one entry per coordinate of the robot (checked by validate)
     file_name: bool = False       # the value becomes part of a file's name: a plain name, never a path
 
     def check(self, value):
@@ -129,8 +130,9 @@ PARAMETERS = [
           "markers in outputs)", 0.1, 1000.0),
     Param("duration", float, 0.0, "simulated time to run (s); 0 = until stopped", 0.0, 1e7),
     Param("initial_q", list, [0.0, 1.0, math.pi, math.pi, 0.0],
-          "initial q = [x, y, q1, q2, q3] (m, rad), physical coordinates", item=float, length=5),
-    Param("initial_dq", list, [0.0] * 5, "initial dq (m/s, rad/s)", item=float, length=5),
+          "initial q = [x, y, q1, q2, q3] (m, rad), physical coordinates; one entry per coordinate of the robot "
+          "(7 for rabbit: docs/models.md)", item=float, per_coordinate=True),
+    Param("initial_dq", list, [0.0] * 5, "initial dq (m/s, rad/s)", item=float, per_coordinate=True),
     Param("initial_stance_leg", int, 1, "initial stance leg: 1, 2, or 0 (flight)", choices=(0, 1, 2)),
     Param("method", str, "auto", "integrator; auto: dopri5 for control periods up to "
           "5 ms (one step per period reaches the tolerance with 7 evaluations against dop853's 13), "
@@ -199,7 +201,24 @@ def validate(values: dict, table=None, owner: str = "") -> dict:
         out[name] = by_name[name].check(value)
     if "robot" in by_name:
         _robot_defaults(values, out)
+    counted = [p for p in table if p.per_coordinate]
+    if counted:
+        _check_coordinates(out, counted)
     return out
+
+
+def _check_coordinates(out: dict, table: list) -> None:
+    """The lists of one entry per coordinate (``initial_q``, ``initial_dq``) against the robot's coordinates:
+    five for the shipped three-link robots. Another robot's count (``initial_q`` of 7 for rabbit) is not
+    checked here: its run refuses a robot the engine cannot run yet in its own line (``robot_model``)
+    before it reads the state."""
+    from biped_sim.config import models
+    if out.get("robot", "three_link") not in models.THREE_LINK_PARAMETERS:
+        return
+    for p in table:
+        value = out[p.name]
+        if len(value) != 5:
+            raise ValueError(f"parameter '{p.name}' must have 5 entries, got {len(value)}: {value!r}")
 
 
 def _robot_defaults(values: dict, out: dict) -> None:

@@ -33,6 +33,9 @@ CONTROLLER_SECTION = "walk_controller"
 #: The gains and shape constants are those of :class:`biped_sim.control.walking.WalkingController`; the
 #: model and slope must match the simulation's (the loader checks it).
 CONTROLLER_PARAMETERS = [
+    P.Param("law", str, "walking", "the walking law: walking (the three-link robots' reference law, "
+            "WalkingController) or rabbit_walking (RABBIT's, RabbitWalkingController: docs/models.md)",
+            choices=("walking", "rabbit_walking")),
     P.Param("torso_pitch", float, 0.15, "virtual constraint: absolute torso angle to hold (rad, + leans forward)",
             -1.0, 1.0),
     P.Param("step_angle", float, 0.2, "virtual constraint: stance-leg angle from vertical at touchdown (rad)",
@@ -41,6 +44,12 @@ CONTROLLER_PARAMETERS = [
             0.0, 5.0),
     P.Param("lag", float, -0.04, "virtual constraint: shift of the mid-stance graze (rad; < 0: behind the stance foot)",
             -0.5, 0.5),
+    P.Param("stance_knee", float, 0.3, "rabbit_walking: the stance knee's bend (rad, > 0: the knee forward)",
+            0.0, 3.0),
+    P.Param("swing_knee", float, 1.0, "rabbit_walking: the swing knee's bend at mid-step, which lifts the foot "
+            "(rad)", 0.0, 3.0),
+    P.Param("impact_blend", float, 0.9, "rabbit_walking: the fraction of a step over which the targets blend "
+            "from the post-impact rates into the nominal ones (-)", 0.01, 0.99),
     P.Param("kp", float, 200.0, "output PD gain, proportional (1/s^2)", 0.0, 1e6),
     P.Param("kd", float, 30.0, "output PD gain, derivative (1/s)", 0.0, 1e4),
     P.Param("torque_limit", float, 500.0, "the controller clips its torques to +-this (N m)", 0.0, 1e6),
@@ -55,15 +64,42 @@ CONTROLLER_BY_NAME = {p.name: p for p in CONTROLLER_PARAMETERS}
 _SHARED_WITH_SIM = [p.name for p in CONTROLLER_PARAMETERS
                     if p.name in ("robot", "slope") or p.name.startswith("model.")]
 _GAINS = ("torso_pitch", "step_angle", "clearance", "lag", "kp", "kd", "torque_limit")
+#: each law's parameters of the table (the rest of the table belongs to the other law)
+LAW_GAINS = {"walking": _GAINS,
+             "rabbit_walking": ("torso_pitch", "step_angle", "stance_knee", "swing_knee", "impact_blend", "kp", "kd",
+                                "torque_limit")}
 
 
 def validate_controller(values: dict) -> dict:
-    """All controller parameters (defaults filled in) after checking ``values``; ValueError names the culprit."""
-    return P.validate(values, CONTROLLER_PARAMETERS, owner="walk_controller ")
+    """All controller parameters (defaults filled in) after checking ``values``; ValueError names the culprit.
+    The parameters of the law the section does not run are refused; those of its law that ``values`` leaves
+    out take the law's own defaults (``RabbitWalkingController``'s for rabbit_walking)."""
+    out = P.validate(values, CONTROLLER_PARAMETERS, owner="walk_controller ")
+    law = out["law"]
+    others = [k for k in values if k not in LAW_GAINS[law] and any(k in g for g in LAW_GAINS.values())]
+    if others:
+        raise ValueError(f"walk_controller parameter(s) {others} belong to another law than this section's "
+                         f"(law: {law}); {law}'s parameters: {', '.join(LAW_GAINS[law])}")
+    if law == "rabbit_walking":
+        import inspect
+
+        from biped_sim.control.rabbit_walking import RabbitWalkingController
+        defaults = inspect.signature(RabbitWalkingController).parameters
+        for name in LAW_GAINS[law]:
+            if name not in values:
+                out[name] = float(defaults[name].default)
+    return out
 
 
 def make_controller(cparams: dict):
-    """A :class:`WalkingController` from checked controller parameters."""
+    """The walking controller of checked controller parameters: a :class:`WalkingController` on the
+    robot's ``BipedModel``, or for the law rabbit_walking a :class:`RabbitWalkingController` on the robot's
+    ``GeneratedModel``."""
+    law = cparams["law"]
+    if law == "rabbit_walking":
+        from biped_sim.config.models import load_model
+        from biped_sim.control.rabbit_walking import RabbitWalkingController
+        return RabbitWalkingController(load_model(cparams["robot"]), **{k: cparams[k] for k in LAW_GAINS[law]})
     from biped_sim.control.walking import WalkingController
     model = P.robot_model(cparams)
     return WalkingController(model, **{k: cparams[k] for k in _GAINS})
@@ -141,7 +177,8 @@ class Scene:
         return P.engine_arguments(self.params)
 
     def controller(self):
-        """A fresh WalkingController with the scene's parameters, or None (u = 0)."""
+        """A fresh walking controller with the scene's parameters (``make_controller``: the law its section
+        names), or None (u = 0)."""
         return None if self.controller_params is None else make_controller(self.controller_params)
 
     def simulate_kwargs(self, hold=True, controller=SCENE_CONTROLLER, controller_args=None) -> dict:
@@ -317,7 +354,8 @@ def apply_overrides(given: dict, cgiven: dict | None, overrides: dict, path) -> 
             else:
                 new = list(values.get(name, param.default))
                 if index >= len(new):
-                    raise ValueError(f"scene {path}, override {key!r}: '{name}' has {len(new)} entries")
+                    raise ValueError(f"scene {path}, override {key!r}: '{name}' has {len(new)} entries (indices 0 "
+                                     f"to {len(new) - 1})")
                 new[index] = value
             try:
                 param.check(new)

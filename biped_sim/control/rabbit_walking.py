@@ -57,10 +57,10 @@ def _check_model(model):
     actuated = tuple(getattr(getattr(model, "description", None), "actuated", ()))
     missing = [c for c in COORDINATES if c not in coordinates]
     if missing or sorted(actuated) != sorted(ACTUATED) or not hasattr(model, "stance_dynamics"):
+        what = (f"{model.name!r} with coordinates {list(coordinates)} and motors {list(actuated)}" if coordinates
+                else f"a {type(model).__name__}")
         raise ValueError(f"RabbitWalkingController needs a five-link biped with knees (bs.load_model('rabbit')): "
-                         f"coordinates {', '.join(COORDINATES)} and motors on {', '.join(ACTUATED)}; got "
-                         f"{getattr(model, 'name', type(model).__name__)!r} with coordinates "
-                         f"{list(coordinates) or '?'} and motors {list(actuated) or '?'}")
+                         f"coordinates {', '.join(COORDINATES)} and motors on {', '.join(ACTUATED)}; got {what}")
     return coordinates, actuated
 
 

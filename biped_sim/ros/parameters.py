@@ -27,7 +27,9 @@ ROS_OWN_PREFIXES = ("qos_overrides.",)
 def allowed_values(p: Param) -> str:
     """What a parameter accepts, in words."""
     if p.type is list:
-        kind = f"list of {p.item.__name__}" + (f" with {p.length} entries" if p.length else "")
+        kind = f"list of {p.item.__name__}" + (f" with {p.length} entries" if p.length else
+                                               " with one entry per coordinate of the robot" if p.per_coordinate
+                                               else "")
         if p.choices:
             kind += f", each one of {list(p.choices)}"
         return kind
