@@ -28,6 +28,7 @@ _PUBLIC = {
     "ControllerError": "biped_sim.engine.results",
     "simulate": "biped_sim.engine.simulate", "stance_state": "biped_sim.engine.simulate",
     "WalkingController": "biped_sim.control.walking", "PDWalkingController": "biped_sim.control.walking",
+    "RabbitWalkingController": "biped_sim.control.rabbit_walking",
     "Scene": "biped_sim.config.scenes", "load_scene": "biped_sim.config.scenes",
     "available_scenes": "biped_sim.config.scenes", "sweep": "biped_sim.analysis.sweep",
     "torque_law": "biped_sim.control.compiled_laws", "TorqueLaw": "biped_sim.control.compiled_laws",

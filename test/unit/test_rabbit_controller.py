@@ -67,6 +67,21 @@ def test_stance_leg_2_is_stance_leg_1_mirrored():
         mirrored = np.asarray(ctrl(0.0, Rq, Rdq, 1))[SWAP_U]
         assert np.allclose(ctrl(0.0, q, dq, 2), mirrored, rtol=1e-10, atol=1e-9)
         assert np.allclose(ctrl(0.0, q, dq, 0), np.asarray(ctrl(0.0, Rq, Rdq, 0))[SWAP_U])
+        y, dy, _H, _bias = ctrl.outputs(q, dq, 2)
+        assert np.allclose(y, ctrl.outputs(Rq, Rdq, 1)[0], atol=1e-12)
+        assert np.allclose(ctrl.pd_torques(y, dy, 2), ctrl.pd_torques(y, dy, 1)[SWAP_U])     # the PD term too
+
+
+def test_the_pd_term_pushes_every_output_back():
+    """The PD term (the law where H A is singular): an output error e_i gives torques whose effect on y'' through
+    the stance dynamics, H A u, is a matrix -M of eigenvalues in the left half-plane (each output pulled back,
+    none pushed away by the others), on both legs around the gait."""
+    ctrl = RabbitWalkingController(RABBIT)
+    for q, dq, leg in near_gait_states(ctrl, count=8, seed=11):
+        _y, _dy, H, _bias = ctrl.outputs(q, dq, leg)
+        _a, A = ctrl.stance_affine(q, dq, leg)
+        response = np.column_stack([H @ A @ ctrl.pd_torques(np.eye(4)[i], np.zeros(4), leg) for i in range(4)])
+        assert np.all(np.diag(response) < 0) and np.all(np.linalg.eigvals(response).real < 0), (leg, response)
 
 
 def test_the_gaits_impact_lands_on_the_outputs():
@@ -109,6 +124,7 @@ def test_the_scene_loads_builds_its_controller_and_starts_on_the_gait():
     assert scene.controller_params["law"] == "rabbit_walking"
     ctrl = scene.controller()
     assert isinstance(ctrl, RabbitWalkingController) and ctrl.model.name == "rabbit"
+    assert bs.RabbitWalkingController is RabbitWalkingController
     assert (ctrl.step_angle, ctrl.swing_knee, ctrl.kp) == (0.25, 1.0, 400.0)
     q, dq = np.array(scene.params["initial_q"]), np.array(scene.params["initial_dq"])
     y, dy, _H, _bias = ctrl.outputs(q, dq, scene.params["initial_stance_leg"])
