@@ -7,6 +7,7 @@ of the scene's start (msg_configs/rabbit.yaml). Run it from the repository's roo
     python examples/rabbit_walk_harness.py                      # 10 s from the scene's start
     python examples/rabbit_walk_harness.py --hold 0.001         # each torque held over 1 ms, as the scene's node
     python examples/rabbit_walk_harness.py --rate 1.3           # a faster start on the constraints: it converges
+    python examples/rabbit_walk_harness.py --perturb 0.3        # a start off the constraints
     python examples/rabbit_walk_harness.py --fixed-point        # the gait's rate, its multiplier, the start
 
 The model (``bs.load_model("rabbit")``, a GeneratedModel): in stance on foot c, ``stance_dynamics(q, dq, u, c)``
@@ -137,6 +138,20 @@ def fixed_point(ctrl, rate=1.0, tol=1e-12):
     return b, (step_map(ctrl, b + d) - step_map(ctrl, b - d)) / (2 * d)
 
 
+def perturbed(model, q, dq, size, stance_leg):
+    """(q, dq) moved off the constraints by ``size`` (``--perturb``), the stance foot kept where it is and at rest
+    (the base moved by the foot's shift, its rates from J_c dq = 0)."""
+    q, dq = np.array(q, dtype=float), np.array(dq, dtype=float)
+    foot = model.contact_position(q, stance_leg)
+    q[6] += 0.05 * size
+    q[5] += 0.1 * size
+    dq[2:] += size * np.array([0.3, -0.3, 0.2, -0.2, 0.3])
+    q[:2] -= model.contact_position(q, stance_leg) - foot
+    J = model.contact_jacobian(q, stance_leg)
+    dq[:2] = -np.linalg.solve(J[:, :2], J[:, 2:] @ dq[2:])
+    return q, dq
+
+
 def report(status, steps):
     ends = [s for s in steps if "t" in s]
     print(f"status: {status}; {len(ends)} touchdowns in {ends[-1]['t'] if ends else 0.0:.3f} s")
@@ -159,6 +174,10 @@ def main(argv=None):
     parser.add_argument("--rate", type=float, default=None,
                         help="start on the constraints at the start of a step at this theta' (rad/s) instead of the "
                              "scene's state")
+    parser.add_argument("--perturb", type=float, default=0.0, metavar="S",
+                        help="move the start off the constraints: torso_pitch + 0.05 S, knee_2 + 0.1 S (rad), "
+                             "the joint rates + S (0.3, -0.3, 0.2, -0.2, 0.3) rad/s, the stance foot kept at the "
+                             "origin and at rest")
     parser.add_argument("--fixed-point", action="store_true", help="find the gait's rate and print its start")
     args = parser.parse_args(argv)
     scene = bs.load_scene("rabbit")
@@ -173,6 +192,8 @@ def main(argv=None):
         q0, dq0 = np.array(scene.params["initial_q"]), np.array(scene.params["initial_dq"])
     else:
         q0, dq0 = ctrl.state_on_gait(args.rate)
+    if args.perturb:
+        q0, dq0 = perturbed(ctrl.model, q0, dq0, args.perturb, scene.params["initial_stance_leg"])
     started = time.perf_counter()
     status, steps = walk(ctrl, q0, dq0, scene.params["initial_stance_leg"], args.duration, args.hold)
     report(status, steps)
