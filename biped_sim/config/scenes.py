@@ -70,16 +70,17 @@ LAW_GAINS = {"walking": _GAINS,
                                 "torque_limit")}
 
 
-def validate_controller(values: dict) -> dict:
+def validate_controller(values: dict, table: list | None = None) -> dict:
     """All controller parameters (defaults filled in) after checking ``values``; ValueError names the culprit.
     The parameters of the law the section does not run are refused; those of its law that ``values`` leaves
-    out take the law's own defaults (``RabbitWalkingController``'s for rabbit_walking)."""
-    out = P.validate(values, CONTROLLER_PARAMETERS, owner="walk_controller ")
+    out take the law's own defaults (``RabbitWalkingController``'s for rabbit_walking). ``table``: the
+    parameters' table, default :data:`CONTROLLER_PARAMETERS` (the ``walk_controller`` node adds its own)."""
+    out = P.validate(values, CONTROLLER_PARAMETERS if table is None else table, owner="walk_controller ")
     law = out["law"]
     others = [k for k in values if k not in LAW_GAINS[law] and any(k in g for g in LAW_GAINS.values())]
     if others:
-        raise ValueError(f"walk_controller parameter(s) {others} belong to another law than this section's "
-                         f"(law: {law}); {law}'s parameters: {', '.join(LAW_GAINS[law])}")
+        raise ValueError(f"walk_controller parameter(s) {', '.join(others)} belong to another law than this "
+                         f"section's (law: {law}); {law}'s parameters: {', '.join(LAW_GAINS[law])}")
     if law == "rabbit_walking":
         import inspect
 

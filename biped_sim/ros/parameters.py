@@ -114,25 +114,28 @@ def unknown_parameters_message(unknown: list, table: list, node_name: str) -> st
             + "; ".join(f"{p.name} ({allowed_values(p)})" for p in table) + ".")
 
 
-def check_given(given: dict, table: list, node_name: str) -> dict:
+def check_given(given: dict, table: list, node_name: str, validator=validate) -> dict:
     """Every entry of ``table`` with its value (given, checked, or the default); StartupError names
-    an unknown name (with the closest known one) or a bad value (with what it accepts)."""
+    an unknown name (with the closest known one) or a bad value (with what it accepts). ``validator(values,
+    table)`` checks the values and fills in the defaults (``config.parameters.validate``; the walk_controller
+    node's fills in its law's own)."""
     by_name = {p.name: p for p in table}
     unknown = sorted(n for n in given if n not in by_name and not is_ros_own(n))
     if unknown:
         raise StartupError(unknown_parameters_message(unknown, table, node_name))
     try:
-        return validate({n: v for n, v in given.items() if n in by_name}, table)
+        return validator({n: v for n, v in given.items() if n in by_name}, table)
     except ValueError as exc:
         culprit = next((p for p in table if f"'{p.name}'" in str(exc)), None)
         extra = f" Allowed values of '{culprit.name}': {allowed_values(culprit)}." if culprit else ""
         raise StartupError(f"{exc}.{extra}") from None
 
 
-def declare_from_table(node, table: list) -> dict:
-    """Check what was given to ``node`` against ``table``, declare every entry (type, range, checked
-    value), refuse later changes; returns {name: value}. Call it first in the node's ``__init__``."""
-    values = check_given(given_parameters(node), table, node.get_name())
+def declare_from_table(node, table: list, validator=validate) -> dict:
+    """Check what was given to ``node`` against ``table`` (``validator``, as :func:`check_given`), declare every
+    entry (type, range, checked value), refuse later changes; returns {name: value}. Call it first in the
+    node's ``__init__``."""
+    values = check_given(given_parameters(node), table, node.get_name(), validator)
     for p in table:
         if node.has_parameter(p.name):        # declared from the override, with the type rcl parsed
             node.undeclare_parameter(p.name)

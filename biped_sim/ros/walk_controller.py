@@ -46,7 +46,7 @@ from std_msgs.msg import Float64MultiArray
 
 from biped_sim.config.joints import joint_layout
 from biped_sim.config.parameters import Param, robot_model
-from biped_sim.config.scenes import CONTROLLER_PARAMETERS, make_controller
+from biped_sim.config.scenes import CONTROLLER_PARAMETERS, LAW_GAINS, make_controller, validate_controller
 from biped_sim.recording.messages import TOPIC_TYPES, stamp_ns, torque_msg
 from biped_sim.ros import params_files, startup
 from biped_sim.ros.one_topic_spin import OneTopicSpin
@@ -61,6 +61,15 @@ PARAMETERS = CONTROLLER_PARAMETERS + [Param(
     "controller", str, "walk", "the law that answers: walk (the reference walking controller, with the "
     "parameters above) or MODULE:ATTR, your controller (a class or factory made on the model of the "
     "model.* parameters, or a controller; docs/controllers.md)")]
+
+
+def validate_parameters(values: dict, table: list = PARAMETERS) -> dict:
+    """The node's parameters, checked as a scene's walk_controller section is (``validate_controller``: the
+    parameters of its law, that law's defaults for those left out), so that the node and ``Scene.controller()``
+    build the same controller from the same section."""
+    return validate_controller(values, table)
+
+
 QOS_DEPTH = 100
 COMMAND_QOS = QoSProfile(depth=QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
 # transient_local: the state at t = 0 that a lockstep sim node published before we started
@@ -97,7 +106,7 @@ class WalkControllerNode(Node):
         except ValueError as exc:
             raise StartupError(value_less_override_message(exc) or exc) from None
         params_files.check_applies(self, sys.argv if argv is None else argv)
-        self.values = v = declare_from_table(self, PARAMETERS)
+        self.values = v = declare_from_table(self, PARAMETERS, validate_parameters)
         try:
             self.model = robot_model(v)       # the robot the engine runs (a refusal names it and says why)
         except ValueError as exc:
@@ -125,8 +134,7 @@ class WalkControllerNode(Node):
         # started for another robot than the sim's runs without a word
         self.get_logger().info(
             f"walk_controller: robot={v['robot']!r}, "
-            + (", ".join(f"{k}={v[k]!r}" for k in ("torso_pitch", "step_angle", "clearance", "lag", "kp", "kd",
-                                                   "slope", "stance_source"))
+            + (", ".join(f"{k}={v[k]!r}" for k in LAW_GAINS[v["law"]][:-1] + ("slope", "stance_source"))
                if v["controller"] == "walk" else
                f"controller={v['controller']!r}, slope={v['slope']!r}, stance_source={v['stance_source']!r}"))
 

@@ -111,6 +111,26 @@ def test_a_lockstep_walk_whose_swing_foot_scuffs_deep_runs_to_its_end_as_headles
     assert "duration 1.5 s reached: the run ends" in sim.output(), sim.output()
 
 
+def test_the_nodes_parameters_take_their_laws_defaults_as_the_scene_does():
+    """The walk_controller node checks its parameters as the scene loader checks a walk_controller section: a
+    rabbit_walking section's left-out parameters are RabbitWalkingController's defaults, not the three-link
+    law's, and a parameter of the other law is refused in one line."""
+    from biped_sim.config.scenes import validate_controller
+    from biped_sim.ros.parameters import check_given
+    from biped_sim.ros.startup import StartupError
+    from biped_sim.ros.walk_controller import PARAMETERS, validate_parameters
+    given = {"robot": "rabbit", "law": "rabbit_walking", "kp": 300.0}
+    node = check_given(given, PARAMETERS, "walk_controller", validate_parameters)
+    assert (node["kp"], node["kd"], node["torque_limit"], node["step_angle"]) == (300.0, 40.0, 150.0, 0.25)
+    assert {k: node[k] for k in validate_controller(given)} == validate_controller(given)
+    walking = check_given({}, PARAMETERS, "walk_controller", validate_parameters)
+    assert (walking["law"], walking["kp"], walking["torque_limit"]) == ("walking", 200.0, 500.0)
+    with pytest.raises(StartupError, match=r"parameter\(s\) clearance belong to another law") as err:
+        check_given({"law": "rabbit_walking", "robot": "rabbit", "clearance": 0.5}, PARAMETERS, "walk_controller",
+                    validate_parameters)
+    assert "\n" not in str(err.value)
+
+
 def test_controller_refuses_unknown_parameters():
     with ros_domain() as dom:
         with start_node({"kq": 1.0}, dom, executable="walk_controller") as ctl:
