@@ -39,7 +39,8 @@ def walk(ctrl, q0, dq0, stance_leg=1, t_final=10.0, hold=None, rtol=1e-10, atol=
     landing ``leg``, the impulse's ratio ``impulse_ratio`` = |P_t| / P_n), with the step's worst |F_t| / F_n
     ``ratio``, least normal force ``min_fn``, largest |u| ``max_u`` and the swing foot's least height
     ``clearance`` while |theta| < 0.8 step_angle (the step's middle, away from the liftoff and the touchdown),
-    sampled at 2 kHz. ``hold``: each torque held over that control period (the law's torque at the period's
+    its highest ``peak``, and the least phase rate ``min_rate`` (theta' > 0: the phase is monotone), sampled
+    at 2 kHz. ``hold``: each torque held over that control period (the law's torque at the period's
     start; a touchdown inside a period asks the law again there, for the rest of the period)."""
     model = ctrl.model
     t0, x = 0.0, np.concatenate([q0, dq0])
@@ -80,7 +81,7 @@ def walk(ctrl, q0, dq0, stance_leg=1, t_final=10.0, hold=None, rtol=1e-10, atol=
                 if sol.t_events[0].size or sol.t_events[1].size:
                     hit, fell = sol.t_events[0], sol.t_events[1]
                     break
-        step = dict(t0=t0, ratio=0.0, min_fn=math.inf, max_u=0.0, clearance=math.inf)
+        step = dict(t0=t0, ratio=0.0, min_fn=math.inf, max_u=0.0, clearance=math.inf, min_rate=math.inf, peak=0.0)
         for sol, u_held in pieces:
             for t in np.linspace(sol.t[0], sol.t[-1], max(2, int((sol.t[-1] - sol.t[0]) * SAMPLES_PER_SECOND))):
                 xs = sol.sol(t)
@@ -90,8 +91,11 @@ def walk(ctrl, q0, dq0, stance_leg=1, t_final=10.0, hold=None, rtol=1e-10, atol=
                 step["max_u"] = max(step["max_u"], float(np.max(np.abs(u))))
                 step["min_fn"] = min(step["min_fn"], F[1])
                 step["ratio"] = max(step["ratio"], abs(F[0]) / F[1] if F[1] > 0 else math.inf)
+                height = model.contact_position(q, swing)[1]
                 if abs(ctrl.phase(q, stance_leg)) < 0.8 * ctrl.step_angle:
-                    step["clearance"] = min(step["clearance"], model.contact_position(q, swing)[1])
+                    step["clearance"] = min(step["clearance"], height)
+                step["peak"] = max(step["peak"], height)
+                step["min_rate"] = min(step["min_rate"], ctrl.phase_rate(dq, stance_leg))
         steps.append(step)
         if step["min_fn"] <= 0:
             return f"the stance foot lifts (F_n = {step['min_fn']:.3g} N) in the step from t = {t0:.3f} s", steps
@@ -164,7 +168,9 @@ def report(status, steps):
             print(f"{label}: worst |F_t|/F_n {max(s['ratio'] for s in part):.3f}, least F_n "
                   f"{min(s['min_fn'] for s in part):.1f} N, largest |u| {max(s['max_u'] for s in part):.1f} N m, "
                   f"worst impulse |P_t|/P_n {max((s.get('impulse_ratio', 0.0) for s in part)):.3f}, swing foot's "
-                  f"least height mid-step {min(s['clearance'] for s in part) * 1000:.1f} mm")
+                  f"least height mid-step {min(s['clearance'] for s in part) * 1000:.1f} mm, highest "
+                  f"{max(s['peak'] for s in part) * 1000:.1f} mm, least theta' {min(s['min_rate'] for s in part):.3f} "
+                  "rad/s")
 
 
 def main(argv=None):
