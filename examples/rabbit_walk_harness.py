@@ -41,10 +41,11 @@ def walk(ctrl, q0, dq0, stance_leg=1, t_final=10.0, hold=None, rtol=1e-10, atol=
     ``clearance`` while |theta| < 0.8 step_angle (the step's middle, away from the liftoff and the touchdown),
     its highest ``peak``, and the least phase rate ``min_rate`` (theta' > 0: the phase is monotone), sampled
     at 2 kHz. ``hold``: each torque held over that control period (the law's torque at the period's
-    start; a touchdown inside a period asks the law again there, for the rest of the period)."""
+    start, held through a touchdown inside the period, as the engine holds it)."""
     model = ctrl.model
     t0, x = 0.0, np.concatenate([q0, dq0])
     steps = []
+    carried = (None, None)      # (period index, torque): a torque held through a touchdown inside its period
     while t0 < t_final and (max_steps is None or len(steps) < max_steps):
         swing = 3 - stance_leg
         held = {"u": None}
@@ -73,7 +74,8 @@ def walk(ctrl, q0, dq0, stance_leg=1, t_final=10.0, hold=None, rtol=1e-10, atol=
             pieces, t, y, hit, fell = [], t0, x, np.array([]), np.array([])
             while t < t_final - 1e-12:
                 k = math.floor(t / hold + 1e-9)
-                held["u"] = np.asarray(ctrl(t, y[:N], y[N:], stance_leg), dtype=float)
+                held["u"] = carried[1] if carried[0] == k else np.asarray(ctrl(t, y[:N], y[N:], stance_leg), float)
+                carried = (k, held["u"])
                 sol = solve_ivp(rhs, (t, min((k + 1) * hold, t_final)), y, method="DOP853", rtol=rtol, atol=atol,
                                 events=[touchdown, fallen], dense_output=True)
                 pieces.append((sol, held["u"]))
