@@ -4,10 +4,12 @@ cdef extern from "_loop_state.h":
     enum:
         SIZE "LOOP_STATE_SIZE"
         NMAX "LS_NMAX"
+        NQ_MAX "LS_NQ_MAX"
         MAX_DEPTH "LS_MAX_DEPTH"
         EVENT_ROOM "LS_EVENT_ROOM"
         METHOD "LS_METHOD"
         N_Y "LS_N_Y"
+        N_Q "LS_N_Q"
         RTOL "LS_RTOL"
         ATOL "LS_ATOL"
         MAX_STEP "LS_MAX_STEP"

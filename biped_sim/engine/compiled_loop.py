@@ -29,10 +29,11 @@ from biped_sim.engine.loop_state import (
     MAX_STEP,
     METHODS,
     MODE_BEGUN,
+    N_Q,
     N_RECORDS,
+    N_Y,
     NACCEPTED,
     NFEV,
-    NMAX,
     NREJECTED,
     REC_A,
     REC_B,
@@ -107,9 +108,11 @@ def run_state(model):
     over it: with the compiled loop built, the Loop's own memory as a memoryview of doubles (the simulator, its
     Samples and its locator read and write what the loop reads and writes); else a list of floats and None."""
     if _core is None:
-        return new_state(), None
+        return new_state(n_q=model.n), None
     loop = new_loop(model)
-    return memoryview(loop).cast("d"), loop
+    S = memoryview(loop).cast("d")
+    S[N_Q] = float(model.n)
+    return S, loop
 
 
 def take_records(S):
@@ -154,8 +157,9 @@ class CompiledStepper(integrators._OnState):
     takes_lists = True
 
     def _entries(at, doc):
-        """A field of NMAX floats of the state (a memoryview) as a list."""
-        return property(lambda self: self.S[at:at + NMAX].tolist(), lambda self, v: put(self.S, at, v), doc=doc)
+        """A field of the state (a memoryview) as a list of its n_y entries in use."""
+        return property(lambda self: self.S[at:at + int(self.S[N_Y])].tolist(), lambda self, v: put(self.S, at, v),
+                        doc=doc)
 
     y = _entries(Y, "the state at t: q, dq, the motors' work")
     y_old = _entries(Y_OLD, "the state at t_old")
@@ -296,7 +300,7 @@ class CompiledStepper(integrators._OnState):
         if self._dense is None:
             self.loop.dense()
             S, width = self.S, 8 if self.method == "dop853" else 5
-            rows = [S[DENSE + width * i:DENSE + width * (i + 1)].tolist() for i in range(NMAX)]
+            rows = [S[DENSE + width * i:DENSE + width * (i + 1)].tolist() for i in range(int(S[N_Y]))]
             cls = integrators._DOP853Interpolant if self.method == "dop853" else integrators._DOPRI5Interpolant
             self._dense = cls(self.t_old, self.t, rows)
         return self._dense

@@ -96,6 +96,7 @@ if not cython.compiled:
         MODE_EVENTS,
         MU,
         N_IMPACTS,
+        N_Q,
         N_RECENT,
         N_Y,
         NACCEPTED,
@@ -190,7 +191,7 @@ def rk_step(S, fun, ctx):
             S[FAIL_KIND] = 3.0
             return -1
         S[NFEV] += evaluations
-        err = S[OUT + 2 * NMAX]
+        err = S[OUT + 2 * n]
         if err < 1.0:
             s = 0.0
             for i in range(n):
@@ -218,11 +219,12 @@ def rk_step(S, fun, ctx):
         S[NREJECTED] += 1
     S[NACCEPTED] += 1
     S[T_OLD] = t
-    k_copy(S, Y_OLD, Y, NMAX)
+    k_copy(S, Y_OLD, Y, n)
     S[H] = h
     S[T] = t + h if h < remaining else S[T_BOUND]
-    k_copy(S, Y, OUT, 2 * NMAX)                             # y_new and f_new: Y and F are next to each other
-    k_copy(S, STAGES, OUT + 2 * NMAX + 1, stages * NMAX)
+    k_copy(S, Y, OUT, n)                                    # the trial step's rows are n apart (S[N_Y])
+    k_copy(S, F, OUT + n, n)
+    k_copy(S, STAGES, OUT + 2 * n + 1, stages * n)
     S[DENSE_READY] = 0.0
     return 0
 
@@ -265,7 +267,7 @@ def rk_dense_state(S, tt):
 def ev_height_at(S, leg, tt):
     """Foot leg's height across the slope on the floating base's dense output at tt (guards.foot_height)."""
     i: cython.Py_ssize_t
-    for i in range(5):
+    for i in range(int(S[N_Q])):
         S[QS + i] = rk_dense_at(S, i, tt)
     k_foot_positions(S, QS, PS)
     return ev_across(S[TAN_S], S[PS + 2 * leg - 2], S[PS + 2 * leg - 1])

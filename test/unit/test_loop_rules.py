@@ -50,8 +50,8 @@ def test_the_state_is_one_buffer_read_by_offset_and_by_member():
     assert at == loop_state.SIZE and f"#define LOOP_STATE_SIZE {at}\n" in header
     S = loop_state.new_state(t=1.5, y=[1.0, 2.0])
     assert len(S) == loop_state.SIZE and S[loop_state.T] == 1.5 and S[loop_state.Y + 1] == 2.0
-    with pytest.raises(ValueError, match="holds 11 values"):
-        loop_state.new_state(y=[0.0] * 12)
+    with pytest.raises(ValueError, match=f"holds {loop_state.NMAX} values"):
+        loop_state.new_state(y=[0.0] * (loop_state.NMAX + 1))
 
 
 def test_the_compiled_loop_has_no_numerics_of_the_rules():
