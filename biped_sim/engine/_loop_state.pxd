@@ -10,6 +10,7 @@ cdef extern from "_loop_state.h":
         METHOD "LS_METHOD"
         N_Y "LS_N_Y"
         N_Q "LS_N_Q"
+        MODEL_KERNELS "LS_MODEL_KERNELS"
         RTOL "LS_RTOL"
         ATOL "LS_ATOL"
         MAX_STEP "LS_MAX_STEP"

@@ -39,6 +39,8 @@ class GeneratedModel:
         self.contacts = tuple(module.CONTACTS)
         self.B = np.array(module.B, dtype=float).reshape(self.n, len(module.ACTUATED))
         self.relabeling = tuple(module.RELABELING)
+        self.contact_mirror = tuple(module.CONTACT_MIRROR)
+        self.m = self.B.shape[1]        # the actuators M
         self.total_mass = module.TOTAL_MASS
 
     def __repr__(self):
@@ -118,6 +120,54 @@ class GeneratedModel:
         """Each link's joint and tip: an array (links, 2 points, xy), the drawing of any chain."""
         return np.array(self.module.segments(self._q(q))).reshape(-1, 2, 2)
 
+    # -- the engine's kernels: lists in, lists out, in the three-link kernels' layouts (loop_kernels) ------
+    def _kkt(self, q, c):
+        """D, J_c and the KKT matrix [D -J_c^T; J_c 0] of contact index c (0-based) at q (lists)."""
+        n, m = self.n, self.module
+        D = np.array(m.mass_matrix(q)).reshape(n, n)
+        w = 2 * n
+        J = np.array(m.contact_jacobians(q)[w * c:w * c + w]).reshape(2, n)
+        K = np.zeros((n + 2, n + 2))
+        K[:n, :n], K[:n, n:], K[n:, :n] = D, -J.T, J
+        return D, K
+
+    def k_stance(self, q, dq, u, contact_index0):
+        """(ddq, F) of floating-base stance on contact ``contact_index0`` (0-based): the KKT solve
+        [D -J_c^T; J_c 0] [ddq; F] = [B u - C dq - G; -Jdot_c dq], F the ground's force on the contact point."""
+        n, w, c = self.n, 2 * self.n, contact_index0
+        _, K = self._kkt(q, c)
+        Jd = np.array(self.module.contact_jacobian_dots(q, dq)[w * c:w * c + w]).reshape(2, n)
+        dqa = np.array(dq)
+        rhs = np.concatenate([self.B @ np.array(u) - np.array(self.module.bias_forces(q, dq)), -Jd @ dqa])
+        x = np.linalg.solve(K, rhs).tolist()
+        return x[:n], x[n:]
+
+    def k_flight(self, q, dq, u):
+        """ddq of flight, D ddq = B u - C dq - G."""
+        n = self.n
+        D = np.array(self.module.mass_matrix(q)).reshape(n, n)
+        return np.linalg.solve(D, self.B @ np.array(u) - np.array(self.module.bias_forces(q, dq))).tolist()
+
+    def k_impact(self, q, dq_minus, contact_index0):
+        """(dq+, impulse) of the rigid plastic impact of contact ``contact_index0`` (0-based):
+        [D -J_c^T; J_c 0] [dq+; Lambda] = [D dq-; 0]."""
+        n = self.n
+        D, K = self._kkt(q, contact_index0)
+        x = np.linalg.solve(K, np.concatenate([D @ np.array(dq_minus), np.zeros(2)])).tolist()
+        return x[:n], x[n:]
+
+    def k_foot_positions(self, q):
+        """[x_1, y_1, x_2, y_2, ...]: the contact points' positions."""
+        return list(self.module.contact_positions(q))
+
+    def k_foot_kinematics(self, q, dq):
+        """[p_1 (2), p_2 (2), ..., v_1 (2), v_2 (2), ...]: the contact points' positions, then their velocities."""
+        return list(self.module.contact_positions(q)) + list(self.module.contact_velocities(q, dq))
+
+    def k_energy(self, q, dq):
+        """[T, V]."""
+        return list(self.module.energy(q, dq))
+
     # -- phases --------------------------------------------------------------------------------------
     def relabel(self, q, dq):
         """R q, R dq: the mirror's links swapped (R R = I)."""
@@ -127,30 +177,22 @@ class GeneratedModel:
 
     def flight_dynamics(self, q, dq, u) -> np.ndarray:
         """ddq of ``D ddq + C dq + G = B u``."""
-        u = as_state_vector(u, "u", self.B.shape[1])
-        return np.linalg.solve(self.mass_matrix(q), self.B @ u - self.bias_forces(q, dq))
+        q, dq = self._qdq(q, dq)
+        return np.array(self.k_flight(q, dq, as_state_vector(u, "u", self.m).tolist()))
 
     def stance_dynamics(self, q, dq, u, contact=1):
         """(ddq, F): the KKT system of stance on ``contact`` (its point pinned)."""
-        u = as_state_vector(u, "u", self.B.shape[1])
-        n = self.n
-        J = self.contact_jacobian(q, contact)
-        K = np.zeros((n + 2, n + 2))
-        K[:n, :n], K[:n, n:], K[n:, :n] = self.mass_matrix(q), -J.T, J
-        rhs = np.concatenate([self.B @ u - self.bias_forces(q, dq),
-                              -self.contact_jacobian_dot(q, dq, contact) @ np.asarray(dq, dtype=float)])
-        x = np.linalg.solve(K, rhs)
-        return x[:n], x[n:]
+        c = self.contact_index(contact)
+        q, dq = self._qdq(q, dq)
+        ddq, F = self.k_stance(q, dq, as_state_vector(u, "u", self.m).tolist(), c)
+        return np.array(ddq), np.array(F)
 
     def impact_map(self, q, dq, contact=2):
         """(dq+, F_imp): the rigid plastic impact of ``contact`` (before relabeling)."""
-        n = self.n
-        D = self.mass_matrix(q)
-        J = self.contact_jacobian(q, contact)
-        K = np.zeros((n + 2, n + 2))
-        K[:n, :n], K[:n, n:], K[n:, :n] = D, -J.T, J
-        x = np.linalg.solve(K, np.concatenate([D @ as_state_vector(dq, "dq", n), np.zeros(2)]))
-        return x[:n], x[n:]
+        c = self.contact_index(contact)
+        q, dq = self._qdq(q, dq)
+        dq_plus, impulse = self.k_impact(q, dq, c)
+        return np.array(dq_plus), np.array(impulse)
 
     def check_positive_definite(self, q) -> None:
         """ValueError unless D(q) is positive definite (a link with no mass or inertia where it needs one)."""

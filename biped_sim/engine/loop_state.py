@@ -81,6 +81,8 @@ FIELDS = (
     Field("method", (), "the Runge-Kutta pair: 0 dop853, 1 dopri5 (METHODS)"),
     Field("n_y", (), "entries of y in use (at most NMAX): also the distance of a trial step's rows (out, stages)"),
     Field("n_q", (), "the model's coordinates N, the entries of a field of q in use (at most NQ_MAX)"),
+    Field("model_kernels", (), "whose kernels the rules evaluate (loop_kernels): 0 the three-link's closed forms on "
+                               "the constants below, k > 0 the generated model registered as k (the Python loop only)"),
     Field("rtol", (), "relative tolerance of the step control"),
     Field("atol", (), "absolute tolerance of the step control"),
     Field("max_step", (), "the largest step size (s)"),
