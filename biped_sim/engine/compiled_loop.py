@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from biped_sim.engine import integrators, loop_rules as rules
+from biped_sim.engine import grazing, integrators, loop_rules as rules
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.loop_state import (
     DENSE,
@@ -29,7 +29,6 @@ from biped_sim.engine.loop_state import (
     MAX_STEP,
     METHODS,
     MODE_BEGUN,
-    N_Q,
     N_RECORDS,
     N_Y,
     NACCEPTED,
@@ -107,12 +106,11 @@ def run_state(model):
     """(S, loop): the state a simulator owns for its life (``loop_state.py``'s fields) and the C ``Loop`` made
     over it: with the compiled loop built, the Loop's own memory as a memoryview of doubles (the simulator, its
     Samples and its locator read and write what the loop reads and writes); else a list of floats and None."""
+    fields = dict(n_q=model.n, **grazing.chain_fields(model))
     if _core is None:
-        return new_state(n_q=model.n), None
+        return new_state(**fields), None
     loop = new_loop(model)
-    S = memoryview(loop).cast("d")
-    S[N_Q] = float(model.n)
-    return S, loop
+    return write(memoryview(loop).cast("d"), **fields), loop
 
 
 def take_records(S):

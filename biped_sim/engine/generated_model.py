@@ -20,6 +20,37 @@ ENGINE_REFUSAL = ("model {name!r} ({n} coordinates) cannot be simulated yet: the
                   "mass_matrix, bias_forces, contact_jacobian, stance_dynamics, impact_map (docs/models.md)")
 
 
+def contact_chains(desc: RobotDescription) -> tuple:
+    """Per contact point, its chain from the floating base's point (grazing.contact_chains' form): the links from
+    the base to the point's link, each as (l_k, terms): l_k the distance from the link's joint to the next joint
+    on the way (or to the point), terms the entries of y whose sum (the signs of the joints' axes) is the link's
+    absolute angle, +-(entry + 1), the link's own first. A link that carries the way no distance is left out."""
+    by_name = {link.name: link for link in desc.links}
+    index = {link.name: 2 + i for i, link in enumerate(desc.links)}
+
+    def terms(name):
+        link = by_name[name]
+        own = index[name] + 1
+        if link.parent is None:
+            return (own,)
+        return (own if link.sign > 0 else -own,) + terms(link.parent)
+
+    out = []
+    for contact in desc.contacts:
+        path = [contact.link]
+        while by_name[path[-1]].parent is not None:
+            path.append(by_name[path[-1]].parent)
+        path.reverse()
+        chain = []
+        for k, name in enumerate(path):
+            to = by_name[path[k + 1]].origin if k + 1 < len(path) else contact.point
+            length = float(np.hypot(*to))
+            if length > 0.0:
+                chain.append((length, terms(name)))
+        out.append(tuple(chain))
+    return tuple(out)
+
+
 class EngineCannotRun(ValueError):
     """A model the hybrid engine cannot simulate yet."""
 
@@ -41,6 +72,7 @@ class GeneratedModel:
         self.relabeling = tuple(module.RELABELING)
         self.contact_mirror = tuple(module.CONTACT_MIRROR)
         self.m = self.B.shape[1]        # the actuators M
+        self.contact_chains = contact_chains(description)
         self.total_mass = module.TOTAL_MASS
 
     def __repr__(self):

@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from biped_sim.engine import guards as G, loop_rules as rules
-from biped_sim.engine.grazing import dip_bracket
+from biped_sim.engine.grazing import chain_fields, dip_bracket
 from biped_sim.engine.loop_state import (
     ARMED,
     DEEPEST_SCUFF,
@@ -65,6 +65,7 @@ class EventLocator:
         self.model, self.ground, self.opt, self.mu = model, ground, opt, mu
         self.S = new_state() if S is None else S
         self.impacts = impacts   # the run's ImpactHistory: a crossing in the Zeno limit is an impact
+        self._chains = chain_fields(model)     # the feet's chains, the dip bound's (grazing.py)
         # at the start no reset has just happened, so a free foot above the ground, however little,
         # is armed at once: its crossing is found (a foot on it arms when it rises above arm_height)
         for leg in (1, 2):
@@ -222,7 +223,7 @@ class EventLocator:
             elif guard.name == "touchdown" and g0 > 0 and g1 > 0:
                 # both ends above the ground: a dip in between is found with its guarantee
                 bracket = dip_bracket(st, to_phys, guard_at, guard.leg, stance_leg, self.opt.base == "fixed",
-                                      self.model.parameters.l_leg, self.ground.tan, g0, g1, self.opt.graze_tol)
+                                      self._chains, self.ground.tan, g0, g1, self.opt.graze_tol)
             if bracket is None:
                 continue
             t_root = self._crossing(st, guard, guard_at, bracket)

@@ -14,6 +14,7 @@ cdef public double rk_dense_at(double *S, Py_ssize_t i, double tt) noexcept nogi
 cdef public void rk_dense_state(double *S, double tt) noexcept nogil
 cdef public double ev_height_at(double *S, int leg, double tt) noexcept nogil
 cdef double ev_height_guard(double *S, void *ctx, double tt) noexcept nogil
+cdef double ev_power_coefficient(double *S, Py_ssize_t r, Py_ssize_t p, Py_ssize_t w, double hi) noexcept nogil
 cdef void ev_dip_coefficients(double *S, int leg) noexcept nogil
 cdef int ev_dip_search(double *S, guard_t g, void *ctx, double h0, double h1) noexcept nogil
 cdef public int ev_may_dip(double *S, rhs_t fun, void *ctx, int leg, double h0, double h1) noexcept nogil

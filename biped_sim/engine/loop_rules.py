@@ -58,11 +58,19 @@ if not cython.compiled:
     from biped_sim.engine.loop_state import (
         ATOL,
         CALLBACK_FAILED,
+        CHAIN,
+        CHAIN_LINKS,
+        CHAIN_MAX,
+        CHAIN_WIDTH,
         COEF,
+        COEF_LENGTH,
+        COEF_LINKS,
+        COEF_WIDTH,
         COS_S,
         DEEPEST_TRIAL,
         DENSE,
         DENSE_READY,
+        DIP_D,
         DQ_MINUS,
         DQ_PLUS,
         ENERGY_AFTER,
@@ -88,7 +96,6 @@ if not cython.compiled:
         IMPACT_PULLS,
         IMPULSE,
         KINEMATICS,
-        L_LEG,
         LAST_IMPACT,
         MAX_DEPTH,
         MAX_STEP,
@@ -279,54 +286,83 @@ def ev_height_guard(S, ctx, tt):
     return ev_height_at(S, leg, tt)
 
 
-def ev_dip_coefficients(S, leg):
-    """S[COEF]: |power-basis coefficients| of the floating base's swing leg angle (its entry of y plus the
-    torso's), the hip's x and y (rk_dense first): a row of 3 for each power 0 to 7. dop853: TO_POWER_BASIS
-    times the dense row; dopri5: y, h q1 .. h q4, then zeros."""
-    p: cython.Py_ssize_t
+def ev_power_coefficient(S, r, p, w, hi):
+    """The power-basis coefficient of x^p (x = (t - t_old) / h) of the dense output's row at S[r] (rk_dense first),
+    the row w wide: dop853 (w 8): TO_POWER_BASIS times the row; dopri5 (w 5): y, h q1 .. h q4, then zeros."""
     j: cython.Py_ssize_t
-    w: cython.Py_ssize_t = 8 if S[METHOD] == 0.0 else 5
-    ra: cython.Py_ssize_t = DENSE + w * (1 + leg)      # the rows of the leg's angle, the torso's, x and y
-    rt: cython.Py_ssize_t = DENSE + w * 4
-    rx: cython.Py_ssize_t = DENSE
-    ry: cython.Py_ssize_t = DENSE + w
     a: cython.double
-    t: cython.double
-    x: cython.double
-    y: cython.double
-    b: cython.double
+    if w == 8:
+        a = 0.0
+        for j in range(8):
+            a += S[TO_POWER_BASIS + 8 * p + j] * S[r + j]
+        return a
+    if p == 0:
+        return S[r]
+    if p < 5:
+        return hi * S[r + p]
+    return 0.0
+
+
+def ev_dip_coefficients(S, leg):
+    """S[COEF]: |power-basis coefficients| (ev_power_coefficient) of the floating base's x and y and of the absolute
+    angle of each link of foot leg's chain (S[CHAIN]: the sum of its terms' entries of y, in their order), a row
+    of COEF_WIDTH for each power 0 to 7; S[COEF_LINKS] and S[COEF_LENGTH] the chain's links and their lengths
+    (rk_dense first)."""
+    p: cython.Py_ssize_t
+    c: cython.Py_ssize_t
+    j: cython.Py_ssize_t
+    e: cython.Py_ssize_t
+    m: cython.Py_ssize_t
+    row: cython.Py_ssize_t
+    w: cython.Py_ssize_t = 8 if S[METHOD] == 0.0 else 5
+    links: cython.Py_ssize_t = int(S[CHAIN_LINKS + leg - 1])
+    chain: cython.Py_ssize_t = CHAIN + CHAIN_MAX * CHAIN_WIDTH * (leg - 1)
     hi: cython.double = S[T] - S[T_OLD]
+    a: cython.double
+    v: cython.double
+    S[COEF_LINKS] = links
+    for c in range(links):
+        S[COEF_LENGTH + c] = S[chain + CHAIN_WIDTH * c]
     for p in range(8):
-        if w == 8:
-            a = t = x = y = 0.0
-            for j in range(8):
-                b = S[TO_POWER_BASIS + 8 * p + j]
-                a += b * S[ra + j]
-                t += b * S[rt + j]
-                x += b * S[rx + j]
-                y += b * S[ry + j]
-        elif p == 0:
-            a, t, x, y = S[ra], S[rt], S[rx], S[ry]
-        elif p < 5:
-            a, t, x, y = hi * S[ra + p], hi * S[rt + p], hi * S[rx + p], hi * S[ry + p]
-        else:
-            a = t = x = y = 0.0
-        S[COEF + 3 * p] = fabs(a + t)
-        S[COEF + 3 * p + 1] = fabs(x)
-        S[COEF + 3 * p + 2] = fabs(y)
+        S[COEF + COEF_WIDTH * p] = fabs(ev_power_coefficient(S, DENSE, p, w, hi))
+        S[COEF + COEF_WIDTH * p + 1] = fabs(ev_power_coefficient(S, DENSE + w, p, w, hi))
+        for c in range(links):
+            row = chain + CHAIN_WIDTH * c
+            m = int(S[row + 1])
+            a = 0.0
+            for j in range(m):
+                e = int(S[row + 2 + j])
+                v = ev_power_coefficient(S, DENSE + w * ((e if e > 0 else -e) - 1), p, w, hi)
+                if j == 0:
+                    a = v if e > 0 else -v
+                elif e > 0:
+                    a = a + v
+                else:
+                    a = a - v
+            S[COEF + COEF_WIDTH * p + 2 + c] = fabs(a)
 
 
 def ev_dip_search(S, g, ctx, h0, h1):
     """grazing.dip_bracket's search over the last step [t_old, t] (both ends above the ground: guard values h0,
-    h1 > 0) with the |coefficients| in S[COEF]: 1 and a bracket in S[RESULT:RESULT + 2] where the guard
-    g(S, ctx, t) may dip deeper than graze_tol inside the step, else 0.
+    h1 > 0) with the |coefficients| in S[COEF] (ev_dip_coefficients): 1 and a bracket in S[RESULT:RESULT + 2]
+    where the guard g(S, ctx, t) may dip deeper than graze_tol inside the step, else 0.
 
-    Bound on [a, b] (in s = (t - t_old) / h): |h''| <= l (1 + |tan|) (|theta''| + theta'^2) + |y''| + |tan| |x''|
-    (fixed base: l (1 + |tan|) (|theta''| + theta'^2 + |theta_st''| + theta_st'^2)), from the coefficients'
-    derivative weights; h >= min(h(a), h(b)) - M2 (b - a)^2 / 8. The left half is searched first."""
+    The bound. The foot is the floating base's point plus one vector per link of its chain, each of fixed
+    length l_k turning with the link's absolute angle a_k: p = (x, y) + sum_k l_k (sin(a_k + phi_k),
+    cos(a_k + phi_k)). Its height across the ground is h = p_y + tan p_x, so in s = (t - t_old) / h
+    h'' = y'' + tan x'' + sum_k l_k [(cos - tan sin)(.) a_k'' - (sin + tan cos)(.) a_k'^2], and as |sin|, |cos| <= 1:
+    |h''| <= |y''| + |tan| |x''| + sum_k l_k (1 + |tan|) (|a_k''| + a_k'^2). Each of x, y and a_k is a
+    polynomial in s with power-basis coefficients c_p, so on [0, b] |f'| <= sum_p p |c_p| b^(p-1) and
+    |f''| <= sum_p p (p - 1) |c_p| b^(p-2) (the derivative weights). Fixed base (the three-link's): the hip hangs
+    from the pin by the stance leg, so x, y give way to its angle: l (1 + |tan|) (|a''| + a'^2 + |a_st''| +
+    a_st'^2). Then h >= min(h(a), h(b)) - M2 (b - a)^2 / 8 on [a, b] (M2 the bound): an interval where that is
+    positive holds no dip; the others are halved, the left half searched first."""
     k: cython.Py_ssize_t
+    c: cython.Py_ssize_t
     ta: cython.double = fabs(S[TAN_S])
-    lt: cython.double = S[L_LEG] * (1 + ta)
+    links: cython.Py_ssize_t = int(S[COEF_LINKS])
+    columns: cython.Py_ssize_t = 2 + links
+    lt: cython.double = S[COEF_LENGTH] * (1 + ta)
     slack: cython.double = 1.0 + 1e-6           # the coefficients carry roundoff
     t_old: cython.double = S[T_OLD]
     h_step: cython.double = S[T] - S[T_OLD]
@@ -337,13 +373,9 @@ def ev_dip_search(S, g, ctx, h0, h1):
     ha: cython.double
     hb: cython.double
     depth: cython.int
-    d1_0: cython.double
-    d1_1: cython.double
-    d2_0: cython.double
-    d2_1: cython.double
-    d2_2: cython.double
     w1: cython.double
     w2: cython.double
+    d1: cython.double
     bound: cython.double
     drop: cython.double
     lo: cython.double
@@ -362,7 +394,9 @@ def ev_dip_search(S, g, ctx, h0, h1):
         ha = S[STACK + 5 * top + 2]
         hb = S[STACK + 5 * top + 3]
         depth = int(S[STACK + 5 * top + 4])
-        d1_0 = d1_1 = d2_0 = d2_1 = d2_2 = 0.0
+        for c in range(columns):
+            S[DIP_D + c] = 0.0
+            S[DIP_D + COEF_WIDTH + c] = 0.0
         for k in range(8):
             # the derivative weights over [0, b]: k b^(k-1) and k (k-1) b^(k-2) (on [0, 1] the powers are 1)
             if b == 1.0:
@@ -371,15 +405,19 @@ def ev_dip_search(S, g, ctx, h0, h1):
             else:
                 w1 = k * pow(b, 1.0 * (k - 1 if k - 1 > 0 else 0))
                 w2 = k * (k - 1) * pow(b, 1.0 * (k - 2 if k - 2 > 0 else 0))
-            d1_0 += w1 * S[COEF + 3 * k]
-            d2_0 += w2 * S[COEF + 3 * k]
-            d1_1 += w1 * S[COEF + 3 * k + 1]
-            d2_1 += w2 * S[COEF + 3 * k + 1]
-            d2_2 += w2 * S[COEF + 3 * k + 2]
+            for c in range(columns):
+                S[DIP_D + c] += w1 * S[COEF + COEF_WIDTH * k + c]
+                S[DIP_D + COEF_WIDTH + c] += w2 * S[COEF + COEF_WIDTH * k + c]
         if fixed:
-            bound = lt * (d2_0 + d1_0 * d1_0 + d2_1 + d1_1 * d1_1) * slack
+            d1 = S[DIP_D + 2]
+            bound = lt * (S[DIP_D + COEF_WIDTH + 2] + d1 * d1 + S[DIP_D + COEF_WIDTH] + S[DIP_D] * S[DIP_D]) * slack
         else:
-            bound = (lt * (d2_0 + d1_0 * d1_0) + d2_2 + ta * d2_1) * slack
+            d1 = S[DIP_D + 2]
+            bound = lt * (S[DIP_D + COEF_WIDTH + 2] + d1 * d1)
+            for c in range(1, links):
+                d1 = S[DIP_D + 2 + c]
+                bound += S[COEF_LENGTH + c] * (1 + ta) * (S[DIP_D + COEF_WIDTH + 2 + c] + d1 * d1)
+            bound = (bound + S[DIP_D + COEF_WIDTH + 1] + ta * S[DIP_D + COEF_WIDTH]) * slack
         drop = bound * (b - a) * (b - a) / 8
         lo = ha if ha < hb else hb
         if lo - drop > 0 or drop <= S[GRAZE_TOL] or depth >= MAX_DEPTH:

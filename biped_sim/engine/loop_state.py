@@ -35,6 +35,12 @@ NU_MAX = NQ_MAX - 3     # the most actuators: one per joint, none on the floatin
 MAX_STAGES = 13     # dop853's stages k0..k12 (dopri5 uses k0..k6)
 DENSE_WIDTH = 8     # coefficients a dense-output row: dop853's 8 (dopri5 uses 5)
 MAX_DEPTH = 30      # the dip search's halvings (grazing.MAX_DEPTH)
+CHAIN_MAX = 4       # the links of a contact point's chain, from the floating base to the point (the dip bound's)
+TERMS_MAX = 6       # the terms of a link's absolute angle: its joint's coordinate and its ancestors'
+CHAIN_WIDTH = 2 + TERMS_MAX     # a chain link's row: its length, its terms' count, the terms
+COEF_WIDTH = 2 + CHAIN_MAX      # a row of the dip search's coefficients: base x, base y, each chain link's angle
+#: the dimensions above that the rules index the state with; _loop_state.h and .pxd carry them by these names
+DIMENSIONS = {"CHAIN_MAX": CHAIN_MAX, "CHAIN_WIDTH": CHAIN_WIDTH, "COEF_WIDTH": COEF_WIDTH}
 METHODS = {"dop853": 0, "dopri5": 1}
 EVENT_ROOM = 32     # the event records a run may make before the Python code takes them (a step makes at most one)
 
@@ -90,6 +96,11 @@ FIELDS = (
     Field("graze_tol", (), "the dip search's depth (m): a dip of the foot deeper than this is found"),
     Field("event_tol", (), "brentq's xtol (s)"),
     Field("l_leg", (), "the leg's length (m)"),
+    Field("chain_links", (2,), "per contact point, the links of its chain: those from the floating base's point to "
+                               "it that carry it a distance (a link's frame turns with its absolute angle)"),
+    Field("chain", (2, CHAIN_MAX, CHAIN_WIDTH), "per contact point, a row per chain link from the base: its length l_k "
+                                               "(m), the count of its absolute angle's terms, then each term as "
+                                               "+-(the entry of y + 1), + for a joint turning about +y"),
     Field("tan_s", (), "tan(slope) of the ground"),
     Field("sin_s", (), "sin(slope): a force's normal and tangential components on the ground line"),
     Field("cos_s", (), "cos(slope)"),
@@ -201,8 +212,12 @@ FIELDS = (
     Field("out", (2 * NMAX + 1 + MAX_STAGES * NMAX,), "a trial step: y_new, f_new, err, stages; between steps "
                                                       "the dense state (dense_state)"),
     Field("result", (2,), "a located root, or a dip's bracket"),
-    Field("coef", (8, 3), "the dip search's |power-basis coefficients|: swing leg angle, hip x, hip y "
-                          "(fixed base: swing leg angle, stance leg angle)"),
+    Field("coef", (8, COEF_WIDTH), "the dip search's |power-basis coefficients|, a row a power: the base's x, its y, "
+                                   "then the absolute angle of each link of the foot's chain (fixed base: the stance "
+                                   "leg's angle, 0, the swing leg's)"),
+    Field("coef_links", (), "the chain links of coef's row (its columns from the third)"),
+    Field("coef_length", (CHAIN_MAX,), "their lengths l_k (m): from the link's joint to the next joint, or the foot"),
+    Field("dip_d", (2, COEF_WIDTH), "the dip search's bounds of each column's first and second derivatives"),
     Field("qs", (NQ_MAX,), "q on the dense output"),
     Field("ps", (4,), "the feet's positions there"),
     Field("stack", (2 * MAX_DEPTH + 4, 5), "the dip search's intervals: a, b, h(a), h(b), depth"),
@@ -349,6 +364,7 @@ def c_header() -> str:
              "#ifndef BIPED_SIM_LOOP_STATE_H", "#define BIPED_SIM_LOOP_STATE_H", "",
              f"#define LOOP_STATE_SIZE {SIZE}", f"#define LS_NMAX {NMAX}", f"#define LS_NQ_MAX {NQ_MAX}",
              f"#define LS_MAX_DEPTH {MAX_DEPTH}",
+             *[f"#define LS_{name} {value}" for name, value in DIMENSIONS.items()],
              f"#define LS_EVENT_ROOM {EVENT_ROOM}"]
     lines += [f"#define LS_{name} {at}" for name, at in OFFSETS.items()]
     lines += [f"#define {name} {code}" for name, code in CODES.items()]
@@ -379,6 +395,7 @@ def cython_pxd() -> str:
              "# tools/generate_loop.py: do not edit).",
              'cdef extern from "_loop_state.h":', "    enum:",
              '        SIZE "LOOP_STATE_SIZE"', '        NMAX "LS_NMAX"', '        NQ_MAX "LS_NQ_MAX"',
+             *[f'        {name} "LS_{name}"' for name in DIMENSIONS],
              '        MAX_DEPTH "LS_MAX_DEPTH"',
              '        EVENT_ROOM "LS_EVENT_ROOM"']
     lines += [f'        {name} "LS_{name}"' for name in OFFSETS]

@@ -56,3 +56,54 @@ def test_the_impact_rule_runs_on_a_generated_models_kernels():
     assert ev.dq_plus.tolist() == dq_plus.tolist() and ev.impulse.tolist() == impulse.tolist()
     assert ev.energy_loss == pytest.approx(rabbit.energy(q, dq) - rabbit.energy(q, dq_plus), abs=1e-12)
     assert ev.energy_loss > 0
+
+
+@pytest.mark.parametrize("method", ["dop853", "dopri5", "rk4"])
+def test_the_dip_search_finds_every_dip_of_a_rabbit_step(method):
+    """The grazing bound summed over a foot's chain (femur and tibia): on steps of RABBIT in flight with leg 2
+    swinging through its lowest point, a ground line placed so that the foot dips 1.5 graze_tol (and more) below
+    it inside the step, both ends above it, is always found (a bracket around a crossing); one below the
+    sampled lowest point gives none."""
+    from biped_sim.engine.grazing import chain_fields, dip_bracket
+    from biped_sim.engine.integrators import make_stepper
+    from biped_sim.engine.loop_state import COEF, COEF_LENGTH, COEF_LINKS, COEF_WIDTH
+    rabbit = bs.load_model("rabbit")
+    chains, graze_tol, found = chain_fields(rabbit), 1e-6, 0
+    for swing in (-6.0, -8.0, 7.0):
+        q = [0.0, 1.0, np.pi - 0.15 * np.sign(swing), np.pi - 0.3 * np.sign(swing), 0.05, 0.0, 0.1]
+        dq = [0.4, 0.25 * 9.81 / abs(swing), 0.5, swing, 1.0, -0.5, 0.0]   # the hip's top where leg 2 is lowest
+
+        def rhs(t, y):
+            return y[7:14] + rabbit.k_flight(y[:7], y[7:14], [0.0] * 4) + [0.0]
+        st = make_stepper(method, rhs, 0.0, q + dq + [0.0], 0.3, 1e-9, 1e-9, step=0.02, n_positions=7)
+        while st.t < 0.3:
+            st.step()
+            dense = st.dense_output()
+
+            def height(t):
+                return rabbit.k_foot_positions(list(np.asarray(dense(t))[:7]))[3]
+            ts = np.linspace(st.t_old, st.t, 801)
+            hs = np.array([height(t) for t in ts])
+            lowest, ends = hs.min(), min(hs[0], hs[-1])
+            if not ends - lowest > 2 * graze_tol:
+                continue
+            for c in np.linspace(lowest + 1.5 * graze_tol, ends - 0.25 * (ends - lowest), 4):
+                def guard(t, c=c):
+                    return height(t) - c
+                bracket = dip_bracket(st, None, guard, 2, 0, False, chains, 0.0, hs[0] - c, hs[-1] - c, graze_tol)
+                assert bracket is not None, (method, swing, st.t, c)
+                assert guard(bracket[0]) > 0 >= guard(bracket[1])
+                found += 1
+            if method != "rk4":     # the bound over the whole step dominates the sampled |h''| (in s)
+                S = st.dense_state()
+                coef = np.array(S[COEF:COEF + 8 * COEF_WIDTH]).reshape(8, COEF_WIDTH)
+                k = np.arange(8.0)
+                d1, d2 = k @ coef, (k * (k - 1)) @ coef
+                links = int(S[COEF_LINKS])
+                bound = d2[1] + sum(S[COEF_LENGTH + j] * (d2[2 + j] + d1[2 + j] ** 2) for j in range(links))
+                second = np.abs(np.diff(hs, 2)) * 800.0 ** 2
+                assert links == 2 and second.max() <= bound, (second.max(), bound)
+            c = lowest - 1e-3
+            assert dip_bracket(st, None, lambda t: height(t) - c, 2, 0, False, chains, 0.0, hs[0] - c, hs[-1] - c,
+                               graze_tol) is None
+    assert found >= 8
