@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from biped_sim.engine import grazing, integrators, loop_rules as rules
+from biped_sim.engine import grazing, integrators, loop_kernels, loop_rules as rules
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.loop_state import (
     DENSE,
@@ -55,6 +55,7 @@ from biped_sim.engine.loop_state import (
     put,
     write,
 )
+from biped_sim.engine.model import BipedModel
 from biped_sim.engine.modes import checked_torques, controller_failure
 from biped_sim.engine.results import ControllerError
 from biped_sim.engine.torque_hook import hook_argument, law_in_mode, reference_law
@@ -86,9 +87,14 @@ AVAILABLE = _core is not None
 enabled = True
 
 
+#: why a described robot's run is the Python loop's (the compiled loop's kernels are the three-link's closed forms)
+WHY_NOT_GENERATED = ("a described robot (GeneratedModel) runs in the Python loop: the compiled loop's kernels are the "
+                     "three-link biped's closed forms")
+
+
 def covers(sim, controller):
     """The torque law when the compiled loop can run the simulator's current mode, else None."""
-    if (_core is None or not enabled or not sim.stance_leg or sim.opt.base != "floating"
+    if (_core is None or not enabled or sim._loop is None or not sim.stance_leg or sim.opt.base != "floating"
             or sim.method not in METHODS or sim.on_step is not None or not all_compiled()):
         return None
     return law_in_mode(controller, sim.model)
@@ -105,8 +111,14 @@ def new_loop(model):
 def run_state(model):
     """(S, loop): the state a simulator owns for its life (``loop_state.py``'s fields) and the C ``Loop`` made
     over it: with the compiled loop built, the Loop's own memory as a memoryview of doubles (the simulator, its
-    Samples and its locator read and write what the loop reads and writes); else a list of floats and None."""
+    Samples and its locator read and write what the loop reads and writes); else a list of floats and None.
+    A described robot's (a GeneratedModel) is a list naming its kernels and None: the C Loop runs the three-link
+    biped only, the Python loop runs any (WHY_NOT_GENERATED)."""
     fields = dict(n_q=model.n, **grazing.chain_fields(model))
+    if not isinstance(model, BipedModel):
+        # a described robot (GeneratedModel): the Python loop runs it, on its kernels (the C Loop's are the
+        # three-link's closed forms)
+        return new_state(model_kernels=loop_kernels.register(model), **fields), None
     if _core is None:
         return new_state(**fields), None
     loop = new_loop(model)

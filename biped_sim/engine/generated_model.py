@@ -4,8 +4,12 @@ Owns :class:`GeneratedModel`, which evaluates a module written by :mod:`biped_si
 :class:`~biped_sim.engine.description.RobotDescription` and solves the phases of docs/model.md for N
 coordinates with numpy: stance on contact c, ``[D -J_c^T; J_c 0] [ddq; F] = [-C dq - G + B u; -Jdot_c dq]``;
 the impact of contact c, ``[D -J_c^T; J_c 0] [dq+; F_imp] = [D dq-; 0]``; the relabeling R (a permutation
-from the description's mirror, R R = I). The hybrid engine runs the three-link chain only (BipedModel):
-a GeneratedModel given to it is refused with one line (:data:`ENGINE_REFUSAL`).
+from the description's mirror, R R = I). The hybrid engine runs it in its Python loop through the kernels
+``k_stance``, ``k_flight``, ``k_impact``, ``k_foot_positions``, ``k_foot_kinematics`` and ``k_energy`` (lists in,
+lists out, in the three-link kernels' layouts: ``loop_kernels``); a biped with two contact points, at most
+``loop_state.NQ_MAX`` coordinates (:meth:`GeneratedModel.engine_refusal` says why not otherwise). The
+three-link biped's closed forms (``p``, ``k``) it has not: what needs them refuses it in one line
+(:class:`EngineCannotRun`).
 """
 from __future__ import annotations
 
@@ -14,10 +18,9 @@ import numpy as np
 from biped_sim.engine.description import RobotDescription
 from biped_sim.engine.model import as_state_vector
 
-ENGINE_REFUSAL = ("model {name!r} ({n} coordinates) cannot be simulated yet: the hybrid engine runs the "
-                  "three-link chain only (BipedModel; bs.load_model gives one for three_link, compass_gait and "
-                  "three_link_hip_mass) until the generic engine lands; its dynamics are available: "
-                  "mass_matrix, bias_forces, contact_jacobian, stance_dynamics, impact_map (docs/models.md)")
+NO_CLOSED_FORMS = ("model {name!r} ({n} coordinates) has no three-link closed forms (p, k): the hybrid engine runs "
+                   "it (its Python loop), but this needs the three-link biped (BipedModel; bs.load_model gives one "
+                   "for three_link, compass_gait and three_link_hip_mass)")
 
 
 def contact_chains(desc: RobotDescription) -> tuple:
@@ -52,7 +55,7 @@ def contact_chains(desc: RobotDescription) -> tuple:
 
 
 class EngineCannotRun(ValueError):
-    """A model the hybrid engine cannot simulate yet."""
+    """A described robot given where the three-link biped's closed forms are needed."""
 
 
 class GeneratedModel:
@@ -72,6 +75,8 @@ class GeneratedModel:
         self.relabeling = tuple(module.RELABELING)
         self.contact_mirror = tuple(module.CONTACT_MIRROR)
         self.m = self.B.shape[1]        # the actuators M
+        # the entry of q each actuator turns (B is a selection: a 1 a column), for the motors' power u . (B^T dq)
+        self.actuated_indices = tuple(int(np.flatnonzero(self.B[:, j])[0]) for j in range(self.m))
         self.contact_chains = contact_chains(description)
         self.total_mass = module.TOTAL_MASS
 
@@ -79,16 +84,39 @@ class GeneratedModel:
         return f"GeneratedModel({self.name!r}, n={self.n}, contacts={self.contacts})"
 
     @property
-    def engine_refusal(self) -> str:
-        """Why the hybrid engine cannot run this model (``simulate`` raises it)."""
-        return ENGINE_REFUSAL.format(name=self.name, n=self.n)
+    def engine_refusal(self) -> str | None:
+        """Why the hybrid engine cannot run this model (one line), or None: it runs bipeds, two contact points,
+        at most NQ_MAX coordinates and NU_MAX actuators, and chains the grazing bound has room for."""
+        from biped_sim.engine.loop_state import CHAIN_MAX, NQ_MAX, NU_MAX, TERMS_MAX
+        why = None
+        if len(self.contacts) != 2:
+            why = (f"it has {len(self.contacts)} contact points ({', '.join(self.contacts)}); the engine runs bipeds, "
+                   "two contact points (a foot each)")
+        elif self.n > NQ_MAX or self.m > NU_MAX:
+            why = f"it has {self.n} coordinates and {self.m} actuators; the engine has room for {NQ_MAX} and {NU_MAX}"
+        elif any(len(chain) > CHAIN_MAX or any(len(t) > TERMS_MAX for _, t in chain) for chain in self.contact_chains):
+            why = (f"a foot's chain from the floating base has more than {CHAIN_MAX} links, or a link's angle more "
+                   f"than {TERMS_MAX} joints: the grazing bound has no room for it")
+        return None if why is None else f"the hybrid engine cannot run robot {self.name!r}: {why}"
 
-    # what the engine reads of a model first: refuse there too, in one line, instead of deep inside a step
+    # the three-link biped's closed forms: what reads them (the sensitivity, a compiled torque law) refuses in one line
     @property
     def p(self):
-        raise EngineCannotRun(self.engine_refusal)
+        raise EngineCannotRun(NO_CLOSED_FORMS.format(name=self.name, n=self.n))
 
     k = p
+
+    # the names the engine's resets and pushes call (BipedModel's)
+    def foot_position(self, q, leg) -> np.ndarray:
+        return self.contact_position(q, leg)
+
+    def foot_jacobian(self, q, leg) -> np.ndarray:
+        return self.contact_jacobian(q, leg)
+
+    def energy_fast(self, q, dq) -> float:
+        """``energy`` for lists of checked numbers."""
+        T, V = self.module.energy(q, dq)
+        return T + V
 
     def _q(self, q):
         return as_state_vector(q, "q", self.n).tolist()

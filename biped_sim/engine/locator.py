@@ -248,7 +248,7 @@ class EventLocator:
         legs = [guard.leg]
         if guard.name == "touchdown" and not stance_leg:
             legs += [g.leg for t, g in roots[1:] if g.name == "touchdown" and t - t_first <= self.opt.simultaneous_tol]
-            other = 3 - guard.leg
+            other = G.other_foot(self.model, guard.leg)
             if len(legs) == 1 and self.armed[other - 1]:
                 # the other foot may be within the tolerance without having crossed yet
                 fo = self._feet_at(st, to_phys, t_first)[other - 1]
@@ -320,7 +320,8 @@ class EventLocator:
     def _scuff_event(self, st, to_phys, leg, stance_leg, scuff, t_up):
         t_deep = scuff[2]
         q, dq, _ = to_phys(st.dense_at(t_deep)) if rules.ev_within_step(st.t_old, st.t, t_deep) else (None, None, None)
-        return scuff_event(leg, stance_leg, scuff, t_up, q, dq, self.opt.scuff_depth, self.opt.scuff_rule)
+        return scuff_event(leg, stance_leg, scuff, t_up, q, dq, self.opt.scuff_depth, self.opt.scuff_rule,
+                           self.model.n)
 
     def _feet_at(self, st, to_phys, t):
         q, dq, _ = to_phys(st.dense_at(t))
@@ -369,12 +370,12 @@ def scuff_left_model(leg, t_start, depth, t, foot, scuff_rule) -> str:
             "forward pass, touchdown_rule='any' makes every crossing a touchdown)")
 
 
-def scuff_event(leg, stance_leg, scuff, t_up, q, dq, scuff_depth, scuff_rule) -> Event:
+def scuff_event(leg, stance_leg, scuff, t_up, q, dq, scuff_depth, scuff_rule, n=5) -> Event:
     """The Event of a scuff of foot ``leg`` that ended at ``t_up`` (``scuff``: [t_start, deepest,
-    t_deepest]; q, dq: the state at t_deepest, or None when it is not inside the last step)."""
+    t_deepest]; q, dq: the state at t_deepest, or None when it is not inside the last step; n coordinates)."""
     t_start, depth, t_deep = scuff
-    q = np.array(q) if q is not None else np.full(5, np.nan)
-    dq = np.array(dq) if dq is not None else np.full(5, np.nan)
+    q = np.array(q) if q is not None else np.full(n, np.nan)
+    dq = np.array(dq) if dq is not None else np.full(n, np.nan)
     return Event(t_start, "scuff", leg, q, dq, dq.copy(), None, stance_leg, stance_leg,
                  message=f"foot {leg} scuffed the ground behind the stance foot from t={t_start:.9g} s to "
                          f"t={t_up:.9g} s, {depth:.3g} m deep at t={t_deep:.9g} s (the assumption of "

@@ -75,6 +75,10 @@ cdef public double ev_energy_residual(double energy, double e0, double work, dou
 cdef public double ev_running_max(double m, double v) noexcept nogil
 cdef public void ev_sample_row(double *row, double t, double *q, double *dq, double leg, double *F, double *u,
                                double residual) noexcept nogil
+cdef public void ev_sample_row_of(double *row, double t, double *q, double *dq, Py_ssize_t n, double leg, double *F,
+                                  double *u, Py_ssize_t m, double residual) noexcept nogil
+cdef public bint ev_finite_sum(double *u, Py_ssize_t m) noexcept nogil
+cdef public double ev_actuated_power(double *u, double *dq, double *joints, Py_ssize_t m) noexcept nogil
 cdef public bint ev_finite_torques(double u0, double u1) noexcept nogil
 cdef public bint ev_next_period_runs(double t, double t_final, double t_stop, double period) noexcept nogil
 cdef public double ev_motor_power(double *u, double dq1, double dq2) noexcept nogil

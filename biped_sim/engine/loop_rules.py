@@ -117,13 +117,8 @@ if not cython.compiled:
         RECENT_IMPACTS,
         RESULT,
         RING,
-        ROW_DQ,
-        ROW_F,
-        ROW_LEG,
         ROW_Q,
-        ROW_RESIDUAL,
         ROW_T,
-        ROW_U,
         RTOL,
         SCUFF_DEPTH,
         SCUFF_TRIAL,
@@ -958,20 +953,26 @@ def ev_sample_slot(n, provisional, last_only):
 
 
 def ev_sample_row(row, t, q, dq, leg, F, u, residual):
-    """What a sample holds, into row (results.Samples' row, loop_state.SAMPLE_ROW's layout): t, q (5), dq (5), the
-    stance leg (0: flight), the ground force F on the stance foot (2), the torque u applied (2), the energy
-    balance's residual."""
+    """What a sample of the three-link biped holds, into row (results.Samples' row, loop_state.SAMPLE_ROW's
+    layout): ev_sample_row_of with its 5 coordinates and 2 torques."""
+    ev_sample_row_of(row, t, q, dq, 5, leg, F, u, 2, residual)
+
+
+def ev_sample_row_of(row, t, q, dq, n, leg, F, u, m, residual):
+    """What a sample holds, into row (loop_state.sample_row(n, m)'s layout): t, q (n), dq (n), the stance leg
+    (0: flight), the ground force F on the stance foot (2), the torque u applied (m), the energy balance's
+    residual."""
     i: cython.Py_ssize_t
     row[ROW_T] = t
-    for i in range(5):
+    for i in range(n):
         row[ROW_Q + i] = q[i]
-        row[ROW_DQ + i] = dq[i]
-    row[ROW_LEG] = leg
-    row[ROW_F] = F[0]
-    row[ROW_F + 1] = F[1]
-    row[ROW_U] = u[0]
-    row[ROW_U + 1] = u[1]
-    row[ROW_RESIDUAL] = residual
+        row[ROW_Q + n + i] = dq[i]
+    row[ROW_Q + 2 * n] = leg
+    row[ROW_Q + 2 * n + 1] = F[0]
+    row[ROW_Q + 2 * n + 2] = F[1]
+    for i in range(m):
+        row[ROW_Q + 2 * n + 3 + i] = u[i]
+    row[ROW_Q + 2 * n + 3 + m] = residual
 
 
 # -- the torque a law returns, or a run holds (modes.two_finite_floats, _core.c's two_finite) -----------------
@@ -979,6 +980,25 @@ def ev_finite_torques(u0, u1):
     """Whether the torques (u0, u1) are taken: finite, and so is their sum (a NaN, inf - inf or 1e308 + 1e308
     makes it not)."""
     return isfinite(u0 + u1)
+
+
+def ev_finite_sum(u, m):
+    """Whether the m torques u are taken: finite, and so is their sum (ev_finite_torques for any count)."""
+    s: cython.double = 0.0
+    i: cython.Py_ssize_t
+    for i in range(m):
+        s += u[i]
+    return isfinite(s)
+
+
+def ev_actuated_power(u, dq, joints, m):
+    """The motors' power u . (B^T dq) of a robot whose m actuators turn the joints of q's entries joints[i] (B a
+    selection: a 1 a column): the integrand of the motor work W (ev_motor_power for any robot)."""
+    p: cython.double = u[0] * dq[int(joints[0])]
+    i: cython.Py_ssize_t
+    for i in range(1, m):
+        p += u[i] * dq[int(joints[i])]
+    return p
 
 
 def ev_motor_power(u, dq1, dq2):

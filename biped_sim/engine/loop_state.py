@@ -257,6 +257,14 @@ SAMPLE_ROW = {"ROW_T": 0, "ROW_Q": 1, "ROW_DQ": 6, "ROW_LEG": 11, "ROW_F": 12, "
               "ROW_WIDTH": 17}
 
 
+def sample_row(n, m) -> dict:
+    """SAMPLE_ROW's layout for a robot of n coordinates and m actuators (loop_rules.ev_sample_row_of): t, q (n),
+    dq (n), the stance leg, F (2), u (m), the residual; the three-link's (5, 2) is SAMPLE_ROW."""
+    q = SAMPLE_ROW["ROW_Q"]
+    return {"ROW_T": SAMPLE_ROW["ROW_T"], "ROW_Q": q, "ROW_DQ": q + n, "ROW_LEG": q + 2 * n, "ROW_F": q + 2 * n + 1,
+            "ROW_U": q + 2 * n + 3, "ROW_RESIDUAL": q + 2 * n + 3 + m, "ROW_WIDTH": q + 2 * n + 4 + m}
+
+
 class Outcome(IntEnum):
     """How an entry point of the compiled loop (``run``, ``held``, ``period``, ``periods``, ``step``) ended; what
     it leaves besides is in the state (the samples and their counters, the simulator's time and state,

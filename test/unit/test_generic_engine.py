@@ -107,3 +107,106 @@ def test_the_dip_search_finds_every_dip_of_a_rabbit_step(method):
             assert dip_bracket(st, None, lambda t: height(t) - c, 2, 0, False, chains, 0.0, hs[0] - c, hs[-1] - c,
                                graze_tol) is None
     assert found >= 8
+
+
+# -- RABBIT through the hybrid loop ---------------------------------------------------------------------------
+def _rabbit_on_foot_1(lift=0.0):
+    """RABBIT standing-ish on foot 1 at the origin (leg 2 bent, its foot 2 cm up), at rest; ``lift`` raises it."""
+    rabbit = bs.load_model("rabbit")
+    q = np.array([0.0, 0.0, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05])
+    q[:2] -= rabbit.contact_position(q, 1)
+    q[1] += lift
+    return rabbit, q, np.zeros(7)
+
+
+def _check_impacts(rabbit, r):
+    """Each touchdown of the run is RABBIT's impact map (dq+ and impulse), takes energy out, and the energy
+    balance holds."""
+    assert r.impacts
+    for e in r.impacts:
+        dq_plus, impulse = rabbit.impact_map(e.q, e.dq_minus, e.leg)
+        np.testing.assert_allclose(e.dq_plus, dq_plus, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(e.impulse, impulse, rtol=0, atol=1e-12)
+        assert e.energy_loss >= 0
+    assert r.stats["max_energy_balance_residual"] < 1e-6
+    assert r.q.shape[1] == r.dq.shape[1] == 7 and r.u.shape[1] == 4
+
+
+def _posture_law(reference):
+    """A PD law holding the hips and knees at ``reference`` (4 torques), too weak to hold RABBIT up."""
+    def law(t, q, dq, stance_leg):
+        return [-20.0 * (q[2 + i] - reference[i]) - 2.0 * dq[2 + i] for i in range(4)]
+    return law
+
+
+@pytest.mark.parametrize("law", ["held zero", "posture PD", "posture PD, 10 ms periods"])
+def test_rabbit_falls_and_its_swing_foot_lands(law):
+    """RABBIT on foot 1 falls over under zero torque, or a weak PD posture law (continuous or held a period):
+    foot 2 lands (a touchdown, RABBIT's impact map), and the run ends 'completed' with no invariant failed."""
+    rabbit, q0, dq0 = _rabbit_on_foot_1()
+    controller = None if law == "held zero" else _posture_law(q0[2:6].copy())
+    t_final = 0.2 if law == "held zero" else 0.35
+    r = bs.simulate(rabbit, q0, dq0, t_final, controller=controller,
+                    control_period=0.01 if "periods" in law else None, stance_leg=1)
+    assert r.status == "completed", r.message
+    assert [(e.kind, e.leg) for e in r.events] == [("touchdown", 2)]
+    assert r.events[0].stance_leg_before == 1 and r.stance_leg[-1] == 2
+    _check_impacts(rabbit, r)
+    if controller is not None:
+        assert np.abs(r.u).max() > 0.1
+
+
+def test_rabbit_dropped_onto_foot_1_lands_from_flight():
+    """RABBIT dropped from 5 cm in flight: flight samples, then foot 1 lands (RABBIT's impact map)."""
+    rabbit, q0, dq0 = _rabbit_on_foot_1(lift=0.05)
+    r = bs.simulate(rabbit, q0, dq0, 0.15, stance_leg=0)
+    assert r.status == "completed", r.message
+    assert [(e.kind, e.leg) for e in r.events] == [("touchdown", 1)]
+    assert r.stance_leg[0] == 0 and r.stance_leg[-1] == 1
+    _check_impacts(rabbit, r)
+
+
+@pytest.mark.parametrize("name, t_final", [("compass_gait", 3.0), ("three_link", 2.0)])
+def test_a_three_link_description_runs_as_its_biped_model_does(name, t_final):
+    """The compass gait (passive, down its slope: touchdowns and scuffs) and the three-link biped (falling, its
+    impacts) as GeneratedModels give the BipedModel's run: the same events, impact times to 1e-9 s, states to
+    1e-8 (the closed forms and the generated forms differ in roundoff)."""
+    q0, dq0 = np.array([0.0, 1.0, np.pi, np.pi, 0.0]), np.array([0.4, 0.0, 0.4, -2.0, 0.0])
+    kw = dict(rtol=1e-10, atol=1e-10, slope=0.0525, phases=frozenset({"stance", "impact"}))
+    a = bs.simulate(bs.load_model(name), q0, dq0, t_final, **kw)
+    b = bs.simulate(models.generated_model(name), q0, dq0, t_final, **kw)
+    assert a.status == b.status == "completed" and len(a.impacts) >= 3
+    assert [(e.kind, e.leg) for e in a.events] == [(e.kind, e.leg) for e in b.events]
+    for ea, eb in zip(a.events, b.events):
+        assert abs(ea.time - eb.time) < 1e-9
+        if ea.kind == "touchdown":
+            np.testing.assert_allclose(eb.dq_plus, ea.dq_plus, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(b.q[-1], a.q[-1], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(b.dq[-1], a.dq[-1], rtol=0, atol=1e-8)
+
+
+def test_bad_input_to_a_rabbit_run_is_one_line():
+    """A torque of the wrong length, a state of the wrong length, a controller's wrong torques, a described
+    robot with three contact points, base='fixed': each refused in one line that says what to give."""
+    import copy
+
+    from biped_sim.engine.hybrid import HybridSimulator
+    rabbit, q0, dq0 = _rabbit_on_foot_1()
+    sim = HybridSimulator(rabbit, q0, dq0, stance_leg=1)
+    with pytest.raises(ValueError, match=r"^u must be 4 finite torques") as e:
+        sim.advance(0.01, u=[0.0, 0.0])
+    assert "\n" not in str(e.value) and sim.u == [0.0] * 4
+    for name, q, dq in (("q0", q0[:5], dq0), ("dq0", q0, np.zeros(5))):
+        with pytest.raises(ValueError, match=rf"^{name} must have shape \(7,\), got shape \(5,\)$"):
+            HybridSimulator(rabbit, q, dq, stance_leg=1)
+    r = bs.simulate(rabbit, q0, dq0, 0.05, controller=lambda t, q, dq, leg: [0.0, 0.0])
+    assert r.status == "failed" and "it must return 4 finite torques" in r.message
+    three = copy.copy(rabbit)
+    three.contacts = rabbit.contacts + ("hand",)
+    with pytest.raises(ValueError, match=r"^the hybrid engine cannot run robot 'rabbit': it has 3 contact points "
+                                         r"\(foot_1, foot_2, hand\); the engine runs bipeds") as e:
+        bs.simulate(three, q0, dq0, 0.1)
+    assert "\n" not in str(e.value)
+    with pytest.raises(ValueError, match=r"^base='fixed' runs the three-link biped only; robot 'rabbit' runs with "
+                                         r"base='floating'"):
+        HybridSimulator(rabbit, q0, dq0, stance_leg=1, base="fixed", phases=frozenset({"stance", "impact"}))

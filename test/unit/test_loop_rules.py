@@ -341,7 +341,7 @@ def test_the_runs_running_maxima_are_written_once():
 def test_what_a_sample_holds_is_written_once():
     """A sample's row (t, q, dq, the stance leg, F, u, the residual) is composed by the rules (loop_rules.py):
     results.Samples.append and _core.c's quiet step and touchdown call it."""
-    assert_written_once(("row[ROW_RESIDUAL] = residual",),
+    assert_written_once(("row[ROW_Q + 2 * n + 3 + m] = residual",),
                         r"\[t, \*q, \*dq|\brows?\[1[1-6]\] = |rows\[(1[7-9]|2\d|3[0-3])\] = ")
     import numpy as np
 
@@ -350,6 +350,10 @@ def test_what_a_sample_holds_is_written_once():
     samples.append(0.5, np.arange(5.0), [5.0, 6.0, 7.0, 8.0, 9.0], 2, [10.0, 11.0], [12.0, 13.0], 14.0)
     assert samples.rows().tolist() == [[0.5, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 2.0, 10.0, 11.0, 12.0,
                                         13.0, 14.0]]
+    wide = Samples(n=7, m=4)        # a described robot's (RABBIT's): 7 coordinates, 4 actuators
+    wide.append(0.5, np.arange(7.0), np.arange(7.0, 14.0), 1, [20.0, 21.0], [30.0, 31.0, 32.0, 33.0], 40.0)
+    assert wide.rows().tolist() == [[0.5, *range(14), 1.0, 20.0, 21.0, 30.0, 31.0, 32.0, 33.0, 40.0]]
+    assert wide.last()[4:] == ([20.0, 21.0], [30.0, 31.0, 32.0, 33.0], 40.0)
 
 
 def test_the_torques_check_is_written_once():
