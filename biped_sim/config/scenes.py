@@ -19,7 +19,7 @@ from __future__ import annotations
 import difflib
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import yaml
@@ -65,7 +65,7 @@ def validate_controller(values: dict) -> dict:
 def make_controller(cparams: dict):
     """A :class:`WalkingController` from checked controller parameters."""
     from biped_sim.control.walking import WalkingController
-    model = P.robot_model(cparams)
+    model = P.three_link_model(cparams, "the reference walking controller (walk_controller)")
     return WalkingController(model, **{k: cparams[k] for k in _GAINS})
 
 
@@ -285,7 +285,7 @@ def override_targets(key, has_controller: bool) -> list[tuple[str, str, int | No
     if index is not None:
         if param.type is not list:
             raise ValueError(f"override {key!r}: '{name}' is not a list; write {name} = value")
-        if param.length is not None and int(index) >= param.length:
+        if param.length is not None and not param.coordinates and int(index) >= param.length:
             raise ValueError(f"override {key!r}: '{name}' has {param.length} entries (indices 0 to "
                              f"{param.length - 1})")
     return [(s, name, None if index is None else int(index)) for s in sections]
@@ -317,10 +317,11 @@ def apply_overrides(given: dict, cgiven: dict | None, overrides: dict, path) -> 
             else:
                 new = list(values.get(name, param.default))
                 if index >= len(new):
-                    raise ValueError(f"scene {path}, override {key!r}: '{name}' has {len(new)} entries")
+                    raise ValueError(f"scene {path}, override {key!r}: '{name}' has {len(new)} entries (indices 0 to "
+                                     f"{len(new) - 1})")
                 new[index] = value
-            try:
-                param.check(new)
+            try:    # (a list of one entry per coordinate: its length the robot's, which the loader checks)
+                (replace(param, length=None) if param.coordinates else param).check(new)
             except ValueError as exc:
                 raise ValueError(f"scene {path}, override {key!r}: {exc}") from None
             values[name] = new
