@@ -84,12 +84,15 @@ def _signed_sum(C, columns, terms):
     return out
 
 
-def dip_bracket(st, to_phys, height_at, leg, stance_leg, fixed_base, chains, tan_slope, h0, h1, graze_tol):
+def dip_bracket(st, to_phys, height_at, leg, stance_leg, fixed_base, chains, tan_slope, h0, h1, graze_tol,
+                fixed_chains=False):
     """(t_a, t_b) with the foot's height > 0 at t_a and <= 0 at t_b inside the last step, or None if
     no dip deeper than ``graze_tol`` exists there. ``height_at(t) -> float`` on the dense output;
     h0, h1: the heights at the step's ends (both > 0); ``chains``: the model's ``chain_fields``. The search and
     its bound are the rule ``loop_rules.ev_dip_search``; on the floating base, the coefficients of a dop853 or
-    dopri5 step are ``loop_rules.ev_dip_coefficients``' (the compiled loop's rules, the same bits)."""
+    dopri5 step are ``loop_rules.ev_dip_coefficients``' (the compiled loop's rules, the same bits).
+    ``fixed_chains``: a described robot's fixed base, y = (q[2:], dq[2:], work): the foot hangs from the pin by
+    the stance foot's chain and its own, and the bound sums over both (no base terms)."""
     dense_state = None if fixed_base else getattr(st, "dense_state", None)
     interpolant = None if dense_state is not None else st.dense_output()
     S = dense_state() if dense_state is not None else getattr(interpolant, "state", None)
@@ -102,9 +105,19 @@ def dip_bracket(st, to_phys, height_at, leg, stance_leg, fixed_base, chains, tan
         chain = chains["chain"][CHAIN_WIDTH * CHAIN_MAX * (leg - 1):CHAIN_WIDTH * CHAIN_MAX * leg]
         links = int(chains["chain_links"][leg - 1])
         rows = [chain[CHAIN_WIDTH * k:CHAIN_WIDTH * k + CHAIN_WIDTH] for k in range(links)]
+        if fixed_base and fixed_chains:     # the stance foot's chain after the foot's own
+            other = chains["chain"][CHAIN_WIDTH * CHAIN_MAX * (stance_leg - 1):CHAIN_WIDTH * CHAIN_MAX * stance_leg]
+            rows += [other[CHAIN_WIDTH * k:CHAIN_WIDTH * k + CHAIN_WIDTH]
+                     for k in range(int(chains["chain_links"][stance_leg - 1]))]
+            if len(rows) > CHAIN_MAX:
+                raise ValueError(f"the fixed base's grazing bound has room for {CHAIN_MAX} links, the feet's chains "
+                                 f"have {len(rows)}: run base='floating'")
         terms = [[int(e) for e in row[2:2 + int(row[1])]] for row in rows]
         # the entries of the integrated state y the foot's height depends on
-        if fixed_base:   # y = (q1, q2, q3, dq...): the hip hangs from the pin by the stance leg
+        if fixed_base and fixed_chains:     # y = (q[2:], dq[2:], work): q's entry i is y's i - 2
+            terms = [[e - 2 if e > 0 else e + 2 for e in t] for t in terms]
+            columns = sorted({abs(e) - 1 for t in terms for e in t})
+        elif fixed_base:   # y = (q1, q2, q3, dq...): the hip hangs from the pin by the stance leg
             columns = [leg - 1, 2, stance_leg - 1]
         else:            # y = (x, y, the joints..., dq...)
             columns = [0, 1] + sorted({abs(e) - 1 for t in terms for e in t})
@@ -114,16 +127,19 @@ def dip_bracket(st, to_phys, height_at, leg, stance_leg, fixed_base, chains, tan
             C = _VANDERMONDE_INV @ np.array([np.asarray(interpolant(t_old + s * h_step))[columns] for s in NODES])
         # |coefficients| (loop_state's coef): the base's x and y, then each chain link's angle; on the fixed base
         # the stance leg's angle, 0, the swing leg's
-        if fixed_base:
+        if fixed_base and not fixed_chains:
             A = np.abs(np.column_stack([C[:, 2] + C[:, 1], np.zeros(8), C[:, 0] + C[:, 1]]))
             lengths = [rows[0][0]]
+        elif fixed_base:    # no base terms: the bound's floating form with x and y zero
+            A = np.abs(np.column_stack([np.zeros(8), np.zeros(8)] + [_signed_sum(C, columns, t) for t in terms]))
+            lengths = [row[0] for row in rows]
         else:
             A = np.abs(np.column_stack([C[:, 0], C[:, 1]] + [_signed_sum(C, columns, t) for t in terms]))
             lengths = [row[0] for row in rows]
         S = new_state(t_old=st.t_old, t=st.t, coef_links=len(lengths), coef_length=lengths)
         for p in range(8):
             S[COEF + COEF_WIDTH * p:COEF + COEF_WIDTH * p + A.shape[1]] = A[p].tolist()
-    S[FIXED_BASE], S[TAN_S], S[GRAZE_TOL] = float(fixed_base), tan_slope, graze_tol
+    S[FIXED_BASE], S[TAN_S], S[GRAZE_TOL] = float(fixed_base and not fixed_chains), tan_slope, graze_tol
     if rules.ev_dip_search(S, _guard, height_at, h0, h1):
         return S[RESULT], S[RESULT + 1]
     return None

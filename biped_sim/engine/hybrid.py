@@ -134,9 +134,6 @@ class HybridSimulator:
         self.opt = Options(**options)
         self.opt.check()
         stance_leg = check_run_arguments(self.opt, method, rtol, atol, mu, stance_leg)
-        if self.p is None and self.opt.base == "fixed":
-            raise ValueError(f"base='fixed' runs the three-link biped only; robot {model.name!r} runs with "
-                             "base='floating' (its stance foot pinned by the KKT solve)")
         check_number("t0", t0, -math.inf, math.inf, "s")
         self.method, self.rtol, self.atol, self.mu = method, rtol, atol, mu
         # the stepper's imports, paid here and not inside its first step; the root finder (scipy.optimize,
@@ -356,7 +353,7 @@ class HybridSimulator:
             return [0.0, 0.0]
         if u is None:
             u = self._torque_at(t, q, dq)
-        if self.opt.base == "fixed":
+        if self.opt.base == "fixed" and self.p is not None:     # (a described robot's: the KKT solve's force)
             return stance_fixed_fast(self.model, q[2:], dq[2:], u, self.stance_leg)[1]
         return stance_floating_fast(self.model, q, dq, u, self.stance_leg)[1]
 

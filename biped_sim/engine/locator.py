@@ -41,6 +41,7 @@ from biped_sim.engine.loop_state import (
     new_state,
     put,
 )
+from biped_sim.engine.model import BipedModel
 from biped_sim.engine.results import Event, SceneAssumptionError
 from biped_sim.engine.witnesses import triggered, witness, witnesses
 
@@ -223,7 +224,8 @@ class EventLocator:
             elif guard.name == "touchdown" and g0 > 0 and g1 > 0:
                 # both ends above the ground: a dip in between is found with its guarantee
                 bracket = dip_bracket(st, to_phys, guard_at, guard.leg, stance_leg, self.opt.base == "fixed",
-                                      self._chains, self.ground.tan, g0, g1, self.opt.graze_tol)
+                                      self._chains, self.ground.tan, g0, g1, self.opt.graze_tol,
+                                      fixed_chains=not isinstance(self.model, BipedModel))
             if bracket is None:
                 continue
             t_root = self._crossing(st, guard, guard_at, bracket)

@@ -164,11 +164,11 @@ def mode_functions(model, stance_leg, base, pin, u_hold, control, sink):
 
 def _generated_functions(model, stance_leg, base, pin, u_hold, control, sink):
     """A described robot's mode (a GeneratedModel's kernels): floating-base stance on contact point stance_leg
-    (the KKT solve, k_stance) or flight (k_flight), y = q + dq + [work]; the motors' power u . (B^T dq)."""
-    if stance_leg and base == "fixed":
-        raise ValueError(f"base='fixed' runs the three-link biped only; robot {model.name!r} runs with "
-                         "base='floating'")
+    (the KKT solve, k_stance) or flight (k_flight), y = q + dq + [work], or fixed-base stance; the motors' power
+    u . (B^T dq)."""
     n, m, joints = model.n, model.m, model.actuated_indices
+    if stance_leg and base == "fixed":
+        return _generated_fixed_base_functions(model, stance_leg, pin, u_hold, control, sink)
 
     if stance_leg:
         k_stance, c = model.k_stance, stance_leg - 1
@@ -189,6 +189,37 @@ def _generated_functions(model, stance_leg, base, pin, u_hold, control, sink):
             sink(None, u)
             return dq + ddq + [rules.ev_actuated_power(u, dq, joints, m)]
     return rhs, floating_to_phys, floating_from_phys
+
+
+def _generated_fixed_base_functions(model, stance_leg, pin, u_hold, control, sink):
+    """A described robot's fixed-base stance on contact point stance_leg: y = q[2:] + dq[2:] + [work], the joint
+    angles and their rates; the base follows from the pin c: p_c = base + f(angles), so base = c - f(angles)
+    and its velocity -J_c[:, 2:] dq[2:]; the accelerations are the KKT solve's (k_stance) at that state."""
+    n, m, joints = model.n, model.m, model.actuated_indices
+    a = n - 2                   # the angles
+    c, w2 = stance_leg - 1, 2 * n
+    cx, cy = pin
+    positions, jacobians, k_stance = model.module.contact_positions, model.module.contact_jacobians, model.k_stance
+
+    def to_phys(y):
+        yl = y if type(y) is list else y.tolist()
+        angles, rates = yl[0:a], yl[a:2 * a]
+        f = positions([0.0, 0.0] + angles)
+        J = jacobians([0.0, 0.0] + angles)[w2 * c:w2 * c + w2]     # (J_c does not depend on the base)
+        vx = -sum(J[2 + i] * rates[i] for i in range(a))
+        vy = -sum(J[n + 2 + i] * rates[i] for i in range(a))
+        return [cx - f[2 * c], cy - f[2 * c + 1]] + angles, [vx, vy] + rates, yl[2 * a]
+
+    def from_phys(q, dq, w):   # lists
+        return q[2:] + dq[2:] + [w]
+
+    def rhs(t, y):
+        q, dq, _ = to_phys(y)
+        u = u_hold if control is None else control(t, q, dq)
+        ddq, F = k_stance(q, dq, u, c)
+        sink(None, u)           # (as the three-link's fixed base: the guards ask for the force)
+        return dq[2:] + ddq[2:] + [rules.ev_actuated_power(u, dq, joints, m)]
+    return rhs, to_phys, from_phys
 
 
 def _fixed_base_functions(model, stance_leg, pin, u_hold, control, sink):

@@ -207,6 +207,21 @@ def test_bad_input_to_a_rabbit_run_is_one_line():
                                          r"\(foot_1, foot_2, hand\); the engine runs bipeds") as e:
         bs.simulate(three, q0, dq0, 0.1)
     assert "\n" not in str(e.value)
-    with pytest.raises(ValueError, match=r"^base='fixed' runs the three-link biped only; robot 'rabbit' runs with "
-                                         r"base='floating'"):
-        HybridSimulator(rabbit, q0, dq0, stance_leg=1, base="fixed", phases=frozenset({"stance", "impact"}))
+
+
+@pytest.mark.parametrize("law", ["held zero", "posture PD"])
+def test_rabbits_fixed_base_gives_the_floating_bases_run(law):
+    """base='fixed' on RABBIT (its joint angles integrated, the base hung from the pin) gives the floating base's
+    fall: the same touchdown to 1e-10 s, dq+ to 1e-8, the end state to 1e-9 and the stance force to 1e-6 N."""
+    rabbit, q0, dq0 = _rabbit_on_foot_1()
+    controller = None if law == "held zero" else _posture_law(q0[2:6].copy())
+    kw = dict(controller=controller, stance_leg=1, phases=frozenset({"stance", "impact"}), rtol=1e-10, atol=1e-10)
+    t_final = 0.2 if law == "held zero" else 0.35
+    a = bs.simulate(rabbit, q0, dq0, t_final, base="floating", **kw)
+    b = bs.simulate(rabbit, q0, dq0, t_final, base="fixed", **kw)
+    assert a.status == b.status == "completed" and [(e.kind, e.leg) for e in b.events] == [("touchdown", 2)]
+    assert abs(a.events[0].time - b.events[0].time) < 1e-10
+    np.testing.assert_allclose(b.events[0].dq_plus, a.events[0].dq_plus, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(b.q[-1], a.q[-1], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(b.grf[-1], a.grf[-1], rtol=0, atol=1e-6)
+    _check_impacts(rabbit, b)
