@@ -337,6 +337,11 @@ def scene_gait(scene, jacobian=EXACT, controller=None, **newton) -> Gait:
     if isinstance(scene, str):
         from biped_sim.config.scenes import load_scene
         scene = load_scene(scene)
+    # the step-to-step map's section is the three-link biped's post-impact state (6 numbers)
+    from biped_sim.config.parameters import three_link_model
+    three_link_model(scene.params, "the step-to-step map (gait, basin)",
+                     "its section is the three-link biped's post-impact state; simulate the robot's runs instead "
+                     "(Scene.simulate, biped-sim simulate, sweep)")
     if controller is None:
         # a scene without a walk_controller section runs with u = 0: its gait is the passive one
         from biped_sim.config.controllers import no_torque

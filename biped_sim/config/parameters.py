@@ -300,16 +300,20 @@ def robot_model(params: dict):
     return BipedModel(**model_arguments(params))
 
 
-def three_link_model(params: dict, who: str):
-    """``robot_model`` for what runs the three-link biped only (``who``: the reference walking controller, its
-    gait tools), or ValueError, one line, naming the robot and what to give instead."""
+#: three_link_model's advice for a controller (the reference walking controller: the three-link robots only)
+OWN_CONTROLLER = ("give it a controller of its own (Scene.simulate(controller=...), --controller MODULE:ATTR), "
+                  "or none")
+
+
+def three_link_model(params: dict, who: str, advice: str = OWN_CONTROLLER):
+    """``robot_model`` for what runs the three-link biped only (``who``: the reference walking controller, the
+    step-to-step map), or ValueError, one line, naming the robot and what to do instead (``advice``)."""
     from biped_sim.config import models
     from biped_sim.engine.model import BipedModel
     model = robot_model(params)
     if not isinstance(model, BipedModel):
         raise ValueError(f"{who} runs the three-link robots ({', '.join(models.THREE_LINK_PARAMETERS)}); robot "
-                         f"{params.get('robot')!r} has {model.n} coordinates and {model.m} motors: give it a "
-                         "controller of its own (Scene.simulate(controller=...), --controller MODULE:ATTR), or none")
+                         f"{params.get('robot')!r} has {model.n} coordinates and {model.m} motors: {advice}")
     return model
 
 

@@ -282,12 +282,14 @@ RABBIT_Q0 = [0.0997086196481708, 0.7935100972856273, 3.241592653589793, 2.941592
 def test_a_described_robots_scene_runs_and_what_does_not_fit_it_is_refused_in_one_line(tmp_path, capsys):
     """A scene with ``robot: rabbit`` runs headless (RABBIT falls over and its swing foot lands), from the scene and
     the CLI; a scene that does not fit the robot is refused in one line that says what to give: the three-link's
-    initial state, a model.* number, the reference walking controller."""
+    initial state, a model.* number, the reference walking controller, the step-to-step map's section."""
     with pytest.raises(ValueError) as err:
         load_scene(_robot_scene(tmp_path, "rabbit"))
     line = str(err.value)
     assert "\n" not in line and "parameter 'initial_q' must be given for robot 'rabbit': 7 entries" in line, line
-    path = _robot_scene(tmp_path, "rabbit", initial_q=RABBIT_Q0, initial_dq=[0.0] * 7, duration=0.2)
+    path = tmp_path / "rabbit_falls.yaml"       # (_robot_scene's file is rewritten below)
+    path.write_text(_robot_scene(tmp_path, "rabbit", initial_q=RABBIT_Q0, initial_dq=[0.0] * 7, duration=0.2)
+                    .read_text())
     scene = load_scene(path)
     assert scene.robot == "rabbit" and scene.engine_arguments()["model"].n == 7
     r = scene.simulate()
@@ -311,6 +313,9 @@ def test_a_described_robots_scene_runs_and_what_does_not_fit_it_is_refused_in_on
     assert cli_main(["simulate", "--scene", str(_robot_scene(tmp_path, "rabbit"))]) == 2
     err_text = capsys.readouterr().err
     assert err_text.count("\n") == 1 and "for robot 'rabbit': 7 entries" in err_text, err_text
+    assert cli_main(["gait", "--scene", str(path), "--controller", "none"]) == 2     # the three-link's section
+    err_text = capsys.readouterr().err
+    assert err_text.count("\n") == 1 and "the step-to-step map (gait, basin) runs the three-link robots" in err_text
 
 
 def test_a_robot_that_is_no_shipped_name_nor_a_file_is_named_with_the_choices(tmp_path):
