@@ -49,8 +49,6 @@ def stance_floating_fast(model, q, dq, u, stance_leg=1):
     ddq_base = -A ddq_r + gamma (gamma = -Jdot dq), and projecting the remaining rows on the null
     space of J removes F; then F = D_bb ddq_base + D_br ddq_r + h_base (rows x, y, where J^T = I).
     """
-    if type(model) is not BipedModel and not isinstance(model, BipedModel):    # a described robot's KKT solve
-        return model.k_stance(q, dq, u, stance_leg - 1)
     if stance_leg == 2:
         return gen.stance_floating_2(q, dq, u, model.k_stance)
     return gen.stance_floating_1(q, dq, u, model.k_stance)
@@ -157,8 +155,6 @@ def flight_dynamics(model: BipedModel, q, dq, u=None) -> np.ndarray:
 
 
 def flight_fast(model, q, dq, u):
-    if type(model) is not BipedModel and not isinstance(model, BipedModel):
-        return model.k_flight(q, dq, u)
     D = np.array(gen.mass_matrix(q, model.k["mass_matrix"])).reshape(5, 5)
     rhs = -np.array(gen.bias_forces(q, dq, model.k["bias_forces"]))
     rhs[2] += u[0]

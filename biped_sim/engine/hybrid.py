@@ -343,7 +343,8 @@ class HybridSimulator:
     def _torque_at(self, t, q, dq):
         """The torque applied at a physical state (lists): the held one, or the controller's."""
         if self._controller is None:
-            return self._u
+            S = self.S
+            return [S[SIM_U], S[SIM_U + 1]] if self._m == 2 else list(S[SIM_U:SIM_U + self._m])
         return self._call_controller(t, q, dq)
 
     def _force_at(self, t, q, dq, u=None):
@@ -353,7 +354,9 @@ class HybridSimulator:
             return [0.0, 0.0]
         if u is None:
             u = self._torque_at(t, q, dq)
-        if self.opt.base == "fixed" and self.p is not None:     # (a described robot's: the KKT solve's force)
+        if self.p is None:      # a described robot: the KKT solve's force (its fixed base's state is consistent)
+            return self.model.k_stance(q, dq, u, self.stance_leg - 1)[1]
+        if self.opt.base == "fixed":
             return stance_fixed_fast(self.model, q[2:], dq[2:], u, self.stance_leg)[1]
         return stance_floating_fast(self.model, q, dq, u, self.stance_leg)[1]
 

@@ -67,6 +67,7 @@ class EventLocator:
         self.S = new_state() if S is None else S
         self.impacts = impacts   # the run's ImpactHistory: a crossing in the Zeno limit is an impact
         self._chains = chain_fields(model)     # the feet's chains, the dip bound's (grazing.py)
+        self._fixed_chains = not isinstance(model, BipedModel)    # a described robot's fixed base: both chains
         # at the start no reset has just happened, so a free foot above the ground, however little,
         # is armed at once: its crossing is found (a foot on it arms when it rises above arm_height)
         for leg in (1, 2):
@@ -225,7 +226,7 @@ class EventLocator:
                 # both ends above the ground: a dip in between is found with its guarantee
                 bracket = dip_bracket(st, to_phys, guard_at, guard.leg, stance_leg, self.opt.base == "fixed",
                                       self._chains, self.ground.tan, g0, g1, self.opt.graze_tol,
-                                      fixed_chains=not isinstance(self.model, BipedModel))
+                                      fixed_chains=self._fixed_chains)
             if bracket is None:
                 continue
             t_root = self._crossing(st, guard, guard_at, bracket)

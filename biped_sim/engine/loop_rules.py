@@ -302,7 +302,8 @@ def ev_dip_coefficients(S, leg):
     """S[COEF]: |power-basis coefficients| (ev_power_coefficient) of the floating base's x and y and of the absolute
     angle of each link of foot leg's chain (S[CHAIN]: the sum of its terms' entries of y, in their order), a row
     of COEF_WIDTH for each power 0 to 7; S[COEF_LINKS] and S[COEF_LENGTH] the chain's links and their lengths
-    (rk_dense first)."""
+    (rk_dense first). x, y and the first link's first two terms are taken in one pass over the dense rows (the
+    three-link's chain is that link: its leg's entry and the torso's), the other terms one by one."""
     p: cython.Py_ssize_t
     c: cython.Py_ssize_t
     j: cython.Py_ssize_t
@@ -312,16 +313,52 @@ def ev_dip_coefficients(S, leg):
     w: cython.Py_ssize_t = 8 if S[METHOD] == 0.0 else 5
     links: cython.Py_ssize_t = int(S[CHAIN_LINKS + leg - 1])
     chain: cython.Py_ssize_t = CHAIN + CHAIN_MAX * CHAIN_WIDTH * (leg - 1)
+    m0: cython.Py_ssize_t = int(S[chain + 1]) if links > 0 else 0
+    e0: cython.Py_ssize_t = int(S[chain + 2]) if m0 > 0 else 1
+    e1: cython.Py_ssize_t = int(S[chain + 3]) if m0 > 1 else 1
+    ra: cython.Py_ssize_t = DENSE + w * ((e0 if e0 > 0 else -e0) - 1)     # the rows of the first two terms, x and y
+    rt: cython.Py_ssize_t = DENSE + w * ((e1 if e1 > 0 else -e1) - 1)
+    rx: cython.Py_ssize_t = DENSE
+    ry: cython.Py_ssize_t = DENSE + w
     hi: cython.double = S[T] - S[T_OLD]
     a: cython.double
+    t: cython.double
+    x: cython.double
+    y: cython.double
+    b: cython.double
     v: cython.double
     S[COEF_LINKS] = links
     for c in range(links):
         S[COEF_LENGTH + c] = S[chain + CHAIN_WIDTH * c]
     for p in range(8):
-        S[COEF + COEF_WIDTH * p] = fabs(ev_power_coefficient(S, DENSE, p, w, hi))
-        S[COEF + COEF_WIDTH * p + 1] = fabs(ev_power_coefficient(S, DENSE + w, p, w, hi))
-        for c in range(links):
+        if w == 8:
+            a = t = x = y = 0.0
+            for j in range(8):
+                b = S[TO_POWER_BASIS + 8 * p + j]
+                a += b * S[ra + j]
+                t += b * S[rt + j]
+                x += b * S[rx + j]
+                y += b * S[ry + j]
+        elif p == 0:
+            a, t, x, y = S[ra], S[rt], S[rx], S[ry]
+        elif p < 5:
+            a, t, x, y = hi * S[ra + p], hi * S[rt + p], hi * S[rx + p], hi * S[ry + p]
+        else:
+            a = t = x = y = 0.0
+        S[COEF + COEF_WIDTH * p] = fabs(x)
+        S[COEF + COEF_WIDTH * p + 1] = fabs(y)
+        if links == 0:
+            continue
+        if e0 < 0:
+            a = -a
+        if m0 > 1:
+            a = a + t if e1 > 0 else a - t
+        for j in range(2, m0):
+            e = int(S[chain + 2 + j])
+            v = ev_power_coefficient(S, DENSE + w * ((e if e > 0 else -e) - 1), p, w, hi)
+            a = a + v if e > 0 else a - v
+        S[COEF + COEF_WIDTH * p + 2] = fabs(a)
+        for c in range(1, links):
             row = chain + CHAIN_WIDTH * c
             m = int(S[row + 1])
             a = 0.0
@@ -356,18 +393,23 @@ def ev_dip_search(S, g, ctx, h0, h1):
     c: cython.Py_ssize_t
     ta: cython.double = fabs(S[TAN_S])
     links: cython.Py_ssize_t = int(S[COEF_LINKS])
-    columns: cython.Py_ssize_t = 2 + links
-    lt: cython.double = S[COEF_LENGTH] * (1 + ta)
+    lt: cython.double = S[COEF_LENGTH] * (1 + ta) if links > 0 else 0.0
     slack: cython.double = 1.0 + 1e-6           # the coefficients carry roundoff
     t_old: cython.double = S[T_OLD]
     h_step: cython.double = S[T] - S[T_OLD]
     fixed: cython.bint = S[FIXED_BASE] != 0.0
     top: cython.Py_ssize_t
+    r: cython.Py_ssize_t
     a: cython.double
     b: cython.double
     ha: cython.double
     hb: cython.double
     depth: cython.int
+    d1a: cython.double
+    d2a: cython.double
+    d1x: cython.double
+    d2x: cython.double
+    d2y: cython.double
     w1: cython.double
     w2: cython.double
     d1: cython.double
@@ -389,9 +431,13 @@ def ev_dip_search(S, g, ctx, h0, h1):
         ha = S[STACK + 5 * top + 2]
         hb = S[STACK + 5 * top + 3]
         depth = int(S[STACK + 5 * top + 4])
-        for c in range(columns):
-            S[DIP_D + c] = 0.0
-            S[DIP_D + COEF_WIDTH + c] = 0.0
+        # the derivative bounds of x (d1x, d2x), y (d2y), the first link's angle (d1a, d2a) and, in S[DIP_D], the
+        # other links' angles
+        d1a = d2a = d1x = d2x = d2y = 0.0
+        if links > 1:
+            for c in range(3, 2 + links):
+                S[DIP_D + c] = 0.0
+                S[DIP_D + COEF_WIDTH + c] = 0.0
         for k in range(8):
             # the derivative weights over [0, b]: k b^(k-1) and k (k-1) b^(k-2) (on [0, 1] the powers are 1)
             if b == 1.0:
@@ -400,19 +446,25 @@ def ev_dip_search(S, g, ctx, h0, h1):
             else:
                 w1 = k * pow(b, 1.0 * (k - 1 if k - 1 > 0 else 0))
                 w2 = k * (k - 1) * pow(b, 1.0 * (k - 2 if k - 2 > 0 else 0))
-            for c in range(columns):
-                S[DIP_D + c] += w1 * S[COEF + COEF_WIDTH * k + c]
-                S[DIP_D + COEF_WIDTH + c] += w2 * S[COEF + COEF_WIDTH * k + c]
-        if fixed:
-            d1 = S[DIP_D + 2]
-            bound = lt * (S[DIP_D + COEF_WIDTH + 2] + d1 * d1 + S[DIP_D + COEF_WIDTH] + S[DIP_D] * S[DIP_D]) * slack
+            r = COEF + COEF_WIDTH * k
+            d1a += w1 * S[r + 2]
+            d2a += w2 * S[r + 2]
+            d1x += w1 * S[r]
+            d2x += w2 * S[r]
+            d2y += w2 * S[r + 1]
+            if links > 1:
+                for c in range(3, 2 + links):
+                    S[DIP_D + c] += w1 * S[r + c]
+                    S[DIP_D + COEF_WIDTH + c] += w2 * S[r + c]
+        if fixed:   # (x's column holds the stance leg's angle)
+            bound = lt * (d2a + d1a * d1a + d2x + d1x * d1x) * slack
         else:
-            d1 = S[DIP_D + 2]
-            bound = lt * (S[DIP_D + COEF_WIDTH + 2] + d1 * d1)
-            for c in range(1, links):
-                d1 = S[DIP_D + 2 + c]
-                bound += S[COEF_LENGTH + c] * (1 + ta) * (S[DIP_D + COEF_WIDTH + 2 + c] + d1 * d1)
-            bound = (bound + S[DIP_D + COEF_WIDTH + 1] + ta * S[DIP_D + COEF_WIDTH]) * slack
+            bound = lt * (d2a + d1a * d1a)
+            if links > 1:
+                for c in range(3, 2 + links):
+                    d1 = S[DIP_D + c]
+                    bound += S[COEF_LENGTH + c - 2] * (1 + ta) * (S[DIP_D + COEF_WIDTH + c] + d1 * d1)
+            bound = (bound + d2y + ta * d2x) * slack
         drop = bound * (b - a) * (b - a) / 8
         lo = ha if ha < hb else hb
         if lo - drop > 0 or drop <= S[GRAZE_TOL] or depth >= MAX_DEPTH:
