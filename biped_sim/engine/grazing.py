@@ -24,6 +24,7 @@ import numpy as np
 
 from biped_sim.engine import loop_rules as rules
 from biped_sim.engine.loop_state import (
+    CHAIN,
     CHAIN_LINKS,
     CHAIN_MAX,
     CHAIN_WIDTH,
@@ -35,7 +36,6 @@ from biped_sim.engine.loop_state import (
     TAN_S,
     TERMS_MAX,
     new_state,
-    write,
 )
 
 DEGREE = 7
@@ -97,8 +97,9 @@ def dip_bracket(st, to_phys, height_at, leg, stance_leg, fixed_base, chains, tan
     interpolant = None if dense_state is not None else st.dense_output()
     S = dense_state() if dense_state is not None else getattr(interpolant, "state", None)
     if S is not None and not fixed_base:     # dop853's or dopri5's rows, in the stepper's or interpolant's state
-        if S[CHAIN_LINKS + leg - 1] == 0.0:  # (a state of the stepper's own, or the interpolant's)
-            write(S, **chains)
+        if S[CHAIN_LINKS + leg - 1] == 0.0:  # (a state of the stepper's own, or the interpolant's: floats already)
+            S[CHAIN_LINKS:CHAIN_LINKS + 2] = chains["chain_links"]
+            S[CHAIN:CHAIN + len(chains["chain"])] = chains["chain"]
         rules.ev_dip_coefficients(S, leg)
     else:
         t_old, h_step = st.t_old, st.t - st.t_old
