@@ -321,6 +321,7 @@ def ev_dip_coefficients(S, leg):
     rx: cython.Py_ssize_t = DENSE
     ry: cython.Py_ssize_t = DENSE + w
     hi: cython.double = S[T] - S[T_OLD]
+    leg_and_torso: cython.bint = links == 1 and m0 == 2 and e0 > 0 and e1 > 0   # a chain of one link, two terms
     a: cython.double
     t: cython.double
     x: cython.double
@@ -347,17 +348,23 @@ def ev_dip_coefficients(S, leg):
             a = t = x = y = 0.0
         S[COEF + COEF_WIDTH * p] = fabs(x)
         S[COEF + COEF_WIDTH * p + 1] = fabs(y)
+        if leg_and_torso:   # (the three-link's: its leg's angle plus the torso's)
+            S[COEF + COEF_WIDTH * p + 2] = fabs(a + t)
+            continue
         if links == 0:
             continue
         if e0 < 0:
             a = -a
         if m0 > 1:
             a = a + t if e1 > 0 else a - t
-        for j in range(2, m0):
-            e = int(S[chain + 2 + j])
-            v = ev_power_coefficient(S, DENSE + w * ((e if e > 0 else -e) - 1), p, w, hi)
-            a = a + v if e > 0 else a - v
+        if m0 > 2:
+            for j in range(2, m0):
+                e = int(S[chain + 2 + j])
+                v = ev_power_coefficient(S, DENSE + w * ((e if e > 0 else -e) - 1), p, w, hi)
+                a = a + v if e > 0 else a - v
         S[COEF + COEF_WIDTH * p + 2] = fabs(a)
+        if links < 2:
+            continue
         for c in range(1, links):
             row = chain + CHAIN_WIDTH * c
             m = int(S[row + 1])
