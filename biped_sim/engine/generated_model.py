@@ -181,7 +181,7 @@ class GeneratedModel:
         return np.array(self.module.segments(self._q(q))).reshape(-1, 2, 2)
 
     # -- the engine's kernels: lists in, lists out, in the three-link kernels' layouts (loop_kernels) ------
-    def _kkt(self, q, c):
+    def _kkt_matrix(self, q, c):
         """D, J_c and the KKT matrix [D -J_c^T; J_c 0] of contact index c (0-based) at q (lists)."""
         n, m = self.n, self.module
         D = np.array(m.mass_matrix(q)).reshape(n, n)
@@ -195,7 +195,7 @@ class GeneratedModel:
         """(ddq, F) of floating-base stance on contact ``contact_index0`` (0-based): the KKT solve
         [D -J_c^T; J_c 0] [ddq; F] = [B u - C dq - G; -Jdot_c dq], F the ground's force on the contact point."""
         n, w, c = self.n, 2 * self.n, contact_index0
-        _, K = self._kkt(q, c)
+        _, K = self._kkt_matrix(q, c)
         Jd = np.array(self.module.contact_jacobian_dots(q, dq)[w * c:w * c + w]).reshape(2, n)
         dqa = np.array(dq)
         rhs = np.concatenate([self.B @ np.array(u) - np.array(self.module.bias_forces(q, dq)), -Jd @ dqa])
@@ -212,7 +212,7 @@ class GeneratedModel:
         """(dq+, impulse) of the rigid plastic impact of contact ``contact_index0`` (0-based):
         [D -J_c^T; J_c 0] [dq+; Lambda] = [D dq-; 0]."""
         n = self.n
-        D, K = self._kkt(q, contact_index0)
+        D, K = self._kkt_matrix(q, contact_index0)
         x = np.linalg.solve(K, np.concatenate([D @ np.array(dq_minus), np.zeros(2)])).tolist()
         return x[:n], x[n:]
 
