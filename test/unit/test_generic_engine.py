@@ -225,3 +225,19 @@ def test_rabbits_fixed_base_gives_the_floating_bases_run(law):
     np.testing.assert_allclose(b.q[-1], a.q[-1], rtol=0, atol=1e-9)
     np.testing.assert_allclose(b.grf[-1], a.grf[-1], rtol=0, atol=1e-6)
     _check_impacts(rabbit, b)
+
+
+def test_a_push_throws_rabbit_into_flight_and_it_lands():
+    """A push (40 N s up on the base's point) on RABBIT standing on foot 1: the ground cannot hold the foot, it lifts
+    off into flight, foot 2 lands; the push's work enters the energy balance, which holds."""
+    from biped_sim.engine.hybrid import HybridSimulator
+    rabbit, q0, dq0 = _rabbit_on_foot_1()
+    sim = HybridSimulator(rabbit, q0, dq0, stance_leg=1)
+    sim.advance(0.05)
+    assert [(e.kind, e.stance_leg_after) for e in sim.push([0.0, 40.0])] == [("push", 0), ("liftoff", 0)]
+    sim.advance(0.3)
+    r = sim.result()
+    assert r.status == "completed", r.message
+    assert [(e.kind, e.leg) for e in r.events] == [("push", 1), ("liftoff", 1), ("touchdown", 2)]
+    assert 0 in r.stance_leg and r.stats["push_work"] > 20.0
+    _check_impacts(rabbit, r)
