@@ -607,8 +607,9 @@ def grid_robots(scene, grid) -> dict:
     scene = _scene_argument(scene)
     swept = [name for name in grid if name.rpartition(".")[2].partition("[")[0] == "robot"]
     robots = {}
-    for combo in itertools.product(*(grid[name] for name in swept)):
-        robot = load_scene(scene, overrides=dict(zip(swept, combo))).robot
+    # the point's robot itself, where the grid sweeps it: its scene need not load (e.g. without its initial state)
+    simulation = [name for name in swept if name in ("robot", "biped_sim.robot")]
+    for robot in (grid[simulation[-1]] if simulation else [load_scene(scene).robot]):
         robots.setdefault(robot, joint_layout(robot).coordinates)
     return robots
 

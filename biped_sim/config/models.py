@@ -123,25 +123,13 @@ def generated_model(name_or_path):
     return model
 
 
-def engine_refusal(name_or_path) -> str:
-    """Why the hybrid engine cannot run a robot (a shipped name or a description file), in one line:
-    what the robot is, why, and what to do."""
-    desc = load_description(name_or_path)
-    runs = ", ".join(THREE_LINK_PARAMETERS)
-    other = "" if str(name_or_path) in SHIPPED else \
-        " (a three-link biped of other numbers: robot three_link with the model.* parameters)"
-    return (f"robot {str(name_or_path)!r} ({len(desc.links)} links, {desc.n} coordinates) cannot be simulated yet: "
-            f"the hybrid engine runs three-link chains only today, the robots {runs}; give robot one of "
-            f"those{other}, or use bs.load_model({str(name_or_path)!r}) for its dynamics (docs/models.md)")
-
-
 def load_model(name_or_path):
     """The model of a shipped name or a description file, accepted wherever a model is today.
 
     ``three_link``: ``BipedModel()``. ``compass_gait``, ``three_link_hip_mass``: a ``BipedModel`` with their
-    parameters (:data:`THREE_LINK_PARAMETERS`), which the engine runs. ``rabbit`` and a user's
-    description: a :class:`~biped_sim.engine.generated_model.GeneratedModel` (its dynamics; the engine
-    refuses it in one line until it runs chains other than three links).
+    parameters (:data:`THREE_LINK_PARAMETERS`). ``rabbit`` and a user's description: a
+    :class:`~biped_sim.engine.generated_model.GeneratedModel`. The engine runs both (a GeneratedModel in its
+    Python loop).
     """
     if isinstance(name_or_path, str) and name_or_path in THREE_LINK_PARAMETERS:
         from biped_sim.engine.model import BipedModel

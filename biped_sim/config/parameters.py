@@ -9,7 +9,7 @@ tests and must not change.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from biped_sim.engine.integrators import FIXED_STEP_METHODS, METHODS
 from biped_sim.engine.model import BipedParameters
@@ -33,7 +33,7 @@ class Param:
     choices: tuple | None = None
     item: type | None = None      # element type of a list
     length: int | None = None     # fixed list length
-    per_coordinate: bool = False  # a list of one entry per coordinate of the robot (checked by validate)
+    coordinates: bool = False     # one entry per coordinate of the robot: its length is the robot's N (5 above)
     file_name: bool = False       # the value becomes part of a file's name: a plain name, never a path
 
     def check(self, value):
@@ -115,6 +115,8 @@ def check_file_name(value: str, where: str) -> str:
 
 
 _defaults = BipedParameters()
+#: the coordinates of the three-link robots (BipedModel): q's names, in order
+THREE_LINK_COORDINATES = ("base_x", "base_y", "hip_1", "hip_2", "torso_pitch")
 PARAMETERS = [
     Param("scene", str, "custom", "name of the scene (used in the bag's name: a plain name, no '/')",
           file_name=True),
@@ -131,8 +133,8 @@ PARAMETERS = [
     Param("duration", float, 0.0, "simulated time to run (s); 0 = until stopped", 0.0, 1e7),
     Param("initial_q", list, [0.0, 1.0, math.pi, math.pi, 0.0],
           "initial q = [x, y, q1, q2, q3] (m, rad), physical coordinates; one entry per coordinate of the robot "
-          "(7 for rabbit: docs/models.md)", item=float, per_coordinate=True),
-    Param("initial_dq", list, [0.0] * 5, "initial dq (m/s, rad/s)", item=float, per_coordinate=True),
+          "(7 for rabbit: docs/models.md)", item=float, length=5, coordinates=True),
+    Param("initial_dq", list, [0.0] * 5, "initial dq (m/s, rad/s)", item=float, length=5, coordinates=True),
     Param("initial_stance_leg", int, 1, "initial stance leg: 1, 2, or 0 (flight)", choices=(0, 1, 2)),
     Param("method", str, "auto", "integrator; auto: dopri5 for control periods up to "
           "5 ms (one step per period reaches the tolerance with 7 evaluations against dop853's 13), "
@@ -197,40 +199,58 @@ def validate(values: dict, table=None, owner: str = "") -> dict:
     if unknown:
         raise ValueError(f"unknown {owner}parameter(s) {unknown}; allowed: {', '.join(by_name)}")
     out = {p.name: p.default for p in table}
+    coordinates = None      # the robot's coordinates, looked up for the first parameter of one entry each
     for name, value in values.items():
-        out[name] = by_name[name].check(value)
+        param = by_name[name]
+        if param.coordinates and "robot" in by_name:
+            coordinates = coordinates or _robot_coordinates(values, by_name["robot"])
+            if isinstance(value, (list, tuple)) and len(value) != len(coordinates):
+                robot = values.get("robot", by_name["robot"].default)
+                raise ValueError(f"parameter '{name}' must have {len(coordinates)} entries, one for each coordinate "
+                                 f"of robot {robot!r} ({', '.join(coordinates)}), got {len(value)}: {list(value)!r}")
+            param = replace(param, length=len(coordinates))
+        out[name] = param.check(value)
     if "robot" in by_name:
-        _robot_defaults(values, out)
-    counted = [p for p in table if p.per_coordinate]
-    if counted:
-        _check_coordinates(out, counted)
+        _robot_defaults(values, out, table)
     return out
 
 
-def _check_coordinates(out: dict, table: list) -> None:
-    """The lists of one entry per coordinate (``initial_q``, ``initial_dq``) against the robot's coordinates:
-    five for the shipped three-link robots. Another robot's count (``initial_q`` of 7 for rabbit) is not
-    checked here: its run refuses a robot the engine cannot run yet in its own line (``robot_model``)
-    before it reads the state."""
+def _robot_coordinates(values: dict, robot_param) -> tuple:
+    """The coordinates of the robot ``values`` names (three_link's when none): q's names, in order."""
     from biped_sim.config import models
-    if out.get("robot", "three_link") not in models.THREE_LINK_PARAMETERS:
-        return
-    for p in table:
-        value = out[p.name]
-        if len(value) != 5:
-            raise ValueError(f"parameter '{p.name}' must have 5 entries, got {len(value)}: {value!r}")
+    robot = robot_param.check(values["robot"]) if "robot" in values else robot_param.default
+    if robot in models.THREE_LINK_PARAMETERS:
+        return THREE_LINK_COORDINATES
+    try:
+        return models.load_description(robot).coordinates
+    except ValueError as exc:
+        raise ValueError(f"parameter 'robot': {exc}") from None
 
 
-def _robot_defaults(values: dict, out: dict) -> None:
+def _robot_defaults(values: dict, out: dict, table) -> None:
     """Check ``robot`` (a shipped name or an existing description file) and give the ``model.*``
     parameters that ``values`` does not set the values of a shipped three-link robot
-    (``config.models.THREE_LINK_PARAMETERS``): ``robot: compass_gait`` alone is the compass gait."""
+    (``config.models.THREE_LINK_PARAMETERS``): ``robot: compass_gait`` alone is the compass gait. A described
+    robot (not a three-link one) takes no ``model.*`` parameter (its numbers are its description's) and needs
+    its initial state given (the defaults are the three-link's 5 coordinates)."""
     from biped_sim.config import models
     try:
         models.description_path(out["robot"])
     except ValueError as exc:
         raise ValueError(f"parameter 'robot': {exc}") from None
-    robot_parameters = models.THREE_LINK_PARAMETERS.get(out["robot"], {})
+    robot = out["robot"]
+    if robot not in models.THREE_LINK_PARAMETERS:
+        given = sorted(n for n in values if n.startswith("model."))
+        if given:
+            raise ValueError(f"parameter {given[0]!r} sets a number of the three-link biped; robot {robot!r} takes "
+                             "its numbers from its description (edit the description instead)")
+        names = _robot_coordinates(values, next(p for p in table if p.name == "robot"))
+        for p in table:
+            if p.coordinates and p.name not in values and len(p.default) != len(names):
+                raise ValueError(f"parameter {p.name!r} must be given for robot {robot!r}: {len(names)} entries, "
+                                 f"one for each of its coordinates ({', '.join(names)}); the default is the "
+                                 "three-link biped's 5")
+    robot_parameters = models.THREE_LINK_PARAMETERS.get(robot, {})
     for name, value in robot_parameters.items():
         key = f"model.{name}"
         if key in out and key not in values:
@@ -267,14 +287,34 @@ def model_arguments(params: dict) -> dict:
 
 def robot_model(params: dict):
     """The engine's model of checked parameters: a ``BipedModel`` of the ``model.*`` values for a shipped
-    three-link robot; ValueError, one line (``config.models.engine_refusal``), for a robot the engine
-    cannot run yet."""
+    three-link robot, a described robot's ``GeneratedModel`` (``config.models.load_model``) otherwise;
+    ValueError, one line, for a robot the engine cannot run (its ``engine_refusal``)."""
     from biped_sim.config import models
     from biped_sim.engine.model import BipedModel
     robot = params.get("robot", "three_link")
     if robot not in models.THREE_LINK_PARAMETERS:
-        raise ValueError(models.engine_refusal(robot))
+        model = models.load_model(robot)
+        if model.engine_refusal is not None:
+            raise ValueError(model.engine_refusal)
+        return model
     return BipedModel(**model_arguments(params))
+
+
+#: three_link_model's advice for a controller (the reference walking controller: the three-link robots only)
+OWN_CONTROLLER = ("give it a controller of its own (Scene.simulate(controller=...), --controller MODULE:ATTR), "
+                  "or none")
+
+
+def three_link_model(params: dict, who: str, advice: str = OWN_CONTROLLER):
+    """``robot_model`` for what runs the three-link biped only (``who``: the reference walking controller, the
+    step-to-step map), or ValueError, one line, naming the robot and what to do instead (``advice``)."""
+    from biped_sim.config import models
+    from biped_sim.engine.model import BipedModel
+    model = robot_model(params)
+    if not isinstance(model, BipedModel):
+        raise ValueError(f"{who} runs the three-link robots ({', '.join(models.THREE_LINK_PARAMETERS)}); robot "
+                         f"{params.get('robot')!r} has {model.n} coordinates and {model.m} motors: {advice}")
+    return model
 
 
 def engine_arguments(params: dict) -> dict:

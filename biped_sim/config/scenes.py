@@ -19,7 +19,7 @@ from __future__ import annotations
 import difflib
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import yaml
@@ -102,7 +102,7 @@ def make_controller(cparams: dict):
         from biped_sim.control.rabbit_walking import RabbitWalkingController
         return RabbitWalkingController(load_model(cparams["robot"]), **{k: cparams[k] for k in LAW_GAINS[law]})
     from biped_sim.control.walking import WalkingController
-    model = P.robot_model(cparams)
+    model = P.three_link_model(cparams, "the reference walking controller (walk_controller)")
     return WalkingController(model, **{k: cparams[k] for k in _GAINS})
 
 
@@ -323,7 +323,7 @@ def override_targets(key, has_controller: bool) -> list[tuple[str, str, int | No
     if index is not None:
         if param.type is not list:
             raise ValueError(f"override {key!r}: '{name}' is not a list; write {name} = value")
-        if param.length is not None and int(index) >= param.length:
+        if param.length is not None and not param.coordinates and int(index) >= param.length:
             raise ValueError(f"override {key!r}: '{name}' has {param.length} entries (indices 0 to "
                              f"{param.length - 1})")
     return [(s, name, None if index is None else int(index)) for s in sections]
@@ -358,8 +358,8 @@ def apply_overrides(given: dict, cgiven: dict | None, overrides: dict, path) -> 
                     raise ValueError(f"scene {path}, override {key!r}: '{name}' has {len(new)} entries (indices 0 "
                                      f"to {len(new) - 1})")
                 new[index] = value
-            try:
-                param.check(new)
+            try:    # (a list of one entry per coordinate: its length the robot's, which the loader checks)
+                (replace(param, length=None) if param.coordinates else param).check(new)
             except ValueError as exc:
                 raise ValueError(f"scene {path}, override {key!r}: {exc}") from None
             values[name] = new

@@ -4,133 +4,144 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 2000
-#define LS_NMAX 11
+#define LOOP_STATE_SIZE 2704
+#define LS_NMAX 25
+#define LS_NQ_MAX 12
 #define LS_MAX_DEPTH 30
+#define LS_CHAIN_MAX 4
+#define LS_CHAIN_WIDTH 8
+#define LS_COEF_WIDTH 6
 #define LS_EVENT_ROOM 32
 #define LS_METHOD 0
 #define LS_N_Y 1
-#define LS_RTOL 2
-#define LS_ATOL 3
-#define LS_MAX_STEP 4
-#define LS_GRAZE_TOL 5
-#define LS_EVENT_TOL 6
-#define LS_L_LEG 7
-#define LS_TAN_S 8
-#define LS_SIN_S 9
-#define LS_COS_S 10
-#define LS_MU 11
-#define LS_FIXED_BASE 12
-#define LS_FRONT_TOL 13
-#define LS_SCUFF_DEPTH 14
-#define LS_FORWARD_RULE 15
-#define LS_K_POS 16
-#define LS_TO_POWER_BASIS 48
-#define LS_MAX_SPEED 112
-#define LS_GROUND_TOL 113
-#define LS_FORCE_TOL 114
-#define LS_ARM_HEIGHT 115
-#define LS_HAS_MU 116
-#define LS_STOP_ON_SLIP 117
-#define LS_PROJECT 118
-#define LS_CHECK_INVARIANTS 119
-#define LS_IMPACT_PHASE 120
-#define LS_FRONT_RULE 121
-#define LS_COMPUTE_GRF 122
-#define LS_ZENO_INTERVAL 123
-#define LS_IMPULSE_TOL 124
-#define LS_CONTACT_TOL 125
-#define LS_MAX_EVENTS 126
-#define LS_STANCE_LEG 127
-#define LS_PIN 128
-#define LS_U_HOLD 130
-#define LS_T_NEXT 132
-#define LS_REFUSED_U 133
-#define LS_N_RECORDS 135
-#define LS_WHY 136
-#define LS_END_U 137
-#define LS_END_F 139
-#define LS_STEPS 141
-#define LS_MAX_DRIFT 142
-#define LS_MAX_RATE 143
-#define LS_MAX_RESIDUAL 144
-#define LS_WALL_TIME 145
-#define LS_T 146
-#define LS_T_BOUND 147
-#define LS_H_ABS 148
-#define LS_T_OLD 149
-#define LS_H 150
-#define LS_Y 151
-#define LS_F 162
-#define LS_Y_OLD 173
-#define LS_STAGES 184
-#define LS_NFEV 327
-#define LS_NREJECTED 328
-#define LS_NACCEPTED 329
-#define LS_DENSE_READY 330
-#define LS_DENSE 331
-#define LS_FAIL_KIND 419
-#define LS_FAIL_VALUE 420
-#define LS_FAIL_T 421
-#define LS_CALLBACK_FAILED 422
-#define LS_GUARD_LEG 423
-#define LS_SCUFF_TRIAL 424
-#define LS_DEEPEST_TRIAL 427
-#define LS_FEET 428
-#define LS_E0 436
-#define LS_PUSH_WORK 437
-#define LS_ENERGY_LOST 438
-#define LS_SIM_T 439
-#define LS_SIM_WORK 440
-#define LS_SIM_H 441
-#define LS_SIM_U 442
-#define LS_SIM_Q 444
-#define LS_SIM_DQ 449
-#define LS_SIM_STATE_UNMADE 454
-#define LS_MODE_BEGUN 455
-#define LS_CONTROL_PERIODS 456
-#define LS_RUNNING 457
-#define LS_INITIAL_SAMPLE_PENDING 458
-#define LS_N_SAMPLES 459
-#define LS_APPENDED 460
-#define LS_PROVISIONAL 461
-#define LS_EVERY 462
-#define LS_LAST_ONLY 463
-#define LS_LAST_IMPACT 464
-#define LS_N_IMPACTS 465
-#define LS_RECENT_IMPACTS 466
-#define LS_N_RECENT 470
-#define LS_MODE_EVENTS 471
-#define LS_RING 472
-#define LS_N_LATCHED 521
-#define LS_ARMED 522
-#define LS_SCUFFING 524
-#define LS_SCUFF 526
-#define LS_DEEPEST_SCUFF 532
-#define LS_SCUFFS 533
-#define LS_FEET_END_T 534
-#define LS_FEET_END 535
-#define LS_FORCE_END_T 543
-#define LS_FORCE_END 544
-#define LS_OUT 546
-#define LS_RESULT 712
-#define LS_COEF 714
-#define LS_QS 738
-#define LS_PS 743
-#define LS_STACK 747
-#define LS_K_IMPACT 1067
-#define LS_K_ENERGY 1099
-#define LS_K_FEET 1131
-#define LS_Q_IMPACT 1163
-#define LS_DQ_MINUS 1168
-#define LS_DQ_PLUS 1173
-#define LS_IMPULSE 1178
-#define LS_TV 1180
-#define LS_ENERGY_BEFORE 1182
-#define LS_ENERGY_AFTER 1183
-#define LS_KINEMATICS 1184
-#define LS_FEET_AFTER 1192
-#define LS_RECORDS 1200
+#define LS_N_Q 2
+#define LS_MODEL_KERNELS 3
+#define LS_RTOL 4
+#define LS_ATOL 5
+#define LS_MAX_STEP 6
+#define LS_GRAZE_TOL 7
+#define LS_EVENT_TOL 8
+#define LS_L_LEG 9
+#define LS_CHAIN_LINKS 10
+#define LS_CHAIN 12
+#define LS_TAN_S 76
+#define LS_SIN_S 77
+#define LS_COS_S 78
+#define LS_MU 79
+#define LS_FIXED_BASE 80
+#define LS_FRONT_TOL 81
+#define LS_SCUFF_DEPTH 82
+#define LS_FORWARD_RULE 83
+#define LS_K_POS 84
+#define LS_TO_POWER_BASIS 116
+#define LS_MAX_SPEED 180
+#define LS_GROUND_TOL 181
+#define LS_FORCE_TOL 182
+#define LS_ARM_HEIGHT 183
+#define LS_HAS_MU 184
+#define LS_STOP_ON_SLIP 185
+#define LS_PROJECT 186
+#define LS_CHECK_INVARIANTS 187
+#define LS_IMPACT_PHASE 188
+#define LS_FRONT_RULE 189
+#define LS_COMPUTE_GRF 190
+#define LS_ZENO_INTERVAL 191
+#define LS_IMPULSE_TOL 192
+#define LS_CONTACT_TOL 193
+#define LS_MAX_EVENTS 194
+#define LS_STANCE_LEG 195
+#define LS_PIN 196
+#define LS_U_HOLD 198
+#define LS_T_NEXT 200
+#define LS_REFUSED_U 201
+#define LS_N_RECORDS 203
+#define LS_WHY 204
+#define LS_END_U 205
+#define LS_END_F 207
+#define LS_STEPS 209
+#define LS_MAX_DRIFT 210
+#define LS_MAX_RATE 211
+#define LS_MAX_RESIDUAL 212
+#define LS_WALL_TIME 213
+#define LS_T 214
+#define LS_T_BOUND 215
+#define LS_H_ABS 216
+#define LS_T_OLD 217
+#define LS_H 218
+#define LS_Y 219
+#define LS_F 244
+#define LS_Y_OLD 269
+#define LS_STAGES 294
+#define LS_NFEV 619
+#define LS_NREJECTED 620
+#define LS_NACCEPTED 621
+#define LS_DENSE_READY 622
+#define LS_DENSE 623
+#define LS_FAIL_KIND 823
+#define LS_FAIL_VALUE 824
+#define LS_FAIL_T 825
+#define LS_CALLBACK_FAILED 826
+#define LS_GUARD_LEG 827
+#define LS_SCUFF_TRIAL 828
+#define LS_DEEPEST_TRIAL 831
+#define LS_FEET 832
+#define LS_E0 840
+#define LS_PUSH_WORK 841
+#define LS_ENERGY_LOST 842
+#define LS_SIM_T 843
+#define LS_SIM_WORK 844
+#define LS_SIM_H 845
+#define LS_SIM_U 846
+#define LS_SIM_Q 855
+#define LS_SIM_DQ 867
+#define LS_SIM_STATE_UNMADE 879
+#define LS_MODE_BEGUN 880
+#define LS_CONTROL_PERIODS 881
+#define LS_RUNNING 882
+#define LS_INITIAL_SAMPLE_PENDING 883
+#define LS_N_SAMPLES 884
+#define LS_APPENDED 885
+#define LS_PROVISIONAL 886
+#define LS_EVERY 887
+#define LS_LAST_ONLY 888
+#define LS_LAST_IMPACT 889
+#define LS_N_IMPACTS 890
+#define LS_RECENT_IMPACTS 891
+#define LS_N_RECENT 895
+#define LS_MODE_EVENTS 896
+#define LS_RING 897
+#define LS_N_LATCHED 946
+#define LS_ARMED 947
+#define LS_SCUFFING 949
+#define LS_SCUFF 951
+#define LS_DEEPEST_SCUFF 957
+#define LS_SCUFFS 958
+#define LS_FEET_END_T 959
+#define LS_FEET_END 960
+#define LS_FORCE_END_T 968
+#define LS_FORCE_END 969
+#define LS_OUT 971
+#define LS_RESULT 1347
+#define LS_COEF 1349
+#define LS_COEF_LINKS 1397
+#define LS_COEF_LENGTH 1398
+#define LS_DIP_D 1402
+#define LS_QS 1414
+#define LS_PS 1426
+#define LS_STACK 1430
+#define LS_K_IMPACT 1750
+#define LS_K_ENERGY 1782
+#define LS_K_FEET 1814
+#define LS_Q_IMPACT 1846
+#define LS_DQ_MINUS 1858
+#define LS_DQ_PLUS 1870
+#define LS_IMPULSE 1882
+#define LS_TV 1884
+#define LS_ENERGY_BEFORE 1886
+#define LS_ENERGY_AFTER 1887
+#define LS_KINEMATICS 1888
+#define LS_FEET_AFTER 1896
+#define LS_RECORDS 1904
 #define IMPACT_OLD_FOOT_SINKS 1
 #define IMPACT_PULLS 2
 #define IMPACT_OUTSIDE_CONE 4
@@ -205,13 +216,17 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
 
 #define LOOP_STATE_MEMBERS \
     double method;  /* the Runge-Kutta pair: 0 dop853, 1 dopri5 (METHODS) */ \
-    double n_y;  /* entries of y in use (at most NMAX) */ \
+    double n_y;  /* entries of y in use (at most NMAX): also the distance of a trial step's rows (out, stages) */ \
+    double n_q;  /* the model's coordinates N, the entries of a field of q in use (at most NQ_MAX) */ \
+    double model_kernels;  /* whose kernels the rules evaluate (loop_kernels): 0 the three-link's closed forms on the constants below, k > 0 the generated model registered as k (the Python loop only) */ \
     double rtol;  /* relative tolerance of the step control */ \
     double atol;  /* absolute tolerance of the step control */ \
     double max_step;  /* the largest step size (s) */ \
     double graze_tol;  /* the dip search's depth (m): a dip of the foot deeper than this is found */ \
     double event_tol;  /* brentq's xtol (s) */ \
     double l_leg;  /* the leg's length (m) */ \
+    double chain_links[2];  /* per contact point, the links of its chain: those from the floating base's point to it that carry it a distance (a link's frame turns with its absolute angle) */ \
+    double chain[2][4][8];  /* per contact point, a row per chain link from the base: its length l_k (m), the count of its absolute angle's terms, then each term as +-(the entry of y + 1), + for a joint turning about +y */ \
     double tan_s;  /* tan(slope) of the ground */ \
     double sin_s;  /* sin(slope): a force's normal and tangential components on the ground line */ \
     double cos_s;  /* cos(slope) */ \
@@ -256,15 +271,15 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double h_abs;  /* the step size the next step tries (s) */ \
     double t_old;  /* time at the start of the last step (s) */ \
     double h;  /* the last step's size (s) */ \
-    double y[11];  /* the state at t */ \
-    double f[11];  /* the right-hand side at (t, y) */ \
-    double y_old[11];  /* the state at t_old */ \
-    double stages[13][11];  /* the last step's stages k0..k12 */ \
+    double y[25];  /* the state at t */ \
+    double f[25];  /* the right-hand side at (t, y) */ \
+    double y_old[25];  /* the state at t_old */ \
+    double stages[13][25];  /* the last step's stages k0..k12 */ \
     double nfev;  /* right-hand-side evaluations */ \
     double nrejected;  /* rejected steps */ \
     double naccepted;  /* accepted steps */ \
     double dense_ready;  /* 1 when dense holds the last step's dense output */ \
-    double dense[88];  /* the last step's dense output, a row of DENSE_WIDTH per entry of y */ \
+    double dense[200];  /* the last step's dense output, a row of DENSE_WIDTH per entry of y */ \
     double fail_kind;  /* why the last step failed: 1 the step size underflowed, 2 a non-finite state, 3 the torque law failed (callback_failed) */ \
     double fail_value;  /* the failure's step size (kind 1) or time (kind 2) */ \
     double fail_t;  /* the time the failing step started at */ \
@@ -279,9 +294,9 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double sim_t;  /* the simulator's time: its last accepted state's (s) */ \
     double sim_work;  /* the hip motors' work up to sim_t (J) */ \
     double sim_h;  /* the step size the next stepper starts with (NaN: none yet, the initial one is computed) */ \
-    double sim_u[2];  /* the torque held now (N m) */ \
-    double sim_q[5];  /* q at sim_t, where a quiet period left it (sim_state_unmade) */ \
-    double sim_dq[5];  /* dq at sim_t, alike */ \
+    double sim_u[9];  /* the torque held now, one an actuator (N m) */ \
+    double sim_q[12];  /* q at sim_t, where a quiet period left it (sim_state_unmade) */ \
+    double sim_dq[12];  /* dq at sim_t, alike */ \
     double sim_state_unmade;  /* 1 when sim_q and sim_dq are the simulator's state and its arrays not yet made */ \
     double mode_begun;  /* 1 while the compiled loop's mode was begun (Loop.begin) at the simulator's state: a write of the simulator's time, q or dq by the Python code, or its reset to flight, clears it, and the next period begins the mode again */ \
     double control_periods;  /* the control periods begun so far */ \
@@ -308,18 +323,21 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double feet_end[2][4];  /* the feet there (x, height, and their rates, a row a foot) */ \
     double force_end_t;  /* the time of force_end (NaN: none kept) */ \
     double force_end[2];  /* the stance force there (N) */ \
-    double out[166];  /* a trial step: y_new, f_new, err, stages; between steps the dense state (dense_state) */ \
+    double out[376];  /* a trial step: y_new, f_new, err, stages; between steps the dense state (dense_state) */ \
     double result[2];  /* a located root, or a dip's bracket */ \
-    double coef[8][3];  /* the dip search's |power-basis coefficients|: swing leg angle, hip x, hip y (fixed base: swing leg angle, stance leg angle) */ \
-    double qs[5];  /* q on the dense output */ \
+    double coef[8][6];  /* the dip search's |power-basis coefficients|, a row a power: the base's x, its y, then the absolute angle of each link of the foot's chain (fixed base: the stance leg's angle, 0, the swing leg's) */ \
+    double coef_links;  /* the chain links of coef's row (its columns from the third) */ \
+    double coef_length[4];  /* their lengths l_k (m): from the link's joint to the next joint, or the foot */ \
+    double dip_d[2][6];  /* the dip search's bounds of each column's first and second derivatives */ \
+    double qs[12];  /* q on the dense output */ \
     double ps[4];  /* the feet's positions there */ \
     double stack[64][5];  /* the dip search's intervals: a, b, h(a), h(b), depth */ \
     double k_impact[32];  /* the constants of the closed form impact_map_1 (impact_map_2 takes the same) */ \
     double k_energy[32];  /* the constants of the closed form energy */ \
     double k_feet[32];  /* the constants of the closed form foot_kinematics */ \
-    double q_impact[5];  /* q at the impact */ \
-    double dq_minus[5];  /* dq before the impact */ \
-    double dq_plus[5];  /* dq after the impact (the impact map writes it and the impulse after it, in one row) */ \
+    double q_impact[12];  /* q at the impact */ \
+    double dq_minus[12];  /* dq before the impact */ \
+    double dq_plus[12];  /* dq after the impact (the impact map writes it, and the impulse into the next field) */ \
     double impulse[2];  /* the ground's impulse on the landing foot (N s) */ \
     double tv[2];  /* T and V (the closed form energy) */ \
     double energy_before;  /* T + V before the impact (J) */ \

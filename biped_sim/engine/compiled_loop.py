@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from biped_sim.engine import integrators, loop_rules as rules
+from biped_sim.engine import grazing, integrators, loop_kernels, loop_rules as rules
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.loop_state import (
     DENSE,
@@ -30,9 +30,9 @@ from biped_sim.engine.loop_state import (
     METHODS,
     MODE_BEGUN,
     N_RECORDS,
+    N_Y,
     NACCEPTED,
     NFEV,
-    NMAX,
     NREJECTED,
     REC_A,
     REC_B,
@@ -55,6 +55,7 @@ from biped_sim.engine.loop_state import (
     put,
     write,
 )
+from biped_sim.engine.model import BipedModel
 from biped_sim.engine.modes import checked_torques, controller_failure
 from biped_sim.engine.results import ControllerError
 from biped_sim.engine.torque_hook import hook_argument, law_in_mode, reference_law
@@ -86,9 +87,14 @@ AVAILABLE = _core is not None
 enabled = True
 
 
+#: why a described robot's run is the Python loop's (the compiled loop's kernels are the three-link's closed forms)
+WHY_NOT_GENERATED = ("a described robot (GeneratedModel) runs in the Python loop: the compiled loop's kernels are the "
+                     "three-link biped's closed forms")
+
+
 def covers(sim, controller):
     """The torque law when the compiled loop can run the simulator's current mode, else None."""
-    if (_core is None or not enabled or not sim.stance_leg or sim.opt.base != "floating"
+    if (_core is None or not enabled or sim._loop is None or not sim.stance_leg or sim.opt.base != "floating"
             or sim.method not in METHODS or sim.on_step is not None or not all_compiled()):
         return None
     return law_in_mode(controller, sim.model)
@@ -105,11 +111,18 @@ def new_loop(model):
 def run_state(model):
     """(S, loop): the state a simulator owns for its life (``loop_state.py``'s fields) and the C ``Loop`` made
     over it: with the compiled loop built, the Loop's own memory as a memoryview of doubles (the simulator, its
-    Samples and its locator read and write what the loop reads and writes); else a list of floats and None."""
+    Samples and its locator read and write what the loop reads and writes); else a list of floats and None.
+    A described robot's (a GeneratedModel) is a list naming its kernels and None: the C Loop runs the three-link
+    biped only, the Python loop runs any (WHY_NOT_GENERATED)."""
+    fields = dict(n_q=model.n, **grazing.chain_fields(model))
+    if not isinstance(model, BipedModel):
+        # a described robot (GeneratedModel): the Python loop runs it, on its kernels (the C Loop's are the
+        # three-link's closed forms)
+        return new_state(model_kernels=loop_kernels.register(model), **fields), None
     if _core is None:
-        return new_state(), None
+        return new_state(**fields), None
     loop = new_loop(model)
-    return memoryview(loop).cast("d"), loop
+    return write(memoryview(loop).cast("d"), **fields), loop
 
 
 def take_records(S):
@@ -154,8 +167,9 @@ class CompiledStepper(integrators._OnState):
     takes_lists = True
 
     def _entries(at, doc):
-        """A field of NMAX floats of the state (a memoryview) as a list."""
-        return property(lambda self: self.S[at:at + NMAX].tolist(), lambda self, v: put(self.S, at, v), doc=doc)
+        """A field of the state (a memoryview) as a list of its n_y entries in use."""
+        return property(lambda self: self.S[at:at + int(self.S[N_Y])].tolist(), lambda self, v: put(self.S, at, v),
+                        doc=doc)
 
     y = _entries(Y, "the state at t: q, dq, the motors' work")
     y_old = _entries(Y_OLD, "the state at t_old")
@@ -296,7 +310,7 @@ class CompiledStepper(integrators._OnState):
         if self._dense is None:
             self.loop.dense()
             S, width = self.S, 8 if self.method == "dop853" else 5
-            rows = [S[DENSE + width * i:DENSE + width * (i + 1)].tolist() for i in range(NMAX)]
+            rows = [S[DENSE + width * i:DENSE + width * (i + 1)].tolist() for i in range(int(S[N_Y]))]
             cls = integrators._DOP853Interpolant if self.method == "dop853" else integrators._DOPRI5Interpolant
             self._dense = cls(self.t_old, self.t, rows)
         return self._dense

@@ -182,7 +182,7 @@ IMPACT_CONDITION_LIMIT = 1e8
 def impact_condition(model: BipedModel, q, impact_leg) -> float:
     """Condition number of J D^-1 J^T of an impact (1 ... inf; large only for both feet at once with
     the feet nearly at one point)."""
-    J = _impact_jacobian(model, as_state_vector(q, "q"), impact_leg)
+    J = _impact_jacobian(model, as_state_vector(q, "q", model.n), impact_leg)
     return float(np.linalg.cond(J @ np.linalg.solve(model.mass_matrix(q), J.T)))
 
 
@@ -196,8 +196,8 @@ def impact_map(model: BipedModel, q, dq_minus, impact_leg=2):
     is the unique one with J dq+ = 0 and the impulses are the smallest that give it (their split
     between the feet is not determined), never impulses blown up by the near-singular solve.
     """
-    q = as_state_vector(q, "q")
-    dq_minus = as_state_vector(dq_minus, "dq_minus")
+    q = as_state_vector(q, "q", model.n)
+    dq_minus = as_state_vector(dq_minus, "dq_minus", model.n)
     return impact_map_fast(model, q, dq_minus, impact_leg)
 
 
@@ -207,6 +207,12 @@ def impact_map_fast(model, q, dq_minus, impact_leg):
     straight from the closed forms."""
     ql = q.tolist()
     legs = _impact_legs(impact_leg)
+    if type(model) is not BipedModel and not isinstance(model, BipedModel):   # a described robot's KKT solves
+        if len(legs) == 1:
+            dq_plus, impulse = model.k_impact(ql, dq_minus.tolist(), legs[0] - 1)
+            return np.array(dq_plus), np.array(impulse)
+        J = np.vstack([model.contact_jacobian(q, leg) for leg in legs])
+        return constrained_impulse_response(model.mass_matrix(q), J, dq_minus)
     if len(legs) == 1:
         impact = gen.impact_map_2 if legs[0] == 2 else gen.impact_map_1
         dq_plus, impulse = impact(ql, dq_minus.tolist(), model.k["impact_map_1"])   # the same constants
@@ -231,15 +237,17 @@ def constrained_impulse_response(D, J, dq, generalized_impulse=None):
             dq_free = dq if generalized_impulse is None else dq + np.linalg.solve(D, generalized_impulse)
             impulse = -np.linalg.pinv(A, rcond=1.0 / IMPACT_CONDITION_LIMIT, hermitian=True) @ (J @ dq_free)
             return dq_free + Dinv_JT @ impulse, impulse
-    K = np.zeros((5 + k, 5 + k))
-    K[:5, :5] = D
-    K[:5, 5:] = -J.T
-    K[5:, :5] = J
+    n = D.shape[0]
+    K = np.zeros((n + k, n + k))
+    K[:n, :n] = D
+    K[:n, n:] = -J.T
+    K[n:, :n] = J
     sol = np.linalg.solve(K, np.concatenate([rhs, np.zeros(k)]))
-    return sol[:5], sol[5:]
+    return sol[:n], sol[n:]
 
 
-#: J_hip = d(hip)/dq: the hip is the base point (x, y) of q, so J_hip = [I2 | 0] (2 x 5)
+#: J_hip = d(hip)/dq: the hip is the base point (x, y) of q, so J_hip = [I2 | 0] (2 x 5; a described robot's
+#: base point alike, 2 x N)
 J_HIP = np.hstack([np.eye(2), np.zeros((2, 3))])
 
 
@@ -253,15 +261,15 @@ def push_response(model: BipedModel, q, dq, impulse, stance_leg):
     base gives the same dq+ (its chain's hip Jacobian is J_hip restricted to the pinned motions).
     Returns (dq+, Lambda) as arrays. Whether the ground can give Lambda (it can only push) is the
     simulator's question."""
-    q = as_state_vector(q, "q")
-    dq = as_state_vector(dq, "dq")
+    q = as_state_vector(q, "q", model.n)
+    dq = as_state_vector(dq, "dq", model.n)
     P = as_state_vector(impulse, "impulse", 2)
     in_flight = stance_leg == 0 and not isinstance(stance_leg, bool)   # (False == 0)
     leg = 0 if in_flight else check_leg(stance_leg)
     if not P.any():     # no push: exactly the state it was given (no rounding of a solve)
         return dq.copy(), np.zeros(2)
     D = model.mass_matrix(q)
-    tau = J_HIP.T @ P
+    tau = (J_HIP if model.n == 5 else np.hstack([np.eye(2), np.zeros((2, model.n - 2))])).T @ P
     if not leg:
         return dq + np.linalg.solve(D, tau), np.zeros(2)
     return constrained_impulse_response(D, model.foot_jacobian(q, leg), dq, tau)

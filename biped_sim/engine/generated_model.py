@@ -6,8 +6,12 @@ coordinates with numpy: stance on contact c, ``[D -J_c^T; J_c 0] [ddq; F] = [-C 
 the impact of contact c, ``[D -J_c^T; J_c 0] [dq+; F_imp] = [D dq-; 0]``; the relabeling R (a permutation
 from the description's mirror, R R = I); and the exact derivatives of these phases from the generated
 derivative terms, each KKT system differentiated as it stands, ``K ds = dr - (dK) s`` (docs/gait.md
-"Derivatives for any robot"). The hybrid engine runs the three-link chain only (BipedModel):
-a GeneratedModel given to it is refused with one line (:data:`ENGINE_REFUSAL`).
+"Derivatives for any robot"). The hybrid engine runs it in its Python loop through the kernels
+``k_stance``, ``k_flight``, ``k_impact``, ``k_foot_positions``, ``k_foot_kinematics`` and ``k_energy`` (lists in,
+lists out, in the three-link kernels' layouts: ``loop_kernels``); a biped with two contact points, at most
+``loop_state.NQ_MAX`` coordinates (:meth:`GeneratedModel.engine_refusal` says why not otherwise). The
+three-link biped's closed forms (``p``, ``k``) it has not: what needs them refuses it in one line
+(:class:`EngineCannotRun`).
 """
 from __future__ import annotations
 
@@ -15,15 +19,46 @@ import numpy as np
 
 from biped_sim.engine.description import RobotDescription
 from biped_sim.engine.model import as_state_vector
+from biped_sim.engine.model_kernels import KERNELS, compiled_kernels
 
-ENGINE_REFUSAL = ("model {name!r} ({n} coordinates) cannot be simulated yet: the hybrid engine runs the "
-                  "three-link chain only (BipedModel; bs.load_model gives one for three_link, compass_gait and "
-                  "three_link_hip_mass) until the generic engine lands; its dynamics are available: "
-                  "mass_matrix, bias_forces, contact_jacobian, stance_dynamics, impact_map (docs/models.md)")
+NO_CLOSED_FORMS = ("model {name!r} ({n} coordinates) has no three-link closed forms (p, k): the hybrid engine runs "
+                   "it (its Python loop), but this needs the three-link biped (BipedModel; bs.load_model gives one "
+                   "for three_link, compass_gait and three_link_hip_mass)")
+
+
+def contact_chains(desc: RobotDescription) -> tuple:
+    """Per contact point, its chain from the floating base's point (grazing.contact_chains' form): the links from
+    the base to the point's link, each as (l_k, terms): l_k the distance from the link's joint to the next joint
+    on the way (or to the point), terms the entries of y whose sum (the signs of the joints' axes) is the link's
+    absolute angle, +-(entry + 1), the link's own first. A link that carries the way no distance is left out."""
+    by_name = {link.name: link for link in desc.links}
+    index = {link.name: 2 + i for i, link in enumerate(desc.links)}
+
+    def terms(name):
+        link = by_name[name]
+        own = index[name] + 1
+        if link.parent is None:
+            return (own,)
+        return (own if link.sign > 0 else -own,) + terms(link.parent)
+
+    out = []
+    for contact in desc.contacts:
+        path = [contact.link]
+        while by_name[path[-1]].parent is not None:
+            path.append(by_name[path[-1]].parent)
+        path.reverse()
+        chain = []
+        for k, name in enumerate(path):
+            to = by_name[path[k + 1]].origin if k + 1 < len(path) else contact.point
+            length = float(np.hypot(*to))
+            if length > 0.0:
+                chain.append((length, terms(name)))
+        out.append(tuple(chain))
+    return tuple(out)
 
 
 class EngineCannotRun(ValueError):
-    """A model the hybrid engine cannot simulate yet."""
+    """A described robot given where the three-link biped's closed forms are needed."""
 
 
 class GeneratedModel:
@@ -41,22 +76,56 @@ class GeneratedModel:
         self.contacts = tuple(module.CONTACTS)
         self.B = np.array(module.B, dtype=float).reshape(self.n, len(module.ACTUATED))
         self.relabeling = tuple(module.RELABELING)
+        self.contact_mirror = tuple(module.CONTACT_MIRROR)
+        self.m = self.B.shape[1]        # the actuators M
+        # the entry of q each actuator turns (B is a selection: a 1 a column), for the motors' power u . (B^T dq)
+        self.actuated_indices = tuple(int(np.flatnonzero(self.B[:, j])[0]) for j in range(self.m))
+        self.contact_chains = contact_chains(description)
         self.total_mass = module.TOTAL_MASS
+        # the six kernels the hybrid loop calls (model_kernels.KERNELS): the compiled twin where it is built, whose
+        # functions then stand for the numpy methods of the same names on this model; None: the numpy path runs
+        self.kernels = compiled_kernels(self)
+        if self.kernels is not None:
+            for name in KERNELS:
+                setattr(self, name, getattr(self.kernels, name))
 
     def __repr__(self):
         return f"GeneratedModel({self.name!r}, n={self.n}, contacts={self.contacts})"
 
     @property
-    def engine_refusal(self) -> str:
-        """Why the hybrid engine cannot run this model (``simulate`` raises it)."""
-        return ENGINE_REFUSAL.format(name=self.name, n=self.n)
+    def engine_refusal(self) -> str | None:
+        """Why the hybrid engine cannot run this model (one line), or None: it runs bipeds, two contact points,
+        at most NQ_MAX coordinates and NU_MAX actuators, and chains the grazing bound has room for."""
+        from biped_sim.engine.loop_state import CHAIN_MAX, NQ_MAX, NU_MAX, TERMS_MAX
+        why = None
+        if len(self.contacts) != 2:
+            why = (f"it has {len(self.contacts)} contact points ({', '.join(self.contacts)}); the engine runs bipeds, "
+                   "two contact points (a foot each)")
+        elif self.n > NQ_MAX or self.m > NU_MAX:
+            why = f"it has {self.n} coordinates and {self.m} actuators; the engine has room for {NQ_MAX} and {NU_MAX}"
+        elif any(len(chain) > CHAIN_MAX or any(len(t) > TERMS_MAX for _, t in chain) for chain in self.contact_chains):
+            why = (f"a foot's chain from the floating base has more than {CHAIN_MAX} links, or a link's angle more "
+                   f"than {TERMS_MAX} joints: the grazing bound has no room for it")
+        return None if why is None else f"the hybrid engine cannot run robot {self.name!r}: {why}"
 
-    # what the engine reads of a model first: refuse there too, in one line, instead of deep inside a step
+    # the three-link biped's closed forms: what reads them (the sensitivity, a compiled torque law) refuses in one line
     @property
     def p(self):
-        raise EngineCannotRun(self.engine_refusal)
+        raise EngineCannotRun(NO_CLOSED_FORMS.format(name=self.name, n=self.n))
 
     k = p
+
+    # the names the engine's resets and pushes call (BipedModel's)
+    def foot_position(self, q, leg) -> np.ndarray:
+        return self.contact_position(q, leg)
+
+    def foot_jacobian(self, q, leg) -> np.ndarray:
+        return self.contact_jacobian(q, leg)
+
+    def energy_fast(self, q, dq) -> float:
+        """``energy`` for lists of checked numbers."""
+        T, V = self.module.energy(q, dq)
+        return T + V
 
     def _q(self, q):
         return as_state_vector(q, "q", self.n).tolist()
@@ -120,6 +189,54 @@ class GeneratedModel:
         """Each link's joint and tip: an array (links, 2 points, xy), the drawing of any chain."""
         return np.array(self.module.segments(self._q(q))).reshape(-1, 2, 2)
 
+    # -- the engine's kernels: lists in, lists out, in the three-link kernels' layouts (loop_kernels) ------
+    def _kkt_matrix(self, q, c):
+        """D, J_c and the KKT matrix [D -J_c^T; J_c 0] of contact index c (0-based) at q (lists)."""
+        n, m = self.n, self.module
+        D = np.array(m.mass_matrix(q)).reshape(n, n)
+        w = 2 * n
+        J = np.array(m.contact_jacobians(q)[w * c:w * c + w]).reshape(2, n)
+        K = np.zeros((n + 2, n + 2))
+        K[:n, :n], K[:n, n:], K[n:, :n] = D, -J.T, J
+        return D, K
+
+    def k_stance(self, q, dq, u, contact_index0):
+        """(ddq, F) of floating-base stance on contact ``contact_index0`` (0-based): the KKT solve
+        [D -J_c^T; J_c 0] [ddq; F] = [B u - C dq - G; -Jdot_c dq], F the ground's force on the contact point."""
+        n, w, c = self.n, 2 * self.n, contact_index0
+        _, K = self._kkt_matrix(q, c)
+        Jd = np.array(self.module.contact_jacobian_dots(q, dq)[w * c:w * c + w]).reshape(2, n)
+        dqa = np.array(dq)
+        rhs = np.concatenate([self.B @ np.array(u) - np.array(self.module.bias_forces(q, dq)), -Jd @ dqa])
+        x = np.linalg.solve(K, rhs).tolist()
+        return x[:n], x[n:]
+
+    def k_flight(self, q, dq, u):
+        """ddq of flight, D ddq = B u - C dq - G."""
+        n = self.n
+        D = np.array(self.module.mass_matrix(q)).reshape(n, n)
+        return np.linalg.solve(D, self.B @ np.array(u) - np.array(self.module.bias_forces(q, dq))).tolist()
+
+    def k_impact(self, q, dq_minus, contact_index0):
+        """(dq+, impulse) of the rigid plastic impact of contact ``contact_index0`` (0-based):
+        [D -J_c^T; J_c 0] [dq+; Lambda] = [D dq-; 0]."""
+        n = self.n
+        D, K = self._kkt_matrix(q, contact_index0)
+        x = np.linalg.solve(K, np.concatenate([D @ np.array(dq_minus), np.zeros(2)])).tolist()
+        return x[:n], x[n:]
+
+    def k_foot_positions(self, q):
+        """[x_1, y_1, x_2, y_2, ...]: the contact points' positions."""
+        return list(self.module.contact_positions(q))
+
+    def k_foot_kinematics(self, q, dq):
+        """[p_1 (2), p_2 (2), ..., v_1 (2), v_2 (2), ...]: the contact points' positions, then their velocities."""
+        return list(self.module.contact_positions(q)) + list(self.module.contact_velocities(q, dq))
+
+    def k_energy(self, q, dq):
+        """[T, V]."""
+        return list(self.module.energy(q, dq))
+
     # -- phases --------------------------------------------------------------------------------------
     def relabel(self, q, dq):
         """R q, R dq: the mirror's links swapped (R R = I)."""
@@ -129,30 +246,22 @@ class GeneratedModel:
 
     def flight_dynamics(self, q, dq, u) -> np.ndarray:
         """ddq of ``D ddq + C dq + G = B u``."""
-        u = as_state_vector(u, "u", self.B.shape[1])
-        return np.linalg.solve(self.mass_matrix(q), self.B @ u - self.bias_forces(q, dq))
+        q, dq = self._qdq(q, dq)
+        return np.array(self.k_flight(q, dq, as_state_vector(u, "u", self.m).tolist()))
 
     def stance_dynamics(self, q, dq, u, contact=1):
         """(ddq, F): the KKT system of stance on ``contact`` (its point pinned)."""
-        u = as_state_vector(u, "u", self.B.shape[1])
-        n = self.n
-        J = self.contact_jacobian(q, contact)
-        K = np.zeros((n + 2, n + 2))
-        K[:n, :n], K[:n, n:], K[n:, :n] = self.mass_matrix(q), -J.T, J
-        rhs = np.concatenate([self.B @ u - self.bias_forces(q, dq),
-                              -self.contact_jacobian_dot(q, dq, contact) @ np.asarray(dq, dtype=float)])
-        x = np.linalg.solve(K, rhs)
-        return x[:n], x[n:]
+        c = self.contact_index(contact)
+        q, dq = self._qdq(q, dq)
+        ddq, F = self.k_stance(q, dq, as_state_vector(u, "u", self.m).tolist(), c)
+        return np.array(ddq), np.array(F)
 
     def impact_map(self, q, dq, contact=2):
         """(dq+, F_imp): the rigid plastic impact of ``contact`` (before relabeling)."""
-        n = self.n
-        D = self.mass_matrix(q)
-        J = self.contact_jacobian(q, contact)
-        K = np.zeros((n + 2, n + 2))
-        K[:n, :n], K[:n, n:], K[n:, :n] = D, -J.T, J
-        x = np.linalg.solve(K, np.concatenate([D @ as_state_vector(dq, "dq", n), np.zeros(2)]))
-        return x[:n], x[n:]
+        c = self.contact_index(contact)
+        q, dq = self._qdq(q, dq)
+        dq_plus, impulse = self.k_impact(q, dq, c)
+        return np.array(dq_plus), np.array(impulse)
 
     # -- derivatives (docs/gait.md "Derivatives for any robot") -----------------------------------------
     def mass_matrix_jacobian(self, q) -> np.ndarray:

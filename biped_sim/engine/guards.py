@@ -29,6 +29,7 @@ import numpy as np
 from biped_sim.engine import loop_rules as rules
 from biped_sim.engine.compiled import gen
 from biped_sim.engine.loop_state import RESULT, new_state
+from biped_sim.engine.model import BipedModel
 
 
 class FootState(NamedTuple):
@@ -42,15 +43,30 @@ class FootState(NamedTuple):
 def foot_states(model, q, dq, tan_slope=0.0) -> tuple[FootState, FootState]:
     """(foot 1, foot 2) at the physical state (lists q, dq); heights measured across the slope."""
     ft = [0.0] * 8
-    rules.ev_foot_states(gen.foot_kinematics(q, dq, model.k["foot_kinematics"]), 0, tan_slope, ft, 0)
+    if type(model) is BipedModel or isinstance(model, BipedModel):
+        kinematics = gen.foot_kinematics(q, dq, model.k["foot_kinematics"])
+    else:       # a described robot's kernel, the same layout
+        kinematics = model.k_foot_kinematics(q, dq)
+    rules.ev_foot_states(kinematics, 0, tan_slope, ft, 0)
     return FootState._make(ft[:4]), FootState._make(ft[4:])
 
 
 def foot_xy(model, q, leg):
     """(x, y) of foot ``leg`` (1 or 2) at the configuration q (a list)."""
     point = [0.0, 0.0]
-    rules.ev_foot_point(gen.foot_positions(q, model.k["foot_positions"]), leg, point)
+    if type(model) is BipedModel or isinstance(model, BipedModel):
+        positions = gen.foot_positions(q, model.k["foot_positions"])
+    else:
+        positions = model.k_foot_positions(q)
+    rules.ev_foot_point(positions, leg, point)
     return point[0], point[1]
+
+
+def other_foot(model, leg) -> int:
+    """The other foot of a biped: foot ``leg``'s mirror image (a described robot's ``contact_mirror``), 3 - leg
+    for the three-link biped."""
+    mirror = getattr(model, "contact_mirror", None)
+    return 3 - leg if mirror is None else mirror[leg - 1] + 1
 
 
 def foot_height(model, q, leg, tan_slope=0.0) -> float:

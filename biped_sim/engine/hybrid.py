@@ -63,6 +63,8 @@ from biped_sim.engine.model import BipedModel, as_state_vector, short_repr
 from biped_sim.engine.modes import (
     bind_controller,
     checked_command,
+    count_word,
+    finite_floats,
     floating_to_phys,
     mode_functions,
     project_onto_pin,
@@ -84,12 +86,14 @@ from biped_sim.engine.torque_hook import reference_law
 from biped_sim.engine.witnesses import ResetContext, witness
 
 
-def held_torque(u):
-    """u as two finite floats [u1, u2], or ValueError (plain float checks: the node's every period)."""
-    checked = two_finite_floats(u)
+def held_torque(u, m=2):
+    """u as m finite floats (the three-link's two: [u1, u2]), or ValueError (plain float checks: the node's every
+    period)."""
+    checked = two_finite_floats(u) if m == 2 else finite_floats(u, m)
     if checked is None:
-        raise ValueError(f"u must be two finite torques (real numbers, N m: not bools, complex numbers or "
-                         f"strings), got {short_repr(u)}")
+        one = "" if m == 2 else ", one an actuator"
+        raise ValueError(f"u must be {count_word(m)} finite torques{one} (real numbers, N m: not bools, complex "
+                         f"numbers or strings), got {short_repr(u)}")
     return checked
 
 
@@ -117,7 +121,13 @@ class HybridSimulator:
 
     def __init__(self, model: BipedModel, q0, dq0, stance_leg=1, rtol=1e-9, atol=1e-9,
                  method="dop853", mu=None, t0=0.0, on_step=None, **options):
+        why = None if isinstance(model, BipedModel) else model.engine_refusal
+        if why is not None:
+            raise ValueError(why)
         self.model = model
+        # the sizes: N coordinates and M actuators (the three-link biped's 5 and 2, a described robot's own)
+        self.n, self._m = model.n, model.B.shape[1]
+        self.p = model.p if isinstance(model, BipedModel) else None     # (the three-link's parameters)
         # the hybrid state, the simulator's for its life: the fields below that the compiled loop reads and
         # writes are properties over it (loop_state.py: sim_t, e0, control_periods, ...)
         self.S, self._loop = compiled_loop.run_state(model)
@@ -130,9 +140,8 @@ class HybridSimulator:
         # ~0.4 s) is imported by the first event located in Python, or by a realtime caller up front
         # (sim_node: prepare_event_location), so that a short batch run does not pay for it
         prepare_stepper(method)
-        q0 = as_state_vector(q0, "q0")
-        dq0 = as_state_vector(dq0, "dq0")
-        self.p = model.p
+        q0 = as_state_vector(q0, "q0", self.n)
+        dq0 = as_state_vector(dq0, "dq0", self.n)
         self.ground = G.Ground.of(self.opt.slope)
         feet = self.feet(q0.tolist(), dq0.tolist())
         G.check_initial_contact(feet, stance_leg, self.opt)
@@ -153,12 +162,12 @@ class HybridSimulator:
         self._signatures_checked = {}       # id -> the controllers whose signature was checked (held: no id reused)
         self.control_periods = 0            # advance_period calls so far
         self.on_step = on_step
-        self._u = [0.0, 0.0]
+        self._u = [0.0] * self._m
         self._controller = None
         self._h = None
         self._stepper = None
         self._compiled = None               # the compiled loop's stepper, built at its first mode
-        self._last_F, self._last_u = [0.0, 0.0], [0.0, 0.0]   # the last right-hand-side evaluation's
+        self._last_F, self._last_u = [0.0, 0.0], [0.0] * self._m   # the last right-hand-side evaluation's
         self._initial_sample_pending = True
         self._periods_outcome = None        # how the compiled loop's last periods() ended
         self._stats = dict(steps=0, compiled_loop_steps=0, rejected_steps=0, rhs_evaluations=0, events=0, impacts=0,
@@ -166,7 +175,7 @@ class HybridSimulator:
                           max_energy_balance_residual=0.0, pushes=0, scuffs_ignored=0, deepest_scuff=0.0, wall_time=0.0)
         self._nfev_base = 0
         self._rejected_base = 0
-        self._samples = Samples(keep=self.opt.keep_samples, S=self.S)
+        self._samples = Samples(keep=self.opt.keep_samples, S=self.S, n=self.n, m=self._m)
         self._record(self.q, self.dq, self.stance_leg, self._force_at(self.t, self.q.tolist(), self.dq.tolist()),
                      self.u)
 
@@ -229,14 +238,14 @@ class HybridSimulator:
         period left them unmade (the node publishes the state every period)."""
         S = self.S
         if S[SIM_STATE_UNMADE]:
-            return list(S[SIM_Q:SIM_Q + 5]), list(S[SIM_DQ:SIM_DQ + 5])
+            return list(S[SIM_Q:SIM_Q + self.n]), list(S[SIM_DQ:SIM_DQ + self.n])
         return self._q.tolist(), self._dq.tolist()
 
     def _state_from_loop(self):
         # a run of the compiled loop leaves q and dq in the state (sim_q, sim_dq) to be made when read: the
         # node's engine period makes no arrays nobody reads
         S = self.S
-        self._q, self._dq = np.array(S[SIM_Q:SIM_Q + 5]), np.array(S[SIM_DQ:SIM_DQ + 5])
+        self._q, self._dq = np.array(S[SIM_Q:SIM_Q + self.n]), np.array(S[SIM_DQ:SIM_DQ + self.n])
         S[SIM_STATE_UNMADE] = 0.0
 
     # -- the fields of the state (loop_state.py) the compiled loop reads and writes
@@ -285,13 +294,18 @@ class HybridSimulator:
 
     @property
     def _u(self):
-        # the torque held now, [u1, u2]
+        # the torque held now, [u1, u2] (a described robot's: one an actuator)
         S = self.S
+        if self._m != 2:
+            return list(S[SIM_U:SIM_U + self._m])
         return [S[SIM_U], S[SIM_U + 1]]
 
     @_u.setter
     def _u(self, value):
         S = self.S
+        if self._m != 2:
+            S[SIM_U:SIM_U + self._m] = value
+            return
         S[SIM_U], S[SIM_U + 1] = value
 
     @property
@@ -306,14 +320,15 @@ class HybridSimulator:
 
     @property
     def u(self):
-        """The torque held now, [u1, u2] (N m): the last ``advance`` or ``advance_period``'s."""
+        """The torque held now, [u1, u2] (N m; a described robot's M, one an actuator): the last ``advance`` or
+        ``advance_period``'s."""
         return list(self._u)
 
     # -- controller and ground force -----------------------------------------------------------
     def _call_controller(self, t, q, dq, controller=None):
         """u = controller(t, q, dq, stance_leg) as a list of two finite floats (lists q, dq: the controller
         gets copies, its own)."""
-        return checked_command(controller or self._controller)(t, list(q), list(dq), self.stance_leg)
+        return checked_command(controller or self._controller, self._m)(t, list(q), list(dq), self.stance_leg)
 
     def _check_signature(self, controller):
         """A ValueError before anything runs for a controller that cannot be called as controller(t, q, dq,
@@ -329,7 +344,7 @@ class HybridSimulator:
         """The torque applied at a physical state (lists): the held one, or the controller's."""
         if self._controller is None:
             S = self.S
-            return [S[SIM_U], S[SIM_U + 1]]
+            return [S[SIM_U], S[SIM_U + 1]] if self._m == 2 else list(S[SIM_U:SIM_U + self._m])
         return self._call_controller(t, q, dq)
 
     def _force_at(self, t, q, dq, u=None):
@@ -339,6 +354,8 @@ class HybridSimulator:
             return [0.0, 0.0]
         if u is None:
             u = self._torque_at(t, q, dq)
+        if self.p is None:      # a described robot: the KKT solve's force (its fixed base's state is consistent)
+            return self.model.k_stance(q, dq, u, self.stance_leg - 1)[1]
         if self.opt.base == "fixed":
             return stance_fixed_fast(self.model, q[2:], dq[2:], u, self.stance_leg)[1]
         return stance_floating_fast(self.model, q, dq, u, self.stance_leg)[1]
@@ -359,7 +376,7 @@ class HybridSimulator:
     def _advance(self, t_end, u, controller, periods=None, held=None):
         """``advance``'s run (``periods``: advance_periods' in C; ``held``: a Loop.period's result to finish)."""
         if u is not None:   # (refused: the torque held stays)
-            self._u = held_torque(u)
+            self._u = held_torque(u, self._m)
         self._controller = controller
         n_events = len(self.events)
         wall0 = time.perf_counter()
@@ -407,7 +424,7 @@ class HybridSimulator:
         check_number("period", period, 0.0, math.inf, "s", open_low=True)   # (refused: no period begun)
         check_number("t_final", t_final, 0.0, math.inf, "s; 0 for none", allow_inf=True)
         if controller is None and u is not None:
-            u = held_torque(u)
+            u = held_torque(u, self._m)
         k = period_index(self.t, period, self.control_periods)
         t_next = rules.ev_period_end(k, period, t_final)
         self.control_periods = k + 1
@@ -475,7 +492,7 @@ class HybridSimulator:
         self._check_signature(controller)
         q, dq = self.state_lists()
         try:
-            return checked_command(controller)(self.t, q, dq, self.stance_leg)
+            return checked_command(controller, self._m)(self.t, q, dq, self.stance_leg)
         except ControllerError as exc:
             self._fail(str(exc), error=exc)
             return None
@@ -496,8 +513,8 @@ class HybridSimulator:
             return
         S = self.S
         rhs, to_phys, from_phys = mode_functions(
-            self.model, self.stance_leg, self.opt.base, self.pin, [S[SIM_U], S[SIM_U + 1]],
-            bind_controller(self._controller, self.stance_leg), self._keep_evaluation)
+            self.model, self.stance_leg, self.opt.base, self.pin, self._u,
+            bind_controller(self._controller, self.stance_leg, self._m), self._keep_evaluation)
         y0 = from_phys(self.q.tolist(), self.dq.tolist(), S[SIM_WORK])
         self._to_phys = to_phys
         # a Python stepper's fields are the simulator's state's where it is a list (pure Python); beside the
@@ -613,7 +630,10 @@ class HybridSimulator:
     def _record(self, q, dq, leg, F, u, lists=None):
         """A sample of the arrays q, dq (``lists``: the same as lists, if at hand), the torque u applied
         there, and the energy balance."""
-        T, V = gen.energy(*(lists or (q.tolist(), dq.tolist())), self.model.k["energy"])
+        if self.p is None:      # a described robot's kernel
+            T, V = self.model.k_energy(*(lists or (q.tolist(), dq.tolist())))
+        else:
+            T, V = gen.energy(*(lists or (q.tolist(), dq.tolist())), self.model.k["energy"])
         S = self.S
         residual = rules.ev_energy_residual(T + V, S[E0], S[SIM_WORK], S[PUSH_WORK], S[ENERGY_LOST])
         self._stats["max_energy_balance_residual"] = rules.ev_running_max(self._stats["max_energy_balance_residual"],

@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from biped_sim.engine import guards as G, loop_rules as rules
-from biped_sim.engine.grazing import dip_bracket
+from biped_sim.engine.grazing import chain_fields, dip_bracket
 from biped_sim.engine.loop_state import (
     ARMED,
     DEEPEST_SCUFF,
@@ -41,6 +41,7 @@ from biped_sim.engine.loop_state import (
     new_state,
     put,
 )
+from biped_sim.engine.model import BipedModel
 from biped_sim.engine.results import Event, SceneAssumptionError
 from biped_sim.engine.witnesses import triggered, witness, witnesses
 
@@ -65,6 +66,8 @@ class EventLocator:
         self.model, self.ground, self.opt, self.mu = model, ground, opt, mu
         self.S = new_state() if S is None else S
         self.impacts = impacts   # the run's ImpactHistory: a crossing in the Zeno limit is an impact
+        self._chains = chain_fields(model)     # the feet's chains, the dip bound's (grazing.py)
+        self._fixed_chains = not isinstance(model, BipedModel)    # a described robot's fixed base: both chains
         # at the start no reset has just happened, so a free foot above the ground, however little,
         # is armed at once: its crossing is found (a foot on it arms when it rises above arm_height)
         for leg in (1, 2):
@@ -222,7 +225,8 @@ class EventLocator:
             elif guard.name == "touchdown" and g0 > 0 and g1 > 0:
                 # both ends above the ground: a dip in between is found with its guarantee
                 bracket = dip_bracket(st, to_phys, guard_at, guard.leg, stance_leg, self.opt.base == "fixed",
-                                      self.model.parameters.l_leg, self.ground.tan, g0, g1, self.opt.graze_tol)
+                                      self._chains, self.ground.tan, g0, g1, self.opt.graze_tol,
+                                      fixed_chains=self._fixed_chains)
             if bracket is None:
                 continue
             t_root = self._crossing(st, guard, guard_at, bracket)
@@ -247,7 +251,7 @@ class EventLocator:
         legs = [guard.leg]
         if guard.name == "touchdown" and not stance_leg:
             legs += [g.leg for t, g in roots[1:] if g.name == "touchdown" and t - t_first <= self.opt.simultaneous_tol]
-            other = 3 - guard.leg
+            other = G.other_foot(self.model, guard.leg)
             if len(legs) == 1 and self.armed[other - 1]:
                 # the other foot may be within the tolerance without having crossed yet
                 fo = self._feet_at(st, to_phys, t_first)[other - 1]
@@ -319,7 +323,8 @@ class EventLocator:
     def _scuff_event(self, st, to_phys, leg, stance_leg, scuff, t_up):
         t_deep = scuff[2]
         q, dq, _ = to_phys(st.dense_at(t_deep)) if rules.ev_within_step(st.t_old, st.t, t_deep) else (None, None, None)
-        return scuff_event(leg, stance_leg, scuff, t_up, q, dq, self.opt.scuff_depth, self.opt.scuff_rule)
+        return scuff_event(leg, stance_leg, scuff, t_up, q, dq, self.opt.scuff_depth, self.opt.scuff_rule,
+                           self.model.n)
 
     def _feet_at(self, st, to_phys, t):
         q, dq, _ = to_phys(st.dense_at(t))
@@ -368,12 +373,12 @@ def scuff_left_model(leg, t_start, depth, t, foot, scuff_rule) -> str:
             "forward pass, touchdown_rule='any' makes every crossing a touchdown)")
 
 
-def scuff_event(leg, stance_leg, scuff, t_up, q, dq, scuff_depth, scuff_rule) -> Event:
+def scuff_event(leg, stance_leg, scuff, t_up, q, dq, scuff_depth, scuff_rule, n=5) -> Event:
     """The Event of a scuff of foot ``leg`` that ended at ``t_up`` (``scuff``: [t_start, deepest,
-    t_deepest]; q, dq: the state at t_deepest, or None when it is not inside the last step)."""
+    t_deepest]; q, dq: the state at t_deepest, or None when it is not inside the last step; n coordinates)."""
     t_start, depth, t_deep = scuff
-    q = np.array(q) if q is not None else np.full(5, np.nan)
-    dq = np.array(dq) if dq is not None else np.full(5, np.nan)
+    q = np.array(q) if q is not None else np.full(n, np.nan)
+    dq = np.array(dq) if dq is not None else np.full(n, np.nan)
     return Event(t_start, "scuff", leg, q, dq, dq.copy(), None, stance_leg, stance_leg,
                  message=f"foot {leg} scuffed the ground behind the stance foot from t={t_start:.9g} s to "
                          f"t={t_up:.9g} s, {depth:.3g} m deep at t={t_deep:.9g} s (the assumption of "

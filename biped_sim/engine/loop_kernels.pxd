@@ -30,7 +30,8 @@ cdef extern from "_gen/_kernels.h" nogil:
 
 cdef extern from "_loop_state.h":
     enum:
-        LS_NMAX
+        LS_NQ_MAX
+        LS_N_Y
         LS_METHOD
         LS_K_POS
         LS_K_IMPACT
@@ -44,7 +45,8 @@ cdef inline void k_rhs(double *S, rhs_t fun, void *ctx, double t, Py_ssize_t y, 
 
 cdef inline void k_step(double *S, rhs_t fun, void *ctx, double t, Py_ssize_t y, Py_ssize_t f, double h,
                         double rtol, double atol, Py_ssize_t out) noexcept nogil:
-    # S[out:] = y_new, f_new, err, stages k0..k12, each NMAX long (the compiled loop's y has NMAX = 11 entries)
+    # S[out:] = y_new, f_new, err, stages k0..k12, rows S[N_Y] apart (the compiled loop's y has 11 entries: the
+    # generated kernels' rows)
     if S[LS_METHOD] == 0.0:
         k_dop853_step_11(fun, ctx, t, &S[y], &S[f], h, rtol, atol, &S[out])
     else:
@@ -53,8 +55,9 @@ cdef inline void k_step(double *S, rhs_t fun, void *ctx, double t, Py_ssize_t y,
 
 cdef inline void k_dense(double *S, rhs_t fun, void *ctx, double t_old, double h, Py_ssize_t y_old, Py_ssize_t y,
                          Py_ssize_t k, Py_ssize_t dense) noexcept nogil:
-    # S[dense:] = the dense output's rows of the step from the stages at S[k:] (dop853: 8 an entry, dopri5: 5)
-    cdef Py_ssize_t n = LS_NMAX
+    # S[dense:] = the dense output's rows of the step from the stages at S[k:], S[N_Y] apart (dop853: 8 an entry,
+    # dopri5: 5)
+    cdef Py_ssize_t n = <Py_ssize_t>S[LS_N_Y]
     if S[LS_METHOD] == 0.0:
         k_dop853_dense_11(fun, ctx, t_old, h, &S[y_old], &S[y], &S[k], &S[k + 5 * n], &S[k + 6 * n],
                           &S[k + 7 * n], &S[k + 8 * n], &S[k + 9 * n], &S[k + 10 * n], &S[k + 11 * n],
@@ -69,11 +72,16 @@ cdef inline void k_foot_positions(double *S, Py_ssize_t q, Py_ssize_t p) noexcep
 
 
 cdef inline void k_impact_map(double *S, int leg, Py_ssize_t q, Py_ssize_t dqm, Py_ssize_t out) noexcept nogil:
-    # S[out:] = dq+ (5) and the impulse (2) of foot leg's impact
+    # S[out:out + 5] = dq+ and S[out + NQ_MAX:] the impulse (2) of foot leg's impact (the kernel writes them in
+    # one row of 7)
+    cdef double r[7]
     if leg == 2:
-        c_impact_map_2(&S[q], &S[dqm], &S[LS_K_IMPACT], &S[out])
+        c_impact_map_2(&S[q], &S[dqm], &S[LS_K_IMPACT], r)
     else:
-        c_impact_map_1(&S[q], &S[dqm], &S[LS_K_IMPACT], &S[out])
+        c_impact_map_1(&S[q], &S[dqm], &S[LS_K_IMPACT], r)
+    memcpy(&S[out], r, 5 * sizeof(double))
+    S[out + LS_NQ_MAX] = r[5]
+    S[out + LS_NQ_MAX + 1] = r[6]
 
 
 cdef inline void k_energy(double *S, Py_ssize_t q, Py_ssize_t dq, Py_ssize_t out) noexcept nogil:

@@ -14,6 +14,7 @@ cdef public double rk_dense_at(double *S, Py_ssize_t i, double tt) noexcept nogi
 cdef public void rk_dense_state(double *S, double tt) noexcept nogil
 cdef public double ev_height_at(double *S, int leg, double tt) noexcept nogil
 cdef double ev_height_guard(double *S, void *ctx, double tt) noexcept nogil
+cdef double ev_power_coefficient(double *S, Py_ssize_t r, Py_ssize_t p, Py_ssize_t w, double hi) noexcept nogil
 cdef void ev_dip_coefficients(double *S, int leg) noexcept nogil
 cdef int ev_dip_search(double *S, guard_t g, void *ctx, double h0, double h1) noexcept nogil
 cdef public int ev_may_dip(double *S, rhs_t fun, void *ctx, int leg, double h0, double h1) noexcept nogil
@@ -74,6 +75,10 @@ cdef public double ev_energy_residual(double energy, double e0, double work, dou
 cdef public double ev_running_max(double m, double v) noexcept nogil
 cdef public void ev_sample_row(double *row, double t, double *q, double *dq, double leg, double *F, double *u,
                                double residual) noexcept nogil
+cdef public void ev_sample_row_of(double *row, double t, double *q, double *dq, Py_ssize_t n, double leg, double *F,
+                                  double *u, Py_ssize_t m, double residual) noexcept nogil
+cdef public bint ev_finite_sum(double *u, Py_ssize_t m) noexcept nogil
+cdef public double ev_actuated_power(double *u, double *dq, double *joints, Py_ssize_t m) noexcept nogil
 cdef public bint ev_finite_torques(double u0, double u1) noexcept nogil
 cdef public bint ev_next_period_runs(double t, double t_final, double t_stop, double period) noexcept nogil
 cdef public double ev_motor_power(double *u, double dq1, double dq2) noexcept nogil

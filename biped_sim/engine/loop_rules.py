@@ -58,11 +58,19 @@ if not cython.compiled:
     from biped_sim.engine.loop_state import (
         ATOL,
         CALLBACK_FAILED,
+        CHAIN,
+        CHAIN_LINKS,
+        CHAIN_MAX,
+        CHAIN_WIDTH,
         COEF,
+        COEF_LENGTH,
+        COEF_LINKS,
+        COEF_WIDTH,
         COS_S,
         DEEPEST_TRIAL,
         DENSE,
         DENSE_READY,
+        DIP_D,
         DQ_MINUS,
         DQ_PLUS,
         ENERGY_AFTER,
@@ -88,7 +96,6 @@ if not cython.compiled:
         IMPACT_PULLS,
         IMPULSE,
         KINEMATICS,
-        L_LEG,
         LAST_IMPACT,
         MAX_DEPTH,
         MAX_STEP,
@@ -96,6 +103,7 @@ if not cython.compiled:
         MODE_EVENTS,
         MU,
         N_IMPACTS,
+        N_Q,
         N_RECENT,
         N_Y,
         NACCEPTED,
@@ -109,13 +117,8 @@ if not cython.compiled:
         RECENT_IMPACTS,
         RESULT,
         RING,
-        ROW_DQ,
-        ROW_F,
-        ROW_LEG,
         ROW_Q,
-        ROW_RESIDUAL,
         ROW_T,
-        ROW_U,
         RTOL,
         SCUFF_DEPTH,
         SCUFF_TRIAL,
@@ -190,7 +193,7 @@ def rk_step(S, fun, ctx):
             S[FAIL_KIND] = 3.0
             return -1
         S[NFEV] += evaluations
-        err = S[OUT + 2 * NMAX]
+        err = S[OUT + 2 * n]
         if err < 1.0:
             s = 0.0
             for i in range(n):
@@ -218,11 +221,12 @@ def rk_step(S, fun, ctx):
         S[NREJECTED] += 1
     S[NACCEPTED] += 1
     S[T_OLD] = t
-    k_copy(S, Y_OLD, Y, NMAX)
+    k_copy(S, Y_OLD, Y, n)
     S[H] = h
     S[T] = t + h if h < remaining else S[T_BOUND]
-    k_copy(S, Y, OUT, 2 * NMAX)                             # y_new and f_new: Y and F are next to each other
-    k_copy(S, STAGES, OUT + 2 * NMAX + 1, stages * NMAX)
+    k_copy(S, Y, OUT, n)                                    # the trial step's rows are n apart (S[N_Y])
+    k_copy(S, F, OUT + n, n)
+    k_copy(S, STAGES, OUT + 2 * n + 1, stages * n)
     S[DENSE_READY] = 0.0
     return 0
 
@@ -265,7 +269,7 @@ def rk_dense_state(S, tt):
 def ev_height_at(S, leg, tt):
     """Foot leg's height across the slope on the floating base's dense output at tt (guards.foot_height)."""
     i: cython.Py_ssize_t
-    for i in range(5):
+    for i in range(int(S[N_Q])):
         S[QS + i] = rk_dense_at(S, i, tt)
     k_foot_positions(S, QS, PS)
     return ev_across(S[TAN_S], S[PS + 2 * leg - 2], S[PS + 2 * leg - 1])
@@ -277,23 +281,56 @@ def ev_height_guard(S, ctx, tt):
     return ev_height_at(S, leg, tt)
 
 
-def ev_dip_coefficients(S, leg):
-    """S[COEF]: |power-basis coefficients| of the floating base's swing leg angle (its entry of y plus the
-    torso's), the hip's x and y (rk_dense first): a row of 3 for each power 0 to 7. dop853: TO_POWER_BASIS
-    times the dense row; dopri5: y, h q1 .. h q4, then zeros."""
-    p: cython.Py_ssize_t
+def ev_power_coefficient(S, r, p, w, hi):
+    """The power-basis coefficient of x^p (x = (t - t_old) / h) of the dense output's row at S[r] (rk_dense first),
+    the row w wide: dop853 (w 8): TO_POWER_BASIS times the row; dopri5 (w 5): y, h q1 .. h q4, then zeros."""
     j: cython.Py_ssize_t
+    a: cython.double
+    if w == 8:
+        a = 0.0
+        for j in range(8):
+            a += S[TO_POWER_BASIS + 8 * p + j] * S[r + j]
+        return a
+    if p == 0:
+        return S[r]
+    if p < 5:
+        return hi * S[r + p]
+    return 0.0
+
+
+def ev_dip_coefficients(S, leg):
+    """S[COEF]: |power-basis coefficients| (ev_power_coefficient) of the floating base's x and y and of the absolute
+    angle of each link of foot leg's chain (S[CHAIN]: the sum of its terms' entries of y, in their order), a row
+    of COEF_WIDTH for each power 0 to 7; S[COEF_LINKS] and S[COEF_LENGTH] the chain's links and their lengths
+    (rk_dense first). x, y and the first link's first two terms are taken in one pass over the dense rows (the
+    three-link's chain is that link: its leg's entry and the torso's), the other terms one by one."""
+    p: cython.Py_ssize_t
+    c: cython.Py_ssize_t
+    j: cython.Py_ssize_t
+    e: cython.Py_ssize_t
+    m: cython.Py_ssize_t
+    row: cython.Py_ssize_t
     w: cython.Py_ssize_t = 8 if S[METHOD] == 0.0 else 5
-    ra: cython.Py_ssize_t = DENSE + w * (1 + leg)      # the rows of the leg's angle, the torso's, x and y
-    rt: cython.Py_ssize_t = DENSE + w * 4
+    links: cython.Py_ssize_t = int(S[CHAIN_LINKS + leg - 1])
+    chain: cython.Py_ssize_t = CHAIN + CHAIN_MAX * CHAIN_WIDTH * (leg - 1)
+    m0: cython.Py_ssize_t = int(S[chain + 1]) if links > 0 else 0
+    e0: cython.Py_ssize_t = int(S[chain + 2]) if m0 > 0 else 1
+    e1: cython.Py_ssize_t = int(S[chain + 3]) if m0 > 1 else 1
+    ra: cython.Py_ssize_t = DENSE + w * ((e0 if e0 > 0 else -e0) - 1)     # the rows of the first two terms, x and y
+    rt: cython.Py_ssize_t = DENSE + w * ((e1 if e1 > 0 else -e1) - 1)
     rx: cython.Py_ssize_t = DENSE
     ry: cython.Py_ssize_t = DENSE + w
+    hi: cython.double = S[T] - S[T_OLD]
+    leg_and_torso: cython.bint = links == 1 and m0 == 2 and e0 > 0 and e1 > 0   # a chain of one link, two terms
     a: cython.double
     t: cython.double
     x: cython.double
     y: cython.double
     b: cython.double
-    hi: cython.double = S[T] - S[T_OLD]
+    v: cython.double
+    S[COEF_LINKS] = links
+    for c in range(links):
+        S[COEF_LENGTH + c] = S[chain + CHAIN_WIDTH * c]
     for p in range(8):
         if w == 8:
             a = t = x = y = 0.0
@@ -309,39 +346,80 @@ def ev_dip_coefficients(S, leg):
             a, t, x, y = hi * S[ra + p], hi * S[rt + p], hi * S[rx + p], hi * S[ry + p]
         else:
             a = t = x = y = 0.0
-        S[COEF + 3 * p] = fabs(a + t)
-        S[COEF + 3 * p + 1] = fabs(x)
-        S[COEF + 3 * p + 2] = fabs(y)
+        S[COEF + COEF_WIDTH * p] = fabs(x)
+        S[COEF + COEF_WIDTH * p + 1] = fabs(y)
+        if leg_and_torso:   # (the three-link's: its leg's angle plus the torso's)
+            S[COEF + COEF_WIDTH * p + 2] = fabs(a + t)
+            continue
+        if links == 0:
+            continue
+        if e0 < 0:
+            a = -a
+        if m0 > 1:
+            a = a + t if e1 > 0 else a - t
+        if m0 > 2:
+            for j in range(2, m0):
+                e = int(S[chain + 2 + j])
+                v = ev_power_coefficient(S, DENSE + w * ((e if e > 0 else -e) - 1), p, w, hi)
+                a = a + v if e > 0 else a - v
+        S[COEF + COEF_WIDTH * p + 2] = fabs(a)
+        if links < 2:
+            continue
+        for c in range(1, links):
+            row = chain + CHAIN_WIDTH * c
+            m = int(S[row + 1])
+            a = 0.0
+            for j in range(m):
+                e = int(S[row + 2 + j])
+                v = ev_power_coefficient(S, DENSE + w * ((e if e > 0 else -e) - 1), p, w, hi)
+                if j == 0:
+                    a = v if e > 0 else -v
+                elif e > 0:
+                    a = a + v
+                else:
+                    a = a - v
+            S[COEF + COEF_WIDTH * p + 2 + c] = fabs(a)
 
 
 def ev_dip_search(S, g, ctx, h0, h1):
     """grazing.dip_bracket's search over the last step [t_old, t] (both ends above the ground: guard values h0,
-    h1 > 0) with the |coefficients| in S[COEF]: 1 and a bracket in S[RESULT:RESULT + 2] where the guard
-    g(S, ctx, t) may dip deeper than graze_tol inside the step, else 0.
+    h1 > 0) with the |coefficients| in S[COEF] (ev_dip_coefficients): 1 and a bracket in S[RESULT:RESULT + 2]
+    where the guard g(S, ctx, t) may dip deeper than graze_tol inside the step, else 0.
 
-    Bound on [a, b] (in s = (t - t_old) / h): |h''| <= l (1 + |tan|) (|theta''| + theta'^2) + |y''| + |tan| |x''|
-    (fixed base: l (1 + |tan|) (|theta''| + theta'^2 + |theta_st''| + theta_st'^2)), from the coefficients'
-    derivative weights; h >= min(h(a), h(b)) - M2 (b - a)^2 / 8. The left half is searched first."""
+    The bound. The foot is the floating base's point plus one vector per link of its chain, each of fixed
+    length l_k turning with the link's absolute angle a_k: p = (x, y) + sum_k l_k (sin(a_k + phi_k),
+    cos(a_k + phi_k)). Its height across the ground is h = p_y + tan p_x, so in s = (t - t_old) / h
+    h'' = y'' + tan x'' + sum_k l_k [(cos - tan sin)(.) a_k'' - (sin + tan cos)(.) a_k'^2], and as |sin|, |cos| <= 1:
+    |h''| <= |y''| + |tan| |x''| + sum_k l_k (1 + |tan|) (|a_k''| + a_k'^2). Each of x, y and a_k is a
+    polynomial in s with power-basis coefficients c_p, so on [0, b] |f'| <= sum_p p |c_p| b^(p-1) and
+    |f''| <= sum_p p (p - 1) |c_p| b^(p-2) (the derivative weights). Fixed base (the three-link's): the hip hangs
+    from the pin by the stance leg, so x, y give way to its angle: l (1 + |tan|) (|a''| + a'^2 + |a_st''| +
+    a_st'^2). Then h >= min(h(a), h(b)) - M2 (b - a)^2 / 8 on [a, b] (M2 the bound): an interval where that is
+    positive holds no dip; the others are halved, the left half searched first."""
     k: cython.Py_ssize_t
+    c: cython.Py_ssize_t
     ta: cython.double = fabs(S[TAN_S])
-    lt: cython.double = S[L_LEG] * (1 + ta)
+    links: cython.Py_ssize_t = int(S[COEF_LINKS])
+    lt: cython.double = S[COEF_LENGTH] * (1 + ta) if links > 0 else 0.0
     slack: cython.double = 1.0 + 1e-6           # the coefficients carry roundoff
     t_old: cython.double = S[T_OLD]
     h_step: cython.double = S[T] - S[T_OLD]
     fixed: cython.bint = S[FIXED_BASE] != 0.0
     top: cython.Py_ssize_t
+    r: cython.Py_ssize_t
     a: cython.double
     b: cython.double
     ha: cython.double
     hb: cython.double
     depth: cython.int
-    d1_0: cython.double
-    d1_1: cython.double
-    d2_0: cython.double
-    d2_1: cython.double
-    d2_2: cython.double
+    d1a: cython.double
+    d2a: cython.double
+    d1x: cython.double
+    d2x: cython.double
+    d2y: cython.double
     w1: cython.double
     w2: cython.double
+    d1: cython.double
     bound: cython.double
     drop: cython.double
     lo: cython.double
@@ -360,7 +438,13 @@ def ev_dip_search(S, g, ctx, h0, h1):
         ha = S[STACK + 5 * top + 2]
         hb = S[STACK + 5 * top + 3]
         depth = int(S[STACK + 5 * top + 4])
-        d1_0 = d1_1 = d2_0 = d2_1 = d2_2 = 0.0
+        # the derivative bounds of x (d1x, d2x), y (d2y), the first link's angle (d1a, d2a) and, in S[DIP_D], the
+        # other links' angles
+        d1a = d2a = d1x = d2x = d2y = 0.0
+        if links > 1:
+            for c in range(3, 2 + links):
+                S[DIP_D + c] = 0.0
+                S[DIP_D + COEF_WIDTH + c] = 0.0
         for k in range(8):
             # the derivative weights over [0, b]: k b^(k-1) and k (k-1) b^(k-2) (on [0, 1] the powers are 1)
             if b == 1.0:
@@ -369,15 +453,25 @@ def ev_dip_search(S, g, ctx, h0, h1):
             else:
                 w1 = k * pow(b, 1.0 * (k - 1 if k - 1 > 0 else 0))
                 w2 = k * (k - 1) * pow(b, 1.0 * (k - 2 if k - 2 > 0 else 0))
-            d1_0 += w1 * S[COEF + 3 * k]
-            d2_0 += w2 * S[COEF + 3 * k]
-            d1_1 += w1 * S[COEF + 3 * k + 1]
-            d2_1 += w2 * S[COEF + 3 * k + 1]
-            d2_2 += w2 * S[COEF + 3 * k + 2]
-        if fixed:
-            bound = lt * (d2_0 + d1_0 * d1_0 + d2_1 + d1_1 * d1_1) * slack
+            r = COEF + COEF_WIDTH * k
+            d1a += w1 * S[r + 2]
+            d2a += w2 * S[r + 2]
+            d1x += w1 * S[r]
+            d2x += w2 * S[r]
+            d2y += w2 * S[r + 1]
+            if links > 1:
+                for c in range(3, 2 + links):
+                    S[DIP_D + c] += w1 * S[r + c]
+                    S[DIP_D + COEF_WIDTH + c] += w2 * S[r + c]
+        if fixed:   # (x's column holds the stance leg's angle)
+            bound = lt * (d2a + d1a * d1a + d2x + d1x * d1x) * slack
         else:
-            bound = (lt * (d2_0 + d1_0 * d1_0) + d2_2 + ta * d2_1) * slack
+            bound = lt * (d2a + d1a * d1a)
+            if links > 1:
+                for c in range(3, 2 + links):
+                    d1 = S[DIP_D + c]
+                    bound += S[COEF_LENGTH + c - 2] * (1 + ta) * (S[DIP_D + COEF_WIDTH + c] + d1 * d1)
+            bound = (bound + d2y + ta * d2x) * slack
         drop = bound * (b - a) * (b - a) / 8
         lo = ha if ha < hb else hb
         if lo - drop > 0 or drop <= S[GRAZE_TOL] or depth >= MAX_DEPTH:
@@ -918,20 +1012,26 @@ def ev_sample_slot(n, provisional, last_only):
 
 
 def ev_sample_row(row, t, q, dq, leg, F, u, residual):
-    """What a sample holds, into row (results.Samples' row, loop_state.SAMPLE_ROW's layout): t, q (5), dq (5), the
-    stance leg (0: flight), the ground force F on the stance foot (2), the torque u applied (2), the energy
-    balance's residual."""
+    """What a sample of the three-link biped holds, into row (results.Samples' row, loop_state.SAMPLE_ROW's
+    layout): ev_sample_row_of with its 5 coordinates and 2 torques."""
+    ev_sample_row_of(row, t, q, dq, 5, leg, F, u, 2, residual)
+
+
+def ev_sample_row_of(row, t, q, dq, n, leg, F, u, m, residual):
+    """What a sample holds, into row (loop_state.sample_row(n, m)'s layout): t, q (n), dq (n), the stance leg
+    (0: flight), the ground force F on the stance foot (2), the torque u applied (m), the energy balance's
+    residual."""
     i: cython.Py_ssize_t
     row[ROW_T] = t
-    for i in range(5):
+    for i in range(n):
         row[ROW_Q + i] = q[i]
-        row[ROW_DQ + i] = dq[i]
-    row[ROW_LEG] = leg
-    row[ROW_F] = F[0]
-    row[ROW_F + 1] = F[1]
-    row[ROW_U] = u[0]
-    row[ROW_U + 1] = u[1]
-    row[ROW_RESIDUAL] = residual
+        row[ROW_Q + n + i] = dq[i]
+    row[ROW_Q + 2 * n] = leg
+    row[ROW_Q + 2 * n + 1] = F[0]
+    row[ROW_Q + 2 * n + 2] = F[1]
+    for i in range(m):
+        row[ROW_Q + 2 * n + 3 + i] = u[i]
+    row[ROW_Q + 2 * n + 3 + m] = residual
 
 
 # -- the torque a law returns, or a run holds (modes.two_finite_floats, _core.c's two_finite) -----------------
@@ -939,6 +1039,25 @@ def ev_finite_torques(u0, u1):
     """Whether the torques (u0, u1) are taken: finite, and so is their sum (a NaN, inf - inf or 1e308 + 1e308
     makes it not)."""
     return isfinite(u0 + u1)
+
+
+def ev_finite_sum(u, m):
+    """Whether the m torques u are taken: finite, and so is their sum (ev_finite_torques for any count)."""
+    s: cython.double = 0.0
+    i: cython.Py_ssize_t
+    for i in range(m):
+        s += u[i]
+    return isfinite(s)
+
+
+def ev_actuated_power(u, dq, joints, m):
+    """The motors' power u . (B^T dq) of a robot whose m actuators turn the joints of q's entries joints[i] (B a
+    selection: a 1 a column): the integrand of the motor work W (ev_motor_power for any robot)."""
+    p: cython.double = u[0] * dq[int(joints[0])]
+    i: cython.Py_ssize_t
+    for i in range(1, m):
+        p += u[i] * dq[int(joints[i])]
+    return p
 
 
 def ev_motor_power(u, dq1, dq2):

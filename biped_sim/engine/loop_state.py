@@ -15,7 +15,10 @@ declaration by test/unit/test_loop_rules.py. Run as Python, a state is a list of
 (:func:`new_state`): the interpreter indexes a list faster than a buffer (docs/engine.md, the plan's step 5).
 
 Fields whose size depends on the integrated state have room for ``NMAX`` entries (the floating base's
-11); a smaller state (the fixed base's 7) uses the first entries of each. The scratch fields hold
+2 N + 1 for the largest model, N = ``NQ_MAX`` coordinates); a state uses the first ``n_y`` entries of each
+(the three-link's floating base 11, its fixed base 7), and a trial step's rows in ``out`` and ``stages`` are
+``n_y`` apart (the compiled kernels' rows are the three-link's 11). Fields of q have room for ``NQ_MAX``
+coordinates, the first ``n_q`` in use. The scratch fields hold
 intermediate results between two calls of the rules and nothing across steps; the touchdown's block at the
 end holds the constants of the closed forms an impact evaluates (loop_rules.ev_impact) and its results.
 """
@@ -26,10 +29,18 @@ from array import array
 from enum import IntEnum
 from typing import NamedTuple
 
-NMAX = 11           # the floating base's integrated state: q (5), dq (5), motor work
+NQ_MAX = 12         # the most coordinates a model may have (q = base x, base y, one angle per link)
+NMAX = 2 * NQ_MAX + 1   # the floating base's integrated state: q (N), dq (N), motor work
+NU_MAX = NQ_MAX - 3     # the most actuators: one per joint, none on the floating base's three coordinates
 MAX_STAGES = 13     # dop853's stages k0..k12 (dopri5 uses k0..k6)
 DENSE_WIDTH = 8     # coefficients a dense-output row: dop853's 8 (dopri5 uses 5)
 MAX_DEPTH = 30      # the dip search's halvings (grazing.MAX_DEPTH)
+CHAIN_MAX = 4       # the links of a contact point's chain, from the floating base to the point (the dip bound's)
+TERMS_MAX = 6       # the terms of a link's absolute angle: its joint's coordinate and its ancestors'
+CHAIN_WIDTH = 2 + TERMS_MAX     # a chain link's row: its length, its terms' count, the terms
+COEF_WIDTH = 2 + CHAIN_MAX      # a row of the dip search's coefficients: base x, base y, each chain link's angle
+#: the dimensions above that the rules index the state with; _loop_state.h and .pxd carry them by these names
+DIMENSIONS = {"CHAIN_MAX": CHAIN_MAX, "CHAIN_WIDTH": CHAIN_WIDTH, "COEF_WIDTH": COEF_WIDTH}
 METHODS = {"dop853": 0, "dopri5": 1}
 EVENT_ROOM = 32     # the event records a run may make before the Python code takes them (a step makes at most one)
 
@@ -74,7 +85,10 @@ class Field(NamedTuple):
 FIELDS = (
     # -- the stepper's method and options
     Field("method", (), "the Runge-Kutta pair: 0 dop853, 1 dopri5 (METHODS)"),
-    Field("n_y", (), "entries of y in use (at most NMAX)"),
+    Field("n_y", (), "entries of y in use (at most NMAX): also the distance of a trial step's rows (out, stages)"),
+    Field("n_q", (), "the model's coordinates N, the entries of a field of q in use (at most NQ_MAX)"),
+    Field("model_kernels", (), "whose kernels the rules evaluate (loop_kernels): 0 the three-link's closed forms on "
+                               "the constants below, k > 0 the generated model registered as k (the Python loop only)"),
     Field("rtol", (), "relative tolerance of the step control"),
     Field("atol", (), "absolute tolerance of the step control"),
     Field("max_step", (), "the largest step size (s)"),
@@ -82,6 +96,11 @@ FIELDS = (
     Field("graze_tol", (), "the dip search's depth (m): a dip of the foot deeper than this is found"),
     Field("event_tol", (), "brentq's xtol (s)"),
     Field("l_leg", (), "the leg's length (m)"),
+    Field("chain_links", (2,), "per contact point, the links of its chain: those from the floating base's point to "
+                               "it that carry it a distance (a link's frame turns with its absolute angle)"),
+    Field("chain", (2, CHAIN_MAX, CHAIN_WIDTH), "per contact point, a row per chain link from the base: its length l_k "
+                                               "(m), the count of its absolute angle's terms, then each term as "
+                                               "+-(the entry of y + 1), + for a joint turning about +y"),
     Field("tan_s", (), "tan(slope) of the ground"),
     Field("sin_s", (), "sin(slope): a force's normal and tangential components on the ground line"),
     Field("cos_s", (), "cos(slope)"),
@@ -158,9 +177,9 @@ FIELDS = (
     Field("sim_t", (), "the simulator's time: its last accepted state's (s)"),
     Field("sim_work", (), "the hip motors' work up to sim_t (J)"),
     Field("sim_h", (), "the step size the next stepper starts with (NaN: none yet, the initial one is computed)"),
-    Field("sim_u", (2,), "the torque held now (N m)"),
-    Field("sim_q", (5,), "q at sim_t, where a quiet period left it (sim_state_unmade)"),
-    Field("sim_dq", (5,), "dq at sim_t, alike"),
+    Field("sim_u", (NU_MAX,), "the torque held now, one an actuator (N m)"),
+    Field("sim_q", (NQ_MAX,), "q at sim_t, where a quiet period left it (sim_state_unmade)"),
+    Field("sim_dq", (NQ_MAX,), "dq at sim_t, alike"),
     Field("sim_state_unmade", (), "1 when sim_q and sim_dq are the simulator's state and its arrays not yet made"),
     Field("mode_begun", (), "1 while the compiled loop's mode was begun (Loop.begin) at the simulator's state: a "
                             "write of the simulator's time, q or dq by the Python code, or its reset to flight, "
@@ -193,18 +212,22 @@ FIELDS = (
     Field("out", (2 * NMAX + 1 + MAX_STAGES * NMAX,), "a trial step: y_new, f_new, err, stages; between steps "
                                                       "the dense state (dense_state)"),
     Field("result", (2,), "a located root, or a dip's bracket"),
-    Field("coef", (8, 3), "the dip search's |power-basis coefficients|: swing leg angle, hip x, hip y "
-                          "(fixed base: swing leg angle, stance leg angle)"),
-    Field("qs", (5,), "q on the dense output"),
+    Field("coef", (8, COEF_WIDTH), "the dip search's |power-basis coefficients|, a row a power: the base's x, its y, "
+                                   "then the absolute angle of each link of the foot's chain (fixed base: the stance "
+                                   "leg's angle, 0, the swing leg's)"),
+    Field("coef_links", (), "the chain links of coef's row (its columns from the third)"),
+    Field("coef_length", (CHAIN_MAX,), "their lengths l_k (m): from the link's joint to the next joint, or the foot"),
+    Field("dip_d", (2, COEF_WIDTH), "the dip search's bounds of each column's first and second derivatives"),
+    Field("qs", (NQ_MAX,), "q on the dense output"),
     Field("ps", (4,), "the feet's positions there"),
     Field("stack", (2 * MAX_DEPTH + 4, 5), "the dip search's intervals: a, b, h(a), h(b), depth"),
     # -- touchdown: the impact (loop_rules.ev_impact), the constants of the closed forms it evaluates, its scratch
     Field("k_impact", (32,), "the constants of the closed form impact_map_1 (impact_map_2 takes the same)"),
     Field("k_energy", (32,), "the constants of the closed form energy"),
     Field("k_feet", (32,), "the constants of the closed form foot_kinematics"),
-    Field("q_impact", (5,), "q at the impact"),
-    Field("dq_minus", (5,), "dq before the impact"),
-    Field("dq_plus", (5,), "dq after the impact (the impact map writes it and the impulse after it, in one row)"),
+    Field("q_impact", (NQ_MAX,), "q at the impact"),
+    Field("dq_minus", (NQ_MAX,), "dq before the impact"),
+    Field("dq_plus", (NQ_MAX,), "dq after the impact (the impact map writes it, and the impulse into the next field)"),
     Field("impulse", (2,), "the ground's impulse on the landing foot (N s)"),
     Field("tv", (2,), "T and V (the closed form energy)"),
     Field("energy_before", (), "T + V before the impact (J)"),
@@ -232,6 +255,14 @@ CODES = {
 #: _loop_state.h and .pxd carry them by these names.
 SAMPLE_ROW = {"ROW_T": 0, "ROW_Q": 1, "ROW_DQ": 6, "ROW_LEG": 11, "ROW_F": 12, "ROW_U": 14, "ROW_RESIDUAL": 16,
               "ROW_WIDTH": 17}
+
+
+def sample_row(n, m) -> dict:
+    """SAMPLE_ROW's layout for a robot of n coordinates and m actuators (loop_rules.ev_sample_row_of): t, q (n),
+    dq (n), the stance leg, F (2), u (m), the residual; the three-link's (5, 2) is SAMPLE_ROW."""
+    q = SAMPLE_ROW["ROW_Q"]
+    return {"ROW_T": SAMPLE_ROW["ROW_T"], "ROW_Q": q, "ROW_DQ": q + n, "ROW_LEG": q + 2 * n, "ROW_F": q + 2 * n + 1,
+            "ROW_U": q + 2 * n + 3, "ROW_RESIDUAL": q + 2 * n + 3 + m, "ROW_WIDTH": q + 2 * n + 4 + m}
 
 
 class Outcome(IntEnum):
@@ -339,7 +370,9 @@ def c_header() -> str:
              " * edit). LOOP_STATE_MEMBERS are the fields as doubles in the order of the offsets LS_*, so that a",
              " * union of double S[LOOP_STATE_SIZE] with a struct of these members reads the same memory both ways. */",
              "#ifndef BIPED_SIM_LOOP_STATE_H", "#define BIPED_SIM_LOOP_STATE_H", "",
-             f"#define LOOP_STATE_SIZE {SIZE}", f"#define LS_NMAX {NMAX}", f"#define LS_MAX_DEPTH {MAX_DEPTH}",
+             f"#define LOOP_STATE_SIZE {SIZE}", f"#define LS_NMAX {NMAX}", f"#define LS_NQ_MAX {NQ_MAX}",
+             f"#define LS_MAX_DEPTH {MAX_DEPTH}",
+             *[f"#define LS_{name} {value}" for name, value in DIMENSIONS.items()],
              f"#define LS_EVENT_ROOM {EVENT_ROOM}"]
     lines += [f"#define LS_{name} {at}" for name, at in OFFSETS.items()]
     lines += [f"#define {name} {code}" for name, code in CODES.items()]
@@ -369,7 +402,9 @@ def cython_pxd() -> str:
     lines = ["# The hybrid loop's state's offsets for the compiled rules (biped_sim/engine/loop_state.py, written by",
              "# tools/generate_loop.py: do not edit).",
              'cdef extern from "_loop_state.h":', "    enum:",
-             '        SIZE "LOOP_STATE_SIZE"', '        NMAX "LS_NMAX"', '        MAX_DEPTH "LS_MAX_DEPTH"',
+             '        SIZE "LOOP_STATE_SIZE"', '        NMAX "LS_NMAX"', '        NQ_MAX "LS_NQ_MAX"',
+             *[f'        {name} "LS_{name}"' for name in DIMENSIONS],
+             '        MAX_DEPTH "LS_MAX_DEPTH"',
              '        EVENT_ROOM "LS_EVENT_ROOM"']
     lines += [f'        {name} "LS_{name}"' for name in OFFSETS]
     lines += [f'        {name} "{name}"' for name in CODES]

@@ -22,7 +22,7 @@ import numpy as np
 from biped_sim.engine import loop_rules as rules
 from biped_sim.engine.compiled import gen
 from biped_sim.engine.dynamics import flight_fast, stance_fixed_accel_fast
-from biped_sim.engine.model import real_vector, short_repr
+from biped_sim.engine.model import BipedModel, real_vector, short_repr
 from biped_sim.engine.results import ControllerError
 
 
@@ -47,12 +47,28 @@ def two_finite_floats(u):
     return [u0, u1] if rules.ev_finite_torques(u0, u1) else None
 
 
-def checked_torques(u, t):
-    """The two torques a controller returned, as finite floats, or a ControllerError."""
-    out = two_finite_floats(u)
+def finite_floats(u, m):
+    """u as a list of m Python floats if u is m finite real numbers with a finite sum, else None
+    (``two_finite_floats`` for m = 2, the three-link's two hip motors)."""
+    if m == 2:
+        return two_finite_floats(u)
+    a, _ = real_vector(u, m)
+    if a is None:
+        return None
+    v = a.tolist()
+    return v if rules.ev_finite_sum(v, m) else None
+
+
+def count_word(m):
+    return "two" if m == 2 else str(m)
+
+
+def checked_torques(u, t, m=2):
+    """The m torques a controller returned, as finite floats, or a ControllerError."""
+    out = finite_floats(u, m)
     if out is None:
-        raise ControllerError(f"the controller returned {short_repr(u)} at t={t:.9g} s: it must return two finite "
-                              "torques (real numbers: not bools, complex numbers or strings)")
+        raise ControllerError(f"the controller returned {short_repr(u)} at t={t:.9g} s: it must return "
+                              f"{count_word(m)} finite torques (real numbers: not bools, complex numbers or strings)")
     return out
 
 
@@ -74,8 +90,8 @@ def controller_failure(exc, t):
     return error
 
 
-def bind_controller(controller, stance_leg):
-    """``controller(t, q, dq, stance_leg)`` as ``f(t, q, dq)``, with its torques checked; None for no
+def bind_controller(controller, stance_leg, m=2):
+    """``controller(t, q, dq, stance_leg)`` as ``f(t, q, dq)``, with its m torques checked; None for no
     controller. q and dq are lists of floats (the controller's own: the engine does not use them after the
     call)."""
     if controller is None:
@@ -86,13 +102,13 @@ def bind_controller(controller, stance_leg):
             u = controller(t, q, dq, stance_leg)
         except Exception as exc:   # a fault of the user's code ends the run "failed", with its message
             raise controller_raised(exc, t) from exc
-        v = two_finite_floats(u)
-        return v if v is not None else checked_torques(u, t)
+        v = two_finite_floats(u) if m == 2 else finite_floats(u, m)
+        return v if v is not None else checked_torques(u, t, m)
     return call
 
 
-def checked_command(controller):
-    """``controller(t, q, dq, stance_leg)`` with its torques checked, as bind_controller's call but with the
+def checked_command(controller, m=2):
+    """``controller(t, q, dq, stance_leg)`` with its m torques checked, as bind_controller's call but with the
     stance leg given at each call: a control period's command. (The compiled loop calls a controller
     directly and checks it the same way: ``_core.c`` call_controller.)"""
     def command(t, q, dq, stance_leg):
@@ -100,15 +116,16 @@ def checked_command(controller):
             u = controller(t, q, dq, stance_leg)
         except Exception as exc:
             raise controller_raised(exc, t) from exc
-        v = two_finite_floats(u)
-        return v if v is not None else checked_torques(u, t)
+        v = two_finite_floats(u) if m == 2 else finite_floats(u, m)
+        return v if v is not None else checked_torques(u, t, m)
     return command
 
 
 def floating_to_phys(y):
-    """(q, dq, work) of the floating base's integrated state y = q + dq + [work]."""
+    """(q, dq, work) of the floating base's integrated state y = q + dq + [work] (N coordinates: 2 N + 1 entries)."""
     yl = y if type(y) is list else y.tolist()
-    return yl[0:5], yl[5:10], yl[10]
+    n = len(yl) >> 1
+    return yl[0:n], yl[n:2 * n], yl[2 * n]
 
 
 def floating_from_phys(q, dq, w):   # lists
@@ -118,6 +135,8 @@ def floating_from_phys(q, dq, w):   # lists
 def mode_functions(model, stance_leg, base, pin, u_hold, control, sink):
     """(rhs, to_physical, from_physical) of a mode. ``control(t, q, dq) -> u`` (lists) or None to hold
     ``u_hold``; ``sink(F, u)`` receives each evaluation's force (or None) and torque."""
+    if not isinstance(model, BipedModel):
+        return _generated_functions(model, stance_leg, base, pin, u_hold, control, sink)
     if stance_leg and base == "fixed":
         return _fixed_base_functions(model, stance_leg, pin, u_hold, control, sink)
 
@@ -140,6 +159,66 @@ def mode_functions(model, stance_leg, base, pin, u_hold, control, sink):
             ddq = flight_fast(model, q, dq, u)
             sink(None, u)
             return dq + ddq + [rules.ev_motor_power(u, dq[2], dq[3])]
+    return rhs, to_phys, from_phys
+
+
+def _generated_functions(model, stance_leg, base, pin, u_hold, control, sink):
+    """A described robot's mode (a GeneratedModel's kernels): floating-base stance on contact point stance_leg
+    (the KKT solve, k_stance) or flight (k_flight), y = q + dq + [work], or fixed-base stance; the motors' power
+    u . (B^T dq)."""
+    n, m, joints = model.n, model.m, model.actuated_indices
+    if stance_leg and base == "fixed":
+        return _generated_fixed_base_functions(model, stance_leg, pin, u_hold, control, sink)
+
+    if stance_leg:
+        k_stance, c = model.k_stance, stance_leg - 1
+
+        def rhs(t, y):
+            q, dq = y[0:n], y[n:2 * n]
+            u = u_hold if control is None else control(t, y[0:n], y[n:2 * n])
+            ddq, F = k_stance(q, dq, u, c)
+            sink(F, u)
+            return dq + ddq + [rules.ev_actuated_power(u, dq, joints, m)]
+    else:
+        k_flight = model.k_flight
+
+        def rhs(t, y):
+            q, dq = y[0:n], y[n:2 * n]
+            u = u_hold if control is None else control(t, y[0:n], y[n:2 * n])
+            ddq = k_flight(q, dq, u)
+            sink(None, u)
+            return dq + ddq + [rules.ev_actuated_power(u, dq, joints, m)]
+    return rhs, floating_to_phys, floating_from_phys
+
+
+def _generated_fixed_base_functions(model, stance_leg, pin, u_hold, control, sink):
+    """A described robot's fixed-base stance on contact point stance_leg: y = q[2:] + dq[2:] + [work], the joint
+    angles and their rates; the base follows from the pin c: p_c = base + f(angles), so base = c - f(angles)
+    and its velocity -J_c[:, 2:] dq[2:]; the accelerations are the KKT solve's (k_stance) at that state."""
+    n, m, joints = model.n, model.m, model.actuated_indices
+    a = n - 2                   # the angles
+    c, w2 = stance_leg - 1, 2 * n
+    cx, cy = pin
+    positions, jacobians, k_stance = model.module.contact_positions, model.module.contact_jacobians, model.k_stance
+
+    def to_phys(y):
+        yl = y if type(y) is list else y.tolist()
+        angles, rates = yl[0:a], yl[a:2 * a]
+        f = positions([0.0, 0.0] + angles)
+        J = jacobians([0.0, 0.0] + angles)[w2 * c:w2 * c + w2]     # (J_c does not depend on the base)
+        vx = -sum(J[2 + i] * rates[i] for i in range(a))
+        vy = -sum(J[n + 2 + i] * rates[i] for i in range(a))
+        return [cx - f[2 * c], cy - f[2 * c + 1]] + angles, [vx, vy] + rates, yl[2 * a]
+
+    def from_phys(q, dq, w):   # lists
+        return q[2:] + dq[2:] + [w]
+
+    def rhs(t, y):
+        q, dq, _ = to_phys(y)
+        u = u_hold if control is None else control(t, q, dq)
+        ddq, F = k_stance(q, dq, u, c)
+        sink(None, u)           # (as the three-link's fixed base: the guards ask for the force)
+        return dq[2:] + ddq[2:] + [rules.ev_actuated_power(u, dq, joints, m)]
     return rhs, to_phys, from_phys
 
 

@@ -21,6 +21,7 @@ import numpy as np
 from biped_sim.engine import loop_rules as rules
 from biped_sim.engine.dynamics import IMPACT_CONDITION_LIMIT, impact_condition, impact_map_fast, push_response
 from biped_sim.engine.guards import foot_states, normal_tangent
+from biped_sim.engine.loop_kernels import register
 from biped_sim.engine.loop_state import (
     DQ_MINUS,
     DQ_PLUS,
@@ -32,7 +33,7 @@ from biped_sim.engine.loop_state import (
     Q_IMPACT,
     new_state,
 )
-from biped_sim.engine.model import as_state_vector
+from biped_sim.engine.model import BipedModel, as_state_vector
 from biped_sim.engine.results import Event
 
 #: the largest push accepted (N s, magnitude): 100 N s would throw the 20 kg reference robot at 5 m/s;
@@ -45,10 +46,14 @@ TIE_TOL = 1e-9
 
 
 def touchdown_state(model, ground, mu=None) -> list:
-    """A state (``loop_state``) with what the impact's rule ``loop_rules.ev_impact`` reads: the model's closed-form
-    constants, the ground, the friction coefficient (0 without one)."""
-    return new_state(k_impact=model.k["impact_map_1"], k_energy=model.k["energy"], k_feet=model.k["foot_kinematics"],
-                     tan_s=ground.tan, sin_s=ground.sin, cos_s=ground.cos, mu=0.0 if mu is None else mu)
+    """A state (``loop_state``) with what the impact's rule ``loop_rules.ev_impact`` reads: the model's kernels
+    (the three-link's closed-form constants, or a generated model's registered kernels), its coordinates N, the
+    ground, the friction coefficient (0 without one)."""
+    common = dict(n_q=model.n, tan_s=ground.tan, sin_s=ground.sin, cos_s=ground.cos, mu=0.0 if mu is None else mu)
+    if isinstance(model, BipedModel):
+        return new_state(k_impact=model.k["impact_map_1"], k_energy=model.k["energy"],
+                         k_feet=model.k["foot_kinematics"], **common)
+    return new_state(model_kernels=register(model), **common)
 
 
 def touchdown_reset(model, t, q, dq, legs, stance_leg, ground, mu=None) -> Event:
@@ -56,10 +61,11 @@ def touchdown_reset(model, t, q, dq, legs, stance_leg, ground, mu=None) -> Event
     if len(legs) == 1:
         # one foot: the rule the compiled loop runs (loop_rules.ev_impact), on a state of its own
         S = touchdown_state(model, ground, mu)
-        S[Q_IMPACT:Q_IMPACT + 5] = q.tolist()
-        S[DQ_MINUS:DQ_MINUS + 5] = dq.tolist()
+        n = len(q)
+        S[Q_IMPACT:Q_IMPACT + n] = q.tolist()
+        S[DQ_MINUS:DQ_MINUS + n] = dq.tolist()
         checks = rules.ev_impact(S, legs[0], stance_leg, mu is not None)
-        dq_plus, impulse = np.array(S[DQ_PLUS:DQ_PLUS + 5]), np.array(S[IMPULSE:IMPULSE + 2])
+        dq_plus, impulse = np.array(S[DQ_PLUS:DQ_PLUS + n]), np.array(S[IMPULSE:IMPULSE + 2])
         loss = rules.ev_impact_loss(S)
         dheight = S[FEET_AFTER + 4 * (stance_leg - 1) + 3] if stance_leg else 0.0
         warnings = impact_warnings([checks & ~IMPACT_OLD_FOOT_SINKS], checks & IMPACT_OLD_FOOT_SINKS, dheight,

@@ -16,15 +16,12 @@ from biped_sim.engine.loop_state import (
     LAST_ONLY,
     N_SAMPLES,
     PROVISIONAL,
-    ROW_DQ,
-    ROW_F,
-    ROW_LEG,
     ROW_Q,
-    ROW_RESIDUAL,
     ROW_T,
-    ROW_U,
     ROW_WIDTH,
+    SAMPLE_ROW,
     new_state,
+    sample_row,
 )
 
 EVENT_KINDS = ("touchdown", "double_touchdown", "liftoff", "slip", "scuff", "error", "zeno", "push")
@@ -90,11 +87,12 @@ class SimulationResult:
     @classmethod
     def from_samples(cls, samples, events, stats, status, message, options, model=None, controller_error=None):
         """From the simulator's :class:`Samples`."""
-        d = samples.rows()
-        return cls(t=d[:, ROW_T].copy(), q=d[:, ROW_Q:ROW_Q + 5].copy(), dq=d[:, ROW_DQ:ROW_DQ + 5].copy(),
-                   stance_leg=d[:, ROW_LEG].astype(int), grf=d[:, ROW_F:ROW_F + 2].copy(),
-                   u=d[:, ROW_U:ROW_U + 2].copy(), events=events, stats=stats, status=status, message=message,
-                   energy_balance=d[:, ROW_RESIDUAL].copy(), options=options, model=model,
+        d, r, n, m = samples.rows(), samples.layout, samples.n_q, samples.n_u
+        return cls(t=d[:, r["ROW_T"]].copy(), q=d[:, r["ROW_Q"]:r["ROW_Q"] + n].copy(),
+                   dq=d[:, r["ROW_DQ"]:r["ROW_DQ"] + n].copy(), stance_leg=d[:, r["ROW_LEG"]].astype(int),
+                   grf=d[:, r["ROW_F"]:r["ROW_F"] + 2].copy(), u=d[:, r["ROW_U"]:r["ROW_U"] + m].copy(),
+                   events=events, stats=stats, status=status, message=message,
+                   energy_balance=d[:, r["ROW_RESIDUAL"]].copy(), options=options, model=model,
                    controller_error=controller_error)
 
     def plot(self, path=None, title=None, frames=14):
@@ -142,7 +140,8 @@ class ControllerError(SimulationError):
 class Samples:
     """A run's samples in one flat float array that grows by doubling: a row a sample,
     ``[t, q (5), dq (5), stance_leg, F (2), u (2), energy-balance residual]`` (17 floats, 136 bytes;
-    a tuple of lists and arrays took about 870).
+    a tuple of lists and arrays took about 870); for a robot of ``n`` coordinates and ``m`` actuators q and dq
+    have n entries and u m (``loop_state.sample_row``).
 
     ``keep``: True keeps every sample; an int N keeps every Nth (the first, the N+1st, ...), the samples
     of each event (before and after its reset) and the last one; ``"events"`` keeps only the first, the
@@ -154,8 +153,11 @@ class Samples:
     with: loop_state.py's n_samples, appended, provisional, every, last_only); by default a state of its own."""
     WIDTH = ROW_WIDTH
 
-    def __init__(self, keep=True, S=None):
+    def __init__(self, keep=True, S=None, n=5, m=2):
         self.S = new_state() if S is None else S
+        self.n_q, self.n_u = n, m
+        self.layout = SAMPLE_ROW if (n, m) == (5, 2) else sample_row(n, m)
+        self.WIDTH = self.layout["ROW_WIDTH"]
         self.keep = keep
         self.every = 1 if keep is True else 0 if keep is False or keep == "events" else keep
         self.S[LAST_ONLY] = float(keep is False)
@@ -180,7 +182,10 @@ class Samples:
         if n == len(self._data):
             self.grow()
         row = [0.0] * self.WIDTH        # (a list filled, then copied into the array: faster than the array's items)
-        rules.ev_sample_row(row, t, q, dq, leg, F, u, residual)
+        if self.WIDTH == ROW_WIDTH:
+            rules.ev_sample_row(row, t, q, dq, leg, F, u, residual)
+        else:
+            rules.ev_sample_row_of(row, t, q, dq, self.n_q, leg, F, u, self.n_u, residual)
         self._data[n] = row
         S[N_SAMPLES] = n + 1
         S[APPENDED] += 1
@@ -207,17 +212,20 @@ class Samples:
 
     def last(self):
         """(t, q, dq, stance_leg, F, u, residual) of the last sample: arrays q, dq; lists F, u."""
-        r = self._data[self.n - 1]
-        return (float(r[ROW_T]), r[ROW_Q:ROW_Q + 5].copy(), r[ROW_DQ:ROW_DQ + 5].copy(), int(r[ROW_LEG]),
-                r[ROW_F:ROW_F + 2].tolist(), r[ROW_U:ROW_U + 2].tolist(), float(r[ROW_RESIDUAL]))
+        r, o, n = self._data[self.n - 1], self.layout, self.n_q
+        dq, f, u = o["ROW_DQ"], o["ROW_F"], o["ROW_U"]
+        return (float(r[ROW_T]), r[ROW_Q:ROW_Q + n].copy(), r[dq:dq + n].copy(), int(r[o["ROW_LEG"]]),
+                r[f:f + 2].tolist(), r[u:u + self.n_u].tolist(), float(r[o["ROW_RESIDUAL"]]))
 
     def set_last_in_flight(self):
         """The last sample is a flight sample (a stance that ended the instant it began)."""
-        self._data[self.n - 1, ROW_LEG] = 0
-        self._data[self.n - 1, ROW_F:ROW_F + 2] = 0.0
+        f = self.layout["ROW_F"]
+        self._data[self.n - 1, self.layout["ROW_LEG"]] = 0
+        self._data[self.n - 1, f:f + 2] = 0.0
 
     def last_force(self):
-        return self._data[self.n - 1, ROW_F:ROW_F + 2].tolist()
+        f = self.layout["ROW_F"]
+        return self._data[self.n - 1, f:f + 2].tolist()
 
     def rows(self):
         return self._data[:self.n]

@@ -71,8 +71,9 @@ def simulate(model, q0, dq0, t_final, controller=None, stance_leg=1, rtol=1e-9, 
         raise ValueError(f"on_controller_error must be one of {', '.join(map(repr, ON_CONTROLLER_ERROR))}, got "
                          f"{on_controller_error!r}")
     check_number("t_final", t_final, 0.0, math.inf, "s")
-    if not isinstance(model, BipedModel) and hasattr(type(model), "engine_refusal"):
-        raise ValueError(model.engine_refusal)   # a described robot the engine cannot run yet (docs/models.md)
+    why = None if isinstance(model, BipedModel) else getattr(model, "engine_refusal", None)
+    if why is not None:
+        raise ValueError(why)   # a described robot the engine cannot run (docs/models.md)
     if control_period is not None:
         check_number("control_period", control_period, 0.0, math.inf, "s", open_low=True)
         if controller is None:

@@ -111,7 +111,7 @@ def params_from_args(args):
     if args.scene:
         from biped_sim.config.scenes import load_scene
         scene = load_scene(args.scene, overrides=getattr(args, "scene_overrides", None))
-        params = dict(scene.params)
+        params = dict(scene.given)     # (what the file and the overrides set: a described robot takes no model.*)
         params["time_mode"] = "lockstep"
         return P.validate(params), chosen_controller(getattr(args, "controller", None), scene)
     from biped_sim.config.controllers import run_without_scene

@@ -28,7 +28,7 @@ def allowed_values(p: Param) -> str:
     """What a parameter accepts, in words."""
     if p.type is list:
         kind = f"list of {p.item.__name__}" + (f" with {p.length} entries" if p.length else
-                                               " with one entry per coordinate of the robot" if p.per_coordinate
+                                               " with one entry per coordinate of the robot" if p.coordinates
                                                else "")
         if p.choices:
             kind += f", each one of {list(p.choices)}"

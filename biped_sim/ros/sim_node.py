@@ -149,8 +149,8 @@ class SimNode(Node):
             f"outputs={sorted(out)}, phases={sorted(prm['phases'])}, base={prm['base']}, "
             f"method={self.sim.method}" + (" (auto)" if prm["method"] == "auto" else "")
             + f", generated code in {GENERATED_CODE}" + (f" ({WHY_PYTHON})" if WHY_PYTHON else "")
-            + (", hybrid loop in C" if compiled_loop.AVAILABLE
-               else f", hybrid loop in Python ({compiled_loop.WHY_NOT})")
+            + (", hybrid loop in C" if compiled_loop.AVAILABLE and self.sim._loop is not None
+               else f", hybrid loop in Python ({compiled_loop.WHY_NOT or compiled_loop.WHY_NOT_GENERATED})")
             + (f", recording to {self.bag_path}" if self.recorder else ""))
 
     # the run's state lives in its NodeRun; these names are the node's view of it

@@ -45,7 +45,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from biped_sim.config.joints import joint_layout
-from biped_sim.config.parameters import Param, robot_model
+from biped_sim.config.parameters import Param, robot_model, three_link_model
 from biped_sim.config.scenes import CONTROLLER_PARAMETERS, LAW_GAINS, make_controller, validate_controller
 from biped_sim.recording.messages import TOPIC_TYPES, stamp_ns, torque_msg
 from biped_sim.ros import params_files, startup
@@ -109,6 +109,8 @@ class WalkControllerNode(Node):
         self.values = v = declare_from_table(self, PARAMETERS, validate_parameters)
         try:
             self.model = robot_model(v)       # the robot the engine runs (a refusal names it and says why)
+            if v["controller"] == "walk" and v["law"] == "walking":   # (the three-link robots' law)
+                three_link_model(v, "the reference walking controller (walk_controller)")
         except ValueError as exc:
             raise StartupError(str(exc)) from None
         self.layout = joint_layout(v["robot"])     # the joints looked up in joint_states, by name

@@ -782,11 +782,12 @@ def test_cannot_keep_up_is_said_of_a_slow_realtime_node_and_not_of_a_late_period
     assert late_for >= 1.0 and lag > 0.005 and rtf < 5, said.group(0)
 
 
-# -- issue 31, item 1: a scene's robot the engine cannot run ------------------------------------------------
+# -- issue 31: a scene's robot that its parameters do not fit -----------------------------------------------
 @pytest.mark.parametrize("program", ["sim_node", "walk_controller"])
-def test_a_robot_the_engine_cannot_run_is_refused_by_the_node_in_one_line(program, tmp_path):
+def test_a_robot_its_parameters_do_not_fit_is_refused_by_the_node_in_one_line(program, tmp_path):
     """The scene's robot (``robot: rabbit`` in the node's section of a params file) reaches the node, which
-    refuses it at start: the line names the robot, says why, and what to give instead."""
+    refuses at start what does not fit it: the sim node the three-link's default initial state, the walk
+    controller its reference walking law; the line names the robot, says why, and what to give instead."""
     node = {"sim_node": "biped_sim", "walk_controller": "walk_controller"}[program]
     path = tmp_path / "params.yaml"
     path.write_text(f"{node}:\n  ros__parameters:\n    robot: rabbit\n")
@@ -796,5 +797,7 @@ def test_a_robot_the_engine_cannot_run_is_refused_by_the_node_in_one_line(progra
     assert done.returncode == 2, done.stdout + done.stderr
     lines = [ln for ln in done.stderr.splitlines() if ln.startswith(f"{program}: error:")]
     assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
-    assert "robot 'rabbit' (5 links, 7 coordinates) cannot be simulated yet" in lines[0], lines[0]
-    assert "three_link, compass_gait, three_link_hip_mass" in lines[0], lines[0]
+    expected = {"sim_node": "parameter 'initial_q' must be given for robot 'rabbit': 7 entries",
+                "walk_controller": "the reference walking controller (walk_controller) runs the three-link robots "
+                                   "(three_link, compass_gait, three_link_hip_mass); robot 'rabbit'"}[program]
+    assert expected in lines[0], lines[0]

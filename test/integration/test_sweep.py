@@ -157,7 +157,8 @@ def test_failing_runs_are_rows_and_the_sweep_completes():
     (dict(grid={"kp": [1.0]}, backend="dask"), "backend must be one of process, ray"),
     (dict(grid={"kp": [1.0]}, workers=0), "workers must be a positive integer"),
     (dict(grid={"kp": [1.0]}, scene="nowhere"), "unknown scene 'nowhere'"),
-    (dict(grid={"robot": ["three_link", "rabbit"]}), "robot 'rabbit' .*cannot be simulated yet"),
+    (dict(grid={"robot": ["three_link", "rabbit"]}), "parameter 'initial_q' must have 7 entries, one for each "
+                                                     "coordinate of robot 'rabbit'"),
 ])
 def test_a_bad_sweep_is_refused_before_any_run(kwargs, message):
     calls = []

@@ -223,3 +223,30 @@ def test_both_nodes_name_their_robot_when_they_start():
             ctl_out, sim_out = ctl.output(), sim.output()
     assert "walk_controller: robot='three_link_hip_mass', torso_pitch=" in ctl_out, ctl_out
     assert "biped_sim: robot=three_link_hip_mass, time_mode=fast" in sim_out, sim_out
+
+
+def test_the_sim_node_runs_rabbit_and_its_bag_carries_rabbits_joints(tmp_path):
+    """A described robot through the node (robot rabbit, fast, its initial state given, u = 0): the node starts
+    naming the Python loop, RABBIT falls over and foot 2 lands (an /impact message), and the bag's
+    joint_states, read back by rosbags, carry RABBIT's 7 coordinates by name, ending where the headless run of the
+    same periods ends."""
+    from biped_sim.config.models import load_model
+    from biped_sim.engine.hybrid import HybridSimulator
+    q0 = [0.0997086196481708, 0.7935100972856273, 3.241592653589793, 2.941592653589793, -0.05, 0.5, 0.05]
+    params = {"robot": "rabbit", "time_mode": "fast", "duration": 0.2, "initial_q": q0, "initial_dq": [0.0] * 7,
+              "record": True, "bag_dir": str(tmp_path)}
+    with ros_domain() as dom:
+        with start_node(params, dom) as sim:
+            assert sim.wait(60) == 0, sim.output()
+            out = sim.output()
+    assert "biped_sim: robot=rabbit" in out and "hybrid loop in Python (a described robot" in out, out
+    (bag,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    got = bag_messages(bag)
+    names = ["base_x", "base_y", "hip_1", "hip_2", "knee_1", "knee_2", "torso_pitch"]
+    assert all(list(m.name) == names for _t_ns, m in got["/joint_states"])
+    assert len(got["/impact"]) == 1
+    ref = HybridSimulator(load_model("rabbit"), q0, [0.0] * 7, stance_leg=1)
+    while ref.t < 0.2 - 1e-12:
+        ref.advance_period(0.001, u=[0.0] * 4, t_final=0.2)
+    assert [e.kind for e in ref.events] == ["touchdown"]
+    np.testing.assert_allclose(list(got["/joint_states"][-1][1].position), ref.q, rtol=0, atol=1e-12)

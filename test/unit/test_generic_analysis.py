@@ -117,7 +117,7 @@ def test_find_gait_takes_a_described_robot_as_far_as_the_engine_runs_it():
         bs.find_gait(RABBIT, no_torque, z0=np.zeros(6))
     assert G.exact_jacobian_unavailable(RABBIT) == G.EXACT_WAITS and G.exact_jacobian_unavailable(BIPED) == ""
     z0 = np.concatenate([_rabbit_double_support(np.random.default_rng(1)), np.zeros(5)])
-    if hasattr(type(RABBIT), "engine_refusal"):
+    if getattr(RABBIT, "engine_refusal", None):    # (a robot the engine cannot run: none of the shipped ones now)
         with pytest.raises(ValueError) as err:
             bs.find_gait(RABBIT, no_torque, z0=z0)
         assert str(err.value) == RABBIT.engine_refusal and "\n" not in str(err.value)
@@ -143,12 +143,15 @@ def test_sweep_columns_are_sized_from_the_robot(tmp_path):
     import csv
 
     from biped_sim.analysis import sweep as sw
-    refused = sw.run_one("walk", {"robot": "rabbit"}, 0.1)
-    assert refused["status"] == "error" and len(refused["q_end"]) == len(refused["dq_end"]) == 7
+    rabbit_start = {"robot": "rabbit", "initial_q": [0.0997086196481708, 0.7935100972856273, 3.241592653589793,
+                                                     2.941592653589793, -0.05, 0.5, 0.05], "initial_dq": [0.0] * 7}
+    refused = sw.run_one("walk", rabbit_start, 0.1)       # the walk scene's law is the three-link robots'
+    assert refused["status"] == "error" and len(refused["q_end"]) == len(refused["dq_end"]) == 7, refused["message"]
+    assert sw.run_one("walk", {"robot": "rabbit"}, 0.1)["q_end"] == []    # no initial state of 7: the scene fails
     bad_start = sw.run_one("walk", {"initial_q[1]": -1.0}, 0.1)
     assert bad_start["status"] == "error" and len(bad_start["q_end"]) == 5
     rows = [dict(index=0, robot="three_link", **dict(bad_start, q_end=[0.5] * 5, dq_end=[1.5] * 5)),
-            dict(index=1, **refused)]
+            dict(index=1, **{k: v for k, v in refused.items() if k not in ("initial_q", "initial_dq")})]
     out = tmp_path / "mixed.csv"
     sw.write_csv(rows, ["robot"], out)
     with open(out) as f:

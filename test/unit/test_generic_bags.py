@@ -65,6 +65,8 @@ def rabbit_impact(states):
 
 def scene_params(robot, **values):
     from biped_sim.config.parameters import validate
+    if robot not in ("three_link", "compass_gait", "three_link_hip_mass"):   # a described robot's own start
+        values = dict(dict(initial_q=[0.0, 0.75, 3.3, 2.9, 0.35, 0.1, 0.2], initial_dq=[0.0] * 7), **values)
     return validate(dict(scene="synthetic", robot=robot, duration=0.2, **values))
 
 

@@ -50,8 +50,8 @@ def test_the_state_is_one_buffer_read_by_offset_and_by_member():
     assert at == loop_state.SIZE and f"#define LOOP_STATE_SIZE {at}\n" in header
     S = loop_state.new_state(t=1.5, y=[1.0, 2.0])
     assert len(S) == loop_state.SIZE and S[loop_state.T] == 1.5 and S[loop_state.Y + 1] == 2.0
-    with pytest.raises(ValueError, match="holds 11 values"):
-        loop_state.new_state(y=[0.0] * 12)
+    with pytest.raises(ValueError, match=f"holds {loop_state.NMAX} values"):
+        loop_state.new_state(y=[0.0] * (loop_state.NMAX + 1))
 
 
 def test_the_compiled_loop_has_no_numerics_of_the_rules():
@@ -341,7 +341,7 @@ def test_the_runs_running_maxima_are_written_once():
 def test_what_a_sample_holds_is_written_once():
     """A sample's row (t, q, dq, the stance leg, F, u, the residual) is composed by the rules (loop_rules.py):
     results.Samples.append and _core.c's quiet step and touchdown call it."""
-    assert_written_once(("row[ROW_RESIDUAL] = residual",),
+    assert_written_once(("row[ROW_Q + 2 * n + 3 + m] = residual",),
                         r"\[t, \*q, \*dq|\brows?\[1[1-6]\] = |rows\[(1[7-9]|2\d|3[0-3])\] = ")
     import numpy as np
 
@@ -350,6 +350,10 @@ def test_what_a_sample_holds_is_written_once():
     samples.append(0.5, np.arange(5.0), [5.0, 6.0, 7.0, 8.0, 9.0], 2, [10.0, 11.0], [12.0, 13.0], 14.0)
     assert samples.rows().tolist() == [[0.5, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 2.0, 10.0, 11.0, 12.0,
                                         13.0, 14.0]]
+    wide = Samples(n=7, m=4)        # a described robot's (RABBIT's): 7 coordinates, 4 actuators
+    wide.append(0.5, np.arange(7.0), np.arange(7.0, 14.0), 1, [20.0, 21.0], [30.0, 31.0, 32.0, 33.0], 40.0)
+    assert wide.rows().tolist() == [[0.5, *range(14), 1.0, 20.0, 21.0, 30.0, 31.0, 32.0, 33.0, 40.0]]
+    assert wide.last()[4:] == ([20.0, 21.0], [30.0, 31.0, 32.0, 33.0], 40.0)
 
 
 def test_the_torques_check_is_written_once():

@@ -193,14 +193,14 @@ def test_the_generated_three_link_special_cases_agree_with_their_BipedModels():
             assert np.allclose(g.bias_forces(q, dq), m.bias_forces(q, dq), rtol=1e-13, atol=1e-11), name
 
 
-def test_the_engine_refuses_rabbit_in_one_line():
+def test_what_needs_the_three_link_closed_forms_refuses_rabbit_in_one_line():
+    """The engine runs RABBIT (test_generic_engine.py); what reads the three-link biped's closed forms (p, k:
+    the sensitivity, the compiled walking law) refuses it in one line."""
     rabbit = bs.load_model("rabbit")
     q = [0.0, 0.8, 3.3, 2.9, 0.1, 0.2, 0.0]
-    with pytest.raises(ValueError, match="'rabbit' .7 coordinates. cannot be simulated yet") as e:
-        bs.simulate(rabbit, q, [0.0] * 7, 1.0)
+    with pytest.raises(EngineCannotRun, match="'rabbit' .7 coordinates. has no three-link closed forms") as e:
+        rabbit.p  # noqa: B018 (the attribute the three-link's tools read first)
     assert "\n" not in str(e.value)
-    with pytest.raises(EngineCannotRun, match="the hybrid engine runs the three-link chain only"):
-        rabbit.p  # noqa: B018 (the attribute the engine reads first)
     ddq, F = rabbit.stance_dynamics(q, [0.1] * 7, [0.0] * 4, "foot_1")   # its dynamics are there
     assert np.all(np.isfinite(ddq)) and F[1] > 0
 

@@ -255,7 +255,7 @@ def test_infinities_nan_quotes_and_tags_as_rcl_reads_them():
 def _robot_scene(tmp_path, robot, **extra):
     path = tmp_path / f"robot_{abs(hash(robot))}.yaml"
     path.write_text(yaml.safe_dump({"biped_sim": {"ros__parameters": dict(
-        robot=robot, phases=["stance", "impact"], outputs=["joint_states"], duration=0.1, **extra)}}))
+        robot=robot, phases=["stance", "impact"], outputs=["joint_states"], duration=0.1) | extra}}))
     return path
 
 
@@ -288,23 +288,44 @@ def test_the_hip_mass_walker_s_scene_walks_on_its_gait():
     assert np.all(np.abs(steps - 0.4489) < 5e-4), steps
 
 
-def test_a_robot_the_engine_cannot_run_is_refused_in_one_line_that_says_why_and_what_to_do(tmp_path, capsys):
-    from biped_sim.config.models import ROBOTS_DIR
-    scene = load_scene(_robot_scene(tmp_path, "rabbit"))
-    assert scene.robot == "rabbit"
+#: RABBIT standing on foot 1 at the origin, leg 2 bent (its foot 2 cm up), at rest (test_generic_engine.py's)
+RABBIT_Q0 = [0.0997086196481708, 0.7935100972856273, 3.241592653589793, 2.941592653589793, -0.05, 0.5, 0.05]
+
+
+def test_a_described_robots_scene_runs_and_what_does_not_fit_it_is_refused_in_one_line(tmp_path, capsys):
+    """A scene with ``robot: rabbit`` runs headless (RABBIT falls over and its swing foot lands), from the scene and
+    the CLI; a scene that does not fit the robot is refused in one line that says what to give: the three-link's
+    initial state, a model.* number, the reference walking controller."""
     with pytest.raises(ValueError) as err:
-        scene.simulate()
+        load_scene(_robot_scene(tmp_path, "rabbit"))
     line = str(err.value)
-    assert "\n" not in line and line.startswith("robot 'rabbit' (5 links, 7 coordinates) cannot be simulated yet")
-    assert "runs three-link chains only today" in line and "give robot one of those" in line
-    assert "bs.load_model('rabbit')" in line
+    assert "\n" not in line and "parameter 'initial_q' must be given for robot 'rabbit': 7 entries" in line, line
+    path = tmp_path / "rabbit_falls.yaml"       # (_robot_scene's file is rewritten below)
+    path.write_text(_robot_scene(tmp_path, "rabbit", initial_q=RABBIT_Q0, initial_dq=[0.0] * 7, duration=0.2)
+                    .read_text())
+    scene = load_scene(path)
+    assert scene.robot == "rabbit" and scene.engine_arguments()["model"].n == 7
+    r = scene.simulate()
+    assert r.status == "completed" and [(e.kind, e.leg) for e in r.impacts] == [("touchdown", 2)], r.message
+    assert cli_main(["simulate", "--scene", str(path)]) == 0
+    with pytest.raises(ValueError, match=r"parameter 'initial_q' must have 7 entries, one for each coordinate of "
+                                         r"robot 'rabbit' \(base_x, base_y, hip_1, hip_2, knee_1, knee_2, "
+                                         r"torso_pitch\), got 5"):
+        load_scene("walk", overrides={"robot": "rabbit"})
+    with pytest.raises(ValueError, match=r"parameter 'model.m_leg' sets a number of the three-link biped; robot "
+                                         r"'rabbit' takes its numbers from its description"):
+        load_scene(_robot_scene(tmp_path, "rabbit", initial_q=RABBIT_Q0, initial_dq=[0.0] * 7, **{"model.m_leg": 3.0}))
+    walking = load_scene("walk", overrides={"robot": "rabbit", "initial_q": RABBIT_Q0, "initial_dq": [0.0] * 7})
+    with pytest.raises(ValueError) as err:
+        walking.simulate()
+    line = str(err.value)
+    assert "\n" not in line and line.startswith("the reference walking controller (walk_controller) runs the "
+                                                "three-link robots (three_link, compass_gait, three_link_hip_mass); "
+                                                "robot 'rabbit' has 7 coordinates and 4 motors"), line
+    capsys.readouterr()
     assert cli_main(["simulate", "--scene", str(_robot_scene(tmp_path, "rabbit"))]) == 2
     err_text = capsys.readouterr().err
-    assert err_text.count("\n") == 1 and "robot 'rabbit' (5 links" in err_text, err_text
-    desc = tmp_path / "mine.yaml"
-    desc.write_text((ROBOTS_DIR / "rabbit.yaml").read_text())            # a user's description file
-    with pytest.raises(ValueError, match=r"robot '.*mine.yaml' \(5 links.*robot three_link with the model\.\*"):
-        load_scene(_robot_scene(tmp_path, str(desc))).simulate()
+    assert err_text.count("\n") == 1 and "for robot 'rabbit': 7 entries" in err_text, err_text
 
 
 def test_a_robot_that_is_no_shipped_name_nor_a_file_is_named_with_the_choices(tmp_path):

@@ -1,0 +1,48 @@
+"""Described robots on the hybrid engine (docs/models.md, "What the engine runs"): RABBIT's fall and its k_stance,
+the compass gait and the three-link biped as BipedModel against GeneratedModel. ``python -m
+benchmarks.bench_generic`` prints figures and asserts nothing."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+import biped_sim as bs
+from biped_sim.config import models
+
+
+def timed(run, repeats=7):
+    """(the run's result, its median wall time in s)."""
+    times, result = [], None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        result = run()
+        times.append(time.perf_counter() - t0)
+    return result, sorted(times)[repeats // 2]
+
+
+def main():
+    rabbit = bs.load_model("rabbit")
+    q0 = np.array([0.0, 0.0, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05])
+    q0[:2] -= rabbit.contact_position(q0, "foot_1")     # standing on foot 1 at the origin, leg 2 bent
+    r, wall = timed(lambda: bs.simulate(rabbit, q0, np.zeros(7), 0.2))
+    print(f"RABBIT 0.2 s fall, u = 0: {r.status}, {[(e.kind, e.leg, round(e.time, 6)) for e in r.events]}, "
+          f"{len(r.t)} samples, {r.stats['rhs_evaluations']} rhs evaluations, {wall * 1e3:.1f} ms (median of 7)")
+    q, dq, u = q0.tolist(), [0.0] * 7, [0.0] * 4
+    t0 = time.perf_counter()
+    for _ in range(2000):
+        rabbit.k_stance(q, dq, u, 0)
+    print(f"RABBIT k_stance (numpy): {1e6 * (time.perf_counter() - t0) / 2000:.1f} us a call")
+    q, dq = np.array([0.0, 1.0, np.pi, np.pi, 0.0]), np.array([0.4, 0.0, 0.4, -2.0, 0.0])
+    options = dict(rtol=1e-10, atol=1e-10, slope=0.0525, phases=frozenset({"stance", "impact"}))
+    for name, t_final in (("compass_gait", 10.0), ("three_link", 2.0)):
+        a, wall_a = timed(lambda: bs.simulate(bs.load_model(name), q, dq, t_final, **options), 3)
+        b, wall_b = timed(lambda: bs.simulate(models.generated_model(name), q, dq, t_final, **options), 3)
+        apart = max(abs(x.time - y.time) for x, y in zip(a.impacts, b.impacts))
+        print(f"{name} {t_final:g} s: {len(a.impacts)} and {len(b.impacts)} impacts, their times {apart:.1e} s apart, "
+              f"end states {np.abs(a.q[-1] - b.q[-1]).max():.1e} apart; BipedModel {wall_a * 1e3:.1f} ms, "
+              f"GeneratedModel {wall_b * 1e3:.1f} ms (median of 3)")
+
+
+if __name__ == "__main__":
+    main()
