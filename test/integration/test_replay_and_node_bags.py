@@ -84,7 +84,8 @@ def test_replay_publishes_a_rabbit_bag_as_recorded(tmp_path):
     layout = joint_layout("rabbit")
     serializer = StateSerializer(layout.coordinates, labels={n: "/" + n for n in M.TOPIC_TYPES},
                                  effort=layout.effort_function())
-    rec = BagRecorder(tmp_path / "bag", parameters=P.validate(dict(scene="rabbitreplay", robot="rabbit")))
+    rec = BagRecorder(tmp_path / "bag", parameters=P.validate(dict(
+        scene="rabbitreplay", robot="rabbit", initial_q=[0.0, 0.75, 3.3, 2.9, 0.35, 0.1, 0.2], initial_dq=[0.0] * 7)))
     for name in ("joint_states", "hip_torque"):
         rec.add_topic("/" + name, M.TOPIC_TYPES[name])
     q0 = np.array([0.0, 0.75, 3.3, 2.9, 0.35, 0.1, 0.2])
