@@ -1,11 +1,12 @@
 """``make demo``: the ``walk`` scene with the controller in the loop, recorded, summarised and plotted.
 
-Owns the demo's orchestration only. It starts ``sim_node`` with ``msg_configs/walk.yaml`` (lockstep,
-recording on) and the ``walk_controller`` node in a second process, on the exported ``ROS_DOMAIN_ID``
-(else a free ROS domain), limited to this machine; the sim node advances one control period per command
-and ends at ``--duration`` s of simulated time, closing its bag; then ``biped-sim inspect BAG`` prints
-the run's summary and writes the PNG. Without rclpy (or if the nodes cannot run here) it falls back to
-the same run headless: ``biped-sim simulate --scene walk --record`` (or, without the recorder, the summary only).
+Owns the demo's orchestration only. It starts ``sim_node`` with ``msg_configs/walk.yaml`` (or the
+``--scene``'s file; lockstep, recording on) and the ``walk_controller`` node in a second process; a scene
+without a ``walk_controller`` section (the passive ``compass_gait``) runs ``sim_node`` alone, fast, u = 0.
+Both run on the exported ``ROS_DOMAIN_ID`` (else a free ROS domain), limited to this machine; the sim node
+ends at ``--duration`` s of simulated time, closing its bag; then ``biped-sim inspect BAG`` prints the
+run's summary and writes the PNG. Without rclpy (or if the nodes cannot run here) it falls back to the
+same run headless: ``biped-sim simulate --scene walk --record`` (or, without the recorder, the summary only).
 """
 from __future__ import annotations
 
@@ -82,27 +83,32 @@ def run_nodes(scene, duration, bag_dir: Path, timeout: float):
         env = dict(os.environ, ROS_DOMAIN_ID=str(dom), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                    PYTHONUNBUFFERED="1", RCUTILS_COLORIZED_OUTPUT="0")
         params = ["--ros-args", "--params-file", str(scene.path)]
-        sim_argv = [str(BIN / "sim_node"), *params, "-p", f"duration:={float(duration)!r}", "-p", "time_mode:=lockstep",
+        # a scene without a walk_controller section (compass_gait: passive) has no controller to wait for:
+        # the node runs alone, fast, with u = 0 (no command timeout: no command comes)
+        passive = scene.controller_params is None
+        mode = ["-p", "time_mode:=fast", "-p", "command_timeout:=0.0"] if passive else ["-p", "time_mode:=lockstep"]
+        sim_argv = [str(BIN / "sim_node"), *params, "-p", f"duration:={float(duration)!r}", *mode,
                     "-p", "record:=true", "-p", f"bag_dir:={bag_dir}"]
-        ctl_argv = [str(BIN / "walk_controller"), *params]
-        print(f"ROS domain {dom} ({source}): sim_node ({scene.name} scene, lockstep, {duration:g} s) "
-              "+ walk_controller; "
-              f"logs in {logs}/", flush=True)
+        ctl_argv = None if passive else [str(BIN / "walk_controller"), *params]
+        print(f"ROS domain {dom} ({source}): sim_node ({scene.name} scene, "
+              + (f"fast, {duration:g} s, u = 0: the scene has no controller)" if passive
+                 else f"lockstep, {duration:g} s) + walk_controller") + f"; logs in {logs}/", flush=True)
         with open(logs / "sim_node.log", "wb") as sim_log, open(logs / "walk_controller.log", "wb") as ctl_log:
             t0 = time.monotonic()
             sim = _start(sim_argv, env, sim_log)
-            ctl = _start(ctl_argv, env, ctl_log)
+            ctl = None if ctl_argv is None else _start(ctl_argv, env, ctl_log)
             try:
                 while sim.poll() is None:
                     if time.monotonic() - t0 > timeout:
                         raise RuntimeError(f"the run did not end within {timeout:g} s of wall time")
-                    if ctl.poll() is not None:
+                    if ctl is not None and ctl.poll() is not None:
                         raise RuntimeError(f"walk_controller exited with code {ctl.returncode}")
                     time.sleep(0.1)
                 wall = time.monotonic() - t0
             finally:
                 code_sim = _stop(sim)
-                _stop(ctl)
+                if ctl is not None:
+                    _stop(ctl)
         if code_sim == 2:       # sim_node refused to start (its bag folder, say): the fallback would too
             raise CommandError(f"sim_node refused to start: {_last_error(logs / 'sim_node.log')} (log: "
                                f"{logs / 'sim_node.log'})")

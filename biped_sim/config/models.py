@@ -12,6 +12,8 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import os
+import sys
+import time
 from pathlib import Path
 
 import yaml
@@ -106,11 +108,23 @@ def dynamics_module(desc: RobotDescription):
         if codegen._sympy() is None:
             _fail_line(f"robot description {desc.source or desc.name}: its dynamics are generated on first use "
                        "with sympy, which is not installed: pip install 'biped_sim[models]' (or sympy)")
+        # a first use takes seconds (about 6 s for a robot of RABBIT's size): say so, or a node's start
+        # looks hung
+        said = f"robot {desc.name!r} ({desc.source or desc.name})"
+        _say(f"biped_sim: generating the dynamics of {said} with sympy on its first use (a few seconds; "
+             f"cached in {path.parent})")
+        start = time.perf_counter()
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(codegen.generate_source(desc))
         os.replace(tmp, path)          # another process may generate the same file: the last rename wins
+        _say(f"biped_sim: generated the dynamics of {said} in {time.perf_counter() - start:.1f} s: {path.name}")
     return _import_file(f"biped_sim_model_{desc.name}_{desc.digest()}", path)
+
+
+def _say(line: str) -> None:
+    """One line on stderr, at once (a node's log, a CLI's terminal)."""
+    print(line, file=sys.stderr, flush=True)
 
 
 def generated_model(name_or_path):

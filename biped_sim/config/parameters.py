@@ -257,6 +257,16 @@ def _robot_defaults(values: dict, out: dict, table) -> None:
             out[key] = float(value)
 
 
+def recorded_given(recorded: dict) -> dict:
+    """The parameters to check again from a run's recorded (checked) ones: all of them for a three-link
+    robot; for a described robot all but the ``model.*`` entries, which a check fills with the three-link
+    defaults and which a described robot refuses when given."""
+    from biped_sim.config import models
+    if recorded.get("robot", "three_link") in models.THREE_LINK_PARAMETERS:
+        return dict(recorded)
+    return {n: v for n, v in recorded.items() if not n.startswith("model.")}
+
+
 #: control periods up to this use dopri5 under method "auto". Measured (python -m benchmarks.bench
 #: --only engine, last table): at 1 ms dopri5 and dop853 reach the same error over a walk, dopri5
 #: with 7 evaluations a period instead of 13; at 5 ms dopri5's error is 4.9e-9 against dop853's

@@ -23,10 +23,10 @@ from biped_sim.recording.node_run import NodeRun, stale_command
 
 def resim(bag, progress=None) -> dict:
     """Re-simulate ``bag``; returns a report dict (see :func:`format_report`)."""
-    from biped_sim.config.parameters import validate
+    from biped_sim.config.parameters import recorded_given, validate
     recorded = bagio.run_parameters(bag)
     try:
-        params = validate(recorded)
+        params = validate(recorded_given(recorded))
     except ValueError as exc:       # e.g. its robot, a description file that is gone
         raise ValueError(f"cannot re-simulate {bag}: its recorded parameters are refused here: {exc}") from None
     topics = bagio.channels(bag)
