@@ -10,7 +10,9 @@ setup(
     version="0.1.0",
     packages=find_packages(exclude=["test", "test.*", "benchmarks", "benchmarks.*"]),
     # the shipped robot descriptions (biped_sim/config/models.py)
-    package_data={"biped_sim.config": ["robots/*.yaml", "robots/*.urdf"]},
+    package_data={"biped_sim.config": ["robots/*.yaml", "robots/*.urdf"],
+                  # model_kernels writes it into a user's robot's kernels
+                  "biped_sim.engine": ["_kernel_table.h"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
