@@ -34,6 +34,8 @@
 #include <time.h>
 #include <string.h>
 
+/* a described robot's kernels as C entry points (model_kernels.py: its twin's capsule KERNEL_TABLE) */
+#include "_kernel_table.h"
 
 #define N 11                 /* the floating base's integrated state: q (5), dq (5), motor work */
 #define MAX_STAGES 13        /* dop853's k0..k12 */
@@ -94,7 +96,13 @@ typedef struct {
      * exception and the computation it spoiled is thrown away (callback_failed) */
     PyObject *callback;
     PyObject *exc_type, *exc_value, *exc_tb;
-    double last_F[2], last_u[2];
+    double last_F[2], last_u[LS_NQ_MAX];
+    /* a described robot (set_kernels): its kernels' table (NULL: the three-link's closed forms above), the capsule
+     * that owns it, and the entries of q its M actuators turn (B a selection: modes.py's joints) */
+    const KernelTable *table;
+    PyObject *table_owner;
+    char robot[64];    /* its name, for the message of a kernel's failure */
+    double joints[LS_NQ_MAX];
     /* (the locator's armed feet, scuffs and the step end's feet and force are the state's: armed, scuffing,
      * scuff, deepest_scuff, scuffs, feet_end, force_end) */
     /* (why the last step was handed back, its end's torque and force, and the run's statistics are the state's: why,
@@ -216,6 +224,82 @@ torque(Loop *L, double t, const double *q, const double *dq, double *u)
     else { u[0] = L->u_hold[0]; u[1] = L->u_hold[1]; }
 }
 
+/* m finite floats from a list or tuple of m floats or ints with a finite sum (modes.finite_floats' fast path, its
+ * sum the rule's: loop_rules.ev_finite_sum): 0, or -1 (no exception) for anything the Python code must judge */
+static int
+m_finite(PyObject *u, int m, double *out)
+{
+    if (!(PyList_CheckExact(u) || PyTuple_CheckExact(u)) || PySequence_Fast_GET_SIZE(u) != m) return -1;
+    for (int i = 0; i < m; i++) {
+        PyObject *v = PySequence_Fast_GET_ITEM(u, i);
+        if ((!PyFloat_Check(v) && !PyLong_Check(v)) || PyBool_Check(v)) return -1;
+        out[i] = PyFloat_AsDouble(v);
+        if (out[i] == -1.0 && PyErr_Occurred()) {
+            PyErr_Clear();
+            return -1;
+        }
+    }
+    return ev_finite_sum(out, m) ? 0 : -1;
+}
+
+/* u = controller(t, q, dq, stance_leg) for a described robot: call_controller's call with q and dq of N entries
+ * and its M torques (m_finite, else modes.checked_torques(u, t, m), which takes what it takes or raises) */
+static void
+call_controller_described(Loop *L, PyObject *controller, double t, const double *q, const double *dq, double *u)
+{
+    int n = L->table->n, m = L->table->actuators;
+    for (int i = 0; i < m; i++) u[i] = 0.0;
+    if (L->callback_failed) return;
+    if (controller_failure_fn == NULL || checked_torques_fn == NULL) {     /* (compiled_loop sets them at import) */
+        PyErr_SetString(PyExc_RuntimeError, "a Python controller needs set_python_checks() first");
+        L->callback_failed = 1;
+        PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
+        return;
+    }
+    PyObject *args[4] = {PyFloat_FromDouble(t), list_of(q, n), list_of(dq, n), PyLong_FromLong((long)L->stance_leg)}, *r = NULL;
+    if (args[0] && args[1] && args[2] && args[3]) r = PyObject_Vectorcall(controller, args, 4, NULL);
+    for (int i = 0; i < 4; i++) Py_XDECREF(args[i]);
+    if (r != NULL) {
+        if (m_finite(r, m, u) < 0) {
+            PyObject *checked = PyObject_CallFunction(checked_torques_fn, "Odi", r, t, m);
+            if (checked != NULL) {
+                if (PyList_CheckExact(checked) && PyList_GET_SIZE(checked) == m) {
+                    for (int i = 0; i < m; i++) u[i] = PyFloat_AsDouble(PyList_GET_ITEM(checked, i));
+                } else {
+                    PyErr_SetString(PyExc_TypeError, "checked_torques must return a list of m floats");
+                }
+                Py_DECREF(checked);
+            }
+        }
+        Py_DECREF(r);
+    } else if (PyErr_ExceptionMatches(PyExc_Exception)) {     /* (a KeyboardInterrupt goes on as it is) */
+        PyObject *type, *value, *tb;
+        PyErr_Fetch(&type, &value, &tb);
+        PyErr_NormalizeException(&type, &value, &tb);
+        if (tb != NULL) PyException_SetTraceback(value, tb);
+        PyObject *error = PyObject_CallFunction(controller_failure_fn, "Od", value, t);
+        Py_XDECREF(type);
+        Py_XDECREF(value);
+        Py_XDECREF(tb);
+        if (error != NULL) {
+            PyErr_SetObject((PyObject *)Py_TYPE(error), error);
+            Py_DECREF(error);
+        }
+    }
+    if (PyErr_Occurred()) {
+        L->callback_failed = 1;
+        PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
+        for (int i = 0; i < m; i++) u[i] = 0.0;
+    }
+}
+
+static void
+torque_described(Loop *L, double t, const double *q, const double *dq, double *u)
+{
+    if (L->law_kind == CALLBACK) call_controller_described(L, L->callback, t, q, dq, u);
+    else memcpy(u, L->u_hold, L->table->actuators * sizeof(double));
+}
+
 /* A compiled law from its description (address, parameters, name) (torque_hook.hook_argument);
  * 0, or -1 with an exception */
 static int
@@ -258,11 +342,54 @@ stance(Loop *L, const double *q, const double *dq, const double *u, double *out7
     else k_stance_floating_2(q, dq, u, L->k_stance, out7);
 }
 
+/* A described robot's torque law (the state's held u_hold of M entries, or a Python controller called back with
+ * q and dq of N entries and its M torques checked as modes.checked_command checks them) */
+static void torque_described(Loop *L, double t, const double *q, const double *dq, double *u);
+
+/* A kernel's failure (D not positive definite, the contact's Jacobian singular) at t, kept as a failure of the
+ * torque law is kept (the step fails; the message is the compiled twin's Python function's) */
+static void
+kernel_failed(Loop *L, int code)
+{
+    const char *kernel = L->stance_leg ? "k_stance" : "k_flight";
+    if (L->callback_failed) return;
+    if (code == KERNEL_NOT_POSITIVE_DEFINITE)
+        PyErr_Format(PyExc_ValueError, "%s: D(q) of the robot %s is not positive definite at this q", kernel, L->robot);
+    else
+        PyErr_Format(PyExc_ValueError, "%s: the contact's Jacobian J_c D^-1 J_c^T is singular at this q", kernel);
+    L->callback_failed = 1;
+    PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
+}
+
+/* A described robot's mode (modes._generated_functions): y = q + dq + [work] (N coordinates), floating-base
+ * stance on contact point stance_leg (the KKT solve: the table's stance) or flight (stance_leg 0: its flight);
+ * the motors' power u . (B^T dq) (loop_rules.ev_actuated_power) */
+static int
+rhs_described(Loop *L, double t, const double *y, double *dy)
+{
+    const KernelTable *K = L->table;
+    int n = K->n, m = K->actuators, code;
+    double u[LS_NQ_MAX], F[2] = {0.0, 0.0};
+    const double *q = y, *dq = y + n;
+    torque_described(L, t, q, dq, u);
+    code = L->stance_leg ? K->stance(q, dq, u, (int)L->stance_leg - 1, dy + n, F) : K->flight(q, dq, u, dy + n);
+    if (code != KERNEL_OK) {
+        kernel_failed(L, code);
+        return -1;
+    }
+    L->last_F[0] = F[0]; L->last_F[1] = F[1];
+    memcpy(L->last_u, u, m * sizeof(double));
+    memcpy(dy, dq, n * sizeof(double));
+    dy[2 * n] = ev_actuated_power(u, (double *)dq, L->joints, m);
+    return 0;
+}
+
 static int
 rhs(void *ctx, double t, const double *y, double *dy)
 {
     Loop *L = ctx;
     double u[2], out[7];
+    if (L->table) return rhs_described(L, t, y, dy);
     torque(L, t, y, y + 5, u);
     stance(L, y, y + 5, u, out);
     L->last_F[0] = out[5]; L->last_F[1] = out[6];
@@ -612,16 +739,70 @@ Loop_set_model(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
+/* set_kernels(table, joints, robot): the loop's model becomes a described robot, whose kernels are the C entry
+ * points of its compiled twin's capsule KERNEL_TABLE (model_kernels.py; _kernel_table.h), its M actuators turning
+ * the entries joints of q, its name robot. Its right-hand side (rhs, begin) is then modes._generated_functions';
+ * the steps, events and samples are the three-link's only (three_link_only) */
+static PyObject *
+Loop_set_kernels(Loop *L, PyObject *args)
+{
+    PyObject *capsule, *joints;
+    const char *robot;
+    Py_ssize_t m;
+    double j[LS_NQ_MAX];
+    if (!PyArg_ParseTuple(args, "OOs", &capsule, &joints, &robot)) return NULL;
+    const KernelTable *K = PyCapsule_GetPointer(capsule, KERNEL_TABLE_CAPSULE);
+    if (K == NULL) return NULL;
+    if (K->version != KERNEL_TABLE_VERSION) {
+        PyErr_Format(PyExc_ValueError, "set_kernels(): a kernel table of version %d, this loop reads version %d: "
+                     "rebuild the robot's kernels", K->version, KERNEL_TABLE_VERSION);
+        return NULL;
+    }
+    if (K->n < 3 || K->n > LS_NQ_MAX || K->contacts < 2 || K->actuators < 1 || K->actuators > LS_NQ_MAX - 3) {
+        PyErr_Format(PyExc_ValueError, "set_kernels(): the loop runs robots of 3 to %d coordinates, 2 or more contact "
+                     "points and 1 to %d actuators (this one: %d, %d, %d)", LS_NQ_MAX, LS_NQ_MAX - 3, K->n,
+                     K->contacts, K->actuators);
+        return NULL;
+    }
+    if (doubles(joints, j, K->actuators, K->actuators, "set_kernels(): joints", &m)) return NULL;
+    for (Py_ssize_t i = 0; i < m; i++)
+        if (!(j[i] >= 0.0 && j[i] < K->n && j[i] == floor(j[i]))) {
+            PyErr_Format(PyExc_ValueError, "set_kernels(): joints[%zd] is not an entry of q (0..%d)", i, K->n - 1);
+            return NULL;
+        }
+    Py_INCREF(capsule);
+    Py_XSETREF(L->table_owner, capsule);
+    L->table = K;
+    memcpy(L->joints, j, m * sizeof(double));
+    snprintf(L->robot, sizeof L->robot, "%s", robot);
+    L->n_q = K->n;
+    L->n_y = 2 * K->n + 1;
+    Py_RETURN_NONE;
+}
+
+/* The entry points that run steps, events and samples: NULL with a ValueError where the loop's model is a described
+ * robot's (set_kernels), whose right-hand side only the loop evaluates yet */
+static int
+three_link_only(Loop *L, const char *what)
+{
+    if (L->table == NULL) return 0;
+    PyErr_Format(PyExc_ValueError, "%s(): the compiled loop steps the three-link biped only; a described robot's "
+                 "right-hand side is evaluated here (rhs, begin), its run is the Python loop's", what);
+    return 1;
+}
+
 /* rhs(t, y) -> dy, for the initial step size */
 static PyObject *
 Loop_rhs(Loop *L, PyObject *args)
 {
     PyObject *y;
-    double t, yy[N], dy[N];
-    if (!PyArg_ParseTuple(args, "dO", &t, &y) || doubles(y, yy, N, N, "y", NULL)) return NULL;
-    rhs(L, t, yy, dy);
+    Py_ssize_t n = L->table ? 2 * L->table->n + 1 : N;
+    double t, yy[LS_NMAX], dy[LS_NMAX];
+    if (!PyArg_ParseTuple(args, "dO", &t, &y) || doubles(y, yy, n, n, "y", NULL)) return NULL;
+    int rc = rhs(L, t, yy, dy);
     if (L->callback_failed) return raise_callback_error(L);
-    return list_of(dy, N);
+    if (rc < 0) return NULL;
+    return list_of(dy, n);
 }
 
 /* step() -> OUTCOME_DONE, OUTCOME_FAILED (the state's fail_kind, fail_value, fail_t) or OUTCOME_RAISED */
@@ -629,6 +810,7 @@ static PyObject *
 Loop_step(Loop *L, PyObject *unused)
 {
     (void)unused;
+    if (three_link_only(L, "step")) return NULL;
     if (rk_step(L->S, rhs, L) < 0) return PyLong_FromLong(L->callback_failed ? OUTCOME_RAISED : OUTCOME_FAILED);
     /* the torque and force of the step's last evaluation, at its end (FSAL), as handed() gives them */
     L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
@@ -806,7 +988,7 @@ wrong_nargs(Py_ssize_t nargs, Py_ssize_t n, const char *name)
 static PyObject *
 Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (wrong_nargs(nargs, 5, "periods")) return NULL;
+    if (wrong_nargs(nargs, 5, "periods") || three_link_only(L, "periods")) return NULL;
     double period = PyFloat_AsDouble(args[1]), t_final = PyFloat_AsDouble(args[2]), t_stop = PyFloat_AsDouble(args[3]);
     long k0 = (long)L->control_periods;
     if (PyErr_Occurred()) return NULL;
@@ -866,7 +1048,7 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
     RunState rs;
     Py_buffer buf;
-    if (wrong_nargs(nargs, 2, "run")) return NULL;
+    if (wrong_nargs(nargs, 2, "run") || three_link_only(L, "run")) return NULL;
     double t_end = PyFloat_AsDouble(args[0]);
     if (PyErr_Occurred() || run_state(L, args[1], &rs, &buf) < 0) return NULL;
     return run_result(L, quiet_until(L, t_end, &rs), &rs, &buf);
@@ -878,7 +1060,7 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 static PyObject *
 Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (wrong_nargs(nargs, 2, "held")) return NULL;
+    if (wrong_nargs(nargs, 2, "held") || three_link_only(L, "held")) return NULL;
     double t_bound = PyFloat_AsDouble(args[0]);
     if (PyErr_Occurred()) return NULL;
     if (!isnan(L->sim_h)) carry_step(L, L->sim_h);
@@ -926,7 +1108,7 @@ seconds_now(void)
 static PyObject *
 Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (wrong_nargs(nargs, 4, "period")) return NULL;
+    if (wrong_nargs(nargs, 4, "period") || three_link_only(L, "period")) return NULL;
     double wall0 = seconds_now(), u[2];
     if (L->mode_begun == 0.0 || L->n_latched != 0.0 || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
         || two_finite(args[1], u) < 0)   /* (a latched guard, two scuffs: the Python code follows them) */
@@ -963,7 +1145,7 @@ Loop_locate_crossing(Loop *L, PyObject *args)
 {
     int leg;
     double ta, tb;
-    if (!PyArg_ParseTuple(args, "idd", &leg, &ta, &tb)) return NULL;
+    if (!PyArg_ParseTuple(args, "idd", &leg, &ta, &tb) || three_link_only(L, "locate_crossing")) return NULL;
     if (leg != 1 && leg != 2) {
         PyErr_SetString(PyExc_ValueError, "locate_crossing(): leg 1 or 2");
         return NULL;
@@ -990,18 +1172,26 @@ Loop_raise_error(Loop *L, PyObject *unused)
 static PyObject *
 Loop_begin(Loop *L, PyObject *law)
 {
-    if ((L->method != DOP853 && L->method != DOPRI5) || (L->stance_leg != 1 && L->stance_leg != 2)) {
+    int kind = law == Py_None ? HELD : PyCallable_Check(law) ? CALLBACK : COMPILED;
+    if (L->table) {     /* a described robot: stance on a contact point or flight, a held or called-back law */
+        if ((L->method != DOP853 && L->method != DOPRI5) || L->stance_leg < 0 || L->stance_leg > L->table->contacts
+            || L->stance_leg != floor(L->stance_leg) || kind == COMPILED) {
+            PyErr_Format(PyExc_ValueError, "begin(): a described robot runs dop853 (0) or dopri5 (1) in stance on a "
+                         "contact point 1..%d or in flight (0), under a held torque or a Python controller",
+                         L->table->contacts);
+            return NULL;
+        }
+    } else if ((L->method != DOP853 && L->method != DOPRI5) || (L->stance_leg != 1 && L->stance_leg != 2)) {
         PyErr_SetString(PyExc_ValueError, "begin(): the loop steps dop853 (0) or dopri5 (1) in stance on leg 1 or 2");
         return NULL;
     }
-    int kind = law == Py_None ? HELD : PyCallable_Check(law) ? CALLBACK : COMPILED;
     if (kind == CALLBACK) {
         Py_INCREF(law);
         Py_XSETREF(L->callback, law);
     } else if (kind == COMPILED && compiled_law_from(law, &L->law) < 0) {
         return NULL;
     }
-    L->n_y = N;
+    L->n_y = L->table ? 2 * L->table->n + 1 : N;
     L->law_kind = kind;
     L->mode_begun = 1.0;
     restart(L, L->t, L->t_bound);
@@ -1015,6 +1205,7 @@ static PyObject *
 Loop_dense(Loop *L, PyObject *unused)
 {
     (void)unused;
+    if (three_link_only(L, "dense")) return NULL;
     rk_dense(L->S, rhs, L);
     if (L->callback_failed) return raise_callback_error(L);
     Py_RETURN_NONE;
@@ -1025,7 +1216,7 @@ static PyObject *
 Loop_dense_at(Loop *L, PyObject *arg)
 {
     double tt = PyFloat_AsDouble(arg), v[N];
-    if (tt == -1.0 && PyErr_Occurred()) return NULL;
+    if ((tt == -1.0 && PyErr_Occurred()) || three_link_only(L, "dense_at")) return NULL;
     rk_dense(L->S, rhs, L);
     if (L->callback_failed) return raise_callback_error(L);
     for (int i = 0; i < N; i++) v[i] = rk_dense_at(L->S, i, tt);
@@ -1039,7 +1230,7 @@ Loop_law_torque(Loop *L, PyObject *spec)
 {
     CompiledLaw law;
     double u[2];
-    if (compiled_law_from(spec, &law) < 0) return NULL;
+    if (three_link_only(L, "law_torque") || compiled_law_from(spec, &law) < 0) return NULL;
     apply_law(L, &law, L->t, L->y, L->y + 5, u);
     if (L->callback_failed) return raise_callback_error(L);
     return Py_BuildValue("[dd]", u[0], u[1]);
@@ -1076,6 +1267,7 @@ static PyMethodDef module_methods[] = {
 
 static PyMethodDef Loop_methods[] = {
     {"set_model", (PyCFunction)Loop_set_model, METH_VARARGS, NULL},
+    {"set_kernels", (PyCFunction)Loop_set_kernels, METH_VARARGS, NULL},
     {"rhs", (PyCFunction)Loop_rhs, METH_VARARGS, NULL},
     {"step", (PyCFunction)Loop_step, METH_NOARGS, NULL},
     {"run", (PyCFunction)(void (*)(void))Loop_run, METH_FASTCALL, NULL},
@@ -1105,6 +1297,7 @@ static void
 Loop_dealloc(Loop *L)
 {
     Py_XDECREF(L->callback);
+    Py_XDECREF(L->table_owner);
     Py_XDECREF(L->exc_type);
     Py_XDECREF(L->exc_value);
     Py_XDECREF(L->exc_tb);

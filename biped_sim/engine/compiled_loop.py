@@ -87,9 +87,10 @@ AVAILABLE = _core is not None
 enabled = True
 
 
-#: why a described robot's run is the Python loop's (the compiled loop's kernels are the three-link's closed forms)
-WHY_NOT_GENERATED = ("a described robot (GeneratedModel) runs in the Python loop: the compiled loop's kernels are the "
-                     "three-link biped's closed forms")
+#: why a described robot's run is the Python loop's (the compiled loop evaluates its right-hand side from its
+#: kernels' C entry points, Loop.set_kernels, but steps, locates and samples the three-link biped only)
+WHY_NOT_GENERATED = ("a described robot (GeneratedModel) runs in the Python loop: the compiled loop steps the "
+                     "three-link biped only")
 
 
 def covers(sim, controller):

@@ -130,7 +130,7 @@ FIELDS = (
     # -- the mode: the simulator's, which the compiled loop steps (a touchdown in either loop changes it)
     Field("stance_leg", (), "the stance foot: 1 or 2, 0 in flight (the simulator's stance_leg)"),
     Field("pin", (2,), "where the stance foot is pinned (m; the simulator's pin, not read in flight)"),
-    Field("u_hold", (2,), "the torque held while the torque law is held (N m)"),
+    Field("u_hold", (NU_MAX,), "the torque held while the torque law is held, one an actuator (N m)"),
     # -- what an entry point of the compiled loop leaves besides its Outcome
     Field("t_next", (), "period(), periods(): the end of the control period under way (s)"),
     Field("refused_u", (2,), "periods() ending TORQUE_CHANGE: the command refused at its period's start (N m)"),

@@ -876,3 +876,79 @@ def test_a_change_of_the_simulators_state_in_python_begins_the_loops_mode_again(
     assert not hasattr(compiled_loop.CompiledStepper, "python_changed")
     if compiled_loop.AVAILABLE:
         assert not hasattr(compiled_loop._core.Loop, "state_stale")
+
+
+def described_loop(name):
+    """(model, C Loop over the kernels of the shipped robot ``name``'s compiled twin, its state S)."""
+    from biped_sim.config import models
+    from biped_sim.engine import model_kernels
+    model = models.generated_model(name)
+    twin = model_kernels.compiled_kernels(model)
+    assert twin is not None, "the shipped twin was not built: make venv"
+    loop = compiled_loop._core.Loop()
+    loop.set_kernels(twin.KERNEL_TABLE, list(model.actuated_indices), model.name)
+    return model, loop, memoryview(loop).cast("d")
+
+
+@pytest.mark.parametrize("name", ["rabbit", "compass_gait"])
+def test_a_described_robots_right_hand_side_in_c_is_the_python_loops_bit_for_bit(name):
+    """The C Loop over a described robot's kernel table (set_kernels) evaluates modes._generated_functions'
+    right-hand side bit for bit: stance on each contact point and flight, y = q + dq + [work], the motors' power
+    u . (B^T dq), under M held torques (rhs; begin's f) and a Python controller called back with N-entry q and dq
+    (its M torques as a list or an array); a controller's failure is the same ControllerError."""
+    from biped_sim.engine import modes
+    model, loop, S = described_loop(name)
+    n, m = model.n, model.m
+    rng = np.random.default_rng(31)
+
+    def controller(t, q, dq, leg):
+        return [0.5 * q[2 + i] - 0.1 * dq[n - 1 - i] + t * leg for i in range(m)]
+
+    def array_controller(t, q, dq, leg):
+        return np.array(controller(t, q, dq, leg))
+
+    for leg in [1, 2, 0]:
+        for _ in range(3):
+            y = rng.uniform(-1, 1, 2 * n + 1).tolist()
+            y[1], t, u = rng.uniform(0.5, 1.2), float(rng.uniform(0, 2)), rng.uniform(-20, 20, m).tolist()
+            loop_state.write(S, stance_leg=leg, u_hold=u, method=0, t=t, y=y, t_bound=t + 1.0)
+            held, _, _ = modes.mode_functions(model, leg, "floating", [0.0, 0.0], u, None, lambda F, u: None)
+            loop.begin(None)
+            assert loop.rhs(t, y) == held(t, y), (leg, "held")
+            assert S[loop_state.F:loop_state.F + 2 * n + 1].tolist() == held(t, y), (leg, "begin's f")
+            for law in (controller, array_controller):
+                control = modes.bind_controller(law, leg, m)
+                called, _, _ = modes.mode_functions(model, leg, "floating", [0.0, 0.0], u, control, lambda F, u: None)
+                loop.begin(law)
+                assert loop.rhs(t, y) == called(t, y), (leg, law.__name__)
+
+    def bad(t, q, dq, leg):
+        return [1.0] * (m + 1)
+
+    control = modes.bind_controller(bad, 1, m)
+    called, _, _ = modes.mode_functions(model, 1, "floating", [0.0, 0.0], [0.0] * m, control, lambda F, u: None)
+    loop_state.write(S, stance_leg=1, t=0.25, y=y)
+    with pytest.raises(bs.ControllerError) as python_error:
+        called(0.25, y)
+    with pytest.raises(bs.ControllerError) as c_error:
+        loop.begin(bad)     # (its f = rhs(t, y) calls the controller)
+    assert str(c_error.value) == str(python_error.value)
+
+
+def test_a_described_robots_loop_refuses_what_it_cannot_run_in_one_line():
+    """The Loop over a described robot evaluates its right-hand side only: a step, a run and its dense output, a
+    compiled law and joints that are not entries of q are refused with one line each."""
+    from biped_sim.engine import model_kernels
+    model, loop, S = described_loop("rabbit")
+    y = [0.0, 0.9] + [0.1] * (2 * model.n - 1)
+    loop_state.write(S, stance_leg=1, u_hold=[0.0] * model.m, method=0, t=0.0, t_bound=1.0, y=y)
+    loop.begin(None)
+    for call in (loop.step, loop.dense, lambda: loop.run(1.0, np.zeros((4, loop_state.ROW_WIDTH)))):
+        with pytest.raises(ValueError, match=r"^\w+\(\): the compiled loop steps the three-link biped only") as e:
+            call()
+        assert "\n" not in str(e.value)
+    with pytest.raises(ValueError, match="a described robot runs dop853"):
+        loop.begin((1, [0.0], "law"))
+    table = model_kernels.compiled_kernels(model).KERNEL_TABLE
+    with pytest.raises(ValueError, match=r"joints\[0\] is not an entry of q \(0\.\.6\)"):
+        loop.set_kernels(table, [99] * model.m, "rabbit")
