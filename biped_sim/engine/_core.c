@@ -742,7 +742,7 @@ Loop_set_model(Loop *L, PyObject *args)
 /* set_kernels(table, joints, robot): the loop's model becomes a described robot, whose kernels are the C entry
  * points of its compiled twin's capsule KERNEL_TABLE (model_kernels.py; _kernel_table.h), its M actuators turning
  * the entries joints of q, its name robot. Its right-hand side (rhs, begin) is then modes._generated_functions';
- * the steps, events and samples are the three-link's only (three_link_only) */
+ * the events and samples are the three-link's only (three_link_only) */
 static PyObject *
 Loop_set_kernels(Loop *L, PyObject *args)
 {
@@ -780,14 +780,15 @@ Loop_set_kernels(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* The entry points that run steps, events and samples: NULL with a ValueError where the loop's model is a described
- * robot's (set_kernels), whose right-hand side only the loop evaluates yet */
+/* The entry points that run events and samples: NULL with a ValueError where the loop's model is a described robot's
+ * (set_kernels), whose right-hand side, steps and dense output only the loop runs yet (rhs, begin, step, dense,
+ * dense_at) */
 static int
 three_link_only(Loop *L, const char *what)
 {
     if (L->table == NULL) return 0;
-    PyErr_Format(PyExc_ValueError, "%s(): the compiled loop steps the three-link biped only; a described robot's "
-                 "right-hand side is evaluated here (rhs, begin), its run is the Python loop's", what);
+    PyErr_Format(PyExc_ValueError, "%s(): the compiled loop runs the three-link biped only; a described robot's "
+                 "steps are taken here (begin, step, dense_at), its run is the Python loop's", what);
     return 1;
 }
 
@@ -810,10 +811,10 @@ static PyObject *
 Loop_step(Loop *L, PyObject *unused)
 {
     (void)unused;
-    if (three_link_only(L, "step")) return NULL;
     if (rk_step(L->S, rhs, L) < 0) return PyLong_FromLong(L->callback_failed ? OUTCOME_RAISED : OUTCOME_FAILED);
     /* the torque and force of the step's last evaluation, at its end (FSAL), as handed() gives them */
-    L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
+    if (L->table) memcpy(L->end_u, L->last_u, L->table->actuators * sizeof(double));
+    else { L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1]; }
     L->end_F[0] = L->last_F[0]; L->end_F[1] = L->last_F[1];
     return PyLong_FromLong(OUTCOME_DONE);
 }
@@ -1104,13 +1105,13 @@ seconds_now(void)
  * ends at the state's t_next (a touchdown or an ended scuff to make Events of, a step handed back, room to
  * make, a failure); OUTCOME_DECLINED having changed nothing: the Python code runs the period (the loop is
  * stale, the run has ended, u is not two finite numbers, a bad period, the stance guards refuse u at the
- * period's start, ...). */
+ * period's start, a described robot's loop, ...). */
 static PyObject *
 Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (wrong_nargs(nargs, 4, "period") || three_link_only(L, "period")) return NULL;
+    if (wrong_nargs(nargs, 4, "period")) return NULL;
     double wall0 = seconds_now(), u[2];
-    if (L->mode_begun == 0.0 || L->n_latched != 0.0 || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
+    if (L->table != NULL || L->mode_begun == 0.0 || L->n_latched != 0.0 || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
         || two_finite(args[1], u) < 0)   /* (a latched guard, two scuffs: the Python code follows them) */
         return PyLong_FromLong(OUTCOME_DECLINED);
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
@@ -1181,6 +1182,13 @@ Loop_begin(Loop *L, PyObject *law)
                          L->table->contacts);
             return NULL;
         }
+        int n_y = 2 * L->table->n + 1;
+        if (n_y != 9 && n_y != 11 && n_y != 15) {    /* (loop_kernels.k_step: the generated steps' sizes) */
+            PyErr_Format(PyExc_ValueError, "begin(): the compiled loop has no generated step for a state of %d entries "
+                         "(a robot of %d coordinates): 9, 11 or 15 (tools/generate_rk.py's UNROLLED)", n_y,
+                         L->table->n);
+            return NULL;
+        }
     } else if ((L->method != DOP853 && L->method != DOPRI5) || (L->stance_leg != 1 && L->stance_leg != 2)) {
         PyErr_SetString(PyExc_ValueError, "begin(): the loop steps dop853 (0) or dopri5 (1) in stance on leg 1 or 2");
         return NULL;
@@ -1205,7 +1213,6 @@ static PyObject *
 Loop_dense(Loop *L, PyObject *unused)
 {
     (void)unused;
-    if (three_link_only(L, "dense")) return NULL;
     rk_dense(L->S, rhs, L);
     if (L->callback_failed) return raise_callback_error(L);
     Py_RETURN_NONE;
@@ -1215,12 +1222,13 @@ Loop_dense(Loop *L, PyObject *unused)
 static PyObject *
 Loop_dense_at(Loop *L, PyObject *arg)
 {
-    double tt = PyFloat_AsDouble(arg), v[N];
-    if ((tt == -1.0 && PyErr_Occurred()) || three_link_only(L, "dense_at")) return NULL;
+    double tt = PyFloat_AsDouble(arg), v[LS_NMAX];
+    int n = (int)L->n_y;
+    if (tt == -1.0 && PyErr_Occurred()) return NULL;
     rk_dense(L->S, rhs, L);
     if (L->callback_failed) return raise_callback_error(L);
-    for (int i = 0; i < N; i++) v[i] = rk_dense_at(L->S, i, tt);
-    return list_of(v, N);
+    for (int i = 0; i < n; i++) v[i] = rk_dense_at(L->S, i, tt);
+    return list_of(v, n);
 }
 
 /* law_torque(law) -> [u1, u2]: a compiled law's (address, parameters, name) torque at the loop's current

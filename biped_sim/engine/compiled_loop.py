@@ -7,6 +7,10 @@ comes through the hook (:mod:`~biped_sim.engine.torque_hook`). Else, and always 
 ``BIPED_SIM_PURE_PYTHON=1``, the Python loop of ``hybrid.py`` runs, the readable reference. Both give the same
 run (test/unit/test_compiled_loop.py).
 
+A described robot (a GeneratedModel with compiled kernels, :func:`why_not_described`): the compiled loop takes
+the steps of its floating-base stance in C, on its kernels' C entry points (``Loop.set_kernels``), and hands each
+to the Python loop, which locates, resets, samples and checks it (:attr:`CompiledStepper.steps_only`).
+
 The stepper (:class:`CompiledStepper`): the interface of ``integrators._ListRungeKutta`` over the simulator's
 state (``loop_state.py``; :func:`run_state`), which the C ``Loop`` reads and writes in place. Its entry points
 return an :class:`~biped_sim.engine.loop_state.Outcome`; a step in which anything but a quiet step may happen
@@ -16,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from biped_sim.engine import grazing, integrators, loop_kernels, loop_rules as rules
+from biped_sim.engine import grazing, integrators, loop_kernels, loop_rules as rules, model_kernels
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.loop_state import (
     DENSE,
@@ -87,18 +91,41 @@ AVAILABLE = _core is not None
 enabled = True
 
 
-#: why a described robot's run is the Python loop's (the compiled loop evaluates its right-hand side from its
-#: kernels' C entry points, Loop.set_kernels, but steps, locates and samples the three-link biped only)
-WHY_NOT_GENERATED = ("a described robot (GeneratedModel) runs in the Python loop: the compiled loop steps the "
-                     "three-link biped only")
+#: what the compiled loop does for a described robot (a GeneratedModel with compiled kernels): it takes the steps of
+#: its floating-base stance in C, on its kernels' C entry points (Loop.set_kernels), and the Python loop handles
+#: each step (its events, samples and checks)
+WHY_NOT_GENERATED = "a described robot: its steps in C, its events in the Python loop"
+
+#: the sizes of y (2 N + 1 for N coordinates) the compiled loop has generated steps for (tools/generate_rk.py's
+#: UNROLLED; loop_kernels.k_step)
+STEPPED_SIZES = (9, 11, 15)
+
+
+def why_not_described(model):
+    """"" when the compiled loop steps the described robot ``model`` (a GeneratedModel), else why not in one line:
+    its whole run is then the Python loop's."""
+    if _core is None:
+        return WHY_NOT
+    size = 2 * model.n + 1
+    if size not in STEPPED_SIZES:
+        return (f"robot {model.name!r} ({model.n} coordinates) runs in the Python loop: the compiled loop has no "
+                f"generated step for a state of {size} entries")
+    if model_kernels.compiled_kernels(model) is None:
+        return f"robot {model.name!r} runs in the Python loop: it has no compiled kernels (model_kernels)"
+    return ""
 
 
 def covers(sim, controller):
-    """The torque law when the compiled loop can run the simulator's current mode, else None."""
+    """The torque law when the compiled loop can run the simulator's current mode, else None. A described robot's
+    mode: held or a Python controller (a compiled law is the three-link's), its steps in C and each handled by the
+    Python loop (CompiledStepper.run: PYTHON_STEPS)."""
     if (_core is None or not enabled or sim._loop is None or not sim.stance_leg or sim.opt.base != "floating"
             or sim.method not in METHODS or sim.on_step is not None or not all_compiled()):
         return None
-    return law_in_mode(controller, sim.model)
+    law = law_in_mode(controller, sim.model)
+    if sim.p is None and law[0] not in ("held", "callback"):
+        return None
+    return law
 
 
 def new_loop(model):
@@ -113,13 +140,17 @@ def run_state(model):
     """(S, loop): the state a simulator owns for its life (``loop_state.py``'s fields) and the C ``Loop`` made
     over it: with the compiled loop built, the Loop's own memory as a memoryview of doubles (the simulator, its
     Samples and its locator read and write what the loop reads and writes); else a list of floats and None.
-    A described robot's (a GeneratedModel) is a list naming its kernels and None: the C Loop runs the three-link
-    biped only, the Python loop runs any (WHY_NOT_GENERATED)."""
+    A described robot's (a GeneratedModel) names its kernels (model_kernels); its Loop takes its steps on its
+    kernels' C entry points (Loop.set_kernels), where it has them and a generated step of its size
+    (why_not_described); else it is a list and None, and the Python loop runs it."""
     fields = dict(n_q=model.n, **grazing.chain_fields(model))
     if not isinstance(model, BipedModel):
-        # a described robot (GeneratedModel): the Python loop runs it, on its kernels (the C Loop's are the
-        # three-link's closed forms)
-        return new_state(model_kernels=loop_kernels.register(model), **fields), None
+        k = loop_kernels.register(model)
+        if why_not_described(model):
+            return new_state(model_kernels=k, **fields), None
+        loop = _core.Loop()
+        loop.set_kernels(model_kernels.compiled_kernels(model).KERNEL_TABLE, list(model.actuated_indices), model.name)
+        return write(memoryview(loop).cast("d"), model_kernels=k, **fields), loop
     if _core is None:
         return new_state(**fields), None
     loop = new_loop(model)
@@ -192,6 +223,9 @@ class CompiledStepper(integrators._OnState):
               impulse_tol=opt.impulse_tol, contact_tol=opt.contact_tol, max_events=opt.max_events)
         self.rtol, self.atol, self.method = sim.rtol, sim.atol, sim.method
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
+        #: a described robot's: its steps are taken here, each handled by the Python loop (run: PYTHON_STEPS)
+        self.steps_only = sim.p is None
+        self._m = sim._m
 
     def start(self, t_bound, law, reset_counters):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
@@ -223,7 +257,7 @@ class CompiledStepper(integrators._OnState):
         it), or PYTHON_STEPS (the locator holds a latched guard or two scuffs, which only the Python code
         follows: step in Python)."""
         sim = self.sim
-        if sim.locator.python_only():
+        if self.steps_only or sim.locator.python_only():
             return Outcome.PYTHON_STEPS
         while True:      # NEED_ROOM: make_room makes it, _after_run takes the events
             sim._samples.make_room()
@@ -235,14 +269,14 @@ class CompiledStepper(integrators._OnState):
         """The control period's command of a compiled law at the simulator's state, computed in C (the
         law's own torques bit for bit), or None where the Python controller must be called."""
         law = reference_law(controller, self.sim.model)
-        if law is None or not self.S[MODE_BEGUN] or self.sim._stepper is not self:
+        if law is None or self.steps_only or not self.S[MODE_BEGUN] or self.sim._stepper is not self:
             return None
         return self.loop.law_torque(hook_argument(law))
 
     def can_run_periods(self):
         """Whether ``periods`` can run now: the simulator's state is the loop's, and the locator holds
         nothing only the Python code follows."""
-        return bool(self.S[MODE_BEGUN]) and not self.sim.locator.python_only()
+        return bool(self.S[MODE_BEGUN]) and not self.steps_only and not self.sim.locator.python_only()
 
     def periods(self, period, law, t_final, t_stop):
         """Control periods held, as ``advance_period`` would run them, each command computed at its period's
@@ -267,7 +301,7 @@ class CompiledStepper(integrators._OnState):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""
         sim = self.sim
-        if not self.S[MODE_BEGUN] or sim.locator.python_only():
+        if not self.S[MODE_BEGUN] or self.steps_only or sim.locator.python_only():
             return None
         # (no room made first: a full array comes back NEED_ROOM before a step, and run() goes on)
         return self.finish_held(self.loop.held(t_end, sim._samples._data), t_end)
@@ -302,7 +336,7 @@ class CompiledStepper(integrators._OnState):
         and force of its end the simulator's last evaluation's."""
         self._dense = None
         S = self.S
-        self.sim._last_u, self.sim._last_F = S[END_U:END_U + 2].tolist(), S[END_F:END_F + 2].tolist()
+        self.sim._last_u, self.sim._last_F = S[END_U:END_U + self._m].tolist(), S[END_F:END_F + 2].tolist()
 
     def replace_y(self, y):
         self.y = y
@@ -318,8 +352,9 @@ class CompiledStepper(integrators._OnState):
 
     def height_crossing(self, leg, ta, tb):
         """Where foot ``leg``'s height crosses zero in [ta, tb] on the last step (``guards.locate_crossing``'s
-        brentq, run in C on the same dense output: the same root), or None to find it in Python."""
-        return self.loop.locate_crossing(leg, ta, tb)
+        brentq, run in C on the same dense output: the same root), or None to find it in Python (a described
+        robot's)."""
+        return None if self.steps_only else self.loop.locate_crossing(leg, ta, tb)
 
     def dense_at(self, t):
         """The dense output at t, from C (the interpolant's own arithmetic: the same bits)."""

@@ -13,6 +13,15 @@ cdef extern from "_loop_state.h":
     ctypedef void (*feet_t)(double *S, void *ctx, double t) noexcept nogil
 
 cdef extern from "_gen/_kernels.h" nogil:
+    int k_dop853_step_9(rhs_t fun, void *ctx, double t, const double *ys, const double *k0, double h, double rtol,
+                         double atol, double *out)
+    int k_dopri5_step_9(rhs_t fun, void *ctx, double t, const double *ys, const double *k0, double h, double rtol,
+                         double atol, double *out)
+    int k_dop853_dense_9(rhs_t fun, void *ctx, double t, double h, const double *ys, const double *y_new,
+                          const double *k0, const double *k5, const double *k6, const double *k7, const double *k8,
+                          const double *k9, const double *k10, const double *k11, const double *k12, double *out)
+    int k_dopri5_dense_9(const double *ys, const double *k0, const double *k1, const double *k2, const double *k3,
+                          const double *k4, const double *k5, const double *k6, double *out)
     int k_dop853_step_11(rhs_t fun, void *ctx, double t, const double *ys, const double *k0, double h, double rtol,
                          double atol, double *out)
     int k_dopri5_step_11(rhs_t fun, void *ctx, double t, const double *ys, const double *k0, double h, double rtol,
@@ -21,6 +30,15 @@ cdef extern from "_gen/_kernels.h" nogil:
                           const double *k0, const double *k5, const double *k6, const double *k7, const double *k8,
                           const double *k9, const double *k10, const double *k11, const double *k12, double *out)
     int k_dopri5_dense_11(const double *ys, const double *k0, const double *k1, const double *k2, const double *k3,
+                          const double *k4, const double *k5, const double *k6, double *out)
+    int k_dop853_step_15(rhs_t fun, void *ctx, double t, const double *ys, const double *k0, double h, double rtol,
+                         double atol, double *out)
+    int k_dopri5_step_15(rhs_t fun, void *ctx, double t, const double *ys, const double *k0, double h, double rtol,
+                         double atol, double *out)
+    int k_dop853_dense_15(rhs_t fun, void *ctx, double t, double h, const double *ys, const double *y_new,
+                          const double *k0, const double *k5, const double *k6, const double *k7, const double *k8,
+                          const double *k9, const double *k10, const double *k11, const double *k12, double *out)
+    int k_dopri5_dense_15(const double *ys, const double *k0, const double *k1, const double *k2, const double *k3,
                           const double *k4, const double *k5, const double *k6, double *out)
     int c_foot_positions "k_foot_positions"(const double *q, const double *k, double *out)
     int c_impact_map_1 "k_impact_map_1"(const double *q, const double *dqm, const double *k, double *out)
@@ -45,12 +63,23 @@ cdef inline void k_rhs(double *S, rhs_t fun, void *ctx, double t, Py_ssize_t y, 
 
 cdef inline void k_step(double *S, rhs_t fun, void *ctx, double t, Py_ssize_t y, Py_ssize_t f, double h,
                         double rtol, double atol, Py_ssize_t out) noexcept nogil:
-    # S[out:] = y_new, f_new, err, stages k0..k12, rows S[N_Y] apart (the compiled loop's y has 11 entries: the
-    # generated kernels' rows)
+    # S[out:] = y_new, f_new, err, stages k0..k12, rows S[N_Y] apart: the generated kernel of y's size (the
+    # three-link's floating base 11 entries, a described robot's 2 N + 1: 9 or 15; Loop.begin refuses others)
+    cdef Py_ssize_t n = <Py_ssize_t>S[LS_N_Y]
     if S[LS_METHOD] == 0.0:
-        k_dop853_step_11(fun, ctx, t, &S[y], &S[f], h, rtol, atol, &S[out])
+        if n == 11:
+            k_dop853_step_11(fun, ctx, t, &S[y], &S[f], h, rtol, atol, &S[out])
+        elif n == 15:
+            k_dop853_step_15(fun, ctx, t, &S[y], &S[f], h, rtol, atol, &S[out])
+        else:
+            k_dop853_step_9(fun, ctx, t, &S[y], &S[f], h, rtol, atol, &S[out])
     else:
-        k_dopri5_step_11(fun, ctx, t, &S[y], &S[f], h, rtol, atol, &S[out])
+        if n == 11:
+            k_dopri5_step_11(fun, ctx, t, &S[y], &S[f], h, rtol, atol, &S[out])
+        elif n == 15:
+            k_dopri5_step_15(fun, ctx, t, &S[y], &S[f], h, rtol, atol, &S[out])
+        else:
+            k_dopri5_step_9(fun, ctx, t, &S[y], &S[f], h, rtol, atol, &S[out])
 
 
 cdef inline void k_dense(double *S, rhs_t fun, void *ctx, double t_old, double h, Py_ssize_t y_old, Py_ssize_t y,
@@ -59,12 +88,28 @@ cdef inline void k_dense(double *S, rhs_t fun, void *ctx, double t_old, double h
     # dopri5: 5)
     cdef Py_ssize_t n = <Py_ssize_t>S[LS_N_Y]
     if S[LS_METHOD] == 0.0:
-        k_dop853_dense_11(fun, ctx, t_old, h, &S[y_old], &S[y], &S[k], &S[k + 5 * n], &S[k + 6 * n],
-                          &S[k + 7 * n], &S[k + 8 * n], &S[k + 9 * n], &S[k + 10 * n], &S[k + 11 * n],
-                          &S[k + 12 * n], &S[dense])
+        if n == 11:
+            k_dop853_dense_11(fun, ctx, t_old, h, &S[y_old], &S[y], &S[k], &S[k + 5 * n], &S[k + 6 * n],
+                              &S[k + 7 * n], &S[k + 8 * n], &S[k + 9 * n], &S[k + 10 * n], &S[k + 11 * n],
+                              &S[k + 12 * n], &S[dense])
+        elif n == 15:
+            k_dop853_dense_15(fun, ctx, t_old, h, &S[y_old], &S[y], &S[k], &S[k + 5 * n], &S[k + 6 * n],
+                              &S[k + 7 * n], &S[k + 8 * n], &S[k + 9 * n], &S[k + 10 * n], &S[k + 11 * n],
+                              &S[k + 12 * n], &S[dense])
+        else:
+            k_dop853_dense_9(fun, ctx, t_old, h, &S[y_old], &S[y], &S[k], &S[k + 5 * n], &S[k + 6 * n],
+                              &S[k + 7 * n], &S[k + 8 * n], &S[k + 9 * n], &S[k + 10 * n], &S[k + 11 * n],
+                              &S[k + 12 * n], &S[dense])
     else:
-        k_dopri5_dense_11(&S[y_old], &S[k], &S[k + n], &S[k + 2 * n], &S[k + 3 * n], &S[k + 4 * n],
-                          &S[k + 5 * n], &S[k + 6 * n], &S[dense])
+        if n == 11:
+            k_dopri5_dense_11(&S[y_old], &S[k], &S[k + n], &S[k + 2 * n], &S[k + 3 * n], &S[k + 4 * n],
+                              &S[k + 5 * n], &S[k + 6 * n], &S[dense])
+        elif n == 15:
+            k_dopri5_dense_15(&S[y_old], &S[k], &S[k + n], &S[k + 2 * n], &S[k + 3 * n], &S[k + 4 * n],
+                              &S[k + 5 * n], &S[k + 6 * n], &S[dense])
+        else:
+            k_dopri5_dense_9(&S[y_old], &S[k], &S[k + n], &S[k + 2 * n], &S[k + 3 * n], &S[k + 4 * n],
+                              &S[k + 5 * n], &S[k + 6 * n], &S[dense])
 
 
 cdef inline void k_foot_positions(double *S, Py_ssize_t q, Py_ssize_t p) noexcept nogil:

@@ -137,7 +137,7 @@ FIELDS = (
     Field("n_records", (), "the touchdowns and ended scuffs applied in C whose Events the Python code makes "
                            "(records, in order)"),
     Field("why", (), "why the compiled loop handed the last step back (Reason)"),
-    Field("end_u", (2,), "the step handed back: the torque of its end (N m)"),
+    Field("end_u", (NU_MAX,), "the step handed back: the torque of its end, one an actuator (N m)"),
     Field("end_F", (2,), "the step handed back: the stance force of its end (N)"),
     # -- the compiled loop's statistics since the Python code last took them (compiled_loop.take_stats)
     Field("steps", (), "the quiet steps accepted in C"),

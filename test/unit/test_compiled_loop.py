@@ -732,7 +732,7 @@ def test_every_method_of_the_loop_is_one_the_engine_calls():
     source = "".join(path.read_text() for path in sorted(engine.glob("*.py")))
     methods = {name for name in dir(compiled_loop._core.Loop) if not name.startswith("_")}
     assert methods == {"begin", "dense", "dense_at", "held", "law_torque", "locate_crossing", "period", "periods",
-                       "raise_error", "rhs", "run", "set_model", "step"}
+                       "raise_error", "rhs", "run", "set_kernels", "set_model", "step"}
     assert [name for name in sorted(methods) if not re.search(rf"loop\.{name}\b", source)] == []
     assert {name for name in dir(compiled_loop._core) if not name.startswith("_")} == {
         "KERNELS_SHA256", "Loop", "set_python_checks"}
@@ -936,19 +936,97 @@ def test_a_described_robots_right_hand_side_in_c_is_the_python_loops_bit_for_bit
 
 
 def test_a_described_robots_loop_refuses_what_it_cannot_run_in_one_line():
-    """The Loop over a described robot evaluates its right-hand side only: a step, a run and its dense output, a
-    compiled law and joints that are not entries of q are refused with one line each."""
+    """The Loop over a described robot takes its steps (begin, step, dense, dense_at) and leaves the rest to the
+    Python loop: a run, a held period, periods, a crossing located in C and a compiled law are refused with one line
+    each, and a period is declined; so are joints that are not entries of q."""
     from biped_sim.engine import model_kernels
     model, loop, S = described_loop("rabbit")
-    y = [0.0, 0.9] + [0.1] * (2 * model.n - 1)
-    loop_state.write(S, stance_leg=1, u_hold=[0.0] * model.m, method=0, t=0.0, t_bound=1.0, y=y)
+    y = model.contact_position(np.zeros(7), 1).tolist()
+    y = [0.0, 0.9, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05] + [0.0] * (model.n + 1)
+    loop_state.write(S, stance_leg=1, u_hold=[0.0] * model.m, method=0, t=0.0, t_bound=1.0, h_abs=1e-3, y=y,
+                     max_step=np.inf, rtol=1e-9, atol=1e-9)
     loop.begin(None)
-    for call in (loop.step, loop.dense, lambda: loop.run(1.0, np.zeros((4, loop_state.ROW_WIDTH)))):
-        with pytest.raises(ValueError, match=r"^\w+\(\): the compiled loop steps the three-link biped only") as e:
+    assert loop_state.Outcome(loop.step()) == loop_state.Outcome.DONE and S[loop_state.T] > 0.0
+    assert len(loop.dense_at(S[loop_state.T])) == 2 * model.n + 1
+    data = np.zeros((4, loop_state.ROW_WIDTH))
+    for call in (lambda: loop.run(1.0, data), lambda: loop.held(1.0, data), lambda: loop.locate_crossing(2, 0.0, 0.1),
+                 lambda: loop.periods(lambda *a: [0.0] * 4, 1e-3, 1.0, np.inf, data)):
+        with pytest.raises(ValueError, match=r"^\w+\(\): the compiled loop runs the three-link biped only") as e:
             call()
         assert "\n" not in str(e.value)
+    assert loop_state.Outcome(loop.period(1e-3, [0.0] * 4, 1.0, data)) == loop_state.Outcome.DECLINED
     with pytest.raises(ValueError, match="a described robot runs dop853"):
         loop.begin((1, [0.0], "law"))
     table = model_kernels.compiled_kernels(model).KERNEL_TABLE
     with pytest.raises(ValueError, match=r"joints\[0\] is not an entry of q \(0\.\.6\)"):
         loop.set_kernels(table, [99] * model.m, "rabbit")
+
+
+
+def _rabbit_on_foot_1(lift=0.0):
+    """RABBIT on foot 1 at the origin (leg 2 bent, its foot 2 cm up), at rest; ``lift`` raises it."""
+    rabbit = bs.load_model("rabbit")
+    q = np.array([0.0, 0.0, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05])
+    q[:2] -= rabbit.contact_position(q, 1)
+    q[1] += lift
+    return rabbit, q, np.zeros(7)
+
+
+def assert_same_bits(a, b, what=""):
+    """The same run bit for bit: status, events (kinds, legs, times), samples and counters."""
+    assert_same_run(a, b, what)
+    assert [e.time for e in a.events] == [e.time for e in b.events], what
+    for name in ("t", "q", "dq", "u", "grf", "stance_leg"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=f"{what} {name}")
+
+
+def on_both_loops_counting_c_steps(run, monkeypatch):
+    """(compiled, python, steps the compiled run took in C): both_loops with CompiledStepper.step counted."""
+    taken = []
+    step = compiled_loop.CompiledStepper.step
+    monkeypatch.setattr(compiled_loop.CompiledStepper, "step", lambda self: (taken.append(1), step(self))[1])
+    a, b = both_loops(run)
+    return a, b, len(taken)
+
+
+DESCRIBED_RUNS = {
+    # the rabbit scene's walk, the control period held and continuous
+    "rabbit walk held": lambda: bs.load_scene("rabbit").simulate(hold=True, t_final=2.0),
+    "rabbit walk continuous": lambda: bs.load_scene("rabbit").simulate(hold=False, t_final=2.0),
+    # dropped from 5 cm in flight (the Python loop's mode), foot 1 lands, stance (the compiled loop's steps)
+    "rabbit drop": lambda: bs.simulate(*_rabbit_on_foot_1(lift=0.05), 0.3, stance_leg=0),
+    # a knee torque ramped up lifts the stance foot off: without the flight phase the liftoff stops the run; with
+    # it, flight, a touchdown and impacts that accumulate (a Zeno stop)
+    "rabbit liftoff stops": lambda: _kicking_rabbit(phases=frozenset({"stance", "impact"})),
+    "rabbit liftoff, flight, zeno": lambda: _kicking_rabbit(),
+    # the compass gait's description as a GeneratedModel, passive down its slope: touchdowns and scuffs
+    "compass gait": lambda: bs.simulate(_generated("compass_gait"), np.array([0.0, 1.0, np.pi, np.pi, 0.0]),
+                                        np.array([0.4, 0.0, 0.4, -2.0, 0.0]), 3.0, rtol=1e-10, atol=1e-10,
+                                        slope=0.0525, phases=frozenset({"stance", "impact"})),
+}
+
+
+def _generated(name):
+    from biped_sim.config import models
+    return models.generated_model(name)
+
+
+def _kicking_rabbit(**options):
+    rabbit, q0, dq0 = _rabbit_on_foot_1()
+    def knee_kick(t, q, dq, leg):
+        return [0.0, 0.0, -50.0 * min(t / 0.05, 1.0), 0.0]
+    return bs.simulate(rabbit, q0, dq0, 0.3, controller=knee_kick, stance_leg=1, **options)
+
+
+@pytest.mark.parametrize("name", list(DESCRIBED_RUNS))
+def test_a_described_robot_runs_the_same_on_both_loops_bit_for_bit(name, monkeypatch):
+    """A described robot (a GeneratedModel) on the compiled loop, its stance steps taken in C on its kernels' C entry
+    points and each handled by the Python loop, gives the Python loop's run bit for bit."""
+    a, b, c_steps = on_both_loops_counting_c_steps(DESCRIBED_RUNS[name], monkeypatch)
+    assert_same_bits(a, b, name)
+    assert c_steps > (0.5 * a.stats["steps"] if "walk" in name else 0), (c_steps, a.stats["steps"])
+    assert a.events, name
+    if name == "rabbit liftoff stops":
+        assert a.status == "stopped" and "would lift off" in a.message, (a.status, a.message)
+    if name == "rabbit liftoff, flight, zeno":
+        assert [e.kind for e in a.events[:2]] == ["liftoff", "touchdown"] and a.events[-1].kind == "zeno"
