@@ -109,6 +109,13 @@ typedef struct {
      * end_u, end_F, steps, max_drift, max_rate, max_residual, wall_time) */
 } Loop;
 
+/* the table of the Loop whose state S is (_loop_table.h: the compiled rules' kernel glue) */
+static const KernelTable *
+loop_table(double *S)
+{
+    return ((const Loop *)((const char *)S - offsetof(Loop, S)))->table;
+}
+
 /* -- the torque law: held, compiled (the hook) or called back ------------------------------------- */
 
 /* the type of the exception a compiled law's failure raises (set_python_checks: the engine's ControllerError) */
@@ -788,7 +795,7 @@ three_link_only(Loop *L, const char *what)
 {
     if (L->table == NULL) return 0;
     PyErr_Format(PyExc_ValueError, "%s(): the compiled loop runs the three-link biped only; a described robot's "
-                 "steps are taken here (begin, step, dense_at), its run is the Python loop's", what);
+                 "steps are taken here (begin, step, dense_at, locate_crossing), its run is the Python loop's", what);
     return 1;
 }
 
@@ -1146,7 +1153,7 @@ Loop_locate_crossing(Loop *L, PyObject *args)
 {
     int leg;
     double ta, tb;
-    if (!PyArg_ParseTuple(args, "idd", &leg, &ta, &tb) || three_link_only(L, "locate_crossing")) return NULL;
+    if (!PyArg_ParseTuple(args, "idd", &leg, &ta, &tb)) return NULL;
     if (leg != 1 && leg != 2) {
         PyErr_SetString(PyExc_ValueError, "locate_crossing(): leg 1 or 2");
         return NULL;

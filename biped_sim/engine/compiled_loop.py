@@ -352,9 +352,8 @@ class CompiledStepper(integrators._OnState):
 
     def height_crossing(self, leg, ta, tb):
         """Where foot ``leg``'s height crosses zero in [ta, tb] on the last step (``guards.locate_crossing``'s
-        brentq, run in C on the same dense output: the same root), or None to find it in Python (a described
-        robot's)."""
-        return None if self.steps_only else self.loop.locate_crossing(leg, ta, tb)
+        brentq, run in C on the same dense output: the same root), or None to find it in Python."""
+        return self.loop.locate_crossing(leg, ta, tb)
 
     def dense_at(self, t):
         """The dense output at t, from C (the interpolant's own arithmetic: the same bits)."""

@@ -1,8 +1,9 @@
 # The generated formulas as the compiled rules (loop_rules.py) call them: the kernels of _gen/_kernels.h behind
 # the names and arguments of loop_kernels.py, their Python twins: the state S (a pointer to its first entry) and
-# offsets into it. Wiring only: every operation is a generated kernel's (or a copy).
+# offsets into it. Wiring only: every operation is a generated kernel's (or a copy). The model's kernels dispatch
+# on S[MODEL_KERNELS] as the twins do: 0 the three-link's closed forms, k > 0 a described robot's table.
 from libc.string cimport memcpy
-from libc.math cimport fabs, isinf, nextafter, INFINITY
+from libc.math cimport fabs, isinf, nextafter, INFINITY, NAN
 
 cdef extern from "_loop_state.h":
     # the right-hand side f(ctx, t, y, dy) the generated steps take (the compiled loop's, with its torque law)
@@ -46,8 +47,21 @@ cdef extern from "_gen/_kernels.h" nogil:
     int c_energy "k_energy"(const double *q, const double *dq, const double *k, double *out)
     int c_foot_kinematics "k_foot_kinematics"(const double *q, const double *dq, const double *k, double *out)
 
+# a described robot's kernels (model_kernels = k > 0): the C entry points of its twin's table (_kernel_table.h), the
+# table of the Loop whose state S is (_core.c's loop_table; the Python twins call the same entry points)
+cdef extern from "_kernel_table.h" nogil:
+    ctypedef struct KernelTable:
+        int (*impact)(const double *q, const double *dq_minus, int contact, double *dq_plus, double *F) noexcept nogil
+        int (*foot_positions)(const double *q, double *p) noexcept nogil
+        int (*foot_kinematics)(const double *q, const double *dq, double *pv) noexcept nogil
+        int (*energy)(const double *q, const double *dq, double *tv) noexcept nogil
+
+cdef extern from "_loop_table.h" nogil:
+    const KernelTable *loop_table(double *S)
+
 cdef extern from "_loop_state.h":
     enum:
+        LS_MODEL_KERNELS
         LS_NQ_MAX
         LS_N_Y
         LS_METHOD
@@ -113,6 +127,9 @@ cdef inline void k_dense(double *S, rhs_t fun, void *ctx, double t_old, double h
 
 
 cdef inline void k_foot_positions(double *S, Py_ssize_t q, Py_ssize_t p) noexcept nogil:
+    if S[LS_MODEL_KERNELS] != 0.0:
+        loop_table(S).foot_positions(&S[q], &S[p])
+        return
     c_foot_positions(&S[q], &S[LS_K_POS], &S[p])
 
 
@@ -120,6 +137,10 @@ cdef inline void k_impact_map(double *S, int leg, Py_ssize_t q, Py_ssize_t dqm, 
     # S[out:out + 5] = dq+ and S[out + NQ_MAX:] the impulse (2) of foot leg's impact (the kernel writes them in
     # one row of 7)
     cdef double r[7]
+    if S[LS_MODEL_KERNELS] != 0.0:
+        if loop_table(S).impact(&S[q], &S[dqm], leg - 1, &S[out], &S[out + LS_NQ_MAX]) != 0:
+            S[out] = NAN     # (no impact: the contact's Jacobian lost rank; a non-finite state stops the run)
+        return
     if leg == 2:
         c_impact_map_2(&S[q], &S[dqm], &S[LS_K_IMPACT], r)
     else:
@@ -130,10 +151,16 @@ cdef inline void k_impact_map(double *S, int leg, Py_ssize_t q, Py_ssize_t dqm, 
 
 
 cdef inline void k_energy(double *S, Py_ssize_t q, Py_ssize_t dq, Py_ssize_t out) noexcept nogil:
+    if S[LS_MODEL_KERNELS] != 0.0:
+        loop_table(S).energy(&S[q], &S[dq], &S[out])
+        return
     c_energy(&S[q], &S[dq], &S[LS_K_ENERGY], &S[out])
 
 
 cdef inline void k_foot_kinematics(double *S, Py_ssize_t q, Py_ssize_t dq, Py_ssize_t out) noexcept nogil:
+    if S[LS_MODEL_KERNELS] != 0.0:
+        loop_table(S).foot_kinematics(&S[q], &S[dq], &S[out])
+        return
     c_foot_kinematics(&S[q], &S[dq], &S[LS_K_FEET], &S[out])
 
 

@@ -936,12 +936,11 @@ def test_a_described_robots_right_hand_side_in_c_is_the_python_loops_bit_for_bit
 
 
 def test_a_described_robots_loop_refuses_what_it_cannot_run_in_one_line():
-    """The Loop over a described robot takes its steps (begin, step, dense, dense_at) and leaves the rest to the
-    Python loop: a run, a held period, periods, a crossing located in C and a compiled law are refused with one line
-    each, and a period is declined; so are joints that are not entries of q."""
+    """The Loop over a described robot takes its steps (begin, step, dense, dense_at, locate_crossing) and leaves the
+    rest to the Python loop: a run, a held period, periods and a compiled law are refused with one line each, and a
+    period is declined; so are joints that are not entries of q."""
     from biped_sim.engine import model_kernels
     model, loop, S = described_loop("rabbit")
-    y = model.contact_position(np.zeros(7), 1).tolist()
     y = [0.0, 0.9, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05] + [0.0] * (model.n + 1)
     loop_state.write(S, stance_leg=1, u_hold=[0.0] * model.m, method=0, t=0.0, t_bound=1.0, h_abs=1e-3, y=y,
                      max_step=np.inf, rtol=1e-9, atol=1e-9)
@@ -949,7 +948,7 @@ def test_a_described_robots_loop_refuses_what_it_cannot_run_in_one_line():
     assert loop_state.Outcome(loop.step()) == loop_state.Outcome.DONE and S[loop_state.T] > 0.0
     assert len(loop.dense_at(S[loop_state.T])) == 2 * model.n + 1
     data = np.zeros((4, loop_state.ROW_WIDTH))
-    for call in (lambda: loop.run(1.0, data), lambda: loop.held(1.0, data), lambda: loop.locate_crossing(2, 0.0, 0.1),
+    for call in (lambda: loop.run(1.0, data), lambda: loop.held(1.0, data),
                  lambda: loop.periods(lambda *a: [0.0] * 4, 1e-3, 1.0, np.inf, data)):
         with pytest.raises(ValueError, match=r"^\w+\(\): the compiled loop runs the three-link biped only") as e:
             call()
@@ -981,12 +980,15 @@ def assert_same_bits(a, b, what=""):
 
 
 def on_both_loops_counting_c_steps(run, monkeypatch):
-    """(compiled, python, steps the compiled run took in C): both_loops with CompiledStepper.step counted."""
-    taken = []
-    step = compiled_loop.CompiledStepper.step
+    """(compiled, python, steps the compiled run took in C, touchdowns it located in C): both_loops with
+    CompiledStepper.step and the touchdowns' roots found by Loop.locate_crossing counted."""
+    taken, roots = [], []
+    step, crossing = compiled_loop.CompiledStepper.step, compiled_loop.CompiledStepper.height_crossing
     monkeypatch.setattr(compiled_loop.CompiledStepper, "step", lambda self: (taken.append(1), step(self))[1])
+    monkeypatch.setattr(compiled_loop.CompiledStepper, "height_crossing",
+                        lambda self, *a: (lambda t: (roots.append(t is not None), t)[1])(crossing(self, *a)))
     a, b = both_loops(run)
-    return a, b, len(taken)
+    return a, b, len(taken), sum(roots)
 
 
 DESCRIBED_RUNS = {
@@ -1021,10 +1023,13 @@ def _kicking_rabbit(**options):
 @pytest.mark.parametrize("name", list(DESCRIBED_RUNS))
 def test_a_described_robot_runs_the_same_on_both_loops_bit_for_bit(name, monkeypatch):
     """A described robot (a GeneratedModel) on the compiled loop, its stance steps taken in C on its kernels' C entry
-    points and each handled by the Python loop, gives the Python loop's run bit for bit."""
-    a, b, c_steps = on_both_loops_counting_c_steps(DESCRIBED_RUNS[name], monkeypatch)
+    points (and its touchdowns' crossings located there) and each handled by the Python loop, gives the Python loop's
+    run bit for bit."""
+    a, b, c_steps, c_roots = on_both_loops_counting_c_steps(DESCRIBED_RUNS[name], monkeypatch)
     assert_same_bits(a, b, name)
     assert c_steps > (0.5 * a.stats["steps"] if "walk" in name else 0), (c_steps, a.stats["steps"])
+    if "walk" in name or name == "compass gait":     # its touchdowns located in C (the table's foot positions)
+        assert c_roots >= 1, name
     assert a.events, name
     if name == "rabbit liftoff stops":
         assert a.status == "stopped" and "would lift off" in a.message, (a.status, a.message)
