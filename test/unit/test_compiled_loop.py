@@ -1035,3 +1035,26 @@ def test_a_described_robot_runs_the_same_on_both_loops_bit_for_bit(name, monkeyp
         assert a.status == "stopped" and "would lift off" in a.message, (a.status, a.message)
     if name == "rabbit liftoff, flight, zeno":
         assert [e.kind for e in a.events[:2]] == ["liftoff", "touchdown"] and a.events[-1].kind == "zeno"
+
+
+def test_a_users_description_runs_on_the_compiled_loop_after_its_build(tmp_path, monkeypatch):
+    """A user's description (a YAML file in a folder of theirs: the three-link with 4 kg legs) is generated and its
+    kernels built on first use; the compiled loop then steps it, and its run is the Python loop's bit for bit."""
+    pytest.importorskip("sympy")
+    import yaml
+
+    from biped_sim.config import models
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    data = yaml.safe_load((models.ROBOTS_DIR / "three_link.yaml").read_text())
+    data["name"] = "stilts"
+    for leg in ("leg_1", "leg_2"):
+        data["links"][leg]["mass"] = 4.0
+    path = tmp_path / "stilts.yaml"
+    path.write_text(yaml.safe_dump(data))
+    model = models.generated_model(str(path))
+    assert compiled_loop.why_not_described(model) == ""
+    q0, dq0 = np.array([0.0, 1.0, np.pi, np.pi, 0.0]), np.array([0.4, 0.0, 0.4, -2.0, 0.0])
+    a, b, c_steps, c_roots = on_both_loops_counting_c_steps(
+        lambda: bs.simulate(model, q0, dq0, 1.5, slope=0.0525, phases=frozenset({"stance", "impact"})), monkeypatch)
+    assert_same_bits(a, b, "stilts")
+    assert a.impacts and c_steps > 0.5 * a.stats["steps"] and c_roots >= 1
