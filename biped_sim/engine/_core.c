@@ -748,8 +748,9 @@ Loop_set_model(Loop *L, PyObject *args)
 
 /* set_kernels(table, joints, robot): the loop's model becomes a described robot, whose kernels are the C entry
  * points of its compiled twin's capsule KERNEL_TABLE (model_kernels.py; _kernel_table.h), its M actuators turning
- * the entries joints of q, its name robot. Its right-hand side (rhs, begin) is then modes._generated_functions';
- * the events and samples are the three-link's only (three_link_only) */
+ * the entries joints of q, its name robot. Its right-hand side (rhs, begin) is then modes._generated_functions',
+ * its steps the generated ones of its size; the events, samples and periods are the three-link's only
+ * (three_link_only) */
 static PyObject *
 Loop_set_kernels(Loop *L, PyObject *args)
 {
@@ -765,10 +766,11 @@ Loop_set_kernels(Loop *L, PyObject *args)
                      "rebuild the robot's kernels", K->version, KERNEL_TABLE_VERSION);
         return NULL;
     }
-    if (K->n < 3 || K->n > LS_NQ_MAX || K->contacts < 2 || K->actuators < 1 || K->actuators > LS_NQ_MAX - 3) {
-        PyErr_Format(PyExc_ValueError, "set_kernels(): the loop runs robots of 3 to %d coordinates, 2 or more contact "
-                     "points and 1 to %d actuators (this one: %d, %d, %d)", LS_NQ_MAX, LS_NQ_MAX - 3, K->n,
-                     K->contacts, K->actuators);
+    /* (two contact points: the feet, whose positions and kinematics fill the state's fields of 4 and 8) */
+    if (K->n < 3 || K->n > LS_NQ_MAX || K->contacts != 2 || K->actuators < 1 || K->actuators > LS_NQ_MAX - 3) {
+        PyErr_Format(PyExc_ValueError, "set_kernels(): the loop runs robots of 3 to %d coordinates, 2 contact points "
+                     "and 1 to %d actuators (this one: %d, %d, %d)", LS_NQ_MAX, LS_NQ_MAX - 3, K->n, K->contacts,
+                     K->actuators);
         return NULL;
     }
     if (doubles(joints, j, K->actuators, K->actuators, "set_kernels(): joints", &m)) return NULL;
@@ -787,9 +789,9 @@ Loop_set_kernels(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* The entry points that run events and samples: NULL with a ValueError where the loop's model is a described robot's
- * (set_kernels), whose right-hand side, steps and dense output only the loop runs yet (rhs, begin, step, dense,
- * dense_at) */
+/* The entry points that run events, samples and periods: NULL with a ValueError where the loop's model is a described
+ * robot's (set_kernels), whose right-hand side, steps, dense output and crossings only the loop runs yet (rhs, begin,
+ * step, dense, dense_at, locate_crossing) */
 static int
 three_link_only(Loop *L, const char *what)
 {
@@ -1118,7 +1120,8 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
     if (wrong_nargs(nargs, 4, "period")) return NULL;
     double wall0 = seconds_now(), u[2];
-    if (L->table != NULL || L->mode_begun == 0.0 || L->n_latched != 0.0 || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
+    if (L->table != NULL || L->mode_begun == 0.0 || L->n_latched != 0.0
+        || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
         || two_finite(args[1], u) < 0)   /* (a latched guard, two scuffs: the Python code follows them) */
         return PyLong_FromLong(OUTCOME_DECLINED);
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
