@@ -40,6 +40,8 @@
 #define N 11                 /* the floating base's integrated state: q (5), dq (5), motor work */
 #define MAX_STAGES 13        /* dop853's k0..k12 */
 #define KMAX 32              /* room for any closed form's constants */
+/* a sample's row of the widest model (loop_state.sample_row(NQ_MAX, NQ_MAX)) */
+#define ROW_MAX (1 + 2 * LS_NQ_MAX + 4 + LS_NQ_MAX)
 
 enum { DOP853 = 0, DOPRI5 = 1 };
 enum { HELD = 0, COMPILED = 1, CALLBACK = 2 };   /* the kinds of torque law */
@@ -102,12 +104,20 @@ typedef struct {
     const KernelTable *table;
     PyObject *table_owner;
     char robot[64];    /* its name, for the message of a kernel's failure */
+    /* a described robot's coordinates n, actuators m and a sample's row width (loop_state.sample_row(n, m)); the
+     * three-link's are 5, 2 and ROW_WIDTH (loop_n, loop_m, loop_row_width) */
+    int n, m, row_width;
     double joints[LS_NQ_MAX];
     /* (the locator's armed feet, scuffs and the step end's feet and force are the state's: armed, scuffing,
      * scuff, deepest_scuff, scuffs, feet_end, force_end) */
     /* (why the last step was handed back, its end's torque and force, and the run's statistics are the state's: why,
      * end_u, end_F, steps, max_drift, max_rate, max_residual, wall_time) */
 } Loop;
+
+/* the model's coordinates, actuators and sample row width: a described robot's, or the three-link's */
+static inline int loop_n(const Loop *L) { return L->table ? L->n : 5; }
+static inline int loop_m(const Loop *L) { return L->table ? L->m : 2; }
+static inline int loop_row_width(const Loop *L) { return L->table ? L->row_width : ROW_WIDTH; }
 
 /* the table of the Loop whose state S is (_loop_table.h: the compiled rules' kernel glue) */
 static const KernelTable *
@@ -407,13 +417,39 @@ rhs(void *ctx, double t, const double *y, double *dy)
     return 0;
 }
 
+/* the stance force F under u at (q, dq) on the stance leg (a described robot's: its table's stance; a failure kept as
+ * a failure of the torque law is kept, F NaN) */
+static void
+stance_force(Loop *L, const double *q, const double *dq, const double *u, double *F)
+{
+    if (L->table) {
+        double ddq[LS_NQ_MAX];
+        int code = L->table->stance(q, dq, u, (int)L->stance_leg - 1, ddq, F);
+        if (code != KERNEL_OK) {
+            kernel_failed(L, code);
+            F[0] = F[1] = NAN;
+        }
+        return;
+    }
+    double out[7];
+    stance(L, q, dq, u, out);
+    F[0] = out[5]; F[1] = out[6];
+}
+
+/* the torque law's u at (t, q, dq): the three-link's or a described robot's */
+static void
+torque_of(Loop *L, double t, const double *q, const double *dq, double *u)
+{
+    if (L->table) torque_described(L, t, q, dq, u);
+    else torque(L, t, q, dq, u);
+}
+
 static void
 force_at(Loop *L, double t, const double *q, const double *dq, double *F)
 {
-    double u[2], out[7];
-    torque(L, t, q, dq, u);
-    stance(L, q, dq, u, out);
-    F[0] = out[5]; F[1] = out[6];
+    double u[LS_NQ_MAX];
+    torque_of(L, t, q, dq, u);
+    stance_force(L, q, dq, u, F);
 }
 
 /* guards.foot_states: per foot x, height across the slope, and their rates (loop_rules.ev_foot_states) */
@@ -421,7 +457,8 @@ static void
 feet(const Loop *L, const double *q, const double *dq, double *ft)
 {
     double p[8];
-    k_foot_kinematics(q, dq, L->k_feet, p);
+    if (L->table) L->table->foot_kinematics(q, dq, p);
+    else k_foot_kinematics(q, dq, L->k_feet, p);
     ev_foot_states(p, 0, L->tan_s, ft, 0);
 }
 
@@ -448,9 +485,9 @@ carry_step(Loop *L, double h)
 static void
 feet_at(const Loop *L, double tt, double *ft)
 {
-    double qd[10];
-    for (int j = 0; j < 10; j++) qd[j] = rk_dense_at((double *)L->S, j, tt);
-    feet(L, qd, qd + 5, ft);
+    double qd[2 * LS_NQ_MAX];
+    for (int j = 0; j < 2 * loop_n(L); j++) qd[j] = rk_dense_at((double *)L->S, j, tt);
+    feet(L, qd, qd + loop_n(L), ft);
 }
 
 /* -- the quiet steps ----------------------------------------------------------------------------- */
@@ -470,6 +507,18 @@ stance_start(Loop *L, const double *F)
     return ev_stance_start(L->has_mu, L->mu, ev_normal_force(L->S, F[0], F[1]), ev_tangential_force(L->S, F[0], F[1]));
 }
 
+/* a sample into row: the three-link's (loop_rules.ev_sample_row) or a described robot's (ev_sample_row_of, n
+ * coordinates and m torques) */
+static void
+sample_row(const Loop *L, double *row, double t, const double *q, const double *dq, int leg, const double *F,
+           const double *u, double residual)
+{
+    if (L->table)
+        ev_sample_row_of(row, t, (double *)q, (double *)dq, loop_n(L), leg, (double *)F, (double *)u, loop_m(L),
+                         residual);
+    else ev_sample_row(row, t, (double *)q, (double *)dq, leg, (double *)F, (double *)u, residual);
+}
+
 /* HybridSimulator._integrate's event branch for a touchdown in front at t_ev, then _reset's: the event's
  * sample (_accept), the impact (loop_rules.ev_impact, as resets.touchdown_reset calls it), relabeling, the
  * sample after it, the next mode's start. Whatever the Python code would report or act on (a warning of the
@@ -487,46 +536,45 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     if (ev_impacts_close(L->n_impacts, L->last_impact, t_ev, L->zeno_interval)) { L->why = WHY_IMPACTS_CLOSE; return 0; }
     if (ev_over_budget(m + 1, L->max_events)) { L->why = WHY_MAX_EVENTS; return 0; }
     if (ev_event_loop(m + 1, ev_ring_oldest(L->S), t_ev)) { L->why = WHY_EVENT_LOOP; return 0; }
-    double y[N], ue[2], Fe[2] = {0.0, 0.0}, out[7];
-    for (int j = 0; j < N; j++) y[j] = rk_dense_at(L->S, j, t_ev);
-    double *q = y, *dqm = y + 5, w = y[10];
-    torque(L, t_ev, q, dqm, ue);
-    if (L->compute_grf) {
-        stance(L, q, dqm, ue, out);
-        Fe[0] = out[5]; Fe[1] = out[6];
-    }
+    int n = loop_n(L), w_at = 2 * n;
+    double y[LS_NMAX], ue[LS_NQ_MAX], Fe[2] = {0.0, 0.0};
+    for (int j = 0; j <= w_at; j++) y[j] = rk_dense_at(L->S, j, t_ev);
+    double *q = y, *dqm = y + n, w = y[w_at];
+    torque_of(L, t_ev, q, dqm, ue);
+    if (L->compute_grf) stance_force(L, q, dqm, ue, Fe);
     if (L->callback_failed) { L->why = WHY_LAW_FAILED; return 0; }
     /* the impact and its checks (loop_rules.ev_impact: resets.impact_warnings' and invariants.check_impact's) */
-    memcpy(L->q_impact, q, 5 * sizeof(double));
-    memcpy(L->dq_minus, dqm, 5 * sizeof(double));
+    memcpy(L->q_impact, q, n * sizeof(double));
+    memcpy(L->dq_minus, dqm, n * sizeof(double));
     int checks = ev_impact(L->S, nw, old, L->has_mu);
     double *dqp = L->dq_plus, *imp = L->impulse, loss = ev_impact_loss(L->S);
     if (checks & IMPACT_OLD_FOOT_SINKS) { L->why = WHY_OLD_FOOT_SINKS; return 0; }
     if (checks & (IMPACT_PULLS | IMPACT_OUTSIDE_CONE)) { L->why = WHY_IMPULSE_CHECK; return 0; }
     if (L->check_invariants && ev_stays_down(L->feet_after[old - 1][3], L->contact_tol)) { L->why = WHY_OLD_FOOT_STAYS; return 0; }
     /* the new stance (_check_stance_start): the ground must push, inside the friction cone */
-    double up[2], Fp[2];
+    double up[LS_NQ_MAX], Fp[2];
     L->stance_leg = nw;
-    torque(L, t_ev, q, dqp, up);
-    stance(L, q, dqp, up, out);
+    torque_of(L, t_ev, q, dqp, up);
+    stance_force(L, q, dqp, up, Fp);
     L->stance_leg = old;
-    Fp[0] = out[5]; Fp[1] = out[6];
+    if (L->callback_failed) { L->why = WHY_LAW_FAILED; return 0; }
     if (stance_start(L, Fp) != STANCE_HOLDS) { L->why = WHY_STANCE_REFUSED; return 0; }
     /* applied */
     double lost = ev_energy_lost_after(energy_lost, loss);
     double res_e = ev_energy_residual(L->energy_before, E0, w, push_work, energy_lost);
     double res_p = ev_energy_residual(L->energy_after, E0, w, push_work, lost);
-    ev_sample_row(rows, t_ev, q, dqm, old, Fe, ue, res_e);
-    ev_sample_row(rows + ROW_WIDTH, t_ev, q, dqp, nw, Fp, up, res_p);
+    sample_row(L, rows, t_ev, q, dqm, old, Fe, ue, res_e);
+    sample_row(L, rows + loop_row_width(L), t_ev, q, dqp, nw, Fp, up, res_p);
     *residual_out = ev_running_max(fabs(res_e), fabs(res_p));
     double p[4];
-    k_foot_positions(q, L->k_pos, p);
+    if (L->table) L->table->foot_positions(q, p);
+    else k_foot_positions(q, L->k_pos, p);
     ev_foot_point(p, nw, L->pin);
     double *v = new_record(L->S, RECORD_TOUCHDOWN, old, nw);
     v[REC_TD_T] = t_ev;
-    memcpy(v + REC_TD_Q, q, 5 * sizeof(double));
-    memcpy(v + REC_TD_DQ_MINUS, dqm, 5 * sizeof(double));
-    memcpy(v + REC_TD_DQ_PLUS, dqp, 5 * sizeof(double));
+    memcpy(v + REC_TD_Q, q, n * sizeof(double));
+    memcpy(v + REC_TD_DQ_MINUS, dqm, n * sizeof(double));
+    memcpy(v + REC_TD_DQ_PLUS, dqp, n * sizeof(double));
     memcpy(v + REC_TD_IMPULSE, imp, 2 * sizeof(double));
     v[REC_TD_LOSS] = loss;
     v[REC_TD_LOST] = lost;
@@ -539,9 +587,9 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     ev_count_impact(L->S, t_ev);
     ev_count_mode_event(L->S, t_ev);
     /* the next mode's start (begin): f at the state after the impact, the step size carried over */
-    memcpy(L->y, q, 5 * sizeof(double));
-    memcpy(L->y + 5, dqp, 5 * sizeof(double));
-    L->y[10] = w;
+    memcpy(L->y, q, n * sizeof(double));
+    memcpy(L->y + n, dqp, n * sizeof(double));
+    L->y[w_at] = w;
     carry_step(L, L->h_abs);
     restart(L, t_ev, L->t_bound);
     return 3;
@@ -564,21 +612,22 @@ static int
 quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost, double *drift_out,
            double *rate_out, double *residual_out)
 {
-    double q[5], dq[5], w = L->y[10], ft1[8], ft0[8], F0[2], F1[2];
-    memcpy(q, L->y, sizeof q);
-    memcpy(dq, L->y + 5, sizeof dq);
-    if (ev_diverging(dq, 5, L->max_speed)) { L->why = WHY_DIVERGING; return 0; }
+    int n = loop_n(L);
+    double q[LS_NQ_MAX], dq[LS_NQ_MAX], w = L->y[2 * n], ft1[8], ft0[8], F0[2], F1[2];
+    memcpy(q, L->y, n * sizeof(double));
+    memcpy(dq, L->y + n, n * sizeof(double));
+    if (ev_diverging(dq, n, L->max_speed)) { L->why = WHY_DIVERGING; return 0; }
     feet(L, q, dq, ft1);
     /* the torque and force of the step's last evaluation, at its end (FSAL) */
-    L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
+    memcpy(L->end_u, L->last_u, loop_m(L) * sizeof(double));
     F1[0] = L->end_F[0] = L->last_F[0];
     F1[1] = L->end_F[1] = L->last_F[1];
     if (ev_feet_kept_at(L->S, L->t_old) && ev_force_kept_at(L->S, L->t_old)) {
         memcpy(ft0, L->feet_end, sizeof ft0);
         F0[0] = L->force_end[0]; F0[1] = L->force_end[1];
     } else {
-        feet(L, L->y_old, L->y_old + 5, ft0);
-        force_at(L, L->t_old, L->y_old, L->y_old + 5, F0);
+        feet(L, L->y_old, L->y_old + n, ft0);
+        force_at(L, L->t_old, L->y_old, L->y_old + n, F0);
         cache_step_end(L, L->t_old, ft0, F0);   /* a step handed back starts from them (EventLocator.locate) */
     }
     int st = (int)L->stance_leg, sw = 3 - st;
@@ -653,7 +702,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     if (L->project) ev_project_onto_pin(q, dq, fs, L->pin, L->tan_s);
     /* invariants.check_sample (a violation: pending, and the Python code reports it) */
     if (L->check_invariants) {
-        if (!ev_finite_state(q, dq, 5)) { L->why = WHY_NON_FINITE; return 0; }
+        if (!ev_finite_state(q, dq, n)) { L->why = WHY_NON_FINITE; return 0; }
         if (!scuffing && ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)) { L->why = WHY_FOOT_BELOW_GROUND; return 0; }
         if (ev_violated(ev_normal_force(L->S, F1[0], F1[1]), L->force_tol)) { L->why = WHY_GROUND_PULLS; return 0; }
         if (L->has_mu && L->stop_on_slip && ev_violated(ev_cone_margin(L->S, F1[0], F1[1]), L->force_tol)) {
@@ -671,19 +720,23 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         double *v = new_record(L->S, RECORD_SCUFF_ENDED, sw, st);
         memcpy(v + REC_SCUFF_SCUFF, scuff, sizeof scuff);
         v[REC_SCUFF_T_UP] = L->t;
-        for (int j = 0; j < 10; j++)     /* q, then dq */
-            v[REC_SCUFF_Q + j] = ev_within_step(L->t_old, L->t, scuff[2]) ? rk_dense_at(L->S, j, scuff[2]) : NAN;
+        for (int j = 0; j < n; j++) {     /* q, then dq */
+            int in_step = ev_within_step(L->t_old, L->t, scuff[2]);
+            v[REC_SCUFF_Q + j] = in_step ? rk_dense_at(L->S, j, scuff[2]) : NAN;
+            v[REC_SCUFF_DQ + j] = in_step ? rk_dense_at(L->S, n + j, scuff[2]) : NAN;
+        }
     }
     cache_step_end(L, L->t, ft1, F1);
     for (int leg = 1; leg <= 2; leg++)
         if (!L->armed[leg - 1] && ev_arms(leg != st, ft1[4 * (leg - 1) + 1], L->arm_height)) L->armed[leg - 1] = 1;
     double TV[2];
-    k_energy(q, dq, L->k_energy, TV);
+    if (L->table) L->table->energy(q, dq, TV);
+    else k_energy(q, dq, L->k_energy, TV);
     double residual = ev_energy_residual(TV[0] + TV[1], E0, w, push_work, energy_lost);
-    ev_sample_row(row, L->t, q, dq, st, F1, L->end_u, residual);
+    sample_row(L, row, L->t, q, dq, st, F1, L->end_u, residual);
     if (L->project) {
-        memcpy(L->y, q, sizeof q);
-        memcpy(L->y + 5, dq, sizeof dq);
+        memcpy(L->y, q, n * sizeof(double));
+        memcpy(L->y + n, dq, n * sizeof(double));
     }
     *drift_out = drift;
     *rate_out = rate;
@@ -749,8 +802,8 @@ Loop_set_model(Loop *L, PyObject *args)
 /* set_kernels(table, joints, robot): the loop's model becomes a described robot, whose kernels are the C entry
  * points of its compiled twin's capsule KERNEL_TABLE (model_kernels.py; _kernel_table.h), its M actuators turning
  * the entries joints of q, its name robot. Its right-hand side (rhs, begin) is then modes._generated_functions',
- * its steps the generated ones of its size; the events, samples and periods are the three-link's only
- * (three_link_only) */
+ * its steps the generated ones of its size, its quiet steps, touchdowns and samples the three-link's rules with its
+ * sizes; the control periods' commands are the three-link's only (three_link_only) */
 static PyObject *
 Loop_set_kernels(Loop *L, PyObject *args)
 {
@@ -786,18 +839,21 @@ Loop_set_kernels(Loop *L, PyObject *args)
     snprintf(L->robot, sizeof L->robot, "%s", robot);
     L->n_q = K->n;
     L->n_y = 2 * K->n + 1;
+    L->n = K->n;
+    L->m = K->actuators;
+    L->row_width = 1 + 2 * K->n + 4 + K->actuators;     /* (loop_state.sample_row) */
     Py_RETURN_NONE;
 }
 
-/* The entry points that run events, samples and periods: NULL with a ValueError where the loop's model is a described
- * robot's (set_kernels), whose right-hand side, steps, dense output and crossings only the loop runs yet (rhs, begin,
- * step, dense, dense_at, locate_crossing) */
+/* The entry points that compute a control period's command (periods, law_torque): NULL with a ValueError where the
+ * loop's model is a described robot's (set_kernels), whose periods the Python code runs (its steps, quiet steps and
+ * touchdowns run here: begin, step, run, held) */
 static int
 three_link_only(Loop *L, const char *what)
 {
     if (L->table == NULL) return 0;
     PyErr_Format(PyExc_ValueError, "%s(): the compiled loop runs the three-link biped only; a described robot's "
-                 "steps are taken here (begin, step, dense_at, locate_crossing), its run is the Python loop's", what);
+                 "control periods are the Python loop's (its steps run here: begin, step, run, held)", what);
     return 1;
 }
 
@@ -822,8 +878,7 @@ Loop_step(Loop *L, PyObject *unused)
     (void)unused;
     if (rk_step(L->S, rhs, L) < 0) return PyLong_FromLong(L->callback_failed ? OUTCOME_RAISED : OUTCOME_FAILED);
     /* the torque and force of the step's last evaluation, at its end (FSAL), as handed() gives them */
-    if (L->table) memcpy(L->end_u, L->last_u, L->table->actuators * sizeof(double));
-    else { L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1]; }
+    memcpy(L->end_u, L->last_u, loop_m(L) * sizeof(double));
     L->end_F[0] = L->last_F[0]; L->end_F[1] = L->last_F[1];
     return PyLong_FromLong(OUTCOME_DONE);
 }
@@ -850,16 +905,17 @@ quiet_until(Loop *L, double t_end, RunState *rs)
     while (L->t < t_end) {
         if ((!rs->last_only && rs->n + 2 > rs->cap) || (int)L->n_records == LS_EVENT_ROOM) return OUTCOME_NEED_ROOM;
         if (rk_step(L->S, rhs, L) < 0) return OUTCOME_FAILED;
-        double drift = 0.0, rate = 0.0, residual, row[2 * ROW_WIDTH];
+        double drift = 0.0, rate = 0.0, residual, row[2 * ROW_MAX];
+        int width = loop_row_width(L);
         int accepted_how = quiet_step(L, row, rs->E0, rs->push_work, rs->energy_lost, &drift, &rate, &residual);
         if (!accepted_how) return OUTCOME_EVENT;
         long at = ev_sample_slot(rs->n, rs->provisional, rs->last_only);
         if (accepted_how == 3) {
             /* the event's sample (kept: _reset's keep_last), then the one after the impact (kept) */
-            memcpy(rs->data + ROW_WIDTH * at, row, ROW_WIDTH * sizeof(double));
+            memcpy(rs->data + width * at, row, width * sizeof(double));
             rs->n = at + 1;
             at = ev_sample_slot(rs->n, 0, rs->last_only);
-            memcpy(rs->data + ROW_WIDTH * at, row + ROW_WIDTH, ROW_WIDTH * sizeof(double));
+            memcpy(rs->data + width * at, row + width, width * sizeof(double));
             rs->n = at + 1;
             rs->appended += 2;
             rs->provisional = 0;
@@ -870,7 +926,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
                 rs->provisional = 0;
                 at = ev_sample_slot(rs->n, 0, rs->last_only);
             }
-            memcpy(rs->data + ROW_WIDTH * at, row, ROW_WIDTH * sizeof(double));
+            memcpy(rs->data + width * at, row, width * sizeof(double));
             rs->n = at + 1;
             rs->appended += 1;
             rs->provisional = ev_provisional(rs->appended, rs->every);
@@ -878,7 +934,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
             L->max_rate = ev_running_max(L->max_rate, rate);
         }
         rs->t_accepted = L->t;
-        rs->w_accepted = L->y[10];
+        rs->w_accepted = L->y[2 * loop_n(L)];
         rs->h_accepted = L->h_abs;
         rs->accepted++;
         L->steps += 1;
@@ -903,7 +959,7 @@ run_state(Loop *L, PyObject *data, RunState *rs, Py_buffer *buf)
     rs->provisional = L->provisional != 0.0;
     rs->last_only = L->last_only != 0.0;
     rs->data = buf->buf;
-    rs->cap = (long)(buf->len / (Py_ssize_t)(ROW_WIDTH * sizeof(double)));
+    rs->cap = (long)(buf->len / (Py_ssize_t)(loop_row_width(L) * sizeof(double)));
     rs->accepted = 0;
     rs->t_accepted = L->t_old;
     rs->w_accepted = 0.0;
@@ -925,8 +981,9 @@ end_run(Loop *L, RunState *rs, Py_buffer *buf)
         L->sim_t = rs->t_accepted;
         L->sim_work = rs->w_accepted;
         L->sim_h = rs->h_accepted;
-        memcpy(L->sim_q, rs->data + ROW_WIDTH * (rs->n - 1) + ROW_Q, 5 * sizeof(double));
-        memcpy(L->sim_dq, rs->data + ROW_WIDTH * (rs->n - 1) + ROW_DQ, 5 * sizeof(double));
+        /* (q and dq follow ROW_Q in every model's row: loop_state.sample_row) */
+        memcpy(L->sim_q, rs->data + loop_row_width(L) * (rs->n - 1) + ROW_Q, loop_n(L) * sizeof(double));
+        memcpy(L->sim_dq, rs->data + loop_row_width(L) * (rs->n - 1) + ROW_Q + loop_n(L), loop_n(L) * sizeof(double));
         L->sim_state_unmade = 1.0;
     }
     PyBuffer_Release(buf);
@@ -1058,7 +1115,7 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
     RunState rs;
     Py_buffer buf;
-    if (wrong_nargs(nargs, 2, "run") || three_link_only(L, "run")) return NULL;
+    if (wrong_nargs(nargs, 2, "run")) return NULL;
     double t_end = PyFloat_AsDouble(args[0]);
     if (PyErr_Occurred() || run_state(L, args[1], &rs, &buf) < 0) return NULL;
     return run_result(L, quiet_until(L, t_end, &rs), &rs, &buf);
@@ -1070,11 +1127,16 @@ Loop_run(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 static PyObject *
 Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (wrong_nargs(nargs, 2, "held") || three_link_only(L, "held")) return NULL;
+    if (wrong_nargs(nargs, 2, "held")) return NULL;
     double t_bound = PyFloat_AsDouble(args[0]);
     if (PyErr_Occurred()) return NULL;
     if (!isnan(L->sim_h)) carry_step(L, L->sim_h);
-    hold(L, L->sim_u[0], L->sim_u[1], t_bound);
+    if (L->table) {     /* (its M torques) */
+        memcpy(L->u_hold, L->sim_u, loop_m(L) * sizeof(double));
+        hold(L, L->sim_u[0], L->sim_u[1], t_bound);
+    } else {
+        hold(L, L->sim_u[0], L->sim_u[1], t_bound);
+    }
     if (L->callback_failed) return raise_callback_error(L);
     return Loop_run(L, args, nargs);
 }

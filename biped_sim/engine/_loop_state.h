@@ -4,7 +4,7 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 2718
+#define LOOP_STATE_SIZE 3390
 #define LS_NMAX 25
 #define LS_NQ_MAX 12
 #define LS_MAX_DEPTH 30
@@ -160,19 +160,19 @@
 #define REC_A 1
 #define REC_B 2
 #define REC_V 3
-#define REC_WIDTH 25
+#define REC_WIDTH 46
 #define REC_TD_T 0
 #define REC_TD_Q 1
-#define REC_TD_DQ_MINUS 6
-#define REC_TD_DQ_PLUS 11
-#define REC_TD_IMPULSE 16
-#define REC_TD_LOSS 18
-#define REC_TD_LOST 19
-#define REC_TD_PIN 20
+#define REC_TD_DQ_MINUS 13
+#define REC_TD_DQ_PLUS 25
+#define REC_TD_IMPULSE 37
+#define REC_TD_LOSS 39
+#define REC_TD_LOST 40
+#define REC_TD_PIN 41
 #define REC_SCUFF_SCUFF 0
 #define REC_SCUFF_T_UP 3
 #define REC_SCUFF_Q 4
-#define REC_SCUFF_DQ 9
+#define REC_SCUFF_DQ 16
 
 /* Outcome, Record and Reason (loop_state.py) */
 #define OUTCOME_DONE 0
@@ -344,6 +344,6 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double energy_after;  /* T + V after the impact (J) */ \
     double kinematics[8];  /* foot_kinematics after the impact: p_1, p_2, dp_1/dt, dp_2/dt */ \
     double feet_after[2][4];  /* the feet after the impact: x, height across the ground, their rates, a row a foot */ \
-    double records[32][25];  /* the touchdowns and ended scuffs applied in C, a row a record (RECORD_ROW), the first n_records in use */
+    double records[32][46];  /* the touchdowns and ended scuffs applied in C, a row a record (RECORD_ROW), the first n_records in use */
 
 #endif

@@ -7,9 +7,10 @@ comes through the hook (:mod:`~biped_sim.engine.torque_hook`). Else, and always 
 ``BIPED_SIM_PURE_PYTHON=1``, the Python loop of ``hybrid.py`` runs, the readable reference. Both give the same
 run (test/unit/test_compiled_loop.py).
 
-A described robot (a GeneratedModel with compiled kernels, :func:`why_not_described`): the compiled loop takes
-the steps of its floating-base stance in C, on its kernels' C entry points (``Loop.set_kernels``), and hands each
-to the Python loop, which locates, resets, samples and checks it (:attr:`CompiledStepper.steps_only`).
+A described robot (a GeneratedModel with compiled kernels, :func:`why_not_described`): the compiled loop runs its
+floating-base stance in C on its kernels' C entry points (``Loop.set_kernels``), with the same rules and their
+sizes from the model: the steps, the quiet steps and their samples, the touchdowns it applies. The commands of its
+control periods are the Python code's (:attr:`CompiledStepper.described`: ``periods`` is the three-link's).
 
 The stepper (:class:`CompiledStepper`): the interface of ``integrators._ListRungeKutta`` over the simulator's
 state (``loop_state.py``; :func:`run_state`), which the C ``Loop`` reads and writes in place. Its entry points
@@ -37,6 +38,7 @@ from biped_sim.engine.loop_state import (
     N_Y,
     NACCEPTED,
     NFEV,
+    NQ_MAX,
     NREJECTED,
     REC_A,
     REC_B,
@@ -91,10 +93,10 @@ AVAILABLE = _core is not None
 enabled = True
 
 
-#: what the compiled loop does for a described robot (a GeneratedModel with compiled kernels): it takes the steps of
-#: its floating-base stance in C, on its kernels' C entry points (Loop.set_kernels), and the Python loop handles
-#: each step (its events, samples and checks)
-WHY_NOT_GENERATED = "a described robot: its steps in C, its events in the Python loop"
+#: what the compiled loop leaves to the Python code for a described robot (a GeneratedModel with compiled kernels,
+#: whose floating-base stance it runs on its kernels' C entry points: Loop.set_kernels): the commands of its control
+#: periods
+WHY_NOT_GENERATED = "a described robot: its control periods' commands in Python"
 
 #: the sizes of y (2 N + 1 for N coordinates) the compiled loop has generated steps for (tools/generate_rk.py's
 #: UNROLLED; loop_kernels.k_step)
@@ -117,8 +119,7 @@ def why_not_described(model):
 
 def covers(sim, controller):
     """The torque law when the compiled loop can run the simulator's current mode, else None. A described robot's
-    mode: held or a Python controller (a compiled law is the three-link's), its steps in C and each handled by the
-    Python loop (CompiledStepper.run: PYTHON_STEPS)."""
+    mode: held or a Python controller (a compiled law is the three-link's)."""
     if (_core is None or not enabled or sim._loop is None or not sim.stance_leg or sim.opt.base != "floating"
             or sim.method not in METHODS or sim.on_step is not None or not all_compiled()):
         return None
@@ -157,15 +158,16 @@ def run_state(model):
     return write(memoryview(loop).cast("d"), **fields), loop
 
 
-def take_records(S):
+def take_records(S, n=5):
     """The touchdowns and ended scuffs the compiled loop applied, in order, from the state's records (RECORD_ROW,
-    RECORD_VALUES), as tuples: (TOUCHDOWN, t, old leg, new leg, q, dq-, dq+, impulse, energy loss, energy lost so
-    far, pin) or (SCUFF_ENDED, foot, stance leg, [t_start, deepest, t_deepest], t_up, q, dq); then none are left."""
+    RECORD_VALUES; q and dq of n entries), as tuples: (TOUCHDOWN, t, old leg, new leg, q, dq-, dq+, impulse, energy
+    loss, energy lost so far, pin) or (SCUFF_ENDED, foot, stance leg, [t_start, deepest, t_deepest], t_up, q, dq);
+    then none are left."""
     out = []
     for i in range(int(S[N_RECORDS])):
         r = RECORDS + REC_WIDTH * i
         kind, a, b = int(S[r + REC_KIND]), int(S[r + REC_A]), int(S[r + REC_B])
-        values = [S[r + REC_V + at:r + REC_V + at + size].tolist()
+        values = [S[r + REC_V + at:r + REC_V + at + (n if size == NQ_MAX else size)].tolist()
                   for at, size in _VALUE_SLICES["TD" if kind == Record.TOUCHDOWN else "SCUFF"]]
         if kind == Record.TOUCHDOWN:
             (t,), q, dq_minus, dq_plus, impulse, (loss,), (lost,), pin = values
@@ -223,8 +225,9 @@ class CompiledStepper(integrators._OnState):
               impulse_tol=opt.impulse_tol, contact_tol=opt.contact_tol, max_events=opt.max_events)
         self.rtol, self.atol, self.method = sim.rtol, sim.atol, sim.method
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
-        #: a described robot's: its steps are taken here, each handled by the Python loop (run: PYTHON_STEPS)
-        self.steps_only = sim.p is None
+        #: a described robot's: its quiet steps and touchdowns run here, its control periods' commands are the
+        #: Python code's (periods: the three-link's only)
+        self.described = sim.p is None
         self._m = sim._m
 
     def start(self, t_bound, law, reset_counters):
@@ -257,7 +260,7 @@ class CompiledStepper(integrators._OnState):
         it), or PYTHON_STEPS (the locator holds a latched guard or two scuffs, which only the Python code
         follows: step in Python)."""
         sim = self.sim
-        if self.steps_only or sim.locator.python_only():
+        if sim.locator.python_only():
             return Outcome.PYTHON_STEPS
         while True:      # NEED_ROOM: make_room makes it, _after_run takes the events
             sim._samples.make_room()
@@ -269,14 +272,14 @@ class CompiledStepper(integrators._OnState):
         """The control period's command of a compiled law at the simulator's state, computed in C (the
         law's own torques bit for bit), or None where the Python controller must be called."""
         law = reference_law(controller, self.sim.model)
-        if law is None or self.steps_only or not self.S[MODE_BEGUN] or self.sim._stepper is not self:
+        if law is None or self.described or not self.S[MODE_BEGUN] or self.sim._stepper is not self:
             return None
         return self.loop.law_torque(hook_argument(law))
 
     def can_run_periods(self):
         """Whether ``periods`` can run now: the simulator's state is the loop's, and the locator holds
         nothing only the Python code follows."""
-        return bool(self.S[MODE_BEGUN]) and not self.steps_only and not self.sim.locator.python_only()
+        return bool(self.S[MODE_BEGUN]) and not self.described and not self.sim.locator.python_only()
 
     def periods(self, period, law, t_final, t_stop):
         """Control periods held, as ``advance_period`` would run them, each command computed at its period's
@@ -301,7 +304,7 @@ class CompiledStepper(integrators._OnState):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
         in one call (``None`` when the simulator's state is not the loop's: then ``start`` and ``run``)."""
         sim = self.sim
-        if not self.S[MODE_BEGUN] or self.steps_only or sim.locator.python_only():
+        if not self.S[MODE_BEGUN] or sim.locator.python_only():
             return None
         # (no room made first: a full array comes back NEED_ROOM before a step, and run() goes on)
         return self.finish_held(self.loop.held(t_end, sim._samples._data), t_end)
@@ -317,7 +320,7 @@ class CompiledStepper(integrators._OnState):
         handling."""
         sim = self.sim
         if self.S[N_RECORDS]:
-            sim._loop_records(take_records(self.S))
+            sim._loop_records(take_records(self.S, sim.n))
         if self._raise_failure(outcome) == Outcome.EVENT:     # (its start's feet and force: the state's)
             self._handed(outcome)
         return outcome

@@ -46,12 +46,13 @@ EVENT_ROOM = 32     # the event records a run may make before the Python code ta
 
 
 #: a record's values, in order, with their sizes: a touchdown's (a, b: the old and the new stance leg) and an ended
-#: scuff's (a, b: the foot and the stance leg; q and dq at t_deepest, NaN outside the step). _loop_state.h carries
-#: their offsets from REC_V as REC_TD_<NAME> and REC_SCUFF_<NAME>.
+#: scuff's (a, b: the foot and the stance leg; q and dq at t_deepest, NaN outside the step). q and dq have room for
+#: NQ_MAX coordinates, the model's N in use. _loop_state.h carries their offsets from REC_V as REC_TD_<NAME> and
+#: REC_SCUFF_<NAME>.
 RECORD_VALUES = {
-    "TD": (("t", 1), ("q", 5), ("dq_minus", 5), ("dq_plus", 5), ("impulse", 2), ("loss", 1), ("lost", 1),
-           ("pin", 2)),
-    "SCUFF": (("scuff", 3), ("t_up", 1), ("q", 5), ("dq", 5)),
+    "TD": (("t", 1), ("q", NQ_MAX), ("dq_minus", NQ_MAX), ("dq_plus", NQ_MAX), ("impulse", 2), ("loss", 1),
+           ("lost", 1), ("pin", 2)),
+    "SCUFF": (("scuff", 3), ("t_up", 1), ("q", NQ_MAX), ("dq", NQ_MAX)),
 }
 
 

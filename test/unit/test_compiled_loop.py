@@ -806,7 +806,9 @@ def test_the_touchdowns_the_loop_applies_are_records_in_the_state():
         row = rows[ls.Record.TOUCHDOWN, e.time]
         v = row[ls.REC_V:]
         assert (row[ls.REC_A], row[ls.REC_B]) == (e.stance_leg_before, e.stance_leg_after)
-        assert v[1:6] == e.q.tolist() and v[6:11] == e.dq_minus.tolist() and v[11:16] == e.dq_plus.tolist()
+        q, dqm, dqp = ls.REC_TD_Q, ls.REC_TD_DQ_MINUS, ls.REC_TD_DQ_PLUS     # (room for NQ_MAX; N = 5 in use)
+        assert v[q:q + 5] == e.q.tolist() and v[dqm:dqm + 5] == e.dq_minus.tolist()
+        assert v[dqp:dqp + 5] == e.dq_plus.tolist()
     assert S[ls.N_RECORDS] == 0.0 and not hasattr(compiled_loop._core.Loop, "take_events")
 
 
@@ -936,9 +938,9 @@ def test_a_described_robots_right_hand_side_in_c_is_the_python_loops_bit_for_bit
 
 
 def test_a_described_robots_loop_refuses_what_it_cannot_run_in_one_line():
-    """The Loop over a described robot takes its steps (begin, step, dense, dense_at, locate_crossing) and leaves the
-    rest to the Python loop: a run, a held period, periods and a compiled law are refused with one line each, and a
-    period is declined; so are joints that are not entries of q."""
+    """The Loop over a described robot takes its steps and runs its quiet steps (begin, step, dense_at, run, held);
+    control periods whose commands it would compute (periods, law_torque) and a compiled law are refused with one
+    line each, a period is declined (the Python code runs it), and joints that are not entries of q are refused."""
     from biped_sim.engine import model_kernels
     model, loop, S = described_loop("rabbit")
     y = [0.0, 0.9, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05] + [0.0] * (model.n + 1)
@@ -947,9 +949,9 @@ def test_a_described_robots_loop_refuses_what_it_cannot_run_in_one_line():
     loop.begin(None)
     assert loop_state.Outcome(loop.step()) == loop_state.Outcome.DONE and S[loop_state.T] > 0.0
     assert len(loop.dense_at(S[loop_state.T])) == 2 * model.n + 1
-    data = np.zeros((4, loop_state.ROW_WIDTH))
-    for call in (lambda: loop.run(1.0, data), lambda: loop.held(1.0, data),
-                 lambda: loop.periods(lambda *a: [0.0] * 4, 1e-3, 1.0, np.inf, data)):
+    data = np.zeros((4, loop_state.sample_row(model.n, model.m)["ROW_WIDTH"]))
+    for call in (lambda: loop.periods(lambda *a: [0.0] * 4, 1e-3, 1.0, np.inf, data),
+                 lambda: loop.law_torque((1, [0.0], "law"))):
         with pytest.raises(ValueError, match=r"^\w+\(\): the compiled loop runs the three-link biped only") as e:
             call()
         assert "\n" not in str(e.value)
@@ -980,15 +982,24 @@ def assert_same_bits(a, b, what=""):
 
 
 def on_both_loops_counting_c_steps(run, monkeypatch):
-    """(compiled, python, steps the compiled run took in C, touchdowns it located in C): both_loops with
-    CompiledStepper.step and the touchdowns' roots found by Loop.locate_crossing counted."""
+    """(compiled, python, steps the compiled run took in C, touchdowns it located in C): both_loops with the steps
+    taken in C (the quiet steps, compiled_loop_steps, and the steps handed to the Python code, CompiledStepper.step)
+    and the touchdowns located in C (applied there: the loop's records; or handed back: Loop.locate_crossing's roots)
+    counted."""
     taken, roots = [], []
     step, crossing = compiled_loop.CompiledStepper.step, compiled_loop.CompiledStepper.height_crossing
+    records = compiled_loop.take_records
     monkeypatch.setattr(compiled_loop.CompiledStepper, "step", lambda self: (taken.append(1), step(self))[1])
     monkeypatch.setattr(compiled_loop.CompiledStepper, "height_crossing",
                         lambda self, *a: (lambda t: (roots.append(t is not None), t)[1])(crossing(self, *a)))
+
+    def counted_records(S, n=5):
+        out = records(S, n)
+        roots.extend(r[0] == loop_state.Record.TOUCHDOWN for r in out)
+        return out
+    monkeypatch.setattr(compiled_loop, "take_records", counted_records)
     a, b = both_loops(run)
-    return a, b, len(taken), sum(roots)
+    return a, b, a.stats["compiled_loop_steps"] + len(taken), sum(roots)
 
 
 DESCRIBED_RUNS = {
