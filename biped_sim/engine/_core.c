@@ -845,15 +845,15 @@ Loop_set_kernels(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* The entry points that compute a control period's command (periods, law_torque): NULL with a ValueError where the
- * loop's model is a described robot's (set_kernels), whose periods the Python code runs (its steps, quiet steps and
- * touchdowns run here: begin, step, run, held) */
+/* The entry point that computes a compiled law's command (law_torque): NULL with a ValueError where the loop's model
+ * is a described robot's (set_kernels), whose laws are Python controllers (its steps, quiet steps, touchdowns and
+ * periods run here: begin, step, run, held, periods) */
 static int
 three_link_only(Loop *L, const char *what)
 {
     if (L->table == NULL) return 0;
-    PyErr_Format(PyExc_ValueError, "%s(): the compiled loop runs the three-link biped only; a described robot's "
-                 "control periods are the Python loop's (its steps run here: begin, step, run, held)", what);
+    PyErr_Format(PyExc_ValueError, "%s(): a compiled law runs the three-link biped only; a described robot's law is "
+                 "a Python controller", what);
     return 1;
 }
 
@@ -1055,7 +1055,7 @@ wrong_nargs(Py_ssize_t nargs, Py_ssize_t n, const char *name)
 static PyObject *
 Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (wrong_nargs(nargs, 5, "periods") || three_link_only(L, "periods")) return NULL;
+    if (wrong_nargs(nargs, 5, "periods")) return NULL;
     double period = PyFloat_AsDouble(args[1]), t_final = PyFloat_AsDouble(args[2]), t_stop = PyFloat_AsDouble(args[3]);
     long k0 = (long)L->control_periods;
     if (PyErr_Occurred()) return NULL;
@@ -1065,7 +1065,13 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     }
     CompiledLaw law;
     PyObject *command = PyCallable_Check(args[0]) ? args[0] : NULL;
+    if (command == NULL && L->table) {
+        PyErr_SetString(PyExc_ValueError, "periods(): a described robot's law is a Python controller (a compiled law "
+                        "is the three-link's)");
+        return NULL;
+    }
     if (command == NULL && compiled_law_from(args[0], &law) < 0) return NULL;
+    int m = loop_m(L);
     long k_first = k0;
     if (isnan(period_end(L->t, period, t_final, &k_first))) {   /* (the first period's index only can be late) */
         PyErr_SetString(PyExc_ValueError, "periods(): more than 2**53 control periods before t");
@@ -1075,37 +1081,37 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     Py_buffer buf;
     if (run_state(L, args[4], &rs, &buf) < 0) return NULL;
     int outcome = OUTCOME_DONE;
-    double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, refused[2] = {NAN, NAN};
+    double t_next = L->t, u[LS_NQ_MAX], refused[LS_NQ_MAX];
+    memcpy(u, L->u_hold, m * sizeof(double));
+    for (int i = 0; i < m; i++) refused[i] = NAN;
     while (ev_next_period_runs(L->t, t_final, t_stop, period)) {
         long k = k0;
-        double t_end = period_end(L->t, period, t_final, &k), u_now[2];
-        if (command != NULL) call_controller(L, command, L->t, L->y, L->y + 5, u_now);
+        double t_end = period_end(L->t, period, t_final, &k), u_now[LS_NQ_MAX];
+        if (L->table) call_controller_described(L, command, L->t, L->y, L->y + loop_n(L), u_now);
+        else if (command != NULL) call_controller(L, command, L->t, L->y, L->y + 5, u_now);
         else apply_law(L, &law, L->t, L->y, L->y + 5, u_now);
         if (L->callback_failed) {       /* (run_result: OUTCOME_RAISED) */
             k0 = k;
             break;
         }
         carry_step(L, L->h_abs);     /* as begin() carries it over */
+        memcpy(L->u_hold, u_now, m * sizeof(double));     /* (a described robot's M torques: hold's first two) */
         hold(L, u_now[0], u_now[1], t_end);
         if (refused_at_start(L)) {
             outcome = OUTCOME_TORQUE_CHANGE;
-            refused[0] = u_now[0];
-            refused[1] = u_now[1];
+            memcpy(refused, u_now, m * sizeof(double));
             break;
         }
         k0 = k;
         t_next = t_end;
-        u[0] = u_now[0];
-        u[1] = u_now[1];
+        memcpy(u, u_now, m * sizeof(double));
         outcome = quiet_until(L, t_next, &rs);
         if (outcome != OUTCOME_DONE) break;
     }
     L->control_periods = (double)k0;
-    L->sim_u[0] = u[0];
-    L->sim_u[1] = u[1];
+    memcpy(L->sim_u, u, m * sizeof(double));
     L->t_next = t_next;
-    L->refused_u[0] = refused[0];
-    L->refused_u[1] = refused[1];
+    memcpy(L->refused_u, refused, m * sizeof(double));
     return run_result(L, outcome, &rs, &buf);
 }
 

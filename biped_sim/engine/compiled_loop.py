@@ -225,8 +225,7 @@ class CompiledStepper(integrators._OnState):
               impulse_tol=opt.impulse_tol, contact_tol=opt.contact_tol, max_events=opt.max_events)
         self.rtol, self.atol, self.method = sim.rtol, sim.atol, sim.method
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
-        #: a described robot's: its quiet steps and touchdowns run here, its control periods' commands are the
-        #: Python code's (periods: the three-link's only)
+        #: a described robot's: a compiled law is the three-link's (command: the Python code computes it)
         self.described = sim.p is None
         self._m = sim._m
 
@@ -279,7 +278,7 @@ class CompiledStepper(integrators._OnState):
     def can_run_periods(self):
         """Whether ``periods`` can run now: the simulator's state is the loop's, and the locator holds
         nothing only the Python code follows."""
-        return bool(self.S[MODE_BEGUN]) and not self.described and not self.sim.locator.python_only()
+        return bool(self.S[MODE_BEGUN]) and not self.sim.locator.python_only()
 
     def periods(self, period, law, t_final, t_stop):
         """Control periods held, as ``advance_period`` would run them, each command computed at its period's
@@ -298,7 +297,7 @@ class CompiledStepper(integrators._OnState):
         t_next = S[T_NEXT]
         if outcome == Outcome.NEED_ROOM:      # the period in progress goes on in run(), which makes room
             return self.run(t_next), t_next, None
-        return outcome, t_next, [S[REFUSED_U], S[REFUSED_U + 1]] if outcome == Outcome.TORQUE_CHANGE else None
+        return outcome, t_next, S[REFUSED_U:REFUSED_U + self._m].tolist() if outcome == Outcome.TORQUE_CHANGE else None
 
     def held_period(self, t_end):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run

@@ -134,7 +134,8 @@ FIELDS = (
     Field("u_hold", (NU_MAX,), "the torque held while the torque law is held, one an actuator (N m)"),
     # -- what an entry point of the compiled loop leaves besides its Outcome
     Field("t_next", (), "period(), periods(): the end of the control period under way (s)"),
-    Field("refused_u", (2,), "periods() ending TORQUE_CHANGE: the command refused at its period's start (N m)"),
+    Field("refused_u", (NU_MAX,), "periods() ending TORQUE_CHANGE: the command refused at its period's start, one "
+                                  "an actuator (N m)"),
     Field("n_records", (), "the touchdowns and ended scuffs applied in C whose Events the Python code makes "
                            "(records, in order)"),
     Field("why", (), "why the compiled loop handed the last step back (Reason)"),

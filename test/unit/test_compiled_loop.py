@@ -938,9 +938,10 @@ def test_a_described_robots_right_hand_side_in_c_is_the_python_loops_bit_for_bit
 
 
 def test_a_described_robots_loop_refuses_what_it_cannot_run_in_one_line():
-    """The Loop over a described robot takes its steps and runs its quiet steps (begin, step, dense_at, run, held);
-    control periods whose commands it would compute (periods, law_torque) and a compiled law are refused with one
-    line each, a period is declined (the Python code runs it), and joints that are not entries of q are refused."""
+    """The Loop over a described robot runs its steps, quiet steps and periods (begin, step, dense_at, run, held,
+    periods) under a held torque or a Python controller; a compiled law (begin, periods, law_torque) is refused with
+    one line, the node's period is declined (the Python code runs it), and joints that are not entries of q are
+    refused."""
     from biped_sim.engine import model_kernels
     model, loop, S = described_loop("rabbit")
     y = [0.0, 0.9, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05] + [0.0] * (model.n + 1)
@@ -950,14 +951,15 @@ def test_a_described_robots_loop_refuses_what_it_cannot_run_in_one_line():
     assert loop_state.Outcome(loop.step()) == loop_state.Outcome.DONE and S[loop_state.T] > 0.0
     assert len(loop.dense_at(S[loop_state.T])) == 2 * model.n + 1
     data = np.zeros((4, loop_state.sample_row(model.n, model.m)["ROW_WIDTH"]))
-    for call in (lambda: loop.periods(lambda *a: [0.0] * 4, 1e-3, 1.0, np.inf, data),
-                 lambda: loop.law_torque((1, [0.0], "law"))):
-        with pytest.raises(ValueError, match=r"^\w+\(\): the compiled loop runs the three-link biped only") as e:
-            call()
-        assert "\n" not in str(e.value)
+    law = (1, [0.0], "law")
+    with pytest.raises(ValueError, match=r"^law_torque\(\): a compiled law runs the three-link biped only") as e:
+        loop.law_torque(law)
+    with pytest.raises(ValueError, match=r"^periods\(\): a described robot's law is a Python controller") as f:
+        loop.periods(law, 1e-3, 1.0, np.inf, data)
+    with pytest.raises(ValueError, match="a described robot runs dop853") as g:
+        loop.begin(law)
+    assert not any("\n" in str(x.value) for x in (e, f, g))
     assert loop_state.Outcome(loop.period(1e-3, [0.0] * 4, 1.0, data)) == loop_state.Outcome.DECLINED
-    with pytest.raises(ValueError, match="a described robot runs dop853"):
-        loop.begin((1, [0.0], "law"))
     table = model_kernels.compiled_kernels(model).KERNEL_TABLE
     with pytest.raises(ValueError, match=r"joints\[0\] is not an entry of q \(0\.\.6\)"):
         loop.set_kernels(table, [99] * model.m, "rabbit")
@@ -1012,6 +1014,11 @@ DESCRIBED_RUNS = {
     # it, flight, a touchdown and impacts that accumulate (a Zeno stop)
     "rabbit liftoff stops": lambda: _kicking_rabbit(phases=frozenset({"stance", "impact"})),
     "rabbit liftoff, flight, zeno": lambda: _kicking_rabbit(),
+    # the same kick held over 1 ms periods (their commands computed from C): the stance guards refuse a period's
+    # command at its start, and the Python code runs that period
+    "rabbit kick held": lambda: _kicking_rabbit(control_period=1e-3),
+    # a law that raises in a period: the run fails with its ControllerError
+    "rabbit law raises": lambda: _kicking_rabbit(control_period=1e-3, raise_at=0.02),
     # the compass gait's description as a GeneratedModel, passive down its slope: touchdowns and scuffs
     "compass gait": lambda: bs.simulate(_generated("compass_gait"), np.array([0.0, 1.0, np.pi, np.pi, 0.0]),
                                         np.array([0.4, 0.0, 0.4, -2.0, 0.0]), 3.0, rtol=1e-10, atol=1e-10,
@@ -1024,9 +1031,12 @@ def _generated(name):
     return models.generated_model(name)
 
 
-def _kicking_rabbit(**options):
+def _kicking_rabbit(raise_at=None, **options):
     rabbit, q0, dq0 = _rabbit_on_foot_1()
+
     def knee_kick(t, q, dq, leg):
+        if raise_at is not None and t >= raise_at:
+            raise RuntimeError("the knee law broke")
         return [0.0, 0.0, -50.0 * min(t / 0.05, 1.0), 0.0]
     return bs.simulate(rabbit, q0, dq0, 0.3, controller=knee_kick, stance_leg=1, **options)
 
@@ -1041,9 +1051,11 @@ def test_a_described_robot_runs_the_same_on_both_loops_bit_for_bit(name, monkeyp
     assert c_steps > (0.5 * a.stats["steps"] if "walk" in name else 0), (c_steps, a.stats["steps"])
     if "walk" in name or name == "compass gait":     # its touchdowns located in C (the table's foot positions)
         assert c_roots >= 1, name
-    assert a.events, name
+    assert a.events or name == "rabbit law raises", name
     if name == "rabbit liftoff stops":
         assert a.status == "stopped" and "would lift off" in a.message, (a.status, a.message)
+    if name == "rabbit law raises":
+        assert a.status == "failed" and "the knee law broke" in a.message, (a.status, a.message)
     if name == "rabbit liftoff, flight, zeno":
         assert [e.kind for e in a.events[:2]] == ["liftoff", "touchdown"] and a.events[-1].kind == "zeno"
 
