@@ -1182,15 +1182,16 @@ seconds_now(void)
  * ends at the state's t_next (a touchdown or an ended scuff to make Events of, a step handed back, room to
  * make, a failure); OUTCOME_DECLINED having changed nothing: the Python code runs the period (the loop is
  * stale, the run has ended, u is not two finite numbers, a bad period, the stance guards refuse u at the
- * period's start, a described robot's loop, ...). */
+ * period's start, ...). */
 static PyObject *
 Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
     if (wrong_nargs(nargs, 4, "period")) return NULL;
-    double wall0 = seconds_now(), u[2];
-    if (L->table != NULL || L->mode_begun == 0.0 || L->n_latched != 0.0
-        || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
-        || two_finite(args[1], u) < 0)   /* (a latched guard, two scuffs: the Python code follows them) */
+    double wall0 = seconds_now(), u[LS_NQ_MAX];
+    int m = loop_m(L);
+    if (L->mode_begun == 0.0 || L->n_latched != 0.0 || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
+        || (L->table ? m_finite(args[1], m, u) : two_finite(args[1], u)) < 0)
+        /* (a latched guard, two scuffs: the Python code follows them; u not M finite numbers: it says why) */
         return PyLong_FromLong(OUTCOME_DECLINED);
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
     if (PyErr_Occurred() || PyBool_Check(args[0]) || !(period > 0.0 && period < INFINITY) || PyBool_Check(args[2])
@@ -1203,11 +1204,11 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     double t_next = period_end(L->t, period, t_final, &k);
     if (!isfinite(t_next)) return PyLong_FromLong(OUTCOME_DECLINED);     /* the Python code says why */
     if (!isnan(L->sim_h)) carry_step(L, L->sim_h);
+    memcpy(L->u_hold, u, m * sizeof(double));     /* (a described robot's M torques: hold's first two) */
     hold(L, u[0], u[1], t_next);
     if (refused_at_start(L)) return PyLong_FromLong(OUTCOME_DECLINED);
     L->control_periods = (double)k;
-    L->sim_u[0] = u[0];
-    L->sim_u[1] = u[1];
+    memcpy(L->sim_u, u, m * sizeof(double));
     L->t_next = t_next;
     RunState rs;
     Py_buffer buf;

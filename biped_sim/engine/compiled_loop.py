@@ -9,8 +9,9 @@ run (test/unit/test_compiled_loop.py).
 
 A described robot (a GeneratedModel with compiled kernels, :func:`why_not_described`): the compiled loop runs its
 floating-base stance in C on its kernels' C entry points (``Loop.set_kernels``), with the same rules and their
-sizes from the model: the steps, the quiet steps and their samples, the touchdowns it applies. The commands of its
-control periods are the Python code's (:attr:`CompiledStepper.described`: ``periods`` is the three-link's).
+sizes from the model: the steps, the quiet steps and their samples, the touchdowns it applies, the control periods
+(a Python controller called from C, or the node's M torques). A compiled law is the three-link's
+(:attr:`CompiledStepper.described`).
 
 The stepper (:class:`CompiledStepper`): the interface of ``integrators._ListRungeKutta`` over the simulator's
 state (``loop_state.py``; :func:`run_state`), which the C ``Loop`` reads and writes in place. Its entry points
@@ -93,10 +94,9 @@ AVAILABLE = _core is not None
 enabled = True
 
 
-#: what the compiled loop leaves to the Python code for a described robot (a GeneratedModel with compiled kernels,
-#: whose floating-base stance it runs on its kernels' C entry points: Loop.set_kernels): the commands of its control
-#: periods
-WHY_NOT_GENERATED = "a described robot: its control periods' commands in Python"
+#: why a described robot (a GeneratedModel) runs in the Python loop: it has no compiled kernels (model_kernels), or
+#: no generated step of its size; why_not_described(model) says which in one line
+WHY_NOT_GENERATED = "a described robot without compiled kernels, or without a generated step of its size"
 
 #: the sizes of y (2 N + 1 for N coordinates) the compiled loop has generated steps for (tools/generate_rk.py's
 #: UNROLLED; loop_kernels.k_step)
@@ -111,7 +111,7 @@ def why_not_described(model):
     size = 2 * model.n + 1
     if size not in STEPPED_SIZES:
         return (f"robot {model.name!r} ({model.n} coordinates) runs in the Python loop: the compiled loop has no "
-                f"generated step for a state of {size} entries")
+                f"generated step for a state of {size} entries (9, 11 or 15)")
     if model_kernels.compiled_kernels(model) is None:
         return f"robot {model.name!r} runs in the Python loop: it has no compiled kernels (model_kernels)"
     return ""

@@ -940,8 +940,8 @@ def test_a_described_robots_right_hand_side_in_c_is_the_python_loops_bit_for_bit
 def test_a_described_robots_loop_refuses_what_it_cannot_run_in_one_line():
     """The Loop over a described robot runs its steps, quiet steps and periods (begin, step, dense_at, run, held,
     periods) under a held torque or a Python controller; a compiled law (begin, periods, law_torque) is refused with
-    one line, the node's period is declined (the Python code runs it), and joints that are not entries of q are
-    refused."""
+    one line, the node's period with other than M torques is declined (the Python code says why), and joints that are
+    not entries of q are refused."""
     from biped_sim.engine import model_kernels
     model, loop, S = described_loop("rabbit")
     y = [0.0, 0.9, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05] + [0.0] * (model.n + 1)
@@ -959,7 +959,7 @@ def test_a_described_robots_loop_refuses_what_it_cannot_run_in_one_line():
     with pytest.raises(ValueError, match="a described robot runs dop853") as g:
         loop.begin(law)
     assert not any("\n" in str(x.value) for x in (e, f, g))
-    assert loop_state.Outcome(loop.period(1e-3, [0.0] * 4, 1.0, data)) == loop_state.Outcome.DECLINED
+    assert loop_state.Outcome(loop.period(1e-3, [0.0] * 2, 1.0, data)) == loop_state.Outcome.DECLINED     # (not M)
     table = model_kernels.compiled_kernels(model).KERNEL_TABLE
     with pytest.raises(ValueError, match=r"joints\[0\] is not an entry of q \(0\.\.6\)"):
         loop.set_kernels(table, [99] * model.m, "rabbit")
@@ -1019,6 +1019,8 @@ DESCRIBED_RUNS = {
     "rabbit kick held": lambda: _kicking_rabbit(control_period=1e-3),
     # a law that raises in a period: the run fails with its ControllerError
     "rabbit law raises": lambda: _kicking_rabbit(control_period=1e-3, raise_at=0.02),
+    # the node's periods: advance_period with M torques given, each period run whole in C (Loop.period)
+    "rabbit node periods": lambda: _rabbit_node_periods(),
     # the compass gait's description as a GeneratedModel, passive down its slope: touchdowns and scuffs
     "compass gait": lambda: bs.simulate(_generated("compass_gait"), np.array([0.0, 1.0, np.pi, np.pi, 0.0]),
                                         np.array([0.4, 0.0, 0.4, -2.0, 0.0]), 3.0, rtol=1e-10, atol=1e-10,
@@ -1029,6 +1031,15 @@ DESCRIBED_RUNS = {
 def _generated(name):
     from biped_sim.config import models
     return models.generated_model(name)
+
+
+def _rabbit_node_periods():
+    from biped_sim.engine.hybrid import HybridSimulator
+    rabbit, q0, dq0 = _rabbit_on_foot_1()
+    sim = HybridSimulator(rabbit, q0, dq0, stance_leg=1)
+    for k in range(300):
+        sim.advance_period(1e-3, [0.0, 0.0, 5.0 * min(k / 100, 1.0), -2.0])
+    return sim.result()
 
 
 def _kicking_rabbit(raise_at=None, **options):
@@ -1081,3 +1092,16 @@ def test_a_users_description_runs_on_the_compiled_loop_after_its_build(tmp_path,
         lambda: bs.simulate(model, q0, dq0, 1.5, slope=0.0525, phases=frozenset({"stance", "impact"})), monkeypatch)
     assert_same_bits(a, b, "stilts")
     assert a.impacts and c_steps > 0.5 * a.stats["steps"] and c_roots >= 1
+
+
+def test_a_described_robots_node_period_runs_whole_in_c():
+    """The node's period of a described robot (advance_period with its M torques) is one call of Loop.period, which
+    runs it whole in C (DONE), as the three-link's."""
+    from biped_sim.engine.hybrid import HybridSimulator
+    rabbit, q0, dq0 = _rabbit_on_foot_1()
+    sim = HybridSimulator(rabbit, q0, dq0, stance_leg=1)
+    for _ in range(3):
+        sim.advance_period(1e-3, [0.0, 0.0, 1.0, -1.0])
+    assert sim._stepper is sim._compiled and sim._compiled.described
+    outcome = sim._compiled.loop.period(1e-3, [0.0, 0.0, 1.0, -1.0], 0.0, sim._samples._data)
+    assert loop_state.Outcome(outcome) == loop_state.Outcome.DONE and sim.t == pytest.approx(4e-3, abs=1e-15)
