@@ -45,6 +45,38 @@ def main():
               f"end states {np.abs(a.q[-1] - b.q[-1]).max():.1e} apart; BipedModel {wall_a * 1e3:.1f} ms, "
               f"GeneratedModel {wall_b * 1e3:.1f} ms (median of 3)")
     bench_rabbit_loops()
+    bench_rabbit_periods()
+
+
+def bench_rabbit_periods(periods=250, repeats=7):
+    """The node's periods of RABBIT (advance_period with its 4 torques given, 1 ms, held: the engine alone) from
+    standing on foot 1 until foot 2 lands, on the compiled loop and on the Python loop, alternating: us a period."""
+    from biped_sim.engine.hybrid import HybridSimulator
+    rabbit = bs.load_model("rabbit")
+    q0 = np.array([0.0, 0.0, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05])
+    q0[:2] -= rabbit.contact_position(q0, "foot_1")
+
+    def run():
+        sim = HybridSimulator(rabbit, q0, np.zeros(7), stance_leg=1)
+        for k in range(periods):
+            sim.advance_period(1e-3, [0.0, 0.0, 5.0 * min(k / 100, 1.0), -2.0])
+        return sim.result()
+    times, runs = {True: [], False: []}, {}
+    for _ in range(repeats):
+        for enabled in (True, False):
+            compiled_loop.enabled = enabled
+            try:
+                t0 = time.perf_counter()
+                runs[enabled] = run()
+                times[enabled].append(time.perf_counter() - t0)
+            finally:
+                compiled_loop.enabled = True
+    a, b = runs[True], runs[False]
+    same = all(np.array_equal(getattr(a, k), getattr(b, k)) for k in ("t", "q", "dq", "u", "grf"))
+    ca, py = (sorted(times[e])[repeats // 2] / periods * 1e6 for e in (True, False))
+    print(f"RABBIT, {periods} node periods of 1 ms with its torques given ({a.status}, "
+          f"{[(e.kind, e.leg) for e in a.events]}): compiled loop {ca:.1f} us a period, Python loop {py:.1f} us "
+          f"({py / ca:.1f}x; medians of {repeats}, alternating); the same run bit for bit: {same}")
 
 
 def bench_rabbit_loops(t_final=10.0, repeats=5):
