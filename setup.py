@@ -10,7 +10,9 @@ setup(
     version="0.1.0",
     packages=find_packages(exclude=["test", "test.*", "benchmarks", "benchmarks.*"]),
     # the shipped robot descriptions (biped_sim/config/models.py)
-    package_data={"biped_sim.config": ["robots/*.yaml", "robots/*.urdf"]},
+    package_data={"biped_sim.config": ["robots/*.yaml", "robots/*.urdf"],
+                  # model_kernels writes it into a user's robot's kernels
+                  "biped_sim.engine": ["_kernel_table.h"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
@@ -27,7 +29,8 @@ setup(
                  # committed _loop_rules.c by tools/generate_loop.py: built with gcc alone)
                  Extension("biped_sim.engine._core", ["biped_sim/engine/_core.c"],
                            depends=["biped_sim/engine/_gen/_kernels.h", "biped_sim/engine/_loop_state.h",
-                                    "biped_sim/engine/_loop_rules.c"],
+                                    "biped_sim/engine/_loop_rules.c", "biped_sim/engine/_kernel_table.h",
+                                    "biped_sim/engine/_loop_table.h"],
                            # the rules are Cython's public (exported) functions: without semantic interposition
                            # gcc may inline the small ones into the loop as it does a static function
                            extra_compile_args=["-O2", "-ffp-contract=off", "-fno-semantic-interposition"],

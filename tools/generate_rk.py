@@ -18,7 +18,9 @@ import pathlib
 from scipy.integrate import DOP853, RK45  # their public coefficient tables
 
 OUT = pathlib.Path(__file__).resolve().parent.parent / "biped_sim" / "engine" / "_gen" / "rk_steps.py"
-UNROLLED = (7, 11)   # the engine's state sizes: fixed-base stance; floating base (with the work)
+# the engine's state sizes (2 N + 1): the three-link's fixed-base stance (7) and floating base with the work (11);
+# a described robot's floating base of 4 coordinates (9) and of 7 (15, RABBIT)
+UNROLLED = (7, 9, 11, 15)
 
 
 class Tableau:

@@ -34,10 +34,14 @@
 #include <time.h>
 #include <string.h>
 
+/* a described robot's kernels as C entry points (model_kernels.py: its twin's capsule KERNEL_TABLE) */
+#include "_kernel_table.h"
 
 #define N 11                 /* the floating base's integrated state: q (5), dq (5), motor work */
 #define MAX_STAGES 13        /* dop853's k0..k12 */
 #define KMAX 32              /* room for any closed form's constants */
+/* a sample's row of the widest model (loop_state.sample_row(NQ_MAX, NQ_MAX)) */
+#define ROW_MAX (1 + 2 * LS_NQ_MAX + 4 + LS_NQ_MAX)
 
 enum { DOP853 = 0, DOPRI5 = 1 };
 enum { HELD = 0, COMPILED = 1, CALLBACK = 2 };   /* the kinds of torque law */
@@ -94,12 +98,33 @@ typedef struct {
      * exception and the computation it spoiled is thrown away (callback_failed) */
     PyObject *callback;
     PyObject *exc_type, *exc_value, *exc_tb;
-    double last_F[2], last_u[2];
+    double last_F[2], last_u[LS_NQ_MAX];
+    /* a described robot (set_kernels): its kernels' table (NULL: the three-link's closed forms above), the capsule
+     * that owns it, and the entries of q its M actuators turn (B a selection: modes.py's joints) */
+    const KernelTable *table;
+    PyObject *table_owner;
+    char robot[64];    /* its name, for the message of a kernel's failure */
+    /* a described robot's coordinates n, actuators m and a sample's row width (loop_state.sample_row(n, m)); the
+     * three-link's are 5, 2 and ROW_WIDTH (loop_n, loop_m, loop_row_width) */
+    int n, m, row_width;
+    double joints[LS_NQ_MAX];
     /* (the locator's armed feet, scuffs and the step end's feet and force are the state's: armed, scuffing,
      * scuff, deepest_scuff, scuffs, feet_end, force_end) */
     /* (why the last step was handed back, its end's torque and force, and the run's statistics are the state's: why,
      * end_u, end_F, steps, max_drift, max_rate, max_residual, wall_time) */
 } Loop;
+
+/* the model's coordinates, actuators and sample row width: a described robot's, or the three-link's */
+static inline int loop_n(const Loop *L) { return L->table ? L->n : 5; }
+static inline int loop_m(const Loop *L) { return L->table ? L->m : 2; }
+static inline int loop_row_width(const Loop *L) { return L->table ? L->row_width : ROW_WIDTH; }
+
+/* the table of the Loop whose state S is (_loop_table.h: the compiled rules' kernel glue) */
+static const KernelTable *
+loop_table(double *S)
+{
+    return ((const Loop *)((const char *)S - offsetof(Loop, S)))->table;
+}
 
 /* -- the torque law: held, compiled (the hook) or called back ------------------------------------- */
 
@@ -216,6 +241,82 @@ torque(Loop *L, double t, const double *q, const double *dq, double *u)
     else { u[0] = L->u_hold[0]; u[1] = L->u_hold[1]; }
 }
 
+/* m finite floats from a list or tuple of m floats or ints with a finite sum (modes.finite_floats' fast path, its
+ * sum the rule's: loop_rules.ev_finite_sum): 0, or -1 (no exception) for anything the Python code must judge */
+static int
+m_finite(PyObject *u, int m, double *out)
+{
+    if (!(PyList_CheckExact(u) || PyTuple_CheckExact(u)) || PySequence_Fast_GET_SIZE(u) != m) return -1;
+    for (int i = 0; i < m; i++) {
+        PyObject *v = PySequence_Fast_GET_ITEM(u, i);
+        if ((!PyFloat_Check(v) && !PyLong_Check(v)) || PyBool_Check(v)) return -1;
+        out[i] = PyFloat_AsDouble(v);
+        if (out[i] == -1.0 && PyErr_Occurred()) {
+            PyErr_Clear();
+            return -1;
+        }
+    }
+    return ev_finite_sum(out, m) ? 0 : -1;
+}
+
+/* u = controller(t, q, dq, stance_leg) for a described robot: call_controller's call with q and dq of N entries
+ * and its M torques (m_finite, else modes.checked_torques(u, t, m), which takes what it takes or raises) */
+static void
+call_controller_described(Loop *L, PyObject *controller, double t, const double *q, const double *dq, double *u)
+{
+    int n = L->table->n, m = L->table->actuators;
+    for (int i = 0; i < m; i++) u[i] = 0.0;
+    if (L->callback_failed) return;
+    if (controller_failure_fn == NULL || checked_torques_fn == NULL) {     /* (compiled_loop sets them at import) */
+        PyErr_SetString(PyExc_RuntimeError, "a Python controller needs set_python_checks() first");
+        L->callback_failed = 1;
+        PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
+        return;
+    }
+    PyObject *args[4] = {PyFloat_FromDouble(t), list_of(q, n), list_of(dq, n), PyLong_FromLong((long)L->stance_leg)}, *r = NULL;
+    if (args[0] && args[1] && args[2] && args[3]) r = PyObject_Vectorcall(controller, args, 4, NULL);
+    for (int i = 0; i < 4; i++) Py_XDECREF(args[i]);
+    if (r != NULL) {
+        if (m_finite(r, m, u) < 0) {
+            PyObject *checked = PyObject_CallFunction(checked_torques_fn, "Odi", r, t, m);
+            if (checked != NULL) {
+                if (PyList_CheckExact(checked) && PyList_GET_SIZE(checked) == m) {
+                    for (int i = 0; i < m; i++) u[i] = PyFloat_AsDouble(PyList_GET_ITEM(checked, i));
+                } else {
+                    PyErr_SetString(PyExc_TypeError, "checked_torques must return a list of m floats");
+                }
+                Py_DECREF(checked);
+            }
+        }
+        Py_DECREF(r);
+    } else if (PyErr_ExceptionMatches(PyExc_Exception)) {     /* (a KeyboardInterrupt goes on as it is) */
+        PyObject *type, *value, *tb;
+        PyErr_Fetch(&type, &value, &tb);
+        PyErr_NormalizeException(&type, &value, &tb);
+        if (tb != NULL) PyException_SetTraceback(value, tb);
+        PyObject *error = PyObject_CallFunction(controller_failure_fn, "Od", value, t);
+        Py_XDECREF(type);
+        Py_XDECREF(value);
+        Py_XDECREF(tb);
+        if (error != NULL) {
+            PyErr_SetObject((PyObject *)Py_TYPE(error), error);
+            Py_DECREF(error);
+        }
+    }
+    if (PyErr_Occurred()) {
+        L->callback_failed = 1;
+        PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
+        for (int i = 0; i < m; i++) u[i] = 0.0;
+    }
+}
+
+static void
+torque_described(Loop *L, double t, const double *q, const double *dq, double *u)
+{
+    if (L->law_kind == CALLBACK) call_controller_described(L, L->callback, t, q, dq, u);
+    else memcpy(u, L->u_hold, L->table->actuators * sizeof(double));
+}
+
 /* A compiled law from its description (address, parameters, name) (torque_hook.hook_argument);
  * 0, or -1 with an exception */
 static int
@@ -258,11 +359,54 @@ stance(Loop *L, const double *q, const double *dq, const double *u, double *out7
     else k_stance_floating_2(q, dq, u, L->k_stance, out7);
 }
 
+/* A described robot's torque law (the state's held u_hold of M entries, or a Python controller called back with
+ * q and dq of N entries and its M torques checked as modes.checked_command checks them) */
+static void torque_described(Loop *L, double t, const double *q, const double *dq, double *u);
+
+/* A kernel's failure (D not positive definite, the contact's Jacobian singular) at t, kept as a failure of the
+ * torque law is kept (the step fails; the message is the compiled twin's Python function's) */
+static void
+kernel_failed(Loop *L, int code)
+{
+    const char *kernel = L->stance_leg ? "k_stance" : "k_flight";
+    if (L->callback_failed) return;
+    if (code == KERNEL_NOT_POSITIVE_DEFINITE)
+        PyErr_Format(PyExc_ValueError, "%s: D(q) of the robot %s is not positive definite at this q", kernel, L->robot);
+    else
+        PyErr_Format(PyExc_ValueError, "%s: the contact's Jacobian J_c D^-1 J_c^T is singular at this q", kernel);
+    L->callback_failed = 1;
+    PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
+}
+
+/* A described robot's mode (modes._generated_functions): y = q + dq + [work] (N coordinates), floating-base
+ * stance on contact point stance_leg (the KKT solve: the table's stance) or flight (stance_leg 0: its flight);
+ * the motors' power u . (B^T dq) (loop_rules.ev_actuated_power) */
+static int
+rhs_described(Loop *L, double t, const double *y, double *dy)
+{
+    const KernelTable *K = L->table;
+    int n = K->n, m = K->actuators, code;
+    double u[LS_NQ_MAX], F[2] = {0.0, 0.0};
+    const double *q = y, *dq = y + n;
+    torque_described(L, t, q, dq, u);
+    code = L->stance_leg ? K->stance(q, dq, u, (int)L->stance_leg - 1, dy + n, F) : K->flight(q, dq, u, dy + n);
+    if (code != KERNEL_OK) {
+        kernel_failed(L, code);
+        return -1;
+    }
+    L->last_F[0] = F[0]; L->last_F[1] = F[1];
+    memcpy(L->last_u, u, m * sizeof(double));
+    memcpy(dy, dq, n * sizeof(double));
+    dy[2 * n] = ev_actuated_power(u, (double *)dq, L->joints, m);
+    return 0;
+}
+
 static int
 rhs(void *ctx, double t, const double *y, double *dy)
 {
     Loop *L = ctx;
     double u[2], out[7];
+    if (L->table) return rhs_described(L, t, y, dy);
     torque(L, t, y, y + 5, u);
     stance(L, y, y + 5, u, out);
     L->last_F[0] = out[5]; L->last_F[1] = out[6];
@@ -273,13 +417,39 @@ rhs(void *ctx, double t, const double *y, double *dy)
     return 0;
 }
 
+/* the stance force F under u at (q, dq) on the stance leg (a described robot's: its table's stance; a failure kept as
+ * a failure of the torque law is kept, F NaN) */
+static void
+stance_force(Loop *L, const double *q, const double *dq, const double *u, double *F)
+{
+    if (L->table) {
+        double ddq[LS_NQ_MAX];
+        int code = L->table->stance(q, dq, u, (int)L->stance_leg - 1, ddq, F);
+        if (code != KERNEL_OK) {
+            kernel_failed(L, code);
+            F[0] = F[1] = NAN;
+        }
+        return;
+    }
+    double out[7];
+    stance(L, q, dq, u, out);
+    F[0] = out[5]; F[1] = out[6];
+}
+
+/* the torque law's u at (t, q, dq): the three-link's or a described robot's */
+static void
+torque_of(Loop *L, double t, const double *q, const double *dq, double *u)
+{
+    if (L->table) torque_described(L, t, q, dq, u);
+    else torque(L, t, q, dq, u);
+}
+
 static void
 force_at(Loop *L, double t, const double *q, const double *dq, double *F)
 {
-    double u[2], out[7];
-    torque(L, t, q, dq, u);
-    stance(L, q, dq, u, out);
-    F[0] = out[5]; F[1] = out[6];
+    double u[LS_NQ_MAX];
+    torque_of(L, t, q, dq, u);
+    stance_force(L, q, dq, u, F);
 }
 
 /* guards.foot_states: per foot x, height across the slope, and their rates (loop_rules.ev_foot_states) */
@@ -287,7 +457,8 @@ static void
 feet(const Loop *L, const double *q, const double *dq, double *ft)
 {
     double p[8];
-    k_foot_kinematics(q, dq, L->k_feet, p);
+    if (L->table) L->table->foot_kinematics(q, dq, p);
+    else k_foot_kinematics(q, dq, L->k_feet, p);
     ev_foot_states(p, 0, L->tan_s, ft, 0);
 }
 
@@ -314,9 +485,9 @@ carry_step(Loop *L, double h)
 static void
 feet_at(const Loop *L, double tt, double *ft)
 {
-    double qd[10];
-    for (int j = 0; j < 10; j++) qd[j] = rk_dense_at((double *)L->S, j, tt);
-    feet(L, qd, qd + 5, ft);
+    double qd[2 * LS_NQ_MAX];
+    for (int j = 0; j < 2 * loop_n(L); j++) qd[j] = rk_dense_at((double *)L->S, j, tt);
+    feet(L, qd, qd + loop_n(L), ft);
 }
 
 /* -- the quiet steps ----------------------------------------------------------------------------- */
@@ -336,6 +507,18 @@ stance_start(Loop *L, const double *F)
     return ev_stance_start(L->has_mu, L->mu, ev_normal_force(L->S, F[0], F[1]), ev_tangential_force(L->S, F[0], F[1]));
 }
 
+/* a sample into row: the three-link's (loop_rules.ev_sample_row) or a described robot's (ev_sample_row_of, n
+ * coordinates and m torques) */
+static void
+sample_row(const Loop *L, double *row, double t, const double *q, const double *dq, int leg, const double *F,
+           const double *u, double residual)
+{
+    if (L->table)
+        ev_sample_row_of(row, t, (double *)q, (double *)dq, loop_n(L), leg, (double *)F, (double *)u, loop_m(L),
+                         residual);
+    else ev_sample_row(row, t, (double *)q, (double *)dq, leg, (double *)F, (double *)u, residual);
+}
+
 /* HybridSimulator._integrate's event branch for a touchdown in front at t_ev, then _reset's: the event's
  * sample (_accept), the impact (loop_rules.ev_impact, as resets.touchdown_reset calls it), relabeling, the
  * sample after it, the next mode's start. Whatever the Python code would report or act on (a warning of the
@@ -353,46 +536,45 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     if (ev_impacts_close(L->n_impacts, L->last_impact, t_ev, L->zeno_interval)) { L->why = WHY_IMPACTS_CLOSE; return 0; }
     if (ev_over_budget(m + 1, L->max_events)) { L->why = WHY_MAX_EVENTS; return 0; }
     if (ev_event_loop(m + 1, ev_ring_oldest(L->S), t_ev)) { L->why = WHY_EVENT_LOOP; return 0; }
-    double y[N], ue[2], Fe[2] = {0.0, 0.0}, out[7];
-    for (int j = 0; j < N; j++) y[j] = rk_dense_at(L->S, j, t_ev);
-    double *q = y, *dqm = y + 5, w = y[10];
-    torque(L, t_ev, q, dqm, ue);
-    if (L->compute_grf) {
-        stance(L, q, dqm, ue, out);
-        Fe[0] = out[5]; Fe[1] = out[6];
-    }
+    int n = loop_n(L), w_at = 2 * n;
+    double y[LS_NMAX], ue[LS_NQ_MAX], Fe[2] = {0.0, 0.0};
+    for (int j = 0; j <= w_at; j++) y[j] = rk_dense_at(L->S, j, t_ev);
+    double *q = y, *dqm = y + n, w = y[w_at];
+    torque_of(L, t_ev, q, dqm, ue);
+    if (L->compute_grf) stance_force(L, q, dqm, ue, Fe);
     if (L->callback_failed) { L->why = WHY_LAW_FAILED; return 0; }
     /* the impact and its checks (loop_rules.ev_impact: resets.impact_warnings' and invariants.check_impact's) */
-    memcpy(L->q_impact, q, 5 * sizeof(double));
-    memcpy(L->dq_minus, dqm, 5 * sizeof(double));
+    memcpy(L->q_impact, q, n * sizeof(double));
+    memcpy(L->dq_minus, dqm, n * sizeof(double));
     int checks = ev_impact(L->S, nw, old, L->has_mu);
     double *dqp = L->dq_plus, *imp = L->impulse, loss = ev_impact_loss(L->S);
     if (checks & IMPACT_OLD_FOOT_SINKS) { L->why = WHY_OLD_FOOT_SINKS; return 0; }
     if (checks & (IMPACT_PULLS | IMPACT_OUTSIDE_CONE)) { L->why = WHY_IMPULSE_CHECK; return 0; }
     if (L->check_invariants && ev_stays_down(L->feet_after[old - 1][3], L->contact_tol)) { L->why = WHY_OLD_FOOT_STAYS; return 0; }
     /* the new stance (_check_stance_start): the ground must push, inside the friction cone */
-    double up[2], Fp[2];
+    double up[LS_NQ_MAX], Fp[2];
     L->stance_leg = nw;
-    torque(L, t_ev, q, dqp, up);
-    stance(L, q, dqp, up, out);
+    torque_of(L, t_ev, q, dqp, up);
+    stance_force(L, q, dqp, up, Fp);
     L->stance_leg = old;
-    Fp[0] = out[5]; Fp[1] = out[6];
+    if (L->callback_failed) { L->why = WHY_LAW_FAILED; return 0; }
     if (stance_start(L, Fp) != STANCE_HOLDS) { L->why = WHY_STANCE_REFUSED; return 0; }
     /* applied */
     double lost = ev_energy_lost_after(energy_lost, loss);
     double res_e = ev_energy_residual(L->energy_before, E0, w, push_work, energy_lost);
     double res_p = ev_energy_residual(L->energy_after, E0, w, push_work, lost);
-    ev_sample_row(rows, t_ev, q, dqm, old, Fe, ue, res_e);
-    ev_sample_row(rows + ROW_WIDTH, t_ev, q, dqp, nw, Fp, up, res_p);
+    sample_row(L, rows, t_ev, q, dqm, old, Fe, ue, res_e);
+    sample_row(L, rows + loop_row_width(L), t_ev, q, dqp, nw, Fp, up, res_p);
     *residual_out = ev_running_max(fabs(res_e), fabs(res_p));
     double p[4];
-    k_foot_positions(q, L->k_pos, p);
+    if (L->table) L->table->foot_positions(q, p);
+    else k_foot_positions(q, L->k_pos, p);
     ev_foot_point(p, nw, L->pin);
     double *v = new_record(L->S, RECORD_TOUCHDOWN, old, nw);
     v[REC_TD_T] = t_ev;
-    memcpy(v + REC_TD_Q, q, 5 * sizeof(double));
-    memcpy(v + REC_TD_DQ_MINUS, dqm, 5 * sizeof(double));
-    memcpy(v + REC_TD_DQ_PLUS, dqp, 5 * sizeof(double));
+    memcpy(v + REC_TD_Q, q, n * sizeof(double));
+    memcpy(v + REC_TD_DQ_MINUS, dqm, n * sizeof(double));
+    memcpy(v + REC_TD_DQ_PLUS, dqp, n * sizeof(double));
     memcpy(v + REC_TD_IMPULSE, imp, 2 * sizeof(double));
     v[REC_TD_LOSS] = loss;
     v[REC_TD_LOST] = lost;
@@ -405,9 +587,9 @@ touchdown(Loop *L, double t_ev, double *rows, double E0, double push_work, doubl
     ev_count_impact(L->S, t_ev);
     ev_count_mode_event(L->S, t_ev);
     /* the next mode's start (begin): f at the state after the impact, the step size carried over */
-    memcpy(L->y, q, 5 * sizeof(double));
-    memcpy(L->y + 5, dqp, 5 * sizeof(double));
-    L->y[10] = w;
+    memcpy(L->y, q, n * sizeof(double));
+    memcpy(L->y + n, dqp, n * sizeof(double));
+    L->y[w_at] = w;
     carry_step(L, L->h_abs);
     restart(L, t_ev, L->t_bound);
     return 3;
@@ -430,21 +612,22 @@ static int
 quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost, double *drift_out,
            double *rate_out, double *residual_out)
 {
-    double q[5], dq[5], w = L->y[10], ft1[8], ft0[8], F0[2], F1[2];
-    memcpy(q, L->y, sizeof q);
-    memcpy(dq, L->y + 5, sizeof dq);
-    if (ev_diverging(dq, 5, L->max_speed)) { L->why = WHY_DIVERGING; return 0; }
+    int n = loop_n(L);
+    double q[LS_NQ_MAX], dq[LS_NQ_MAX], w = L->y[2 * n], ft1[8], ft0[8], F0[2], F1[2];
+    memcpy(q, L->y, n * sizeof(double));
+    memcpy(dq, L->y + n, n * sizeof(double));
+    if (ev_diverging(dq, n, L->max_speed)) { L->why = WHY_DIVERGING; return 0; }
     feet(L, q, dq, ft1);
     /* the torque and force of the step's last evaluation, at its end (FSAL) */
-    L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
+    memcpy(L->end_u, L->last_u, loop_m(L) * sizeof(double));
     F1[0] = L->end_F[0] = L->last_F[0];
     F1[1] = L->end_F[1] = L->last_F[1];
     if (ev_feet_kept_at(L->S, L->t_old) && ev_force_kept_at(L->S, L->t_old)) {
         memcpy(ft0, L->feet_end, sizeof ft0);
         F0[0] = L->force_end[0]; F0[1] = L->force_end[1];
     } else {
-        feet(L, L->y_old, L->y_old + 5, ft0);
-        force_at(L, L->t_old, L->y_old, L->y_old + 5, F0);
+        feet(L, L->y_old, L->y_old + n, ft0);
+        force_at(L, L->t_old, L->y_old, L->y_old + n, F0);
         cache_step_end(L, L->t_old, ft0, F0);   /* a step handed back starts from them (EventLocator.locate) */
     }
     int st = (int)L->stance_leg, sw = 3 - st;
@@ -519,7 +702,7 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
     if (L->project) ev_project_onto_pin(q, dq, fs, L->pin, L->tan_s);
     /* invariants.check_sample (a violation: pending, and the Python code reports it) */
     if (L->check_invariants) {
-        if (!ev_finite_state(q, dq, 5)) { L->why = WHY_NON_FINITE; return 0; }
+        if (!ev_finite_state(q, dq, n)) { L->why = WHY_NON_FINITE; return 0; }
         if (!scuffing && ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)) { L->why = WHY_FOOT_BELOW_GROUND; return 0; }
         if (ev_violated(ev_normal_force(L->S, F1[0], F1[1]), L->force_tol)) { L->why = WHY_GROUND_PULLS; return 0; }
         if (L->has_mu && L->stop_on_slip && ev_violated(ev_cone_margin(L->S, F1[0], F1[1]), L->force_tol)) {
@@ -537,19 +720,23 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         double *v = new_record(L->S, RECORD_SCUFF_ENDED, sw, st);
         memcpy(v + REC_SCUFF_SCUFF, scuff, sizeof scuff);
         v[REC_SCUFF_T_UP] = L->t;
-        for (int j = 0; j < 10; j++)     /* q, then dq */
-            v[REC_SCUFF_Q + j] = ev_within_step(L->t_old, L->t, scuff[2]) ? rk_dense_at(L->S, j, scuff[2]) : NAN;
+        for (int j = 0; j < n; j++) {     /* q, then dq */
+            int in_step = ev_within_step(L->t_old, L->t, scuff[2]);
+            v[REC_SCUFF_Q + j] = in_step ? rk_dense_at(L->S, j, scuff[2]) : NAN;
+            v[REC_SCUFF_DQ + j] = in_step ? rk_dense_at(L->S, n + j, scuff[2]) : NAN;
+        }
     }
     cache_step_end(L, L->t, ft1, F1);
     for (int leg = 1; leg <= 2; leg++)
         if (!L->armed[leg - 1] && ev_arms(leg != st, ft1[4 * (leg - 1) + 1], L->arm_height)) L->armed[leg - 1] = 1;
     double TV[2];
-    k_energy(q, dq, L->k_energy, TV);
+    if (L->table) L->table->energy(q, dq, TV);
+    else k_energy(q, dq, L->k_energy, TV);
     double residual = ev_energy_residual(TV[0] + TV[1], E0, w, push_work, energy_lost);
-    ev_sample_row(row, L->t, q, dq, st, F1, L->end_u, residual);
+    sample_row(L, row, L->t, q, dq, st, F1, L->end_u, residual);
     if (L->project) {
-        memcpy(L->y, q, sizeof q);
-        memcpy(L->y + 5, dq, sizeof dq);
+        memcpy(L->y, q, n * sizeof(double));
+        memcpy(L->y + n, dq, n * sizeof(double));
     }
     *drift_out = drift;
     *rate_out = rate;
@@ -612,16 +799,76 @@ Loop_set_model(Loop *L, PyObject *args)
     Py_RETURN_NONE;
 }
 
+/* set_kernels(table, joints, robot): the loop's model becomes a described robot, whose kernels are the C entry
+ * points of its compiled twin's capsule KERNEL_TABLE (model_kernels.py; _kernel_table.h), its M actuators turning
+ * the entries joints of q, its name robot. Its right-hand side (rhs, begin) is then modes._generated_functions',
+ * its steps the generated ones of its size, its quiet steps, touchdowns and samples the three-link's rules with its
+ * sizes; the control periods' commands are the three-link's only (three_link_only) */
+static PyObject *
+Loop_set_kernels(Loop *L, PyObject *args)
+{
+    PyObject *capsule, *joints;
+    const char *robot;
+    Py_ssize_t m;
+    double j[LS_NQ_MAX];
+    if (!PyArg_ParseTuple(args, "OOs", &capsule, &joints, &robot)) return NULL;
+    const KernelTable *K = PyCapsule_GetPointer(capsule, KERNEL_TABLE_CAPSULE);
+    if (K == NULL) return NULL;
+    if (K->version != KERNEL_TABLE_VERSION) {
+        PyErr_Format(PyExc_ValueError, "set_kernels(): a kernel table of version %d, this loop reads version %d: "
+                     "rebuild the robot's kernels", K->version, KERNEL_TABLE_VERSION);
+        return NULL;
+    }
+    /* (two contact points: the feet, whose positions and kinematics fill the state's fields of 4 and 8) */
+    if (K->n < 3 || K->n > LS_NQ_MAX || K->contacts != 2 || K->actuators < 1 || K->actuators > LS_NQ_MAX - 3) {
+        PyErr_Format(PyExc_ValueError, "set_kernels(): the loop runs robots of 3 to %d coordinates, 2 contact points "
+                     "and 1 to %d actuators (this one: %d, %d, %d)", LS_NQ_MAX, LS_NQ_MAX - 3, K->n, K->contacts,
+                     K->actuators);
+        return NULL;
+    }
+    if (doubles(joints, j, K->actuators, K->actuators, "set_kernels(): joints", &m)) return NULL;
+    for (Py_ssize_t i = 0; i < m; i++)
+        if (!(j[i] >= 0.0 && j[i] < K->n && j[i] == floor(j[i]))) {
+            PyErr_Format(PyExc_ValueError, "set_kernels(): joints[%zd] is not an entry of q (0..%d)", i, K->n - 1);
+            return NULL;
+        }
+    Py_INCREF(capsule);
+    Py_XSETREF(L->table_owner, capsule);
+    L->table = K;
+    memcpy(L->joints, j, m * sizeof(double));
+    snprintf(L->robot, sizeof L->robot, "%s", robot);
+    L->n_q = K->n;
+    L->n_y = 2 * K->n + 1;
+    L->n = K->n;
+    L->m = K->actuators;
+    L->row_width = 1 + 2 * K->n + 4 + K->actuators;     /* (loop_state.sample_row) */
+    Py_RETURN_NONE;
+}
+
+/* The entry point that computes a compiled law's command (law_torque): NULL with a ValueError where the loop's model
+ * is a described robot's (set_kernels), whose laws are Python controllers (its steps, quiet steps, touchdowns and
+ * periods run here: begin, step, run, held, periods) */
+static int
+three_link_only(Loop *L, const char *what)
+{
+    if (L->table == NULL) return 0;
+    PyErr_Format(PyExc_ValueError, "%s(): a compiled law runs the three-link biped only; a described robot's law is "
+                 "a Python controller", what);
+    return 1;
+}
+
 /* rhs(t, y) -> dy, for the initial step size */
 static PyObject *
 Loop_rhs(Loop *L, PyObject *args)
 {
     PyObject *y;
-    double t, yy[N], dy[N];
-    if (!PyArg_ParseTuple(args, "dO", &t, &y) || doubles(y, yy, N, N, "y", NULL)) return NULL;
-    rhs(L, t, yy, dy);
+    Py_ssize_t n = L->table ? 2 * L->table->n + 1 : N;
+    double t, yy[LS_NMAX], dy[LS_NMAX];
+    if (!PyArg_ParseTuple(args, "dO", &t, &y) || doubles(y, yy, n, n, "y", NULL)) return NULL;
+    int rc = rhs(L, t, yy, dy);
     if (L->callback_failed) return raise_callback_error(L);
-    return list_of(dy, N);
+    if (rc < 0) return NULL;
+    return list_of(dy, n);
 }
 
 /* step() -> OUTCOME_DONE, OUTCOME_FAILED (the state's fail_kind, fail_value, fail_t) or OUTCOME_RAISED */
@@ -631,7 +878,7 @@ Loop_step(Loop *L, PyObject *unused)
     (void)unused;
     if (rk_step(L->S, rhs, L) < 0) return PyLong_FromLong(L->callback_failed ? OUTCOME_RAISED : OUTCOME_FAILED);
     /* the torque and force of the step's last evaluation, at its end (FSAL), as handed() gives them */
-    L->end_u[0] = L->last_u[0]; L->end_u[1] = L->last_u[1];
+    memcpy(L->end_u, L->last_u, loop_m(L) * sizeof(double));
     L->end_F[0] = L->last_F[0]; L->end_F[1] = L->last_F[1];
     return PyLong_FromLong(OUTCOME_DONE);
 }
@@ -658,16 +905,17 @@ quiet_until(Loop *L, double t_end, RunState *rs)
     while (L->t < t_end) {
         if ((!rs->last_only && rs->n + 2 > rs->cap) || (int)L->n_records == LS_EVENT_ROOM) return OUTCOME_NEED_ROOM;
         if (rk_step(L->S, rhs, L) < 0) return OUTCOME_FAILED;
-        double drift = 0.0, rate = 0.0, residual, row[2 * ROW_WIDTH];
+        double drift = 0.0, rate = 0.0, residual, row[2 * ROW_MAX];
+        int width = loop_row_width(L);
         int accepted_how = quiet_step(L, row, rs->E0, rs->push_work, rs->energy_lost, &drift, &rate, &residual);
         if (!accepted_how) return OUTCOME_EVENT;
         long at = ev_sample_slot(rs->n, rs->provisional, rs->last_only);
         if (accepted_how == 3) {
             /* the event's sample (kept: _reset's keep_last), then the one after the impact (kept) */
-            memcpy(rs->data + ROW_WIDTH * at, row, ROW_WIDTH * sizeof(double));
+            memcpy(rs->data + width * at, row, width * sizeof(double));
             rs->n = at + 1;
             at = ev_sample_slot(rs->n, 0, rs->last_only);
-            memcpy(rs->data + ROW_WIDTH * at, row + ROW_WIDTH, ROW_WIDTH * sizeof(double));
+            memcpy(rs->data + width * at, row + width, width * sizeof(double));
             rs->n = at + 1;
             rs->appended += 2;
             rs->provisional = 0;
@@ -678,7 +926,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
                 rs->provisional = 0;
                 at = ev_sample_slot(rs->n, 0, rs->last_only);
             }
-            memcpy(rs->data + ROW_WIDTH * at, row, ROW_WIDTH * sizeof(double));
+            memcpy(rs->data + width * at, row, width * sizeof(double));
             rs->n = at + 1;
             rs->appended += 1;
             rs->provisional = ev_provisional(rs->appended, rs->every);
@@ -686,7 +934,7 @@ quiet_until(Loop *L, double t_end, RunState *rs)
             L->max_rate = ev_running_max(L->max_rate, rate);
         }
         rs->t_accepted = L->t;
-        rs->w_accepted = L->y[10];
+        rs->w_accepted = L->y[2 * loop_n(L)];
         rs->h_accepted = L->h_abs;
         rs->accepted++;
         L->steps += 1;
@@ -711,7 +959,7 @@ run_state(Loop *L, PyObject *data, RunState *rs, Py_buffer *buf)
     rs->provisional = L->provisional != 0.0;
     rs->last_only = L->last_only != 0.0;
     rs->data = buf->buf;
-    rs->cap = (long)(buf->len / (Py_ssize_t)(ROW_WIDTH * sizeof(double)));
+    rs->cap = (long)(buf->len / (Py_ssize_t)(loop_row_width(L) * sizeof(double)));
     rs->accepted = 0;
     rs->t_accepted = L->t_old;
     rs->w_accepted = 0.0;
@@ -733,8 +981,9 @@ end_run(Loop *L, RunState *rs, Py_buffer *buf)
         L->sim_t = rs->t_accepted;
         L->sim_work = rs->w_accepted;
         L->sim_h = rs->h_accepted;
-        memcpy(L->sim_q, rs->data + ROW_WIDTH * (rs->n - 1) + ROW_Q, 5 * sizeof(double));
-        memcpy(L->sim_dq, rs->data + ROW_WIDTH * (rs->n - 1) + ROW_DQ, 5 * sizeof(double));
+        /* (q and dq follow ROW_Q in every model's row: loop_state.sample_row) */
+        memcpy(L->sim_q, rs->data + loop_row_width(L) * (rs->n - 1) + ROW_Q, loop_n(L) * sizeof(double));
+        memcpy(L->sim_dq, rs->data + loop_row_width(L) * (rs->n - 1) + ROW_Q + loop_n(L), loop_n(L) * sizeof(double));
         L->sim_state_unmade = 1.0;
     }
     PyBuffer_Release(buf);
@@ -816,7 +1065,13 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     }
     CompiledLaw law;
     PyObject *command = PyCallable_Check(args[0]) ? args[0] : NULL;
+    if (command == NULL && L->table) {
+        PyErr_SetString(PyExc_ValueError, "periods(): a described robot's law is a Python controller (a compiled law "
+                        "is the three-link's)");
+        return NULL;
+    }
     if (command == NULL && compiled_law_from(args[0], &law) < 0) return NULL;
+    int m = loop_m(L);
     long k_first = k0;
     if (isnan(period_end(L->t, period, t_final, &k_first))) {   /* (the first period's index only can be late) */
         PyErr_SetString(PyExc_ValueError, "periods(): more than 2**53 control periods before t");
@@ -826,37 +1081,37 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     Py_buffer buf;
     if (run_state(L, args[4], &rs, &buf) < 0) return NULL;
     int outcome = OUTCOME_DONE;
-    double t_next = L->t, u[2] = {L->u_hold[0], L->u_hold[1]}, refused[2] = {NAN, NAN};
+    double t_next = L->t, u[LS_NQ_MAX], refused[LS_NQ_MAX];
+    memcpy(u, L->u_hold, m * sizeof(double));
+    for (int i = 0; i < m; i++) refused[i] = NAN;
     while (ev_next_period_runs(L->t, t_final, t_stop, period)) {
         long k = k0;
-        double t_end = period_end(L->t, period, t_final, &k), u_now[2];
-        if (command != NULL) call_controller(L, command, L->t, L->y, L->y + 5, u_now);
+        double t_end = period_end(L->t, period, t_final, &k), u_now[LS_NQ_MAX];
+        if (L->table) call_controller_described(L, command, L->t, L->y, L->y + loop_n(L), u_now);
+        else if (command != NULL) call_controller(L, command, L->t, L->y, L->y + 5, u_now);
         else apply_law(L, &law, L->t, L->y, L->y + 5, u_now);
         if (L->callback_failed) {       /* (run_result: OUTCOME_RAISED) */
             k0 = k;
             break;
         }
         carry_step(L, L->h_abs);     /* as begin() carries it over */
+        memcpy(L->u_hold, u_now, m * sizeof(double));     /* (a described robot's M torques: hold's first two) */
         hold(L, u_now[0], u_now[1], t_end);
         if (refused_at_start(L)) {
             outcome = OUTCOME_TORQUE_CHANGE;
-            refused[0] = u_now[0];
-            refused[1] = u_now[1];
+            memcpy(refused, u_now, m * sizeof(double));
             break;
         }
         k0 = k;
         t_next = t_end;
-        u[0] = u_now[0];
-        u[1] = u_now[1];
+        memcpy(u, u_now, m * sizeof(double));
         outcome = quiet_until(L, t_next, &rs);
         if (outcome != OUTCOME_DONE) break;
     }
     L->control_periods = (double)k0;
-    L->sim_u[0] = u[0];
-    L->sim_u[1] = u[1];
+    memcpy(L->sim_u, u, m * sizeof(double));
     L->t_next = t_next;
-    L->refused_u[0] = refused[0];
-    L->refused_u[1] = refused[1];
+    memcpy(L->refused_u, refused, m * sizeof(double));
     return run_result(L, outcome, &rs, &buf);
 }
 
@@ -882,7 +1137,12 @@ Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     double t_bound = PyFloat_AsDouble(args[0]);
     if (PyErr_Occurred()) return NULL;
     if (!isnan(L->sim_h)) carry_step(L, L->sim_h);
-    hold(L, L->sim_u[0], L->sim_u[1], t_bound);
+    if (L->table) {     /* (its M torques) */
+        memcpy(L->u_hold, L->sim_u, loop_m(L) * sizeof(double));
+        hold(L, L->sim_u[0], L->sim_u[1], t_bound);
+    } else {
+        hold(L, L->sim_u[0], L->sim_u[1], t_bound);
+    }
     if (L->callback_failed) return raise_callback_error(L);
     return Loop_run(L, args, nargs);
 }
@@ -927,9 +1187,11 @@ static PyObject *
 Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 {
     if (wrong_nargs(nargs, 4, "period")) return NULL;
-    double wall0 = seconds_now(), u[2];
+    double wall0 = seconds_now(), u[LS_NQ_MAX];
+    int m = loop_m(L);
     if (L->mode_begun == 0.0 || L->n_latched != 0.0 || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
-        || two_finite(args[1], u) < 0)   /* (a latched guard, two scuffs: the Python code follows them) */
+        || (L->table ? m_finite(args[1], m, u) : two_finite(args[1], u)) < 0)
+        /* (a latched guard, two scuffs: the Python code follows them; u not M finite numbers: it says why) */
         return PyLong_FromLong(OUTCOME_DECLINED);
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);
     if (PyErr_Occurred() || PyBool_Check(args[0]) || !(period > 0.0 && period < INFINITY) || PyBool_Check(args[2])
@@ -942,11 +1204,11 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     double t_next = period_end(L->t, period, t_final, &k);
     if (!isfinite(t_next)) return PyLong_FromLong(OUTCOME_DECLINED);     /* the Python code says why */
     if (!isnan(L->sim_h)) carry_step(L, L->sim_h);
+    memcpy(L->u_hold, u, m * sizeof(double));     /* (a described robot's M torques: hold's first two) */
     hold(L, u[0], u[1], t_next);
     if (refused_at_start(L)) return PyLong_FromLong(OUTCOME_DECLINED);
     L->control_periods = (double)k;
-    L->sim_u[0] = u[0];
-    L->sim_u[1] = u[1];
+    memcpy(L->sim_u, u, m * sizeof(double));
     L->t_next = t_next;
     RunState rs;
     Py_buffer buf;
@@ -990,18 +1252,33 @@ Loop_raise_error(Loop *L, PyObject *unused)
 static PyObject *
 Loop_begin(Loop *L, PyObject *law)
 {
-    if ((L->method != DOP853 && L->method != DOPRI5) || (L->stance_leg != 1 && L->stance_leg != 2)) {
+    int kind = law == Py_None ? HELD : PyCallable_Check(law) ? CALLBACK : COMPILED;
+    if (L->table) {     /* a described robot: stance on a contact point or flight, a held or called-back law */
+        if ((L->method != DOP853 && L->method != DOPRI5) || L->stance_leg < 0 || L->stance_leg > L->table->contacts
+            || L->stance_leg != floor(L->stance_leg) || kind == COMPILED) {
+            PyErr_Format(PyExc_ValueError, "begin(): a described robot runs dop853 (0) or dopri5 (1) in stance on a "
+                         "contact point 1..%d or in flight (0), under a held torque or a Python controller",
+                         L->table->contacts);
+            return NULL;
+        }
+        int n_y = 2 * L->table->n + 1;
+        if (n_y != 9 && n_y != 11 && n_y != 15) {    /* (loop_kernels.k_step: the generated steps' sizes) */
+            PyErr_Format(PyExc_ValueError, "begin(): the compiled loop has no generated step for a state of %d entries "
+                         "(a robot of %d coordinates): 9, 11 or 15 (tools/generate_rk.py's UNROLLED)", n_y,
+                         L->table->n);
+            return NULL;
+        }
+    } else if ((L->method != DOP853 && L->method != DOPRI5) || (L->stance_leg != 1 && L->stance_leg != 2)) {
         PyErr_SetString(PyExc_ValueError, "begin(): the loop steps dop853 (0) or dopri5 (1) in stance on leg 1 or 2");
         return NULL;
     }
-    int kind = law == Py_None ? HELD : PyCallable_Check(law) ? CALLBACK : COMPILED;
     if (kind == CALLBACK) {
         Py_INCREF(law);
         Py_XSETREF(L->callback, law);
     } else if (kind == COMPILED && compiled_law_from(law, &L->law) < 0) {
         return NULL;
     }
-    L->n_y = N;
+    L->n_y = L->table ? 2 * L->table->n + 1 : N;
     L->law_kind = kind;
     L->mode_begun = 1.0;
     restart(L, L->t, L->t_bound);
@@ -1024,12 +1301,13 @@ Loop_dense(Loop *L, PyObject *unused)
 static PyObject *
 Loop_dense_at(Loop *L, PyObject *arg)
 {
-    double tt = PyFloat_AsDouble(arg), v[N];
+    double tt = PyFloat_AsDouble(arg), v[LS_NMAX];
+    int n = (int)L->n_y;
     if (tt == -1.0 && PyErr_Occurred()) return NULL;
     rk_dense(L->S, rhs, L);
     if (L->callback_failed) return raise_callback_error(L);
-    for (int i = 0; i < N; i++) v[i] = rk_dense_at(L->S, i, tt);
-    return list_of(v, N);
+    for (int i = 0; i < n; i++) v[i] = rk_dense_at(L->S, i, tt);
+    return list_of(v, n);
 }
 
 /* law_torque(law) -> [u1, u2]: a compiled law's (address, parameters, name) torque at the loop's current
@@ -1039,7 +1317,7 @@ Loop_law_torque(Loop *L, PyObject *spec)
 {
     CompiledLaw law;
     double u[2];
-    if (compiled_law_from(spec, &law) < 0) return NULL;
+    if (three_link_only(L, "law_torque") || compiled_law_from(spec, &law) < 0) return NULL;
     apply_law(L, &law, L->t, L->y, L->y + 5, u);
     if (L->callback_failed) return raise_callback_error(L);
     return Py_BuildValue("[dd]", u[0], u[1]);
@@ -1076,6 +1354,7 @@ static PyMethodDef module_methods[] = {
 
 static PyMethodDef Loop_methods[] = {
     {"set_model", (PyCFunction)Loop_set_model, METH_VARARGS, NULL},
+    {"set_kernels", (PyCFunction)Loop_set_kernels, METH_VARARGS, NULL},
     {"rhs", (PyCFunction)Loop_rhs, METH_VARARGS, NULL},
     {"step", (PyCFunction)Loop_step, METH_NOARGS, NULL},
     {"run", (PyCFunction)(void (*)(void))Loop_run, METH_FASTCALL, NULL},
@@ -1105,6 +1384,7 @@ static void
 Loop_dealloc(Loop *L)
 {
     Py_XDECREF(L->callback);
+    Py_XDECREF(L->table_owner);
     Py_XDECREF(L->exc_type);
     Py_XDECREF(L->exc_value);
     Py_XDECREF(L->exc_tb);

@@ -4,7 +4,7 @@
 #ifndef BIPED_SIM_LOOP_STATE_H
 #define BIPED_SIM_LOOP_STATE_H
 
-#define LOOP_STATE_SIZE 2704
+#define LOOP_STATE_SIZE 3397
 #define LS_NMAX 25
 #define LS_NQ_MAX 12
 #define LS_MAX_DEPTH 30
@@ -52,96 +52,96 @@
 #define LS_STANCE_LEG 195
 #define LS_PIN 196
 #define LS_U_HOLD 198
-#define LS_T_NEXT 200
-#define LS_REFUSED_U 201
-#define LS_N_RECORDS 203
-#define LS_WHY 204
-#define LS_END_U 205
-#define LS_END_F 207
-#define LS_STEPS 209
-#define LS_MAX_DRIFT 210
-#define LS_MAX_RATE 211
-#define LS_MAX_RESIDUAL 212
-#define LS_WALL_TIME 213
-#define LS_T 214
-#define LS_T_BOUND 215
-#define LS_H_ABS 216
-#define LS_T_OLD 217
-#define LS_H 218
-#define LS_Y 219
-#define LS_F 244
-#define LS_Y_OLD 269
-#define LS_STAGES 294
-#define LS_NFEV 619
-#define LS_NREJECTED 620
-#define LS_NACCEPTED 621
-#define LS_DENSE_READY 622
-#define LS_DENSE 623
-#define LS_FAIL_KIND 823
-#define LS_FAIL_VALUE 824
-#define LS_FAIL_T 825
-#define LS_CALLBACK_FAILED 826
-#define LS_GUARD_LEG 827
-#define LS_SCUFF_TRIAL 828
-#define LS_DEEPEST_TRIAL 831
-#define LS_FEET 832
-#define LS_E0 840
-#define LS_PUSH_WORK 841
-#define LS_ENERGY_LOST 842
-#define LS_SIM_T 843
-#define LS_SIM_WORK 844
-#define LS_SIM_H 845
-#define LS_SIM_U 846
-#define LS_SIM_Q 855
-#define LS_SIM_DQ 867
-#define LS_SIM_STATE_UNMADE 879
-#define LS_MODE_BEGUN 880
-#define LS_CONTROL_PERIODS 881
-#define LS_RUNNING 882
-#define LS_INITIAL_SAMPLE_PENDING 883
-#define LS_N_SAMPLES 884
-#define LS_APPENDED 885
-#define LS_PROVISIONAL 886
-#define LS_EVERY 887
-#define LS_LAST_ONLY 888
-#define LS_LAST_IMPACT 889
-#define LS_N_IMPACTS 890
-#define LS_RECENT_IMPACTS 891
-#define LS_N_RECENT 895
-#define LS_MODE_EVENTS 896
-#define LS_RING 897
-#define LS_N_LATCHED 946
-#define LS_ARMED 947
-#define LS_SCUFFING 949
-#define LS_SCUFF 951
-#define LS_DEEPEST_SCUFF 957
-#define LS_SCUFFS 958
-#define LS_FEET_END_T 959
-#define LS_FEET_END 960
-#define LS_FORCE_END_T 968
-#define LS_FORCE_END 969
-#define LS_OUT 971
-#define LS_RESULT 1347
-#define LS_COEF 1349
-#define LS_COEF_LINKS 1397
-#define LS_COEF_LENGTH 1398
-#define LS_DIP_D 1402
-#define LS_QS 1414
-#define LS_PS 1426
-#define LS_STACK 1430
-#define LS_K_IMPACT 1750
-#define LS_K_ENERGY 1782
-#define LS_K_FEET 1814
-#define LS_Q_IMPACT 1846
-#define LS_DQ_MINUS 1858
-#define LS_DQ_PLUS 1870
-#define LS_IMPULSE 1882
-#define LS_TV 1884
-#define LS_ENERGY_BEFORE 1886
-#define LS_ENERGY_AFTER 1887
-#define LS_KINEMATICS 1888
-#define LS_FEET_AFTER 1896
-#define LS_RECORDS 1904
+#define LS_T_NEXT 207
+#define LS_REFUSED_U 208
+#define LS_N_RECORDS 217
+#define LS_WHY 218
+#define LS_END_U 219
+#define LS_END_F 228
+#define LS_STEPS 230
+#define LS_MAX_DRIFT 231
+#define LS_MAX_RATE 232
+#define LS_MAX_RESIDUAL 233
+#define LS_WALL_TIME 234
+#define LS_T 235
+#define LS_T_BOUND 236
+#define LS_H_ABS 237
+#define LS_T_OLD 238
+#define LS_H 239
+#define LS_Y 240
+#define LS_F 265
+#define LS_Y_OLD 290
+#define LS_STAGES 315
+#define LS_NFEV 640
+#define LS_NREJECTED 641
+#define LS_NACCEPTED 642
+#define LS_DENSE_READY 643
+#define LS_DENSE 644
+#define LS_FAIL_KIND 844
+#define LS_FAIL_VALUE 845
+#define LS_FAIL_T 846
+#define LS_CALLBACK_FAILED 847
+#define LS_GUARD_LEG 848
+#define LS_SCUFF_TRIAL 849
+#define LS_DEEPEST_TRIAL 852
+#define LS_FEET 853
+#define LS_E0 861
+#define LS_PUSH_WORK 862
+#define LS_ENERGY_LOST 863
+#define LS_SIM_T 864
+#define LS_SIM_WORK 865
+#define LS_SIM_H 866
+#define LS_SIM_U 867
+#define LS_SIM_Q 876
+#define LS_SIM_DQ 888
+#define LS_SIM_STATE_UNMADE 900
+#define LS_MODE_BEGUN 901
+#define LS_CONTROL_PERIODS 902
+#define LS_RUNNING 903
+#define LS_INITIAL_SAMPLE_PENDING 904
+#define LS_N_SAMPLES 905
+#define LS_APPENDED 906
+#define LS_PROVISIONAL 907
+#define LS_EVERY 908
+#define LS_LAST_ONLY 909
+#define LS_LAST_IMPACT 910
+#define LS_N_IMPACTS 911
+#define LS_RECENT_IMPACTS 912
+#define LS_N_RECENT 916
+#define LS_MODE_EVENTS 917
+#define LS_RING 918
+#define LS_N_LATCHED 967
+#define LS_ARMED 968
+#define LS_SCUFFING 970
+#define LS_SCUFF 972
+#define LS_DEEPEST_SCUFF 978
+#define LS_SCUFFS 979
+#define LS_FEET_END_T 980
+#define LS_FEET_END 981
+#define LS_FORCE_END_T 989
+#define LS_FORCE_END 990
+#define LS_OUT 992
+#define LS_RESULT 1368
+#define LS_COEF 1370
+#define LS_COEF_LINKS 1418
+#define LS_COEF_LENGTH 1419
+#define LS_DIP_D 1423
+#define LS_QS 1435
+#define LS_PS 1447
+#define LS_STACK 1451
+#define LS_K_IMPACT 1771
+#define LS_K_ENERGY 1803
+#define LS_K_FEET 1835
+#define LS_Q_IMPACT 1867
+#define LS_DQ_MINUS 1879
+#define LS_DQ_PLUS 1891
+#define LS_IMPULSE 1903
+#define LS_TV 1905
+#define LS_ENERGY_BEFORE 1907
+#define LS_ENERGY_AFTER 1908
+#define LS_KINEMATICS 1909
+#define LS_FEET_AFTER 1917
+#define LS_RECORDS 1925
 #define IMPACT_OLD_FOOT_SINKS 1
 #define IMPACT_PULLS 2
 #define IMPACT_OUTSIDE_CONE 4
@@ -160,19 +160,19 @@
 #define REC_A 1
 #define REC_B 2
 #define REC_V 3
-#define REC_WIDTH 25
+#define REC_WIDTH 46
 #define REC_TD_T 0
 #define REC_TD_Q 1
-#define REC_TD_DQ_MINUS 6
-#define REC_TD_DQ_PLUS 11
-#define REC_TD_IMPULSE 16
-#define REC_TD_LOSS 18
-#define REC_TD_LOST 19
-#define REC_TD_PIN 20
+#define REC_TD_DQ_MINUS 13
+#define REC_TD_DQ_PLUS 25
+#define REC_TD_IMPULSE 37
+#define REC_TD_LOSS 39
+#define REC_TD_LOST 40
+#define REC_TD_PIN 41
 #define REC_SCUFF_SCUFF 0
 #define REC_SCUFF_T_UP 3
 #define REC_SCUFF_Q 4
-#define REC_SCUFF_DQ 9
+#define REC_SCUFF_DQ 16
 
 /* Outcome, Record and Reason (loop_state.py) */
 #define OUTCOME_DONE 0
@@ -254,12 +254,12 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double max_events;  /* the run stops after this many mode events */ \
     double stance_leg;  /* the stance foot: 1 or 2, 0 in flight (the simulator's stance_leg) */ \
     double pin[2];  /* where the stance foot is pinned (m; the simulator's pin, not read in flight) */ \
-    double u_hold[2];  /* the torque held while the torque law is held (N m) */ \
+    double u_hold[9];  /* the torque held while the torque law is held, one an actuator (N m) */ \
     double t_next;  /* period(), periods(): the end of the control period under way (s) */ \
-    double refused_u[2];  /* periods() ending TORQUE_CHANGE: the command refused at its period's start (N m) */ \
+    double refused_u[9];  /* periods() ending TORQUE_CHANGE: the command refused at its period's start, one an actuator (N m) */ \
     double n_records;  /* the touchdowns and ended scuffs applied in C whose Events the Python code makes (records, in order) */ \
     double why;  /* why the compiled loop handed the last step back (Reason) */ \
-    double end_u[2];  /* the step handed back: the torque of its end (N m) */ \
+    double end_u[9];  /* the step handed back: the torque of its end, one an actuator (N m) */ \
     double end_F[2];  /* the step handed back: the stance force of its end (N) */ \
     double steps;  /* the quiet steps accepted in C */ \
     double max_drift;  /* the largest drift of the stance foot from the pin (m) */ \
@@ -344,6 +344,6 @@ typedef void (*feet_t)(double *S, void *ctx, double t);
     double energy_after;  /* T + V after the impact (J) */ \
     double kinematics[8];  /* foot_kinematics after the impact: p_1, p_2, dp_1/dt, dp_2/dt */ \
     double feet_after[2][4];  /* the feet after the impact: x, height across the ground, their rates, a row a foot */ \
-    double records[32][25];  /* the touchdowns and ended scuffs applied in C, a row a record (RECORD_ROW), the first n_records in use */
+    double records[32][46];  /* the touchdowns and ended scuffs applied in C, a row a record (RECORD_ROW), the first n_records in use */
 
 #endif

@@ -7,6 +7,12 @@ comes through the hook (:mod:`~biped_sim.engine.torque_hook`). Else, and always 
 ``BIPED_SIM_PURE_PYTHON=1``, the Python loop of ``hybrid.py`` runs, the readable reference. Both give the same
 run (test/unit/test_compiled_loop.py).
 
+A described robot (a GeneratedModel with compiled kernels, :func:`why_not_described`): the compiled loop runs its
+floating-base stance in C on its kernels' C entry points (``Loop.set_kernels``), with the same rules and their
+sizes from the model: the steps, the quiet steps and their samples, the touchdowns it applies, the control periods
+(a Python controller called from C, or the node's M torques). A compiled law is the three-link's
+(:attr:`CompiledStepper.described`).
+
 The stepper (:class:`CompiledStepper`): the interface of ``integrators._ListRungeKutta`` over the simulator's
 state (``loop_state.py``; :func:`run_state`), which the C ``Loop`` reads and writes in place. Its entry points
 return an :class:`~biped_sim.engine.loop_state.Outcome`; a step in which anything but a quiet step may happen
@@ -16,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from biped_sim.engine import grazing, integrators, loop_kernels, loop_rules as rules
+from biped_sim.engine import grazing, integrators, loop_kernels, loop_rules as rules, model_kernels
 from biped_sim.engine.compiled import _compiled_twin
 from biped_sim.engine.loop_state import (
     DENSE,
@@ -33,6 +39,7 @@ from biped_sim.engine.loop_state import (
     N_Y,
     NACCEPTED,
     NFEV,
+    NQ_MAX,
     NREJECTED,
     REC_A,
     REC_B,
@@ -87,17 +94,39 @@ AVAILABLE = _core is not None
 enabled = True
 
 
-#: why a described robot's run is the Python loop's (the compiled loop's kernels are the three-link's closed forms)
-WHY_NOT_GENERATED = ("a described robot (GeneratedModel) runs in the Python loop: the compiled loop's kernels are the "
-                     "three-link biped's closed forms")
+#: why a described robot (a GeneratedModel) runs in the Python loop: it has no compiled kernels (model_kernels), or
+#: no generated step of its size; why_not_described(model) says which in one line
+WHY_NOT_GENERATED = "a described robot without compiled kernels, or without a generated step of its size"
+
+#: the sizes of y (2 N + 1 for N coordinates) the compiled loop has generated steps for (tools/generate_rk.py's
+#: UNROLLED; loop_kernels.k_step)
+STEPPED_SIZES = (9, 11, 15)
+
+
+def why_not_described(model):
+    """"" when the compiled loop steps the described robot ``model`` (a GeneratedModel), else why not in one line:
+    its whole run is then the Python loop's."""
+    if _core is None:
+        return WHY_NOT
+    size = 2 * model.n + 1
+    if size not in STEPPED_SIZES:
+        return (f"robot {model.name!r} ({model.n} coordinates) runs in the Python loop: the compiled loop has no "
+                f"generated step for a state of {size} entries (9, 11 or 15)")
+    if model_kernels.compiled_kernels(model) is None:
+        return f"robot {model.name!r} runs in the Python loop: it has no compiled kernels (model_kernels)"
+    return ""
 
 
 def covers(sim, controller):
-    """The torque law when the compiled loop can run the simulator's current mode, else None."""
+    """The torque law when the compiled loop can run the simulator's current mode, else None. A described robot's
+    mode: held or a Python controller (a compiled law is the three-link's)."""
     if (_core is None or not enabled or sim._loop is None or not sim.stance_leg or sim.opt.base != "floating"
             or sim.method not in METHODS or sim.on_step is not None or not all_compiled()):
         return None
-    return law_in_mode(controller, sim.model)
+    law = law_in_mode(controller, sim.model)
+    if sim.p is None and law[0] not in ("held", "callback"):
+        return None
+    return law
 
 
 def new_loop(model):
@@ -112,28 +141,33 @@ def run_state(model):
     """(S, loop): the state a simulator owns for its life (``loop_state.py``'s fields) and the C ``Loop`` made
     over it: with the compiled loop built, the Loop's own memory as a memoryview of doubles (the simulator, its
     Samples and its locator read and write what the loop reads and writes); else a list of floats and None.
-    A described robot's (a GeneratedModel) is a list naming its kernels and None: the C Loop runs the three-link
-    biped only, the Python loop runs any (WHY_NOT_GENERATED)."""
+    A described robot's (a GeneratedModel) names its kernels (model_kernels); its Loop takes its steps on its
+    kernels' C entry points (Loop.set_kernels), where it has them and a generated step of its size
+    (why_not_described); else it is a list and None, and the Python loop runs it."""
     fields = dict(n_q=model.n, **grazing.chain_fields(model))
     if not isinstance(model, BipedModel):
-        # a described robot (GeneratedModel): the Python loop runs it, on its kernels (the C Loop's are the
-        # three-link's closed forms)
-        return new_state(model_kernels=loop_kernels.register(model), **fields), None
+        k = loop_kernels.register(model)
+        if why_not_described(model):
+            return new_state(model_kernels=k, **fields), None
+        loop = _core.Loop()
+        loop.set_kernels(model_kernels.compiled_kernels(model).KERNEL_TABLE, list(model.actuated_indices), model.name)
+        return write(memoryview(loop).cast("d"), model_kernels=k, **fields), loop
     if _core is None:
         return new_state(**fields), None
     loop = new_loop(model)
     return write(memoryview(loop).cast("d"), **fields), loop
 
 
-def take_records(S):
+def take_records(S, n=5):
     """The touchdowns and ended scuffs the compiled loop applied, in order, from the state's records (RECORD_ROW,
-    RECORD_VALUES), as tuples: (TOUCHDOWN, t, old leg, new leg, q, dq-, dq+, impulse, energy loss, energy lost so
-    far, pin) or (SCUFF_ENDED, foot, stance leg, [t_start, deepest, t_deepest], t_up, q, dq); then none are left."""
+    RECORD_VALUES; q and dq of n entries), as tuples: (TOUCHDOWN, t, old leg, new leg, q, dq-, dq+, impulse, energy
+    loss, energy lost so far, pin) or (SCUFF_ENDED, foot, stance leg, [t_start, deepest, t_deepest], t_up, q, dq);
+    then none are left."""
     out = []
     for i in range(int(S[N_RECORDS])):
         r = RECORDS + REC_WIDTH * i
         kind, a, b = int(S[r + REC_KIND]), int(S[r + REC_A]), int(S[r + REC_B])
-        values = [S[r + REC_V + at:r + REC_V + at + size].tolist()
+        values = [S[r + REC_V + at:r + REC_V + at + (n if size == NQ_MAX else size)].tolist()
                   for at, size in _VALUE_SLICES["TD" if kind == Record.TOUCHDOWN else "SCUFF"]]
         if kind == Record.TOUCHDOWN:
             (t,), q, dq_minus, dq_plus, impulse, (loss,), (lost,), pin = values
@@ -191,6 +225,9 @@ class CompiledStepper(integrators._OnState):
               impulse_tol=opt.impulse_tol, contact_tol=opt.contact_tol, max_events=opt.max_events)
         self.rtol, self.atol, self.method = sim.rtol, sim.atol, sim.method
         self.ERROR_ORDER = 7 if sim.method == "dop853" else 4
+        #: a described robot's: a compiled law is the three-link's (command: the Python code computes it)
+        self.described = sim.p is None
+        self._m = sim._m
 
     def start(self, t_bound, law, reset_counters):
         """Begin the mode at the simulator's state, as ``make_stepper`` would build a new stepper: the
@@ -234,7 +271,7 @@ class CompiledStepper(integrators._OnState):
         """The control period's command of a compiled law at the simulator's state, computed in C (the
         law's own torques bit for bit), or None where the Python controller must be called."""
         law = reference_law(controller, self.sim.model)
-        if law is None or not self.S[MODE_BEGUN] or self.sim._stepper is not self:
+        if law is None or self.described or not self.S[MODE_BEGUN] or self.sim._stepper is not self:
             return None
         return self.loop.law_torque(hook_argument(law))
 
@@ -260,7 +297,7 @@ class CompiledStepper(integrators._OnState):
         t_next = S[T_NEXT]
         if outcome == Outcome.NEED_ROOM:      # the period in progress goes on in run(), which makes room
             return self.run(t_next), t_next, None
-        return outcome, t_next, [S[REFUSED_U], S[REFUSED_U + 1]] if outcome == Outcome.TORQUE_CHANGE else None
+        return outcome, t_next, S[REFUSED_U:REFUSED_U + self._m].tolist() if outcome == Outcome.TORQUE_CHANGE else None
 
     def held_period(self, t_end):
         """A control period under the held torque ``sim._u`` in the mode the loop is in, started and run
@@ -282,7 +319,7 @@ class CompiledStepper(integrators._OnState):
         handling."""
         sim = self.sim
         if self.S[N_RECORDS]:
-            sim._loop_records(take_records(self.S))
+            sim._loop_records(take_records(self.S, sim.n))
         if self._raise_failure(outcome) == Outcome.EVENT:     # (its start's feet and force: the state's)
             self._handed(outcome)
         return outcome
@@ -301,7 +338,7 @@ class CompiledStepper(integrators._OnState):
         and force of its end the simulator's last evaluation's."""
         self._dense = None
         S = self.S
-        self.sim._last_u, self.sim._last_F = S[END_U:END_U + 2].tolist(), S[END_F:END_F + 2].tolist()
+        self.sim._last_u, self.sim._last_F = S[END_U:END_U + self._m].tolist(), S[END_F:END_F + 2].tolist()
 
     def replace_y(self, y):
         self.y = y

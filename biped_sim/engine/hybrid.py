@@ -58,6 +58,7 @@ from biped_sim.engine.loop_state import (
     T_NEXT,
     Outcome,
     Record,
+    put,
 )
 from biped_sim.engine.model import BipedModel, as_state_vector, short_repr
 from biped_sim.engine.modes import (
@@ -304,7 +305,7 @@ class HybridSimulator:
     def _u(self, value):
         S = self.S
         if self._m != 2:
-            S[SIM_U:SIM_U + self._m] = value
+            put(S, SIM_U, value)
             return
         S[SIM_U], S[SIM_U + 1] = value
 

@@ -46,12 +46,13 @@ EVENT_ROOM = 32     # the event records a run may make before the Python code ta
 
 
 #: a record's values, in order, with their sizes: a touchdown's (a, b: the old and the new stance leg) and an ended
-#: scuff's (a, b: the foot and the stance leg; q and dq at t_deepest, NaN outside the step). _loop_state.h carries
-#: their offsets from REC_V as REC_TD_<NAME> and REC_SCUFF_<NAME>.
+#: scuff's (a, b: the foot and the stance leg; q and dq at t_deepest, NaN outside the step). q and dq have room for
+#: NQ_MAX coordinates, the model's N in use. _loop_state.h carries their offsets from REC_V as REC_TD_<NAME> and
+#: REC_SCUFF_<NAME>.
 RECORD_VALUES = {
-    "TD": (("t", 1), ("q", 5), ("dq_minus", 5), ("dq_plus", 5), ("impulse", 2), ("loss", 1), ("lost", 1),
-           ("pin", 2)),
-    "SCUFF": (("scuff", 3), ("t_up", 1), ("q", 5), ("dq", 5)),
+    "TD": (("t", 1), ("q", NQ_MAX), ("dq_minus", NQ_MAX), ("dq_plus", NQ_MAX), ("impulse", 2), ("loss", 1),
+           ("lost", 1), ("pin", 2)),
+    "SCUFF": (("scuff", 3), ("t_up", 1), ("q", NQ_MAX), ("dq", NQ_MAX)),
 }
 
 
@@ -130,14 +131,15 @@ FIELDS = (
     # -- the mode: the simulator's, which the compiled loop steps (a touchdown in either loop changes it)
     Field("stance_leg", (), "the stance foot: 1 or 2, 0 in flight (the simulator's stance_leg)"),
     Field("pin", (2,), "where the stance foot is pinned (m; the simulator's pin, not read in flight)"),
-    Field("u_hold", (2,), "the torque held while the torque law is held (N m)"),
+    Field("u_hold", (NU_MAX,), "the torque held while the torque law is held, one an actuator (N m)"),
     # -- what an entry point of the compiled loop leaves besides its Outcome
     Field("t_next", (), "period(), periods(): the end of the control period under way (s)"),
-    Field("refused_u", (2,), "periods() ending TORQUE_CHANGE: the command refused at its period's start (N m)"),
+    Field("refused_u", (NU_MAX,), "periods() ending TORQUE_CHANGE: the command refused at its period's start, one "
+                                  "an actuator (N m)"),
     Field("n_records", (), "the touchdowns and ended scuffs applied in C whose Events the Python code makes "
                            "(records, in order)"),
     Field("why", (), "why the compiled loop handed the last step back (Reason)"),
-    Field("end_u", (2,), "the step handed back: the torque of its end (N m)"),
+    Field("end_u", (NU_MAX,), "the step handed back: the torque of its end, one an actuator (N m)"),
     Field("end_F", (2,), "the step handed back: the stance force of its end (N)"),
     # -- the compiled loop's statistics since the Python code last took them (compiled_loop.take_stats)
     Field("steps", (), "the quiet steps accepted in C"),

@@ -150,8 +150,12 @@ class SimNode(Node):
             f"method={self.sim.method}" + (" (auto)" if prm["method"] == "auto" else "")
             + f", generated code in {GENERATED_CODE}" + (f" ({WHY_PYTHON})" if WHY_PYTHON else "")
             + (", hybrid loop in C" if compiled_loop.AVAILABLE and self.sim._loop is not None
-               else f", hybrid loop in Python ({compiled_loop.WHY_NOT or compiled_loop.WHY_NOT_GENERATED})")
+               else f", hybrid loop in Python ({compiled_loop.WHY_NOT or self._why_python_loop()})")
             + (f", recording to {self.bag_path}" if self.recorder else ""))
+
+    def _why_python_loop(self):
+        """Why the hybrid loop is Python's: a described robot's reason (compiled_loop.why_not_described)."""
+        return compiled_loop.why_not_described(self.sim.model) or compiled_loop.WHY_NOT_GENERATED
 
     # the run's state lives in its NodeRun; these names are the node's view of it
     sim = property(lambda self: self.run_rules.sim)

@@ -732,7 +732,7 @@ def test_every_method_of_the_loop_is_one_the_engine_calls():
     source = "".join(path.read_text() for path in sorted(engine.glob("*.py")))
     methods = {name for name in dir(compiled_loop._core.Loop) if not name.startswith("_")}
     assert methods == {"begin", "dense", "dense_at", "held", "law_torque", "locate_crossing", "period", "periods",
-                       "raise_error", "rhs", "run", "set_model", "step"}
+                       "raise_error", "rhs", "run", "set_kernels", "set_model", "step"}
     assert [name for name in sorted(methods) if not re.search(rf"loop\.{name}\b", source)] == []
     assert {name for name in dir(compiled_loop._core) if not name.startswith("_")} == {
         "KERNELS_SHA256", "Loop", "set_python_checks"}
@@ -806,7 +806,9 @@ def test_the_touchdowns_the_loop_applies_are_records_in_the_state():
         row = rows[ls.Record.TOUCHDOWN, e.time]
         v = row[ls.REC_V:]
         assert (row[ls.REC_A], row[ls.REC_B]) == (e.stance_leg_before, e.stance_leg_after)
-        assert v[1:6] == e.q.tolist() and v[6:11] == e.dq_minus.tolist() and v[11:16] == e.dq_plus.tolist()
+        q, dqm, dqp = ls.REC_TD_Q, ls.REC_TD_DQ_MINUS, ls.REC_TD_DQ_PLUS     # (room for NQ_MAX; N = 5 in use)
+        assert v[q:q + 5] == e.q.tolist() and v[dqm:dqm + 5] == e.dq_minus.tolist()
+        assert v[dqp:dqp + 5] == e.dq_plus.tolist()
     assert S[ls.N_RECORDS] == 0.0 and not hasattr(compiled_loop._core.Loop, "take_events")
 
 
@@ -876,3 +878,230 @@ def test_a_change_of_the_simulators_state_in_python_begins_the_loops_mode_again(
     assert not hasattr(compiled_loop.CompiledStepper, "python_changed")
     if compiled_loop.AVAILABLE:
         assert not hasattr(compiled_loop._core.Loop, "state_stale")
+
+
+def described_loop(name):
+    """(model, C Loop over the kernels of the shipped robot ``name``'s compiled twin, its state S)."""
+    from biped_sim.config import models
+    from biped_sim.engine import model_kernels
+    model = models.generated_model(name)
+    twin = model_kernels.compiled_kernels(model)
+    assert twin is not None, "the shipped twin was not built: make venv"
+    loop = compiled_loop._core.Loop()
+    loop.set_kernels(twin.KERNEL_TABLE, list(model.actuated_indices), model.name)
+    return model, loop, memoryview(loop).cast("d")
+
+
+@pytest.mark.parametrize("name", ["rabbit", "compass_gait"])
+def test_a_described_robots_right_hand_side_in_c_is_the_python_loops_bit_for_bit(name):
+    """The C Loop over a described robot's kernel table (set_kernels) evaluates modes._generated_functions'
+    right-hand side bit for bit: stance on each contact point and flight, y = q + dq + [work], the motors' power
+    u . (B^T dq), under M held torques (rhs; begin's f) and a Python controller called back with N-entry q and dq
+    (its M torques as a list or an array); a controller's failure is the same ControllerError."""
+    from biped_sim.engine import modes
+    model, loop, S = described_loop(name)
+    n, m = model.n, model.m
+    rng = np.random.default_rng(31)
+
+    def controller(t, q, dq, leg):
+        return [0.5 * q[2 + i] - 0.1 * dq[n - 1 - i] + t * leg for i in range(m)]
+
+    def array_controller(t, q, dq, leg):
+        return np.array(controller(t, q, dq, leg))
+
+    for leg in [1, 2, 0]:
+        for _ in range(3):
+            y = rng.uniform(-1, 1, 2 * n + 1).tolist()
+            y[1], t, u = rng.uniform(0.5, 1.2), float(rng.uniform(0, 2)), rng.uniform(-20, 20, m).tolist()
+            loop_state.write(S, stance_leg=leg, u_hold=u, method=0, t=t, y=y, t_bound=t + 1.0)
+            held, _, _ = modes.mode_functions(model, leg, "floating", [0.0, 0.0], u, None, lambda F, u: None)
+            loop.begin(None)
+            assert loop.rhs(t, y) == held(t, y), (leg, "held")
+            assert S[loop_state.F:loop_state.F + 2 * n + 1].tolist() == held(t, y), (leg, "begin's f")
+            for law in (controller, array_controller):
+                control = modes.bind_controller(law, leg, m)
+                called, _, _ = modes.mode_functions(model, leg, "floating", [0.0, 0.0], u, control, lambda F, u: None)
+                loop.begin(law)
+                assert loop.rhs(t, y) == called(t, y), (leg, law.__name__)
+
+    def bad(t, q, dq, leg):
+        return [1.0] * (m + 1)
+
+    control = modes.bind_controller(bad, 1, m)
+    called, _, _ = modes.mode_functions(model, 1, "floating", [0.0, 0.0], [0.0] * m, control, lambda F, u: None)
+    loop_state.write(S, stance_leg=1, t=0.25, y=y)
+    with pytest.raises(bs.ControllerError) as python_error:
+        called(0.25, y)
+    with pytest.raises(bs.ControllerError) as c_error:
+        loop.begin(bad)     # (its f = rhs(t, y) calls the controller)
+    assert str(c_error.value) == str(python_error.value)
+
+
+def test_a_described_robots_loop_refuses_what_it_cannot_run_in_one_line():
+    """The Loop over a described robot runs its steps, quiet steps and periods (begin, step, dense_at, run, held,
+    periods) under a held torque or a Python controller; a compiled law (begin, periods, law_torque) is refused with
+    one line, the node's period with other than M torques is declined (the Python code says why), and joints that are
+    not entries of q are refused."""
+    from biped_sim.engine import model_kernels
+    model, loop, S = described_loop("rabbit")
+    y = [0.0, 0.9, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05] + [0.0] * (model.n + 1)
+    loop_state.write(S, stance_leg=1, u_hold=[0.0] * model.m, method=0, t=0.0, t_bound=1.0, h_abs=1e-3, y=y,
+                     max_step=np.inf, rtol=1e-9, atol=1e-9)
+    loop.begin(None)
+    assert loop_state.Outcome(loop.step()) == loop_state.Outcome.DONE and S[loop_state.T] > 0.0
+    assert len(loop.dense_at(S[loop_state.T])) == 2 * model.n + 1
+    data = np.zeros((4, loop_state.sample_row(model.n, model.m)["ROW_WIDTH"]))
+    law = (1, [0.0], "law")
+    with pytest.raises(ValueError, match=r"^law_torque\(\): a compiled law runs the three-link biped only") as e:
+        loop.law_torque(law)
+    with pytest.raises(ValueError, match=r"^periods\(\): a described robot's law is a Python controller") as f:
+        loop.periods(law, 1e-3, 1.0, np.inf, data)
+    with pytest.raises(ValueError, match="a described robot runs dop853") as g:
+        loop.begin(law)
+    assert not any("\n" in str(x.value) for x in (e, f, g))
+    assert loop_state.Outcome(loop.period(1e-3, [0.0] * 2, 1.0, data)) == loop_state.Outcome.DECLINED     # (not M)
+    table = model_kernels.compiled_kernels(model).KERNEL_TABLE
+    with pytest.raises(ValueError, match=r"joints\[0\] is not an entry of q \(0\.\.6\)"):
+        loop.set_kernels(table, [99] * model.m, "rabbit")
+
+
+
+def _rabbit_on_foot_1(lift=0.0):
+    """RABBIT on foot 1 at the origin (leg 2 bent, its foot 2 cm up), at rest; ``lift`` raises it."""
+    rabbit = bs.load_model("rabbit")
+    q = np.array([0.0, 0.0, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05])
+    q[:2] -= rabbit.contact_position(q, 1)
+    q[1] += lift
+    return rabbit, q, np.zeros(7)
+
+
+def assert_same_bits(a, b, what=""):
+    """The same run bit for bit: status, events (kinds, legs, times), samples and counters."""
+    assert_same_run(a, b, what)
+    assert [e.time for e in a.events] == [e.time for e in b.events], what
+    for name in ("t", "q", "dq", "u", "grf", "stance_leg"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=f"{what} {name}")
+
+
+def on_both_loops_counting_c_steps(run, monkeypatch):
+    """(compiled, python, steps the compiled run took in C, touchdowns it located in C): both_loops with the steps
+    taken in C (the quiet steps, compiled_loop_steps, and the steps handed to the Python code, CompiledStepper.step)
+    and the touchdowns located in C (applied there: the loop's records; or handed back: Loop.locate_crossing's roots)
+    counted."""
+    taken, roots = [], []
+    step, crossing = compiled_loop.CompiledStepper.step, compiled_loop.CompiledStepper.height_crossing
+    records = compiled_loop.take_records
+    monkeypatch.setattr(compiled_loop.CompiledStepper, "step", lambda self: (taken.append(1), step(self))[1])
+    monkeypatch.setattr(compiled_loop.CompiledStepper, "height_crossing",
+                        lambda self, *a: (lambda t: (roots.append(t is not None), t)[1])(crossing(self, *a)))
+
+    def counted_records(S, n=5):
+        out = records(S, n)
+        roots.extend(r[0] == loop_state.Record.TOUCHDOWN for r in out)
+        return out
+    monkeypatch.setattr(compiled_loop, "take_records", counted_records)
+    a, b = both_loops(run)
+    return a, b, a.stats["compiled_loop_steps"] + len(taken), sum(roots)
+
+
+DESCRIBED_RUNS = {
+    # the rabbit scene's walk, the control period held and continuous
+    "rabbit walk held": lambda: bs.load_scene("rabbit").simulate(hold=True, t_final=2.0),
+    "rabbit walk continuous": lambda: bs.load_scene("rabbit").simulate(hold=False, t_final=2.0),
+    # dropped from 5 cm in flight (the Python loop's mode), foot 1 lands, stance (the compiled loop's steps)
+    "rabbit drop": lambda: bs.simulate(*_rabbit_on_foot_1(lift=0.05), 0.3, stance_leg=0),
+    # a knee torque ramped up lifts the stance foot off: without the flight phase the liftoff stops the run; with
+    # it, flight, a touchdown and impacts that accumulate (a Zeno stop)
+    "rabbit liftoff stops": lambda: _kicking_rabbit(phases=frozenset({"stance", "impact"})),
+    "rabbit liftoff, flight, zeno": lambda: _kicking_rabbit(),
+    # the same kick held over 1 ms periods (their commands computed from C): the stance guards refuse a period's
+    # command at its start, and the Python code runs that period
+    "rabbit kick held": lambda: _kicking_rabbit(control_period=1e-3),
+    # a law that raises in a period: the run fails with its ControllerError
+    "rabbit law raises": lambda: _kicking_rabbit(control_period=1e-3, raise_at=0.02),
+    # the node's periods: advance_period with M torques given, each period run whole in C (Loop.period)
+    "rabbit node periods": lambda: _rabbit_node_periods(),
+    # the compass gait's description as a GeneratedModel, passive down its slope: touchdowns and scuffs
+    "compass gait": lambda: bs.simulate(_generated("compass_gait"), np.array([0.0, 1.0, np.pi, np.pi, 0.0]),
+                                        np.array([0.4, 0.0, 0.4, -2.0, 0.0]), 3.0, rtol=1e-10, atol=1e-10,
+                                        slope=0.0525, phases=frozenset({"stance", "impact"})),
+}
+
+
+def _generated(name):
+    from biped_sim.config import models
+    return models.generated_model(name)
+
+
+def _rabbit_node_periods():
+    from biped_sim.engine.hybrid import HybridSimulator
+    rabbit, q0, dq0 = _rabbit_on_foot_1()
+    sim = HybridSimulator(rabbit, q0, dq0, stance_leg=1)
+    for k in range(300):
+        sim.advance_period(1e-3, [0.0, 0.0, 5.0 * min(k / 100, 1.0), -2.0])
+    return sim.result()
+
+
+def _kicking_rabbit(raise_at=None, **options):
+    rabbit, q0, dq0 = _rabbit_on_foot_1()
+
+    def knee_kick(t, q, dq, leg):
+        if raise_at is not None and t >= raise_at:
+            raise RuntimeError("the knee law broke")
+        return [0.0, 0.0, -50.0 * min(t / 0.05, 1.0), 0.0]
+    return bs.simulate(rabbit, q0, dq0, 0.3, controller=knee_kick, stance_leg=1, **options)
+
+
+@pytest.mark.parametrize("name", list(DESCRIBED_RUNS))
+def test_a_described_robot_runs_the_same_on_both_loops_bit_for_bit(name, monkeypatch):
+    """A described robot (a GeneratedModel) on the compiled loop, its stance steps taken in C on its kernels' C entry
+    points (and its touchdowns' crossings located there) and each handled by the Python loop, gives the Python loop's
+    run bit for bit."""
+    a, b, c_steps, c_roots = on_both_loops_counting_c_steps(DESCRIBED_RUNS[name], monkeypatch)
+    assert_same_bits(a, b, name)
+    assert c_steps > (0.5 * a.stats["steps"] if "walk" in name else 0), (c_steps, a.stats["steps"])
+    if "walk" in name or name == "compass gait":     # its touchdowns located in C (the table's foot positions)
+        assert c_roots >= 1, name
+    assert a.events or name == "rabbit law raises", name
+    if name == "rabbit liftoff stops":
+        assert a.status == "stopped" and "would lift off" in a.message, (a.status, a.message)
+    if name == "rabbit law raises":
+        assert a.status == "failed" and "the knee law broke" in a.message, (a.status, a.message)
+    if name == "rabbit liftoff, flight, zeno":
+        assert [e.kind for e in a.events[:2]] == ["liftoff", "touchdown"] and a.events[-1].kind == "zeno"
+
+
+def test_a_users_description_runs_on_the_compiled_loop_after_its_build(tmp_path, monkeypatch):
+    """A user's description (a YAML file in a folder of theirs: the three-link with 4 kg legs) is generated and its
+    kernels built on first use; the compiled loop then steps it, and its run is the Python loop's bit for bit."""
+    pytest.importorskip("sympy")
+    import yaml
+
+    from biped_sim.config import models
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    data = yaml.safe_load((models.ROBOTS_DIR / "three_link.yaml").read_text())
+    data["name"] = "stilts"
+    for leg in ("leg_1", "leg_2"):
+        data["links"][leg]["mass"] = 4.0
+    path = tmp_path / "stilts.yaml"
+    path.write_text(yaml.safe_dump(data))
+    model = models.generated_model(str(path))
+    assert compiled_loop.why_not_described(model) == ""
+    q0, dq0 = np.array([0.0, 1.0, np.pi, np.pi, 0.0]), np.array([0.4, 0.0, 0.4, -2.0, 0.0])
+    a, b, c_steps, c_roots = on_both_loops_counting_c_steps(
+        lambda: bs.simulate(model, q0, dq0, 1.5, slope=0.0525, phases=frozenset({"stance", "impact"})), monkeypatch)
+    assert_same_bits(a, b, "stilts")
+    assert a.impacts and c_steps > 0.5 * a.stats["steps"] and c_roots >= 1
+
+
+def test_a_described_robots_node_period_runs_whole_in_c():
+    """The node's period of a described robot (advance_period with its M torques) is one call of Loop.period, which
+    runs it whole in C (DONE), as the three-link's."""
+    from biped_sim.engine.hybrid import HybridSimulator
+    rabbit, q0, dq0 = _rabbit_on_foot_1()
+    sim = HybridSimulator(rabbit, q0, dq0, stance_leg=1)
+    for _ in range(3):
+        sim.advance_period(1e-3, [0.0, 0.0, 1.0, -1.0])
+    assert sim._stepper is sim._compiled and sim._compiled.described
+    outcome = sim._compiled.loop.period(1e-3, [0.0, 0.0, 1.0, -1.0], 0.0, sim._samples._data)
+    assert loop_state.Outcome(outcome) == loop_state.Outcome.DONE and sim.t == pytest.approx(4e-3, abs=1e-15)

@@ -6,6 +6,7 @@ it runs the same statements (feet, energy); the shipped sources are what the gen
 user's description is built on first use, cached next to its module and not built again; without a
 compiler the Python path runs after one warning; ``BIPED_SIM_PURE_PYTHON=1`` forces the Python path.
 """
+import ctypes
 import os
 import subprocess
 import sys
@@ -64,6 +65,66 @@ def test_the_twin_agrees_with_the_numpy_path_at_random_states(name):
     # lists and tuples are read in place; a numpy array and ints are accepted as numbers
     assert twin.k_stance(tuple(ql), np.array(dql), [int(round(x)) for x in ul], 0)[1] == \
         twin.k_stance(ql, dql, [float(int(round(x))) for x in ul], 0)[1]
+
+
+_D = ctypes.POINTER(ctypes.c_double)
+
+
+class KernelTable(ctypes.Structure):
+    """_kernel_table.h's KernelTable, read through ctypes as C code reads it."""
+    _fields_ = [("version", ctypes.c_int), ("n", ctypes.c_int), ("contacts", ctypes.c_int),
+                ("actuators", ctypes.c_int),
+                ("stance", ctypes.CFUNCTYPE(ctypes.c_int, _D, _D, _D, ctypes.c_int, _D, _D)),
+                ("flight", ctypes.CFUNCTYPE(ctypes.c_int, _D, _D, _D, _D)),
+                ("impact", ctypes.CFUNCTYPE(ctypes.c_int, _D, _D, ctypes.c_int, _D, _D)),
+                ("foot_positions", ctypes.CFUNCTYPE(ctypes.c_int, _D, _D)),
+                ("foot_kinematics", ctypes.CFUNCTYPE(ctypes.c_int, _D, _D, _D)),
+                ("energy", ctypes.CFUNCTYPE(ctypes.c_int, _D, _D, _D))]
+
+
+def kernel_table(twin) -> KernelTable:
+    """The twin's table of C entry points, from its capsule KERNEL_TABLE (checked by name)."""
+    get = ctypes.pythonapi.PyCapsule_GetPointer
+    get.restype, get.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
+    address = get(twin.KERNEL_TABLE, b"biped_sim.engine.model_kernels.KernelTable")
+    return KernelTable.from_address(address)
+
+
+def doubles(values, n=None):
+    return (ctypes.c_double * (n if n is not None else len(values)))(*values)
+
+
+def assert_entry_points_give_the_functions_bits(twin, n, nc, m, rng):
+    """The table's C entry points, called on double arrays, return KERNEL_OK and the bits of the twin's Python
+    functions at random states."""
+    table = kernel_table(twin)
+    assert (table.version, table.n, table.contacts, table.actuators) == (twin.KERNEL_TABLE_VERSION, n, nc, m)
+    for _ in range(10):
+        q, dq, u = rng.uniform(-2, 2, n).tolist(), rng.uniform(-3, 3, n).tolist(), rng.uniform(-20, 20, m).tolist()
+        q[1] = rng.uniform(0.3, 1.5)
+        cq, cdq, cu = doubles(q), doubles(dq), doubles(u, max(m, 1))
+        for c in range(nc):
+            x, F = doubles([], n), doubles([], 2)
+            assert table.stance(cq, cdq, cu, c, x, F) == 0
+            assert [list(x), list(F)] == list(map(list, twin.k_stance(q, dq, u, c)))
+            assert table.impact(cq, cdq, c, x, F) == 0
+            assert [list(x), list(F)] == list(map(list, twin.k_impact(q, dq, c)))
+        x = doubles([], n)
+        assert table.flight(cq, cdq, cu, x) == 0 and list(x) == twin.k_flight(q, dq, u)
+        p = doubles([], 4 * nc)
+        assert table.foot_positions(cq, p) == 0 and list(p)[:2 * nc] == twin.k_foot_positions(q)
+        assert table.foot_kinematics(cq, cdq, p) == 0 and list(p) == twin.k_foot_kinematics(q, dq)
+        e = doubles([], 2)
+        assert table.energy(cq, cdq, e) == 0 and list(e) == twin.k_energy(q, dq)
+
+
+@pytest.mark.parametrize("name", models.SHIPPED)
+def test_the_twin_exports_c_entry_points_that_give_its_functions_bits(name):
+    model = models.generated_model(name)
+    twin = model_kernels.compiled_kernels(model)
+    assert twin is not None, "the shipped twin was not built: make venv"
+    assert_entry_points_give_the_functions_bits(twin, model.n, len(model.contacts), model.B.shape[1],
+                                                np.random.default_rng(310))
 
 
 def test_bad_input_is_refused_in_one_line():
@@ -126,6 +187,8 @@ def test_a_users_description_is_built_once_cached_next_to_its_module_and_runs(tm
     close(ddq, ddq_np, "ddq")
     close(F, F_np, "F")
     assert again.NAME == "stilts" and again.k_foot_positions(q) == list(model.module.contact_positions(q))
+    assert_entry_points_give_the_functions_bits(again, model.n, len(model.contacts), model.B.shape[1],
+                                                np.random.default_rng(311))
 
 
 def test_two_processes_building_the_same_robot_at_once_each_load_a_whole_twin(tmp_path):

@@ -6,6 +6,44 @@
 
 static double (*volatile libm_pow)(double, double) = pow;
 
+/* A described robot's six kernels as C entry points on double arrays (biped_sim/engine/model_kernels.py):
+ * the table its compiled twin exports as the capsule KERNEL_TABLE, for C code that runs the robot without
+ * a Python call (the compiled hybrid loop). The twin's Python functions k_stance ... k_energy call these
+ * same entry points, so both give the same bits. model_kernels.py writes this file's text into each twin's
+ * source (a user's twin is built from one file); C code that reads a table includes it.
+ *
+ * Sizes: q, dq, ddq, dq_plus have n entries, u has actuators entries, F an (x, y) pair; p is
+ * [x1, y1, x2, y2, ...] (2 a contact point), pv the positions then the velocities (4 a contact point), tv is
+ * (T, V). contact is a contact point's 0-based index. Each returns KERNEL_OK, or why it has no answer (the
+ * outputs are then unspecified). The functions touch no Python object and keep no state. */
+#ifndef BIPED_SIM_KERNEL_TABLE_H
+#define BIPED_SIM_KERNEL_TABLE_H
+
+/* bumps when the struct below changes: a reader refuses a table of another version */
+#define KERNEL_TABLE_VERSION 1
+/* the capsule's name (PyCapsule_GetPointer checks it) */
+#define KERNEL_TABLE_CAPSULE "biped_sim.engine.model_kernels.KernelTable"
+
+enum { KERNEL_OK = 0, KERNEL_NOT_POSITIVE_DEFINITE = 1, KERNEL_SINGULAR_CONTACT = 2 };
+
+typedef struct {
+    int version;       /* KERNEL_TABLE_VERSION */
+    int n;             /* the coordinates N */
+    int contacts;      /* the contact points */
+    int actuators;     /* the actuators M */
+    /* [D -J_c^T; J_c 0] [ddq; F] = [B u - (C dq + G); -Jdot_c dq] */
+    int (*stance)(const double *q, const double *dq, const double *u, int contact, double *ddq, double *F);
+    /* D ddq = B u - (C dq + G) */
+    int (*flight)(const double *q, const double *dq, const double *u, double *ddq);
+    /* [D -J_c^T; J_c 0] [dq+; F] = [D dq-; 0] */
+    int (*impact)(const double *q, const double *dq_minus, int contact, double *dq_plus, double *F);
+    int (*foot_positions)(const double *q, double *p);
+    int (*foot_kinematics)(const double *q, const double *dq, double *pv);
+    int (*energy)(const double *q, const double *dq, double *tv);
+} KernelTable;
+
+#endif
+
 #define N 7
 #define NC 2
 #define NU 4
@@ -14,7 +52,7 @@ static double (*volatile libm_pow)(double, double) = pow;
 #define ROBOT_NAME "rabbit"
 #define ROBOT_DIGEST "eeabe40500182351"
 #define GENERATOR_VERSION 2
-#define SOURCE_SHA256 "aef8735f6ca8d9feb4d0950c357ff0e6d8380ded48b2b041731b5a2ddc7fea97"
+#define SOURCE_SHA256 "fc37ca77bb8fdfcf1837080f0bddeed11ef0a2fbe7d38bdcb00df9378884f147"
 
 static void
 mass_matrix(const double *q, double *out)
@@ -535,17 +573,10 @@ cholesky_solve(const double *L, double *x)
     }
 }
 
-static PyObject *
-not_positive_definite(const char *kernel)
-{
-    PyErr_Format(PyExc_ValueError, "%s: D(q) of the robot " ROBOT_NAME " is not positive definite at this q", kernel);
-    return NULL;
-}
-
 /* With L the factor of D and J = J_c (2xN): x = a + Y F, (J Y) F = b - J a, Y = D^-1 J^T.
-   a is overwritten by x. -1 when J Y is singular (the contact's Jacobian has lost rank). */
+   a is overwritten by x. KERNEL_SINGULAR_CONTACT when J Y is singular (the contact's Jacobian has lost rank). */
 static int
-schur_solve(const char *kernel, const double *L, const double *J, const double *b, double *a, double *F)
+schur_solve(const double *L, const double *J, const double *b, double *a, double *F)
 {
     double Y[2][N], S[2][2], g[2], det;
     int r, s, k;
@@ -567,33 +598,23 @@ schur_solve(const char *kernel, const double *L, const double *J, const double *
         }
     }
     det = S[0][0] * S[1][1] - S[0][1] * S[1][0];
-    if (!(det != 0.0) || !isfinite(det)) {
-        PyErr_Format(PyExc_ValueError, "%s: the contact's Jacobian J_c D^-1 J_c^T is singular at this q", kernel);
-        return -1;
-    }
+    if (!(det != 0.0) || !isfinite(det))
+        return KERNEL_SINGULAR_CONTACT;
     F[0] = (g[0] * S[1][1] - g[1] * S[0][1]) / det;
     F[1] = (S[0][0] * g[1] - S[1][0] * g[0]) / det;
     for (k = 0; k < N; k++)
         a[k] += Y[0][k] * F[0] + Y[1][k] * F[1];
-    return 0;
+    return KERNEL_OK;
 }
 
-#define CHECK_NARGS(kernel, want) \
-    if (nargs != (want)) { \
-        PyErr_Format(PyExc_TypeError, "%s takes %d arguments, got %zd", kernel, (want), nargs); \
-        return NULL; \
-    }
+/* ---- the C entry points (the KernelTable's: _kernel_table.h) --------------------------------------- */
 
-static PyObject *
-k_stance(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+static int
+c_stance(const double *q, const double *dq, const double *u, int c, double *x, double *F)
 {
-    double q[N], dq[N], u[NU > 0 ? NU : 1], D[N * N], x[N], J[NC * 2 * N], Jd[NC * 2 * N], b[2], F[2];
+    double D[N * N], J[NC * 2 * N], Jd[NC * 2 * N], b[2];
     const double *Jc, *Jdc;
-    int c, r, k;
-    CHECK_NARGS("k_stance", 4)
-    if (read_vector(args[0], N, "k_stance", "q", q) || read_vector(args[1], N, "k_stance", "dq", dq)
-            || read_vector(args[2], NU, "k_stance", "u", u) || read_contact(args[3], "k_stance", &c))
-        return NULL;
+    int r, k;
     mass_matrix(q, D);
     bias_forces(q, dq, x);
     for (k = 0; k < N; k++)
@@ -610,49 +631,127 @@ k_stance(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
         b[r] = -s;
     }
     if (cholesky(D))
-        return not_positive_definite("k_stance");
+        return KERNEL_NOT_POSITIVE_DEFINITE;
     cholesky_solve(D, x);
-    if (schur_solve("k_stance", D, Jc, b, x, F))
-        return NULL;
-    return pair_of(x, N, F, 2);
+    return schur_solve(D, Jc, b, x, F);
 }
 
-static PyObject *
-k_flight(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+static int
+c_flight(const double *q, const double *dq, const double *u, double *x)
 {
-    double q[N], dq[N], u[NU > 0 ? NU : 1], D[N * N], x[N];
+    double D[N * N];
     int k;
-    CHECK_NARGS("k_flight", 3)
-    if (read_vector(args[0], N, "k_flight", "q", q) || read_vector(args[1], N, "k_flight", "dq", dq)
-            || read_vector(args[2], NU, "k_flight", "u", u))
-        return NULL;
     mass_matrix(q, D);
     bias_forces(q, dq, x);
     for (k = 0; k < N; k++)
         x[k] = -x[k];
     b_times_u(u, x);
     if (cholesky(D))
-        return not_positive_definite("k_flight");
+        return KERNEL_NOT_POSITIVE_DEFINITE;
     cholesky_solve(D, x);
+    return KERNEL_OK;
+}
+
+static int
+c_impact(const double *q, const double *dq_minus, int c, double *x, double *F)
+{
+    double D[N * N], J[NC * 2 * N], zero[2] = {0.0, 0.0};
+    int k;
+    /* D^-1 (D dq-) = dq-: x starts at dq- */
+    for (k = 0; k < N; k++)
+        x[k] = dq_minus[k];
+    mass_matrix(q, D);
+    contact_jacobians(q, J);
+    if (cholesky(D))
+        return KERNEL_NOT_POSITIVE_DEFINITE;
+    return schur_solve(D, J + c * 2 * N, zero, x, F);
+}
+
+static int
+c_foot_positions(const double *q, double *p)
+{
+    contact_positions(q, p);
+    return KERNEL_OK;
+}
+
+static int
+c_foot_kinematics(const double *q, const double *dq, double *pv)
+{
+    contact_positions(q, pv);
+    contact_velocities(q, dq, pv + 2 * NC);
+    return KERNEL_OK;
+}
+
+static int
+c_energy(const double *q, const double *dq, double *tv)
+{
+    energy(q, dq, tv);
+    return KERNEL_OK;
+}
+
+static const KernelTable kernel_table = {
+    KERNEL_TABLE_VERSION, N, NC, NU, c_stance, c_flight, c_impact, c_foot_positions, c_foot_kinematics, c_energy
+};
+
+/* ---- the Python functions: the entry points on lists ---------------------------------------------- */
+
+/* NULL with the error of a kernel's code */
+static PyObject *
+kernel_failed(const char *kernel, int code)
+{
+    if (code == KERNEL_NOT_POSITIVE_DEFINITE)
+        PyErr_Format(PyExc_ValueError, "%s: D(q) of the robot " ROBOT_NAME " is not positive definite at this q",
+                     kernel);
+    else
+        PyErr_Format(PyExc_ValueError, "%s: the contact's Jacobian J_c D^-1 J_c^T is singular at this q", kernel);
+    return NULL;
+}
+
+#define CHECK_NARGS(kernel, want) \
+    if (nargs != (want)) { \
+        PyErr_Format(PyExc_TypeError, "%s takes %d arguments, got %zd", kernel, (want), nargs); \
+        return NULL; \
+    }
+
+static PyObject *
+k_stance(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double q[N], dq[N], u[NU > 0 ? NU : 1], x[N], F[2];
+    int c, code;
+    CHECK_NARGS("k_stance", 4)
+    if (read_vector(args[0], N, "k_stance", "q", q) || read_vector(args[1], N, "k_stance", "dq", dq)
+            || read_vector(args[2], NU, "k_stance", "u", u) || read_contact(args[3], "k_stance", &c))
+        return NULL;
+    if ((code = c_stance(q, dq, u, c, x, F)) != KERNEL_OK)
+        return kernel_failed("k_stance", code);
+    return pair_of(x, N, F, 2);
+}
+
+static PyObject *
+k_flight(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double q[N], dq[N], u[NU > 0 ? NU : 1], x[N];
+    int code;
+    CHECK_NARGS("k_flight", 3)
+    if (read_vector(args[0], N, "k_flight", "q", q) || read_vector(args[1], N, "k_flight", "dq", dq)
+            || read_vector(args[2], NU, "k_flight", "u", u))
+        return NULL;
+    if ((code = c_flight(q, dq, u, x)) != KERNEL_OK)
+        return kernel_failed("k_flight", code);
     return list_of(x, N);
 }
 
 static PyObject *
 k_impact(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
-    double q[N], x[N], D[N * N], J[NC * 2 * N], zero[2] = {0.0, 0.0}, F[2];
-    int c;
+    double q[N], dqm[N], x[N], F[2];
+    int c, code;
     CHECK_NARGS("k_impact", 3)
-    if (read_vector(args[0], N, "k_impact", "q", q) || read_vector(args[1], N, "k_impact", "dq_minus", x)
+    if (read_vector(args[0], N, "k_impact", "q", q) || read_vector(args[1], N, "k_impact", "dq_minus", dqm)
             || read_contact(args[2], "k_impact", &c))
         return NULL;
-    mass_matrix(q, D);
-    contact_jacobians(q, J);
-    if (cholesky(D))
-        return not_positive_definite("k_impact");
-    /* D^-1 (D dq-) = dq-: x starts at dq- */
-    if (schur_solve("k_impact", D, J + c * 2 * N, zero, x, F))
-        return NULL;
+    if ((code = c_impact(q, dqm, c, x, F)) != KERNEL_OK)
+        return kernel_failed("k_impact", code);
     return pair_of(x, N, F, 2);
 }
 
@@ -663,7 +762,7 @@ k_foot_positions(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     CHECK_NARGS("k_foot_positions", 1)
     if (read_vector(args[0], N, "k_foot_positions", "q", q))
         return NULL;
-    contact_positions(q, p);
+    c_foot_positions(q, p);
     return list_of(p, 2 * NC);
 }
 
@@ -674,8 +773,7 @@ k_foot_kinematics(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     CHECK_NARGS("k_foot_kinematics", 2)
     if (read_vector(args[0], N, "k_foot_kinematics", "q", q) || read_vector(args[1], N, "k_foot_kinematics", "dq", dq))
         return NULL;
-    contact_positions(q, pv);
-    contact_velocities(q, dq, pv + 2 * NC);
+    c_foot_kinematics(q, dq, pv);
     return list_of(pv, 4 * NC);
 }
 
@@ -686,7 +784,7 @@ k_energy(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     CHECK_NARGS("k_energy", 2)
     if (read_vector(args[0], N, "k_energy", "q", q) || read_vector(args[1], N, "k_energy", "dq", dq))
         return NULL;
-    energy(q, dq, e);
+    c_energy(q, dq, e);
     return list_of(e, 2);
 }
 
@@ -712,14 +810,22 @@ static struct PyModuleDef module_def = {
 PyMODINIT_FUNC
 INIT_FUNCTION(void)
 {
-    PyObject *m = PyModule_Create(&module_def);
+    PyObject *m = PyModule_Create(&module_def), *table;
     if (m == NULL)
         return NULL;
     if (PyModule_AddStringConstant(m, "NAME", ROBOT_NAME) || PyModule_AddStringConstant(m, "DIGEST", ROBOT_DIGEST)
             || PyModule_AddIntConstant(m, "GENERATOR_VERSION", GENERATOR_VERSION)
             || PyModule_AddStringConstant(m, "SOURCE_SHA256", SOURCE_SHA256)
             || PyModule_AddIntConstant(m, "N", N) || PyModule_AddIntConstant(m, "CONTACTS", NC)
-            || PyModule_AddIntConstant(m, "ACTUATORS", NU)) {
+            || PyModule_AddIntConstant(m, "ACTUATORS", NU)
+            || PyModule_AddIntConstant(m, "KERNEL_TABLE_VERSION", KERNEL_TABLE_VERSION)) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    /* the C entry points, for C code that runs the robot without a Python call (_kernel_table.h) */
+    table = PyCapsule_New((void *)&kernel_table, KERNEL_TABLE_CAPSULE, NULL);
+    if (table == NULL || PyModule_AddObject(m, "KERNEL_TABLE", table) < 0) {
+        Py_XDECREF(table);
         Py_DECREF(m);
         return NULL;
     }
