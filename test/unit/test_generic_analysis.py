@@ -135,6 +135,7 @@ def test_rabbits_gait_by_newton_on_the_exact_jacobian():
     assert g.law_derivative == "exact" and g.jacobian_method == G.EXACT and g.residual < 1e-9
     assert abs(g.period - 0.5890) < 5e-5 and abs(g.step_length - 0.3914) < 5e-5
     assert g.multipliers.shape == (9,) and g.stable and abs(g.multipliers[0] - 0.6841) < 1e-4
+    assert "Jacobian  exact (variational equations and saltation matrix; law derivative: exact)" in G.format_gait(g)
     smap = g.step_map
     options = {k: v for k, v in smap.kw.items() if k not in ("rtol", "atol", "method", "max_events", "phases")}
     fine = G.StepMap(smap.model, smap.controller, rtol=1e-12, atol=1e-12, **options)
