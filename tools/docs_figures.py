@@ -80,7 +80,8 @@ def gait():
     differences of the same map), each with the command that prints it: the scene's controller, or for a
     scene without one, no torque (``--controller none``: the compass gait's passive gait); a scene with no
     gait (no impacts, or no periodic step from its start) is left out with its reason printed. And
-    docs/gait_multipliers.png, the walk scene's multipliers along its slope."""
+    docs/gait_multipliers.png, the walk scene's multipliers along its slope, and docs/gait_multipliers_rabbit.png,
+    RABBIT's along its law's step angle."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -122,6 +123,42 @@ def gait():
     fig.tight_layout()
     fig.savefig(DOCS / "gait_multipliers.png", dpi=100)
     print(f"  docs/gait_multipliers.png: {len(found)} of {len(slopes)} slopes with a gait")
+    rabbit_multipliers()
+
+
+def rabbit_multipliers():
+    """docs/gait_multipliers_rabbit.png: RABBIT's multipliers along its law's step angle, continued from the
+    scene's gait (0.25 rad) down and up in steps of 0.01 rad."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from biped_sim.analysis.gait import gaits_along
+
+    down = gaits_along("rabbit", "step_angle", np.round(np.arange(0.25, 0.1749, -0.01), 3))
+    up = gaits_along("rabbit", "step_angle", np.round(np.arange(0.25, 0.3251, 0.01), 3))
+    along = down[::-1] + up[1:]
+    for value, _g, why in along:
+        if why:
+            print(f"  rabbit step_angle {value}: no gait: {why}")
+    found = [(v, g) for v, g, _why in along if g is not None]
+    v = np.array([s for s, _ in found])
+    m = np.array([np.abs(g.multipliers) for _, g in found])
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for i in range(m.shape[1]):
+        ax.semilogy(v, m[:, i], "o-", ms=3, label=f"|multiplier {i + 1}|")
+    ax.axhline(1.0, color="k", lw=0.8, ls="--")
+    ax.set_xlabel("step_angle of the rabbit scene's law (rad)")
+    ax.set_ylabel("|Floquet multiplier|")
+    ax.set_title("RABBIT: multipliers of the gait along the step angle (exact Jacobian)")
+    ax.legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    fig.savefig(DOCS / "gait_multipliers_rabbit.png", dpi=100)
+    print(f"  docs/gait_multipliers_rabbit.png: {len(found)} of {len(along)} step angles with a gait")
+    for value, g in found:
+        print(f"  rabbit step_angle {value}: period {g.period:.4f} s, step {g.step_length:.4f} m, "
+              f"|multipliers| {', '.join(f'{abs(x):.4g}' for x in g.multipliers[:3])}, ...")
 
 
 STEPS = {"accuracy": accuracy, "stability": stability, "pictures": pictures, "scaling": scaling, "gait": gait}

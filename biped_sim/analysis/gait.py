@@ -22,9 +22,9 @@ which for the three-link biped (R swaps q1 and q2) is z = [q_st, q_sw, q3, dq_st
 dP/dz is exact by default (``StepMap.jacobian``): the state transition matrix of the step through its
 touchdown (engine/sensitivity.py: the variational equations and the saltation matrix of the impact,
 then the relabeling), at the cost of about one run; ``StepMap.jacobian_fd`` takes central differences
-of the same map (2 x 5 runs), kept as a check. A described robot's exact Jacobian needs its generated
-derivatives in engine/sensitivity.py: until they are there, its gait takes central differences and says so
-(``exact_jacobian_unavailable``).
+of the same map (2 x 5 runs), kept as a check. A described robot's exact Jacobian takes its generated
+derivatives (engine/model_derivatives.py) and its law's ``jacobian`` where the law has one, else central
+differences of the law alone (``Gait.law_derivative`` says which).
 
 The fixed point is found by Newton's method on U^T (P(z) - z) = 0 with the exact Jacobian, each
 iterate projected back onto h = 0. Its derivative by a parameter theta (a controller's gain
@@ -48,8 +48,6 @@ from biped_sim.engine.simulate import stance_state
 
 EXACT = "exact"
 FINITE_DIFFERENCES = "central differences"
-#: why a described robot's gait takes central differences where the exact Jacobian was asked for
-EXACT_WAITS = "the exact Jacobian of a described robot waits for its derivatives"
 
 
 # -- the section, from the model ---------------------------------------------------------------------------
@@ -123,11 +121,6 @@ def actuated_coordinates(model) -> list[int]:
     return [int(np.argmax(np.abs(B[:, j]))) for j in range(B.shape[1])]
 
 
-def exact_jacobian_unavailable(model) -> str:
-    """Why the exact step Jacobian (engine/sensitivity.py) cannot be had for ``model``, or "" where it can."""
-    return "" if isinstance(model, BipedModel) else EXACT_WAITS
-
-
 @dataclass
 class Gait:
     z: np.ndarray                 # fixed point: post-impact [(R q)[2:], (R dq)[2:]] (section_point), 2(n - 2)
@@ -143,7 +136,6 @@ class Gait:
     slope: float
     jacobian: np.ndarray | None = None    # A = U^T dP/dz U (2(n-2) - 1 square) at the fixed point
     jacobian_method: str = EXACT          # EXACT or FINITE_DIFFERENCES
-    jacobian_note: str = ""               # why FINITE_DIFFERENCES where EXACT was asked for (EXACT_WAITS)
     law_derivative: str = ""              # the controller's derivative in the exact Jacobian (sensitivity.LAW_*)
     step_map: "StepMap | None" = field(default=None, repr=False, compare=False)
 
@@ -178,9 +170,6 @@ class Gait:
         from one run of the step's variational equations at z*."""
         parameters = parameter_names(parameters)
         smap = self.step_map
-        why = exact_jacobian_unavailable(smap.model)
-        if why:
-            raise ValueError(f"Gait.derivatives: {why} (they are exact, from the step's variational equations)")
         if "l_leg" in parameters:
             raise ValueError("Gait.derivatives: l_leg moves the section (both feet on the ground) itself; the "
                              "other model parameters and the controller's gains are at hand")
@@ -247,8 +236,6 @@ class StepMap:
 
     def run(self, z, max_time=5.0, **extra):
         """Integrate one step from z; returns (z_next, simulator)."""
-        if not isinstance(self.model, BipedModel) and hasattr(type(self.model), "engine_refusal"):
-            raise ValueError(self.model.engine_refusal)   # (as simulate does) a robot the engine cannot run yet
         q, dq = self.state(np.asarray(z, float))
         sim = HybridSimulator(self.model, q, dq, stance_leg=1, **dict(self.kw, **extra))
         sim.advance(max_time, controller=self.controller)
@@ -287,9 +274,6 @@ class StepMap:
         """The step's ``RunSensitivity`` (``engine.sensitivity.run_jacobian`` to the touchdown and through its
         impact map; the initial perturbations are z's own coordinates, the stance foot held at the origin, then
         ``parameters``); its rows are physical: ``section_rows`` picks the next section point's."""
-        why = exact_jacobian_unavailable(self.model)
-        if why:
-            raise ValueError(f"StepMap.sensitivity: {why}; StepMap.jacobian_fd takes central differences")
         q, dq = self.state(np.asarray(z, float))
         r = run_jacobian(self.model, q, dq, max_time, controller=self.controller, stance_leg=1, end_at_event=True,
                          parameters=parameters, **self.kw)
@@ -324,20 +308,17 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
     with ``controller``, yours instead: an object, a class or factory, or ``"MODULE:ATTR"``), or a model (a
     BipedModel, or a described robot's GeneratedModel) with ``controller`` (and ``z0``, the initial guess on the
     section, 2 (n - 2) numbers; by default the controller's ``initial_state``, and ``slope``). ``jacobian``:
-    ``EXACT`` (default) or ``FINITE_DIFFERENCES``, the one Newton's method and the multipliers use (a described
-    robot's gait takes central differences until its exact Jacobian is at hand, and says so in
-    ``Gait.jacobian_note``); ``Gait.jacobian_fd()`` is always at hand as a check."""
+    ``EXACT`` (default) or ``FINITE_DIFFERENCES``, the one Newton's method and the multipliers use (for any
+    model; ``Gait.law_derivative`` says how the law was differentiated); ``Gait.jacobian_fd()`` is always at
+    hand as a check."""
     if isinstance(scene, str) or hasattr(scene, "engine_arguments"):
         return scene_gait(scene, jacobian=jacobian, controller=controller, z0=z0, warmup_steps=warmup_steps,
-                          tol=tol, max_iter=max_iter)
+                          tol=tol, max_iter=max_iter, **options)
     if controller is None:
         raise ValueError("find_gait(model, controller, z0): a model needs a controller")
     if jacobian not in (EXACT, FINITE_DIFFERENCES):
         raise ValueError(f"jacobian must be {EXACT!r} or {FINITE_DIFFERENCES!r}, got {jacobian!r}")
     model = scene
-    note = ""
-    if jacobian == EXACT and exact_jacobian_unavailable(model):
-        jacobian, note = FINITE_DIFFERENCES, exact_jacobian_unavailable(model)
     smap = StepMap(model, controller, slope=slope, **options)
     nz = section_size(model)
     if z0 is None:
@@ -389,7 +370,6 @@ def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e
     eig = eig[np.argsort(-np.abs(eig))]
     g = _figures(smap, z, eig, residual, it)
     g.jacobian, g.jacobian_method, g.law_derivative, g.step_map = A, jacobian, how, smap
-    g.jacobian_note = note
     return g
 
 
@@ -514,7 +494,7 @@ def _section_label(g, coordinates):
 def _method(g):
     if g.jacobian_method == EXACT:
         return f"exact (variational equations and saltation matrix; law derivative: {g.law_derivative})"
-    return "central differences of the step map" + (f" ({g.jacobian_note})" if g.jacobian_note else "")
+    return "central differences of the step map"
 
 
 def _c(e):

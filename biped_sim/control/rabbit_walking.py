@@ -71,6 +71,11 @@ class RabbitWalkingController:
     arrays.
     """
 
+    #: u_x jumps where the impact blend ends (theta = theta+ + 2 step_angle impact_blend: the blend is C2 there,
+    #: h_d''' jumps): run_jacobian integrates the variational equations with their own error control
+    #: (solve_ivp) rather than differentiating the engine's steps, one of which straddles that surface
+    jacobian_jumps = True
+
     #: the law's named parameters (a scene's walk_controller section sets them)
     GAINS = ("torso_pitch", "step_angle", "stance_knee", "swing_knee", "impact_blend", "kp", "kd", "torque_limit")
 
@@ -131,6 +136,16 @@ class RabbitWalkingController:
             dhd = dhd + d * (w * w * (w - 3.0 * e / span))
             ddhd = ddhd - d * (6.0 * w * (w - e / span) / span)
         return hd, dhd, ddhd
+
+    def target_third_derivative(self, theta):
+        """h_d'''(theta): the knee target's is 0 (a parabola); the impact blend's delta f'''(e), f = e w^3, is
+        delta 6 (3 w - e / span) / span^2 (0 beyond the blend)."""
+        e = theta + self.step_angle
+        span = 2.0 * self.step_angle * self.impact_blend
+        if e < span and self._slopes is not None:
+            w = 1.0 - e / span
+            return self._slopes * (6.0 * (3.0 * w - e / span) / (span * span))
+        return np.zeros(4)
 
     def phase(self, q, stance_leg):
         """theta = phi_s, the stance leg's virtual-leg angle from straight down (rad)."""
@@ -228,6 +243,57 @@ class RabbitWalkingController:
         except np.linalg.LinAlgError:       # the outputs cannot all be decoupled here: the PD term holds them
             u = self.pd_torques(y, dy, stance_leg)
         return np.clip(u, -lim, lim)
+
+    def jacobian(self, t, q, dq, stance_leg):
+        """d u / d(q, dq) (4 x 2n) of this law, exact (engine/sensitivity.py's run Jacobians use it).
+
+        The computed torque u* solves Phi(x, u) = H ddq(x, u) + bias + kp y + kd dy = 0, so
+        u*_x = -(H A)^-1 Phi_x with ddq and its derivatives from the model's stance KKT system differentiated
+        (``stance_dynamics_jacobian``) at u*. H depends on q through the phase theta = c . q - pi
+        (H = dh/dq - h_d'(theta) c^T), so (dH/dq_k) v = -h_d'' (c . v) c_k, and bias = -h_d'' theta'^2 brings
+        h_d'''. Where the PD term holds the outputs (H A singular), its derivative, and in flight the damping's; a
+        torque at its limit has derivative 0."""
+        n = len(q)
+        lim = self.torque_limit
+        J = np.zeros((len(ACTUATED), 2 * n))
+        if stance_leg == 0:     # flight: u = -kd (the actuated joints' rates)
+            for name in ACTUATED:
+                J[self._column[name], n + self.model.coordinates.index(name)] = -self.kd
+            J[np.abs(self(t, q, dq, 0)) >= lim] = 0.0
+            return J
+        q = np.asarray(q, dtype=float)
+        dq = np.asarray(dq, dtype=float)
+        hs, _hw, ks, _kw = self._legs[stance_leg]
+        c = np.zeros(n)
+        c[self._torso], c[hs], c[ks] = 1.0, 1.0, 0.5
+        theta, dtheta = float(c @ q) - math.pi, float(c @ dq)
+        _hd, _dhd, ddhd = self.targets(theta)
+        y, dy, H, bias = self.outputs(q, dq, stance_leg)
+        # y_x = [H, 0]; dy = H dq, so dy_x = [-theta' h_d'' c^T, H]
+        y_x = np.hstack([H, np.zeros((4, n))])
+        dy_x = np.hstack([-dtheta * np.outer(ddhd, c), H])
+        a, A = self.stance_affine(q, dq, stance_leg)
+        HA = H @ A
+        rhs = -self.kp * y - self.kd * dy - H @ a - bias
+        try:
+            if np.linalg.cond(HA) > 1e10:
+                raise np.linalg.LinAlgError
+            u = np.linalg.solve(HA, rhs)
+        except np.linalg.LinAlgError:       # the PD term (linear in y, dy): its columns are the law's columns
+            u = self.pd_torques(y, dy, stance_leg)
+            J = np.column_stack([self.pd_torques(y_x[:, k], dy_x[:, k], stance_leg) for k in range(2 * n)])
+            J[np.abs(u) >= lim] = 0.0
+            return J
+        ddq = a + A @ u
+        A_q, A_dq, _A_u, _F_q, _F_dq, _F_u = self.model.stance_dynamics_jacobian(q, dq, u, stance_leg)
+        Phi_x = H @ np.hstack([A_q, A_dq])
+        Phi_x[:, :n] -= float(c @ ddq) * np.outer(ddhd, c)                                  # (dH/dq) ddq
+        Phi_x[:, :n] -= dtheta * dtheta * np.outer(self.target_third_derivative(theta), c)   # bias by theta
+        Phi_x[:, n:] -= 2.0 * dtheta * np.outer(ddhd, c)                                     # bias by theta'
+        Phi_x += self.kp * y_x + self.kd * dy_x
+        J = -np.linalg.solve(HA, Phi_x)
+        J[np.abs(u) >= lim] = 0.0
+        return J
 
     def state_on_gait(self, speed, stance_leg=1, theta=None):
         """A state on the virtual constraints (y = 0, dy = 0) with the stance foot at the origin and at rest:

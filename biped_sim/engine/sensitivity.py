@@ -59,7 +59,7 @@ PARAMETER_NAMES = dgen.PARAMETER_NAMES
 #: a parameter "controller.NAME" is the controller's gain NAME (its attribute)
 CONTROLLER_PREFIX = "controller."
 LAW_EXACT = "exact"
-LAW_FD = "finite differences of the law"
+LAW_FD = "central differences of the law"
 LAW_NONE = "none (torque held constant)"
 #: run_jacobian's ``integration``: the engine's own accepted steps differentiated (engine/variational.py), or
 #: the augmented system integrated on its own by scipy's solve_ivp
@@ -381,10 +381,11 @@ event, after the reset (a step map): the
     ValueError says so. ``integration``: ``STEPS`` (default) differentiates the engine's own accepted steps
     where the run allows it (engine/variational.py: DOP853 on the floating base, stance phases joined by
     touchdowns, continuous feedback or a constant torque), else and with ``SOLVE_IVP`` the
-    augmented system is integrated on its own by scipy's DOP853. ``derivatives``: the model's terms
-    (``model_derivatives.derivatives(model)`` by default: the closed forms of a BipedModel, the generated terms
-    of a GeneratedModel); those of another description of the same robot check one derivation against the
-    other."""
+    augmented system is integrated on its own by scipy's DOP853 (so too under a law whose ``jacobian_jumps``
+    is true: its u_x jumps across a surface of the state, which an engine step may straddle). ``derivatives``:
+    the model's terms (``model_derivatives.derivatives(model)`` by default: the closed forms of a BipedModel,
+    the generated terms of a GeneratedModel); those of another description of the same robot check one
+    derivation against the other."""
     parameters = parameter_names(parameters)
     if isinstance(t_final, bool) or not isinstance(t_final, (int, float, np.floating)) or not np.isfinite(t_final):
         raise ValueError(f"t_final must be a finite number of seconds, got {t_final!r}")
@@ -447,6 +448,10 @@ event, after the reset (a step map): the
             Sp[derivatives.parameter_names.index(name), m0 + j] = 1.0
     if integration not in (STEPS, SOLVE_IVP):
         raise ValueError(f"integration must be {STEPS!r} or {SOLVE_IVP!r}, got {integration!r}")
+    if integration == STEPS and getattr(controller, "jacobian_jumps", False):
+        # the law's u_x jumps across a surface of the state: an engine step that straddles it is differentiated
+        # with an error its error control (on x alone) does not see, so S is integrated with its own
+        integration = SOLVE_IVP
     if integration == STEPS and variational.eligible(sim, method, control_period, stance_leg, events, options):
         x, S, dtau = variational.run(integ, sim, S, Sp, events, t_end, end_at_event)
     else:

@@ -110,7 +110,7 @@ def test_the_compass_gait_has_the_reference_multipliers():
     -0.2022161 +- 0.5434150j and 0.1313867 (issue 32's reference, 7 digits), and the torso rotor's two at 1."""
     from biped_sim.analysis.gait import compass_gait
     g = compass_gait()
-    assert g.residual < 1e-9 and g.law_derivative == "finite differences of the law"
+    assert g.residual < 1e-9 and g.law_derivative == "central differences of the law"
     legs = sorted(g.multipliers, key=lambda m: abs(m - 1.0))[2:]
     reference = [-0.2022161 + 0.5434150j, -0.2022161 - 0.5434150j, 0.1313867]
     for r in reference:

@@ -105,35 +105,52 @@ def test_rabbits_section_relabeling_and_height():
         assert np.max(np.abs(grad - _height_gradient(RABBIT, z[:5], 0.0))) < 1e-8
 
 
-def test_find_gait_takes_a_described_robot_as_far_as_the_engine_runs_it():
+def test_find_gait_takes_a_described_robot():
     """bs.find_gait(model, controller, z0) with a GeneratedModel: z0 sized 2 (n - 2) (a wrong one is one line
-    naming RABBIT's joints), its exact Jacobian falls back to central differences and says so, and a robot the
-    engine cannot run yet is refused in one line (the engine's) before any step."""
+    naming RABBIT's joints); the exact Jacobian is at hand for it (no fallback to differences), and the gait of a
+    user's law without a ``jacobian`` says its law was differentiated by central differences."""
     def no_torque(t, q, dq, stance_leg):
         return [0.0] * 4
     with pytest.raises(ValueError, match=r"^z0 must be 10 finite numbers, the post-impact state \[hip_1, hip_2, "
                                          r"knee_1, knee_2, torso_pitch, dhip_1, .*\(leg 1 the new stance leg\), "
                                          r"got \[0\.0, 0\.0, 0\.0, 0\.0, 0\.0, 0\.0\]$"):
         bs.find_gait(RABBIT, no_torque, z0=np.zeros(6))
-    assert G.exact_jacobian_unavailable(RABBIT) == G.EXACT_WAITS and G.exact_jacobian_unavailable(BIPED) == ""
+    assert not hasattr(G, "exact_jacobian_unavailable")
     z0 = np.concatenate([_rabbit_double_support(np.random.default_rng(1)), np.zeros(5)])
-    if getattr(RABBIT, "engine_refusal", None):    # (a robot the engine cannot run: none of the shipped ones now)
-        with pytest.raises(ValueError) as err:
-            bs.find_gait(RABBIT, no_torque, z0=z0)
-        assert str(err.value) == RABBIT.engine_refusal and "\n" not in str(err.value)
-    with pytest.raises(ValueError, match="waits for its derivatives"):
-        G.StepMap(RABBIT, no_torque).sensitivity(z0)
-    # what the gait of a described robot says of its Jacobian
     g = G.Gait(z=z0, step_length=0.4, step_period=0.5, speed=0.8, cost_of_transport=0.1, motor_work=1.0,
                eigenvalues=np.array([0.5] * 9), residual=1e-12, newton_iterations=3, max_torque=10.0, slope=0.0,
-               jacobian_method=G.FINITE_DIFFERENCES, jacobian_note=G.EXACT_WAITS,
-               step_map=G.StepMap(RABBIT, no_torque))
+               law_derivative="central differences of the law", step_map=G.StepMap(RABBIT, no_torque))
     text = G.format_gait(g)
-    assert ("Jacobian  central differences of the step map (the exact Jacobian of a described robot waits for its "
-            "derivatives)") in text
+    assert ("Jacobian  exact (variational equations and saltation matrix; law derivative: central differences of "
+            "the law)") in text
     assert "(hip_1, hip_2, knee_1, knee_2, torso_pitch and their rates after impact, leg 1 the new stance leg)" in text
-    with pytest.raises(ValueError, match="^Gait.derivatives: the exact Jacobian of a described robot waits"):
-        g.derivatives("controller.kp")
+
+
+def test_rabbits_gait_by_newton_on_the_exact_jacobian():
+    """bs.find_gait("rabbit"): RABBIT's gait under its law (the law's exact derivative), the period and step length
+    of docs/models.md's harness (0.5890 s, 0.3914 m), 9 multipliers; the exact Jacobian at rtol 1e-10 is the one at
+    1e-12 to 1e-8, and the multipliers agree with central differences of the step map (at 1e-12, steps of 1e-3)
+    to 1e-6. A user's law (the same, without its ``jacobian``) gets central differences of the law and says so."""
+    g = bs.find_gait("rabbit")
+    assert g.law_derivative == "exact" and g.jacobian_method == G.EXACT and g.residual < 1e-9
+    assert abs(g.period - 0.5890) < 5e-5 and abs(g.step_length - 0.3914) < 5e-5
+    assert g.multipliers.shape == (9,) and g.stable and abs(g.multipliers[0] - 0.6841) < 1e-4
+    assert "Jacobian  exact (variational equations and saltation matrix; law derivative: exact)" in G.format_gait(g)
+    smap = g.step_map
+    options = {k: v for k, v in smap.kw.items() if k not in ("rtol", "atol", "method", "max_events", "phases")}
+    fine = G.StepMap(smap.model, smap.controller, rtol=1e-12, atol=1e-12, **options)
+    U, _ = fine.basis(g.z)
+    A = fine.jacobian(g.z, U)
+    assert np.max(np.abs(A - g.jacobian)) < 1e-8
+    fd = np.linalg.eigvals(fine.jacobian_fd(g.z, U, 1e-3))
+    fd = fd[np.argsort(-np.abs(fd))]
+    assert np.max(np.abs(fd - g.multipliers)) < 1e-6
+    ctrl = smap.controller
+
+    def user_law(t, q, dq, stance_leg):
+        return ctrl(t, q, dq, stance_leg)
+    J, how = G.StepMap(smap.model, user_law, **options).full_jacobian(g.z)
+    assert how == "central differences of the law" and J.shape == (10, 10)
 
 
 def test_sweep_columns_are_sized_from_the_robot(tmp_path):

@@ -5,7 +5,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from hypothesis import example, given, settings, strategies as st
+from hypothesis import Phase, example, given, settings, strategies as st
 
 from biped_sim.analysis.edge_cases import bouncing_landing
 from biped_sim.control.walking import PDWalkingController, WalkingController
@@ -415,3 +415,89 @@ def test_bad_arguments_of_run_jacobian_are_one_line_each():
         with pytest.raises(ValueError, match=message) as exc:
             run_jacobian(MODEL, q0, dq0, kwargs.pop("t_final"), controller=ctrl, **kwargs)
         assert "\n" not in str(exc.value)
+
+
+# -- described robots (GeneratedModel): RABBIT under its law, the compass gait's description passive -----------
+def _rabbit():
+    import biped_sim as bs
+    scene = bs.load_scene("rabbit")
+    kw = scene.engine_arguments()
+    options = dict(slope=kw["slope"], touchdown_rule=kw["touchdown_rule"], scuff_rule=kw["scuff_rule"],
+                   scuff_depth=kw["scuff_depth"], phases=frozenset({"stance", "impact"}))
+    return kw["model"], scene.controller(), scene, options
+
+
+@pytest.mark.parametrize("leg", [1, 2, 0])
+def test_rabbits_law_gives_its_exact_derivatives(leg):
+    """RabbitWalkingController.jacobian (computed torque through the stance KKT system differentiated, the
+    targets' third derivative, the damping in flight) against central differences of the law alone, at
+    states off the gait (inside the impact blend and beyond it)."""
+    model, ctrl, scene, _ = _rabbit()
+    q0, dq0 = np.array(scene.params["initial_q"]), np.array(scene.params["initial_dq"])
+    rng = np.random.default_rng(leg)
+    for shift in (0.0, 0.45):       # the phase theta at the step's start (in the blend) and past the blend's end
+        q = q0 + rng.normal(size=7) * 0.03
+        q[2] += shift               # hip_1: the stance leg's phase moves by the shift
+        dq = dq0 + rng.normal(size=7) * 0.3
+        u, J, how = law_jacobian(ctrl, 0.0, q, dq, leg)
+        _u, J_fd, how_fd = law_jacobian(lambda t, q, dq, s: ctrl(t, q, dq, s), 0.0, q, dq, leg)
+        assert (how, how_fd) == (LAW_EXACT, LAW_FD) and J.shape == (4, 14)
+        assert rel(J, central(lambda x: np.asarray(ctrl(0.0, x[:7], x[7:], leg)), np.concatenate([q, dq]))) < 1e-8
+
+
+def check_described_run(model, z, t_final, foot, controller=None, u=None, eps=1e-6, **options):
+    """run_jacobian of a described robot's run against central differences of the engine's runs (the initial
+    state by its joint coordinates, the stance foot kept at ``foot``): 1e-7 relative. Returns the result."""
+    n = model.n
+
+    def start(v):
+        return np.concatenate(stance_state(model, v[:n - 2], v[n - 2:], 1, foot=foot))
+
+    def end(v):
+        x = start(v)
+        sim = HybridSimulator(model, x[:n], x[n:], stance_leg=1, rtol=1e-12, atol=1e-12, **options)
+        sim.advance(t_final, controller=controller, u=u)
+        assert sim.status == "running", sim.message
+        return np.concatenate([sim.q, sim.dq])
+
+    x0 = start(np.asarray(z, float))
+    r = run_jacobian(model, x0[:n], x0[n:], t_final, controller=controller, u=u, **options)
+    assert np.allclose(np.concatenate([r.q, r.dq]), end(z), rtol=0, atol=1e-9)
+    err = rel(r.jacobian, central(end, np.asarray(z, float), eps))
+    assert err < 1e-7, err
+    return r
+
+
+@settings(max_examples=2, deadline=None, derandomize=True, phases=(Phase.explicit, Phase.generate))
+@given(st.tuples(*[st.floats(-0.01, 0.01)] * 10))
+@example((0.0,) * 10)
+def test_rabbits_run_jacobian_through_an_impact(dz):
+    """RABBIT near its gait, the last 30 ms of a step, the touchdown of foot 2 and its impact, then 70 ms of
+    stance on foot 2, under its law's exact derivative: the run's Jacobian (the variational equations and the
+    saltation matrix, integrated with their own error control: the law says its u_x jumps) against central
+    differences of the same run. (The run starts past the impact blend's end, theta = 0.2 rad at 0.55 s: across
+    it the differences of the engine's runs read its rounding, 3e-7 to 9e-7 at steps of 1e-5 to 1e-6, while the
+    exact Jacobian at rtol 1e-12 and 1e-13 agrees to 5e-12.)"""
+    model, ctrl, scene, options = _rabbit()
+    sim = HybridSimulator(model, scene.params["initial_q"], scene.params["initial_dq"], rtol=1e-12, atol=1e-12,
+                          **options)
+    sim.advance(0.56, controller=ctrl)
+    z = np.concatenate([sim.q[2:], sim.dq[2:]]) + np.array(dz)
+    r = check_described_run(model, z, 0.1, tuple(model.contact_position(sim.q, 1)), controller=ctrl, **options)
+    assert [(kind, leg) for _t, kind, leg in r.events] == [("touchdown", 2)]
+    assert r.law_derivative == LAW_EXACT and r.integration == "solve_ivp"
+
+
+@settings(max_examples=2, deadline=None, derandomize=True, phases=(Phase.explicit, Phase.generate))
+@given(st.tuples(*[st.floats(-0.01, 0.01)] * 6))
+@example((0.0,) * 6)
+def test_the_compass_gait_descriptions_run_jacobian_through_an_impact(dz):
+    """The compass gait's description (a GeneratedModel) passive down 0.0525 rad from near its limit cycle:
+    the step's touchdown and impact and 0.1 s of the next stance, on the engine's own steps, against central
+    differences of the same run."""
+    from biped_sim.config.models import generated_model
+    model = generated_model("compass_gait")
+    z = np.array([2.92075575, 3.46742955, 0.0, 1.09644226, 0.37368084, 0.0]) + np.array(dz)
+    r = check_described_run(model, z, 0.85, (0.0, 0.0), u=(0.0, 0.0), slope=0.0525, scuff_rule="behind",
+                            phases=frozenset({"stance", "impact"}))
+    assert [(kind, leg) for _t, kind, leg in r.events] == [("touchdown", 2)] and r.integration == "steps"
