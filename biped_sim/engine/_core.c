@@ -134,7 +134,7 @@ static PyObject *law_failure_type;
 static PyObject *list_of(const double *v, Py_ssize_t n);
 static int doubles(PyObject *seq, double *out, Py_ssize_t lo, Py_ssize_t hi, const char *what, Py_ssize_t *n_out);
 
-static int two_finite(PyObject *u, double *out);
+static int m_finite(PyObject *u, int m, double *out);
 
 /* the engine's Python side of a controller's call (set_python_checks: modes.controller_failure and
  * modes.checked_torques, for what this file does not judge itself, and numpy's ndarray type) */
@@ -159,17 +159,18 @@ two_finite_array(PyObject *u, double *out)
     return ok && ev_finite_torques(out[0], out[1]) ? 0 : -1;
 }
 
-/* u = controller(t, q, dq, stance_leg), a Python controller called straight from here with lists q and dq and
- * the stance leg the loop runs, its torques checked as modes.checked_command checks them: two finite floats
- * (or a float64 array of two) taken here (two_finite, two_finite_array), anything else judged by
- * modes.checked_torques (which takes what it takes, or raises the ControllerError naming it); an exception
- * of the controller becomes modes.controller_failure's ControllerError, the controller's exception its
- * cause with its traceback. The first failure is kept (callback_failed) with its exception, and the
- * computation it spoiled is thrown away. */
+/* u = controller(t, q, dq, stance_leg), a Python controller called straight from here with lists q and dq of the
+ * loop's robot's N coordinates and the stance leg the loop runs, its M torques checked as modes.checked_command
+ * checks them: M finite floats or ints from a list or tuple (m_finite; for two torques also a float64 array of two,
+ * two_finite_array) taken here, anything else judged by modes.checked_torques (which takes what it takes, or
+ * raises the ControllerError naming it); an exception of the controller becomes modes.controller_failure's
+ * ControllerError, the controller's exception its cause with its traceback. The first failure is kept
+ * (callback_failed) with its exception, and the computation it spoiled is thrown away. */
 static void
 call_controller(Loop *L, PyObject *controller, double t, const double *q, const double *dq, double *u)
 {
-    u[0] = u[1] = 0.0;
+    int n = loop_n(L), m = loop_m(L);
+    for (int i = 0; i < m; i++) u[i] = 0.0;
     if (L->callback_failed) return;
     if (controller_failure_fn == NULL || checked_torques_fn == NULL) {     /* (compiled_loop sets them at import) */
         PyErr_SetString(PyExc_RuntimeError, "a Python controller needs set_python_checks() first");
@@ -177,18 +178,17 @@ call_controller(Loop *L, PyObject *controller, double t, const double *q, const 
         PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
         return;
     }
-    PyObject *args[4] = {PyFloat_FromDouble(t), list_of(q, 5), list_of(dq, 5), PyLong_FromLong((long)L->stance_leg)}, *r = NULL;
+    PyObject *args[4] = {PyFloat_FromDouble(t), list_of(q, n), list_of(dq, n), PyLong_FromLong((long)L->stance_leg)}, *r = NULL;
     if (args[0] && args[1] && args[2] && args[3]) r = PyObject_Vectorcall(controller, args, 4, NULL);
     for (int i = 0; i < 4; i++) Py_XDECREF(args[i]);
     if (r != NULL) {
-        if (two_finite(r, u) < 0 && two_finite_array(r, u) < 0) {
-            PyObject *checked = PyObject_CallFunction(checked_torques_fn, "Od", r, t);
+        if (m_finite(r, m, u) < 0 && (m != 2 || two_finite_array(r, u) < 0)) {
+            PyObject *checked = PyObject_CallFunction(checked_torques_fn, "Odi", r, t, m);
             if (checked != NULL) {
-                if (PyList_CheckExact(checked) && PyList_GET_SIZE(checked) == 2) {
-                    u[0] = PyFloat_AsDouble(PyList_GET_ITEM(checked, 0));
-                    u[1] = PyFloat_AsDouble(PyList_GET_ITEM(checked, 1));
+                if (PyList_CheckExact(checked) && PyList_GET_SIZE(checked) == m) {
+                    for (int i = 0; i < m; i++) u[i] = PyFloat_AsDouble(PyList_GET_ITEM(checked, i));
                 } else {
-                    PyErr_SetString(PyExc_TypeError, "checked_torques must return a list of two floats");
+                    PyErr_SetString(PyExc_TypeError, "checked_torques must return a list of m floats");
                 }
                 Py_DECREF(checked);
             }
@@ -211,7 +211,7 @@ call_controller(Loop *L, PyObject *controller, double t, const double *q, const 
     if (PyErr_Occurred()) {
         L->callback_failed = 1;
         PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
-        u[0] = u[1] = 0.0;
+        for (int i = 0; i < m; i++) u[i] = 0.0;
     }
 }
 
@@ -259,61 +259,10 @@ m_finite(PyObject *u, int m, double *out)
     return ev_finite_sum(out, m) ? 0 : -1;
 }
 
-/* u = controller(t, q, dq, stance_leg) for a described robot: call_controller's call with q and dq of N entries
- * and its M torques (m_finite, else modes.checked_torques(u, t, m), which takes what it takes or raises) */
-static void
-call_controller_described(Loop *L, PyObject *controller, double t, const double *q, const double *dq, double *u)
-{
-    int n = L->table->n, m = L->table->actuators;
-    for (int i = 0; i < m; i++) u[i] = 0.0;
-    if (L->callback_failed) return;
-    if (controller_failure_fn == NULL || checked_torques_fn == NULL) {     /* (compiled_loop sets them at import) */
-        PyErr_SetString(PyExc_RuntimeError, "a Python controller needs set_python_checks() first");
-        L->callback_failed = 1;
-        PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
-        return;
-    }
-    PyObject *args[4] = {PyFloat_FromDouble(t), list_of(q, n), list_of(dq, n), PyLong_FromLong((long)L->stance_leg)}, *r = NULL;
-    if (args[0] && args[1] && args[2] && args[3]) r = PyObject_Vectorcall(controller, args, 4, NULL);
-    for (int i = 0; i < 4; i++) Py_XDECREF(args[i]);
-    if (r != NULL) {
-        if (m_finite(r, m, u) < 0) {
-            PyObject *checked = PyObject_CallFunction(checked_torques_fn, "Odi", r, t, m);
-            if (checked != NULL) {
-                if (PyList_CheckExact(checked) && PyList_GET_SIZE(checked) == m) {
-                    for (int i = 0; i < m; i++) u[i] = PyFloat_AsDouble(PyList_GET_ITEM(checked, i));
-                } else {
-                    PyErr_SetString(PyExc_TypeError, "checked_torques must return a list of m floats");
-                }
-                Py_DECREF(checked);
-            }
-        }
-        Py_DECREF(r);
-    } else if (PyErr_ExceptionMatches(PyExc_Exception)) {     /* (a KeyboardInterrupt goes on as it is) */
-        PyObject *type, *value, *tb;
-        PyErr_Fetch(&type, &value, &tb);
-        PyErr_NormalizeException(&type, &value, &tb);
-        if (tb != NULL) PyException_SetTraceback(value, tb);
-        PyObject *error = PyObject_CallFunction(controller_failure_fn, "Od", value, t);
-        Py_XDECREF(type);
-        Py_XDECREF(value);
-        Py_XDECREF(tb);
-        if (error != NULL) {
-            PyErr_SetObject((PyObject *)Py_TYPE(error), error);
-            Py_DECREF(error);
-        }
-    }
-    if (PyErr_Occurred()) {
-        L->callback_failed = 1;
-        PyErr_Fetch(&L->exc_type, &L->exc_value, &L->exc_tb);
-        for (int i = 0; i < m; i++) u[i] = 0.0;
-    }
-}
-
 static void
 torque_described(Loop *L, double t, const double *q, const double *dq, double *u)
 {
-    if (L->law_kind == CALLBACK) call_controller_described(L, L->callback, t, q, dq, u);
+    if (L->law_kind == CALLBACK) call_controller(L, L->callback, t, q, dq, u);
     else memcpy(u, L->u_hold, L->table->actuators * sizeof(double));
 }
 
@@ -1087,8 +1036,7 @@ Loop_periods(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     while (ev_next_period_runs(L->t, t_final, t_stop, period)) {
         long k = k0;
         double t_end = period_end(L->t, period, t_final, &k), u_now[LS_NQ_MAX];
-        if (L->table) call_controller_described(L, command, L->t, L->y, L->y + loop_n(L), u_now);
-        else if (command != NULL) call_controller(L, command, L->t, L->y, L->y + 5, u_now);
+        if (command != NULL) call_controller(L, command, L->t, L->y, L->y + loop_n(L), u_now);
         else apply_law(L, &law, L->t, L->y, L->y + 5, u_now);
         if (L->callback_failed) {       /* (run_result: OUTCOME_RAISED) */
             k0 = k;
@@ -1148,24 +1096,6 @@ Loop_held(Loop *L, PyObject *const *args, Py_ssize_t nargs)
 }
 
 
-/* u as two floats, as modes.two_finite_floats takes them: 0, or -1 (no exception) for anything the
- * Python code must judge (it refuses it, or takes what this does not: an array, a numpy integer, ...) */
-static int
-two_finite(PyObject *u, double *out)
-{
-    if (!(PyList_CheckExact(u) || PyTuple_CheckExact(u)) || PySequence_Fast_GET_SIZE(u) != 2) return -1;
-    for (int i = 0; i < 2; i++) {
-        PyObject *v = PySequence_Fast_GET_ITEM(u, i);
-        if ((!PyFloat_Check(v) && !PyLong_Check(v)) || PyBool_Check(v)) return -1;   /* (a bool is an int) */
-        out[i] = PyFloat_AsDouble(v);
-        if (out[i] == -1.0 && PyErr_Occurred()) {
-            PyErr_Clear();     /* an int too large for a float: the Python code says so */
-            return -1;
-        }
-    }
-    return ev_finite_torques(out[0], out[1]) ? 0 : -1;
-}
-
 static double
 seconds_now(void)
 {
@@ -1190,7 +1120,7 @@ Loop_period(Loop *L, PyObject *const *args, Py_ssize_t nargs)
     double wall0 = seconds_now(), u[LS_NQ_MAX];
     int m = loop_m(L);
     if (L->mode_begun == 0.0 || L->n_latched != 0.0 || (L->scuffing[0] != 0.0 && L->scuffing[1] != 0.0)
-        || (L->table ? m_finite(args[1], m, u) : two_finite(args[1], u)) < 0)
+        || m_finite(args[1], m, u) < 0)
         /* (a latched guard, two scuffs: the Python code follows them; u not M finite numbers: it says why) */
         return PyLong_FromLong(OUTCOME_DECLINED);
     double period = PyFloat_AsDouble(args[0]), t_final = PyFloat_AsDouble(args[2]);

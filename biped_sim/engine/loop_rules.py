@@ -1034,7 +1034,7 @@ def ev_sample_row_of(row, t, q, dq, n, leg, F, u, m, residual):
     row[ROW_Q + 2 * n + 3 + m] = residual
 
 
-# -- the torque a law returns, or a run holds (modes.two_finite_floats, _core.c's two_finite) -----------------
+# -- the torque a law returns, or a run holds (modes.two_finite_floats, finite_floats; _core.c's m_finite) ---------
 def ev_finite_torques(u0, u1):
     """Whether the torques (u0, u1) are taken: finite, and so is their sum (a NaN, inf - inf or 1e308 + 1e308
     makes it not)."""
