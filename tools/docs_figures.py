@@ -82,9 +82,6 @@ def gait():
     gait (no impacts, or no periodic step from its start) is left out with its reason printed. And
     docs/gait_multipliers.png, the walk scene's multipliers along its slope, and docs/gait_multipliers_rabbit.png,
     RABBIT's along its law's step angle."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import numpy as np
 
     from biped_sim.analysis.gait import gaits_along, scene_gait
@@ -110,28 +107,37 @@ def gait():
     splice(DOCS / "gait.md", "multipliers", "\n".join(rows))
     slopes = np.round(np.arange(0.0, 0.0501, 0.0025), 4)
     found = [(v, g) for v, g, _why in gaits_along("walk", "slope", slopes) if g is not None]
+    plot_multipliers(found, "slope of the walk scene (rad, downhill)",
+                     "walk scene: multipliers of the gait along the slope (exact Jacobian)", "gait_multipliers.png",
+                     dict(fontsize=8))
+    print(f"  docs/gait_multipliers.png: {len(found)} of {len(slopes)} slopes with a gait")
+    rabbit_multipliers()
+
+
+def plot_multipliers(found, xlabel, title, png, legend):
+    """docs/PNG: the |multipliers| of the gaits ``found`` ((parameter value, Gait) pairs) along the parameter."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
     v = np.array([s for s, _ in found])
     m = np.array([np.abs(g.multipliers) for _, g in found])
     fig, ax = plt.subplots(figsize=(7, 4))
     for i in range(m.shape[1]):
         ax.semilogy(v, m[:, i], "o-", ms=3, label=f"|multiplier {i + 1}|")
     ax.axhline(1.0, color="k", lw=0.8, ls="--")
-    ax.set_xlabel("slope of the walk scene (rad, downhill)")
+    ax.set_xlabel(xlabel)
     ax.set_ylabel("|Floquet multiplier|")
-    ax.set_title("walk scene: multipliers of the gait along the slope (exact Jacobian)")
-    ax.legend(fontsize=8)
+    ax.set_title(title)
+    ax.legend(**legend)
     fig.tight_layout()
-    fig.savefig(DOCS / "gait_multipliers.png", dpi=100)
-    print(f"  docs/gait_multipliers.png: {len(found)} of {len(slopes)} slopes with a gait")
-    rabbit_multipliers()
+    fig.savefig(DOCS / png, dpi=100)
 
 
 def rabbit_multipliers():
     """docs/gait_multipliers_rabbit.png: RABBIT's multipliers along its law's step angle, continued from the
     scene's gait (0.25 rad) down and up in steps of 0.01 rad."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import numpy as np
 
     from biped_sim.analysis.gait import gaits_along
@@ -143,18 +149,9 @@ def rabbit_multipliers():
         if why:
             print(f"  rabbit step_angle {value}: no gait: {why}")
     found = [(v, g) for v, g, _why in along if g is not None]
-    v = np.array([s for s, _ in found])
-    m = np.array([np.abs(g.multipliers) for _, g in found])
-    fig, ax = plt.subplots(figsize=(7, 4))
-    for i in range(m.shape[1]):
-        ax.semilogy(v, m[:, i], "o-", ms=3, label=f"|multiplier {i + 1}|")
-    ax.axhline(1.0, color="k", lw=0.8, ls="--")
-    ax.set_xlabel("step_angle of the rabbit scene's law (rad)")
-    ax.set_ylabel("|Floquet multiplier|")
-    ax.set_title("RABBIT: multipliers of the gait along the step angle (exact Jacobian)")
-    ax.legend(fontsize=7, ncol=3)
-    fig.tight_layout()
-    fig.savefig(DOCS / "gait_multipliers_rabbit.png", dpi=100)
+    plot_multipliers(found, "step_angle of the rabbit scene's law (rad)",
+                     "RABBIT: multipliers of the gait along the step angle (exact Jacobian)",
+                     "gait_multipliers_rabbit.png", dict(fontsize=7, ncol=3))
     print(f"  docs/gait_multipliers_rabbit.png: {len(found)} of {len(along)} step angles with a gait")
     for value, g in found:
         print(f"  rabbit step_angle {value}: period {g.period:.4f} s, step {g.step_length:.4f} m, "
