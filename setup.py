@@ -11,8 +11,9 @@ setup(
     packages=find_packages(exclude=["test", "test.*", "benchmarks", "benchmarks.*"]),
     # the shipped robot descriptions (biped_sim/config/models.py)
     package_data={"biped_sim.config": ["robots/*.yaml", "robots/*.urdf"],
-                  # model_kernels writes it into a user's robot's kernels
-                  "biped_sim.engine": ["_kernel_table.h"]},
+                  # the compiled kernels' runtime and table: model_kernels compiles a user's robot's twin with
+                  # the installed package's folder on the include path
+                  "biped_sim.engine": ["_kernel_table.h", "_kernels_runtime.h"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
@@ -42,9 +43,11 @@ setup(
                  # the recorder's frame buffer (biped_sim/recording/frames.py: its Python twin is the fallback)
                  Extension("biped_sim.recording._frames", ["biped_sim/recording/_frames.c"],
                            extra_compile_args=["-O2"], optional=True)]
-    # the shipped robots' compiled kernels (biped_sim/engine/model_kernels.py, written by make generate);
+    # the shipped robots' compiled kernels (biped_sim/engine/model_kernels.py, written by make generate): each
+    # source is its robot's part and includes the runtime every robot shares (_kernels_runtime.h);
     # without them those robots run their dynamics in Python (numpy)
-    + [Extension(f"biped_sim.engine._gen.models.{Path(c).stem}", [c],
+    + [Extension(f"biped_sim.engine._gen.models.{Path(c).stem}", [c], include_dirs=["biped_sim/engine"],
+                 depends=["biped_sim/engine/_kernels_runtime.h", "biped_sim/engine/_kernel_table.h"],
                  extra_compile_args=["-O2", "-ffp-contract=off"], optional=True)
        for c in sorted(glob("biped_sim/engine/_gen/models/_kernels_*.c"))],
     # every third-party import of the installed package; ROS packages (rclpy, the message packages,

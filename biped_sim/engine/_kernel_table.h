@@ -1,8 +1,8 @@
 /* A described robot's six kernels as C entry points on double arrays (biped_sim/engine/model_kernels.py):
  * the table its compiled twin exports as the capsule KERNEL_TABLE, for C code that runs the robot without
  * a Python call (the compiled hybrid loop). The twin's Python functions k_stance ... k_energy call these
- * same entry points, so both give the same bits. model_kernels.py writes this file's text into each twin's
- * source (a user's twin is built from one file); C code that reads a table includes it.
+ * same entry points, so both give the same bits. Each twin's runtime (_kernels_runtime.h) includes it, and
+ * so does C code that reads a table.
  *
  * Sizes: q, dq, ddq, dq_plus have n entries, u has actuators entries, F an (x, y) pair; p is
  * [x1, y1, x2, y2, ...] (2 a contact point), pv the positions then the velocities (4 a contact point), tv is
