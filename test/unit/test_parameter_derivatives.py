@@ -115,6 +115,18 @@ def test_parameter_names_and_refusals_are_one_line_each():
         assert "\n" not in str(e.value)
 
 
+def test_the_shipped_parameters_module_is_the_generators_and_is_used(tmp_path, monkeypatch):
+    """make generate writes the shipped robots' <name>_parameters.py (here three_link's, the generator's output
+    as committed), and a run Jacobian reads it rather than generating one into the cache."""
+    from pathlib import Path
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    desc = models.load_description("three_link")
+    module = models.parameters_module(desc)
+    assert module.__name__ == "biped_sim.engine._gen.models.three_link_parameters"
+    assert Path(module.__file__).read_text() == codegen.generate_parameter_source(desc)
+    assert not (tmp_path / "biped_sim").exists()
+
+
 def moved(desc, name, value):
     """``desc`` with the parameter ``name`` at ``value`` (a length moves what is at the link's tip with it)."""
     if name == "gravity":
