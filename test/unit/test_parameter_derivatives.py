@@ -127,6 +127,34 @@ def test_the_shipped_parameters_module_is_the_generators_and_is_used(tmp_path, m
     assert not (tmp_path / "biped_sim").exists()
 
 
+def test_a_users_description_gets_its_parameters_module_on_the_first_request(tmp_path, monkeypatch, capsys):
+    """Loading a user's description generates its dynamics only; its first derivatives by parameters generate
+    <name>-<digest>-g<V>-p<V>_parameters.py into the cache (said on stderr), a second model reads it unchanged; the
+    derivative by the torso's mass (the legs' masses moved) is the three-link's."""
+    import yaml
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    data = yaml.safe_load(models.description_path("three_link").read_text())
+    data["name"] = "stilts"
+    for leg in ("leg_1", "leg_2"):
+        data["links"][leg]["mass"] = 4.0
+    path = tmp_path / "stilts.yaml"
+    path.write_text(yaml.safe_dump(data))
+    cache = tmp_path / "biped_sim" / "models"
+    model = models.generated_model(str(path))
+    assert list(cache.glob("*_parameters.py")) == []
+    q, dq = np.array([0.1, 0.9, 3.0, 3.4, 0.1]), np.array([0.3, -0.2, 1.0, -0.5, 0.2])
+    mine = derivatives(model).parameters(q, dq)
+    made = list(cache.glob("stilts-*-p*_parameters.py"))
+    said = capsys.readouterr().err
+    assert len(made) == 1 and "generated the derivatives by model parameters of robot 'stilts'" in said
+    stamp = made[0].stat().st_mtime_ns
+    again = derivatives(models.generated_model(str(path))).parameters(q, dq)
+    assert made[0].stat().st_mtime_ns == stamp and all(np.array_equal(a, b) for a, b in zip(mine, again))
+    three = derivatives(models.generated_model("three_link"))
+    j = three.parameter_names.index("torso.mass")
+    assert np.allclose(mine[0][j], three.parameters(q, dq)[0][j], rtol=0, atol=1e-12)
+
+
 def moved(desc, name, value):
     """``desc`` with the parameter ``name`` at ``value`` (a length moves what is at the link's tip with it)."""
     if name == "gravity":
