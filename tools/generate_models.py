@@ -2,7 +2,9 @@
 """Generate the shipped robots' dynamics modules and URDFs from their YAML descriptions (docs/models.md).
 
 For each name of biped_sim.config.models.SHIPPED: biped_sim/engine/_gen/models/<name>.py (the generic
-generator, biped_sim/config/codegen.py; needs sympy), its compiled kernels' C source
+generator, biped_sim/config/codegen.py; needs sympy), <name>_parameters.py (its derivatives by the model
+parameters, codegen.generate_parameter_source: what a run Jacobian by "<link>.mass", ... reads), its compiled
+kernels' C source
 biped_sim/engine/_gen/models/_kernels_<name>.c (biped_sim.engine.model_kernels, built by setup.py) and
 biped_sim/config/robots/<name>.urdf (the same description as a planar URDF,
 biped_sim.engine.description.to_urdf, read back and checked equal).
@@ -49,7 +51,11 @@ def main(names, kernels_only=False):
         (models.ROBOTS_DIR / f"{name}.urdf").write_text(urdf)
         (OUT / f"{name}.py").write_text(codegen.generate_source(desc))
         write_kernels(name)
-        print(f"{name}: {desc.n} coordinates, {len(desc.contacts)} contacts, {time.perf_counter() - t:.1f} s")
+        seconds = time.perf_counter() - t
+        t = time.perf_counter()
+        (OUT / f"{name}_parameters.py").write_text(codegen.generate_parameter_source(desc))
+        print(f"{name}: {desc.n} coordinates, {len(desc.contacts)} contacts, {seconds:.1f} s; "
+              f"{len(codegen.parameter_names(desc))} parameters' derivatives, {time.perf_counter() - t:.1f} s")
 
 
 if __name__ == "__main__":

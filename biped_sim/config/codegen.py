@@ -21,9 +21,12 @@ from __future__ import annotations
 import re
 
 from biped_sim.engine.description import RobotDescription
+from biped_sim.engine.generated_model import at_tip as _at_tip, parameter_names
 
 #: bumps when the emitted code changes, so that cached modules of an older generator are rebuilt
 GENERATOR_VERSION = 2
+#: bumps when the emitted code of the parameters' module (``generate_parameter_source``) changes
+PARAMETER_GENERATOR_VERSION = 1
 
 
 def _sympy():
@@ -190,3 +193,147 @@ def generate_source(desc: RobotDescription) -> str:
         f"LINKS = {tuple(link.name for link in desc.links)!r}",
     ]
     return "\n".join(head) + "\n\n\n" + "\n\n\n".join(chunks) + "\n"
+
+
+# ---- the derivatives by the model's parameters (a second module per robot, generated on request) ----------
+
+def parametric(desc: RobotDescription):
+    """``desc``'s T, V and contact points with its model parameters (``parameter_names``) as sympy symbols: a dict
+    (q, dq, names, symbols {name: symbol}, numbers {symbol: the description's value}, T, V, feet)."""
+    sp = _sympy()
+    n = desc.n
+    names = parameter_names(desc)
+    symbol = {name: sp.Symbol("P_" + re.sub(r"\W", "_", name), real=True) for name in names}
+    values = {}
+    for link in desc.links:
+        values[f"{link.name}.mass"], values[f"{link.name}.inertia"] = link.mass, link.inertia
+        values[f"{link.name}.com_x"], values[f"{link.name}.com_z"] = link.com
+        values[f"{link.name}.length"] = link.length
+    values["gravity"] = desc.gravity
+
+    def num(v):
+        return sp.Integer(int(v)) if float(v).is_integer() else sp.Float(repr(float(v)))
+
+    numbers = {symbol[k]: num(values[k]) for k in names}
+    q = sp.symbols(" ".join(f"q{i}" for i in range(n)), real=True)
+    dq = sp.symbols(" ".join(f"dq{i}" for i in range(n)), real=True)
+    Q, DQ = sp.Matrix(q), sp.Matrix(dq)
+    index = {link.name: 2 + i for i, link in enumerate(desc.links)}
+    by_name = {link.name: link for link in desc.links}
+    frames = {}
+
+    def on_link(link, p):
+        """A point of ``link``'s frame, its z the symbol of the link's length when it is the tip."""
+        if _at_tip(link, p) and f"{link.name}.length" in symbol:
+            return num(p[0]), symbol[f"{link.name}.length"]
+        return num(p[0]), num(p[1])
+
+    def point(o, a, p):
+        px, pz = p
+        return o + px * sp.Matrix([sp.cos(a), -sp.sin(a)]) + pz * sp.Matrix([sp.sin(a), sp.cos(a)])
+
+    def frame(name):
+        if name in frames:
+            return frames[name]
+        link = by_name[name]
+        if link.parent is None:
+            o, a = sp.Matrix([q[0], q[1]]), q[index[name]]
+        else:
+            po, pa = frame(link.parent)
+            o = point(po, pa, on_link(by_name[link.parent], link.origin))
+            a = pa + num(link.sign) * q[index[name]] + num(link.offset)
+        frames[name] = (o, a)
+        return o, a
+
+    T, V = sp.Integer(0), sp.Integer(0)
+    for link in desc.links:
+        o, a = frame(link.name)
+        c = point(o, a, (symbol[f"{link.name}.com_x"], symbol[f"{link.name}.com_z"]))
+        m, inertia = symbol[f"{link.name}.mass"], symbol[f"{link.name}.inertia"]
+        v = c.jacobian(Q) * DQ
+        w = (sp.Matrix([a]).jacobian(Q) * DQ)[0]
+        T += sp.Rational(1, 2) * m * (v.T * v)[0] + sp.Rational(1, 2) * inertia * w ** 2
+        V += symbol["gravity"] * m * c[1]
+    feet = [point(*frame(c.link), on_link(by_name[c.link], c.point)) for c in desc.contacts]
+    return dict(q=q, dq=dq, names=names, symbols=symbol, numbers=numbers, T=T, V=V, feet=feet)
+
+
+def symbolic_parameters(desc: RobotDescription):
+    """The derivatives by each of ``parameter_names(desc)``, p, of D, h = C dq + G, p_c, J_c and Jdot_c dq, with
+    the description's numbers substituted after differentiating: a dict of lists over p (dD, dh, dp_c, dJ_c,
+    dJdot_dq; the contact terms per contact). T and V are built with the parameters as symbols (``parametric``);
+    h and Jdot_c dq are linear in (T, V) and in p_c, so their derivatives are those of dT/dp, dV/dp and dp_c/dp."""
+    sp = _sympy()
+    m = parametric(desc)
+    n, names, symbol, numbers = desc.n, m["names"], m["symbols"], m["numbers"]
+    q, dq, T, V, feet = m["q"], m["dq"], m["T"], m["V"], m["feet"]
+    Q, DQ = sp.Matrix(q), sp.Matrix(dq)
+
+    def sub(e):
+        return e.xreplace(numbers)
+
+    out = dict(names=names, dD=[], dh=[], dfeet=[], dJ=[], dJdot_dq=[])
+    for name in names:
+        s = symbol[name]
+        Tp, Vp = sp.expand(sub(sp.diff(T, s))), sub(sp.diff(V, s))
+        Dp = sp.hessian(Tp, dq)
+        dDp = [Dp.diff(q[k]) for k in range(n)]
+        # h_k = sum_ij (dD_kj/dq_i - 1/2 dD_ij/dq_k) dq_i dq_j + dV/dq_k (C from the Christoffel symbols of D)
+        hp = sp.Matrix([sum((dDp[i][k, j] - sp.Rational(1, 2) * dDp[k][i, j]) * dq[i] * dq[j]
+                            for i in range(n) for j in range(n)) + sp.diff(Vp, q[k]) for k in range(n)])
+        out["dD"].append(Dp)
+        out["dh"].append(hp)
+        dfeet, dJ, dJd = [], [], []
+        for f in feet:
+            fp = sub(sp.diff(f, s))
+            Jp = fp.jacobian(Q)
+            dfeet.append(fp)
+            dJ.append(Jp)
+            dJd.append((Jp * DQ).jacobian(Q) * DQ)
+        out["dfeet"].append(dfeet)
+        out["dJ"].append(dJ)
+        out["dJdot_dq"].append(dJd)
+    return out
+
+
+def generate_parameter_source(desc: RobotDescription) -> str:
+    """The Python source of the module of ``desc``'s derivatives by its model parameters (``parameter_names``):
+    one function ``parameter_jacobian(q, dq)`` (no import but math)."""
+    sp = _sympy()
+    if sp is None:
+        raise RuntimeError("generating a robot's parameter derivatives needs sympy: pip install 'biped_sim[models]'")
+    s = symbolic_parameters(desc)
+    n, names, C = desc.n, s["names"], len(desc.contacts)
+    P = len(names)
+    flat = []
+    for p in range(P):
+        flat += list(s["dD"][p])
+    flat += [s["dh"][p][i] for i in range(n) for p in range(P)]
+    for c in range(C):
+        for p in range(P):
+            flat += list(s["dJ"][p][c])
+    for c in range(C):
+        flat += [s["dJdot_dq"][p][c][a] for a in range(2) for p in range(P)]
+    for c in range(C):
+        flat += [s["dfeet"][p][c][a] for a in range(2) for p in range(P)]
+    doc = (f"dD/dp [p, i, j] ({P}x{n}x{n}), dh/dp [i, p] ({n}x{P}), per contact dJ_c/dp [p, a, j] ({P}x2x{n}), "
+           f"per contact d(Jdot_c dq)/dp [a, p] (2x{P}), per contact dp_c/dp [a, p] (2x{P}); p in PARAMETER_NAMES' "
+           "order, h = C dq + G.")
+    head = [
+        f'"""The derivatives of the robot {desc.name!r}\'s dynamics by its model parameters, generated from its',
+        "description by biped_sim.config.codegen.generate_parameter_source.",
+        "",
+        "Do not edit: regenerate (make generate for a shipped model).",
+        '"""',
+        "# ruff: noqa",
+        "from math import cos, sin",
+        "",
+        f"NAME = {desc.name!r}",
+        f"DIGEST = {desc.digest()!r}",
+        f"GENERATOR_VERSION = {GENERATOR_VERSION}",
+        f"PARAMETER_GENERATOR_VERSION = {PARAMETER_GENERATOR_VERSION}",
+        f"PARAMETER_NAMES = {names!r}",
+        f"CONTACTS = {tuple(c.name for c in desc.contacts)!r}",
+    ]
+    body = _function(sp, "parameter_jacobian", ["q", "dq"], flat, doc, n)
+    return "\n".join(head) + "\n\n\n" + body + "\n"

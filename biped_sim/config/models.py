@@ -122,6 +122,41 @@ def dynamics_module(desc: RobotDescription):
     return _import_file(f"biped_sim_model_{desc.name}_{desc.digest()}", path)
 
 
+def parameters_module(desc: RobotDescription):
+    """The generated module of ``desc``'s derivatives by its model parameters
+    (``codegen.generate_parameter_source``): the shipped one when it matches, else the cached one, else generated
+    now (needs sympy). Asked for by a run Jacobian by model parameters only, not on a model's load."""
+    from biped_sim.config import codegen
+
+    def current(module):
+        return (module.DIGEST == desc.digest() and module.GENERATOR_VERSION == codegen.GENERATOR_VERSION
+                and module.PARAMETER_GENERATOR_VERSION == codegen.PARAMETER_GENERATOR_VERSION)
+    try:
+        module = importlib.import_module(f"biped_sim.engine._gen.models.{desc.name}_parameters")
+        if current(module):
+            return module
+    except ImportError:
+        pass
+    path = cache_dir() / (f"{desc.name}-{desc.digest()}-g{codegen.GENERATOR_VERSION}"
+                          f"-p{codegen.PARAMETER_GENERATOR_VERSION}_parameters.py")
+    if not path.is_file():
+        if codegen._sympy() is None:
+            _fail_line(f"robot description {desc.source or desc.name}: its derivatives by model parameters are "
+                       "generated on first request with sympy, which is not installed: pip install "
+                       "'biped_sim[models]' (or sympy)")
+        said = f"robot {desc.name!r} ({desc.source or desc.name})"
+        _say(f"biped_sim: generating the derivatives by model parameters of {said} with sympy on their first "
+             f"request (seconds; cached in {path.parent})")
+        start = time.perf_counter()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(codegen.generate_parameter_source(desc))
+        os.replace(tmp, path)          # another process may generate the same file: the last rename wins
+        _say(f"biped_sim: generated the derivatives by model parameters of {said} in "
+             f"{time.perf_counter() - start:.1f} s: {path.name}")
+    return _import_file(f"biped_sim_parameters_{desc.name}_{desc.digest()}", path)
+
+
 def _say(line: str) -> None:
     """One line on stderr, at once (a node's log, a CLI's terminal)."""
     print(line, file=sys.stderr, flush=True)
@@ -131,7 +166,7 @@ def generated_model(name_or_path):
     """The :class:`~biped_sim.engine.generated_model.GeneratedModel` of any description (shipped ones too)."""
     from biped_sim.engine.generated_model import GeneratedModel
     desc = load_description(name_or_path)
-    model = GeneratedModel(desc, dynamics_module(desc))
+    model = GeneratedModel(desc, dynamics_module(desc), parameters=lambda: parameters_module(desc))
     q = [0.0, 1.0] + [0.3 + 0.1 * i for i in range(desc.n - 2)]
     model.check_positive_definite(q)
     return model

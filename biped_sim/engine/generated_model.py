@@ -57,6 +57,25 @@ def contact_chains(desc: RobotDescription) -> tuple:
     return tuple(out)
 
 
+def at_tip(link, point) -> bool:
+    """Whether a point of ``link``'s frame is its tip (on its z axis at ``length``): what ``<link>.length`` moves."""
+    return link.length > 0.0 and float(point[0]) == 0.0 and float(point[1]) == float(link.length)
+
+
+def parameter_names(desc: RobotDescription) -> tuple:
+    """The names of ``desc``'s model parameters, in the order of the parameters' module: per link
+    ``<link>.mass``, ``<link>.inertia``, ``<link>.com_x``, ``<link>.com_z`` and, when a contact point or a child's
+    joint is at the link's tip, ``<link>.length`` (which moves them along the link's z axis), then ``gravity``."""
+    names = []
+    for link in desc.links:
+        names += [f"{link.name}.{k}" for k in ("mass", "inertia", "com_x", "com_z")]
+        tips = [c.point for c in desc.contacts if c.link == link.name]
+        tips += [child.origin for child in desc.links if child.parent == link.name]
+        if any(at_tip(link, p) for p in tips):
+            names.append(f"{link.name}.length")
+    return tuple(names) + ("gravity",)
+
+
 class EngineCannotRun(ValueError):
     """A described robot given where the three-link biped's closed forms are needed."""
 
@@ -64,7 +83,7 @@ class EngineCannotRun(ValueError):
 class GeneratedModel:
     """A described robot's dynamics. ``contact`` arguments are a contact point's name or its 1-based index."""
 
-    def __init__(self, description: RobotDescription, module):
+    def __init__(self, description: RobotDescription, module, parameters=None):
         if module.DIGEST != description.digest():
             raise ValueError(f"the generated module of {description.name!r} is of another description "
                              f"({module.DIGEST} != {description.digest()}): regenerate it")
@@ -82,6 +101,10 @@ class GeneratedModel:
         self.actuated_indices = tuple(int(np.flatnonzero(self.B[:, j])[0]) for j in range(self.m))
         self.contact_chains = contact_chains(description)
         self.total_mass = module.TOTAL_MASS
+        # the module of the derivatives by the model parameters: a callable that gives it (generated on the first
+        # request; config.models passes one), asked for by a run Jacobian by model parameters only
+        self._parameters_source = parameters
+        self._parameters_module = None
         # the six kernels the hybrid loop calls (model_kernels.KERNELS): the compiled twin where it is built, whose
         # functions then stand for the numpy methods of the same names on this model; None: the numpy path runs
         self.kernels = compiled_kernels(self)
@@ -107,6 +130,21 @@ class GeneratedModel:
             why = (f"a foot's chain from the floating base has more than {CHAIN_MAX} links, or a link's angle more "
                    f"than {TERMS_MAX} joints: the grazing bound has no room for it")
         return None if why is None else f"the hybrid engine cannot run robot {self.name!r}: {why}"
+
+    def parameters_module(self):
+        """The generated module of the derivatives by the model parameters (``PARAMETER_NAMES``,
+        ``parameter_jacobian``), of this model's description; ValueError in one line if the model was built
+        without a way to it."""
+        if self._parameters_module is None:
+            if self._parameters_source is None:
+                raise ValueError(f"model {self.name!r} was built without its parameters' module: load it with "
+                                 "bs.load_model (or pass GeneratedModel(..., parameters=callable giving the module))")
+            module = self._parameters_source()
+            if module.DIGEST != self.description.digest():
+                raise ValueError(f"the parameters' module of {self.name!r} is of another description "
+                                 f"({module.DIGEST} != {self.description.digest()}): regenerate it")
+            self._parameters_module = module
+        return self._parameters_module
 
     # the three-link biped's closed forms: what reads them (the sensitivity, a compiled torque law) refuses in one line
     @property

@@ -11,7 +11,9 @@ or at a stack of P states (arrays (P, n) in, the same terms with a leading axis 
   parameters (``PARAMETER_NAMES``) and the fixed base's;
 * a :class:`~biped_sim.engine.generated_model.GeneratedModel`: :class:`GeneratedDerivatives`, the functions the
   generic generator wrote for its description (config/codegen.py: any N coordinates, M actuators, contacts),
-  run on numbers or on numpy arrays of the stack. Its numbers are in its module: no derivative by parameters.
+  run on numbers or on numpy arrays of the stack; by the model parameters of its description ("<link>.mass",
+  "<link>.inertia", "<link>.com_x", "<link>.com_z", "<link>.length", "gravity") the functions of a second
+  generated module, written on the first request (config/codegen.py ``generate_parameter_source``).
 
 A contact (``leg``) is 1-based, as ``stance_leg`` is. Layouts: dD [k, i, j] = dD_ij/dq_k; dJ [k, a, j] =
 d(J_c)_aj/dq_k; ``jb`` = (Jdot_c dq (2), d(Jdot_c dq)/dq (2 x n), d(Jdot_c dq)/d dq (2 x n)) flat.
@@ -176,19 +178,23 @@ class ClosedFormDerivatives:
 
 
 class GeneratedDerivatives:
-    """A GeneratedModel's terms: its generated module's functions (config/codegen.py)."""
+    """A GeneratedModel's terms: its generated module's functions (config/codegen.py), and by its model parameters
+    (``parameter_names``: "<link>.mass", ... "gravity") those of its parameters' module, generated on the first
+    request (``GeneratedModel.parameters_module``)."""
 
-    parameter_names = ()
     k = None
 
     def __init__(self, model):
+        from biped_sim.engine.generated_model import parameter_names
         self.model = model
         self.module = model.module
         self.name = f"generated ({model.name})"
         self.n = model.n
         self.B = model.B
+        self.parameter_names = parameter_names(model.description)
         self.key = ("generated", model.name, model.module.DIGEST, model.module.GENERATOR_VERSION)
         self._arrays = None
+        self._parameter_arrays = None
 
     def _index(self, leg):
         return self.model.contact_index(leg)
@@ -213,11 +219,37 @@ class GeneratedDerivatives:
     def stance_force(self, q, dq, u, leg):
         return self.model.stance_dynamics(q, dq, u, leg)[1]
 
-    def _refuse_parameters(self, *_args):
-        raise ValueError(f"model {self.model.name!r}: a generated model's numbers are in its module, so a run "
-                         "has no derivative by model parameters; give the controller's gains ('controller.NAME')")
+    def _split_parameters(self, v, lead=()):
+        """The parameters' module's flat values (last axis) as (dD/dp [p, i, j], dh/dp [i, p], dJ_c/dp [p, a, j]
+        per contact..., d(Jdot_c dq)/dp [a, p] per contact..., dp_c/dp (2C x P))."""
+        n, P, C = self.n, len(self.parameter_names), len(self.model.contacts)
+        shapes = [(P, n, n), (n, P)] + [(P, 2, n)] * C + [(2, P)] * C + [(2 * C, P)]
+        out, o = [], 0
+        for shape in shapes:
+            size = int(np.prod(shape))
+            out.append(v[..., o:o + size].reshape(lead + shape))
+            o += size
+        return out
 
-    parameters = parameter_stack = _refuse_parameters
+    def parameters(self, q, dq):
+        """d/dp of D ([p, i, j]), h (n x P), J_c ([p, a, j]) of each contact, Jdot_c dq (2 x P) of each contact, and
+        the contact points (2C x P): :meth:`ClosedFormDerivatives.parameters`' layout for a biped's two contacts."""
+        module = self.model.parameters_module()
+        q, dq = self.model._qdq(q, dq)
+        return self._split_parameters(np.array(module.parameter_jacobian(q, dq), dtype=float))
+
+    def parameter_stack(self, Q, DQ, leg):
+        """(dD/dp (P,np,n,n), dJ_leg/dp (P,np,2,n), dr/dp (P,n+2,np)) at the points (``parameters``' layout)."""
+        if self._parameter_arrays is None:
+            module = self.model.parameters_module()
+            path = getattr(module, "__file__", None)
+            source = Path(path).read_text() if path else inspect.getsource(module)
+            self._parameter_arrays = _on_arrays(source, path or f"{self.model.name} parameters")
+        P, C, i = Q.shape[0], len(self.model.contacts), self._index(leg)
+        v = _stacked(self._parameter_arrays["parameter_jacobian"](list(Q.T), list(DQ.T)), P)
+        parts = self._split_parameters(v, (P,))
+        dDp, dhp, dJp, djbp = parts[0], parts[1], parts[2 + i], parts[2 + C + i]
+        return dDp, dJp, np.concatenate([-dhp, -djbp], axis=1)
 
     def fixed_base(self, qs, dqs):
         raise ValueError(f"model {self.model.name!r}: the fixed base's derivatives are the three-link's only; "

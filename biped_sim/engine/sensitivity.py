@@ -404,6 +404,15 @@ event, after the reset (a step map): the
         raise ValueError("parameter 'l_leg': a run that starts in stance cannot be differentiated by l_leg (it moves "
                          "the stance foot of the initial state); start in flight (stance_leg=0), or give the other "
                          "parameters")
+    if stance_leg and model_names and "l_leg" not in derivatives.parameter_names:
+        # likewise a described robot's parameter that moves the stance contact point ("<link>.length" on its chain)
+        feet = derivatives.parameters(list(map(float, q0)), list(map(float, dq0)))[-1]
+        feet = feet[2 * stance_leg - 2:2 * stance_leg]
+        moving = [name for name in model_names if np.any(feet[:, derivatives.parameter_names.index(name)])]
+        if moving:
+            raise ValueError(f"parameters {moving}: a run that starts in stance cannot be differentiated by what moves "
+                             "the stance contact point of the initial state; start in flight (stance_leg=0), or give "
+                             "the other parameters")
     if controller is None and u is None:
         u = (0.0,) * derivatives.B.shape[1]
     q0, dq0 = np.asarray(q0, float), np.asarray(dq0, float)

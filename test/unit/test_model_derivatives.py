@@ -198,13 +198,13 @@ def test_the_compass_gaits_step_jacobian_from_its_generated_terms():
 
 
 def test_generated_terms_refuse_what_they_cannot_give_in_one_line():
-    """Model parameters (a generated model's numbers are in its module), another robot's terms, the fixed
-    base's derivatives: one line each."""
+    """A closed forms' parameter name given to generated terms (their names are the description's), another
+    robot's terms, the fixed base's derivatives: one line each."""
     m = BipedModel()
     q0, dq0 = walk_touchdown_start(m)
     cases = [
         (dict(derivatives=derivatives(ROBOTS["three_link"]), parameters=("m_torso",)),
-         "parameter 'm_torso': this model's numbers are generated into its module"),
+         r"unknown parameter 'm_torso': the model's are \['leg_1.mass'"),
         (dict(derivatives=derivatives(ROBOTS["rabbit"])), "derivatives: of a robot with 7 coordinates"),
     ]
     for kwargs, match in cases:
