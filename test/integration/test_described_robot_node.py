@@ -63,7 +63,6 @@ def test_rabbit_walks_in_lockstep_with_walk_controller_and_its_bag_resimulates(t
             impacts = c.collect("/impact", DiagnosticArray)
             grf = c.collect("/ground_reaction", WrenchStamped)
             markers = c.collect("/markers", MarkerArray, transient_local=False)
-            cmds = c.collect("/hip_torque", Float64MultiArray, transient_local=False)
             c.wait_subscribed("/joint_states", proc=sim)
             with start_node(None, dom, executable="walk_controller", extra_args=args) as ctl:
                 _spin_until(c, lambda: js and _t(js[-1]) >= duration - 1e-9, 120, f"the state at t = {duration} s",
@@ -79,7 +78,7 @@ def test_rabbit_walks_in_lockstep_with_walk_controller_and_its_bag_resimulates(t
     # effort = B u: the motors' torques on hip_1, hip_2, knee_1, knee_2, zero on the base and the torso
     efforts = np.array([m.effort for m in js[1:]])
     assert efforts.shape == (len(js) - 1, 7) and not efforts[:, [0, 1, 6]].any()
-    assert np.abs(efforts[:, 2:6]).max() > 10.0 and cmds and len(cmds[0].data) == 4
+    assert np.abs(efforts[:, 2:6]).max() > 10.0
     assert len(impacts) == 1 and abs(_t(impacts[0]) - ref.impacts[0].time) < 1e-9
     assert len(grf) == len(js) and min(m.wrench.force.y for m in grf) > 200.0    # RABBIT weighs 314 N
     assert markers and all(m.header.frame_id == "world" for m in markers[0].markers)
@@ -88,7 +87,8 @@ def test_rabbit_walks_in_lockstep_with_walk_controller_and_its_bag_resimulates(t
     got = bag_messages(bag)
     assert len(got["/joint_states"]) == len(js) and len(got["/impact"]) == 1 and got["/markers"]
     # each state's effort is the command that answered the state before it
-    commands = np.array([list(m.data) for _t_ns, m in got["/hip_torque"]])
+    commands = np.array([list(m.data) for _t_ns, m in got["/hip_torque"]])    # (the bag's: a live subscriber
+    assert commands.shape[1] == 4                                              # may match after a fast run)
     np.testing.assert_array_equal(efforts[:, 2:6], commands[:len(efforts)])
     run = bs.load_run(bag)
     assert run.q.shape == (len(js), 7) and run.u.shape == (len(js), 4)
