@@ -104,21 +104,8 @@ def dynamics_module(desc: RobotDescription):
     except ImportError:
         pass
     path = cache_dir() / f"{desc.name}-{desc.digest()}-g{codegen.GENERATOR_VERSION}.py"
-    if not path.is_file():
-        if codegen._sympy() is None:
-            _fail_line(f"robot description {desc.source or desc.name}: its dynamics are generated on first use "
-                       "with sympy, which is not installed: pip install 'biped_sim[models]' (or sympy)")
-        # a first use takes seconds (about 6 s for a robot of RABBIT's size): say so, or a node's start
-        # looks hung
-        said = f"robot {desc.name!r} ({desc.source or desc.name})"
-        _say(f"biped_sim: generating the dynamics of {said} with sympy on its first use (a few seconds; "
-             f"cached in {path.parent})")
-        start = time.perf_counter()
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(codegen.generate_source(desc))
-        os.replace(tmp, path)          # another process may generate the same file: the last rename wins
-        _say(f"biped_sim: generated the dynamics of {said} in {time.perf_counter() - start:.1f} s: {path.name}")
+    _generate_once(desc, path, "its dynamics are generated on first use", "the dynamics",
+                   "on its first use (a few seconds", codegen.generate_source)
     return _import_file(f"biped_sim_model_{desc.name}_{desc.digest()}", path)
 
 
@@ -139,23 +126,31 @@ def parameters_module(desc: RobotDescription):
         pass
     path = cache_dir() / (f"{desc.name}-{desc.digest()}-g{codegen.GENERATOR_VERSION}"
                           f"-p{codegen.PARAMETER_GENERATOR_VERSION}_parameters.py")
-    if not path.is_file():
-        if codegen._sympy() is None:
-            _fail_line(f"robot description {desc.source or desc.name}: its derivatives by model parameters are "
-                       "generated on first request with sympy, which is not installed: pip install "
-                       "'biped_sim[models]' (or sympy)")
-        said = f"robot {desc.name!r} ({desc.source or desc.name})"
-        _say(f"biped_sim: generating the derivatives by model parameters of {said} with sympy on their first "
-             f"request (seconds; cached in {path.parent})")
-        start = time.perf_counter()
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(codegen.generate_parameter_source(desc))
-        os.replace(tmp, path)          # another process may generate the same file: the last rename wins
-        _say(f"biped_sim: generated the derivatives by model parameters of {said} in "
-             f"{time.perf_counter() - start:.1f} s: {path.name}")
+    _generate_once(desc, path, "its derivatives by model parameters are generated on first request",
+                   "the derivatives by model parameters", "on their first request (seconds",
+                   codegen.generate_parameter_source)
     return _import_file(f"biped_sim_parameters_{desc.name}_{desc.digest()}", path)
 
+
+
+def _generate_once(desc: RobotDescription, path, needs: str, what: str, when: str, generate) -> None:
+    """Write ``generate(desc)`` (sympy) to the cache file ``path`` unless it is there, saying so on stderr before
+    and after (a first use takes seconds, about 6 s for a robot of RABBIT's size: a node's start would look hung);
+    one ValueError line without sympy (``needs``: what is generated when)."""
+    from biped_sim.config import codegen
+    if path.is_file():
+        return
+    if codegen._sympy() is None:
+        _fail_line(f"robot description {desc.source or desc.name}: {needs} with sympy, which is not installed: "
+                   "pip install 'biped_sim[models]' (or sympy)")
+    said = f"robot {desc.name!r} ({desc.source or desc.name})"
+    _say(f"biped_sim: generating {what} of {said} with sympy {when}; cached in {path.parent})")
+    start = time.perf_counter()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    tmp.write_text(generate(desc))
+    os.replace(tmp, path)          # another process may generate the same file: the last rename wins
+    _say(f"biped_sim: generated {what} of {said} in {time.perf_counter() - start:.1f} s: {path.name}")
 
 def _say(line: str) -> None:
     """One line on stderr, at once (a node's log, a CLI's terminal)."""
