@@ -230,8 +230,16 @@ class RabbitWalkingController:
         if stance_leg == 0:     # flight: damp the joints (no walking law in the air)
             rates = {name: float(dq[self.model.coordinates.index(name)]) for name in ACTUATED}
             return np.clip(self._ordered({k: -self.kd * v for k, v in rates.items()}), -lim, lim)
-        q = np.asarray(q, dtype=float)
-        dq = np.asarray(dq, dtype=float)
+        u, y, dy, _H, _a, _A, _HA = self._computed_torque(np.asarray(q, dtype=float), np.asarray(dq, dtype=float),
+                                                           stance_leg)
+        if u is None:       # the outputs cannot all be decoupled here: the PD term holds them
+            u = self.pd_torques(y, dy, stance_leg)
+        return np.clip(u, -lim, lim)
+
+    def _computed_torque(self, q, dq, stance_leg):
+        """(u, y, dy, H, a, A, H A): the torque that gives y'' = -kp y - kd y' through the stance dynamics
+        ddq = a + A u, H (a + A u) + bias = -kp y - kd dy; u None where H A is singular (the outputs cannot all
+        be decoupled: the PD term holds them)."""
         y, dy, H, bias = self.outputs(q, dq, stance_leg)
         a, A = self.stance_affine(q, dq, stance_leg)
         HA = H @ A
@@ -240,9 +248,9 @@ class RabbitWalkingController:
             if np.linalg.cond(HA) > 1e10:
                 raise np.linalg.LinAlgError
             u = np.linalg.solve(HA, rhs)
-        except np.linalg.LinAlgError:       # the outputs cannot all be decoupled here: the PD term holds them
-            u = self.pd_torques(y, dy, stance_leg)
-        return np.clip(u, -lim, lim)
+        except np.linalg.LinAlgError:
+            u = None
+        return u, y, dy, H, a, A, HA
 
     def jacobian(self, t, q, dq, stance_leg):
         """d u / d(q, dq) (4 x 2n) of this law, exact (engine/sensitivity.py's run Jacobians use it).
@@ -268,18 +276,11 @@ class RabbitWalkingController:
         c[self._torso], c[hs], c[ks] = 1.0, 1.0, 0.5
         theta, dtheta = float(c @ q) - math.pi, float(c @ dq)
         _hd, _dhd, ddhd = self.targets(theta)
-        y, dy, H, bias = self.outputs(q, dq, stance_leg)
+        u, y, dy, H, a, A, HA = self._computed_torque(q, dq, stance_leg)
         # y_x = [H, 0]; dy = H dq, so dy_x = [-theta' h_d'' c^T, H]
         y_x = np.hstack([H, np.zeros((4, n))])
         dy_x = np.hstack([-dtheta * np.outer(ddhd, c), H])
-        a, A = self.stance_affine(q, dq, stance_leg)
-        HA = H @ A
-        rhs = -self.kp * y - self.kd * dy - H @ a - bias
-        try:
-            if np.linalg.cond(HA) > 1e10:
-                raise np.linalg.LinAlgError
-            u = np.linalg.solve(HA, rhs)
-        except np.linalg.LinAlgError:       # the PD term (linear in y, dy): its columns are the law's columns
+        if u is None:       # the PD term (linear in y, dy): its columns are the law's columns
             u = self.pd_torques(y, dy, stance_leg)
             J = np.column_stack([self.pd_torques(y_x[:, k], dy_x[:, k], stance_leg) for k in range(2 * n)])
             J[np.abs(u) >= lim] = 0.0
