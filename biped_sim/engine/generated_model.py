@@ -6,9 +6,10 @@ coordinates with numpy: stance on contact c, ``[D -J_c^T; J_c 0] [ddq; F] = [-C 
 the impact of contact c, ``[D -J_c^T; J_c 0] [dq+; F_imp] = [D dq-; 0]``; the relabeling R (a permutation
 from the description's mirror, R R = I); and the exact derivatives of these phases from the generated
 derivative terms, each KKT system differentiated as it stands, ``K ds = dr - (dK) s`` (docs/gait.md
-"Derivatives for any robot"). The hybrid engine runs it in its Python loop through the kernels
+"Derivatives for any robot"). The hybrid engine runs it, on both loops, through the kernels
 ``k_stance``, ``k_flight``, ``k_impact``, ``k_foot_positions``, ``k_foot_kinematics`` and ``k_energy`` (lists in,
-lists out, in the three-link kernels' layouts: ``loop_kernels``); a biped with two contact points, at most
+lists out, in the three-link kernels' layouts: ``loop_kernels``; their compiled twin, ``model_kernels``, where it
+is built); a biped with two contact points, at most
 ``loop_state.NQ_MAX`` coordinates (:meth:`GeneratedModel.engine_refusal` says why not otherwise). The
 three-link biped's closed forms (``p``, ``k``) it has not: what needs them refuses it in one line
 (:class:`EngineCannotRun`).
@@ -22,7 +23,7 @@ from biped_sim.engine.model import as_state_vector
 from biped_sim.engine.model_kernels import KERNELS, compiled_kernels
 
 NO_CLOSED_FORMS = ("model {name!r} ({n} coordinates) has no three-link closed forms (p, k): the hybrid engine runs "
-                   "it (its Python loop), but this needs the three-link biped (BipedModel; bs.load_model gives one "
+                   "it, but this needs the three-link biped (BipedModel; bs.load_model gives one "
                    "for three_link, compass_gait and three_link_hip_mass)")
 
 
@@ -328,12 +329,9 @@ class GeneratedModel:
         return v[:2], v[2:2 + 2 * n].reshape(2, n), v[2 + 2 * n:].reshape(2, n)
 
     def _kkt(self, q, contact):
-        """K = [D -J_c^T; J_c 0], D, J_c, dD/dq_k [k, i, j], dJ_c/dq_k [k, a, j]."""
-        n = self.n
-        D, J = self.mass_matrix(q), self.contact_jacobian(q, contact)
-        K = np.zeros((n + 2, n + 2))
-        K[:n, :n], K[:n, n:], K[n:, :n] = D, -J.T, J
-        return K, D, J, self.mass_matrix_jacobian(q), self.contact_jacobian_jacobian(q, contact)
+        """K = [D -J_c^T; J_c 0] (:meth:`_kkt_matrix`), D, dD/dq_k [k, i, j], dJ_c/dq_k [k, a, j]."""
+        D, K = self._kkt_matrix(self._q(q), self.contact_index(contact))
+        return K, D, self.mass_matrix_jacobian(q), self.contact_jacobian_jacobian(q, contact)
 
     def flight_dynamics_jacobian(self, q, dq, u):
         """(A_q, A_dq, A_u): d ddq/dq (n x n), d ddq/d dq (n x n), d ddq/du (n x M) of D ddq = B u - (C dq + G),
@@ -352,7 +350,7 @@ class GeneratedModel:
         (dK/dq_k) s = [dD/dq_k ddq - (dJ_c/dq_k)^T F; dJ_c/dq_k ddq]; one solve with K takes every column."""
         n = self.n
         ddq, F = self.stance_dynamics(q, dq, u, contact)
-        K, _D, _J, dD, dJ = self._kkt(q, contact)
+        K, _D, dD, dJ = self._kkt(q, contact)
         dhq, dhv = self.bias_forces_jacobian(q, dq)
         _jb, djbq, djbv = self.contact_bias_jacobian(q, dq, contact)
         dKs = np.vstack([np.einsum("kij,j->ik", dD, ddq) - np.einsum("kaj,a->jk", dJ, F),
@@ -370,7 +368,7 @@ class GeneratedModel:
         n = self.n
         dqm = as_state_vector(dq_minus, "dq", n)
         dqp, imp = self.impact_map(q, dqm, contact)
-        K, D, _J, dD, dJ = self._kkt(q, contact)
+        K, D, dD, dJ = self._kkt(q, contact)
         cols = [np.vstack([np.einsum("kij,j->ik", dD, dqm - dqp) + np.einsum("kaj,a->jk", dJ, imp),
                            -np.einsum("kaj,j->ak", dJ, dqp)]),
                 np.vstack([D, np.zeros((2, n))])]
