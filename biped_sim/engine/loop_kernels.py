@@ -5,7 +5,8 @@ The model's kernels (``k_foot_positions``, ``k_impact_map``, ``k_energy``, ``k_f
 the state's field ``model_kernels``: 0, the three-link's closed forms on the constants the state holds (the C
 glue's, which the compiled loop runs); k > 0, the methods of the
 :class:`~biped_sim.engine.generated_model.GeneratedModel` registered as k (:func:`register`), which take and
-return lists in the three-link kernels' layouts, for N = S[N_Q] coordinates (the Python loop only).
+return lists in the three-link kernels' layouts, for N = S[N_Q] coordinates (the C glue calls the same robot's
+compiled entry points, through the Loop's kernel table).
 
 Each function reads and writes the state S (a list, ``loop_state``) at the offsets it is given, as the C
 does through pointers into it, and performs the generated Python code's operations (the twins of the C
