@@ -154,9 +154,13 @@ def test_a_users_urdf_robot_runs_through_the_node_with_its_own_controller_headle
             try:
                 _spin_until(c, lambda: _t(js[-1]) >= 0.6 - 1e-9, 120, "the state at t = 0.6 s", [sim])
                 assert sim.wait(30) == 0, sim.output()
-            finally:
+            finally:       # (as ros_helpers.NodeProcess.stop: SIGTERM, SIGKILL after 15 s; its exit is not the check)
                 ctl.terminate()
-                ctl.wait(15)
+                try:
+                    ctl.wait(15)
+                except subprocess.TimeoutExpired:
+                    ctl.kill()
+                    ctl.wait()
     log = sim.output()
     assert re.search(r"generating the dynamics of robot 'my_walker' \(my_walker.urdf\) with sympy on its first use",
                      log) and re.search(r"generated the dynamics of robot 'my_walker' .* in [\d.]+ s", log), log
