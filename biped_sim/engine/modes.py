@@ -90,35 +90,26 @@ def controller_failure(exc, t):
     return error
 
 
-def bind_controller(controller, stance_leg, m=2):
-    """``controller(t, q, dq, stance_leg)`` as ``f(t, q, dq)``, with its m torques checked; None for no
-    controller. q and dq are lists of floats (the controller's own: the engine does not use them after the
-    call)."""
-    if controller is None:
-        return None
-
-    def call(t, q, dq):   # at every right-hand-side evaluation: one check, the message only on failure
+def checked_command(controller, m=2, stance_leg=None):
+    """``controller(t, q, dq, stance_leg)`` with its m torques checked: ``command(t, q, dq, stance_leg)``, a control
+    period's command; given ``stance_leg``, ``command(t, q, dq)`` calls it with that leg (``bind_controller``). A
+    controller that raises, or returns anything but m finite real numbers, is a ControllerError. (The compiled
+    loop calls a controller directly and checks it the same way: ``_core.c`` call_controller.)"""
+    def command(t, q, dq, stance_leg=stance_leg):   # at every right-hand-side evaluation: the message only on failure
         try:
             u = controller(t, q, dq, stance_leg)
         except Exception as exc:   # a fault of the user's code ends the run "failed", with its message
             raise controller_raised(exc, t) from exc
         v = two_finite_floats(u) if m == 2 else finite_floats(u, m)
         return v if v is not None else checked_torques(u, t, m)
-    return call
-
-
-def checked_command(controller, m=2):
-    """``controller(t, q, dq, stance_leg)`` with its m torques checked, as bind_controller's call but with the
-    stance leg given at each call: a control period's command. (The compiled loop calls a controller
-    directly and checks it the same way: ``_core.c`` call_controller.)"""
-    def command(t, q, dq, stance_leg):
-        try:
-            u = controller(t, q, dq, stance_leg)
-        except Exception as exc:
-            raise controller_raised(exc, t) from exc
-        v = two_finite_floats(u) if m == 2 else finite_floats(u, m)
-        return v if v is not None else checked_torques(u, t, m)
     return command
+
+
+def bind_controller(controller, stance_leg, m=2):
+    """``controller(t, q, dq, stance_leg)`` as ``f(t, q, dq)``, with its m torques checked (``checked_command`` with
+    the stance leg given); None for no controller. q and dq are lists of floats (the controller's own: the engine
+    does not use them after the call)."""
+    return None if controller is None else checked_command(controller, m, stance_leg)
 
 
 def floating_to_phys(y):
