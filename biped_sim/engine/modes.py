@@ -184,22 +184,18 @@ def _generated_functions(model, stance_leg, base, pin, u_hold, control, sink):
 
 def _generated_fixed_base_functions(model, stance_leg, pin, u_hold, control, sink):
     """A described robot's fixed-base stance on contact point stance_leg: y = q[2:] + dq[2:] + [work], the joint
-    angles and their rates; the base follows from the pin c: p_c = base + f(angles), so base = c - f(angles)
-    and its velocity -J_c[:, 2:] dq[2:]; the accelerations are the KKT solve's (k_stance) at that state."""
+    angles and their rates; the base hangs from the pin c (``GeneratedModel.base_hung_from``); the accelerations
+    are the KKT solve's (k_stance) at that state."""
     n, m, joints = model.n, model.m, model.actuated_indices
     a = n - 2                   # the angles
-    c, w2 = stance_leg - 1, 2 * n
-    cx, cy = pin
-    positions, jacobians, k_stance = model.module.contact_positions, model.module.contact_jacobians, model.k_stance
+    c = stance_leg - 1
+    hung, k_stance = model.base_hung_from, model.k_stance
 
     def to_phys(y):
         yl = y if type(y) is list else y.tolist()
         angles, rates = yl[0:a], yl[a:2 * a]
-        f = positions([0.0, 0.0] + angles)
-        J = jacobians([0.0, 0.0] + angles)[w2 * c:w2 * c + w2]     # (J_c does not depend on the base)
-        vx = -sum(J[2 + i] * rates[i] for i in range(a))
-        vy = -sum(J[n + 2 + i] * rates[i] for i in range(a))
-        return [cx - f[2 * c], cy - f[2 * c + 1]] + angles, [vx, vy] + rates, yl[2 * a]
+        base, dbase = hung(c, pin, angles, rates)
+        return base + angles, dbase + rates, yl[2 * a]
 
     def from_phys(q, dq, w):   # lists
         return q[2:] + dq[2:] + [w]
