@@ -207,6 +207,20 @@ class GeneratedModel:
         i, w = self.contact_index(contact), 2 * self.n
         return np.array(self.module.contact_jacobian_dots(*self._qdq(q, dq))[w * i: w * i + w]).reshape(2, self.n)
 
+    def base_hung_from(self, contact_index0, pin, angles, rates):
+        """(base, base velocity) as lists: the floating base (x, y) hung from contact ``contact_index0`` (0-based)
+        pinned at ``pin`` = c and at rest, the joint angles q[2:] = ``angles`` and rates dq[2:] = ``rates`` (lists).
+        The base enters the contact point as a translation, p_c(q) = (x, y) + p_c(0, 0, q[2:]), so J_c[:, :2] = I:
+        (x, y) = c - p_c(0, 0, q[2:]) and, from J_c dq = 0, (dx, dy) = -J_c[:, 2:] dq[2:] (J_c does not depend on
+        the base)."""
+        n, a, w = self.n, self.n - 2, 2 * self.n
+        q0 = [0.0, 0.0] + angles
+        p = self.module.contact_positions(q0)
+        J = self.module.contact_jacobians(q0)[w * contact_index0:w * contact_index0 + w]
+        vx = -sum(J[2 + i] * rates[i] for i in range(a))
+        vy = -sum(J[n + 2 + i] * rates[i] for i in range(a))
+        return [pin[0] - p[2 * contact_index0], pin[1] - p[2 * contact_index0 + 1]], [vx, vy]
+
     def contact_velocity(self, q, dq, contact) -> np.ndarray:
         i = self.contact_index(contact)
         return np.array(self.module.contact_velocities(*self._qdq(q, dq))[2 * i: 2 * i + 2])

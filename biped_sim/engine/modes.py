@@ -90,35 +90,26 @@ def controller_failure(exc, t):
     return error
 
 
-def bind_controller(controller, stance_leg, m=2):
-    """``controller(t, q, dq, stance_leg)`` as ``f(t, q, dq)``, with its m torques checked; None for no
-    controller. q and dq are lists of floats (the controller's own: the engine does not use them after the
-    call)."""
-    if controller is None:
-        return None
-
-    def call(t, q, dq):   # at every right-hand-side evaluation: one check, the message only on failure
+def checked_command(controller, m=2, stance_leg=None):
+    """``controller(t, q, dq, stance_leg)`` with its m torques checked: ``command(t, q, dq, stance_leg)``, a control
+    period's command; given ``stance_leg``, ``command(t, q, dq)`` calls it with that leg (``bind_controller``). A
+    controller that raises, or returns anything but m finite real numbers, is a ControllerError. (The compiled
+    loop calls a controller directly and checks it the same way: ``_core.c`` call_controller.)"""
+    def command(t, q, dq, stance_leg=stance_leg):   # at every right-hand-side evaluation: the message only on failure
         try:
             u = controller(t, q, dq, stance_leg)
         except Exception as exc:   # a fault of the user's code ends the run "failed", with its message
             raise controller_raised(exc, t) from exc
         v = two_finite_floats(u) if m == 2 else finite_floats(u, m)
         return v if v is not None else checked_torques(u, t, m)
-    return call
-
-
-def checked_command(controller, m=2):
-    """``controller(t, q, dq, stance_leg)`` with its m torques checked, as bind_controller's call but with the
-    stance leg given at each call: a control period's command. (The compiled loop calls a controller
-    directly and checks it the same way: ``_core.c`` call_controller.)"""
-    def command(t, q, dq, stance_leg):
-        try:
-            u = controller(t, q, dq, stance_leg)
-        except Exception as exc:
-            raise controller_raised(exc, t) from exc
-        v = two_finite_floats(u) if m == 2 else finite_floats(u, m)
-        return v if v is not None else checked_torques(u, t, m)
     return command
+
+
+def bind_controller(controller, stance_leg, m=2):
+    """``controller(t, q, dq, stance_leg)`` as ``f(t, q, dq)``, with its m torques checked (``checked_command`` with
+    the stance leg given); None for no controller. q and dq are lists of floats (the controller's own: the engine
+    does not use them after the call)."""
+    return None if controller is None else checked_command(controller, m, stance_leg)
 
 
 def floating_to_phys(y):
@@ -193,22 +184,18 @@ def _generated_functions(model, stance_leg, base, pin, u_hold, control, sink):
 
 def _generated_fixed_base_functions(model, stance_leg, pin, u_hold, control, sink):
     """A described robot's fixed-base stance on contact point stance_leg: y = q[2:] + dq[2:] + [work], the joint
-    angles and their rates; the base follows from the pin c: p_c = base + f(angles), so base = c - f(angles)
-    and its velocity -J_c[:, 2:] dq[2:]; the accelerations are the KKT solve's (k_stance) at that state."""
+    angles and their rates; the base hangs from the pin c (``GeneratedModel.base_hung_from``); the accelerations
+    are the KKT solve's (k_stance) at that state."""
     n, m, joints = model.n, model.m, model.actuated_indices
     a = n - 2                   # the angles
-    c, w2 = stance_leg - 1, 2 * n
-    cx, cy = pin
-    positions, jacobians, k_stance = model.module.contact_positions, model.module.contact_jacobians, model.k_stance
+    c = stance_leg - 1
+    hung, k_stance = model.base_hung_from, model.k_stance
 
     def to_phys(y):
         yl = y if type(y) is list else y.tolist()
         angles, rates = yl[0:a], yl[a:2 * a]
-        f = positions([0.0, 0.0] + angles)
-        J = jacobians([0.0, 0.0] + angles)[w2 * c:w2 * c + w2]     # (J_c does not depend on the base)
-        vx = -sum(J[2 + i] * rates[i] for i in range(a))
-        vy = -sum(J[n + 2 + i] * rates[i] for i in range(a))
-        return [cx - f[2 * c], cy - f[2 * c + 1]] + angles, [vx, vy] + rates, yl[2 * a]
+        base, dbase = hung(c, pin, angles, rates)
+        return base + angles, dbase + rates, yl[2 * a]
 
     def from_phys(q, dq, w):   # lists
         return q[2:] + dq[2:] + [w]

@@ -21,16 +21,11 @@ def stance_state(model: BipedModel, joints, joint_rates, stance_leg=1, foot=(0.0
     ``coordinates[2:]``), whose stance foot is contact ``stance_leg``; returns physical (q, dq).
     """
     if not isinstance(model, BipedModel) and hasattr(model, "contact_position"):
-        # p_c(q) = (base_x, base_y) + f(angles): base = foot - p_c(q with the base at 0), and the foot at rest,
-        # J_c dq = 0 with J_c[:, :2] = I, gives the base's velocity -J_c[:, 2:] dq[2:]
         names = f"q[2:] of {model.name}: {', '.join(model.coordinates[2:])}"
         qs = as_state_vector(joints, f"joints ({names})", model.n - 2)
         dqs = as_state_vector(joint_rates, f"joint_rates (dq[2:] of {model.name})", model.n - 2)
         c = as_state_vector(foot, "foot", 2)
-        leg = check_leg(stance_leg)
-        q = np.concatenate([[0.0, 0.0], qs])
-        base = c - model.contact_position(q, leg)
-        dbase = -model.contact_jacobian(q, leg)[:, 2:] @ dqs
+        base, dbase = model.base_hung_from(check_leg(stance_leg) - 1, c.tolist(), qs.tolist(), dqs.tolist())
         return np.concatenate([base, qs]), np.concatenate([dbase, dqs])
     qs = as_state_vector(joints, "joints", 3)
     dqs = as_state_vector(joint_rates, "joint_rates", 3)

@@ -129,7 +129,8 @@ def test_find_gait_takes_a_described_robot():
 def test_rabbits_gait_by_newton_on_the_exact_jacobian():
     """bs.find_gait("rabbit"): RABBIT's gait under its law (the law's exact derivative), the period and step length
     of docs/models.md's harness (0.5890 s, 0.3914 m), 9 multipliers; the exact Jacobian at rtol 1e-10 is the one at
-    1e-12 to 1e-8, and the multipliers agree with central differences of the step map (at 1e-12, steps of 1e-3)
+    1e-12 to 5e-8 (its error at the gait's tolerance: a last bit moved in the start moves it between 5e-9 and
+    1.5e-8), and the multipliers agree with central differences of the step map (at 1e-12, steps of 1e-3)
     to 1e-6. A user's law (the same, without its ``jacobian``) gets central differences of the law and says so."""
     g = bs.find_gait("rabbit")
     assert g.law_derivative == "exact" and g.jacobian_method == G.EXACT and g.residual < 1e-9
@@ -141,7 +142,7 @@ def test_rabbits_gait_by_newton_on_the_exact_jacobian():
     fine = G.StepMap(smap.model, smap.controller, rtol=1e-12, atol=1e-12, **options)
     U, _ = fine.basis(g.z)
     A = fine.jacobian(g.z, U)
-    assert np.max(np.abs(A - g.jacobian)) < 1e-8
+    assert np.max(np.abs(A - g.jacobian)) < 5e-8
     fd = np.linalg.eigvals(fine.jacobian_fd(g.z, U, 1e-3))
     fd = fd[np.argsort(-np.abs(fd))]
     assert np.max(np.abs(fd - g.multipliers)) < 1e-6
