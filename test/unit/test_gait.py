@@ -58,8 +58,8 @@ def test_the_section_removes_the_flow_direction(walk_gait):
 def test_the_exact_multipliers_agree_with_finite_differences(walk_gait):
     """The walk scene's gait: the exact Jacobian (variational equations, saltation matrix of the impact) and
     central differences of the same step map (``jacobian_fd()``'s defaults: Richardson-extrapolated, the runs at
-    rtol 1e-12) give the same multipliers to 1e-6 (issue 32) and the same Jacobian to 2e-8 relative (a single
-    step of 1e-6 at the gait's rtol 1e-10 gives 2e-7: the step map's own error over the step)."""
+    rtol 1e-12) give the same multipliers to 1e-6 (issue 32) and the same Jacobian to 2e-8 relative, which a
+    single step of 1e-6 at the gait's rtol 1e-10 misses: the step map's own error over the step."""
     g = walk_gait
     assert g.jacobian_method == "exact" and g.jacobian.shape == (5, 5)
     assert np.array_equal(g.multipliers, g.eigenvalues) and g.period == g.step_period and g.fixed_point is g.z
@@ -78,7 +78,7 @@ def test_jacobian_fd_refuses_a_bad_step_or_tolerance_in_one_line(walk_gait):
 
 
 def test_the_compass_gaits_differences_agree_with_its_exact_jacobian():
-    """The compass gait's step map has a large third derivative (one step of 1e-3 errs by 2e-4 in its Jacobian):
+    """The compass gait's step map has a large third derivative (a single step of 1e-3 is far off):
     ``jacobian_fd()``'s defaults (Richardson from steps of 1e-3 and 5e-4) agree with the exact Jacobian to 1e-7
     relative and in the legs' three multipliers to 1e-6 (issue 32's check); the torso rotor's two are a Jordan
     block at 1, which rounding splits by the square root of an error in A, so they are checked to be at 1."""
