@@ -6,8 +6,10 @@ rows of each group measured in alternation:
 * the walk scene's gait: the 5 x 5 Jacobian of its step map at the fixed point, exact (``StepMap.jacobian``:
   ``run_jacobian`` on the engine's own accepted steps, engine/variational.py, the default; and the augmented
   system integrated on its own by scipy's solve_ivp, ``integration="solve_ivp"``) against central
-  differences (``StepMap.jacobian_fd``: 10 runs of the engine); the row "exact / central differences" is
-  issue 32's first ratio (its goal: <= 0.1);
+  differences (``StepMap.jacobian_fd`` with one step of 1e-6 at the gait's tolerance: 10 runs of the engine,
+  the cheapest differences); the row "exact / central differences" is issue 32's first ratio (its goal:
+  <= 0.1); and ``Gait.jacobian_fd()``'s defaults (Richardson-extrapolated from two steps, 20 runs at rtol
+  1e-12), the check of the exact Jacobian;
 * one step of the walk gait with its Jacobian (``run_jacobian``, S 10 x 6: the engine's run, then S on its
   steps) against one step without (the engine's run, ``StepMap.run``, on the compiled loop where it is
   built): the row "step with its Jacobian / step" is issue 32's second ratio (its goal: <= 3, n = 10);
@@ -74,7 +76,9 @@ def main():
     def exact(integration, terms=None):
         run_jacobian(smap.model, q, dq, 5.0, controller=smap.controller, end_at_event=True, integration=integration,
                      derivatives=terms, **kw)
-    m = alternating({"exact": lambda: smap.jacobian(z, U), "fd": lambda: smap.jacobian_fd(z, U),
+    m = alternating({"exact": lambda: smap.jacobian(z, U),
+                     "fd": lambda: smap.jacobian_fd(z, U, 1e-6, rtol=kw["rtol"], extrapolate=False),
+                     "fd_check": lambda: g.jacobian_fd(),
                      "exact_ivp": lambda: U.T @ run_jacobian(smap.model, q, dq, 5.0, controller=smap.controller,
                                                              end_at_event=True, integration=SOLVE_IVP,
                                                              **kw).jacobian[RELABELED_ROWS] @ U}, repeats)
@@ -83,6 +87,7 @@ def main():
     print(f"  exact on the engine's steps      {m['exact'] * 1e3:8.2f} ms")
     print(f"  exact by solve_ivp               {m['exact_ivp'] * 1e3:8.2f} ms")
     print(f"  central differences (10 runs)    {m['fd'] * 1e3:8.2f} ms")
+    print(f"  jacobian_fd() (20 runs, rtol 1e-12) {m['fd_check'] * 1e3:5.2f} ms")
     print(f"  exact / central differences      {m['exact'] / m['fd']:8.2f}     (solve_ivp's: "
           f"{m['exact_ivp'] / m['fd']:.2f}; issue 32's goal: <= 0.1)")
     s = alternating({"with": lambda: exact(STEPS), "engine": lambda: smap.run(z),

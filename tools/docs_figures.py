@@ -114,6 +114,66 @@ def gait():
     rabbit_multipliers()
 
 
+def gait_fd():
+    """docs/gait.md: how far ``Gait.jacobian_fd()`` is from the exact Jacobian on every shipped gait: with its
+    defaults, its Richardson extrapolation at the gait's rtol and at 1e-13, and a single central difference
+    D(eps) at the gait's rtol and at 1e-12, for eps = 1e-3 to 1e-6. The reference is the exact Jacobian at
+    rtol = atol = 1e-13; each cell: the largest difference of the Jacobian over its largest entry / of the
+    multipliers (each matched to its nearest, by the assignment of least cost; the compass gait's legs' three:
+    the torso rotor's Jordan pair at 1 is split by rounding) over the largest multiplier, and the wall time of
+    the differences."""
+    import numpy as np
+    from scipy.optimize import linear_sum_assignment
+
+    from biped_sim.analysis.gait import FD_RTOL, FD_STEP, StepMap, scene_gait
+    from biped_sim.config.controllers import no_torque
+    from biped_sim.config.scenes import available_scenes, load_scene
+
+    def multipliers_apart(fd, ref, skip_rotor):
+        cost = np.abs(fd[:, None] - ref[None, :])
+        rows, cols = linear_sum_assignment(cost)
+        keep = np.abs(ref[cols] - 1.0) > 1e-3 if skip_rotor else slice(None)
+        return np.max(cost[rows, cols][keep]) / np.max(np.abs(ref))
+
+    gaits = {}
+    for name in available_scenes():
+        scene = load_scene(name)
+        try:
+            gaits[name] = scene_gait(scene, controller=no_torque if scene.controller_params is None else None)
+        except ValueError as exc:       # no impacts, or no periodic step: no gait
+            print(f"  {name}: no gait: {str(exc).splitlines()[0]}")
+    rtol = {name: g.step_map.kw["rtol"] for name, g in gaits.items()}
+    if len(set(rtol.values())) != 1:
+        sys.exit(f"the shipped gaits' rtol differ ({rtol}): one column per gait's rtol is assumed")
+    gait_rtol = next(iter(rtol.values()))
+    richardson = f"Richardson, steps {FD_STEP:g} and {FD_STEP / 2:g}"
+    settings = [(f"**defaults**: {richardson}, rtol {FD_RTOL:g}", dict()),
+                (f"{richardson}, rtol {gait_rtol:g}", dict(rtol=gait_rtol)),
+                (f"{richardson}, rtol 1e-13", dict(rtol=1e-13))]
+    settings += [(f"D({eps:g}), rtol {tol:g}", dict(eps=eps, rtol=tol, extrapolate=False))
+                 for tol in (gait_rtol, 1e-12) for eps in (1e-3, 1e-4, 1e-5, 1e-6)]
+    cells = {label: [] for label, _ in settings}
+    for name, g in gaits.items():
+        smap = g.step_map
+        options = {k: v for k, v in smap.kw.items() if k not in ("rtol", "atol", "method", "max_events", "phases")}
+        U, _ = smap.basis(g.z)
+        A_ref = StepMap(smap.model, smap.controller, rtol=1e-13, atol=1e-13, method=smap.kw["method"],
+                        **options).jacobian(g.z, U)
+        l_ref = np.linalg.eigvals(A_ref)
+        for label, kw in settings:
+            t0 = time.perf_counter()
+            A = g.jacobian_fd(**kw)
+            wall = time.perf_counter() - t0
+            dA = np.max(np.abs(A - A_ref)) / np.max(np.abs(A_ref))
+            dl = multipliers_apart(np.linalg.eigvals(A), l_ref, name == "compass_gait")
+            cells[label].append(f"{dA:.1e} / {dl:.1e} ({wall * 1e3:.0f} ms)" if wall < 1
+                                else f"{dA:.1e} / {dl:.1e} ({wall:.1f} s)")
+            print(f"  {name}, {label}: {cells[label][-1]}", flush=True)
+    rows = ["| `jacobian_fd(...)` | " + " | ".join(gaits) + " |", "| --- |" + " --- |" * len(gaits)]
+    rows += [f"| {label} | " + " | ".join(cells[label]) + " |" for label, _ in settings]
+    splice(DOCS / "gait.md", "jacobian-fd", "\n".join(rows))
+
+
 def plot_multipliers(found, xlabel, title, png, legend):
     """docs/PNG: the |multipliers| of the gaits ``found`` ((parameter value, Gait) pairs) along the parameter."""
     import matplotlib
@@ -158,7 +218,8 @@ def rabbit_multipliers():
               f"|multipliers| {', '.join(f'{abs(x):.4g}' for x in g.multipliers[:3])}, ...")
 
 
-STEPS = {"accuracy": accuracy, "stability": stability, "pictures": pictures, "scaling": scaling, "gait": gait}
+STEPS = {"accuracy": accuracy, "stability": stability, "pictures": pictures, "scaling": scaling, "gait": gait,
+         "gait-fd": gait_fd}
 
 if __name__ == "__main__":
     OUT.mkdir(parents=True, exist_ok=True)

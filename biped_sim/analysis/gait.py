@@ -22,9 +22,11 @@ which for the three-link biped (R swaps q1 and q2) is z = [q_st, q_sw, q3, dq_st
 dP/dz is exact by default (``StepMap.jacobian``): the state transition matrix of the step through its
 touchdown (engine/sensitivity.py: the variational equations and the saltation matrix of the impact,
 then the relabeling), at the cost of about one run; ``StepMap.jacobian_fd`` takes central differences
-of the same map (2 x 5 runs), kept as a check. A described robot's exact Jacobian takes its generated
-derivatives (engine/model_derivatives.py) and its law's ``jacobian`` where the law has one, else central
-differences of the law alone (``Gait.law_derivative`` says which).
+of the same map, kept as a check: Richardson-extrapolated from steps of 1e-3 and 5e-4 along each direction
+of the section (4 x 5 runs for the three-link), the runs at rtol = atol no looser than 1e-12. A described
+robot's exact Jacobian takes its generated derivatives (engine/model_derivatives.py) and its law's
+``jacobian`` where the law has one, else central differences of the law alone (``Gait.law_derivative``
+says which).
 
 The fixed point is found by Newton's method on U^T (P(z) - z) = 0 with the exact Jacobian, each
 iterate projected back onto h = 0. Its derivative by a parameter theta (a controller's gain
@@ -43,6 +45,7 @@ import numpy as np
 from biped_sim.engine._gen.models.three_link import RELABELING as THREE_LINK_RELABELING
 from biped_sim.engine.hybrid import HybridSimulator
 from biped_sim.engine.model import B as THREE_LINK_B, BipedModel
+from biped_sim.engine.options import MIN_RTOL
 from biped_sim.engine.sensitivity import parameter_names, run_jacobian
 from biped_sim.engine.simulate import stance_state
 
@@ -121,6 +124,12 @@ def actuated_coordinates(model) -> list[int]:
     return [int(np.argmax(np.abs(B[:, j]))) for j in range(B.shape[1])]
 
 
+#: StepMap.jacobian_fd's defaults: the larger of its two steps along each column of U, and the loosest
+#: tolerance of its runs (both measured on every shipped gait, docs/gait.md)
+FD_STEP = 1e-3
+FD_RTOL = 1e-12
+
+
 @dataclass
 class Gait:
     z: np.ndarray                 # fixed point: post-impact [(R q)[2:], (R dq)[2:]] (section_point), 2(n - 2)
@@ -158,10 +167,12 @@ class Gait:
         """The Floquet multipliers: the eigenvalues of ``jacobian``, largest modulus first."""
         return self.eigenvalues
 
-    def jacobian_fd(self, eps=1e-6) -> np.ndarray:
-        """A by central differences of the same step map (a check of ``jacobian``)."""
+    def jacobian_fd(self, eps=FD_STEP, rtol=None, extrapolate=True) -> np.ndarray:
+        """A by central differences of the same step map (a check of ``jacobian``): ``StepMap.jacobian_fd``,
+        Richardson-extrapolated from steps of eps and eps / 2, its runs at rtol = atol = the gait's but no
+        looser than FD_RTOL (by default)."""
         U, _ = self.step_map.basis(self.z)
-        return self.step_map.jacobian_fd(self.z, U, eps)
+        return self.step_map.jacobian_fd(self.z, U, eps, rtol, extrapolate)
 
     def derivatives(self, parameters) -> "GaitDerivatives":
         """How the gait moves with ``parameters`` (``run_jacobian``'s names: a controller's gain
@@ -292,12 +303,32 @@ class StepMap:
         """A = U^T dP/dz U, exact (``full_jacobian``)."""
         return U.T @ self.full_jacobian(z)[0] @ U
 
-    def jacobian_fd(self, z, U, eps=1e-6):
-        """A = U^T dP/dz U by central differences of the map along U's columns (2 x 5 steps for the three-link)."""
-        cols = []
-        for i in range(U.shape[1]):
-            cols.append((self(z + eps * U[:, i]) - self(z - eps * U[:, i])) / (2 * eps))
-        return U.T @ np.column_stack(cols)
+    def jacobian_fd(self, z, U, eps=FD_STEP, rtol=None, extrapolate=True):
+        """A = U^T dP/dz U by central differences of the map along U's columns u_i (a check of ``jacobian``).
+
+        D(h) = (P(z + h u_i) - P(z - h u_i)) / (2 h) errs by c h^2 (the map's third derivative) plus the map's
+        own error over h (the integrator's tolerance, and a step more or less of its error control between the
+        two runs): a single h small enough for one gait's c is too small for another's noise. With
+        ``extrapolate`` (default), Richardson's (4 D(eps / 2) - D(eps)) / 3 removes the h^2 term, so eps can be
+        large (4 runs a column); without it, D(eps) (2 runs a column). The runs are at rtol = ``rtol`` and
+        atol = ``rtol``; by default the map's own, but no looser than FD_RTOL. docs/gait.md has the
+        measurements behind FD_STEP and FD_RTOL."""
+        if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not 0 < eps < math.inf:
+            raise ValueError(f"jacobian_fd: eps must be a positive number (the step along each column of U), "
+                             f"got {eps!r}")
+        if rtol is None:
+            tol = dict(rtol=min(self.kw["rtol"], FD_RTOL), atol=min(self.kw["atol"], FD_RTOL))
+        elif isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not MIN_RTOL <= rtol < 1:
+            raise ValueError(f"jacobian_fd: rtol must be a number in [{MIN_RTOL:.3g}, 1) (the rtol and atol of its "
+                             f"runs), got {rtol!r}")
+        else:
+            tol = dict(rtol=rtol, atol=rtol)
+
+        def central(h):
+            return np.column_stack([(self.run(z + h * u, **tol)[0] - self.run(z - h * u, **tol)[0]) / (2 * h)
+                                    for u in U.T])
+        dP = (4 * central(eps / 2) - central(eps)) / 3 if extrapolate else central(eps)
+        return U.T @ dP
 
 
 def find_gait(scene, controller=None, z0=None, slope=0.0, warmup_steps=2, tol=1e-9, max_iter=12,

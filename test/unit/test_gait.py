@@ -57,14 +57,41 @@ def test_the_section_removes_the_flow_direction(walk_gait):
 
 def test_the_exact_multipliers_agree_with_finite_differences(walk_gait):
     """The walk scene's gait: the exact Jacobian (variational equations, saltation matrix of the impact) and
-    central differences of the same step map give the same multipliers to 1e-6 (issue 32)."""
+    central differences of the same step map (``jacobian_fd()``'s defaults: Richardson-extrapolated, the runs at
+    rtol 1e-12) give the same multipliers to 1e-6 (issue 32) and the same Jacobian to 2e-8 relative, which a
+    single step of 1e-6 at the gait's rtol 1e-10 misses: the step map's own error over the step."""
     g = walk_gait
     assert g.jacobian_method == "exact" and g.jacobian.shape == (5, 5)
     assert np.array_equal(g.multipliers, g.eigenvalues) and g.period == g.step_period and g.fixed_point is g.z
     A_fd = g.jacobian_fd()
-    assert np.max(np.abs(g.jacobian - A_fd)) < 1e-6
+    assert np.max(np.abs(g.jacobian - A_fd)) < 2e-8 * np.max(np.abs(g.jacobian))
     fd = np.linalg.eigvals(A_fd)
     assert np.max(np.abs(np.sort_complex(g.multipliers) - np.sort_complex(fd))) < 1e-6
+
+
+def test_jacobian_fd_refuses_a_bad_step_or_tolerance_in_one_line(walk_gait):
+    for kw, words in ((dict(eps=0.0), "eps must be a positive number"), (dict(eps=float("nan")), "eps must be"),
+                      (dict(rtol=1e-20), r"rtol must be a number in \[2.22e-14, 1\)"), (dict(rtol="1e-12"), "rtol")):
+        with pytest.raises(ValueError, match=f"^jacobian_fd: {words}") as exc:
+            walk_gait.jacobian_fd(**kw)
+        assert "\n" not in str(exc.value)
+
+
+def test_the_compass_gaits_differences_agree_with_its_exact_jacobian():
+    """The compass gait's step map has a large third derivative (a single step of 1e-3 is far off):
+    ``jacobian_fd()``'s defaults (Richardson from steps of 1e-3 and 5e-4) agree with the exact Jacobian to 1e-7
+    relative and in the legs' three multipliers to 1e-6 (issue 32's check); the torso rotor's two are a Jordan
+    block at 1, which rounding splits by the square root of an error in A, so they are checked to be at 1."""
+    from biped_sim.analysis.gait import compass_gait
+    g = compass_gait()
+    A_fd = g.jacobian_fd()
+    assert np.max(np.abs(A_fd - g.jacobian)) < 1e-7 * np.max(np.abs(g.jacobian))
+    fd = np.linalg.eigvals(A_fd)
+    by_distance_to_1 = sorted(fd, key=lambda m: abs(m - 1.0))
+    assert np.allclose(by_distance_to_1[:2], 1.0, atol=1e-5)
+    legs = sorted(g.multipliers, key=lambda m: abs(m - 1.0))[2:]
+    for m in legs:
+        assert min(abs(f - m) for f in by_distance_to_1[2:]) < 1e-6 * np.max(np.abs(g.multipliers))
 
 
 def test_find_gait_takes_a_scene_name_or_a_model_and_controller(walk_gait):

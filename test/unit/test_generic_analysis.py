@@ -126,13 +126,17 @@ def test_find_gait_takes_a_described_robot():
     assert "(hip_1, hip_2, knee_1, knee_2, torso_pitch and their rates after impact, leg 1 the new stance leg)" in text
 
 
-def test_rabbits_gait_by_newton_on_the_exact_jacobian():
+@pytest.fixture(scope="module")
+def rabbit_gait():
+    return bs.find_gait("rabbit")
+
+
+def test_rabbits_gait_by_newton_on_the_exact_jacobian(rabbit_gait):
     """bs.find_gait("rabbit"): RABBIT's gait under its law (the law's exact derivative), the period and step length
     of docs/models.md's harness (0.5890 s, 0.3914 m), 9 multipliers; the exact Jacobian at rtol 1e-10 is the one at
     1e-12 to 5e-8 (its error at the gait's tolerance: a last bit moved in the start moves it between 5e-9 and
-    1.5e-8), and the multipliers agree with central differences of the step map (at 1e-12, steps of 1e-3)
-    to 1e-6. A user's law (the same, without its ``jacobian``) gets central differences of the law and says so."""
-    g = bs.find_gait("rabbit")
+    1.5e-8). A user's law (the same, without its ``jacobian``) gets central differences of the law and says so."""
+    g = rabbit_gait
     assert g.law_derivative == "exact" and g.jacobian_method == G.EXACT and g.residual < 1e-9
     assert abs(g.period - 0.5890) < 5e-5 and abs(g.step_length - 0.3914) < 5e-5
     assert g.multipliers.shape == (9,) and g.stable and abs(g.multipliers[0] - 0.6841) < 1e-4
@@ -143,15 +147,24 @@ def test_rabbits_gait_by_newton_on_the_exact_jacobian():
     U, _ = fine.basis(g.z)
     A = fine.jacobian(g.z, U)
     assert np.max(np.abs(A - g.jacobian)) < 5e-8
-    fd = np.linalg.eigvals(fine.jacobian_fd(g.z, U, 1e-3))
-    fd = fd[np.argsort(-np.abs(fd))]
-    assert np.max(np.abs(fd - g.multipliers)) < 1e-6
     ctrl = smap.controller
 
     def user_law(t, q, dq, stance_leg):
         return ctrl(t, q, dq, stance_leg)
     J, how = G.StepMap(smap.model, user_law, **options).full_jacobian(g.z)
     assert how == "central differences of the law" and J.shape == (10, 10)
+
+
+def test_rabbits_differences_agree_with_its_exact_jacobian(rabbit_gait):
+    """RABBIT's gait: ``jacobian_fd()``'s defaults (central differences of the same step map, Richardson from steps
+    of 1e-3 and 5e-4, the runs at rtol 1e-12) agree with the exact Jacobian to 1e-6 relative, in the Jacobian and
+    in the multipliers (issue 32's check), which a single step of 1e-6 at the gait's rtol 1e-10 misses by far: the
+    step map's own error over the step."""
+    g = rabbit_gait
+    A_fd = g.jacobian_fd()
+    assert np.max(np.abs(A_fd - g.jacobian)) < 1e-6 * np.max(np.abs(g.jacobian))
+    fd = np.linalg.eigvals(A_fd)
+    assert np.max(np.abs(np.sort_complex(fd) - np.sort_complex(g.multipliers))) < 1e-6 * abs(g.multipliers[0])
 
 
 def test_sweep_columns_are_sized_from_the_robot(tmp_path):
