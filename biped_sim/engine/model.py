@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass, fields, replace
+from math import cos, sin
 from typing import NamedTuple
 
 import numpy as np
@@ -211,6 +212,12 @@ class BipedModel:
         return StickFigure(q[:2].copy(), np.array(p[0:2]), np.array(p[2:4]),
                            np.array([q[0] + l_torso * math.sin(q[4]), q[1] + l_torso * math.cos(q[4])]))
 
+    def base_hung_from(self, contact_index0, pin, angles, rates):
+        """(hip, hip velocity) as lists: the hip (x, y) hung from foot ``contact_index0 + 1`` pinned at ``pin`` and at
+        rest, the joint angles q[2:] = ``angles`` and rates dq[2:] = ``rates`` (lists of floats;
+        ``GeneratedModel.base_hung_from``'s meaning): ``hip_hung_from`` with this model's l_leg."""
+        return hip_hung_from(self.parameters.l_leg, contact_index0, pin, angles, rates)
+
     def foot_jacobian(self, q, leg: int) -> np.ndarray:
         """J_i = d p_i / dq (2 x 5)."""
         leg = check_leg(leg)
@@ -253,6 +260,17 @@ class BipedModel:
     def com_position(self, q) -> np.ndarray:
         q = as_state_vector(q, "q")
         return np.array(gen.com_position(q.tolist(), self.k["com_position"]))
+
+
+def hip_hung_from(l_leg, leg_index0, pin, angles, rates):
+    """(hip, hip velocity) as lists: the hip (x, y) hung from foot i = ``leg_index0 + 1`` pinned at ``pin`` = c and at
+    rest, q[2:] = ``angles`` = (q1, q2, q3), dq[2:] = ``rates`` (lists of floats). From p_i(q) = c, with
+    p_i(q) = (x + l_leg sin(qi + q3), y + l_leg cos(qi + q3)): (x, y) = c - l_leg (sin(qi + q3), cos(qi + q3)), and
+    from J_i dq = 0: (dx, dy) = -l_leg (cos(qi + q3), -sin(qi + q3)) (dqi + dq3). The fixed-base mode's ``to_phys``
+    calls it at every evaluation: floats, no checks, l_leg given (``BipedModel.base_hung_from`` gives the model's)."""
+    th, dth = angles[leg_index0] + angles[2], rates[leg_index0] + rates[2]
+    sn, cs = sin(th), cos(th)
+    return [pin[0] - l_leg * sn, pin[1] - l_leg * cs], [-l_leg * cs * dth, l_leg * sn * dth]
 
 
 def check_leg(leg) -> int:

@@ -15,14 +15,12 @@ second solve nor a second controller call.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from biped_sim.engine import loop_rules as rules
 from biped_sim.engine.compiled import gen
 from biped_sim.engine.dynamics import flight_fast, stance_fixed_accel_fast
-from biped_sim.engine.model import BipedModel, real_vector, short_repr
+from biped_sim.engine.model import BipedModel, hip_hung_from, real_vector, short_repr
 from biped_sim.engine.results import ControllerError
 
 
@@ -210,17 +208,17 @@ def _generated_fixed_base_functions(model, stance_leg, pin, u_hold, control, sin
 
 
 def _fixed_base_functions(model, stance_leg, pin, u_hold, control, sink):
-    c = pin
-    l_leg = model.parameters.l_leg
-    i = stance_leg - 1
+    """The three-link's fixed-base stance on leg stance_leg: y = (q1, q2, q3) + (dq1, dq2, dq3) + [work]; the hip
+    hangs from the pin c (``engine.model.hip_hung_from``); the accelerations are the pinned chain's."""
+    l_leg, i = model.parameters.l_leg, stance_leg - 1
 
     def to_phys(y):
-        # the hip hangs from the pin: hip = c - l (sin th, cos th), th = q_stance + q3
         yl = y if type(y) is list else y.tolist()
-        th, w = yl[i] + yl[2], yl[3 + i] + yl[5]
-        sn, cs = math.sin(th), math.cos(th)
-        return ([c[0] - l_leg * sn, c[1] - l_leg * cs] + yl[0:3],
-                [-l_leg * cs * w, l_leg * sn * w] + yl[3:6], yl[6])
+        angles, rates = yl[0:3], yl[3:6]
+        hip, dhip = hip_hung_from(l_leg, i, pin, angles, rates)
+        hip += angles       # (in place, one list fewer: the two lists are this call's own)
+        dhip += rates
+        return hip, dhip, yl[6]
 
     def from_phys(q, dq, w):   # lists
         return q[2:] + dq[2:] + [w]

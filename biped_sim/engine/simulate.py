@@ -24,18 +24,12 @@ def stance_state(model: BipedModel, joints, joint_rates, stance_leg=1, foot=(0.0
         names = f"q[2:] of {model.name}: {', '.join(model.coordinates[2:])}"
         qs = as_state_vector(joints, f"joints ({names})", model.n - 2)
         dqs = as_state_vector(joint_rates, f"joint_rates (dq[2:] of {model.name})", model.n - 2)
-        c = as_state_vector(foot, "foot", 2)
-        base, dbase = model.base_hung_from(check_leg(stance_leg) - 1, c.tolist(), qs.tolist(), dqs.tolist())
-        return np.concatenate([base, qs]), np.concatenate([dbase, dqs])
-    qs = as_state_vector(joints, "joints", 3)
-    dqs = as_state_vector(joint_rates, "joint_rates", 3)
+    else:
+        qs = as_state_vector(joints, "joints", 3)
+        dqs = as_state_vector(joint_rates, "joint_rates", 3)
     c = as_state_vector(foot, "foot", 2)
-    l = model.parameters.l_leg  # noqa: E741 (the leg length, as docs/model.md names it)
-    i = check_leg(stance_leg) - 1
-    th, dth = qs[i] + qs[2], dqs[i] + dqs[2]
-    hip = c - l * np.array([math.sin(th), math.cos(th)])
-    dhip = -l * np.array([math.cos(th), -math.sin(th)]) * dth
-    return np.concatenate([hip, qs]), np.concatenate([dhip, dqs])
+    base, dbase = model.base_hung_from(check_leg(stance_leg) - 1, c.tolist(), qs.tolist(), dqs.tolist())
+    return np.concatenate([base, qs]), np.concatenate([dbase, dqs])
 
 
 #: what ``simulate`` does when the controller fails: "fail" (the run ends "failed", its result returned) or

@@ -1,5 +1,6 @@
 """The hybrid engine: conservation, agreement of methods, events, guards, resets and bad input."""
 import math
+import random
 
 import numpy as np
 import pytest
@@ -60,6 +61,35 @@ def test_fixed_and_floating_base_agree_along_a_trajectory(model, walker):
     np.testing.assert_allclose(a.q[-1], b.q[-1], atol=1e-9)
     np.testing.assert_allclose(a.dq[-1], b.dq[-1], atol=1e-9)
     assert b.stats["max_constraint_drift_position"] == 0.0  # the pinned chain cannot drift
+
+
+def test_the_hip_hung_from_the_pinned_foot_is_one_function():
+    """BipedModel.base_hung_from (GeneratedModel.base_hung_from's meaning): the hip that puts foot i at the pin c, at
+    rest. stance_state and the fixed-base mode's to_phys give its numbers to the last bit (200 random states a leg, a
+    0.9 m leg, a pin off the origin), and the three-link described as a robot hangs its base there too."""
+    from biped_sim.config.models import generated_model
+    from biped_sim.engine.modes import mode_functions
+
+    def bits(*vectors):
+        return [float(v).hex() for vector in vectors for v in vector]
+
+    model, described, rng = BipedModel(l_leg=0.9), generated_model("three_link"), random.Random(7)
+    for leg in (1, 2):
+        pin = [0.3, -0.05]
+        _, to_phys, _ = mode_functions(model, leg, "fixed", pin, [0.0, 0.0], None, lambda F, u: None)
+        for _ in range(200):
+            angles, rates = [rng.uniform(-7.0, 7.0) for _ in range(3)], [rng.uniform(-9.0, 9.0) for _ in range(3)]
+            hip, dhip = model.base_hung_from(leg - 1, pin, angles, rates)
+            q, dq = stance_state(model, angles, rates, leg, foot=pin)
+            assert bits(q, dq) == bits(hip, angles, dhip, rates)
+            for y in (angles + rates + [2.5], np.array(angles + rates + [2.5])):
+                q_y, dq_y, w = to_phys(y)
+                assert bits(q_y, dq_y, [w]) == bits(hip, angles, dhip, rates, [2.5])
+            assert np.max(np.abs(model.foot_position(q, leg) - pin)) < 1e-12
+            assert np.max(np.abs(model.foot_velocity(q, dq, leg))) < 1e-12
+        hip, dhip = BipedModel().base_hung_from(leg - 1, pin, angles, rates)
+        hip_d, dhip_d = described.base_hung_from(leg - 1, pin, angles, rates)
+        assert np.max(np.abs(np.subtract(hip + dhip, hip_d + dhip_d))) < 1e-12
 
 
 def test_walking_run_is_physical_and_continuous(model, walk10):
