@@ -23,16 +23,24 @@ from typing import NamedTuple
 #: flight) and the parameters; nonzero return: the law failed
 SIGNATURE = ("int law(double t, const double *q, const double *dq, int stance_leg, const double *params, "
              "double *u)")
+#: the C signature of a compiled law's optional derivative (:attr:`CompiledLaw.jacobian`): u as the law writes
+#: it and u_x = du/d(q, dq) (2 x 10, row-major: u_x[i * 10 + k] = du_i/dx_k with x = (q, dq)) at the same
+#: arguments; a torque at its limit has derivative 0 there. The exact Jacobians of a run on the engine's steps
+#: (engine/variational.py) use it in C; nonzero return: the law failed
+JACOBIAN_SIGNATURE = ("int law_jacobian(double t, const double *q, const double *dq, int stance_leg, "
+                      "const double *params, double *u, double *u_x)")
 #: the most parameters a compiled law takes
 MAX_PARAMETERS = 128
 
 
 class CompiledLaw(NamedTuple):
     """A compiled torque law: its name (in messages only), its parameters (a tuple of Python numbers,
-    copied into the loop as doubles) and the address of its C function (:data:`SIGNATURE`)."""
+    copied into the loop as doubles), the address of its C function (:data:`SIGNATURE`) and, optionally, the
+    address of its derivative (:data:`JACOBIAN_SIGNATURE`, on the same parameters; 0: none)."""
     name: str
     params: tuple
     address: int
+    jacobian: int = 0
 
 
 def c_prototype():
@@ -41,6 +49,13 @@ def c_prototype():
     import ctypes
     p = ctypes.POINTER(ctypes.c_double)
     return ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_double, p, p, ctypes.c_int, p, p)
+
+
+def c_jacobian_prototype():
+    """The ctypes function type of :data:`JACOBIAN_SIGNATURE` (a law's derivative, as :func:`c_prototype`)."""
+    import ctypes
+    p = ctypes.POINTER(ctypes.c_double)
+    return ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_double, p, p, ctypes.c_int, p, p, p)
 
 
 def offered_law(controller, model):
