@@ -36,6 +36,11 @@ setup(
                            # gcc may inline the small ones into the loop as it does a static function
                            extra_compile_args=["-O2", "-ffp-contract=off", "-fno-semantic-interposition"],
                            optional=True),
+                 # the variational terms of the three-link's DOP853 steps (biped_sim/engine/variational.py)
+                 Extension("biped_sim.engine._variational", ["biped_sim/engine/_variational.c"],
+                           depends=["biped_sim/engine/_gen/_kernels.h", "biped_sim/engine/_gen/_derivatives.h",
+                                    "biped_sim/engine/_stance_derivative.h"],
+                           extra_compile_args=["-O2", "-ffp-contract=off"], optional=True),
                  # the walking laws as compiled torque laws of the loop's hook (biped_sim/control/walking.py),
                  # and their derivatives
                  Extension("biped_sim.control._laws", ["biped_sim/control/_laws.c"],
