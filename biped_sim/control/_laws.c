@@ -171,16 +171,20 @@ walking_jacobian(double t, const double *q, const double *dq, int leg, const dou
     double det = HB[0][0] * HB[1][1] - HB[0][1] * HB[1][0];
     double inv[2][2] = {{HB[1][1] / det, -HB[0][1] / det}, {-HB[1][0] / det, HB[0][0] / det}};
     double u_star[2] = {inv[0][0] * rhs[0] + inv[0][1] * rhs[1], inv[1][0] * rhs[0] + inv[1][1] * rhs[1]};
-    double acc[SD_NK], dsq[SD_NK][SD_N], dsv[SD_NK][SD_N];
+    double acc[SD_NK], C[SD_NK][SD_NX];
     for (int i = 0; i < SD_NK; i++) acc[i] = S.s0[i] + (S.su[i][0] * u_star[0] + S.su[i][1] * u_star[1]);
-    stance_derivative(&S, acc, dsq, dsv);
+    stance_derivative_rhs(&S, acc, C);
     double d3f = 6.0 * c[CLEARANCE] / c[A2];   /* the third derivative of the swing target */
     double Phi_x[2][SD_NX];
-    for (int i = 0; i < 2; i++)
-        for (int k2 = 0; k2 < SD_N; k2++) {
-            Phi_x[i][k2] = H[i][0] * dsq[2][k2] + H[i][1] * dsq[3][k2] + H[i][2] * dsq[4][k2];
-            Phi_x[i][SD_N + k2] = H[i][0] * dsv[2][k2] + H[i][1] * dsv[3][k2] + H[i][2] * dsv[4][k2];
+    for (int i = 0; i < 2; i++) {   /* H ds_r/dx = (K^-T g)^T C with g = H on the joint rows (2 solves, not 10) */
+        double g[SD_NK] = {0.0, 0.0, H[i][0], H[i][1], H[i][2], 0.0, 0.0}, wt[SD_NK];
+        stance_solve_transposed(&S, g, wt);
+        for (int k2 = 0; k2 < SD_NX; k2++) {
+            double v = 0.0;
+            for (int r = 0; r < SD_NK; r++) v += wt[r] * C[r][k2];
+            Phi_x[i][k2] = v;
         }
+    }
     /* row 2: H2 depends on phi through f', the bias -f'' dphi^2 on phi and dphi; kp y + kd dy (y2 through f) */
     double by_phi = -ddf * (acc[s] + acc[4]) - d3f * dphi * dphi - kp * df - kd * ddf * dphi;
     double by_rate = -2.0 * ddf * dphi - kd * df;

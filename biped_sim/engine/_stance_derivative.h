@@ -60,22 +60,31 @@ typedef struct {
     double jb[2 + 4 * SD_N];            /* Jdot_c dq (2), d(Jdot_c dq)_a/dq_k at 2 + [a][k], /ddq_k at 12 + [a][k] */
 } StanceSystem;
 
-/* K x = b solved in place by the factors, for one right-hand side b (SD_NK values `stride` apart) */
+/* K X = B solved in place by the factors for `ncols` right-hand sides at once (B: SD_NK rows of `ncols` values,
+ * row-major; ncols <= SD_NX): the columns innermost, so that their substitutions run side by side rather than
+ * one dependent chain after another */
 static inline void
-stance_solve(const StanceSystem *S, double *b, int stride)
+stance_solve(const StanceSystem *S, double *B, int ncols)
 {
-    double y[SD_NK];
+    double y[SD_NK][SD_NX];
     for (int i = 0; i < SD_NK; i++) {
-        double v = b[S->piv[i] * stride];
-        for (int j = 0; j < i; j++) v -= S->LU[i][j] * y[j];
-        y[i] = v;
+        const double *row = B + S->piv[i] * ncols;
+        for (int c = 0; c < ncols; c++) y[i][c] = row[c];
+        for (int j = 0; j < i; j++) {
+            const double l = S->LU[i][j];
+            for (int c = 0; c < ncols; c++) y[i][c] -= l * y[j][c];
+        }
     }
     for (int i = SD_NK - 1; i >= 0; i--) {
-        double v = y[i];
-        for (int j = i + 1; j < SD_NK; j++) v -= S->LU[i][j] * y[j];
-        y[i] = v / S->LU[i][i];
+        for (int j = i + 1; j < SD_NK; j++) {
+            const double u = S->LU[i][j];
+            for (int c = 0; c < ncols; c++) y[i][c] -= u * y[j][c];
+        }
+        const double d = S->LU[i][i];
+        for (int c = 0; c < ncols; c++) y[i][c] /= d;
     }
-    for (int i = 0; i < SD_NK; i++) b[i * stride] = y[i];
+    for (int i = 0; i < SD_NK; i++)
+        for (int c = 0; c < ncols; c++) B[i * ncols + c] = y[i][c];
 }
 
 /* K, its factors, s0 and s_u at (q, dq) on foot `leg`, and the derivative terms; -1 where K is singular */
@@ -139,7 +148,7 @@ stance_system(const StanceConstants *c, const double *q, const double *dq, int l
         }
     }
     for (int i = 0; i < SD_NK; i++) S->piv[i] = perm[i];
-    for (int m = 0; m < 1 + SD_M; m++) stance_solve(S, &r[0][m], 1 + SD_M);
+    stance_solve(S, &r[0][0], 1 + SD_M);
     for (int i = 0; i < SD_NK; i++) {
         S->s0[i] = r[i][0];
         S->su[i][0] = r[i][1];
@@ -148,15 +157,33 @@ stance_system(const StanceConstants *c, const double *q, const double *dq, int l
     return 0;
 }
 
-/* ds/dq (dsq [i][k]) and ds/ddq (dsv [i][k]), all SD_NK rows (accelerations, then forces), at a solution s of
- * the system's K: the 10 columns solved with the one factorisation */
+/* w = K^-T g (K^T = U^T L^T P): for a few combinations g^T ds/dx of the derivative's rows, one solve each
+ * instead of one per column (g^T K^-1 C = (K^-T g)^T C) */
 static inline void
-stance_derivative(const StanceSystem *S, const double *s, double dsq[SD_NK][SD_N], double dsv[SD_NK][SD_N])
+stance_solve_transposed(const StanceSystem *S, const double *g, double *w)
 {
-    double col[SD_NK][2 * SD_N];
+    double z[SD_NK];
+    for (int i = 0; i < SD_NK; i++) {       /* U^T z = g */
+        double v = g[i];
+        for (int j = 0; j < i; j++) v -= S->LU[j][i] * z[j];
+        z[i] = v / S->LU[i][i];
+    }
+    for (int i = SD_NK - 1; i >= 0; i--) {  /* L^T v = z, then w = P^T v */
+        double v = z[i];
+        for (int j = i + 1; j < SD_NK; j++) v -= S->LU[j][i] * z[j];
+        z[i] = v;
+    }
+    for (int i = 0; i < SD_NK; i++) w[S->piv[i]] = z[i];
+}
+
+/* the right-hand sides of the derivative columns at a solution s of the system's K, C (SD_NK x 2 SD_N):
+ * C[:, k] = dr/dq_k - (dK/dq_k) s, C[:, SD_N + k] = dr/ddq_k, so [ds/dq, ds/ddq] = K^-1 C */
+static inline void
+stance_derivative_rhs(const StanceSystem *S, const double *s, double col[SD_NK][2 * SD_N])
+{
     for (int k = 0; k < SD_N; k++) {
         const double *dD = S->dD + k * SD_N * SD_N, *dJ = S->dJ + k * 2 * SD_N;
-        for (int i = 0; i < SD_N; i++) {     /* dr/dq_k - (dK/dq_k) s: -dh_i/dq_k - dD_i. ddq + dJ_.i^T F */
+        for (int i = 0; i < SD_N; i++) {     /* -dh_i/dq_k - dD_i. ddq + dJ_.i^T F */
             double v = 0.0;
             for (int j = 0; j < SD_N; j++) v += dD[i * SD_N + j] * s[j];
             v -= dJ[i] * s[SD_N] + dJ[SD_N + i] * s[SD_N + 1];
@@ -170,7 +197,16 @@ stance_derivative(const StanceSystem *S, const double *s, double dsq[SD_NK][SD_N
             col[SD_N + a][SD_N + k] = -S->jb[2 + 2 * SD_N + a * SD_N + k];
         }
     }
-    for (int k = 0; k < 2 * SD_N; k++) stance_solve(S, &col[0][k], 2 * SD_N);
+}
+
+/* ds/dq (dsq [i][k]) and ds/ddq (dsv [i][k]), all SD_NK rows (accelerations, then forces), at a solution s of
+ * the system's K: the 10 columns solved with the one factorisation */
+static inline void
+stance_derivative(const StanceSystem *S, const double *s, double dsq[SD_NK][SD_N], double dsv[SD_NK][SD_N])
+{
+    double col[SD_NK][2 * SD_N];
+    stance_derivative_rhs(S, s, col);
+    stance_solve(S, &col[0][0], 2 * SD_N);
     for (int i = 0; i < SD_NK; i++)
         for (int k = 0; k < SD_N; k++) {
             dsq[i][k] = col[i][k];

@@ -70,12 +70,14 @@ steps(const StanceConstants *k, int leg, const double *a, const double *b, const
             /* Psi_i = A M_i: the upper rows of A are [0 I], so its upper rows are M_i's lower ones */
             for (int r = 0; r < SD_N; r++)
                 for (int col = 0; col < SD_NX; col++) Psi[i][r][col] = Mi[SD_N + r][col];
-            for (int r = 0; r < SD_N; r++)
-                for (int col = 0; col < SD_NX; col++) {
-                    double v = 0.0;
-                    for (int l = 0; l < SD_NX; l++) v += A[r][l] * Mi[l][col];
-                    Psi[i][SD_N + r][col] = v;
+            for (int r = 0; r < SD_N; r++) {
+                double *out = Psi[i][SD_N + r];
+                for (int col = 0; col < SD_NX; col++) out[col] = 0.0;
+                for (int l = 0; l < SD_NX; l++) {
+                    const double arl = A[r][l];
+                    for (int col = 0; col < SD_NX; col++) out[col] += arl * Mi[l][col];
                 }
+            }
         }
         double *x1 = X1 + p * SD_NX, *phi = Phi + p * SD_NX * SD_NX;
         double sx[SD_NX] = {0.0}, sp[SD_NX][SD_NX] = {{0.0}};
