@@ -119,12 +119,30 @@ doubles(PyObject *seq, double *out, Py_ssize_t n_max, Py_ssize_t *n, const char 
     return 0;
 }
 
+/* a law's derivative from (address of its law_jacobian, its parameters, its name) */
+static int
+law_from(PyObject *spec, LawJacobian *law, double *params, Py_ssize_t *n_params, const char **name)
+{
+    PyObject *address, *values, *label;
+    if (!PyArg_ParseTuple(spec, "OOO:a law (address of its jacobian, parameters, name)", &address, &values, &label))
+        return -1;
+    void *fn = PyLong_AsVoidPtr(address);
+    if (fn == NULL) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "a law's jacobian address must not be 0");
+        return -1;
+    }
+    if (doubles(values, params, MAX_PARAMETERS, n_params, "a compiled law's parameters") < 0) return -1;
+    *name = PyUnicode_AsUTF8(label);
+    if (*name == NULL) return -1;
+    *law = (LawJacobian)fn;
+    return 0;
+}
+
 static int
 check(const Py_buffer *buf, Py_ssize_t n, const char *what)
 {
     if (buf->len != n * (Py_ssize_t)sizeof(double)) {
-        PyErr_Format(PyExc_ValueError, "steps_transition(): %s must hold %zd float64 values, got %zd bytes", what, n,
-                     buf->len);
+        PyErr_Format(PyExc_ValueError, "%s must hold %zd float64 values, got %zd bytes", what, n, buf->len);
         return -1;
     }
     return 0;
@@ -161,21 +179,7 @@ steps_transition(PyObject *self, PyObject *args)
         || check(&bc, STAGES, "c") || check(&bx, N * SD_NX, "X0") || check(&bh, N, "H") || check(&bu, SD_M, "u_held")
         || check(&bx1, N * SD_NX, "X1") || check(&bphi, N * SD_NX * SD_NX, "Phi"))
         goto done;
-    if (law_spec != Py_None) {
-        PyObject *address, *values, *label;
-        if (!PyArg_ParseTuple(law_spec, "OOO:a law (address of its jacobian, parameters, name)", &address, &values,
-                              &label))
-            goto done;
-        void *fn = PyLong_AsVoidPtr(address);
-        if (fn == NULL) {
-            if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "a law's jacobian address must not be 0");
-            goto done;
-        }
-        if (doubles(values, params, MAX_PARAMETERS, &n_params, "a compiled law's parameters") < 0) goto done;
-        name = PyUnicode_AsUTF8(label);
-        if (name == NULL) goto done;
-        law = (LawJacobian)fn;
-    }
+    if (law_spec != Py_None && law_from(law_spec, &law, params, &n_params, &name) < 0) goto done;
     StanceConstants k;
     stance_constants((const double *)bp.buf, &k);
     if (steps(&k, leg, (const double *)ba.buf, (const double *)bb.buf, (const double *)bc.buf, N,
@@ -190,8 +194,43 @@ done:
     return result;
 }
 
+PyDoc_STRVAR(law_jacobian_doc,
+"law_jacobian(law, t, x, leg, u, u_x)\n\n"
+"A compiled law's derivative at one point: law (address of its law_jacobian, its parameters, its name), the\n"
+"state x (10) at time t on stance leg; u (2) and u_x (2 x 10) written. Arrays: C-contiguous float64.");
+
+static PyObject *
+law_jacobian(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *spec, *result = NULL;
+    double t, params[MAX_PARAMETERS];
+    int leg;
+    Py_ssize_t n_params = 0;
+    LawJacobian law = NULL;
+    const char *name = "";
+    Py_buffer bx = {0}, bu = {0}, bux = {0};
+    if (!PyArg_ParseTuple(args, "Ody*iw*w*:law_jacobian", &spec, &t, &bx, &leg, &bu, &bux)) return NULL;
+    if (law_from(spec, &law, params, &n_params, &name) < 0 || check(&bx, SD_NX, "x") || check(&bu, SD_M, "u")
+        || check(&bux, SD_M * SD_NX, "u_x"))
+        goto done;
+    const double *x = (const double *)bx.buf;
+    int code = law(t, x, x + SD_N, leg, params, (double *)bu.buf, (double *)bux.buf);
+    if (code != 0) {
+        char when[32];
+        snprintf(when, sizeof when, "%.17g", t);
+        PyErr_Format(PyExc_ValueError, "the torque law %s's derivative returned %d at t=%s s", name, code, when);
+        goto done;
+    }
+    result = Py_NewRef(Py_None);
+done:
+    PyBuffer_Release(&bx); PyBuffer_Release(&bu); PyBuffer_Release(&bux);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"steps_transition", steps_transition, METH_VARARGS, steps_transition_doc},
+    {"law_jacobian", law_jacobian, METH_VARARGS, law_jacobian_doc},
     {NULL, NULL, 0, NULL},
 };
 

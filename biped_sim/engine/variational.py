@@ -240,6 +240,13 @@ def steps_transition_c(deriv, law, t0, X0, H, leg):
     return X1, Phi
 
 
+def law_jacobian_c(law, t, x, leg):
+    """(u (2), u_x (2, 10)) of a compiled law's derivative (``compiled_law``'s) at one state x (10)."""
+    u, ux = np.empty(2), np.empty((2, 10))
+    _C.law_jacobian(law, float(t), np.ascontiguousarray(x, float), int(leg), u, ux)
+    return u, ux
+
+
 def eligible(sim, method, control_period, stance_leg, events, options):
     """Whether ``run_jacobian``'s run takes this path: DOP853 on the floating base, stance phases (no flight)
     joined by touchdowns, continuous feedback or a constant torque."""
@@ -262,6 +269,8 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
     Su = np.zeros((lin.derivatives.B.shape[1], S.shape[1]))
     Wp = Sp if integ.parameters else None
     law = compiled_law(lin.derivatives, integ.controller, integ.u_held, integ.parameters, integ.gains)
+    if law is not None and law[0] != "held":
+        integ.compiled_law = law        # (the events' flows take the law's derivative in C too)
     leg, t_start = int(legs[0]), float(t[0])
     stops = [(te, kind, lg) for te, kind, lg in events] + ([] if end_at_event else [(t_end, None, None)])
     x = X[0]
