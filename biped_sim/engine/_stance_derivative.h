@@ -53,6 +53,7 @@ stance_constants(const double *p, StanceConstants *c)
 typedef struct {
     double LU[SD_NK][SD_NK];    /* P K = L U: L below the diagonal (unit diagonal), U on and above */
     int piv[SD_NK];             /* row i of P K is row piv[i] of K */
+    double inv_diag[SD_NK];     /* 1 / U_ii (a multiplication in the substitutions rather than a division) */
     double s0[SD_NK], su[SD_NK][SD_M];
     double dD[SD_N * SD_N * SD_N];      /* dD_ij/dq_k at [k][i][j] */
     double dh[2 * SD_N * SD_N];         /* dh_i/dq_k at [i][k], then dh_i/ddq_k at 25 + [i][k] */
@@ -80,8 +81,8 @@ stance_solve(const StanceSystem *S, double *B, int ncols)
             const double u = S->LU[i][j];
             for (int c = 0; c < ncols; c++) y[i][c] -= u * y[j][c];
         }
-        const double d = S->LU[i][i];
-        for (int c = 0; c < ncols; c++) y[i][c] /= d;
+        const double d = S->inv_diag[i];
+        for (int c = 0; c < ncols; c++) y[i][c] *= d;
     }
     for (int i = 0; i < SD_NK; i++)
         for (int c = 0; c < ncols; c++) B[i * ncols + c] = y[i][c];
@@ -141,6 +142,7 @@ stance_system(const StanceConstants *c, const double *q, const double *dq, int l
             int t = perm[k]; perm[k] = perm[p]; perm[p] = t;
         }
         double inv = 1.0 / A[k][k];
+        S->inv_diag[k] = inv;
         for (int i = k + 1; i < SD_NK; i++) {
             double l = A[i][k] * inv;
             A[i][k] = l;
@@ -166,7 +168,7 @@ stance_solve_transposed(const StanceSystem *S, const double *g, double *w)
     for (int i = 0; i < SD_NK; i++) {       /* U^T z = g */
         double v = g[i];
         for (int j = 0; j < i; j++) v -= S->LU[j][i] * z[j];
-        z[i] = v / S->LU[i][i];
+        z[i] = v * S->inv_diag[i];
     }
     for (int i = SD_NK - 1; i >= 0; i--) {  /* L^T v = z, then w = P^T v */
         double v = z[i];
