@@ -14,6 +14,10 @@ The signature is plain scalars and ``double`` pointers, so a function made by ct
 (:func:`c_prototype`) or by numba's ``@cfunc`` (its ``.address``) plugs in as a C extension's does. A
 nonzero return means the law failed: the run ends "failed" with a message naming the law, the code
 and the time.
+
+A compiled law may offer its derivative too (:data:`JACOBIAN_SIGNATURE`, ``CompiledLaw.jacobian``): the
+loop never calls it; the exact Jacobians of a run on the engine's steps (engine/variational.py) take u and
+u_x from it in C, and differentiate a law without it in Python.
 """
 from __future__ import annotations
 
@@ -23,10 +27,10 @@ from typing import NamedTuple
 #: flight) and the parameters; nonzero return: the law failed
 SIGNATURE = ("int law(double t, const double *q, const double *dq, int stance_leg, const double *params, "
              "double *u)")
-#: the C signature of a compiled law's optional derivative (:attr:`CompiledLaw.jacobian`): u as the law writes
-#: it and u_x = du/d(q, dq) (2 x 10, row-major: u_x[i * 10 + k] = du_i/dx_k with x = (q, dq)) at the same
-#: arguments; a torque at its limit has derivative 0 there. The exact Jacobians of a run on the engine's steps
-#: (engine/variational.py) use it in C; nonzero return: the law failed
+#: the C signature of a compiled law's optional derivative (:attr:`CompiledLaw.jacobian`): the law's u (to
+#: rounding) and u_x = du/d(q, dq) (2 x 10, row-major: u_x[i * 10 + k] = du_i/dx_k with x = (q, dq)) at the
+#: same arguments; a torque at its limit has derivative 0 there. Nonzero return: the derivative failed (the
+#: Jacobian's run raises ValueError naming the law, the code and the time)
 JACOBIAN_SIGNATURE = ("int law_jacobian(double t, const double *q, const double *dq, int stance_leg, "
                       "const double *params, double *u, double *u_x)")
 #: the most parameters a compiled law takes
