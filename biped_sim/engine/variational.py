@@ -234,8 +234,7 @@ def steps_transition_c(deriv, law, t0, X0, H, leg):
     X1, Phi = np.empty((N, 10)), np.empty((N, 10, 10))
     held = law[0] == "held"
     _C.steps_transition(leg, np.asarray(deriv.model.p, float), a, b, c, np.ascontiguousarray(t0, float),
-                        np.ascontiguousarray(X0, float),
-                        np.ascontiguousarray(H, float), None if held else law,
+                        np.ascontiguousarray(X0, float), np.ascontiguousarray(H, float), None if held else law,
                         law[1] if held else np.zeros(2), X1, Phi)
     return X1, Phi
 
