@@ -18,13 +18,15 @@ venv-dev: $(DEV_STAMP)
 # from source: `biped-sim simulate --duration 0.1` took 0.86 s instead of 0.48 s (docs/performance.md).
 # --reinstall-package: uv would keep an installed editable biped_sim and not rebuild the compiled
 # twin (biped_sim/engine/_gen/_cmodel.c), the compiled loop (biped_sim/engine/_core.c), the compiled walking
-# laws (biped_sim/control/_laws.c), the shipped robots' kernels (biped_sim/engine/_gen/models/_kernels_*.c and the
+# laws (biped_sim/control/_laws.c), the variational steps (biped_sim/engine/_variational.c), the shipped
+# robots' kernels (biped_sim/engine/_gen/models/_kernels_*.c and the
 # runtime they include, biped_sim/engine/_kernels_runtime.h) or the
 # recorder's frame buffer (biped_sim/recording/_frames.c) after a change.
 $(STAMP): requirements.txt setup.py setup.cfg biped_sim/engine/_gen/_cmodel.c biped_sim/engine/_core.c \
           biped_sim/engine/_gen/_kernels.h biped_sim/recording/_frames.c biped_sim/control/_laws.c \
           biped_sim/engine/_loop_rules.c biped_sim/engine/_loop_state.h biped_sim/engine/_kernel_table.h \
           biped_sim/engine/_loop_table.h biped_sim/engine/_kernels_runtime.h \
+          biped_sim/engine/_gen/_derivatives.h biped_sim/engine/_stance_derivative.h biped_sim/engine/_variational.c \
           $(wildcard biped_sim/engine/_gen/models/_kernels_*.c)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	@if $(PY) -m pip install -q uv==0.13.8 >/dev/null 2>&1; then \

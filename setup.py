@@ -36,9 +36,17 @@ setup(
                            # gcc may inline the small ones into the loop as it does a static function
                            extra_compile_args=["-O2", "-ffp-contract=off", "-fno-semantic-interposition"],
                            optional=True),
-                 # the walking laws as compiled torque laws of the loop's hook (biped_sim/control/walking.py)
+                 # the variational terms of the three-link's DOP853 steps (biped_sim/engine/variational.py)
+                 # (-O3: gcc vectorises its small matrix loops, 0.9 -> 0.6 us a stage; no reassociation, no contraction)
+                 Extension("biped_sim.engine._variational", ["biped_sim/engine/_variational.c"],
+                           depends=["biped_sim/engine/_gen/_kernels.h", "biped_sim/engine/_gen/_derivatives.h",
+                                    "biped_sim/engine/_stance_derivative.h"],
+                           extra_compile_args=["-O3", "-ffp-contract=off"], optional=True),
+                 # the walking laws as compiled torque laws of the loop's hook (biped_sim/control/walking.py),
+                 # and their derivatives
                  Extension("biped_sim.control._laws", ["biped_sim/control/_laws.c"],
-                           depends=["biped_sim/engine/_gen/_kernels.h"],
+                           depends=["biped_sim/engine/_gen/_kernels.h", "biped_sim/engine/_gen/_derivatives.h",
+                                    "biped_sim/engine/_stance_derivative.h"],
                            extra_compile_args=["-O2", "-ffp-contract=off"], optional=True),
                  # the recorder's frame buffer (biped_sim/recording/frames.py: its Python twin is the fallback)
                  Extension("biped_sim.recording._frames", ["biped_sim/recording/_frames.c"],

@@ -18,7 +18,10 @@ rows of each group measured in alternation:
 * the same step's exact Jacobian from the three-link's closed forms (``derivatives(BipedModel)``, the
   default) against the three_link description's generated terms (``run_jacobian(..., derivatives=...)``,
   config/codegen.py's module run in Python), on the engine's steps and by solve_ivp: what the derivatives
-  of any described robot cost against hand-kept closed forms of the same robot.
+  of any described robot cost against hand-kept closed forms of the same robot;
+* the variational terms of that step's stance phase alone (its accepted steps as one stack, 12 stages each):
+  in C (``variational.steps_transition_c``, engine/_variational.c: under the walking law's compiled derivative
+  and under a held torque) against numpy (``variational.steps_transition``), per stage.
 """
 from __future__ import annotations
 
@@ -29,6 +32,7 @@ import numpy as np
 
 from biped_sim.analysis.gait import RELABELED_ROWS, scene_gait
 from biped_sim.config.models import generated_model
+from biped_sim.engine import variational
 from biped_sim.engine.compiled import IMPLEMENTATION
 from biped_sim.engine.dynamics import stance_floating_fast
 from biped_sim.engine.model_derivatives import derivatives
@@ -106,10 +110,31 @@ def main():
     print(f"  closed forms, solve_ivp          {d['closed_ivp'] * 1e3:8.2f} ms")
     print(f"  generated terms, solve_ivp       {d['generated_ivp'] * 1e3:8.2f} ms   "
           f"({d['generated_ivp'] / d['closed_ivp']:.2f} x)")
+    r = run_jacobian(smap.model, q, dq, 5.0, controller=smap.controller, end_at_event=True, **kw)
+    res = r.simulator.result()
+    before = res.t < r.t        # the stance phase's accepted steps, the last one to the touchdown
+    t0, X0 = res.t[before], np.hstack([res.q, res.dq])[before]
+    H = np.append(t0[1:], r.t) - t0
+    t0, X0, H = t0[H > 0], X0[H > 0], H[H > 0]
+    deriv = derivatives(smap.model)
+    law = variational.compiled_law(deriv, smap.controller, None)
+    held = ("held", np.zeros(2))
+    fns = {"numpy": lambda: variational.steps_transition(deriv, smap.controller, None, t0, X0, H, 1)}
+    if law is not None:
+        fns["c"] = lambda: variational.steps_transition_c(deriv, law, t0, X0, H, 1)
+        fns["c_held"] = lambda: variational.steps_transition_c(deriv, held, t0, X0, H, 1)
+    v = dict(dict.fromkeys(("c", "c_held"), float("nan")), **alternating(fns, repeats))
+    stages = 12 * len(H)
+    print(f"the variational terms of the step's {len(H)} steps ({stages} stages), per stage"
+          + ("" if law is not None else f" (no C: {variational.WHY_NOT_C})") + ":")
+    print(f"  in C, the walking law's derivative {v['c'] / stages * 1e6:6.2f} us")
+    print(f"  in C, a held torque                {v['c_held'] / stages * 1e6:6.2f} us")
+    print(f"  numpy stacks                       {v['numpy'] / stages * 1e6:6.2f} us")
     return dict(exact_s=m["exact"], exact_solve_ivp_s=m["exact_ivp"], fd_s=m["fd"], step_with_jacobian_s=s["with"],
                 engine_step_s=s["engine"], python_step_s=s["python"], closed_forms_step_jacobian_s=d["closed"],
                 generated_step_jacobian_s=d["generated"], closed_forms_solve_ivp_s=d["closed_ivp"],
-                generated_solve_ivp_s=d["generated_ivp"])
+                generated_solve_ivp_s=d["generated_ivp"], c_stage_s=v["c"] / stages,
+                c_held_stage_s=v["c_held"] / stages, numpy_stage_s=v["numpy"] / stages)
 
 
 if __name__ == "__main__":

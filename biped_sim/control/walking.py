@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from biped_sim.engine.compiled import _compiled_twin
+from biped_sim.engine.compiled import _compiled_twin, derivatives_digest
 from biped_sim.engine.dynamics import stance_joint_affine_fast
 from biped_sim.engine.model import BipedModel
 from biped_sim.engine.torque_hook import CompiledLaw
@@ -77,17 +77,19 @@ class WalkingController:
     def compiled_law(self, model):
         """This law as the engine's torque-law hook takes it (a
         :class:`~biped_sim.engine.torque_hook.CompiledLaw`: control/_laws.c's ``walking``, the parameters of
-        ``_law_parameters`` and then the constants of ``stance_terms_1``) when it gives this controller's
-        own torques bit for bit on ``model`` (the simulator's); else None, and the loop calls the controller
-        back: a subclass or an instance that replaces a method the law runs, a controller on a model whose
-        closed form (``stance_terms_1``: the mass matrix and bias of ``stance_joint_affine_fast``) is not
+        ``_law_parameters``, then its model's parameters p and the constants of ``stance_terms_1``; with the
+        address of ``walking_jacobian``, the twin of ``jacobian_batch``, where that is its own) when it gives
+        this controller's own torques bit for bit on ``model`` (the simulator's); else None, and the loop calls
+        the controller back: a subclass or an instance that replaces a method the law runs, a controller on a
+        model whose closed form (``stance_terms_1``: the mass matrix and bias of ``stance_joint_affine_fast``) is not
         ``model``'s, or the compiled laws not built."""
         if _laws is None or not _runs_as(self, WalkingController,
                                          ("__call__", "outputs", "swing_target", "_law_parameters")):
             return None
         if self.model is not model and self.model.k["stance_terms_1"] != model.k["stance_terms_1"]:
             return None
-        return CompiledLaw("walking", self._law_parameters() + self.model.k["stance_terms_1"], _laws.WALKING_LAW)
+        return CompiledLaw("walking", self._law_parameters() + tuple(self.model.p) + self.model.k["stance_terms_1"],
+                           _laws.WALKING_LAW, _jacobian_address(self, WalkingController, _laws.WALKING_JACOBIAN))
 
     def swing_target(self, phi_s):
         """f(phi_s) and its first two derivatives."""
@@ -354,7 +356,8 @@ class PDWalkingController(WalkingController):
         any ``model``."""
         if _laws is None or not _runs_as(self, PDWalkingController, ("__call__", "swing_target", "_law_parameters")):
             return None
-        return CompiledLaw("pd_walking", self._law_parameters(), _laws.PD_WALKING_LAW)
+        return CompiledLaw("pd_walking", self._law_parameters(), _laws.PD_WALKING_LAW,
+                           _jacobian_address(self, PDWalkingController, _laws.PD_WALKING_JACOBIAN))
 
     def __call__(self, t, q, dq, stance_leg):
         """(u1, u2), a tuple: this runs at every right-hand-side evaluation, so only y and dy of
@@ -469,6 +472,14 @@ PDWalkingController.jacobian = _pd_jacobian
 PDWalkingController.gain_jacobian = _pd_gain_jacobian
 PDWalkingController.jacobian_batch = None     # (not the computed torque's: point by point, ``jacobian``)
 PDWalkingController.gain_jacobian_batch = None
+
+
+def _jacobian_address(controller, cls, address):
+    """The address of the compiled law's derivative (control/_laws.c) where ``controller`` runs ``cls``'s own
+    ``jacobian`` and the laws were built on the current derivative closed forms (_gen/_derivatives.h); else 0
+    (engine/variational.py then differentiates the law in Python)."""
+    own = _runs_as(controller, cls, ("jacobian", "jacobian_batch"))
+    return address if own and _laws.DERIVATIVES_SHA256 == derivatives_digest() else 0
 
 
 def _runs_as(controller, cls, methods):

@@ -11,6 +11,7 @@ from the current sources, else the Python code; results do not depend on which
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import types
@@ -34,6 +35,14 @@ def _compiled_twin():
     if _cmodel.SOURCE_SHA256 != digest:
         return None, "the compiled twin is older than the generated Python code; rebuild it: make venv"
     return _cmodel, ""
+
+
+@functools.lru_cache(maxsize=1)
+def derivatives_digest():
+    """The digest of the sources of ``_gen/_derivatives.h`` (derivatives.py and closed_forms.py), which the C
+    built on it carries as DERIVATIVES_SHA256 (tools/generate_c.py), so that a stale build can be detected."""
+    from biped_sim.engine._gen import derivatives
+    return hashlib.sha256(b"".join(Path(m.__file__).read_bytes() for m in (derivatives, closed_forms))).hexdigest()
 
 
 def _with_twin(module, twin):

@@ -14,6 +14,10 @@ The signature is plain scalars and ``double`` pointers, so a function made by ct
 (:func:`c_prototype`) or by numba's ``@cfunc`` (its ``.address``) plugs in as a C extension's does. A
 nonzero return means the law failed: the run ends "failed" with a message naming the law, the code
 and the time.
+
+A compiled law may offer its derivative too (:data:`JACOBIAN_SIGNATURE`, ``CompiledLaw.jacobian``): the
+loop never calls it; the exact Jacobians of a run on the engine's steps (engine/variational.py) take u and
+u_x from it in C, and differentiate a law without it in Python.
 """
 from __future__ import annotations
 
@@ -23,16 +27,24 @@ from typing import NamedTuple
 #: flight) and the parameters; nonzero return: the law failed
 SIGNATURE = ("int law(double t, const double *q, const double *dq, int stance_leg, const double *params, "
              "double *u)")
+#: the C signature of a compiled law's optional derivative (:attr:`CompiledLaw.jacobian`): the law's u (to
+#: rounding) and u_x = du/d(q, dq) (2 x 10, row-major: u_x[i * 10 + k] = du_i/dx_k with x = (q, dq)) at the
+#: same arguments; a torque at its limit has derivative 0 there. Nonzero return: the derivative failed (the
+#: Jacobian's run raises ValueError naming the law, the code and the time)
+JACOBIAN_SIGNATURE = ("int law_jacobian(double t, const double *q, const double *dq, int stance_leg, "
+                      "const double *params, double *u, double *u_x)")
 #: the most parameters a compiled law takes
 MAX_PARAMETERS = 128
 
 
 class CompiledLaw(NamedTuple):
     """A compiled torque law: its name (in messages only), its parameters (a tuple of Python numbers,
-    copied into the loop as doubles) and the address of its C function (:data:`SIGNATURE`)."""
+    copied into the loop as doubles), the address of its C function (:data:`SIGNATURE`) and, optionally, the
+    address of its derivative (:data:`JACOBIAN_SIGNATURE`, on the same parameters; 0: none)."""
     name: str
     params: tuple
     address: int
+    jacobian: int = 0
 
 
 def c_prototype():
@@ -41,6 +53,13 @@ def c_prototype():
     import ctypes
     p = ctypes.POINTER(ctypes.c_double)
     return ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_double, p, p, ctypes.c_int, p, p)
+
+
+def c_jacobian_prototype():
+    """The ctypes function type of :data:`JACOBIAN_SIGNATURE` (a law's derivative, as :func:`c_prototype`)."""
+    import ctypes
+    p = ctypes.POINTER(ctypes.c_double)
+    return ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_double, p, p, ctypes.c_int, p, p, p)
 
 
 def offered_law(controller, model):

@@ -21,8 +21,17 @@ its derivative for the whole stack (``jacobian_batch(t, Q, DQ, stance_leg)``) wh
 point by point (``law_jacobian``). From the last sample before an event to the event's time, one DOP853
 step of that length; there the saltation matrix (``sensitivity._Integration._event``) as on the general
 path.
+
+For the three-link's closed forms under a held torque or a compiled law that offers its derivative
+(``torque_hook.CompiledLaw.jacobian``), without the model's parameters or the controller's gains among the
+inputs, a phase's steps run in C instead (``steps_transition_c``: engine/_variational.c on the stance KKT
+system's derivative of engine/_stance_derivative.h, all 12 stages of every step without the interpreter);
+they agree with ``steps_transition`` to rounding (test/unit/test_variational_c.py). The rest (a described
+robot, parameters, gains, a law without a compiled derivative, BIPED_SIM_PURE_PYTHON) takes the numpy path.
 """
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
@@ -139,9 +148,10 @@ def flows(deriv, controller, u_held, t, X, leg, parameters=False):
     return f, A, fp, fu, how
 
 
+@functools.lru_cache(maxsize=1)
 def _tableau():
     from scipy.integrate._ivp import dop853_coefficients as c
-    return c.A[:12, :12], c.B, c.C[:12]
+    return tuple(np.ascontiguousarray(v, float) for v in (c.A[:12, :12], c.B, c.C[:12]))
 
 
 def steps_transition(deriv, controller, u_held, t0, X0, H, leg, Wp=None, gains=(), Wg=None):
@@ -178,6 +188,64 @@ def steps_transition(deriv, controller, u_held, t0, X0, H, leg, Wp=None, gains=(
     return X1, Phi, Gamma, how, gain_how
 
 
+def _compiled_steps():
+    """(the _variational module or None, why not): the C twin of ``steps_transition`` (engine/_variational.c),
+    built on the current generated kernels and derivative closed forms, unless BIPED_SIM_PURE_PYTHON is set."""
+    from biped_sim.engine.compiled import _compiled_twin, derivatives_digest
+    twin, why = _compiled_twin()
+    if twin is None:
+        return None, why
+    try:
+        from biped_sim.engine import _variational
+    except ImportError:
+        return None, ("the variational steps biped_sim/engine/_variational were not built: install gcc and the "
+                      "Python headers, then make venv")
+    if _variational.KERNELS_SHA256 != twin.SOURCE_SHA256 or _variational.DERIVATIVES_SHA256 != derivatives_digest():
+        return None, "the variational steps are older than the generated code; rebuild them: make venv"
+    return _variational, ""
+
+
+_C, WHY_NOT_C = _compiled_steps()
+
+
+def compiled_law(deriv, controller, u_held, parameters=False, gains=()):
+    """What ``steps_transition_c`` runs the stance flow of a stack under: ``("held", u)`` for no controller, the
+    law's ``(jacobian address, parameters, name)`` for a compiled law that offers its derivative
+    (``torque_hook.CompiledLaw.jacobian``); None where the numpy path runs: the C not built (``WHY_NOT_C``),
+    terms other than the three-link's closed forms (a described robot), the model's parameters or the
+    controller's gains among the inputs, or a controller without such a law."""
+    from biped_sim.engine.model_derivatives import ClosedFormDerivatives
+    from biped_sim.engine.torque_hook import reference_law
+    if _C is None or type(deriv) is not ClosedFormDerivatives or parameters or gains:
+        return None
+    if controller is None:
+        return "held", np.ascontiguousarray(np.broadcast_to(np.asarray(u_held, float), (2,)))
+    law = reference_law(controller, deriv.model)
+    if law is None or not law.jacobian:
+        return None
+    return law.jacobian, law.params, law.name
+
+
+def steps_transition_c(deriv, law, t0, X0, H, leg):
+    """``steps_transition`` in C (engine/_variational.c) for the three-link's closed forms ``deriv`` under ``law``
+    (``compiled_law``): (X1 (N,10), Phi (N,10,10))."""
+    a, b, c = _tableau()
+    N = X0.shape[0]
+    X1, Phi = np.empty((N, 10)), np.empty((N, 10, 10))
+    held = law[0] == "held"
+    _C.steps_transition(leg, np.asarray(deriv.model.p, float), a, b, c, np.ascontiguousarray(t0, float),
+                        np.ascontiguousarray(X0, float), np.ascontiguousarray(H, float), None if held else law,
+                        law[1] if held else np.zeros(2), X1, Phi)
+    return X1, Phi
+
+
+def law_jacobian_c(law, t, x, leg):
+    """(u (2), u_x (2, 10)) of a compiled law's derivative (``compiled_law``'s) at one state x (10)."""
+    u, ux = np.empty(2), np.empty((2, 10))
+    _C.law_jacobian(law, float(t), np.ascontiguousarray(x, float), int(leg), u, ux)
+    return u, ux
+
+
 def eligible(sim, method, control_period, stance_leg, events, options):
     """Whether ``run_jacobian``'s run takes this path: DOP853 on the floating base, stance phases (no flight)
     joined by touchdowns, continuous feedback or a constant torque."""
@@ -196,8 +264,12 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
     if np.any(legs == 0):
         raise ValueError("the run has a flight phase, which the engine's steps are not differentiated through: "
                          "run_jacobian(..., integration='solve_ivp')")
+    from biped_sim.engine.sensitivity import LAW_EXACT, LAW_NONE
     Su = np.zeros((lin.derivatives.B.shape[1], S.shape[1]))
     Wp = Sp if integ.parameters else None
+    law = compiled_law(lin.derivatives, integ.controller, integ.u_held, integ.parameters, integ.gains)
+    if law is not None and law[0] != "held":
+        integ.compiled_law = law        # (the events' flows take the law's derivative in C too)
     leg, t_start = int(legs[0]), float(t[0])
     stops = [(te, kind, lg) for te, kind, lg in events] + ([] if end_at_event else [(t_end, None, None)])
     x = X[0]
@@ -209,9 +281,13 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
         H = np.array(ends) - t[idx]
         keep = H > 0
         if keep.any():
-            X1, Phi, Gamma, how, gain_how = steps_transition(
-                lin.derivatives, integ.controller, integ.u_held, t[idx][keep], X[idx][keep], H[keep], leg, Wp,
-                integ.gains, integ.Sg)
+            if law is not None:
+                X1, Phi = steps_transition_c(lin.derivatives, law, t[idx][keep], X[idx][keep], H[keep], leg)
+                Gamma, how, gain_how = None, (LAW_NONE if law[0] == "held" else LAW_EXACT), None
+            else:
+                X1, Phi, Gamma, how, gain_how = steps_transition(
+                    lin.derivatives, integ.controller, integ.u_held, t[idx][keep], X[idx][keep], H[keep], leg, Wp,
+                    integ.gains, integ.Sg)
             if how is not None:
                 integ.law_derivative = how
             if gain_how is not None:

@@ -1,0 +1,254 @@
+/* The variational terms of the three-link's DOP853 steps in stance, in C: the twin of
+ * biped_sim/engine/variational.py's steps_transition (without parameters or gains) for the closed forms, under
+ * a held torque or a compiled law that offers its derivative (biped_sim/engine/torque_hook.py
+ * JACOBIAN_SIGNATURE). For each step of sizes h from x0 at t0, with the stages K_i = f(x_i),
+ * x_i = x0 + h sum_j a_ij K_j, the step's end x1 = x0 + h sum_i b_i K_i and its derivative by x0
+ *
+ *     Phi = I + h sum_i b_i Psi_i,   Psi_i = A(x_i) (I + h sum_j a_ij Psi_j)
+ *
+ * (A = f_x + f_u u_x at the stage state, biped_sim/engine/_stance_derivative.h). No allocation: the stages of
+ * one step live on the stack; the tableau comes from the caller (scipy's DOP853 coefficients, as the numpy path's).
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <stdio.h>
+
+#include "_stance_derivative.h"
+
+enum { STAGES = 12, MAX_PARAMETERS = 128 };
+
+typedef int (*LawJacobian)(double t, const double *q, const double *dq, int stance_leg, const double *params,
+                           double *u, double *u_x);
+
+/* the steps of one stack: X1 (N x 10) and Phi (N x 10 x 10); -1 with an exception set */
+static int
+steps(const StanceConstants *k, int leg, const double *a, const double *b, const double *c, Py_ssize_t N,
+      const double *t0, const double *X0, const double *H, LawJacobian law, const double *params,
+      const char *name, const double *u_held, double *X1, double *Phi)
+{
+    double Kf[STAGES][SD_NX], Psi[STAGES][SD_NX][SD_NX];
+    for (Py_ssize_t p = 0; p < N; p++) {
+        const double *x0 = X0 + p * SD_NX;
+        const double h = H[p];
+        for (int i = 0; i < STAGES; i++) {
+            double xi[SD_NX], sx[SD_NX] = {0.0}, Mi[SD_NX][SD_NX] = {{0.0}};
+            for (int j = 0; j < i; j++) {
+                const double aij = a[i * STAGES + j];
+                if (aij == 0.0) continue;
+                for (int r = 0; r < SD_NX; r++) {
+                    sx[r] += aij * Kf[j][r];
+                    for (int col = 0; col < SD_NX; col++) Mi[r][col] += aij * Psi[j][r][col];
+                }
+            }
+            for (int r = 0; r < SD_NX; r++) {
+                xi[r] = x0[r] + h * sx[r];
+                for (int col = 0; col < SD_NX; col++) Mi[r][col] = (r == col ? 1.0 : 0.0) + h * Mi[r][col];
+            }
+            double u[SD_M], u_x[SD_M * SD_NX];
+            const double ti = t0[p] + c[i] * h;
+            if (law != NULL) {
+                int code = law(ti, xi, xi + SD_N, leg, params, u, u_x);
+                if (code != 0) {
+                    char when[32];
+                    snprintf(when, sizeof when, "%.17g", ti);
+                    PyErr_Format(PyExc_ValueError, "the torque law %s's derivative returned %d at t=%s s", name,
+                                 code, when);
+                    return -1;
+                }
+            } else {
+                u[0] = u_held[0];
+                u[1] = u_held[1];
+            }
+            double A[SD_N][SD_NX], fu[SD_N][SD_M];
+            if (stance_flow(k, xi, leg, u, law != NULL ? u_x : NULL, Kf[i], A, fu) < 0) {
+                char when[32];
+                snprintf(when, sizeof when, "%.17g", ti);
+                PyErr_Format(PyExc_ValueError, "the stance KKT system on foot %d is singular at t=%s s", leg, when);
+                return -1;
+            }
+            /* Psi_i = A M_i: the upper rows of A are [0 I], so its upper rows are M_i's lower ones */
+            for (int r = 0; r < SD_N; r++)
+                for (int col = 0; col < SD_NX; col++) Psi[i][r][col] = Mi[SD_N + r][col];
+            for (int r = 0; r < SD_N; r++) {
+                double *out = Psi[i][SD_N + r];
+                for (int col = 0; col < SD_NX; col++) out[col] = 0.0;
+                for (int l = 0; l < SD_NX; l++) {
+                    const double arl = A[r][l];
+                    for (int col = 0; col < SD_NX; col++) out[col] += arl * Mi[l][col];
+                }
+            }
+        }
+        double *x1 = X1 + p * SD_NX, *phi = Phi + p * SD_NX * SD_NX;
+        double sx[SD_NX] = {0.0}, sp[SD_NX][SD_NX] = {{0.0}};
+        for (int i = 0; i < STAGES; i++) {
+            if (b[i] == 0.0) continue;
+            for (int r = 0; r < SD_NX; r++) {
+                sx[r] += b[i] * Kf[i][r];
+                for (int col = 0; col < SD_NX; col++) sp[r][col] += b[i] * Psi[i][r][col];
+            }
+        }
+        for (int r = 0; r < SD_NX; r++) {
+            x1[r] = x0[r] + h * sx[r];
+            for (int col = 0; col < SD_NX; col++) phi[r * SD_NX + col] = (r == col ? 1.0 : 0.0) + h * sp[r][col];
+        }
+    }
+    return 0;
+}
+
+static int
+doubles(PyObject *seq, double *out, Py_ssize_t n_max, Py_ssize_t *n, const char *what)
+{
+    PyObject *fast = PySequence_Fast(seq, what);
+    if (fast == NULL) return -1;
+    Py_ssize_t size = PySequence_Fast_GET_SIZE(fast);
+    if (size > n_max) {
+        PyErr_Format(PyExc_ValueError, "%s: at most %zd values, got %zd", what, n_max, size);
+        Py_DECREF(fast);
+        return -1;
+    }
+    for (Py_ssize_t i = 0; i < size; i++) {
+        out[i] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(fast, i));
+        if (out[i] == -1.0 && PyErr_Occurred()) {
+            Py_DECREF(fast);
+            return -1;
+        }
+    }
+    *n = size;
+    Py_DECREF(fast);
+    return 0;
+}
+
+/* a law's derivative from (address of its law_jacobian, its parameters, its name) */
+static int
+law_from(PyObject *spec, LawJacobian *law, double *params, Py_ssize_t *n_params, const char **name)
+{
+    PyObject *address, *values, *label;
+    if (!PyArg_ParseTuple(spec, "OOO:a law (address of its jacobian, parameters, name)", &address, &values, &label))
+        return -1;
+    void *fn = PyLong_AsVoidPtr(address);
+    if (fn == NULL) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "a law's jacobian address must not be 0");
+        return -1;
+    }
+    if (doubles(values, params, MAX_PARAMETERS, n_params, "a compiled law's parameters") < 0) return -1;
+    *name = PyUnicode_AsUTF8(label);
+    if (*name == NULL) return -1;
+    *law = (LawJacobian)fn;
+    return 0;
+}
+
+static int
+check(const Py_buffer *buf, Py_ssize_t n, const char *what)
+{
+    if (buf->len != n * (Py_ssize_t)sizeof(double)) {
+        PyErr_Format(PyExc_ValueError, "%s must hold %zd float64 values, got %zd bytes", what, n, buf->len);
+        return -1;
+    }
+    return 0;
+}
+
+PyDoc_STRVAR(steps_transition_doc,
+"steps_transition(leg, p, a, b, c, t0, X0, H, law, u_held, X1, Phi)\n\n"
+"The DOP853 steps of sizes H (N) from the states X0 (N x 10) at times t0 (N) in stance on foot leg, of the\n"
+"three-link of parameters p (9): their end states into X1 (N x 10) and their derivatives by their start into\n"
+"Phi (N x 10 x 10). a (12 x 12), b, c (12): the tableau. law: None (the torque u_held, 2 values, held) or\n"
+"(address of a law_jacobian, its parameters, its name). Arrays: C-contiguous float64.");
+
+static PyObject *
+steps_transition(PyObject *self, PyObject *args)
+{
+    (void)self;
+    int leg;
+    PyObject *law_spec;
+    Py_buffer bp = {0}, ba = {0}, bb = {0}, bc = {0}, bt = {0}, bx = {0}, bh = {0}, bu = {0}, bx1 = {0}, bphi = {0};
+    if (!PyArg_ParseTuple(args, "iy*y*y*y*y*y*y*Oy*w*w*:steps_transition", &leg, &bp, &ba, &bb, &bc, &bt, &bx, &bh,
+                          &law_spec, &bu, &bx1, &bphi))
+        return NULL;
+    PyObject *result = NULL;
+    Py_ssize_t N = bt.len / (Py_ssize_t)sizeof(double);
+    double params[MAX_PARAMETERS];
+    Py_ssize_t n_params = 0;
+    LawJacobian law = NULL;
+    const char *name = "";
+    if (leg != 1 && leg != 2) {
+        PyErr_Format(PyExc_ValueError, "steps_transition(): leg must be 1 or 2, got %d", leg);
+        goto done;
+    }
+    if (check(&bp, SD_N_PARAMETERS, "p") || check(&ba, STAGES * STAGES, "a") || check(&bb, STAGES, "b")
+        || check(&bc, STAGES, "c") || check(&bx, N * SD_NX, "X0") || check(&bh, N, "H") || check(&bu, SD_M, "u_held")
+        || check(&bx1, N * SD_NX, "X1") || check(&bphi, N * SD_NX * SD_NX, "Phi"))
+        goto done;
+    if (law_spec != Py_None && law_from(law_spec, &law, params, &n_params, &name) < 0) goto done;
+    StanceConstants k;
+    stance_constants((const double *)bp.buf, &k);
+    if (steps(&k, leg, (const double *)ba.buf, (const double *)bb.buf, (const double *)bc.buf, N,
+              (const double *)bt.buf, (const double *)bx.buf, (const double *)bh.buf, law, params, name,
+              (const double *)bu.buf, (double *)bx1.buf, (double *)bphi.buf) < 0)
+        goto done;
+    result = Py_NewRef(Py_None);
+done:
+    PyBuffer_Release(&bp); PyBuffer_Release(&ba); PyBuffer_Release(&bb); PyBuffer_Release(&bc);
+    PyBuffer_Release(&bt); PyBuffer_Release(&bx); PyBuffer_Release(&bh); PyBuffer_Release(&bu);
+    PyBuffer_Release(&bx1); PyBuffer_Release(&bphi);
+    return result;
+}
+
+PyDoc_STRVAR(law_jacobian_doc,
+"law_jacobian(law, t, x, leg, u, u_x)\n\n"
+"A compiled law's derivative at one point: law (address of its law_jacobian, its parameters, its name), the\n"
+"state x (10) at time t on stance leg; u (2) and u_x (2 x 10) written. Arrays: C-contiguous float64.");
+
+static PyObject *
+law_jacobian(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *spec, *result = NULL;
+    double t, params[MAX_PARAMETERS];
+    int leg;
+    Py_ssize_t n_params = 0;
+    LawJacobian law = NULL;
+    const char *name = "";
+    Py_buffer bx = {0}, bu = {0}, bux = {0};
+    if (!PyArg_ParseTuple(args, "Ody*iw*w*:law_jacobian", &spec, &t, &bx, &leg, &bu, &bux)) return NULL;
+    if (law_from(spec, &law, params, &n_params, &name) < 0 || check(&bx, SD_NX, "x") || check(&bu, SD_M, "u")
+        || check(&bux, SD_M * SD_NX, "u_x"))
+        goto done;
+    const double *x = (const double *)bx.buf;
+    int code = law(t, x, x + SD_N, leg, params, (double *)bu.buf, (double *)bux.buf);
+    if (code != 0) {
+        char when[32];
+        snprintf(when, sizeof when, "%.17g", t);
+        PyErr_Format(PyExc_ValueError, "the torque law %s's derivative returned %d at t=%s s", name, code, when);
+        goto done;
+    }
+    result = Py_NewRef(Py_None);
+done:
+    PyBuffer_Release(&bx); PyBuffer_Release(&bu); PyBuffer_Release(&bux);
+    return result;
+}
+
+static PyMethodDef methods[] = {
+    {"steps_transition", steps_transition, METH_VARARGS, steps_transition_doc},
+    {"law_jacobian", law_jacobian, METH_VARARGS, law_jacobian_doc},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_variational",
+    "The variational terms of the three-link's DOP853 steps in stance, in C (biped_sim/engine/_variational.c).",
+    -1, methods, NULL, NULL, NULL, NULL,
+};
+
+PyMODINIT_FUNC
+PyInit__variational(void)
+{
+    PyObject *m = PyModule_Create(&module);
+    if (m == NULL) return NULL;
+    if (PyModule_AddStringConstant(m, "KERNELS_SHA256", BIPED_SIM_KERNELS_SHA256) < 0
+        || PyModule_AddStringConstant(m, "DERIVATIVES_SHA256", BIPED_SIM_DERIVATIVES_SHA256) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}
