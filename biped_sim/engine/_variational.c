@@ -6,8 +6,9 @@
  *
  *     Phi = I + h sum_i b_i Psi_i,   Psi_i = A(x_i) (I + h sum_j a_ij Psi_j)
  *
- * (A = f_x + f_u u_x at the stage state, biped_sim/engine/_stance_derivative.h). No allocation: the stages of
- * one step live on the stack; the tableau comes from the caller (scipy's DOP853 coefficients, as the numpy path's).
+ * (A = f_x + f_u u_x at the stage state, biped_sim/engine/_stance_derivative.h), and a state transition matrix S
+ * carried through them (S <- Phi S). No allocation: the stages of one step live on the stack; the tableau comes
+ * from the caller (scipy's DOP853 coefficients, as the numpy path's).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -21,11 +22,26 @@ enum { STAGES = 12, MAX_PARAMETERS = 128 };
 typedef int (*LawJacobian)(double t, const double *q, const double *dq, int stance_leg, const double *params,
                            double *u, double *u_x);
 
+/* S <- Phi S in place (Phi 10 x 10, S 10 x m, row-major): the state transition matrix carried through a step */
+static void
+chain(const double *phi, double *S, Py_ssize_t m)
+{
+    double row[SD_NX];
+    for (Py_ssize_t col = 0; col < m; col++) {
+        for (int r = 0; r < SD_NX; r++) {
+            double v = 0.0;
+            for (int l = 0; l < SD_NX; l++) v += phi[r * SD_NX + l] * S[l * m + col];
+            row[r] = v;
+        }
+        for (int r = 0; r < SD_NX; r++) S[r * m + col] = row[r];
+    }
+}
+
 /* the steps of one stack: X1 (N x 10) and Phi (N x 10 x 10); -1 with an exception set */
 static int
 steps(const StanceConstants *k, int leg, const double *a, const double *b, const double *c, Py_ssize_t N,
       const double *t0, const double *X0, const double *H, LawJacobian law, const double *params,
-      const char *name, const double *u_held, double *X1, double *Phi)
+      const char *name, const double *u_held, double *X1, double *Phi, double *S, Py_ssize_t m)
 {
     double Kf[STAGES][SD_NX], Psi[STAGES][SD_NX][SD_NX];
     for (Py_ssize_t p = 0; p < N; p++) {
@@ -92,6 +108,7 @@ steps(const StanceConstants *k, int leg, const double *a, const double *b, const
             x1[r] = x0[r] + h * sx[r];
             for (int col = 0; col < SD_NX; col++) phi[r * SD_NX + col] = (r == col ? 1.0 : 0.0) + h * sp[r][col];
         }
+        if (S != NULL) chain(phi, S, m);
     }
     return 0;
 }
@@ -149,21 +166,23 @@ check(const Py_buffer *buf, Py_ssize_t n, const char *what)
 }
 
 PyDoc_STRVAR(steps_transition_doc,
-"steps_transition(leg, p, a, b, c, t0, X0, H, law, u_held, X1, Phi)\n\n"
+"steps_transition(leg, p, a, b, c, t0, X0, H, law, u_held, X1, Phi, S=None)\n\n"
 "The DOP853 steps of sizes H (N) from the states X0 (N x 10) at times t0 (N) in stance on foot leg, of the\n"
 "three-link of parameters p (9): their end states into X1 (N x 10) and their derivatives by their start into\n"
 "Phi (N x 10 x 10). a (12 x 12), b, c (12): the tableau. law: None (the torque u_held, 2 values, held) or\n"
-"(address of a law_jacobian, its parameters, its name). Arrays: C-contiguous float64.");
+"(address of a law_jacobian, its parameters, its name). S (10 x m): carried through the steps in place,\n"
+"S <- Phi S for each step in turn. Arrays: C-contiguous float64.");
 
 static PyObject *
 steps_transition(PyObject *self, PyObject *args)
 {
     (void)self;
     int leg;
-    PyObject *law_spec;
+    PyObject *law_spec, *s_arg = Py_None;
     Py_buffer bp = {0}, ba = {0}, bb = {0}, bc = {0}, bt = {0}, bx = {0}, bh = {0}, bu = {0}, bx1 = {0}, bphi = {0};
-    if (!PyArg_ParseTuple(args, "iy*y*y*y*y*y*y*Oy*w*w*:steps_transition", &leg, &bp, &ba, &bb, &bc, &bt, &bx, &bh,
-                          &law_spec, &bu, &bx1, &bphi))
+    Py_buffer bs = {0};
+    if (!PyArg_ParseTuple(args, "iy*y*y*y*y*y*y*Oy*w*w*|O:steps_transition", &leg, &bp, &ba, &bb, &bc, &bt, &bx, &bh,
+                          &law_spec, &bu, &bx1, &bphi, &s_arg))
         return NULL;
     PyObject *result = NULL;
     Py_ssize_t N = bt.len / (Py_ssize_t)sizeof(double);
@@ -179,18 +198,25 @@ steps_transition(PyObject *self, PyObject *args)
         || check(&bc, STAGES, "c") || check(&bx, N * SD_NX, "X0") || check(&bh, N, "H") || check(&bu, SD_M, "u_held")
         || check(&bx1, N * SD_NX, "X1") || check(&bphi, N * SD_NX * SD_NX, "Phi"))
         goto done;
+    Py_ssize_t m = 0;
+    if (s_arg != Py_None) {
+        if (PyObject_GetBuffer(s_arg, &bs, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS) < 0) goto done;
+        m = bs.len / (Py_ssize_t)(SD_NX * sizeof(double));
+        if (check(&bs, SD_NX * m, "S")) goto done;
+    }
     if (law_spec != Py_None && law_from(law_spec, &law, params, &n_params, &name) < 0) goto done;
     StanceConstants k;
     stance_constants((const double *)bp.buf, &k);
     if (steps(&k, leg, (const double *)ba.buf, (const double *)bb.buf, (const double *)bc.buf, N,
               (const double *)bt.buf, (const double *)bx.buf, (const double *)bh.buf, law, params, name,
-              (const double *)bu.buf, (double *)bx1.buf, (double *)bphi.buf) < 0)
+              (const double *)bu.buf, (double *)bx1.buf, (double *)bphi.buf, bs.buf != NULL ? (double *)bs.buf : NULL, m) < 0)
         goto done;
     result = Py_NewRef(Py_None);
 done:
     PyBuffer_Release(&bp); PyBuffer_Release(&ba); PyBuffer_Release(&bb); PyBuffer_Release(&bc);
     PyBuffer_Release(&bt); PyBuffer_Release(&bx); PyBuffer_Release(&bh); PyBuffer_Release(&bu);
     PyBuffer_Release(&bx1); PyBuffer_Release(&bphi);
+    if (bs.obj != NULL) PyBuffer_Release(&bs);
     return result;
 }
 

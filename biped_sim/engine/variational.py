@@ -25,9 +25,10 @@ path.
 For the three-link's closed forms under a held torque or a compiled law that offers its derivative
 (``torque_hook.CompiledLaw.jacobian``), without the model's parameters or the controller's gains among the
 inputs, a phase's steps run in C instead (``steps_transition_c``: engine/_variational.c on the stance KKT
-system's derivative of engine/_stance_derivative.h, all 12 stages of every step without the interpreter);
-they agree with ``steps_transition`` to rounding (test/unit/test_variational_c.py). The rest (a described
-robot, parameters, gains, a law without a compiled derivative, BIPED_SIM_PURE_PYTHON) takes the numpy path.
+system's derivative of engine/_stance_derivative.h, all 12 stages of every step without the interpreter, S
+carried through their Phi there); they agree with ``steps_transition`` to rounding
+(test/unit/test_variational_c.py). The rest (a described robot, parameters, gains, a law without a compiled
+derivative, BIPED_SIM_PURE_PYTHON) takes the numpy path.
 """
 from __future__ import annotations
 
@@ -226,17 +227,22 @@ def compiled_law(deriv, controller, u_held, parameters=False, gains=()):
     return law.jacobian, law.params, law.name
 
 
-def steps_transition_c(deriv, law, t0, X0, H, leg):
+def steps_transition_c(deriv, law, t0, X0, H, leg, S=None):
     """``steps_transition`` in C (engine/_variational.c) for the three-link's closed forms ``deriv`` under ``law``
-    (``compiled_law``): (X1 (N,10), Phi (N,10,10))."""
+    (``compiled_law``): (X1 (N,10), Phi (N,10,10)). ``S`` (10 x m, C-contiguous float64): carried through the
+    steps in place, S <- Phi_k S for each step k in turn."""
     a, b, c = _tableau()
     N = X0.shape[0]
     X1, Phi = np.empty((N, 10)), np.empty((N, 10, 10))
     held = law[0] == "held"
     _C.steps_transition(leg, np.asarray(deriv.model.p, float), a, b, c, np.ascontiguousarray(t0, float),
                         np.ascontiguousarray(X0, float), np.ascontiguousarray(H, float), None if held else law,
-                        law[1] if held else np.zeros(2), X1, Phi)
+                        law[1] if held else _NO_TORQUE, X1, Phi, S)
     return X1, Phi
+
+
+#: steps_transition_c's u_held under a compiled law (unused there)
+_NO_TORQUE = np.zeros(2)
 
 
 def law_jacobian_c(law, t, x, leg):
@@ -268,8 +274,10 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
     Su = np.zeros((lin.derivatives.B.shape[1], S.shape[1]))
     Wp = Sp if integ.parameters else None
     law = compiled_law(lin.derivatives, integ.controller, integ.u_held, integ.parameters, integ.gains)
-    if law is not None and law[0] != "held":
-        integ.compiled_law = law        # (the events' flows take the law's derivative in C too)
+    if law is not None:
+        S = np.array(S, float, order="C")     # (carried in place through the steps in C)
+        if law[0] != "held":
+            integ.compiled_law = law        # (the events' flows take the law's derivative in C too)
     leg, t_start = int(legs[0]), float(t[0])
     stops = [(te, kind, lg) for te, kind, lg in events] + ([] if end_at_event else [(t_end, None, None)])
     x = X[0]
@@ -281,19 +289,19 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
         H = np.array(ends) - t[idx]
         keep = H > 0
         if keep.any():
-            if law is not None:
-                X1, Phi = steps_transition_c(lin.derivatives, law, t[idx][keep], X[idx][keep], H[keep], leg)
-                Gamma, how, gain_how = None, (LAW_NONE if law[0] == "held" else LAW_EXACT), None
+            if law is not None:     # (S carried through the steps in C)
+                X1, _Phi = steps_transition_c(lin.derivatives, law, t[idx][keep], X[idx][keep], H[keep], leg, S)
+                how, gain_how = (LAW_NONE if law[0] == "held" else LAW_EXACT), None
             else:
                 X1, Phi, Gamma, how, gain_how = steps_transition(
                     lin.derivatives, integ.controller, integ.u_held, t[idx][keep], X[idx][keep], H[keep], leg, Wp,
                     integ.gains, integ.Sg)
+                for k in range(Phi.shape[0]):
+                    S = Phi[k] @ S if Gamma is None else Phi[k] @ S + Gamma[k]
             if how is not None:
                 integ.law_derivative = how
             if gain_how is not None:
                 integ.gain_derivative = gain_how
-            for k in range(Phi.shape[0]):
-                S = Phi[k] @ S if Gamma is None else Phi[k] @ S + Gamma[k]
             x = X1[-1]
         elif starts:
             x = X[starts[-1]]

@@ -152,3 +152,22 @@ def test_without_a_compiled_derivative_the_numpy_path_runs():
     q, dq = ctrl.initial_state(1.0)
     r = run_jacobian(MODEL, q, dq, 0.05, controller=ctrl)
     assert (r.integration, r.law_derivative) == (STEPS, LAW_EXACT)
+
+
+@pytest.mark.parametrize("leg", [1, 2])
+@pytest.mark.parametrize("name", ["held", "walking", "pd at its limit"])
+def test_the_c_steps_carry_s_through_their_phis(name, leg):
+    rng = np.random.default_rng([leg, len(name), 3])
+    ctrl = CONTROLLERS[name](MODEL)
+    deriv = derivatives(MODEL)
+    t0, X0, H = _stack(leg, rng)
+    law = variational.compiled_law(deriv, ctrl, U_HELD)
+    S0 = rng.standard_normal((10, 7))
+    S = S0.copy()
+    _X1, Phi = variational.steps_transition_c(deriv, law, t0, X0, H, leg, S)
+    expected = S0
+    for phi in Phi:
+        expected = phi @ expected
+    assert rel(S, expected) < 1e-12
+    assert rel(S, S0) > 1e-3
+
