@@ -8,7 +8,8 @@
  *
  * (A = f_x + f_u u_x at the stage state, biped_sim/engine/_stance_derivative.h), and a state transition matrix S
  * carried through them (S <- Phi S). No allocation: the stages of one step live on the stack; the tableau comes
- * from the caller (scipy's DOP853 coefficients, as the numpy path's).
+ * from the caller (scipy's DOP853 coefficients, as the numpy path's). And the touchdown's saltation matrix, the
+ * twin of biped_sim/engine/sensitivity.py's _Integration._event for the same runs (touchdown below).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -109,6 +110,157 @@ steps(const StanceConstants *k, int leg, const double *a, const double *b, const
             for (int col = 0; col < SD_NX; col++) phi[r * SD_NX + col] = (r == col ? 1.0 : 0.0) + h * sp[r][col];
         }
         if (S != NULL) chain(phi, S, m);
+    }
+    return 0;
+}
+
+/* the torque at (t, x) on stance `leg`: the compiled law's (its derivative's u) or the held one; -1 with an
+ * exception set */
+static int
+torque_at(LawJacobian law, const double *params, const char *name, const double *u_held, double t, const double *x,
+          int leg, double *u)
+{
+    double u_x[SD_M * SD_NX];
+    if (law == NULL) {
+        u[0] = u_held[0];
+        u[1] = u_held[1];
+        return 0;
+    }
+    int code = law(t, x, x + SD_N, leg, params, u, u_x);
+    if (code != 0) {
+        char when[32];
+        snprintf(when, sizeof when, "%.17g", t);
+        PyErr_Format(PyExc_ValueError, "the torque law %s's derivative returned %d at t=%s s", name, code, when);
+        return -1;
+    }
+    return 0;
+}
+
+static int
+singular(int leg, double t)
+{
+    char when[32];
+    snprintf(when, sizeof when, "%.17g", t);
+    PyErr_Format(PyExc_ValueError, "the stance KKT system on foot %d is singular at t=%s s", leg, when);
+    return -1;
+}
+
+/* the stance flow's value f = (dq, ddq) at x under u on foot `leg` (stance_flow's f, without its derivative) */
+static int
+stance_rate(const StanceConstants *c, const double *x, int leg, const double *u, double *f)
+{
+    StanceSystem S;
+    if (stance_system(c, x, x + SD_N, leg, &S) < 0) return -1;
+    for (int i = 0; i < SD_N; i++) {
+        f[i] = x[SD_N + i];
+        f[SD_N + i] = S.s0[i] + (S.su[i][0] * u[0] + S.su[i][1] * u[1]);
+    }
+    return 0;
+}
+
+/* The rigid impact of foot `leg` at q, the rates dq- before it: K [dq+; L] = [D dq-; 0] with K = [D -J^T; J 0] of
+ * that foot, and its derivative as the stance system's (sensitivity.Linearization.impact's twin):
+ *
+ *     K d[dq+; L]/dq_k = [dD/dq_k (dq- - dq+) + (dJ/dq_k)^T L; -dJ/dq_k dq+],   K d[dq+; L]/d dq- = [D; 0]
+ *
+ * dq+ into dqp, d dq+/dq into Rq [i][k], d dq+/d dq- into Rv [i][k]; -1 where K is singular */
+static int
+impact(const StanceConstants *c, const double *q, const double *dqm, int leg, double *dqp, double Rq[SD_N][SD_N],
+       double Rv[SD_N][SD_N])
+{
+    StanceSystem S;
+    if (stance_system(c, q, dqm, leg, &S) < 0) return -1;
+    double D[SD_N * SD_N], r[SD_NK], col[SD_NK][2 * SD_N];
+    k_mass_matrix(q, c->mass_matrix, D);
+    for (int i = 0; i < SD_N; i++) {
+        double v = 0.0;
+        for (int j = 0; j < SD_N; j++) v += D[i * SD_N + j] * dqm[j];
+        r[i] = v;
+    }
+    r[SD_N] = r[SD_N + 1] = 0.0;
+    stance_solve(&S, r, 1);
+    const double *L = r + SD_N;
+    for (int k = 0; k < SD_N; k++) {
+        const double *dD = S.dD + k * SD_N * SD_N, *dJ = S.dJ + k * 2 * SD_N;
+        for (int i = 0; i < SD_N; i++) {
+            double v = 0.0;
+            for (int j = 0; j < SD_N; j++) v += dD[i * SD_N + j] * (dqm[j] - r[j]);
+            col[i][k] = v + (dJ[i] * L[0] + dJ[SD_N + i] * L[1]);
+            col[i][SD_N + k] = D[i * SD_N + k];
+        }
+        for (int a = 0; a < 2; a++) {
+            double v = 0.0;
+            for (int j = 0; j < SD_N; j++) v += dJ[a * SD_N + j] * r[j];
+            col[SD_N + a][k] = -v;
+            col[SD_N + a][SD_N + k] = 0.0;
+        }
+    }
+    stance_solve(&S, &col[0][0], 2 * SD_N);
+    for (int i = 0; i < SD_N; i++) {
+        dqp[i] = r[i];
+        for (int k = 0; k < SD_N; k++) {
+            Rq[i][k] = col[i][k];
+            Rv[i][k] = col[i][SD_N + k];
+        }
+    }
+    return 0;
+}
+
+/* (DR y) of the touchdown's reset R(q, dq) = (q, dq+): y's configuration rows, then Rq y_q + Rv y_dq */
+static void
+reset_times(double Rq[SD_N][SD_N], double Rv[SD_N][SD_N], const double *y, double *out)
+{
+    for (int i = 0; i < SD_N; i++) {
+        double v = 0.0;
+        for (int k = 0; k < SD_N; k++) v += Rq[i][k] * y[k] + Rv[i][k] * y[SD_N + k];
+        out[i] = y[i];
+        out[SD_N + i] = v;
+    }
+}
+
+/* The touchdown of foot `gleg` ending stance on `leg` at (t, x), S (10 x m) just before it: the saltation matrix
+ * (sensitivity._Integration._event's twin for a held torque or a compiled law, without parameters or gains)
+ *
+ *     dtau = -(g_x S) / (g_x F-),   S+ = DR S - (F+ - DR F-) dtau,   or with `last`: S+ = DR (S + F- dtau)
+ *
+ * g = p_y + tan(slope) p_x the foot's height across the ground (loop_rules.ev_across), g_x = (J_y + tan J_x, 0),
+ * F- the stance flow on `leg`, F+ on `gleg` after the reset. x+ into x_plus, S+ into S_plus, dtau (m) into dtau;
+ * -1 with an exception set */
+static int
+touchdown(const StanceConstants *c, int leg, int gleg, double tan_s, double t, const double *x, const double *S,
+          Py_ssize_t m, LawJacobian law, const double *params, const char *name, const double *u_held, int last,
+          double *x_plus, double *S_plus, double *dtau)
+{
+    double u[SD_M], f_minus[SD_NX], J[2 * SD_N], gx[SD_N], dqp[SD_N], Rq[SD_N][SD_N], Rv[SD_N][SD_N];
+    if (torque_at(law, params, name, u_held, t, x, leg, u) < 0) return -1;
+    if (stance_rate(c, x, leg, u, f_minus) < 0) return singular(leg, t);
+    if (gleg == 1) k_foot_jacobian_1(x, c->foot_jacobian[0], J);
+    else k_foot_jacobian_2(x, c->foot_jacobian[1], J);
+    for (int j = 0; j < SD_N; j++) gx[j] = J[SD_N + j] + tan_s * J[j];
+    if (impact(c, x, x + SD_N, gleg, dqp, Rq, Rv) < 0) return singular(gleg, t);
+    for (int i = 0; i < SD_N; i++) {
+        x_plus[i] = x[i];
+        x_plus[SD_N + i] = dqp[i];
+    }
+    double rate = 0.0;
+    for (int j = 0; j < SD_N; j++) rate += gx[j] * f_minus[j];
+    for (Py_ssize_t col = 0; col < m; col++) {
+        double dg = 0.0;
+        for (int j = 0; j < SD_N; j++) dg += gx[j] * S[j * m + col];
+        dtau[col] = -dg / rate;
+    }
+    double w[SD_NX], y[SD_NX], out[SD_NX];
+    if (!last) {    /* w = F+ - DR F- */
+        double u_plus[SD_M], f_plus[SD_NX], Rf[SD_NX];
+        if (torque_at(law, params, name, u_held, t, x_plus, gleg, u_plus) < 0) return -1;
+        if (stance_rate(c, x_plus, gleg, u_plus, f_plus) < 0) return singular(gleg, t);
+        reset_times(Rq, Rv, f_minus, Rf);
+        for (int r = 0; r < SD_NX; r++) w[r] = f_plus[r] - Rf[r];
+    }
+    for (Py_ssize_t col = 0; col < m; col++) {
+        for (int r = 0; r < SD_NX; r++) y[r] = S[r * m + col] + (last ? f_minus[r] * dtau[col] : 0.0);
+        reset_times(Rq, Rv, y, out);
+        for (int r = 0; r < SD_NX; r++) S_plus[r * m + col] = last ? out[r] : out[r] - w[r] * dtau[col];
     }
     return 0;
 }
@@ -254,9 +406,53 @@ done:
     return result;
 }
 
+PyDoc_STRVAR(touchdown_doc,
+"touchdown(leg, gleg, p, tan_s, t, x, S, law, u_held, last, x_plus, S_plus, dtau)\n\n"
+"The touchdown of foot gleg ending stance on foot leg at time t and state x (10) of the three-link of\n"
+"parameters p (9) on the ground of slope tan_s (its tangent), S (10 x m) just before it: the state after the\n"
+"impact into x_plus (10), S after the saltation matrix into S_plus (10 x m; with last, the state just after\n"
+"the event: DR (S + F- dtau)) and the event time's derivative into dtau (m). law, u_held: as steps_transition's.\n"
+"Arrays: C-contiguous float64.");
+
+static PyObject *
+touchdown_event(PyObject *self, PyObject *args)
+{
+    (void)self;
+    int leg, gleg, last;
+    double tan_s, t, params[MAX_PARAMETERS];
+    PyObject *law_spec, *result = NULL;
+    Py_buffer bp = {0}, bx = {0}, bs = {0}, bu = {0}, bxp = {0}, bsp = {0}, bd = {0};
+    Py_ssize_t n_params = 0;
+    LawJacobian law = NULL;
+    const char *name = "";
+    if (!PyArg_ParseTuple(args, "iiy*ddy*y*Oy*pw*w*w*:touchdown", &leg, &gleg, &bp, &tan_s, &t, &bx, &bs, &law_spec,
+                          &bu, &last, &bxp, &bsp, &bd))
+        return NULL;
+    Py_ssize_t m = bd.len / (Py_ssize_t)sizeof(double);
+    if ((leg != 1 && leg != 2) || (gleg != 1 && gleg != 2)) {
+        PyErr_Format(PyExc_ValueError, "touchdown(): leg and gleg must be 1 or 2, got %d and %d", leg, gleg);
+        goto done;
+    }
+    if (check(&bp, SD_N_PARAMETERS, "p") || check(&bx, SD_NX, "x") || check(&bs, SD_NX * m, "S")
+        || check(&bu, SD_M, "u_held") || check(&bxp, SD_NX, "x_plus") || check(&bsp, SD_NX * m, "S_plus"))
+        goto done;
+    if (law_spec != Py_None && law_from(law_spec, &law, params, &n_params, &name) < 0) goto done;
+    StanceConstants k;
+    stance_constants((const double *)bp.buf, &k);
+    if (touchdown(&k, leg, gleg, tan_s, t, (const double *)bx.buf, (const double *)bs.buf, m, law, params, name,
+                  (const double *)bu.buf, last, (double *)bxp.buf, (double *)bsp.buf, (double *)bd.buf) < 0)
+        goto done;
+    result = Py_NewRef(Py_None);
+done:
+    PyBuffer_Release(&bp); PyBuffer_Release(&bx); PyBuffer_Release(&bs); PyBuffer_Release(&bu);
+    PyBuffer_Release(&bxp); PyBuffer_Release(&bsp); PyBuffer_Release(&bd);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"steps_transition", steps_transition, METH_VARARGS, steps_transition_doc},
     {"law_jacobian", law_jacobian, METH_VARARGS, law_jacobian_doc},
+    {"touchdown", touchdown_event, METH_VARARGS, touchdown_doc},
     {NULL, NULL, 0, NULL},
 };
 

@@ -26,9 +26,10 @@ For the three-link's closed forms under a held torque or a compiled law that off
 (``torque_hook.CompiledLaw.jacobian``), without the model's parameters or the controller's gains among the
 inputs, a phase's steps run in C instead (``steps_transition_c``: engine/_variational.c on the stance KKT
 system's derivative of engine/_stance_derivative.h, all 12 stages of every step without the interpreter, S
-carried through their Phi there); they agree with ``steps_transition`` to rounding
-(test/unit/test_variational_c.py). The rest (a described robot, parameters, gains, a law without a compiled
-derivative, BIPED_SIM_PURE_PYTHON) takes the numpy path.
+carried through their Phi there), and so does each touchdown's saltation matrix (``touchdown_c``); they agree
+with ``steps_transition`` and ``_Integration._event`` to rounding (test/unit/test_variational_c.py). The rest (a
+described robot, parameters, gains, a law without a compiled derivative, BIPED_SIM_PURE_PYTHON) takes the
+numpy path.
 """
 from __future__ import annotations
 
@@ -241,8 +242,21 @@ def steps_transition_c(deriv, law, t0, X0, H, leg, S=None):
     return X1, Phi
 
 
-#: steps_transition_c's u_held under a compiled law (unused there)
+#: steps_transition_c's and touchdown_c's u_held under a compiled law (unused there)
 _NO_TORQUE = np.zeros(2)
+
+
+def touchdown_c(deriv, law, t, x, S, leg, gleg, tan_s, last):
+    """The touchdown of foot ``gleg`` ending stance on ``leg`` at (t, x) in C (engine/_variational.c), the twin of
+    ``sensitivity._Integration._event`` for the three-link's closed forms ``deriv`` under ``law``
+    (``compiled_law``) on a ground of slope tangent ``tan_s``: (x+ (10), S+ (10 x m), dtau (m) with ``last``,
+    else None), S+ = DR S - (F+ - DR F-) dtau, or with ``last`` the state just after the event, DR (S + F- dtau)."""
+    S = np.ascontiguousarray(S, float)
+    x_plus, S_plus, dtau = np.empty(10), np.empty_like(S), np.empty(S.shape[1])
+    held = law[0] == "held"
+    _C.touchdown(leg, gleg, np.asarray(deriv.model.p, float), tan_s, float(t), np.ascontiguousarray(x, float), S,
+                 None if held else law, law[1] if held else _NO_TORQUE, bool(last), x_plus, S_plus, dtau)
+    return x_plus, S_plus, (dtau if last else None)
 
 
 def law_jacobian_c(law, t, x, leg):
@@ -308,7 +322,13 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
         if kind is None:
             return x, S, None
         last = end_at_event and n == len(stops) - 1
-        x, S, leg, dtau = integ._event(t_stop, x, S, Su, Sp, leg, kind, gleg, last)
+        if law is not None and kind == "touchdown":     # (its saltation matrix in C)
+            x, S, dtau = touchdown_c(lin.derivatives, law, t_stop, x, S, leg, gleg, lin.tan, last)
+            leg = gleg
+            if law[0] != "held":
+                integ.law_derivative = LAW_EXACT
+        else:
+            x, S, leg, dtau = integ._event(t_stop, x, S, Su, Sp, leg, kind, gleg, last)
         if last:
             return x, S, dtau
         t_start = t_stop

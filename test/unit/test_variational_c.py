@@ -12,7 +12,7 @@ from biped_sim.control.walking import PDWalkingController, WalkingController
 from biped_sim.engine import compiled, variational
 from biped_sim.engine.model import BipedModel
 from biped_sim.engine.model_derivatives import derivatives
-from biped_sim.engine.sensitivity import LAW_EXACT, STEPS, run_jacobian
+from biped_sim.engine.sensitivity import LAW_EXACT, STEPS, Linearization, _Integration, run_jacobian
 from biped_sim.engine.torque_hook import c_jacobian_prototype
 
 MODEL = BipedModel()
@@ -171,3 +171,40 @@ def test_the_c_steps_carry_s_through_their_phis(name, leg):
     assert rel(S, expected) < 1e-12
     assert rel(S, S0) > 1e-3
 
+
+@pytest.mark.parametrize("slope", [0.0, 0.04])
+@pytest.mark.parametrize("legs", [(1, 2), (2, 1)])
+@pytest.mark.parametrize("name", ["held", "walking", "pd", "walking at its limit"])
+def test_the_c_touchdown_gives_the_saltation_matrix_of_the_numpy_path(name, legs, slope):
+    """variational.touchdown_c against sensitivity._Integration._event (the law's own Python derivative, the impact
+    map's, the guard's and the flows in numpy), the last event of a step map and one a run goes on from."""
+    leg, gleg = legs
+    rng = np.random.default_rng([leg, len(name), int(slope * 100)])
+    ctrl = CONTROLLERS[name](OTHER)
+    deriv = derivatives(OTHER)
+    law = variational.compiled_law(deriv, ctrl, U_HELD)
+    lin = Linearization(OTHER, slope, deriv)
+    integ = _Integration(lin, ctrl, None if ctrl is not None else U_HELD, None, False, [], 1e-10, 1e-10)
+    _t0, X0, _H = _stack(leg, rng, N=4)
+    for x in X0:
+        S = rng.standard_normal((10, 6))
+        for last in (True, False):
+            xc, Sc, dtc = variational.touchdown_c(deriv, law, 0.4, x, S, leg, gleg, lin.tan, last)
+            xp, Sp, new_leg, dtp = integ._event(0.4, x, S, np.zeros((2, 6)), np.zeros((9, 6)), leg, "touchdown", gleg,
+                                                last)
+            assert new_leg == gleg
+            assert rel(xc, xp) < 1e-12
+            assert rel(Sc, Sp) < 1e-12, (last, rel(Sc, Sp))
+            if last:
+                assert rel(dtc, dtp) < 1e-12
+            else:
+                assert dtc is None and dtp is None
+            assert rel(Sc, S) > 1e-3       # (the saltation matrix moves S)
+
+
+def test_a_singular_impact_in_c_is_one_line():
+    deriv = derivatives(MODEL)
+    x = np.zeros(10)
+    x[2] = x[3] = np.nan
+    with pytest.raises(ValueError, match=r"^the stance KKT system on foot 1 is singular at t=0\.25 s$"):
+        variational.touchdown_c(deriv, ("held", U_HELD), 0.25, x, np.eye(10)[:, :6], 1, 2, 0.0, True)
