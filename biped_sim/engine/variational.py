@@ -279,8 +279,11 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
     phase's steps as one stack) and through each event's saltation matrix (``integ._event``); ``Sp``: the
     parameters' directions (9 x m)."""
     lin = integ.lin
-    res = sim.result()
-    t, X, legs = res.t, np.hstack([res.q, res.dq]), res.stance_leg
+    # the engine's samples as they stand (its rows: t, q, dq side by side, the stance leg; no SimulationResult)
+    samples = sim._samples
+    rows, at, n_q = samples.rows(), samples.layout, samples.n_q
+    t, legs = rows[:, at["ROW_T"]], rows[:, at["ROW_LEG"]]
+    X = rows[:, at["ROW_Q"]:at["ROW_Q"] + 2 * n_q]
     if np.any(legs == 0):
         raise ValueError("the run has a flight phase, which the engine's steps are not differentiated through: "
                          "run_jacobian(..., integration='solve_ivp')")
@@ -294,22 +297,22 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
             integ.compiled_law = law        # (the events' flows take the law's derivative in C too)
     leg, t_start = int(legs[0]), float(t[0])
     stops = [(te, kind, lg) for te, kind, lg in events] + ([] if end_at_event else [(t_end, None, None)])
-    x = X[0]
+    x = X[0].copy()
     for n, (t_stop, kind, gleg) in enumerate(stops):
         idx = np.flatnonzero((legs == leg) & (t >= t_start) & (t < t_stop))
-        idx = idx[np.concatenate([np.diff(t[idx]) > 0, [True]])] if idx.size else idx    # (no zero-length steps)
-        starts = list(idx)
-        ends = list(t[idx[1:]]) + [t_stop]
-        H = np.array(ends) - t[idx]
+        if idx.size:
+            idx = idx[np.append(t[idx[1:]] > t[idx[:-1]], True)]      # (no zero-length steps)
+        t_idx = t[idx]
+        H = np.append(t_idx[1:], t_stop) - t_idx
         keep = H > 0
         if keep.any():
+            t0, X0, H = t_idx[keep], X[idx[keep]], H[keep]
             if law is not None:     # (S carried through the steps in C)
-                X1, _Phi = steps_transition_c(lin.derivatives, law, t[idx][keep], X[idx][keep], H[keep], leg, S)
+                X1, _Phi = steps_transition_c(lin.derivatives, law, t0, X0, H, leg, S)
                 how, gain_how = (LAW_NONE if law[0] == "held" else LAW_EXACT), None
             else:
                 X1, Phi, Gamma, how, gain_how = steps_transition(
-                    lin.derivatives, integ.controller, integ.u_held, t[idx][keep], X[idx][keep], H[keep], leg, Wp,
-                    integ.gains, integ.Sg)
+                    lin.derivatives, integ.controller, integ.u_held, t0, X0, H, leg, Wp, integ.gains, integ.Sg)
                 for k in range(Phi.shape[0]):
                     S = Phi[k] @ S if Gamma is None else Phi[k] @ S + Gamma[k]
             if how is not None:
@@ -317,8 +320,8 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
             if gain_how is not None:
                 integ.gain_derivative = gain_how
             x = X1[-1]
-        elif starts:
-            x = X[starts[-1]]
+        elif idx.size:
+            x = X[idx[-1]].copy()
         if kind is None:
             return x, S, None
         last = end_at_event and n == len(stops) - 1
