@@ -22,6 +22,9 @@ enum { STAGES = 12, MAX_PARAMETERS = 128 };
 
 typedef int (*LawJacobian)(double t, const double *q, const double *dq, int stance_leg, const double *params,
                            double *u, double *u_x);
+/* the same on the stance KKT system already factored at (q, dq) (torque_hook.STANCE_JACOBIAN_SIGNATURE) */
+typedef int (*LawStanceJacobian)(const void *system, double t, const double *q, const double *dq, int stance_leg,
+                                 const double *params, double *u, double *u_x);
 
 /* S <- Phi S in place (Phi 10 x 10, S 10 x m, row-major): the state transition matrix carried through a step */
 static void
@@ -41,8 +44,8 @@ chain(const double *phi, double *S, Py_ssize_t m)
 /* the steps of one stack: X1 (N x 10) and Phi (N x 10 x 10); -1 with an exception set */
 static int
 steps(const StanceConstants *k, int leg, const double *a, const double *b, const double *c, Py_ssize_t N,
-      const double *t0, const double *X0, const double *H, LawJacobian law, const double *params,
-      const char *name, const double *u_held, double *X1, double *Phi, double *S, Py_ssize_t m)
+      const double *t0, const double *X0, const double *H, LawJacobian law, LawStanceJacobian on_system,
+      const double *params, const char *name, const double *u_held, double *X1, double *Phi, double *S, Py_ssize_t m)
 {
     double Kf[STAGES][SD_NX], Psi[STAGES][SD_NX][SD_NX];
     for (Py_ssize_t p = 0; p < N; p++) {
@@ -62,9 +65,24 @@ steps(const StanceConstants *k, int leg, const double *a, const double *b, const
                 xi[r] = x0[r] + h * sx[r];
                 for (int col = 0; col < SD_NX; col++) Mi[r][col] = (r == col ? 1.0 : 0.0) + h * Mi[r][col];
             }
-            double u[SD_M], u_x[SD_M * SD_NX];
+            double u[SD_M], u_x[SD_M * SD_NX], A[SD_N][SD_NX], fu[SD_N][SD_M];
             const double ti = t0[p] + c[i] * h;
-            if (law != NULL) {
+            StanceSystem kkt;
+            int singular_at = 0;
+            if (on_system != NULL) {    /* one factorisation of the stance system for the law and the flow */
+                singular_at = stance_system(k, xi, xi + SD_N, leg, &kkt) < 0;
+                if (!singular_at) {
+                    int code = on_system(&kkt, ti, xi, xi + SD_N, leg, params, u, u_x);
+                    if (code != 0) {
+                        char when[32];
+                        snprintf(when, sizeof when, "%.17g", ti);
+                        PyErr_Format(PyExc_ValueError, "the torque law %s's derivative returned %d at t=%s s", name,
+                                     code, when);
+                        return -1;
+                    }
+                    stance_flow_on(&kkt, xi, u, u_x, Kf[i], A, fu);
+                }
+            } else if (law != NULL) {
                 int code = law(ti, xi, xi + SD_N, leg, params, u, u_x);
                 if (code != 0) {
                     char when[32];
@@ -77,8 +95,8 @@ steps(const StanceConstants *k, int leg, const double *a, const double *b, const
                 u[0] = u_held[0];
                 u[1] = u_held[1];
             }
-            double A[SD_N][SD_NX], fu[SD_N][SD_M];
-            if (stance_flow(k, xi, leg, u, law != NULL ? u_x : NULL, Kf[i], A, fu) < 0) {
+            if (on_system == NULL) singular_at = stance_flow(k, xi, leg, u, law != NULL ? u_x : NULL, Kf[i], A, fu) < 0;
+            if (singular_at) {
                 char when[32];
                 snprintf(when, sizeof when, "%.17g", ti);
                 PyErr_Format(PyExc_ValueError, "the stance KKT system on foot %d is singular at t=%s s", leg, when);
@@ -288,13 +306,24 @@ doubles(PyObject *seq, double *out, Py_ssize_t n_max, Py_ssize_t *n, const char 
     return 0;
 }
 
-/* a law's derivative from (address of its law_jacobian, its parameters, its name) */
+/* a law's derivative from (address of its law_jacobian, its parameters, its name[, address of its
+ * law_stance_jacobian or 0]); on_system (NULL: not asked) gets the last, NULL where 0 or not given */
 static int
-law_from(PyObject *spec, LawJacobian *law, double *params, Py_ssize_t *n_params, const char **name)
+law_from(PyObject *spec, LawJacobian *law, LawStanceJacobian *on_system, double *params, Py_ssize_t *n_params,
+         const char **name)
 {
-    PyObject *address, *values, *label;
-    if (!PyArg_ParseTuple(spec, "OOO:a law (address of its jacobian, parameters, name)", &address, &values, &label))
+    PyObject *address, *values, *label, *stance_address = NULL;
+    if (!PyArg_ParseTuple(spec, "OOO|O:a law (address of its jacobian, parameters, name, address on the system)",
+                          &address, &values, &label, &stance_address))
         return -1;
+    if (on_system != NULL) {
+        *on_system = NULL;
+        if (stance_address != NULL) {
+            void *fs = PyLong_AsVoidPtr(stance_address);
+            if (fs == NULL && PyErr_Occurred()) return -1;
+            *on_system = (LawStanceJacobian)fs;
+        }
+    }
     void *fn = PyLong_AsVoidPtr(address);
     if (fn == NULL) {
         if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "a law's jacobian address must not be 0");
@@ -356,11 +385,12 @@ steps_transition(PyObject *self, PyObject *args)
         m = bs.len / (Py_ssize_t)(SD_NX * sizeof(double));
         if (check(&bs, SD_NX * m, "S")) goto done;
     }
-    if (law_spec != Py_None && law_from(law_spec, &law, params, &n_params, &name) < 0) goto done;
+    LawStanceJacobian on_system = NULL;
+    if (law_spec != Py_None && law_from(law_spec, &law, &on_system, params, &n_params, &name) < 0) goto done;
     StanceConstants k;
     stance_constants((const double *)bp.buf, &k);
     if (steps(&k, leg, (const double *)ba.buf, (const double *)bb.buf, (const double *)bc.buf, N,
-              (const double *)bt.buf, (const double *)bx.buf, (const double *)bh.buf, law, params, name,
+              (const double *)bt.buf, (const double *)bx.buf, (const double *)bh.buf, law, on_system, params, name,
               (const double *)bu.buf, (double *)bx1.buf, (double *)bphi.buf, bs.buf != NULL ? (double *)bs.buf : NULL, m) < 0)
         goto done;
     result = Py_NewRef(Py_None);
@@ -389,7 +419,7 @@ law_jacobian(PyObject *self, PyObject *args)
     const char *name = "";
     Py_buffer bx = {0}, bu = {0}, bux = {0};
     if (!PyArg_ParseTuple(args, "Ody*iw*w*:law_jacobian", &spec, &t, &bx, &leg, &bu, &bux)) return NULL;
-    if (law_from(spec, &law, params, &n_params, &name) < 0 || check(&bx, SD_NX, "x") || check(&bu, SD_M, "u")
+    if (law_from(spec, &law, NULL, params, &n_params, &name) < 0 || check(&bx, SD_NX, "x") || check(&bu, SD_M, "u")
         || check(&bux, SD_M * SD_NX, "u_x"))
         goto done;
     const double *x = (const double *)bx.buf;
@@ -436,7 +466,7 @@ touchdown_event(PyObject *self, PyObject *args)
     if (check(&bp, SD_N_PARAMETERS, "p") || check(&bx, SD_NX, "x") || check(&bs, SD_NX * m, "S")
         || check(&bu, SD_M, "u_held") || check(&bxp, SD_NX, "x_plus") || check(&bsp, SD_NX * m, "S_plus"))
         goto done;
-    if (law_spec != Py_None && law_from(law_spec, &law, params, &n_params, &name) < 0) goto done;
+    if (law_spec != Py_None && law_from(law_spec, &law, NULL, params, &n_params, &name) < 0) goto done;
     StanceConstants k;
     stance_constants((const double *)bp.buf, &k);
     if (touchdown(&k, leg, gleg, tan_s, t, (const double *)bx.buf, (const double *)bs.buf, m, law, params, name,

@@ -212,10 +212,10 @@ _C, WHY_NOT_C = _compiled_steps()
 
 def compiled_law(deriv, controller, u_held, parameters=False, gains=()):
     """What ``steps_transition_c`` runs the stance flow of a stack under: ``("held", u)`` for no controller, the
-    law's ``(jacobian address, parameters, name)`` for a compiled law that offers its derivative
-    (``torque_hook.CompiledLaw.jacobian``); None where the numpy path runs: the C not built (``WHY_NOT_C``),
-    terms other than the three-link's closed forms (a described robot), the model's parameters or the
-    controller's gains among the inputs, or a controller without such a law."""
+    law's ``(jacobian address, parameters, name, stance_jacobian address or 0)`` for a compiled law that offers its
+    derivative (``torque_hook.CompiledLaw.jacobian``, ``stance_jacobian``); None where the numpy path runs: the
+    C not built (``WHY_NOT_C``), terms other than the three-link's closed forms (a described robot), the model's
+    parameters or the controller's gains among the inputs, or a controller without such a law."""
     from biped_sim.engine.model_derivatives import ClosedFormDerivatives
     from biped_sim.engine.torque_hook import reference_law
     if _C is None or type(deriv) is not ClosedFormDerivatives or parameters or gains:
@@ -225,7 +225,7 @@ def compiled_law(deriv, controller, u_held, parameters=False, gains=()):
     law = reference_law(controller, deriv.model)
     if law is None or not law.jacobian:
         return None
-    return law.jacobian, law.params, law.name
+    return law.jacobian, law.params, law.name, law.stance_jacobian
 
 
 def steps_transition_c(deriv, law, t0, X0, H, leg, S=None):

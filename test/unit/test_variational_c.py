@@ -208,3 +208,27 @@ def test_a_singular_impact_in_c_is_one_line():
     x[2] = x[3] = np.nan
     with pytest.raises(ValueError, match=r"^the stance KKT system on foot 1 is singular at t=0\.25 s$"):
         variational.touchdown_c(deriv, ("held", U_HELD), 0.25, x, np.eye(10)[:, :6], 1, 2, 0.0, True)
+
+
+@pytest.mark.parametrize("leg", [1, 2])
+@pytest.mark.parametrize("name", ["walking", "walking at its limit"])
+def test_the_law_on_the_flows_stance_system_gives_the_same_bits(name, leg):
+    """The walking law's derivative on the flow's own factored stance system (one factorisation a stage) against
+    the law factoring its own: the same system, so the same bits."""
+    rng = np.random.default_rng([leg, len(name), 5])
+    ctrl = CONTROLLERS[name](BipedModel())       # (a model of the plant's parameters, not the plant itself)
+    deriv = derivatives(MODEL)
+    t0, X0, H = _stack(leg, rng)
+    law = variational.compiled_law(deriv, ctrl, None)
+    assert law[3] != 0
+    X1, Phi = variational.steps_transition_c(deriv, law, t0, X0, H, leg)
+    X1_own, Phi_own = variational.steps_transition_c(deriv, law[:3], t0, X0, H, leg)
+    assert np.array_equal(X1, X1_own) and np.array_equal(Phi, Phi_own)
+
+
+def test_only_a_law_on_the_plants_parameters_offers_its_derivative_on_the_plants_system():
+    assert WalkingController(BipedModel()).compiled_law(MODEL).stance_jacobian != 0
+    assert WalkingController(OTHER).compiled_law(OTHER).stance_jacobian != 0
+    assert PDWalkingController(MODEL).compiled_law(MODEL).stance_jacobian == 0      # (the PD law needs no model)
+    heavier = BipedModel(m_torso=11.0)
+    assert WalkingController(heavier).compiled_law(MODEL) is None     # (its own system is not the plant's)
