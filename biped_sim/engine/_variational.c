@@ -41,8 +41,44 @@ chain(const double *phi, double *S, Py_ssize_t m)
     }
 }
 
-/* the steps of one stack: X1 (N x 10) and Phi (N x 10 x 10); -1 with an exception set */
+/* a law's derivative failed (its return code) at t: -1 with the exception set */
 static int
+law_failed(const char *name, int code, double t)
+{
+    char when[32];
+    snprintf(when, sizeof when, "%.17g", t);
+    PyErr_Format(PyExc_ValueError, "the torque law %s's derivative returned %d at t=%s s", name, code, when);
+    return -1;
+}
+
+/* the stance KKT system singular at t: -1 with the exception set */
+static int
+singular_at(int leg, double t)
+{
+    char when[32];
+    snprintf(when, sizeof when, "%.17g", t);
+    PyErr_Format(PyExc_ValueError, "the stance KKT system on foot %d is singular at t=%s s", leg, when);
+    return -1;
+}
+
+/* one stage's flow (f, the lower rows of A, f_u) under a law's derivative on the stance system the flow factors:
+ * one factorisation for both */
+static __attribute__((flatten)) int
+stage_on_system(const StanceConstants *k, LawStanceJacobian on_system, double t, const double *x, int leg,
+                const double *params, const char *name, double *f, double A[SD_N][SD_NX], double fu[SD_N][SD_M])
+{
+    StanceSystem kkt;
+    double u[SD_M], u_x[SD_M * SD_NX];
+    if (stance_system(k, x, x + SD_N, leg, &kkt) < 0) return singular_at(leg, t);
+    int code = on_system(&kkt, t, x, x + SD_N, leg, params, u, u_x);
+    if (code != 0) return law_failed(name, code, t);
+    stance_flow_on(&kkt, x, u, u_x, f, A, fu);
+    return 0;
+}
+
+/* the steps of one stack: X1 (N x 10) and Phi (N x 10 x 10); -1 with an exception set. (flatten: the stance
+ * system inlined in the stages' loop whatever else calls it, 0.61 -> 0.54 us a held stage) */
+static __attribute__((flatten)) int
 steps(const StanceConstants *k, int leg, const double *a, const double *b, const double *c, Py_ssize_t N,
       const double *t0, const double *X0, const double *H, LawJacobian law, LawStanceJacobian on_system,
       const double *params, const char *name, const double *u_held, double *X1, double *Phi, double *S, Py_ssize_t m)
@@ -67,40 +103,18 @@ steps(const StanceConstants *k, int leg, const double *a, const double *b, const
             }
             double u[SD_M], u_x[SD_M * SD_NX], A[SD_N][SD_NX], fu[SD_N][SD_M];
             const double ti = t0[p] + c[i] * h;
-            StanceSystem kkt;
-            int singular_at = 0;
-            if (on_system != NULL) {    /* one factorisation of the stance system for the law and the flow */
-                singular_at = stance_system(k, xi, xi + SD_N, leg, &kkt) < 0;
-                if (!singular_at) {
-                    int code = on_system(&kkt, ti, xi, xi + SD_N, leg, params, u, u_x);
-                    if (code != 0) {
-                        char when[32];
-                        snprintf(when, sizeof when, "%.17g", ti);
-                        PyErr_Format(PyExc_ValueError, "the torque law %s's derivative returned %d at t=%s s", name,
-                                     code, when);
-                        return -1;
-                    }
-                    stance_flow_on(&kkt, xi, u, u_x, Kf[i], A, fu);
-                }
-            } else if (law != NULL) {
-                int code = law(ti, xi, xi + SD_N, leg, params, u, u_x);
-                if (code != 0) {
-                    char when[32];
-                    snprintf(when, sizeof when, "%.17g", ti);
-                    PyErr_Format(PyExc_ValueError, "the torque law %s's derivative returned %d at t=%s s", name,
-                                 code, when);
-                    return -1;
-                }
+            if (on_system != NULL) {
+                if (stage_on_system(k, on_system, ti, xi, leg, params, name, Kf[i], A, fu) < 0) return -1;
             } else {
-                u[0] = u_held[0];
-                u[1] = u_held[1];
-            }
-            if (on_system == NULL) singular_at = stance_flow(k, xi, leg, u, law != NULL ? u_x : NULL, Kf[i], A, fu) < 0;
-            if (singular_at) {
-                char when[32];
-                snprintf(when, sizeof when, "%.17g", ti);
-                PyErr_Format(PyExc_ValueError, "the stance KKT system on foot %d is singular at t=%s s", leg, when);
-                return -1;
+                if (law != NULL) {
+                    int code = law(ti, xi, xi + SD_N, leg, params, u, u_x);
+                    if (code != 0) return law_failed(name, code, ti);
+                } else {
+                    u[0] = u_held[0];
+                    u[1] = u_held[1];
+                }
+                if (stance_flow(k, xi, leg, u, law != NULL ? u_x : NULL, Kf[i], A, fu) < 0)
+                    return singular_at(leg, ti);
             }
             /* Psi_i = A M_i: the upper rows of A are [0 I], so its upper rows are M_i's lower ones */
             for (int r = 0; r < SD_N; r++)
@@ -145,22 +159,7 @@ torque_at(LawJacobian law, const double *params, const char *name, const double 
         return 0;
     }
     int code = law(t, x, x + SD_N, leg, params, u, u_x);
-    if (code != 0) {
-        char when[32];
-        snprintf(when, sizeof when, "%.17g", t);
-        PyErr_Format(PyExc_ValueError, "the torque law %s's derivative returned %d at t=%s s", name, code, when);
-        return -1;
-    }
-    return 0;
-}
-
-static int
-singular(int leg, double t)
-{
-    char when[32];
-    snprintf(when, sizeof when, "%.17g", t);
-    PyErr_Format(PyExc_ValueError, "the stance KKT system on foot %d is singular at t=%s s", leg, when);
-    return -1;
+    return code != 0 ? law_failed(name, code, t) : 0;
 }
 
 /* the stance flow's value f = (dq, ddq) at x under u on foot `leg` (stance_flow's f, without its derivative) */
@@ -251,11 +250,11 @@ touchdown(const StanceConstants *c, int leg, int gleg, double tan_s, double t, c
 {
     double u[SD_M], f_minus[SD_NX], J[2 * SD_N], gx[SD_N], dqp[SD_N], Rq[SD_N][SD_N], Rv[SD_N][SD_N];
     if (torque_at(law, params, name, u_held, t, x, leg, u) < 0) return -1;
-    if (stance_rate(c, x, leg, u, f_minus) < 0) return singular(leg, t);
+    if (stance_rate(c, x, leg, u, f_minus) < 0) return singular_at(leg, t);
     if (gleg == 1) k_foot_jacobian_1(x, c->foot_jacobian[0], J);
     else k_foot_jacobian_2(x, c->foot_jacobian[1], J);
     for (int j = 0; j < SD_N; j++) gx[j] = J[SD_N + j] + tan_s * J[j];
-    if (impact(c, x, x + SD_N, gleg, dqp, Rq, Rv) < 0) return singular(gleg, t);
+    if (impact(c, x, x + SD_N, gleg, dqp, Rq, Rv) < 0) return singular_at(gleg, t);
     for (int i = 0; i < SD_N; i++) {
         x_plus[i] = x[i];
         x_plus[SD_N + i] = dqp[i];
@@ -271,7 +270,7 @@ touchdown(const StanceConstants *c, int leg, int gleg, double tan_s, double t, c
     if (!last) {    /* w = F+ - DR F- */
         double u_plus[SD_M], f_plus[SD_NX], Rf[SD_NX];
         if (torque_at(law, params, name, u_held, t, x_plus, gleg, u_plus) < 0) return -1;
-        if (stance_rate(c, x_plus, gleg, u_plus, f_plus) < 0) return singular(gleg, t);
+        if (stance_rate(c, x_plus, gleg, u_plus, f_plus) < 0) return singular_at(gleg, t);
         reset_times(Rq, Rv, f_minus, Rf);
         for (int r = 0; r < SD_NX; r++) w[r] = f_plus[r] - Rf[r];
     }
