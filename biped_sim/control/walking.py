@@ -92,7 +92,7 @@ class WalkingController:
             return None
         jacobian = _jacobian_address(self, WalkingController, _laws.WALKING_JACOBIAN)
         # its derivative on the plant's stance KKT system, where that system is the law's own (the same parameters)
-        on_plant = _laws.WALKING_STANCE_JACOBIAN if jacobian and tuple(self.model.p) == tuple(model.p) else 0
+        on_plant = _laws.WALKING_STANCE_JACOBIAN if jacobian and (self.model is model or self.model.p == model.p) else 0
         return CompiledLaw("walking", self._law_parameters() + tuple(self.model.p) + self.model.k["stance_terms_1"],
                            _laws.WALKING_LAW, jacobian, on_plant)
 
