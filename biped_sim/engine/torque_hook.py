@@ -47,9 +47,9 @@ MAX_PARAMETERS = 128
 class CompiledLaw(NamedTuple):
     """A compiled torque law: its name (in messages only), its parameters (a tuple of Python numbers,
     copied into the loop as doubles), the address of its C function (:data:`SIGNATURE`) and, optionally, the
-    address of its derivative (:data:`JACOBIAN_SIGNATURE`, on the same parameters; 0: none) and of that
+    address of its derivative (:data:`JACOBIAN_SIGNATURE`, on the same parameters; 0: none) and of that same
     derivative on the plant's stance KKT system (:data:`STANCE_JACOBIAN_SIGNATURE`; 0: none, or the law's model
-    parameters are not the plant's)."""
+    parameters are not the plant's; a law that replaces ``jacobian`` replaces this too, or sets it to 0)."""
     name: str
     params: tuple
     address: int

@@ -202,7 +202,7 @@ def test_the_c_touchdown_gives_the_saltation_matrix_of_the_numpy_path(name, legs
             assert rel(Sc, S) > 1e-3       # (the saltation matrix moves S)
 
 
-def test_a_singular_impact_in_c_is_one_line():
+def test_a_singular_stance_system_at_a_touchdown_in_c_is_one_line():
     deriv = derivatives(MODEL)
     x = np.zeros(10)
     x[2] = x[3] = np.nan
