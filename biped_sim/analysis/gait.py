@@ -232,6 +232,7 @@ class StepMap:
 
     def __init__(self, model, controller, rtol=1e-10, atol=1e-10, slope=0.0, method="dop853", **options):
         self.model, self.controller = model, controller
+        self.rows = section_rows(model)     # the next section point's rows of the physical state
         self.slope = float(slope)
         self.kw = dict(rtol=rtol, atol=atol, method=method, slope=self.slope, max_events=1,
                        phases=frozenset({"stance", "impact"}), **options)
@@ -297,7 +298,7 @@ class StepMap:
     def full_jacobian(self, z, max_time=5.0):
         """(dP/dz (len(z) square), the law's derivative): exact (``sensitivity``)."""
         r = self.sensitivity(z, max_time=max_time)
-        return r.jacobian[section_rows(self.model)], r.law_derivative
+        return r.jacobian[self.rows], r.law_derivative
 
     def jacobian(self, z, U):
         """A = U^T dP/dz U, exact (``full_jacobian``)."""

@@ -143,16 +143,15 @@ flight_jacobian(const double *dq, const double *c, double *u, double *u_x)
 }
 
 static int
-walking_jacobian(double t, const double *q, const double *dq, int leg, const double *c, double *u, double *u_x)
+walking_stance_jacobian(const void *system, double t, const double *q, const double *dq, int leg, const double *c,
+                        double *u, double *u_x)
 {   /* WalkingController.jacobian_batch at one point: u* solves Phi(x, u) = H ddq_r(x, u) + bias + kp y + kd dy = 0
      * on the stance KKT system (ddq_r = s0_r + s_u,r u), so u*_x = -(H B_u)^-1 Phi_x with ds/dx at u*; a torque
-     * at its limit has derivative 0 */
+     * at its limit has derivative 0. `system`: that system at (q, dq) on `leg`, factored (stance_system, on the
+     * model parameters of c + N_LAW_PARAMETERS: the law's own, or a plant's of the same parameters) */
     (void)t;
     if (leg == 0) return flight_jacobian(dq, c, u, u_x);
-    StanceConstants k;
-    stance_constants(c + N_LAW_PARAMETERS, &k);
-    StanceSystem S;
-    if (stance_system(&k, q, dq, leg, &S) < 0) return 1;
+    const StanceSystem *S = system;
     int s = leg == 1 ? 2 : 3, w = leg == 1 ? 3 : 2;
     double phi = q[s] + q[4] - M_PI, dphi = dq[s] + dq[4], f, df, ddf;
     swing_target(c, phi, &f, &df, &ddf);
@@ -165,20 +164,20 @@ walking_jacobian(double t, const double *q, const double *dq, int leg, const dou
     double kp = c[KP], kd = c[KD], lim = c[TORQUE_LIMIT];
     double HB[2][2], rhs[2];
     for (int i = 0; i < 2; i++) {
-        for (int m = 0; m < 2; m++) HB[i][m] = H[i][0] * S.su[2][m] + H[i][1] * S.su[3][m] + H[i][2] * S.su[4][m];
-        rhs[i] = -kp * y[i] - kd * dy[i] - (H[i][0] * S.s0[2] + H[i][1] * S.s0[3] + H[i][2] * S.s0[4]) - bias[i];
+        for (int m = 0; m < 2; m++) HB[i][m] = H[i][0] * S->su[2][m] + H[i][1] * S->su[3][m] + H[i][2] * S->su[4][m];
+        rhs[i] = -kp * y[i] - kd * dy[i] - (H[i][0] * S->s0[2] + H[i][1] * S->s0[3] + H[i][2] * S->s0[4]) - bias[i];
     }
     double det = HB[0][0] * HB[1][1] - HB[0][1] * HB[1][0];
     double inv[2][2] = {{HB[1][1] / det, -HB[0][1] / det}, {-HB[1][0] / det, HB[0][0] / det}};
     double u_star[2] = {inv[0][0] * rhs[0] + inv[0][1] * rhs[1], inv[1][0] * rhs[0] + inv[1][1] * rhs[1]};
     double acc[SD_NK], C[SD_NK][SD_NX];
-    for (int i = 0; i < SD_NK; i++) acc[i] = S.s0[i] + (S.su[i][0] * u_star[0] + S.su[i][1] * u_star[1]);
-    stance_derivative_rhs(&S, acc, C);
+    for (int i = 0; i < SD_NK; i++) acc[i] = S->s0[i] + (S->su[i][0] * u_star[0] + S->su[i][1] * u_star[1]);
+    stance_derivative_rhs(S, acc, C);
     double d3f = 6.0 * c[CLEARANCE] / c[A2];   /* the third derivative of the swing target */
     double Phi_x[2][SD_NX];
     for (int i = 0; i < 2; i++) {   /* H ds_r/dx = (K^-T g)^T C with g = H on the joint rows (2 solves, not 10) */
         double g[SD_NK] = {0.0, 0.0, H[i][0], H[i][1], H[i][2], 0.0, 0.0}, wt[SD_NK];
-        stance_solve_transposed(&S, g, wt);
+        stance_solve_transposed(S, g, wt);
         for (int k2 = 0; k2 < SD_NX; k2++) {
             double v = 0.0;
             for (int r = 0; r < SD_NK; r++) v += wt[r] * C[r][k2];
@@ -205,6 +204,17 @@ walking_jacobian(double t, const double *q, const double *dq, int leg, const dou
         u[i] = clip(u_star[i], lim);
     }
     return 0;
+}
+
+static int
+walking_jacobian(double t, const double *q, const double *dq, int leg, const double *c, double *u, double *u_x)
+{   /* walking_stance_jacobian on the law's own stance KKT system */
+    if (leg == 0) return flight_jacobian(dq, c, u, u_x);
+    StanceConstants k;
+    stance_constants(c + N_LAW_PARAMETERS, &k);
+    StanceSystem S;
+    if (stance_system(&k, q, dq, leg, &S) < 0) return 1;
+    return walking_stance_jacobian(&S, t, q, dq, leg, c, u, u_x);
 }
 
 static int
@@ -252,6 +262,7 @@ PyInit__laws(void)
     if (PyModule_AddObject(m, "WALKING_LAW", PyLong_FromVoidPtr((void *)walking)) < 0
         || PyModule_AddObject(m, "PD_WALKING_LAW", PyLong_FromVoidPtr((void *)pd_walking)) < 0
         || PyModule_AddObject(m, "WALKING_JACOBIAN", PyLong_FromVoidPtr((void *)walking_jacobian)) < 0
+        || PyModule_AddObject(m, "WALKING_STANCE_JACOBIAN", PyLong_FromVoidPtr((void *)walking_stance_jacobian)) < 0
         || PyModule_AddObject(m, "PD_WALKING_JACOBIAN", PyLong_FromVoidPtr((void *)pd_walking_jacobian)) < 0
         || PyModule_AddIntConstant(m, "N_MODEL_PARAMETERS", SD_N_PARAMETERS) < 0
         || PyModule_AddStringConstant(m, "DERIVATIVES_SHA256", BIPED_SIM_DERIVATIVES_SHA256) < 0

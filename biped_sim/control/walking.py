@@ -78,7 +78,9 @@ class WalkingController:
         """This law as the engine's torque-law hook takes it (a
         :class:`~biped_sim.engine.torque_hook.CompiledLaw`: control/_laws.c's ``walking``, the parameters of
         ``_law_parameters``, then its model's parameters p and the constants of ``stance_terms_1``; with the
-        address of ``walking_jacobian``, the twin of ``jacobian_batch``, where that is its own) when it gives
+        address of ``walking_jacobian``, the twin of ``jacobian_batch``, where that is its own, and of
+        ``walking_stance_jacobian``, the same on the plant's stance system, where ``model`` has its model's
+        parameters) when it gives
         this controller's own torques bit for bit on ``model`` (the simulator's); else None, and the loop calls
         the controller back: a subclass or an instance that replaces a method the law runs, a controller on a
         model whose closed form (``stance_terms_1``: the mass matrix and bias of ``stance_joint_affine_fast``) is not
@@ -88,8 +90,11 @@ class WalkingController:
             return None
         if self.model is not model and self.model.k["stance_terms_1"] != model.k["stance_terms_1"]:
             return None
+        jacobian = _jacobian_address(self, WalkingController, _laws.WALKING_JACOBIAN)
+        # its derivative on the plant's stance KKT system, where that system is the law's own (the same parameters)
+        on_plant = _laws.WALKING_STANCE_JACOBIAN if jacobian and (self.model is model or self.model.p == model.p) else 0
         return CompiledLaw("walking", self._law_parameters() + tuple(self.model.p) + self.model.k["stance_terms_1"],
-                           _laws.WALKING_LAW, _jacobian_address(self, WalkingController, _laws.WALKING_JACOBIAN))
+                           _laws.WALKING_LAW, jacobian, on_plant)
 
     def swing_target(self, phi_s):
         """f(phi_s) and its first two derivatives."""

@@ -14,7 +14,8 @@
  *
  * and the flow x' = f(x) = (dq, ddq) has A = df/dx = [[0, I], [ds/dq, ds/ddq] + s_u u_x] (the lower rows: the
  * first n rows of s) and f_u = (0, s_u). K is factored once (LU, partial pivoting) and reused for every
- * column. Built with -ffp-contract=off as the other extensions; the operation order is not numpy's, so the
+ * column, and by a compiled law's derivative on the same system (stance_flow_on after the law's stance_jacobian,
+ * biped_sim/engine/torque_hook.py STANCE_JACOBIAN_SIGNATURE). Built with -ffp-contract=off as the other extensions; the operation order is not numpy's, so the
  * results agree with the numpy path to rounding, not bit for bit.
  */
 #ifndef BIPED_SIM_STANCE_DERIVATIVE_H
@@ -216,18 +217,16 @@ stance_derivative(const StanceSystem *S, const double *s, double dsq[SD_NK][SD_N
         }
 }
 
-/* The stance flow at x = (q, dq) under u with u_x (SD_M x SD_NX row-major; NULL: a held torque, u_x = 0):
+/* stance_flow on a system already factored at x (stance_system's), and stance_flow: the stance flow at x = (q, dq) under u with u_x (SD_M x SD_NX row-major; NULL: a held torque, u_x = 0):
  * f (SD_NX), the lower rows of A (A_low [SD_N][SD_NX]: [ds/dq, ds/ddq] + s_u u_x, the accelerations' rows) and
  * f_u's lower rows (fu [SD_N][SD_M] = s_u); -1 where K is singular */
-static inline int
-stance_flow(const StanceConstants *c, const double *x, int leg, const double *u, const double *u_x,
-            double *f, double A_low[SD_N][SD_NX], double fu[SD_N][SD_M])
+static inline void
+stance_flow_on(const StanceSystem *S, const double *x, const double *u, const double *u_x, double *f,
+               double A_low[SD_N][SD_NX], double fu[SD_N][SD_M])
 {
-    StanceSystem S;
-    if (stance_system(c, x, x + SD_N, leg, &S) < 0) return -1;
     double s[SD_NK], dsq[SD_NK][SD_N], dsv[SD_NK][SD_N];
-    for (int i = 0; i < SD_NK; i++) s[i] = S.s0[i] + (S.su[i][0] * u[0] + S.su[i][1] * u[1]);
-    stance_derivative(&S, s, dsq, dsv);
+    for (int i = 0; i < SD_NK; i++) s[i] = S->s0[i] + (S->su[i][0] * u[0] + S->su[i][1] * u[1]);
+    stance_derivative(S, s, dsq, dsv);
     for (int i = 0; i < SD_N; i++) {
         f[i] = x[SD_N + i];
         f[SD_N + i] = s[i];
@@ -236,10 +235,19 @@ stance_flow(const StanceConstants *c, const double *x, int leg, const double *u,
             A_low[i][SD_N + k] = dsv[i][k];
         }
         if (u_x != NULL)
-            for (int k = 0; k < SD_NX; k++) A_low[i][k] += S.su[i][0] * u_x[k] + S.su[i][1] * u_x[SD_NX + k];
-        fu[i][0] = S.su[i][0];
-        fu[i][1] = S.su[i][1];
+            for (int k = 0; k < SD_NX; k++) A_low[i][k] += S->su[i][0] * u_x[k] + S->su[i][1] * u_x[SD_NX + k];
+        fu[i][0] = S->su[i][0];
+        fu[i][1] = S->su[i][1];
     }
+}
+
+static inline int
+stance_flow(const StanceConstants *c, const double *x, int leg, const double *u, const double *u_x,
+            double *f, double A_low[SD_N][SD_NX], double fu[SD_N][SD_M])
+{
+    StanceSystem S;
+    if (stance_system(c, x, x + SD_N, leg, &S) < 0) return -1;
+    stance_flow_on(&S, x, u, u_x, f, A_low, fu);
     return 0;
 }
 

@@ -336,13 +336,11 @@ class Linearization:
         J, dJ = self._foot(q, dq.tolist(), stance_leg)[:2]
         n = self.n
         r = n - 2
-        A = J[:, 2:]
         T = np.zeros((2 * n, 2 * r))
-        T[0:2, 0:r] = -A
-        T[2:n, 0:r] = np.eye(r)
-        T[n:n + 2, 0:r] = -np.column_stack([dJ[k][:, 2:] @ dq[2:] for k in range(2, n)])
-        T[n:n + 2, r:2 * r] = -A
-        T[n + 2:2 * n, r:2 * r] = np.eye(r)
+        T[0:2, 0:r] = T[n:n + 2, r:2 * r] = -J[:, 2:]      # -A
+        k = np.arange(r)
+        T[2 + k, k] = T[n + 2 + k, r + k] = 1.0
+        T[n:n + 2, 0:r] = -(dJ[2:, :, 2:] @ dq[2:]).T      # column k: -(dA/dq_k) dq_r
         return T
 
 

@@ -33,6 +33,13 @@ SIGNATURE = ("int law(double t, const double *q, const double *dq, int stance_le
 #: Jacobian's run raises ValueError naming the law, the code and the time)
 JACOBIAN_SIGNATURE = ("int law_jacobian(double t, const double *q, const double *dq, int stance_leg, "
                       "const double *params, double *u, double *u_x)")
+#: the C signature of a compiled law's optional derivative on a stance KKT system already factored
+#: (:attr:`CompiledLaw.stance_jacobian`): :data:`JACOBIAN_SIGNATURE`'s, with ``system`` the StanceSystem of
+#: engine/_stance_derivative.h at (q, dq) on ``stance_leg`` (stance_system's) of the plant, whose model parameters
+#: are the law's own; the exact Jacobians' steps in C factor that system once for the law and the flow. Unused in
+#: flight (stance_leg 0)
+STANCE_JACOBIAN_SIGNATURE = ("int law_stance_jacobian(const void *system, double t, const double *q, const double *dq, "
+                             "int stance_leg, const double *params, double *u, double *u_x)")
 #: the most parameters a compiled law takes
 MAX_PARAMETERS = 128
 
@@ -40,11 +47,14 @@ MAX_PARAMETERS = 128
 class CompiledLaw(NamedTuple):
     """A compiled torque law: its name (in messages only), its parameters (a tuple of Python numbers,
     copied into the loop as doubles), the address of its C function (:data:`SIGNATURE`) and, optionally, the
-    address of its derivative (:data:`JACOBIAN_SIGNATURE`, on the same parameters; 0: none)."""
+    address of its derivative (:data:`JACOBIAN_SIGNATURE`, on the same parameters; 0: none) and of that same
+    derivative on the plant's stance KKT system (:data:`STANCE_JACOBIAN_SIGNATURE`; 0: none, or the law's model
+    parameters are not the plant's; a law that replaces ``jacobian`` replaces this too, or sets it to 0)."""
     name: str
     params: tuple
     address: int
     jacobian: int = 0
+    stance_jacobian: int = 0
 
 
 def c_prototype():

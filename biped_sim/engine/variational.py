@@ -25,9 +25,11 @@ path.
 For the three-link's closed forms under a held torque or a compiled law that offers its derivative
 (``torque_hook.CompiledLaw.jacobian``), without the model's parameters or the controller's gains among the
 inputs, a phase's steps run in C instead (``steps_transition_c``: engine/_variational.c on the stance KKT
-system's derivative of engine/_stance_derivative.h, all 12 stages of every step without the interpreter);
-they agree with ``steps_transition`` to rounding (test/unit/test_variational_c.py). The rest (a described
-robot, parameters, gains, a law without a compiled derivative, BIPED_SIM_PURE_PYTHON) takes the numpy path.
+system's derivative of engine/_stance_derivative.h, all 12 stages of every step without the interpreter, S
+carried through their Phi there), and so does each touchdown's saltation matrix (``touchdown_c``); they agree
+with ``steps_transition`` and ``_Integration._event`` to rounding (test/unit/test_variational_c.py). The rest (a
+described robot, parameters, gains, a law without a compiled derivative, BIPED_SIM_PURE_PYTHON) takes the
+numpy path.
 """
 from __future__ import annotations
 
@@ -210,10 +212,10 @@ _C, WHY_NOT_C = _compiled_steps()
 
 def compiled_law(deriv, controller, u_held, parameters=False, gains=()):
     """What ``steps_transition_c`` runs the stance flow of a stack under: ``("held", u)`` for no controller, the
-    law's ``(jacobian address, parameters, name)`` for a compiled law that offers its derivative
-    (``torque_hook.CompiledLaw.jacobian``); None where the numpy path runs: the C not built (``WHY_NOT_C``),
-    terms other than the three-link's closed forms (a described robot), the model's parameters or the
-    controller's gains among the inputs, or a controller without such a law."""
+    law's ``(jacobian address, parameters, name, stance_jacobian address or 0)`` for a compiled law that offers its
+    derivative (``torque_hook.CompiledLaw.jacobian``, ``stance_jacobian``); None where the numpy path runs: the
+    C not built (``WHY_NOT_C``), terms other than the three-link's closed forms (a described robot), the model's
+    parameters or the controller's gains among the inputs, or a controller without such a law."""
     from biped_sim.engine.model_derivatives import ClosedFormDerivatives
     from biped_sim.engine.torque_hook import reference_law
     if _C is None or type(deriv) is not ClosedFormDerivatives or parameters or gains:
@@ -223,20 +225,38 @@ def compiled_law(deriv, controller, u_held, parameters=False, gains=()):
     law = reference_law(controller, deriv.model)
     if law is None or not law.jacobian:
         return None
-    return law.jacobian, law.params, law.name
+    return law.jacobian, law.params, law.name, law.stance_jacobian
 
 
-def steps_transition_c(deriv, law, t0, X0, H, leg):
+def steps_transition_c(deriv, law, t0, X0, H, leg, S=None):
     """``steps_transition`` in C (engine/_variational.c) for the three-link's closed forms ``deriv`` under ``law``
-    (``compiled_law``): (X1 (N,10), Phi (N,10,10))."""
+    (``compiled_law``): (X1 (N,10), Phi (N,10,10)). ``S`` (10 x m, C-contiguous float64): carried through the
+    steps in place, S <- Phi_k S for each step k in turn."""
     a, b, c = _tableau()
     N = X0.shape[0]
     X1, Phi = np.empty((N, 10)), np.empty((N, 10, 10))
     held = law[0] == "held"
     _C.steps_transition(leg, np.asarray(deriv.model.p, float), a, b, c, np.ascontiguousarray(t0, float),
                         np.ascontiguousarray(X0, float), np.ascontiguousarray(H, float), None if held else law,
-                        law[1] if held else np.zeros(2), X1, Phi)
+                        law[1] if held else _NO_TORQUE, X1, Phi, S)
     return X1, Phi
+
+
+#: steps_transition_c's and touchdown_c's u_held under a compiled law (unused there)
+_NO_TORQUE = np.zeros(2)
+
+
+def touchdown_c(deriv, law, t, x, S, leg, gleg, tan_s, last):
+    """The touchdown of foot ``gleg`` ending stance on ``leg`` at (t, x) in C (engine/_variational.c), the twin of
+    ``sensitivity._Integration._event`` for the three-link's closed forms ``deriv`` under ``law``
+    (``compiled_law``) on a ground of slope tangent ``tan_s``: (x+ (10), S+ (10 x m), dtau (m) with ``last``,
+    else None), S+ = DR S - (F+ - DR F-) dtau, or with ``last`` the state just after the event, DR (S + F- dtau)."""
+    S = np.ascontiguousarray(S, float)
+    x_plus, S_plus, dtau = np.empty(10), np.empty_like(S), np.empty(S.shape[1])
+    held = law[0] == "held"
+    _C.touchdown(leg, gleg, np.asarray(deriv.model.p, float), tan_s, float(t), np.ascontiguousarray(x, float), S,
+                 None if held else law, law[1] if held else _NO_TORQUE, bool(last), x_plus, S_plus, dtau)
+    return x_plus, S_plus, (dtau if last else None)
 
 
 def law_jacobian_c(law, t, x, leg):
@@ -259,8 +279,11 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
     phase's steps as one stack) and through each event's saltation matrix (``integ._event``); ``Sp``: the
     parameters' directions (9 x m)."""
     lin = integ.lin
-    res = sim.result()
-    t, X, legs = res.t, np.hstack([res.q, res.dq]), res.stance_leg
+    # the engine's samples as they stand (its rows: t, q, dq side by side, the stance leg; no SimulationResult)
+    samples = sim._samples
+    rows, at, n_q = samples.rows(), samples.layout, samples.n_q
+    t, legs = rows[:, at["ROW_T"]], rows[:, at["ROW_LEG"]]
+    X = rows[:, at["ROW_Q"]:at["ROW_Q"] + 2 * n_q]
     if np.any(legs == 0):
         raise ValueError("the run has a flight phase, which the engine's steps are not differentiated through: "
                          "run_jacobian(..., integration='solve_ivp')")
@@ -268,39 +291,47 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
     Su = np.zeros((lin.derivatives.B.shape[1], S.shape[1]))
     Wp = Sp if integ.parameters else None
     law = compiled_law(lin.derivatives, integ.controller, integ.u_held, integ.parameters, integ.gains)
-    if law is not None and law[0] != "held":
-        integ.compiled_law = law        # (the events' flows take the law's derivative in C too)
+    if law is not None:
+        S = np.array(S, float, order="C")     # (carried in place through the steps in C)
+        if law[0] != "held":
+            integ.compiled_law = law        # (the events' flows take the law's derivative in C too)
     leg, t_start = int(legs[0]), float(t[0])
     stops = [(te, kind, lg) for te, kind, lg in events] + ([] if end_at_event else [(t_end, None, None)])
-    x = X[0]
+    x = X[0].copy()
     for n, (t_stop, kind, gleg) in enumerate(stops):
         idx = np.flatnonzero((legs == leg) & (t >= t_start) & (t < t_stop))
-        idx = idx[np.concatenate([np.diff(t[idx]) > 0, [True]])] if idx.size else idx    # (no zero-length steps)
-        starts = list(idx)
-        ends = list(t[idx[1:]]) + [t_stop]
-        H = np.array(ends) - t[idx]
+        if idx.size:
+            idx = idx[np.append(t[idx[1:]] > t[idx[:-1]], True)]      # (no zero-length steps)
+        t_idx = t[idx]
+        H = np.append(t_idx[1:], t_stop) - t_idx
         keep = H > 0
         if keep.any():
-            if law is not None:
-                X1, Phi = steps_transition_c(lin.derivatives, law, t[idx][keep], X[idx][keep], H[keep], leg)
-                Gamma, how, gain_how = None, (LAW_NONE if law[0] == "held" else LAW_EXACT), None
+            t0, X0, H = t_idx[keep], X[idx[keep]], H[keep]
+            if law is not None:     # (S carried through the steps in C)
+                X1, _Phi = steps_transition_c(lin.derivatives, law, t0, X0, H, leg, S)
+                how, gain_how = (LAW_NONE if law[0] == "held" else LAW_EXACT), None
             else:
                 X1, Phi, Gamma, how, gain_how = steps_transition(
-                    lin.derivatives, integ.controller, integ.u_held, t[idx][keep], X[idx][keep], H[keep], leg, Wp,
-                    integ.gains, integ.Sg)
+                    lin.derivatives, integ.controller, integ.u_held, t0, X0, H, leg, Wp, integ.gains, integ.Sg)
+                for k in range(Phi.shape[0]):
+                    S = Phi[k] @ S if Gamma is None else Phi[k] @ S + Gamma[k]
             if how is not None:
                 integ.law_derivative = how
             if gain_how is not None:
                 integ.gain_derivative = gain_how
-            for k in range(Phi.shape[0]):
-                S = Phi[k] @ S if Gamma is None else Phi[k] @ S + Gamma[k]
             x = X1[-1]
-        elif starts:
-            x = X[starts[-1]]
+        elif idx.size:
+            x = X[idx[-1]].copy()
         if kind is None:
             return x, S, None
         last = end_at_event and n == len(stops) - 1
-        x, S, leg, dtau = integ._event(t_stop, x, S, Su, Sp, leg, kind, gleg, last)
+        if law is not None and kind == "touchdown":     # (its saltation matrix in C)
+            x, S, dtau = touchdown_c(lin.derivatives, law, t_stop, x, S, leg, gleg, lin.tan, last)
+            leg = gleg
+            if law[0] != "held":
+                integ.law_derivative = LAW_EXACT
+        else:
+            x, S, leg, dtau = integ._event(t_stop, x, S, Su, Sp, leg, kind, gleg, last)
         if last:
             return x, S, dtau
         t_start = t_stop

@@ -12,7 +12,7 @@ from biped_sim.control.walking import PDWalkingController, WalkingController
 from biped_sim.engine import compiled, variational
 from biped_sim.engine.model import BipedModel
 from biped_sim.engine.model_derivatives import derivatives
-from biped_sim.engine.sensitivity import LAW_EXACT, STEPS, run_jacobian
+from biped_sim.engine.sensitivity import LAW_EXACT, STEPS, Linearization, _Integration, run_jacobian
 from biped_sim.engine.torque_hook import c_jacobian_prototype
 
 MODEL = BipedModel()
@@ -152,3 +152,83 @@ def test_without_a_compiled_derivative_the_numpy_path_runs():
     q, dq = ctrl.initial_state(1.0)
     r = run_jacobian(MODEL, q, dq, 0.05, controller=ctrl)
     assert (r.integration, r.law_derivative) == (STEPS, LAW_EXACT)
+
+
+@pytest.mark.parametrize("leg", [1, 2])
+@pytest.mark.parametrize("name", ["held", "walking", "pd at its limit"])
+def test_the_c_steps_carry_s_through_their_phis(name, leg):
+    rng = np.random.default_rng([leg, len(name), 3])
+    ctrl = CONTROLLERS[name](MODEL)
+    deriv = derivatives(MODEL)
+    t0, X0, H = _stack(leg, rng)
+    law = variational.compiled_law(deriv, ctrl, U_HELD)
+    S0 = rng.standard_normal((10, 7))
+    S = S0.copy()
+    _X1, Phi = variational.steps_transition_c(deriv, law, t0, X0, H, leg, S)
+    expected = S0
+    for phi in Phi:
+        expected = phi @ expected
+    assert rel(S, expected) < 1e-12
+    assert rel(S, S0) > 1e-3
+
+
+@pytest.mark.parametrize("slope", [0.0, 0.04])
+@pytest.mark.parametrize("legs", [(1, 2), (2, 1)])
+@pytest.mark.parametrize("name", ["held", "walking", "pd", "walking at its limit"])
+def test_the_c_touchdown_gives_the_saltation_matrix_of_the_numpy_path(name, legs, slope):
+    """variational.touchdown_c against sensitivity._Integration._event (the law's own Python derivative, the impact
+    map's, the guard's and the flows in numpy), the last event of a step map and one a run goes on from."""
+    leg, gleg = legs
+    rng = np.random.default_rng([leg, len(name), int(slope * 100)])
+    ctrl = CONTROLLERS[name](OTHER)
+    deriv = derivatives(OTHER)
+    law = variational.compiled_law(deriv, ctrl, U_HELD)
+    lin = Linearization(OTHER, slope, deriv)
+    integ = _Integration(lin, ctrl, None if ctrl is not None else U_HELD, None, False, [], 1e-10, 1e-10)
+    _t0, X0, _H = _stack(leg, rng, N=4)
+    for x in X0:
+        S = rng.standard_normal((10, 6))
+        for last in (True, False):
+            xc, Sc, dtc = variational.touchdown_c(deriv, law, 0.4, x, S, leg, gleg, lin.tan, last)
+            xp, Sp, new_leg, dtp = integ._event(0.4, x, S, np.zeros((2, 6)), np.zeros((9, 6)), leg, "touchdown", gleg,
+                                                last)
+            assert new_leg == gleg
+            assert rel(xc, xp) < 1e-12
+            assert rel(Sc, Sp) < 1e-12, (last, rel(Sc, Sp))
+            if last:
+                assert rel(dtc, dtp) < 1e-12
+            else:
+                assert dtc is None and dtp is None
+            assert rel(Sc, S) > 1e-3       # (the saltation matrix moves S)
+
+
+def test_a_singular_stance_system_at_a_touchdown_in_c_is_one_line():
+    deriv = derivatives(MODEL)
+    x = np.zeros(10)
+    x[2] = x[3] = np.nan
+    with pytest.raises(ValueError, match=r"^the stance KKT system on foot 1 is singular at t=0\.25 s$"):
+        variational.touchdown_c(deriv, ("held", U_HELD), 0.25, x, np.eye(10)[:, :6], 1, 2, 0.0, True)
+
+
+@pytest.mark.parametrize("leg", [1, 2])
+@pytest.mark.parametrize("name", ["walking", "walking at its limit"])
+def test_the_law_on_the_flows_stance_system_gives_the_same_bits(name, leg):
+    """The walking law's derivative on the flow's own factored stance system (one factorisation a stage) against
+    the law factoring its own: the same system, so the same bits."""
+    rng = np.random.default_rng([leg, len(name), 5])
+    ctrl = CONTROLLERS[name](BipedModel())       # (a model of the plant's parameters, not the plant itself)
+    deriv = derivatives(MODEL)
+    t0, X0, H = _stack(leg, rng)
+    law = variational.compiled_law(deriv, ctrl, None)
+    assert law[3] != 0
+    X1, Phi = variational.steps_transition_c(deriv, law, t0, X0, H, leg)
+    X1_own, Phi_own = variational.steps_transition_c(deriv, law[:3], t0, X0, H, leg)
+    assert np.array_equal(X1, X1_own) and np.array_equal(Phi, Phi_own)
+
+
+def test_only_a_law_on_the_plants_parameters_offers_its_derivative_on_the_plants_system():
+    assert WalkingController(BipedModel()).compiled_law(MODEL).stance_jacobian != 0
+    assert WalkingController(OTHER).compiled_law(OTHER).stance_jacobian != 0
+    assert PDWalkingController(MODEL).compiled_law(MODEL).stance_jacobian == 0      # (the PD law needs no model)
+    heavier = BipedModel(m_torso=11.0)
+    assert WalkingController(heavier).compiled_law(MODEL) is None     # (its own system is not the plant's)
