@@ -629,8 +629,10 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
         cache_step_end(L, L->t, ft1, F1);
         return touchdown(L, t_touch, row, E0, push_work, energy_lost, residual_out);
     }
-    /* a resting free foot pushed into the ground (_resting_feet_pushed_in) */
-    if (L->impact_phase && !L->armed[sw - 1] && !scuffing && ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)) {
+    /* a resting free foot pushed into the ground, at the step's end or inside it (EventLocator._resting_feet) */
+    if (L->impact_phase && !L->armed[sw - 1] && !scuffing
+        && (ev_violated(ft1[4 * (sw - 1) + 1], L->ground_tol)
+            || ev_resting_foot_dips(L->S, rhs, L, sw, ft0[4 * (sw - 1) + 1], ft1[4 * (sw - 1) + 1]))) {
         L->why = WHY_FOOT_PUSHED_IN;
         return 0;
     }

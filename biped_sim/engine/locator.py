@@ -181,7 +181,7 @@ class EventLocator:
         evaluation), else it is computed here."""
         rows = self.witnesses(stance_leg)
         t_old, t = st.t_old, st.t       # (read once: a stepper's fields are the state's, behind properties)
-        if not rows and not self._resting_feet_pushed_in(feet1, stance_leg):
+        if not rows and not self._resting_feet(stance_leg):
             self._arm(feet1, stance_leg)
             # the step's end is the next step's start: what is kept of the step before is no longer its state
             self._feet_end, self._force_end = (t, feet1), (None, None)
@@ -232,12 +232,20 @@ class EventLocator:
             t_root = self._crossing(st, guard, guard_at, bracket)
             if not self._is_scuff(st, to_phys, guard, stance_leg, t_root):
                 roots.append((t_root, guard))
-        for leg in self._resting_feet_pushed_in(feet1, stance_leg):
+        for leg in self._resting_feet(stance_leg):
             # a free foot on the ground that is not armed (it just lifted off, or started there at rest)
-            # and that the dynamics push into it: a touchdown from where it rests, not a crossing
+            # and that the dynamics push into it, deeper than ground_tol at the step's end or inside the step:
+            # a touchdown from where it rests, not a crossing
             guard = witness("touchdown", leg)
             guard_at = self._on_dense_output(st, to_phys, guard, force_at)
-            t_root = self._crossing(st, guard, guard_at, landing_bracket(guard_at, t_old, t))
+            if rules.ev_violated(feet1[leg - 1].height, self.opt.ground_tol):
+                t_below = t
+            else:
+                t_below = self._resting_foot_dips(st, to_phys, guard_at, leg, stance_leg, feet0[leg - 1].height,
+                                                  feet1[leg - 1].height)
+                if t_below is None:
+                    continue
+            t_root = self._crossing(st, guard, guard_at, landing_bracket(guard_at, t_old, t_below))
             if not self._is_scuff(st, to_phys, guard, stance_leg, t_root):
                 roots.append((t_root, guard))
         t_end = min(roots)[0] if roots else t
@@ -286,12 +294,25 @@ class EventLocator:
         self.scuffs = rules.ev_start_scuff(S, SCUFF + 3 * (leg - 1), t_root, self.scuffs)
         return True
 
-    def _resting_feet_pushed_in(self, feet, stance_leg):
+    def _resting_feet(self, stance_leg):
+        """The free feet whose touchdown no witness watches: not armed (on the ground: it just lifted off, or
+        started there at rest) and not in a scuff; with an impact phase."""
         if "impact" not in self.opt.phases:
             return []
         S = self.S
-        return [leg for leg in (1, 2) if leg != stance_leg and not S[ARMED + leg - 1]
-                and not S[SCUFFING + leg - 1] and rules.ev_violated(feet[leg - 1].height, self.opt.ground_tol)]
+        return [leg for leg in (1, 2) if leg != stance_leg and not S[ARMED + leg - 1] and not S[SCUFFING + leg - 1]]
+
+    def _resting_foot_dips(self, st, to_phys, height_at, leg, stance_leg, h0, h1):
+        """A time in the last step where the resting foot ``leg`` (heights h0, h1 at the step's ends, not below
+        -ground_tol) is deeper than ground_tol under the ground, or None: the dip search of its height plus
+        ground_tol (the rule ``loop_rules.ev_resting_foot_dips``, which _core.c's quiet step applies)."""
+        tol = self.opt.ground_tol
+        if not rules.ev_may_sink_in_step(h0, h1, tol):
+            return None
+        bracket = dip_bracket(st, to_phys, lambda t: height_at(t) + tol, leg, stance_leg, self.opt.base == "fixed",
+                              self._chains, self.ground.tan, h0 + tol, h1 + tol, self.opt.graze_tol,
+                              fixed_chains=self._fixed_chains)
+        return None if bracket is None else bracket[1]
 
     def _track_scuffs(self, st, to_phys, stance_leg, t_end):
         """Follow each scuffing foot over the step up to ``t_end`` (the rule ``loop_rules.ev_track_scuff``):

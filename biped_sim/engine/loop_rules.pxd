@@ -18,6 +18,9 @@ cdef double ev_power_coefficient(double *S, Py_ssize_t r, Py_ssize_t p, Py_ssize
 cdef void ev_dip_coefficients(double *S, int leg) noexcept nogil
 cdef int ev_dip_search(double *S, guard_t g, void *ctx, double h0, double h1) noexcept nogil
 cdef public int ev_may_dip(double *S, rhs_t fun, void *ctx, int leg, double h0, double h1) noexcept nogil
+cdef public bint ev_may_sink_in_step(double h0, double h1, double ground_tol) noexcept nogil
+cdef double ev_height_below_guard(double *S, void *ctx, double tt) noexcept nogil
+cdef public int ev_resting_foot_dips(double *S, rhs_t fun, void *ctx, int leg, double h0, double h1) noexcept nogil
 cdef int ev_locate_crossing(double *S, guard_t g, void *ctx, double ta, double tb) noexcept nogil
 cdef public int ev_locate_height_crossing(double *S, rhs_t fun, void *ctx, int leg, double ta, double tb) noexcept nogil
 cdef public bint ev_triggered(double w0, double w1) noexcept nogil

@@ -89,6 +89,7 @@ if not cython.compiled:
         FORWARD_RULE,
         FRONT_TOL,
         GRAZE_TOL,
+        GROUND_TOL,
         GUARD_LEG,
         H_ABS,
         IMPACT_OLD_FOOT_SINKS,
@@ -503,6 +504,34 @@ def ev_may_dip(S, fun, ctx, leg, h0, h1):
     ev_dip_coefficients(S, leg)
     S[GUARD_LEG] = leg
     return ev_dip_search(S, ev_height_guard, ctx, h0, h1)
+
+
+def ev_may_sink_in_step(h0, h1, ground_tol):
+    """Whether a resting free foot (not armed) whose heights at the last step's ends are h0 and h1 may have gone
+    deeper than ground_tol under the ground inside the step unseen: neither end is that deep (an end that is
+    deeper is seen there), so its dip search runs on its height plus ground_tol, positive at both ends."""
+    return h0 + ground_tol > 0 and h1 + ground_tol > 0
+
+
+def ev_height_below_guard(S, ctx, tt):
+    """The height of foot S[GUARD_LEG] plus S[GROUND_TOL] (ev_height_at): as a guard g(S, ctx, t), zero where the
+    foot is ground_tol under the ground."""
+    leg: cython.int = int(S[GUARD_LEG])
+    return ev_height_at(S, leg, tt) + S[GROUND_TOL]
+
+
+def ev_resting_foot_dips(S, fun, ctx, leg, h0, h1):
+    """Whether the floating base's resting free foot leg (not armed; heights h0, h1 at the last step's ends)
+    goes deeper than S[GROUND_TOL] under the ground inside the step: ev_dip_search of its height plus
+    ground_tol (ev_may_sink_in_step first), its bracket in S[RESULT:RESULT + 2]. A foot the touchdown
+    witness does not watch, found as the invariant 'feet at or above the ground' bounds it."""
+    tol: cython.double = S[GROUND_TOL]
+    if not ev_may_sink_in_step(h0, h1, tol):
+        return 0
+    rk_dense(S, fun, ctx)
+    ev_dip_coefficients(S, leg)
+    S[GUARD_LEG] = leg
+    return ev_dip_search(S, ev_height_below_guard, ctx, h0 + tol, h1 + tol)
 
 
 def ev_locate_crossing(S, g, ctx, ta, tb):

@@ -17,6 +17,7 @@ from hypothesis import event, example, given, settings, strategies as st
 
 import biped_sim as bs
 from biped_sim.analysis.edge_cases import on_both_loops, pd_walk_without_clearance, rocking_v, walk_that_scuffs
+from biped_sim.analysis.verify import violations
 from biped_sim.control.walking import PDWalkingController, WalkingController
 from biped_sim.engine import compiled_loop, guards as G, hybrid, loop_state, torque_hook
 from biped_sim.engine.model import BipedModel
@@ -590,6 +591,48 @@ def test_no_run_completes_with_a_landing_impulse_outside_the_friction_cone(start
             # (the ratio where the normal impulse pushes; where it pulls, that it pulls)
             assert "|Lambda_t|/Lambda_n = " in a.message or "its normal part pulls: Lambda_n = -" in a.message
             assert "stop_on_slip=False" in a.message
+
+
+def _legs_together_landing():
+    """Found by hypothesis (test_hybrid_properties): a flight start on a 0.125 rad slope, both feet 1 um up, under
+    the held torque (38, 0), whose foot 2 lands at t=0.19141 s with the legs together (foot 1 at the same
+    point): foot 1, disarmed by the reset, leaves the ground at 5 um/s and is pushed back into it at once."""
+    q = np.array([0.0, 0.96891242, 2.89159265, 2.57909265, 0.0])
+    tan = math.tan(0.125)
+    q[1] += max(0.0, -min(MODEL.foot_position(q, k)[1] + tan * MODEL.foot_position(q, k)[0] for k in (1, 2))) + 1e-6
+    return q, np.array([0.5, 0.0, 0.0, 0.5, 1.25])
+
+
+def test_a_resting_foot_pushed_into_the_ground_inside_a_step_touches_down_on_both_loops():
+    """A free foot that no touchdown witness watches (disarmed by the reset that put the other foot down) and that
+    goes under the ground and back inside one step touches down where it goes in, as one under the ground at the
+    step's end does; the run no longer completes with that foot 95 um under the ground at the liftoff's sample."""
+    q, dq = _legs_together_landing()
+    a, b = both_loops(lambda: bs.simulate(MODEL, q, dq, 0.4, controller=lambda t, q, dq, s: (38.0, 0.0),
+                                          stance_leg=0, slope=0.125))
+    assert_same_run(a, b)
+    legs_together = next(e for e in a.events if e.kind == "touchdown" and abs(e.time - 0.19141021) < 1e-8)
+    assert abs(G.foot_xy(MODEL, list(legs_together.q), 1)[0] - G.foot_xy(MODEL, list(legs_together.q), 2)[0]) < 1e-9
+    after = a.events[a.events.index(legs_together) + 1]
+    assert (after.kind, after.leg) == ("touchdown", 1) and 0 < after.time - legs_together.time < 1e-5, after
+    # both feet then stay on the ground: the model's Zeno stop, which names it
+    assert a.status == "stopped" and "the old stance foot (leg 2) no longer leaves the ground" in a.message
+    assert not violations(MODEL, a)
+
+
+def test_a_resting_foot_that_dips_inside_a_quiet_step_is_handed_to_the_python_loop():
+    """Stance on foot 1 with the legs together (foot 2 resting at the stance foot, disarmed) under a held torque:
+    foot 2 goes 16 um under the ground in front of foot 1 and is above it again at the first 10 ms step's end.
+    The compiled loop's quiet step finds that dip (loop_rules.ev_resting_foot_dips) and hands the step back;
+    both loops land foot 2 there."""
+    q, dq = bs.stance_state(MODEL, [math.pi + 0.049, math.pi + 0.049, -0.05], [0.75, 0.71, 0.43], stance_leg=1)
+    a, b = both_loops(lambda: bs.simulate(MODEL, q, dq, 0.01, controller=lambda t, q, dq, s: (-20.0, 53.0),
+                                          stance_leg=1, control_period=0.01))
+    assert_same_run(a, b)
+    assert a.events, f"{a.status}: foot 2's dip went unseen"
+    first = a.events[0]
+    assert (first.kind, first.leg) == ("touchdown", 2) and 0 < first.time < 1e-3, first
+    assert not violations(MODEL, a)
 
 
 def _period_index_counted(t, period, k):
