@@ -159,14 +159,34 @@ def prepare_event_location():
     import scipy.optimize  # noqa: F401
 
 
+def start_scuffing(feet, stance_leg, opt):
+    """The free foot of a stance start that lies deeper than ``ground_tol`` under the ground where its crossing would
+    be a scuff (``touchdown_rule`` "front" with an impact phase, ``starts_scuff``), else 0: the start check lets it
+    lie down to ``scuff_depth``, and the run follows it from its first instant as a scuff under way
+    (``loop_rules.ev_scuff_under_way``), by the rules of any scuff."""
+    if not stance_leg or "impact" not in opt.phases:
+        return 0
+    leg = 3 - stance_leg
+    swing = feet[leg - 1]
+    if not rules.ev_violated(swing.height, opt.ground_tol) or not _passes_at_start(swing, feet[stance_leg - 1], opt):
+        return 0
+    return leg
+
+
+def _passes_at_start(swing: FootState, stance: FootState, opt) -> bool:
+    # the start check's allowance: a swing foot whose crossing would be a scuff
+    return opt.touchdown_rule == "front" and starts_scuff(swing, stance, opt)
+
+
 def check_initial_contact(feet, stance_leg, opt):
     """A ValueError unless the initial state agrees with its mode: in stance, the stance foot on the
     ground within ``contact_tol`` and at rest, and the swing foot not below it; in flight, both feet
     not below it; and no free foot on the ground moving into it (that is an impact still to apply, not
     a state to start from). "Not below" is the invariant's own bound, ``ground_tol``, with the run's
     one allowance: a swing foot whose crossing would be a scuff (``touchdown_rule`` "front", ``starts_scuff``) may be
-    up to ``scuff_depth`` below. A start the check of every
-    sample would reject is refused here, before it can end "completed" with its first sample wrong."""
+    up to ``scuff_depth`` below (with an impact phase the run follows it as a scuff: ``start_scuffing``). A start
+    the check of every sample would reject is refused here, before it can end "completed" with its first sample
+    wrong."""
     tol = opt.contact_tol
     if stance_leg:
         f = feet[stance_leg - 1]
@@ -179,7 +199,7 @@ def check_initial_contact(feet, stance_leg, opt):
                              f"({f.dx:.6g}, {f.dheight:.6g}) m/s; it must be at rest (J dq = 0; "
                              "biped_sim.stance_state gives a consistent dq)")
         swing = feet[2 - stance_leg]
-        scuff = opt.touchdown_rule == "front" and starts_scuff(swing, f, opt)
+        scuff = _passes_at_start(swing, f, opt)
         if swing.height < -(opt.scuff_depth if scuff else opt.ground_tol):
             raise ValueError(
                 f"initial state: the swing foot (leg {3 - stance_leg}) is {-swing.height:.6g} m below the ground "

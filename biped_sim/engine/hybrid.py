@@ -155,7 +155,8 @@ class HybridSimulator:
         self.E0 = model.energy(q0, dq0)
         self.events: list[Event] = []
         self.impacts = ImpactHistory(self.opt.zeno_count, self.opt.zeno_interval, self.S)
-        self.locator = EventLocator(model, self.ground, self.opt, mu, feet, stance_leg, self.impacts, self.S)
+        self.locator = EventLocator(model, self.ground, self.opt, mu, feet, stance_leg, self.impacts, self.S,
+                                    self.t0)
         self.pin = list(G.foot_xy(model, q0.tolist(), stance_leg)) if stance_leg else None
         self.status, self.message = "running", ""    # (_stop changes it, and the state's running flag)
         self.S[RUNNING] = 1.0

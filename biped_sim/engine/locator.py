@@ -62,7 +62,7 @@ class EventLocator:
     hybrid state ``S`` (loop_state.py: the simulator's, which the compiled loop reads and writes too).
     """
 
-    def __init__(self, model, ground, opt, mu, feet, stance_leg, impacts, S=None):
+    def __init__(self, model, ground, opt, mu, feet, stance_leg, impacts, S=None, t0=0.0):
         self.model, self.ground, self.opt, self.mu = model, ground, opt, mu
         self.S = new_state() if S is None else S
         self.impacts = impacts   # the run's ImpactHistory: a crossing in the Zeno limit is an impact
@@ -78,6 +78,10 @@ class EventLocator:
         self.scuffs = 0          # touchdowns behind the stance foot ignored under touchdown_rule "front"
         self.deepest_scuff = 0.0  # m, the deepest dip of any scuff so far
         self.scuff_events: list = []    # finished scuffs, for the simulator to report
+        leg = G.start_scuffing(feet, stance_leg, opt)
+        if leg:
+            # a start the start check accepted because the foot's crossing would be a scuff: a scuff under way
+            rules.ev_scuff_under_way(self.S, leg, t0, -feet[leg - 1].height)
         self._feet_end = self._force_end = (None, None)   # (t, value) at the last step's end
         # the state the scuffs are followed on (loop_rules.ev_track_scuff): the scuff options
         self._scuff_state = new_state(front_tol=opt.front_tol, scuff_depth=opt.scuff_depth,

@@ -46,6 +46,7 @@ cdef public bint ev_swinging_through(double dx, double dheight) noexcept nogil
 cdef public bint ev_starts_scuff(bint forward, double front_tol, double x, double dx, double dheight,
                                  double x_stance) noexcept nogil
 cdef public double ev_start_scuff(double *scuff, Py_ssize_t i, double t, double scuffs) noexcept nogil
+cdef public void ev_scuff_under_way(double *S, int leg, double t, double depth) noexcept nogil
 cdef public bint ev_passes_through(bint forward, double front_tol, double x, double dx, double dheight,
                                    double x_stance) noexcept nogil
 cdef public void ev_keep_feet_end(double *S, double t, double *ft, Py_ssize_t i) noexcept nogil

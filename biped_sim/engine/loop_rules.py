@@ -56,6 +56,7 @@ if not cython.compiled:
         k_ulp,
     )
     from biped_sim.engine.loop_state import (
+        ARMED,
         ATOL,
         CALLBACK_FAILED,
         CHAIN,
@@ -67,6 +68,7 @@ if not cython.compiled:
         COEF_LINKS,
         COEF_WIDTH,
         COS_S,
+        DEEPEST_SCUFF,
         DEEPEST_TRIAL,
         DENSE,
         DENSE_READY,
@@ -121,8 +123,11 @@ if not cython.compiled:
         ROW_Q,
         ROW_T,
         RTOL,
+        SCUFF,
         SCUFF_DEPTH,
         SCUFF_TRIAL,
+        SCUFFING,
+        SCUFFS,
         SIN_S,
         STACK,
         STAGES,
@@ -790,6 +795,19 @@ def ev_start_scuff(scuff, i, t, scuffs):
     scuff[i + 1] = 0.0
     scuff[i + 2] = t
     return scuffs + 1
+
+
+def ev_scuff_under_way(S, leg, t, depth):
+    """A scuff of foot leg under way at t, the foot depth under the ground there (a start whose free foot the start
+    check lets lie deeper than ground_tol because its crossing would be a scuff): the foot armed and in a scuff
+    (ARMED, SCUFFING), as a crossing that passes through leaves it, its row SCUFF begun at t (ev_start_scuff) with
+    depth its deepest dip so far, the scuffs counted (SCUFFS) and DEEPEST_SCUFF at least depth."""
+    i: cython.Py_ssize_t = SCUFF + 3 * (leg - 1)
+    S[ARMED + leg - 1] = 1.0
+    S[SCUFFING + leg - 1] = 1.0
+    S[SCUFFS] = ev_start_scuff(S, i, t, S[SCUFFS])
+    S[i + 1] = depth
+    S[DEEPEST_SCUFF] = ev_running_max(S[DEEPEST_SCUFF], depth)
 
 
 def ev_passes_through(forward, front_tol, x, dx, dheight, x_stance):

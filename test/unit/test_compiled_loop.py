@@ -635,6 +635,53 @@ def test_a_resting_foot_that_dips_inside_a_quiet_step_is_handed_to_the_python_lo
     assert not violations(MODEL, a)
 
 
+#: found by a search of random stance starts: stance on foot 2, foot 1 0.0665 m under the ground behind it, swinging
+#: forward (the start check accepts it: its crossing would be a scuff), the torque (29.98, -48.99) held every 10 ms;
+#: the stance force is negative at t=0, a liftoff at once
+SCUFF_START_LIFTING_OFF = (
+    [-0.36549383763290955, 0.930813759380666, 2.8191592023338132, 2.3717608397421572, 0.3956685220223073],
+    [3.868391032148796, 1.51896452921532, -0.003182759977025107, 2.8782764377115093, 1.2776473366885392],
+    (29.978434637164156, -48.98574220990462))
+
+
+def test_a_start_accepted_as_a_scuff_that_lifts_off_at_once_stops_as_the_scuffs_rule_says_on_both_loops():
+    """A start whose free foot lies under the ground where its crossing would be a scuff begins as a scuff (flag,
+    row, count, deepest_scuff): a liftoff with that foot under the ground stops the run (no mode has a free foot
+    below the ground), where the run used to land the foot at t=0 with an impulse that pulls it and fail."""
+    q, dq, u = SCUFF_START_LIFTING_OFF
+    feet = G.foot_states(MODEL, q, dq)
+    assert feet[0].height < -0.066 and G.starts_scuff(feet[0], feet[1], bs.Options())
+    a, b = both_loops(lambda: bs.simulate(MODEL, np.array(q), np.array(dq), 0.4, controller=lambda t, q, dq, s: u,
+                                          stance_leg=2, control_period=0.01))
+    assert_same_run(a, b)
+    assert a.status == "stopped", a.message
+    assert ("the stance foot (leg 2) liftoff at t=0 s while foot 1 is still below the ground, passing through it "
+            "(a scuff since t=0 s)") in a.message
+    assert [e.kind for e in a.events] == ["error"]
+    for r in (a, b):
+        assert r.stats["scuffs_ignored"] == 1 and r.stats["deepest_scuff"] == -feet[0].height
+
+
+@pytest.mark.parametrize("depth", [2e-7, 4e-3])
+def test_a_start_under_the_ground_as_a_scuff_swings_through_and_comes_out_on_both_loops(depth):
+    """Stance on foot 1, foot 2 straight under the hip ``depth`` under the ground behind the stance foot, swinging
+    forward (the leg at 1 rad/s): a scuff from t=0, followed by both loops (the compiled one in its quiet steps)
+    until the foot is above the ground, with its Event, the count and deepest_scuff, the start's depth. (At 0.2 um
+    the run used to complete with no scuff reported and its first sample under the ground.)"""
+    a_leg = -math.acos(1.0 - depth / MODEL.parameters.l_leg)
+    q, dq = bs.stance_state(MODEL, [math.pi + a_leg, math.pi, 0.0], [0.0, -1.0, 0.0], stance_leg=1)
+    a, b = both_loops(lambda: bs.simulate(MODEL, q, dq, 0.2))
+    assert_same_run(a, b)
+    assert a.status == "completed" and not violations(MODEL, a), violations(MODEL, a)
+    assert a.stats["compiled_loop_steps"] > 0
+    for r in (a, b):
+        assert [(e.kind, e.leg, e.time) for e in r.events] == [("scuff", 2, 0.0)]
+        assert r.stats["scuffs_ignored"] == 1 and r.stats["deepest_scuff"] == pytest.approx(depth, rel=1e-6)
+        assert f"{depth:.3g} m deep at t=0 s" in r.events[0].message
+        t_up = float(re.search(r"to t=(\S+) s", r.events[0].message).group(1))
+        assert 0.0 < t_up < 0.2 and MODEL.foot_position(r.q[r.t.searchsorted(t_up)], 2)[1] > 0.0
+
+
 def _period_index_counted(t, period, k):
     while (k + 1) * period <= t:
         k += 1

@@ -486,6 +486,20 @@ def test_how_a_scuff_starts_is_written_once():
     assert S[loop_state.SCUFF + 3:loop_state.SCUFF + 6] == [0.5, 0.0, 0.5]
 
 
+def test_a_scuff_under_way_at_the_start_is_the_rules():
+    """A start whose free foot lies under the ground where its crossing would be a scuff begins as a scuff: the
+    rule (loop_rules.ev_scuff_under_way, which EventLocator's start calls) arms and flags the foot, begins its row
+    at t0 with the start's depth as its deepest dip, counts it and raises deepest_scuff to it."""
+    from biped_sim.engine import loop_rules as rules
+    S = loop_state.new_state()
+    S[loop_state.SCUFFS], S[loop_state.DEEPEST_SCUFF] = 2.0, 1e-3
+    rules.ev_scuff_under_way(S, 2, 0.25, 4e-3)
+    assert S[loop_state.ARMED:loop_state.ARMED + 2] == [0.0, 1.0]
+    assert S[loop_state.SCUFFING:loop_state.SCUFFING + 2] == [0.0, 1.0]
+    assert S[loop_state.SCUFF + 3:loop_state.SCUFF + 6] == [0.25, 4e-3, 0.25]
+    assert (S[loop_state.SCUFFS], S[loop_state.DEEPEST_SCUFF]) == (3.0, 4e-3)
+
+
 def test_the_step_ends_cache_is_written_once():
     """The feet and the stance force kept at a step's end for the next step's start (their layout in the state, with
     their times) are the rules' (loop_rules.py): EventLocator.locate, its setters and _core.c's cache_step_end call
