@@ -401,40 +401,6 @@ done:
     return result;
 }
 
-PyDoc_STRVAR(law_jacobian_doc,
-"law_jacobian(law, t, x, leg, u, u_x)\n\n"
-"A compiled law's derivative at one point: law (address of its law_jacobian, its parameters, its name), the\n"
-"state x (10) at time t on stance leg; u (2) and u_x (2 x 10) written. Arrays: C-contiguous float64.");
-
-static PyObject *
-law_jacobian(PyObject *self, PyObject *args)
-{
-    (void)self;
-    PyObject *spec, *result = NULL;
-    double t, params[MAX_PARAMETERS];
-    int leg;
-    Py_ssize_t n_params = 0;
-    LawJacobian law = NULL;
-    const char *name = "";
-    Py_buffer bx = {0}, bu = {0}, bux = {0};
-    if (!PyArg_ParseTuple(args, "Ody*iw*w*:law_jacobian", &spec, &t, &bx, &leg, &bu, &bux)) return NULL;
-    if (law_from(spec, &law, NULL, params, &n_params, &name) < 0 || check(&bx, SD_NX, "x") || check(&bu, SD_M, "u")
-        || check(&bux, SD_M * SD_NX, "u_x"))
-        goto done;
-    const double *x = (const double *)bx.buf;
-    int code = law(t, x, x + SD_N, leg, params, (double *)bu.buf, (double *)bux.buf);
-    if (code != 0) {
-        char when[32];
-        snprintf(when, sizeof when, "%.17g", t);
-        PyErr_Format(PyExc_ValueError, "the torque law %s's derivative returned %d at t=%s s", name, code, when);
-        goto done;
-    }
-    result = Py_NewRef(Py_None);
-done:
-    PyBuffer_Release(&bx); PyBuffer_Release(&bu); PyBuffer_Release(&bux);
-    return result;
-}
-
 PyDoc_STRVAR(touchdown_doc,
 "touchdown(leg, gleg, p, tan_s, t, x, S, law, u_held, last, x_plus, S_plus, dtau)\n\n"
 "The touchdown of foot gleg ending stance on foot leg at time t and state x (10) of the three-link of\n"
@@ -480,7 +446,6 @@ done:
 
 static PyMethodDef methods[] = {
     {"steps_transition", steps_transition, METH_VARARGS, steps_transition_doc},
-    {"law_jacobian", law_jacobian, METH_VARARGS, law_jacobian_doc},
     {"touchdown", touchdown_event, METH_VARARGS, touchdown_doc},
     {NULL, NULL, 0, NULL},
 };

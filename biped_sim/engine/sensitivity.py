@@ -481,9 +481,6 @@ class _Integration:
         self.u_held = None if u is None else np.asarray(u, float)
         self.law_derivative = LAW_NONE
         self.gain_derivative = ""
-        #: the controller's compiled law with its derivative (variational.compiled_law), which the events of a run
-        #: on the engine's steps take u and u_x from, as its steps do; None: the law's own ``jacobian``
-        self.compiled_law = None
 
     def _gain_sensitivity(self, t, x, leg):
         """u_theta W_theta (M x m): the torque's sensitivity through the gains, at fixed x."""
@@ -497,10 +494,6 @@ class _Integration:
         sensitivity."""
         if self.controller is not None and self.period is None:
             n = self.lin.n
-            if self.compiled_law is not None:
-                u, ux = variational.law_jacobian_c(self.compiled_law, t, x, leg)
-                self.law_derivative = LAW_EXACT
-                return u, ux, None      # (no gains: a compiled law's runs have none)
             u, ux, how = law_jacobian(self.controller, t, x[:n], x[n:], leg)
             self.law_derivative = how
             return u, ux, (self._gain_sensitivity(t, x, leg) if self.gains else None)

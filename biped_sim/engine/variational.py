@@ -259,13 +259,6 @@ def touchdown_c(deriv, law, t, x, S, leg, gleg, tan_s, last):
     return x_plus, S_plus, (dtau if last else None)
 
 
-def law_jacobian_c(law, t, x, leg):
-    """(u (2), u_x (2, 10)) of a compiled law's derivative (``compiled_law``'s) at one state x (10)."""
-    u, ux = np.empty(2), np.empty((2, 10))
-    _C.law_jacobian(law, float(t), np.ascontiguousarray(x, float), int(leg), u, ux)
-    return u, ux
-
-
 def eligible(sim, method, control_period, stance_leg, events, options):
     """Whether ``run_jacobian``'s run takes this path: DOP853 on the floating base, stance phases (no flight)
     joined by touchdowns, continuous feedback or a constant torque."""
@@ -293,8 +286,6 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
     law = compiled_law(lin.derivatives, integ.controller, integ.u_held, integ.parameters, integ.gains)
     if law is not None:
         S = np.array(S, float, order="C")     # (carried in place through the steps in C)
-        if law[0] != "held":
-            integ.compiled_law = law        # (the events' flows take the law's derivative in C too)
     leg, t_start = int(legs[0]), float(t[0])
     stops = [(te, kind, lg) for te, kind, lg in events] + ([] if end_at_event else [(t_end, None, None)])
     x = X[0].copy()
