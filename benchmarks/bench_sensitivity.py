@@ -116,10 +116,9 @@ def main():
           f"({d['generated_ivp'] / d['closed_ivp']:.2f} x)")
     r = run_jacobian(smap.model, q, dq, 5.0, controller=smap.controller, end_at_event=True, **kw)
     res = r.simulator.result()
-    before = res.t < r.t        # the stance phase's accepted steps, the last one to the touchdown
-    t0, X0 = res.t[before], np.hstack([res.q, res.dq])[before]
-    H = np.append(t0[1:], r.t) - t0
-    t0, X0, H = t0[H > 0], X0[H > 0], H[H > 0]
+    # the stance phase's accepted steps, the last one to the touchdown, as run_jacobian takes them
+    idx, H = variational.phase_steps(res.t, res.stance_leg, 1, 0.0, r.t)
+    t0, X0 = res.t[idx], np.hstack([res.q, res.dq])[idx]
     deriv = derivatives(smap.model)
     law = variational.compiled_law(deriv, smap.controller, None)
     held = ("held", np.zeros(2))

@@ -267,6 +267,18 @@ def eligible(sim, method, control_period, stance_leg, events, options):
             and all(kind == "touchdown" for _t, kind, _leg in events))
 
 
+def phase_steps(t, legs, leg, t_start, t_stop):
+    """(idx, H): the engine's accepted steps in stance on ``leg`` from ``t_start`` to ``t_stop``, from its samples
+    (times ``t``, stance legs ``legs``): the indices of the samples each starts from, and their lengths, the last
+    one to ``t_stop``. A sample repeated at the same time (an event's, before and after its reset) starts none, so
+    every length is positive."""
+    idx = np.flatnonzero((legs == leg) & (t >= t_start) & (t < t_stop))
+    if idx.size:
+        idx = idx[np.append(t[idx[1:]] > t[idx[:-1]], True)]
+    t_idx = t[idx]
+    return idx, np.append(t_idx[1:], t_stop) - t_idx
+
+
 def run(integ, sim, S, Sp, events, t_end, end_at_event):
     """(the end state, S there, dtau or None): S carried through the engine's run, step by step (each
     phase's steps as one stack) and through each event's saltation matrix (``integ._event``); ``Sp``: the
@@ -290,14 +302,9 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
     stops = [(te, kind, lg) for te, kind, lg in events] + ([] if end_at_event else [(t_end, None, None)])
     x = X[0].copy()
     for n, (t_stop, kind, gleg) in enumerate(stops):
-        idx = np.flatnonzero((legs == leg) & (t >= t_start) & (t < t_stop))
+        idx, H = phase_steps(t, legs, leg, t_start, t_stop)
         if idx.size:
-            idx = idx[np.append(t[idx[1:]] > t[idx[:-1]], True)]      # (no zero-length steps)
-        t_idx = t[idx]
-        H = np.append(t_idx[1:], t_stop) - t_idx
-        keep = H > 0
-        if keep.any():
-            t0, X0, H = t_idx[keep], X[idx[keep]], H[keep]
+            t0, X0 = t[idx], X[idx]
             if law is not None:     # (S carried through the steps in C)
                 X1, _Phi = steps_transition_c(lin.derivatives, law, t0, X0, H, leg, S)
                 how, gain_how = (LAW_NONE if law[0] == "held" else LAW_EXACT), None
@@ -311,8 +318,6 @@ def run(integ, sim, S, Sp, events, t_end, end_at_event):
             if gain_how is not None:
                 integ.gain_derivative = gain_how
             x = X1[-1]
-        elif idx.size:
-            x = X[idx[-1]].copy()
         if kind is None:
             return x, S, None
         last = end_at_event and n == len(stops) - 1
