@@ -186,7 +186,7 @@ class Gait:
                              "other model parameters and the controller's gains are at hand")
         U, _ = smap.basis(self.z)
         r = smap.sensitivity(self.z, parameters)
-        J, k, nz = r.jacobian[section_rows(smap.model)], len(parameters), section_size(smap.model)
+        J, k, nz = r.jacobian[smap.rows], len(parameters), section_size(smap.model)
         A = U.T @ J[:, :nz] @ U
         I_A, b = np.eye(U.shape[1]) - A, U.T @ J[:, nz:]
         s = np.linalg.svd(I_A, compute_uv=False)
