@@ -27,6 +27,7 @@ $(STAMP): requirements.txt setup.py setup.cfg biped_sim/engine/_gen/_cmodel.c bi
           biped_sim/engine/_loop_rules.c biped_sim/engine/_loop_state.h biped_sim/engine/_kernel_table.h \
           biped_sim/engine/_loop_table.h biped_sim/engine/_kernels_runtime.h \
           biped_sim/engine/_gen/_derivatives.h biped_sim/engine/_stance_derivative.h biped_sim/engine/_variational.c \
+          biped_sim/engine/_py_doubles.h \
           $(wildcard biped_sim/engine/_gen/models/_kernels_*.c)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	@if $(PY) -m pip install -q uv==0.13.8 >/dev/null 2>&1; then \

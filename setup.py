@@ -31,7 +31,7 @@ setup(
                  Extension("biped_sim.engine._core", ["biped_sim/engine/_core.c"],
                            depends=["biped_sim/engine/_gen/_kernels.h", "biped_sim/engine/_loop_state.h",
                                     "biped_sim/engine/_loop_rules.c", "biped_sim/engine/_kernel_table.h",
-                                    "biped_sim/engine/_loop_table.h"],
+                                    "biped_sim/engine/_loop_table.h", "biped_sim/engine/_py_doubles.h"],
                            # the rules are Cython's public (exported) functions: without semantic interposition
                            # gcc may inline the small ones into the loop as it does a static function
                            extra_compile_args=["-O2", "-ffp-contract=off", "-fno-semantic-interposition"],
@@ -40,7 +40,7 @@ setup(
                  # (-O3: gcc vectorises its small matrix loops, 0.9 -> 0.6 us a stage; no reassociation, no contraction)
                  Extension("biped_sim.engine._variational", ["biped_sim/engine/_variational.c"],
                            depends=["biped_sim/engine/_gen/_kernels.h", "biped_sim/engine/_gen/_derivatives.h",
-                                    "biped_sim/engine/_stance_derivative.h"],
+                                    "biped_sim/engine/_stance_derivative.h", "biped_sim/engine/_py_doubles.h"],
                            extra_compile_args=["-O3", "-ffp-contract=off"], optional=True),
                  # the walking laws as compiled torque laws of the loop's hook (biped_sim/control/walking.py),
                  # and their derivatives

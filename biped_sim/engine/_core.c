@@ -36,6 +36,8 @@
 
 /* a described robot's kernels as C entry points (model_kernels.py: its twin's capsule KERNEL_TABLE) */
 #include "_kernel_table.h"
+/* sequences of numbers from Python (doubles) */
+#include "_py_doubles.h"
 
 #define N 11                 /* the floating base's integrated state: q (5), dq (5), motor work */
 #define MAX_STAGES 13        /* dop853's k0..k12 */
@@ -132,7 +134,6 @@ loop_table(double *S)
 static PyObject *law_failure_type;
 
 static PyObject *list_of(const double *v, Py_ssize_t n);
-static int doubles(PyObject *seq, double *out, Py_ssize_t lo, Py_ssize_t hi, const char *what, Py_ssize_t *n_out);
 
 static int m_finite(PyObject *u, int m, double *out);
 
@@ -696,30 +697,6 @@ quiet_step(Loop *L, double *row, double E0, double push_work, double energy_lost
 }
 
 /* -- Python interface ------------------------------------------------------------------------------ */
-
-static int
-doubles(PyObject *seq, double *out, Py_ssize_t lo, Py_ssize_t hi, const char *what, Py_ssize_t *n_out)
-{
-    PyObject *fast = PySequence_Fast(seq, what);
-    if (fast == NULL) return -1;
-    Py_ssize_t n = PySequence_Fast_GET_SIZE(fast);
-    if (n < lo || n > hi) {
-        PyErr_Format(PyExc_ValueError, "%s: %zd values, expected %zd to %zd", what, n, lo, hi);
-        Py_DECREF(fast);
-        return -1;
-    }
-    PyObject **items = PySequence_Fast_ITEMS(fast);
-    for (Py_ssize_t i = 0; i < n; i++) {
-        out[i] = PyFloat_AsDouble(items[i]);
-        if (out[i] == -1.0 && PyErr_Occurred()) {
-            Py_DECREF(fast);
-            return -1;
-        }
-    }
-    Py_DECREF(fast);
-    if (n_out) *n_out = n;
-    return 0;
-}
 
 static PyObject *
 list_of(const double *v, Py_ssize_t n)

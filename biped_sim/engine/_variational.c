@@ -16,6 +16,7 @@
 #include <math.h>
 #include <stdio.h>
 
+#include "_py_doubles.h"
 #include "_stance_derivative.h"
 
 enum { STAGES = 12, MAX_PARAMETERS = 128 };
@@ -282,29 +283,6 @@ touchdown(const StanceConstants *c, int leg, int gleg, double tan_s, double t, c
     return 0;
 }
 
-static int
-doubles(PyObject *seq, double *out, Py_ssize_t n_max, Py_ssize_t *n, const char *what)
-{
-    PyObject *fast = PySequence_Fast(seq, what);
-    if (fast == NULL) return -1;
-    Py_ssize_t size = PySequence_Fast_GET_SIZE(fast);
-    if (size > n_max) {
-        PyErr_Format(PyExc_ValueError, "%s: at most %zd values, got %zd", what, n_max, size);
-        Py_DECREF(fast);
-        return -1;
-    }
-    for (Py_ssize_t i = 0; i < size; i++) {
-        out[i] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(fast, i));
-        if (out[i] == -1.0 && PyErr_Occurred()) {
-            Py_DECREF(fast);
-            return -1;
-        }
-    }
-    *n = size;
-    Py_DECREF(fast);
-    return 0;
-}
-
 /* a law's derivative from (address of its law_jacobian, its parameters, its name[, address of its
  * law_stance_jacobian or 0]); on_system (NULL: not asked) gets the last, NULL where 0 or not given */
 static int
@@ -328,7 +306,7 @@ law_from(PyObject *spec, LawJacobian *law, LawStanceJacobian *on_system, double 
         if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "a law's jacobian address must not be 0");
         return -1;
     }
-    if (doubles(values, params, MAX_PARAMETERS, n_params, "a compiled law's parameters") < 0) return -1;
+    if (doubles(values, params, 0, MAX_PARAMETERS, "a compiled law's parameters", n_params) < 0) return -1;
     *name = PyUnicode_AsUTF8(label);
     if (*name == NULL) return -1;
     *law = (LawJacobian)fn;
