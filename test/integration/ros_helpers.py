@@ -225,6 +225,18 @@ class Client:
         return self.node_topics(name, namespace)
 
 
+def spin_while_running(client, predicate, timeout, what, procs):
+    """Spin ``client`` until ``predicate()`` is true: AssertionError after ``timeout`` s, or where one of ``procs``
+    has exited with a nonzero code first (one that ended with 0 has done its part), with their logs. (For
+    several processes, some of which end on their own: ``Client.spin_until`` watches one, which must stay up.)"""
+    end = time.monotonic() + timeout
+    while not predicate():
+        for p in procs:
+            assert p.proc.poll() in (None, 0) or predicate(), f"a process failed waiting for {what}:\n{p.output()}"
+        assert time.monotonic() < end, f"timed out waiting for {what}\n" + "\n".join(p.output() for p in procs)
+        client.spin_once(0.02)
+
+
 def bag_messages(bag) -> dict:
     """{topic: [(t_ns, decoded message)]} of a bag, read and decoded by rosbags."""
     from rosbags.rosbag2 import Reader

@@ -6,14 +6,13 @@ import os
 import re
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from ros_helpers import BIN, Client, bag_messages, ros_domain, ros_env, start_node  # noqa: E402
+from ros_helpers import BIN, Client, bag_messages, ros_domain, ros_env, spin_while_running, start_node  # noqa: E402
 
 pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
@@ -32,15 +31,6 @@ RABBIT_JOINTS = ["base_x", "base_y", "hip_1", "hip_2", "knee_1", "knee_2", "tors
 
 def _t(m):
     return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
-
-
-def _spin_until(client, predicate, timeout, what, procs):
-    end = time.monotonic() + timeout
-    while not predicate():
-        for p in procs:
-            assert p.proc.poll() in (None, 0) or predicate(), f"a process failed waiting for {what}:\n{p.output()}"
-        assert time.monotonic() < end, f"timed out waiting for {what}\n" + "\n".join(p.output() for p in procs)
-        client.spin_once(0.02)
 
 
 def _cli(*args, cwd=ROOT, env=None):
@@ -65,8 +55,8 @@ def test_rabbit_walks_in_lockstep_with_walk_controller_and_its_bag_resimulates(t
             markers = c.collect("/markers", MarkerArray, transient_local=False)
             c.wait_subscribed("/joint_states", proc=sim)
             with start_node(None, dom, executable="walk_controller", extra_args=args) as ctl:
-                _spin_until(c, lambda: js and _t(js[-1]) >= duration - 1e-9, 120, f"the state at t = {duration} s",
-                            [sim, ctl])
+                spin_while_running(c, lambda: js and _t(js[-1]) >= duration - 1e-9, 120,
+                                   f"the state at t = {duration} s", [sim, ctl])
                 assert ctl.stop() == 0
             assert sim.wait(30) == 0, sim.output()
             c.spin_once(0.1)
@@ -152,7 +142,7 @@ def test_a_users_urdf_robot_runs_through_the_node_with_its_own_controller_headle
                                     "-p", "joints:=[hip_1, hip_2, knee_1, knee_2]"], env=ros_env(dom),
                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
             try:
-                _spin_until(c, lambda: _t(js[-1]) >= 0.6 - 1e-9, 120, "the state at t = 0.6 s", [sim])
+                spin_while_running(c, lambda: _t(js[-1]) >= 0.6 - 1e-9, 120, "the state at t = 0.6 s", [sim])
                 assert sim.wait(30) == 0, sim.output()
             finally:       # (as ros_helpers.NodeProcess.stop: SIGTERM, SIGKILL after 15 s; its exit is not the check)
                 ctl.terminate()

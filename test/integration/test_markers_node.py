@@ -5,14 +5,13 @@ from __future__ import annotations
 import contextlib
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from ros_helpers import BIN, Client, Control, ros_domain, ros_env, start_node  # noqa: E402
+from ros_helpers import BIN, Client, Control, ros_domain, ros_env, spin_while_running, start_node  # noqa: E402
 
 pytest.importorskip("rclpy")
 from mcap.reader import make_reader  # noqa: E402
@@ -40,15 +39,6 @@ def ns(stamp):
     return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
-def _spin(client, predicate, timeout, what, procs):
-    end = time.monotonic() + timeout
-    while not predicate():
-        for p in procs:
-            assert p.proc.poll() in (None, 0) or predicate(), f"a process failed waiting for {what}:\n{p.output()}"
-        assert time.monotonic() < end, f"timed out waiting for {what}\n" + "\n".join(p.output() for p in procs)
-        client.spin_once(0.02)
-
-
 @pytest.fixture(scope="module")
 def walk_run(tmp_path_factory):
     """The walk scene for 1 s: sim_node recording to a bag, walk_controller, both as processes."""
@@ -65,9 +55,9 @@ def walk_run(tmp_path_factory):
         c.wait_subscribed("/markers", proc=sim)
         ctl = stack.enter_context(start_node({}, dom, executable="walk_controller", extra_args=scene_args("walk")))
         # the last state, and the markers of the last state (always sent at the end of a run)
-        _spin(c, lambda: js and ns(js[-1].header.stamp) >= round(duration * 1e9) and arrays
-              and ns(arrays[-1].markers[0].header.stamp) >= round(duration * 1e9), 120,
-              "the state and the markers at the end of the run", (sim, ctl))
+        spin_while_running(c, lambda: js and ns(js[-1].header.stamp) >= round(duration * 1e9) and arrays
+                           and ns(arrays[-1].markers[0].header.stamp) >= round(duration * 1e9), 120,
+                           "the state and the markers at the end of the run", (sim, ctl))
         assert sim.wait(30) == 0, sim.output()
         assert ctl.stop() == 0
     bags = [p for p in bag_dir.iterdir() if p.is_dir()]
@@ -193,7 +183,7 @@ def test_markers_beyond_what_the_machine_draws_get_advice_naming_marker_rate(tmp
         with start_node(dict(params, start_paused=True), dom) as sim:   # runs once the viewer is there
             c.wait_subscribed("/markers", proc=sim)
             assert Control(c, sim).pause(False).success
-            _spin(c, lambda: sim.proc.poll() is not None, 60, "the end of the run", (sim,))
+            spin_while_running(c, lambda: sim.proc.poll() is not None, 60, "the end of the run", (sim,))
         assert sim.wait() == 0 and arrays, sim.output()
         advice = [ln for ln in sim.output().splitlines() if "markers: drawing the robot" in ln]
         assert len(advice) == 1 and "[WARN]" in advice[0] and "at marker_rate=1000 Hz took" in advice[0], sim.output()
