@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from hypothesis import event, example, given, settings, strategies as st
+from test_generic_engine import _rabbit_on_foot_1
 
 import biped_sim as bs
 from biped_sim.analysis.edge_cases import on_both_loops, pd_walk_without_clearance, rocking_v, walk_that_scuffs
@@ -1054,15 +1055,6 @@ def test_a_described_robots_loop_refuses_what_it_cannot_run_in_one_line():
     with pytest.raises(ValueError, match=r"joints\[0\] is not an entry of q \(0\.\.6\)"):
         loop.set_kernels(table, [99] * model.m, "rabbit")
 
-
-
-def _rabbit_on_foot_1(lift=0.0):
-    """RABBIT on foot 1 at the origin (leg 2 bent, its foot 2 cm up), at rest; ``lift`` raises it."""
-    rabbit = bs.load_model("rabbit")
-    q = np.array([0.0, 0.0, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05])
-    q[:2] -= rabbit.contact_position(q, 1)
-    q[1] += lift
-    return rabbit, q, np.zeros(7)
 
 
 def assert_same_bits(a, b, what=""):
