@@ -23,10 +23,32 @@ def timed(run, repeats=7):
     return result, sorted(times)[repeats // 2]
 
 
-def main():
+def on_both_loops(run, repeats):
+    """(the run on the compiled loop, on the Python loop, their median wall times in s): ``run()`` timed on each
+    in alternation, ``repeats`` times."""
+    times, runs = {True: [], False: []}, {}
+    for _ in range(repeats):
+        for enabled in (True, False):
+            compiled_loop.enabled = enabled
+            try:
+                t0 = time.perf_counter()
+                runs[enabled] = run()
+                times[enabled].append(time.perf_counter() - t0)
+            finally:
+                compiled_loop.enabled = True
+    return runs[True], runs[False], sorted(times[True])[repeats // 2], sorted(times[False])[repeats // 2]
+
+
+def rabbit_on_foot_1():
+    """(RABBIT, q0): standing on foot 1 at the origin, leg 2 bent."""
     rabbit = bs.load_model("rabbit")
     q0 = np.array([0.0, 0.0, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05])
-    q0[:2] -= rabbit.contact_position(q0, "foot_1")     # standing on foot 1 at the origin, leg 2 bent
+    q0[:2] -= rabbit.contact_position(q0, "foot_1")
+    return rabbit, q0
+
+
+def main():
+    rabbit, q0 = rabbit_on_foot_1()
     r, wall = timed(lambda: bs.simulate(rabbit, q0, np.zeros(7), 0.2))
     print(f"RABBIT 0.2 s fall, u = 0: {r.status}, {[(e.kind, e.leg, round(e.time, 6)) for e in r.events]}, "
           f"{len(r.t)} samples, {r.stats['rhs_evaluations']} rhs evaluations, {wall * 1e3:.1f} ms (median of 7)")
@@ -52,28 +74,16 @@ def bench_rabbit_periods(periods=250, repeats=7):
     """The node's periods of RABBIT (advance_period with its 4 torques given, 1 ms, held: the engine alone) from
     standing on foot 1 until foot 2 lands, on the compiled loop and on the Python loop, alternating: us a period."""
     from biped_sim.engine.hybrid import HybridSimulator
-    rabbit = bs.load_model("rabbit")
-    q0 = np.array([0.0, 0.0, np.pi + 0.1, np.pi - 0.2, -0.05, 0.5, 0.05])
-    q0[:2] -= rabbit.contact_position(q0, "foot_1")
+    rabbit, q0 = rabbit_on_foot_1()
 
     def run():
         sim = HybridSimulator(rabbit, q0, np.zeros(7), stance_leg=1)
         for k in range(periods):
             sim.advance_period(1e-3, [0.0, 0.0, 5.0 * min(k / 100, 1.0), -2.0])
         return sim.result()
-    times, runs = {True: [], False: []}, {}
-    for _ in range(repeats):
-        for enabled in (True, False):
-            compiled_loop.enabled = enabled
-            try:
-                t0 = time.perf_counter()
-                runs[enabled] = run()
-                times[enabled].append(time.perf_counter() - t0)
-            finally:
-                compiled_loop.enabled = True
-    a, b = runs[True], runs[False]
+    a, b, ca, py = on_both_loops(run, repeats)
     same = all(np.array_equal(getattr(a, k), getattr(b, k)) for k in ("t", "q", "dq", "u", "grf"))
-    ca, py = (sorted(times[e])[repeats // 2] / periods * 1e6 for e in (True, False))
+    ca, py = ca / periods * 1e6, py / periods * 1e6
     print(f"RABBIT, {periods} node periods of 1 ms with its torques given ({a.status}, "
           f"{[(e.kind, e.leg) for e in a.events]}): compiled loop {ca:.1f} us a period, Python loop {py:.1f} us "
           f"({py / ca:.1f}x; medians of {repeats}, alternating); the same run bit for bit: {same}")
@@ -83,20 +93,9 @@ def bench_rabbit_loops(t_final=10.0, repeats=5):
     """The rabbit scene (its walking law called every 1 ms period, held) for t_final on the compiled loop and on the
     Python loop, alternating: their medians, and whether the two runs are the same bit for bit."""
     scene = bs.load_scene("rabbit")
-    times, runs = {True: [], False: []}, {}
-    for _ in range(repeats):
-        for enabled in (True, False):
-            compiled_loop.enabled = enabled
-            try:
-                t0 = time.perf_counter()
-                runs[enabled] = scene.simulate(hold=True, t_final=t_final)
-                times[enabled].append(time.perf_counter() - t0)
-            finally:
-                compiled_loop.enabled = True
-    a, b = runs[True], runs[False]
+    a, b, ca, py = on_both_loops(lambda: scene.simulate(hold=True, t_final=t_final), repeats)
     same = all(np.array_equal(getattr(a, k), getattr(b, k)) for k in ("t", "q", "dq", "u", "grf")) \
         and [e.time for e in a.events] == [e.time for e in b.events]
-    ca, py = sorted(times[True])[repeats // 2], sorted(times[False])[repeats // 2]
     # the walking law's own time: its calls of one run replayed alone, on the arguments the run gave it
     law, calls = scene.controller(), []
     scene.simulate(hold=True, t_final=t_final, controller=lambda t, q, dq, leg: (calls.append((t, q, dq, leg)),
