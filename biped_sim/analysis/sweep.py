@@ -271,10 +271,12 @@ def _what_ended(workers_seen) -> str:
     it has gone). The executor itself terminates the other workers (SIGTERM) once one has died: a
     worker ended otherwise is the one that broke the pool."""
     codes = {}
-    deadline = time.monotonic() + 1.0
-    while not codes and time.monotonic() < deadline:   # the pool breaks a moment before its sentinel reads
-        codes = {pid: p.exitcode for pid, p in workers_seen.items() if p.exitcode is not None}
-        time.sleep(0 if codes else 0.01)
+    deadline = time.monotonic() + 5.0
+    # the pool's own thread reads each worker's exit code as it ends the broken pool (terminate, then join):
+    # wait for it to have read them all
+    while len(codes) < len(workers_seen) and time.monotonic() < deadline:
+        codes = {pid: code for pid, p in workers_seen.items() if (code := _exit_code(p)) is not None}
+        time.sleep(0 if len(codes) == len(workers_seen) else 0.01)
     server_pid = getattr(getattr(_forkserver, "_forkserver", None), "_forkserver_pid", None) \
         if _popen_forkserver is not None else None
     deadline = time.monotonic() + 1.0
@@ -293,6 +295,15 @@ def _what_ended(workers_seen) -> str:
     if not culprits:
         return "a worker process ended (how is not known)"
     return "; ".join(f"worker pid {pid} {_exit_description(code)}" for pid, code in sorted(culprits.items()))
+
+
+def _exit_code(process):
+    """A pool worker's exit code as the pool's own thread has read it, else None. Not ``Process.exitcode``: that
+    polls, and a forked-by-the-fork-server worker's code comes once, on a pipe from the fork server; read here
+    and in the pool's thread at once, one of the two reads the end of the pipe instead, which multiprocessing
+    takes for exit code 255 (the fork server gone), and the last of the two to finish sets it."""
+    popen = getattr(process, "_popen", None)
+    return None if popen is None else popen.returncode
 
 
 def _how(status) -> str:
